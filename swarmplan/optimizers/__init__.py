@@ -1,0 +1,12 @@
+"""Metaheuristic optimizers with one interface: ``make(name, **params).minimize(cost, lower, upper, max_evals=...)``.
+
+Each family lives in its own module; importing this package registers them all.
+"""
+
+from swarmplan.optimizers.core import Optimizer, Problem, Result
+from swarmplan.optimizers.registry import available, defaults, make, register
+
+# Importing the family modules registers their algorithms.
+from swarmplan.optimizers import baselines  # noqa: E402,F401
+
+__all__ = ["Optimizer", "Problem", "Result", "available", "defaults", "make", "register"]

@@ -1,0 +1,208 @@
+"""Contracts shared by every optimizer: the budgeted problem, the result, the base class.
+
+Design (after pymoo): an algorithm proposes a whole population as one ``(n, d)`` array and
+the :class:`Problem` evaluates it in one call to the user's vectorized cost. All run state
+lives in the per-call ``state`` object an algorithm builds in :meth:`Optimizer.setup`; the
+optimizer object itself only holds its (immutable) parameters, so two ``minimize`` calls
+never interfere. Randomness comes from one ``np.random.Generator`` passed explicitly.
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+CostFn = Callable[[np.ndarray], np.ndarray]
+Callback = Callable[[int, np.ndarray, float], "bool | None"]
+
+
+class BudgetExhausted(Exception):
+    """Raised inside an iteration when ``max_evals`` is used up; the run then stops cleanly."""
+
+
+@dataclass(frozen=True)
+class Result:
+    """Outcome of one ``minimize`` call.
+
+    ``x`` is the best point ever evaluated and ``f`` its cost exactly as the cost function
+    returned it; ``history[k]`` is the best cost found up to the end of iteration ``k``
+    (iteration 0 is the initial population).
+    """
+
+    x: np.ndarray
+    f: float
+    evaluations: int
+    iterations: int
+    history: np.ndarray
+    wall_time: float
+    algorithm: str = ""
+
+
+class Problem:
+    """A cost function with box bounds and an evaluation budget.
+
+    ``evaluate`` clips candidates into the box (a guard: algorithms repair bounds their own
+    way first), evaluates at most the remaining budget of rows, and remembers the best point.
+    When the budget runs out mid-batch the rows that could not be evaluated get ``inf`` and
+    :class:`BudgetExhausted` is raised *after* the best point has been updated.
+    """
+
+    def __init__(self, cost: CostFn, lower: np.ndarray, upper: np.ndarray, max_evals: int):
+        self.cost = cost
+        self.lower = np.asarray(lower, dtype=float).reshape(-1)
+        self.upper = np.asarray(upper, dtype=float).reshape(-1)
+        if self.lower.shape != self.upper.shape:
+            raise ValueError(f"lower and upper differ in shape: {self.lower.shape} vs {self.upper.shape}")
+        if not np.all(np.isfinite(self.lower)) or not np.all(np.isfinite(self.upper)):
+            raise ValueError("lower and upper must be finite")
+        if np.any(self.lower > self.upper):
+            raise ValueError("every lower bound must be <= its upper bound")
+        if int(max_evals) < 1:
+            raise ValueError(f"max_evals must be >= 1, got {max_evals}")
+        self.dim = self.lower.size
+        self.span = self.upper - self.lower
+        self.max_evals = int(max_evals)
+        self.evaluations = 0
+        self.best_x: np.ndarray | None = None
+        self.best_f = np.inf
+
+    @property
+    def remaining(self) -> int:
+        return self.max_evals - self.evaluations
+
+    def clip(self, X: np.ndarray) -> np.ndarray:
+        return np.clip(X, self.lower, self.upper)
+
+    def uniform(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """``n`` points drawn uniformly in the box."""
+        return self.lower + rng.random((n, self.dim)) * self.span
+
+    def evaluate(self, X: np.ndarray) -> np.ndarray:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if X.shape[1] != self.dim:
+            raise ValueError(f"candidates have {X.shape[1]} columns, problem has {self.dim}")
+        n = len(X)
+        if self.remaining <= 0:
+            raise BudgetExhausted
+        k = min(n, self.remaining)
+        Xe = self.clip(X[:k])
+        fe = np.asarray(self.cost(Xe), dtype=float).reshape(-1)
+        if fe.shape != (k,):
+            raise ValueError(f"cost returned shape {fe.shape} for {k} candidates; expected ({k},)")
+        fe = np.where(np.isnan(fe), np.inf, fe)
+        self.evaluations += k
+        if k:
+            i = int(np.argmin(fe))
+            if fe[i] < self.best_f or self.best_x is None:
+                self.best_f = float(fe[i])
+                self.best_x = Xe[i].copy()
+        F = np.full(n, np.inf)
+        F[:k] = fe
+        if k < n:
+            raise BudgetExhausted
+        return F
+
+
+class Optimizer(ABC):
+    """Base class of every algorithm.
+
+    Subclasses declare ``name`` and ``defaults`` (the paper's recommended settings, and a
+    docstring citing equations), and implement :meth:`setup` (build and evaluate the
+    initial population, return a state object) and :meth:`iterate` (one generation).
+    """
+
+    name: ClassVar[str] = ""
+    defaults: ClassVar[Mapping[str, Any]] = {"population": 30}
+
+    def __init__(self, **params: Any):
+        unknown = sorted(set(params) - set(self.defaults))
+        if unknown:
+            known = ", ".join(sorted(self.defaults))
+            raise ValueError(f"{self.name}: unknown parameter(s) {', '.join(unknown)}; known: {known}")
+        merged = dict(self.defaults)
+        merged.update(params)
+        if int(merged["population"]) < 2:
+            raise ValueError(f"{self.name}: population must be >= 2, got {merged['population']}")
+        self.params: Mapping[str, Any] = merged
+        self.validate()
+
+    def validate(self) -> None:
+        """Check parameter values; raise ``ValueError`` naming the bad one."""
+
+    @property
+    def population(self) -> int:
+        return int(self.params["population"])
+
+    @abstractmethod
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> Any:
+        """Create, evaluate and return the initial run state."""
+
+    @abstractmethod
+    def iterate(self, state: Any, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
+        """Advance ``state`` by one generation (``iteration`` counts from 1)."""
+
+    def minimize(
+        self,
+        cost: CostFn,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        *,
+        max_evals: int,
+        seed: int | np.random.Generator | None = None,
+        x0: np.ndarray | None = None,
+        callback: Callback | None = None,
+    ) -> Result:
+        """Minimize ``cost`` over the box ``[lower, upper]`` with at most ``max_evals`` evaluations.
+
+        ``x0`` (``(d,)`` or ``(k, d)``) seeds the initial population. ``callback(iteration,
+        best_x, best_f)`` runs after every iteration; returning ``True`` stops the run.
+        """
+        start = time.perf_counter()
+        problem = Problem(cost, lower, upper, max_evals)
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        if x0 is not None:
+            x0 = problem.clip(np.atleast_2d(np.asarray(x0, dtype=float)))
+            if x0.shape[1] != problem.dim:
+                raise ValueError(f"x0 has {x0.shape[1]} columns, bounds have {problem.dim}")
+        history: list[float] = []
+        iteration = 0
+        try:
+            state = self.setup(problem, rng, x0)
+            history.append(problem.best_f)
+            while problem.remaining > 0:
+                iteration += 1
+                self.iterate(state, problem, rng, iteration)
+                history.append(problem.best_f)
+                if callback is not None and callback(iteration, problem.best_x.copy(), problem.best_f):
+                    break
+        except BudgetExhausted:
+            history.append(problem.best_f)
+        if problem.best_x is None:  # budget smaller than anything evaluated: impossible, but be explicit
+            raise RuntimeError(f"{self.name}: no point was evaluated")
+        return Result(
+            x=problem.best_x.copy(),
+            f=float(problem.best_f),
+            evaluations=problem.evaluations,
+            iterations=iteration,
+            history=np.asarray(history, dtype=float),
+            wall_time=time.perf_counter() - start,
+            algorithm=self.name,
+        )
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.params.items())
+        return f"{type(self).__name__}({args})"
+
+
+def initial_population(problem: Problem, rng: np.random.Generator, n: int, x0: np.ndarray | None) -> np.ndarray:
+    """``n`` uniform points in the box, the first rows replaced by ``x0`` when given."""
+    X = problem.uniform(rng, n)
+    if x0 is not None:
+        k = min(len(x0), n)
+        X[:k] = x0[:k]
+    return X
