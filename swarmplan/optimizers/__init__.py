@@ -3,10 +3,9 @@
 Each family lives in its own module; importing this package registers them all.
 """
 
+# Importing the family modules registers their algorithms.
+from swarmplan.optimizers import baselines, bat, central_force, fish_swarm, whale  # noqa: F401
 from swarmplan.optimizers.core import Optimizer, Problem, Result
 from swarmplan.optimizers.registry import available, defaults, make, register
-
-# Importing the family modules registers their algorithms.
-from swarmplan.optimizers import baselines  # noqa: E402,F401
 
 __all__ = ["Optimizer", "Problem", "Result", "available", "defaults", "make", "register"]

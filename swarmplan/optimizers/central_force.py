@@ -1,0 +1,1 @@
+"""Placeholder: filled in by the central_force family implementation."""
