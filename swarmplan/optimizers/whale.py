@@ -1,1 +1,379 @@
-"""Placeholder: filled in by the whale family implementation."""
+"""Whale family: the whale optimization algorithm (WOA) and RSCDWOA of paper 001.
+
+Paper 001: Zhang, Zhu, Li, Wang, "hybrid WOA for multi-agent dynamic planning" (RSCDWOA +
+APF). Section 2.2 (eqs 2-10) restates Mirjalili & Lewis's WOA; section 3 and Algorithm 1
+define RSCDWOA: chaotic coefficients (eqs 11-15), reverse search with secondary reflection
+(Properties 1-3, eq 16), and a differential-evolution stage with local and global donors on a
+ring neighbourhood (eqs 17-23) triggered by a stagnation "lifespan".
+
+Both algorithms are budgeted by evaluations, so the iteration ratio t / t_max of eq (6) is
+computed as ``evaluations used / max_evals`` at the start of each generation.
+
+Where the paper is ambiguous the reading chosen is stated in the class docstring.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.registry import register
+
+_TWO_PI = 2.0 * np.pi
+# Chaotic values are kept in [_CHAOS_EPS, 1 - _CHAOS_EPS]: the open interval (0, 1) of eq (13).
+_CHAOS_EPS = 1e-9
+
+
+# --------------------------------------------------------------------------- chaos maps
+
+
+def tent_map(w: np.ndarray, beta: float) -> np.ndarray:
+    """One step of the (skew) tent map, paper 001 eq (14)."""
+    return np.where(w < beta, w / beta, (1.0 - w) / (1.0 - beta))
+
+
+def logistic_map(w: np.ndarray, mu: float) -> np.ndarray:
+    """One step of the logistic map, paper 001 eq (13)."""
+    return mu * w * (1.0 - w)
+
+
+def chaos_step(w: np.ndarray, kind: str, beta: float, mu: float, rng: np.random.Generator) -> np.ndarray:
+    """Advance every chaotic sequence in ``w`` by one step, keeping them alive inside (0, 1).
+
+    In floating point a chaotic orbit can land on 0, on 1 (which maps to 0), or exactly on a
+    fixed point (tent: 1/(2-beta); logistic mu=4: 3/4) and then stay there forever. Such
+    sequences are restarted from a fresh uniform draw of ``rng``; this happens with
+    negligible probability and keeps eq (13)'s requirement w in (0, 1).
+    """
+    nxt = tent_map(w, beta) if kind == "tent" else logistic_map(w, mu)
+    dead = (nxt <= _CHAOS_EPS) | (nxt >= 1.0 - _CHAOS_EPS) | (nxt == w) | ~np.isfinite(nxt)
+    if dead.any():
+        nxt = np.where(dead, rng.uniform(_CHAOS_EPS, 1.0 - _CHAOS_EPS, w.shape), nxt)
+    return nxt
+
+
+def chaos_sequence(
+    length: int, kind: str = "tent", *, beta: float = 0.74, mu: float = 4.0, seed: int | None = 0
+) -> np.ndarray:
+    """The first ``length`` values of one chaotic sequence (for inspection and tests)."""
+    rng = np.random.default_rng(seed)
+    w = rng.uniform(_CHAOS_EPS, 1.0 - _CHAOS_EPS, 1)
+    out = np.empty(length)
+    for t in range(length):  # a chaotic orbit is intrinsically sequential
+        w = chaos_step(w, kind, beta, mu, rng)
+        out[t] = w[0]
+    return out
+
+
+# --------------------------------------------------------------------------- reverse search
+
+
+def secondary_reflection(rng: np.random.Generator, X: np.ndarray, lower: np.ndarray, upper: np.ndarray):
+    """Secondary reflection reverse points of the rows of ``X``, paper 001 Property 3 / eq (16).
+
+    ``x_r = r_d(x, h)`` with ``h = (l + u) / 2``: a normally distributed number in the interval
+    between ``x`` and the box centre ``h``. Reading: mean at the interval's midpoint, standard
+    deviation a sixth of its length (so +-3 sigma spans it), clipped into the interval. The
+    result always lies between ``x`` and ``h``, hence inside ``[lower, upper]``.
+    """
+    h = 0.5 * (lower + upper)
+    mid = 0.5 * (X + h)
+    half = 0.5 * np.abs(h - X)
+    Y = mid + (half / 3.0) * rng.standard_normal(X.shape)
+    return np.clip(Y, mid - half, mid + half)
+
+
+# --------------------------------------------------------------------------- WOA
+
+
+@dataclass
+class _WOAState:
+    X: np.ndarray  # whale positions (n, d)
+    F: np.ndarray  # their costs (n,)
+    best_x: np.ndarray  # X_*: best position found so far (the prey)
+    best_f: float
+
+
+def _other_index(rng: np.random.Generator, n: int) -> np.ndarray:
+    """For each i a uniformly random index in range(n) different from i."""
+    return (np.arange(n) + rng.integers(1, n, n)) % n
+
+
+def _woa_moves(
+    X: np.ndarray,
+    best: np.ndarray,
+    A: np.ndarray,
+    C: np.ndarray,
+    ell: np.ndarray,
+    encircling: np.ndarray,
+    b: float,
+    partner: np.ndarray,
+) -> np.ndarray:
+    """WOA position update for every whale at once, eqs (2)-(10).
+
+    Whales with ``encircling`` (q < 0.5 in eq 8) encircle (eqs 2-3) towards ``best`` when
+    |A| < 1, search for prey (eqs 9-10) towards the random whale ``partner`` when |A| >= 1;
+    the others take the bubble-net spiral (eq 7) ``D' e^{b ell} cos(2 pi ell) + X_*`` with
+    ``D' = |X_* - X_i|``.
+    """
+    explore = np.abs(A) >= 1.0
+    ref = np.where(explore[:, None], X[partner], best)
+    D = np.abs(C[:, None] * ref - X)
+    encircle = ref - A[:, None] * D
+    spiral = np.abs(best - X) * (np.exp(b * ell) * np.cos(_TWO_PI * ell))[:, None] + best
+    return np.where(encircling[:, None], encircle, spiral)
+
+
+@register
+class WOA(Optimizer):
+    """Whale optimization algorithm, paper 001 section 2.2 (Mirjalili & Lewis 2016).
+
+    Per generation every whale i draws A = 2 a r - a, C = 2 r (eqs 4-5), a spiral parameter
+    l ~ U(-1, 1) and q ~ U(0, 1), with ``a = 2 - 2 t / t_max`` (eq 6) decreasing linearly
+    from 2 to 0, here with t / t_max = evaluations used / max_evals. Then (eq 8):
+
+    * q < 0.5 and |A| < 1: encircling the prey, eqs (2)-(3): X = X_* - A |C X_* - X|;
+    * q < 0.5 and |A| >= 1: search for prey, eqs (9)-(10), the same move towards a randomly
+      chosen other whale X_rand instead of X_*;
+    * q >= 0.5: bubble-net spiral, eq (7): X = |X_* - X| e^{b l} cos(2 pi l) + X_*, b = 1.
+
+    Readings: A and C are scalars per whale (two independent draws r1, r2), as in the
+    reference implementation, which makes the test "|A| >= 1" of eqs (8)-(10) well defined.
+    All whales move synchronously from the same X_* and the new population is evaluated in
+    one batch; X_* is the best point found so far. Positions leaving the box are clipped
+    onto it (the reference implementation's repair). Population 30 (Mirjalili & Lewis).
+    """
+
+    name = "woa"
+    defaults = {"population": 30, "b": 1.0}
+
+    def validate(self) -> None:
+        b = self.params["b"]
+        if not np.isfinite(b):
+            raise ValueError(f"woa: b must be finite, got {b!r}")
+
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _WOAState:
+        X = initial_population(problem, rng, self.population, x0)
+        F = problem.evaluate(X)
+        i = int(np.argmin(F))
+        return _WOAState(X=X, F=F, best_x=X[i].copy(), best_f=float(F[i]))
+
+    def iterate(self, state: _WOAState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
+        n = len(state.X)
+        a = 2.0 - 2.0 * min(problem.evaluations / problem.max_evals, 1.0)  # eq (6)
+        r = rng.random((2, n))
+        A = 2.0 * a * r[0] - a  # eq (4)
+        C = 2.0 * r[1]  # eq (5)
+        ell = rng.uniform(-1.0, 1.0, n)  # spiral parameter l of eq (7)
+        q = rng.random(n)
+        Xn = _woa_moves(
+            state.X, state.best_x, A, C, ell, q < 0.5, float(self.params["b"]), _other_index(rng, n)
+        )
+        np.clip(Xn, problem.lower, problem.upper, out=Xn)
+        F = problem.evaluate(Xn)
+        state.X, state.F = Xn, F
+        i = int(np.argmin(F))
+        if F[i] < state.best_f:
+            state.best_f = float(F[i])
+            state.best_x = Xn[i].copy()
+
+
+# --------------------------------------------------------------------------- RSCDWOA
+
+
+@dataclass
+class _RSCDWOAState:
+    X: np.ndarray
+    F: np.ndarray
+    best_x: np.ndarray
+    best_f: float
+    w: np.ndarray  # (3, n) chaotic sequences driving A, C and the spiral parameter, per whale
+    s: int  # generations since X_* last improved (Algorithm 1, lines 3 and 32)
+
+
+@register
+class RSCDWOA(Optimizer):
+    """Reverse-search chaos differential-evolution WOA, paper 001 section 3 and Algorithm 1.
+
+    One generation, following Algorithm 1 (lines 8-33), for all whales at once:
+
+    1. Chaos (eqs 11-15): the random numbers of WOA are replaced by chaotic sequences w(t),
+       tent map (eq 14, ``beta`` = 0.74, section 5.2) or logistic map (eq 13, ``mu`` = 4):
+       A = 2 a w - a (eq 11), C = 2 w (eq 12), and the spiral becomes
+       X = D' e^{b w} cos(2 pi w) + X_* (eq 15). ``a`` falls linearly from 2 to 0 (eq 6) with
+       t / t_max = evaluations used / max_evals. q stays uniformly random.
+    2. q <= 0.5 and s < S: WOA encircling (eq 3) when |A| < 1, search for prey towards a
+       random whale (eqs 9-10) when |A| >= 1 (lines 10-15).
+    3. q <= 0.5 and s >= S (lifespan S exhausted, line 16): differential evolution (line 17-23):
+       local donor L (eq 18) from the best of the ring neighbourhood [i-k, i+k] and two
+       distinct neighbours p1, p2, with gamma = lambda * rand, lambda = 1e-4 (eq 17); global
+       donor G (eq 19) from the population best and two random whales r1 != r2 (!= i);
+       V = omega G + (1 - omega) L (eq 20); binomial crossover (eq 21) with one forced
+       coordinate chi; perturbation (eq 22) with per-coordinate probability alpha; greedy
+       selection (eq 23); then reverse search (eq 16): the secondary reflection reverse point
+       of the selected position replaces it when strictly better.
+    4. q > 0.5: chaotic bubble-net spiral, eq (15) (line 26).
+    5. Positions are clipped into the box (line 28), the batch is evaluated (line 29), X_* is
+       updated (line 30) and s is incremented when X_* did not improve (line 32).
+
+    Readings where the paper is ambiguous or silent:
+
+    * w(t): one chaotic sequence per whale for each of A, C and the spiral parameter (three
+      independent orbits, advanced once per generation, started from uniform draws), so the
+      whales do not all move with the same coefficients. A and C are scalars per whale.
+    * Lifespan: s counts *consecutive* generations without improvement of X_* and is reset
+      when X_* improves (Algorithm 1 shows only the increment; a counter that never resets
+      would switch the encircling branch to DE for good after S flat generations).
+      S = 3 (not given in the paper).
+    * Eq (21) as printed takes V when rand >= C_rate, which contradicts the text's remark that
+      the forced coordinate protects against a too *small* C_rate; the standard DE rule
+      (take V when rand <= C_rate or j = chi) is used, C_rate = 0.9.
+    * Eq (22) as printed swaps in the parent's own coordinate X_ij, which would make the
+      perturbation a no-op and break Lemma 2 (every state reachable). The perturbation vector
+      is read as a uniform random point of the box, swapped in per coordinate with
+      probability alpha = 0.01 ("a smaller number between 0 and 1", Remark 1).
+    * Eq (16), Property 3: see :func:`secondary_reflection` (normal between x and the box
+      centre). The reverse search is applied to the DE whales only, after their selection, as
+      Algorithm 1 places it (line 22-23); it costs a second, smaller evaluation batch.
+    * F = 0.5, omega = 0.5, ring radius k = 1 (the Fig. 4 example): not given in the paper.
+    * All whales move synchronously from the same X_* (Algorithm 1 updates X_* inside the
+      per-whale loop); this is what allows one evaluation batch per generation.
+
+    Note the reverse search pulls points towards the box centre, which favours problems whose
+    optimum is there (such as the unshifted sphere).
+    """
+
+    name = "rscdwoa"
+    defaults = {
+        "population": 30,
+        "b": 1.0,
+        "chaos": "tent",
+        "beta": 0.74,
+        "mu": 4.0,
+        "lifespan": 3,
+        "F": 0.5,
+        "C_rate": 0.9,
+        "omega": 0.5,
+        "alpha": 0.01,
+        "k": 1,
+        "lam": 1e-4,
+    }
+
+    def validate(self) -> None:
+        p = self.params
+        if p["chaos"] not in ("tent", "logistic"):
+            raise ValueError(f"rscdwoa: chaos must be 'tent' or 'logistic', got {p['chaos']!r}")
+        if not np.isfinite(p["b"]):
+            raise ValueError(f"rscdwoa: b must be finite, got {p['b']!r}")
+        if not 0.0 < p["beta"] < 1.0:
+            raise ValueError(f"rscdwoa: beta must be in (0, 1), got {p['beta']!r}")
+        if not 0.0 < p["mu"] <= 4.0:
+            raise ValueError(f"rscdwoa: mu must be in (0, 4], got {p['mu']!r}")
+        if int(p["lifespan"]) != p["lifespan"] or p["lifespan"] < 0:
+            raise ValueError(f"rscdwoa: lifespan must be an integer >= 0, got {p['lifespan']!r}")
+        if not np.isfinite(p["F"]) or p["F"] <= 0:
+            raise ValueError(f"rscdwoa: F must be > 0, got {p['F']!r}")
+        for key in ("C_rate", "omega", "alpha"):
+            if not 0.0 <= p[key] <= 1.0:
+                raise ValueError(f"rscdwoa: {key} must be in [0, 1], got {p[key]!r}")
+        if not np.isfinite(p["lam"]) or p["lam"] < 0:
+            raise ValueError(f"rscdwoa: lam must be >= 0, got {p['lam']!r}")
+        n = self.population
+        if n < 3:
+            raise ValueError(f"rscdwoa: population must be >= 3 (two distinct random whales), got {n}")
+        k = p["k"]
+        if int(k) != k or not 1 <= k <= (n - 1) // 2:
+            raise ValueError(f"rscdwoa: k must be an integer in [1, (population-1)//2], got {k!r}")
+
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _RSCDWOAState:
+        n = self.population
+        X = initial_population(problem, rng, n, x0)
+        w = rng.uniform(_CHAOS_EPS, 1.0 - _CHAOS_EPS, (3, n))
+        F = problem.evaluate(X)
+        i = int(np.argmin(F))
+        return _RSCDWOAState(X=X, F=F, best_x=X[i].copy(), best_f=float(F[i]), w=w, s=0)
+
+    def _de_trials(
+        self, state: _RSCDWOAState, idx: np.ndarray, problem: Problem, rng: np.random.Generator
+    ) -> np.ndarray:
+        """Trial vectors W (eqs 17-22) for the whales ``idx``."""
+        p = self.params
+        X, F = state.X, state.F
+        n, d = X.shape
+        m = len(idx)
+        Xi = X[idx]
+        k = int(p["k"])
+        # Ring neighbourhood [i-k, i+k] (Fig. 4) and its best member X_{i,best,l}.
+        nb = (idx[:, None] + np.arange(-k, k + 1)) % n
+        lbest = nb[np.arange(m), np.argmin(F[nb], axis=1)]
+        # p1 != p2 drawn from the neighbourhood.
+        pick = np.argsort(rng.random((m, 2 * k + 1)), axis=1)[:, :2]
+        p1 = nb[np.arange(m), pick[:, 0]]
+        p2 = nb[np.arange(m), pick[:, 1]]
+        g1 = p["lam"] * rng.random((m, d))  # eq (17)
+        g2 = p["lam"] * rng.random((m, d))
+        L = Xi + g1 * (X[lbest] - Xi) + g2 * (X[p1] - X[p2])  # eq (18)
+        # r1 != r2, both != i, from the whole population.
+        o1 = rng.integers(1, n, m)
+        o2 = rng.integers(1, n - 1, m)
+        o2 += o2 >= o1
+        r1, r2 = (idx + o1) % n, (idx + o2) % n
+        gbest = X[int(np.argmin(F))]
+        Fs = p["F"]
+        G = gbest + Fs * (gbest - Xi) + Fs * (X[r1] - X[r2])  # eq (19)
+        V = p["omega"] * G + (1.0 - p["omega"]) * L  # eq (20)
+        cross = rng.random((m, d)) <= p["C_rate"]  # eq (21), standard DE sense
+        cross[np.arange(m), rng.integers(0, d, m)] = True
+        U = np.where(cross, V, Xi)
+        alpha = p["alpha"]
+        if alpha > 0:  # eq (22): perturbation vector, a uniform point of the box
+            perturb = rng.random((m, d)) <= alpha
+            if perturb.any():
+                U = np.where(perturb, problem.uniform(rng, m), U)
+        return U
+
+    def iterate(
+        self, state: _RSCDWOAState, problem: Problem, rng: np.random.Generator, iteration: int
+    ) -> None:
+        p = self.params
+        n = len(state.X)
+        a = 2.0 - 2.0 * min(problem.evaluations / problem.max_evals, 1.0)  # eq (6)
+        state.w = chaos_step(state.w, p["chaos"], p["beta"], p["mu"], rng)  # eq (13) / (14)
+        wA, wC, wl = state.w
+        A = 2.0 * a * wA - a  # eq (11)
+        C = 2.0 * wC  # eq (12)
+        q = rng.random(n)
+        enc = q <= 0.5  # Algorithm 1 line 10
+        # eqs (3), (9)-(10) and the chaotic spiral (15)
+        Xn = _woa_moves(state.X, state.best_x, A, C, wl, enc, float(p["b"]), _other_index(rng, n))
+        de = enc & (state.s >= int(p["lifespan"]))
+        idx = np.flatnonzero(de)
+        if idx.size:
+            Xn[idx] = self._de_trials(state, idx, problem, rng)
+        np.clip(Xn, problem.lower, problem.upper, out=Xn)  # line 28
+        Fn = problem.evaluate(Xn)  # line 29
+        if idx.size:
+            keep = Fn[idx] > state.F[idx]  # eq (23): the trial wins ties
+            Xn[idx[keep]] = state.X[idx[keep]]
+            Fn[idx[keep]] = state.F[idx[keep]]
+        state.X, state.F = Xn, Fn
+        improved = self._update_best(state)
+        if idx.size:  # reverse search, eq (16), on the DE whales' selected positions
+            Xr = secondary_reflection(rng, Xn[idx], problem.lower, problem.upper)
+            Fr = problem.evaluate(Xr)
+            better = Fr < Fn[idx]
+            Xn[idx[better]] = Xr[better]
+            Fn[idx[better]] = Fr[better]
+            improved |= self._update_best(state)
+        state.s = 0 if improved else state.s + 1  # line 32
+
+    @staticmethod
+    def _update_best(state: _RSCDWOAState) -> bool:
+        i = int(np.argmin(state.F))
+        if state.F[i] < state.best_f:
+            state.best_f = float(state.F[i])
+            state.best_x = state.X[i].copy()
+            return True
+        return False
