@@ -1,0 +1,230 @@
+"""Command line: ``python -m swarmplan.replay RUN.mcap [options]``.
+
+Prints what the run was, the metrics recomputed from the recorded states and whether
+they agree with the recorded ``/summary``; optionally the state at a time, plots and an
+animation. Exit codes: 0 normally, 1 with ``--strict`` when metrics disagree with the
+summary, 2 when the file cannot be read (or an unknown agent is asked for).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from .metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
+from .recording import Recording, RecordingError, load
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="python -m swarmplan.replay",
+        description="Replay a swarmplan run log: run overview, recomputed metrics, plots, animation.",
+    )
+    ap.add_argument("log", help="run log (.mcap)")
+    ap.add_argument("--at", type=float, metavar="T", help="print the state at time T (nearest step)")
+    ap.add_argument("--agent", metavar="ID", help="only this agent")
+    ap.add_argument("--events", action="store_true", help="list the recorded events")
+    ap.add_argument("--plot", metavar="PNG", help="3D view of the run")
+    ap.add_argument("--plot-2d", metavar="PNG", help="top view of the run")
+    ap.add_argument("--curvature", metavar="PNG", help="curvature along each path vs time")
+    ap.add_argument("--convergence", metavar="PNG", help="optimizer convergence curves")
+    ap.add_argument("--animate", metavar="GIF|MP4", help="animated playback (.gif, or .mp4 with ffmpeg)")
+    ap.add_argument("--fps", type=float, default=10.0, help="animation frames per second (default 10)")
+    ap.add_argument("--max-frames", type=int, default=150, help="animation frame cap (default 150)")
+    ap.add_argument("--speed", type=float, default=None, help="animation sim-seconds per video second")
+    ap.add_argument("--strict", action="store_true", help="exit 1 when metrics disagree with /summary")
+    return ap
+
+
+def _f(v, fmt="{:.2f}", none="-") -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return none
+    return fmt.format(v)
+
+
+def describe(rec: Recording) -> list[str]:
+    w = rec.world
+    planner = w.get("planner") or {}
+    opt = planner.get("optimizer") or {}
+    lines = []
+    lines.append(
+        f"run: {w.get('name', '?')}  seed {w.get('seed', '?')}  optimizer {opt.get('name', '?')}"
+        f" (pop {opt.get('population', '?')}, iter {opt.get('iterations', '?')})"
+        f"  swarmplan {w.get('swarmplan_version', '?')}"
+    )
+    size = os.path.getsize(rec.path)
+    n_obst = len(rec.obstacles())
+    n_mov = len(rec.moving_obstacles())
+    t0 = rec.times[0] if rec.n_steps else 0.0
+    t1 = rec.times[-1] if rec.n_steps else 0.0
+    lines.append(
+        f"file: {rec.path} ({size / 1e6:.2f} MB)  {rec.n_steps} steps, t = {t0:.2f} .. {t1:.2f} s"
+        f" (dt {rec.dt:.3g} s, duration {rec.duration:.2f} s)"
+    )
+    b = w.get("bounds") or {}
+    lines.append(
+        f"world: {rec.n_agents} agents, {n_obst} obstacles ({n_mov} moving), "
+        f"{len(w.get('threats') or [])} threats, terrain peaks {len((w.get('terrain') or {}).get('peaks') or [])}, "
+        f"bounds {b.get('min')} .. {b.get('max')}"
+    )
+    kinds: dict[str, int] = {}
+    for e in rec.events:
+        kinds[str(e.get("kind"))] = kinds.get(str(e.get("kind")), 0) + 1
+    ev = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items())) or "none"
+    lines.append(f"events: {ev};  optimizer runs: {len(rec.optimizer_runs)}")
+    if rec.truncated:
+        lines.append(
+            "NOTICE: this file was cut short (no summary section/footer, e.g. the run was hard-killed);"
+            f" replaying the {rec.n_steps} steps up to its last complete chunk."
+        )
+    s = rec.summary
+    if s is None:
+        lines.append("recorded /summary: none")
+    else:
+        lines.append(
+            f"recorded /summary: success {s.get('success')}  interrupted {s.get('interrupted')}"
+            f"  sim_time {_f(s.get('sim_time'))} s  wall_time {_f(s.get('wall_time'))} s"
+        )
+        if s.get("interrupted"):
+            lines.append("NOTICE: the run was interrupted; the log holds every step up to the interruption.")
+    return lines
+
+
+def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
+    head = (
+        f"{'agent':<10} {'arrived':>7} {'t_arr':>8} {'path_m':>9} {'min_clear':>9} {'closest':<12}"
+        f" {'max_curv':>8} {'coll':>4} {'esc':>3} {'stuck':>5}"
+    )
+    out = [head]
+    for m in metrics:
+        out.append(
+            f"{m.id:<10} {('yes' if m.arrived else 'no'):>7} {_f(m.arrival_time):>8} {m.path_length:>9.2f}"
+            f" {_f(m.min_clearance, '{:.3f}'):>9} {str(m.closest_body or '-'):<12} {m.max_curvature:>8.4f}"
+            f" {m.collisions:>4} {m.escapes:>3} {m.stuck_events:>5}"
+        )
+        if m.collisions:
+            out.append(f"{'':<10} collided with: {', '.join(m.collision_bodies)}")
+    return out
+
+
+def state_at(rec: Recording, t: float, agents: list[int]) -> list[str]:
+    k = rec.step_at(t)
+    out = [f"state at t = {rec.times[k]:.3f} s (step {k}, nearest to {t:g})"]
+    for i in agents:
+        p, v = rec.positions[i, k], rec.velocities[i, k]
+        dist = float(np.linalg.norm(p - rec.goals[i]))
+        out.append(
+            f"  {rec.agent_ids[i]:<10} mode {rec.modes[i, k]:<9} pos [{p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}]"
+            f"  vel [{v[0]:.2f}, {v[1]:.2f}, {v[2]:.2f}] |v| {np.linalg.norm(v):.2f} m/s  to goal {dist:.2f} m"
+        )
+    for oid in rec.obstacle_tracks:
+        pos, q = rec.obstacle_poses(oid, np.array([rec.times[k]]))
+        out.append(
+            f"  obstacle {oid}: pos [{pos[0, 0]:.2f}, {pos[0, 1]:.2f}, {pos[0, 2]:.2f}]"
+            f"  quat [{', '.join(f'{x:.3f}' for x in q[0])}]"
+        )
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    t_start = time.perf_counter()
+    try:
+        rec = load(args.log)
+    except RecordingError as exc:
+        print(f"error: cannot read {args.log}: {exc}", file=sys.stderr)
+        return 2
+    except (OSError, ValueError) as exc:
+        print(f"error: cannot read {args.log}: {exc}", file=sys.stderr)
+        return 2
+    load_s = time.perf_counter() - t_start
+    if rec.n_steps == 0:
+        for line in describe(rec):
+            print(line)
+        print("no /agents/state steps recorded: nothing to replay")
+        return 0
+    if args.agent is not None:
+        try:
+            sel = [rec.agent_index(args.agent)]
+        except KeyError as exc:
+            print(f"error: {exc.args[0]}", file=sys.stderr)
+            return 2
+    else:
+        sel = list(range(rec.n_agents))
+
+    for line in describe(rec):
+        print(line)
+    print(f"(loaded in {load_s * 1000:.0f} ms)")
+    print()
+    metrics = compute_metrics(rec)
+    shown = [metrics[i] for i in sel]
+    print("metrics recomputed from the recorded states:")
+    for line in metrics_table(shown):
+        print("  " + line)
+    print()
+    disagreements: list[str] = []
+    if rec.summary is None:
+        print("no /summary recorded: nothing to compare with")
+    else:
+        disagreements, n = compare_with_summary(rec, shown, Tolerances())
+        if args.agent is not None:
+            disagreements = [d for d in disagreements if d.startswith(f"{args.agent}:")]
+        if not disagreements:
+            print(f"agreement with /summary: OK ({n} values compared within tolerance)")
+        else:
+            print(f"agreement with /summary: {len(disagreements)} DISAGREEMENT(S) ({n} values compared):")
+            for d in disagreements:
+                print(f"  - {d}")
+
+    if args.events:
+        print()
+        print("events:")
+        for e in rec.events:
+            if args.agent is not None and str(e.get("agent")) != args.agent:
+                continue
+            print(f"  t={float(e.get('t', 0)):8.2f}  {str(e.get('agent')):<10} {e.get('kind'):<13} {e.get('detail')}")
+    if args.at is not None:
+        print()
+        for line in state_at(rec, args.at, sel):
+            print(line)
+
+    agent_ids = [rec.agent_ids[i] for i in sel] if args.agent is not None else None
+    outputs = []
+    if args.plot or args.plot_2d or args.curvature or args.convergence:
+        from . import plots
+
+        if args.plot:
+            outputs.append(plots.save(plots.plot_3d(rec, agents=agent_ids), args.plot))
+        if args.plot_2d:
+            outputs.append(plots.save(plots.plot_top(rec, agents=agent_ids), args.plot_2d))
+        if args.curvature:
+            outputs.append(plots.save(plots.plot_curvature(rec, agents=agent_ids), args.curvature))
+        if args.convergence:
+            outputs.append(plots.save(plots.plot_convergence(rec, agents=agent_ids), args.convergence))
+    if args.animate:
+        from .animate import animate
+
+        outputs.append(
+            animate(
+                rec,
+                args.animate,
+                fps=args.fps,
+                max_frames=args.max_frames,
+                speed=args.speed,
+                agents=agent_ids,
+            )
+        )
+    for path in outputs:
+        print(f"wrote {path}")
+    if args.strict and disagreements:
+        return 1
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,145 @@
+"""Geometry conventions of the world contract, vectorised with numpy.
+
+Box ``size`` is full extents; ``rotation`` is [roll, pitch, yaw] in degrees with
+R = Rz(yaw) Ry(pitch) Rx(roll); cylinder and capsule axes are local z; capsule ``height``
+is the straight section; quaternions are [qx, qy, qz, qw]; inlined mesh ``vertices`` are
+in world coordinates.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+
+def euler_deg_to_matrix(rpy) -> np.ndarray:
+    r, p, y = (math.radians(float(a)) for a in (list(rpy) + [0, 0, 0])[:3])
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def euler_deg_to_quat(rpy) -> np.ndarray:
+    """[qx, qy, qz, qw] of R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = (math.radians(float(a)) / 2.0 for a in (list(rpy) + [0, 0, 0])[:3])
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return np.array(
+        [
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+            cr * cp * cy + sr * sp * sy,
+        ]
+    )
+
+
+def quat_to_matrix(q) -> np.ndarray:
+    """Rotation matrices from quaternions [qx, qy, qz, qw]: (4,) -> (3,3), (N,4) -> (N,3,3)."""
+    q = np.asarray(q, float)
+    single = q.ndim == 1
+    q = np.atleast_2d(q)
+    n = np.linalg.norm(q, axis=1, keepdims=True)
+    n[n == 0] = 1.0
+    x, y, z, w = (q / n).T
+    m = np.empty((len(q), 3, 3))
+    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    m[:, 0, 1] = 2 * (x * y - z * w)
+    m[:, 0, 2] = 2 * (x * z + y * w)
+    m[:, 1, 0] = 2 * (x * y + z * w)
+    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    m[:, 1, 2] = 2 * (y * z - x * w)
+    m[:, 2, 0] = 2 * (x * z - y * w)
+    m[:, 2, 1] = 2 * (y * z + x * w)
+    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return m[0] if single else m
+
+
+def primitive_distance(local: np.ndarray, obst: dict[str, Any]) -> np.ndarray | None:
+    """Signed distance from points (N,3) in the obstacle's frame to its surface (<0 inside).
+
+    Returns None for meshes and unknown shapes.
+    """
+    shape = obst.get("shape")
+    p = np.asarray(local, float)
+    if shape == "sphere":
+        return np.linalg.norm(p, axis=1) - float(obst["radius"])
+    if shape == "box":
+        half = np.asarray(obst["size"], float) / 2.0
+        q = np.abs(p) - half
+        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(np.max(q, axis=1), 0.0)
+    if shape == "cylinder":
+        r, h = float(obst["radius"]), float(obst["height"]) / 2.0
+        d = np.stack([np.linalg.norm(p[:, :2], axis=1) - r, np.abs(p[:, 2]) - h], axis=1)
+        return np.minimum(np.max(d, axis=1), 0.0) + np.linalg.norm(np.maximum(d, 0.0), axis=1)
+    if shape == "capsule":
+        r = float(obst["radius"])
+        h = float(obst.get("height", obst.get("length", 0.0))) / 2.0
+        axis = np.zeros_like(p)
+        axis[:, 2] = np.clip(p[:, 2], -h, h)
+        return np.linalg.norm(p - axis, axis=1) - r
+    return None
+
+
+class MeshDistance:
+    """Signed distance (<0 inside) to an inlined triangle mesh, via trimesh proximity.
+
+    Exact queries are costly, so :meth:`min_distance` prunes with the distance to the
+    mesh's bounding box (a lower bound) and only queries candidate points exactly.
+    """
+
+    def __init__(self, vertices, faces):
+        import trimesh
+
+        self.mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces, int), process=False)
+        self.lo, self.hi = self.mesh.bounds
+        self._watertight = bool(self.mesh.is_watertight)
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        import trimesh
+
+        pts = np.asarray(points, float).reshape(-1, 3)
+        if not len(pts):
+            return np.zeros(0)
+        if self._watertight:
+            return -trimesh.proximity.signed_distance(self.mesh, pts)
+        _, dist, _ = trimesh.proximity.closest_point(self.mesh, pts)
+        return dist
+
+    def box_lower_bound(self, points: np.ndarray) -> np.ndarray:
+        d = np.maximum(np.maximum(self.lo - points, points - self.hi), 0.0)
+        return np.linalg.norm(d, axis=1)
+
+    def distances_pruned(self, points: np.ndarray, batch: int = 64) -> np.ndarray:
+        """Distances of ``points`` (N,3): exact where the point can hold the minimum, a lower
+        bound (distance to the bounding box) elsewhere. The minimum of the result is exact, and
+        so is every entry <= 0 (contacts)."""
+        pts = np.asarray(points, float)
+        out = self.box_lower_bound(pts)
+        order = np.argsort(out, kind="stable")
+        best = math.inf
+        start = 0
+        while start < len(order):
+            cand = order[start : start + batch]
+            cand = cand[out[cand] <= max(best, 0.0)]
+            if not len(cand):
+                break
+            d = self.distance(pts[cand])
+            out[cand] = d
+            best = min(best, float(d.min()))
+            start += batch
+        return out
+
+
+def terrain_height(world: dict[str, Any], xy: np.ndarray) -> np.ndarray:
+    """z of the terrain height field (sum of Gaussian peaks) at points (N,2)."""
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    z = np.zeros(len(xy))
+    for pk in (world.get("terrain") or {}).get("peaks") or []:
+        cx, cy = pk["center"][:2]
+        sx, sy = (pk.get("spread") or [1, 1])[:2]
+        z += float(pk["height"]) * np.exp(-(((xy[:, 0] - cx) / sx) ** 2) - ((xy[:, 1] - cy) / sy) ** 2)
+    return z

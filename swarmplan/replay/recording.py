@@ -1,0 +1,285 @@
+"""Load a swarmplan run log (MCAP) into numpy arrays.
+
+Only the JSON analysis channels of the log contract (shared/spec/log-format.md) are
+decoded: ``/world``, ``/agents/state``, ``/obstacles/state``, ``/events``,
+``/optimizer`` and ``/summary``. Foxglove channels are skipped. A file cut short by a
+hard kill (no summary section, no footer) is read by streaming up to its last complete
+chunk and flagged ``truncated``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+TOPICS = ("/world", "/agents/state", "/obstacles/state", "/events", "/optimizer", "/summary")
+MODES = ("apf", "escape", "smoothing", "arrived", "collided", "failed")
+
+
+class RecordingError(Exception):
+    """The file cannot be read as a swarmplan run log."""
+
+
+@dataclass
+class ObstacleTrack:
+    """Pose of one moving obstacle over time (its own sample times)."""
+
+    id: str
+    times: np.ndarray  # (K,)
+    positions: np.ndarray  # (K, 3)
+    orientations: np.ndarray  # (K, 4) quaternions [qx, qy, qz, qw]
+
+    def at(self, times: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (linear interpolation) and orientations (nearest sample) at ``times``."""
+        t = np.atleast_1d(np.asarray(times, float))
+        if len(self.times) == 0:
+            raise ValueError(f"obstacle {self.id}: empty track")
+        pos = np.stack([np.interp(t, self.times, self.positions[:, i]) for i in range(3)], axis=1)
+        idx = np.clip(np.searchsorted(self.times, t), 0, len(self.times) - 1)
+        prev = np.clip(idx - 1, 0, len(self.times) - 1)
+        use_prev = np.abs(self.times[prev] - t) < np.abs(self.times[idx] - t)
+        idx = np.where(use_prev, prev, idx)
+        return pos, self.orientations[idx]
+
+
+@dataclass
+class Recording:
+    """Everything a run log holds, as arrays. Agent axis first: ``positions[a, k]``."""
+
+    path: str
+    world: dict[str, Any]
+    times: np.ndarray  # (T,) simulation time of each /agents/state step, s
+    agent_ids: list[str]
+    positions: np.ndarray  # (A, T, 3), NaN where an agent is absent from a step
+    velocities: np.ndarray  # (A, T, 3)
+    modes: np.ndarray  # (A, T) str ('' where absent)
+    goals: np.ndarray  # (A, 3)
+    radii: np.ndarray  # (A,)
+    obstacle_tracks: dict[str, ObstacleTrack] = field(default_factory=dict)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    optimizer_runs: list[dict[str, Any]] = field(default_factory=list)
+    summary: dict[str, Any] | None = None
+    truncated: bool = False
+    topic_counts: dict[str, int] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def n_agents(self) -> int:
+        return len(self.agent_ids)
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.times)
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1] - self.times[0]) if len(self.times) else 0.0
+
+    @property
+    def dt(self) -> float:
+        if len(self.times) < 2:
+            return float((self.world.get("sim") or {}).get("dt", 0.0) or 0.0)
+        return float(np.median(np.diff(self.times)))
+
+    @property
+    def goal_tolerance(self) -> float:
+        return float((self.world.get("sim") or {}).get("goal_tolerance", 0.0) or 0.0)
+
+    @property
+    def interrupted(self) -> bool:
+        return bool(self.summary and self.summary.get("interrupted"))
+
+    def agent_index(self, agent_id: str) -> int:
+        try:
+            return self.agent_ids.index(str(agent_id))
+        except ValueError:
+            raise KeyError(f"no agent {agent_id!r} (agents: {', '.join(self.agent_ids)})") from None
+
+    def step_at(self, t: float) -> int:
+        """Index of the recorded step nearest to time ``t``."""
+        if not len(self.times):
+            raise ValueError("recording has no steps")
+        return int(np.argmin(np.abs(self.times - float(t))))
+
+    def obstacles(self) -> list[dict[str, Any]]:
+        return list(self.world.get("obstacles") or [])
+
+    def static_obstacles(self) -> list[dict[str, Any]]:
+        return [o for o in self.obstacles() if not o.get("motion")]
+
+    def moving_obstacles(self) -> list[dict[str, Any]]:
+        return [o for o in self.obstacles() if o.get("motion")]
+
+    def obstacle_poses(self, oid: str, times: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (K,3) and quaternions (K,4) of obstacle ``oid`` at ``times`` (default: steps).
+
+        Static obstacles (or moving ones without a recorded track) give their world pose.
+        """
+        t = self.times if times is None else np.atleast_1d(np.asarray(times, float))
+        track = self.obstacle_tracks.get(oid)
+        if track is not None and len(track.times):
+            return track.at(t)
+        obst = next((o for o in self.obstacles() if o.get("id") == oid), None)
+        if obst is None:
+            raise KeyError(f"no obstacle {oid!r}")
+        from .geometry import euler_deg_to_quat
+
+        pos = np.tile(np.asarray(obst.get("position", [0, 0, 0]), float), (len(t), 1))
+        quat = np.tile(euler_deg_to_quat(obst.get("rotation") or [0, 0, 0]), (len(t), 1))
+        return pos, quat
+
+
+# ---------------------------------------------------------------------- reading
+
+
+def _read_indexed(path: str) -> dict[str, list[tuple[int, bytes]]]:
+    from mcap.reader import make_reader
+
+    out: dict[str, list[tuple[int, bytes]]] = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        for _schema, channel, message in reader.iter_messages(topics=list(TOPICS), log_time_order=False):
+            out.setdefault(channel.topic, []).append((message.log_time, message.data))
+    return out
+
+
+def _read_streaming(path: str) -> dict[str, list[tuple[int, bytes]]]:
+    """Read every complete record; stop silently at the first incomplete one."""
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import StreamReader
+
+    out: dict[str, list[tuple[int, bytes]]] = {}
+    topics: dict[int, str] = {}
+    with open(path, "rb") as f:
+        try:
+            for rec in StreamReader(f, skip_magic=False).records:
+                if isinstance(rec, Channel):
+                    topics[rec.id] = rec.topic
+                elif isinstance(rec, Message):
+                    topic = topics.get(rec.channel_id)
+                    if topic in TOPICS:
+                        out.setdefault(topic, []).append((rec.log_time, rec.data))
+        except Exception:  # noqa: BLE001 - a cut file ends with a partial record
+            pass
+    return out
+
+
+def _decode(items: list[tuple[int, bytes]]) -> list[dict[str, Any]]:
+    res = []
+    for _log_time, data in items:
+        try:
+            msg = json.loads(data)
+        except ValueError:
+            continue
+        if isinstance(msg, dict):
+            res.append(msg)
+    return res
+
+
+def load(path: str | Path) -> Recording:
+    """Read a run log. Raises :class:`RecordingError` when it is not a readable swarmplan log."""
+    path = str(path)
+    if not Path(path).is_file():
+        raise RecordingError(f"{path}: no such file")
+    truncated = False
+    try:
+        raw = _read_indexed(path)
+    except Exception:  # noqa: BLE001 - missing footer/summary: try streaming
+        truncated = True
+        try:
+            raw = _read_streaming(path)
+        except Exception as exc:  # noqa: BLE001
+            raise RecordingError(f"{path}: not an MCAP file ({exc})") from None
+    if not raw:
+        with open(path, "rb") as f:
+            head = f.read(8)
+        if not head.startswith(b"\x89MCAP"):
+            raise RecordingError(f"{path}: not an MCAP file")
+        raise RecordingError(f"{path}: no swarmplan channels ({', '.join(TOPICS)}) found")
+    if "/world" not in raw:
+        raise RecordingError(f"{path}: no /world message (not a swarmplan run log?)")
+    worlds = _decode(raw["/world"])
+    if not worlds:
+        raise RecordingError(f"{path}: /world message is not a JSON object")
+    world = worlds[0]
+
+    states = _decode(raw.get("/agents/state", []))
+    states.sort(key=lambda m: float(m.get("t", 0.0)))
+    agent_ids = [str(a["id"]) for a in world.get("agents") or [] if "id" in a]
+    for msg in states:
+        for a in msg.get("agents", []):
+            if str(a.get("id")) not in agent_ids:
+                agent_ids.append(str(a.get("id")))
+    index = {aid: i for i, aid in enumerate(agent_ids)}
+    n_a, n_t = len(agent_ids), len(states)
+    times = np.array([float(m.get("t", math.nan)) for m in states], float)
+    positions = np.full((n_a, n_t, 3), np.nan)
+    velocities = np.full((n_a, n_t, 3), np.nan)
+    modes = np.full((n_a, n_t), "", dtype=object)
+    goals = np.full((n_a, 3), np.nan)
+    radii = np.zeros(n_a)
+    defaults = world.get("agent_defaults") or {}
+    for a in world.get("agents") or []:
+        i = index.get(str(a.get("id")))
+        if i is None:
+            continue
+        if a.get("goal") is not None:
+            goals[i] = np.asarray(a["goal"], float)[:3]
+        radii[i] = float(a.get("radius", defaults.get("radius", 0.0)) or 0.0)
+    for k, msg in enumerate(states):
+        for a in msg.get("agents", []):
+            i = index[str(a.get("id"))]
+            if a.get("position") is not None:
+                positions[i, k] = a["position"][:3]
+            if a.get("velocity") is not None:
+                velocities[i, k] = a["velocity"][:3]
+            modes[i, k] = str(a.get("mode", ""))
+            if np.isnan(goals[i]).any() and a.get("goal") is not None:
+                goals[i] = np.asarray(a["goal"], float)[:3]
+    modes = modes.astype(str)
+
+    tracks: dict[str, dict[str, list]] = {}
+    for msg in _decode(raw.get("/obstacles/state", [])):
+        t = float(msg.get("t", math.nan))
+        for o in msg.get("obstacles", []):
+            tr = tracks.setdefault(str(o.get("id")), {"t": [], "p": [], "q": []})
+            tr["t"].append(t)
+            tr["p"].append(o.get("position", [math.nan] * 3)[:3])
+            tr["q"].append((o.get("orientation") or [0.0, 0.0, 0.0, 1.0])[:4])
+    obstacle_tracks = {}
+    for oid, tr in tracks.items():
+        order = np.argsort(np.asarray(tr["t"], float), kind="stable")
+        obstacle_tracks[oid] = ObstacleTrack(
+            oid,
+            np.asarray(tr["t"], float)[order],
+            np.asarray(tr["p"], float).reshape(-1, 3)[order],
+            np.asarray(tr["q"], float).reshape(-1, 4)[order],
+        )
+
+    events = _decode(raw.get("/events", []))
+    events.sort(key=lambda e: float(e.get("t", 0.0)))
+    optimizer_runs = _decode(raw.get("/optimizer", []))
+    optimizer_runs.sort(key=lambda e: float(e.get("t", 0.0)))
+    summaries = _decode(raw.get("/summary", []))
+    return Recording(
+        path=path,
+        world=world,
+        times=times,
+        agent_ids=agent_ids,
+        positions=positions,
+        velocities=velocities,
+        modes=modes,
+        goals=goals,
+        radii=radii,
+        obstacle_tracks=obstacle_tracks,
+        events=events,
+        optimizer_runs=optimizer_runs,
+        summary=summaries[-1] if summaries else None,
+        truncated=truncated,
+        topic_counts={k: len(v) for k, v in raw.items()},
+    )
