@@ -1,0 +1,259 @@
+"""Contract tests for every registered optimizer (parametrized over ``available()``).
+
+Whatever algorithm gets registered is covered automatically: determinism, bounds, the
+evaluation budget, the result/history contract, inf costs, ``x0``, no run state on the
+optimizer object, error messages, and beating random search on sphere and Rastrigin.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmplan.bench.functions import rastrigin, sphere
+from swarmplan.optimizers import available, defaults, make
+
+ALGORITHMS = available()
+NON_RANDOM = [a for a in ALGORITHMS if a != "random"]
+
+# An asymmetric box, different per dimension, so bound bugs (e.g. using lower[0]) show.
+LOWER = np.array([-5.0, 0.0, 10.0, -1.0, -100.0])
+UPPER = np.array([5.0, 1.0, 30.0, 3.0, -50.0])
+CENTRE = 0.5 * (LOWER + UPPER)
+TARGET = LOWER + 0.71 * (UPPER - LOWER)  # optimum away from the box centre
+
+
+def shifted_sphere(X: np.ndarray) -> np.ndarray:
+    D = (X - TARGET) / (UPPER - LOWER)
+    return np.sum(D * D, axis=1)
+
+
+class Recorder:
+    """Wraps a cost, records every row passed to it."""
+
+    def __init__(self, fn=shifted_sphere):
+        self.fn = fn
+        self.rows: list[np.ndarray] = []
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X)
+        assert X.ndim == 2, f"cost got an array of shape {X.shape}, expected (n, d)"
+        self.rows.append(X.copy())
+        return self.fn(X)
+
+    @property
+    def all(self) -> np.ndarray:
+        return np.concatenate(self.rows) if self.rows else np.empty((0, LOWER.size))
+
+
+def run(name: str, cost=shifted_sphere, *, max_evals: int = 600, seed=1, **kw):
+    return make(name).minimize(cost, LOWER, UPPER, max_evals=max_evals, seed=seed, **kw)
+
+
+def same_result(a, b) -> bool:
+    return (
+        np.array_equal(a.x, b.x)
+        and a.f == b.f
+        and a.evaluations == b.evaluations
+        and a.iterations == b.iterations
+        and np.array_equal(a.history, b.history)
+    )
+
+
+def test_registry_has_algorithms():
+    assert "random" in ALGORITHMS
+    assert ALGORITHMS == sorted(ALGORITHMS)
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_same_seed_same_result(name):
+    a, b = run(name, seed=123), run(name, seed=123)
+    assert same_result(a, b)
+    # a Generator as seed is accepted and equivalent to the int seed
+    c = run(name, seed=np.random.default_rng(123))
+    assert same_result(a, c)
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_different_seeds_differ(name):
+    a, b = run(name, seed=1), run(name, seed=2)
+    assert not np.array_equal(a.x, b.x)
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_points_within_bounds(name):
+    rec = Recorder()
+    res = run(name, rec, max_evals=800)
+    X = rec.all
+    assert np.all(np.isfinite(X))
+    assert np.all(X >= LOWER) and np.all(X <= UPPER), (
+        f"{name}: out-of-box rows, min {X.min(axis=0)} max {X.max(axis=0)}"
+    )
+    assert np.all(res.x >= LOWER) and np.all(res.x <= UPPER)
+
+
+@pytest.mark.parametrize("budget", [1, 7, 101, 250])
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_budget_is_respected(name, budget):
+    rec = Recorder()
+    # population 13 divides none of the budgets
+    res = make(name, population=13).minimize(rec, LOWER, UPPER, max_evals=budget, seed=5)
+    rows = len(rec.all)
+    assert rows <= budget, f"{name}: {rows} rows evaluated with max_evals={budget}"
+    assert res.evaluations == rows
+    assert res.evaluations == budget  # every algorithm should use its whole budget
+    assert np.isfinite(res.f)
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_result_contract(name):
+    rec = Recorder()
+    res = run(name, rec, max_evals=500)
+    assert res.x.shape == LOWER.shape
+    assert res.f == shifted_sphere(res.x[None])[0]
+    # f is the best value ever returned by the cost
+    assert res.f == min(float(np.min(shifted_sphere(X))) for X in rec.rows)
+    h = res.history
+    assert len(h) == res.iterations + 1
+    assert np.all(h[1:] <= h[:-1]), f"{name}: history increases: {h}"
+    assert h[-1] == res.f
+    assert res.wall_time >= 0
+    assert res.algorithm == name
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_inf_costs_are_handled(name):
+    def half_inf(X):
+        f = shifted_sphere(X)
+        return np.where(X[:, 0] > CENTRE[0], np.inf, f)  # whole half of the box infeasible
+
+    res = run(name, half_inf, max_evals=600)
+    assert np.isfinite(res.f)
+    assert res.x[0] <= CENTRE[0]
+    assert res.f == half_inf(res.x[None])[0]
+    assert np.all(res.history[1:] <= res.history[:-1])
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_nan_costs_are_handled(name):
+    def some_nan(X):
+        f = shifted_sphere(X)
+        return np.where(X[:, 1] > 0.8, np.nan, f)
+
+    res = run(name, some_nan, max_evals=600)
+    assert np.isfinite(res.f)
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_x0_is_used(name):
+    x0 = TARGET.copy()
+    res = run(name, max_evals=200, x0=x0)
+    assert res.f <= shifted_sphere(x0[None])[0]
+    assert res.f == 0.0
+    # several starting points are accepted too
+    res2 = run(name, max_evals=200, x0=np.stack([CENTRE, TARGET]))
+    assert res2.f == 0.0
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_callback_can_stop(name):
+    calls = []
+
+    def cb(it, x, f):
+        calls.append((it, f))
+        return it >= 3
+
+    res = run(name, max_evals=10_000, callback=cb)
+    assert res.iterations == 3
+    assert [c[0] for c in calls] == [1, 2, 3]
+    assert res.evaluations < 10_000
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_no_run_state_on_the_optimizer(name):
+    """A minimize call nested inside another one's cost does not disturb either."""
+    opt = make(name)
+    alone_a = opt.minimize(shifted_sphere, LOWER, UPPER, max_evals=400, seed=11)
+    alone_b = opt.minimize(rastrigin_box, LOWER, UPPER, max_evals=300, seed=22)
+    inner = []
+
+    def cost_a(X):
+        if len(inner) < 2:  # interleave twice: after the initial population and mid-run
+            inner.append(opt.minimize(rastrigin_box, LOWER, UPPER, max_evals=300, seed=22))
+        return shifted_sphere(X)
+
+    outer = opt.minimize(cost_a, LOWER, UPPER, max_evals=400, seed=11)
+    assert same_result(outer, alone_a)
+    assert all(same_result(r, alone_b) for r in inner)
+    # and the object is still usable with the same outcome afterwards
+    assert same_result(opt.minimize(shifted_sphere, LOWER, UPPER, max_evals=400, seed=11), alone_a)
+
+
+def rastrigin_box(X):
+    return rastrigin((X - TARGET) / (UPPER - LOWER) * 5.0)
+
+
+def test_unknown_name_names_known_ones():
+    with pytest.raises(ValueError) as e:
+        make("no-such-optimizer")
+    msg = str(e.value)
+    assert "no-such-optimizer" in msg
+    for name in ALGORITHMS:
+        assert name in msg
+    with pytest.raises(ValueError):
+        defaults("no-such-optimizer")
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_unknown_param_names_known_ones(name):
+    with pytest.raises(ValueError) as e:
+        make(name, no_such_parameter=1)
+    msg = str(e.value)
+    assert "no_such_parameter" in msg
+    for p in defaults(name):
+        assert p in msg
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_defaults_are_accepted(name):
+    d = defaults(name)
+    assert "population" in d
+    opt = make(name, **d)
+    assert dict(opt.params) == d
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_bad_population_rejected(name):
+    with pytest.raises(ValueError):
+        make(name, population=1)
+
+
+# --- beats random search ----------------------------------------------------------------------
+D = 10
+BUDGET = 10_000  # 1000 d
+SEEDS = range(7)
+_random_cache: dict[str, list[float]] = {}
+
+
+def _finals(name: str, fn_name: str) -> list[float]:
+    fn, (lo, hi) = {"sphere": (sphere, (-100.0, 100.0)), "rastrigin": (rastrigin, (-5.12, 5.12))}[fn_name]
+    # shift the optimum away from the origin (box centre) so centre-seeking gets no free win
+    shift = np.linspace(0.15, 0.35, D) * (hi - lo) * np.where(np.arange(D) % 2, 1, -1)
+
+    def cost(X):
+        return fn(X - shift)
+
+    lower, upper = np.full(D, lo), np.full(D, hi)
+    return [make(name).minimize(cost, lower, upper, max_evals=BUDGET, seed=s).f for s in SEEDS]
+
+
+@pytest.mark.parametrize("fn_name", ["sphere", "rastrigin"])
+@pytest.mark.parametrize("name", NON_RANDOM)
+def test_beats_random_search(name, fn_name):
+    if fn_name not in _random_cache:
+        _random_cache[fn_name] = _finals("random", fn_name)
+    rnd = _random_cache[fn_name]
+    ours = _finals(name, fn_name)
+    # deterministic (fixed seeds, so not flaky): median of 7 runs below random search's median
+    msg = f"{name} on shifted {fn_name}: {np.round(ours, 3)} vs random {np.round(rnd, 3)}"
+    assert np.median(ours) < np.median(rnd), msg
