@@ -1,1 +1,359 @@
-"""Placeholder: filled in by the fish_swarm family implementation."""
+"""Artificial fish swarm (AFSA) and the improved AFSA (IAFSA) of paper 002 (section 3).
+
+Every fish runs, each generation, the swarming behaviour (eqs 19-20) and the following
+behaviour (eq 18; eqs 29-31 in IAFSA); a behaviour that is not possible (no fish in view,
+the view is crowded, ``n_f / n >= delta``, or the target is not better) falls back to preying
+(eqs 16-17), which after ``try_number`` failed tries falls back to a random step (eq 21).
+The fish then takes the better of its swarming and following outcomes (Algorithm A1 line 16).
+
+Batching: all behaviours are computed for all fish at once. One generation makes at most
+three ``evaluate`` calls: the swarm centres; every prey try of every fish that needs to prey,
+as one ``(k * try_number, d)`` batch; and all the resulting moves.
+
+Readings chosen where paper 002 is ambiguous:
+
+* All fish geometry is done in unit-box coordinates ``u = (x - lower) / (upper - lower)``, and
+  ``visual`` / ``step`` / ``V0`` are fractions of the box width. The paper's CEC2020 settings
+  (box ``[-100, 100]``, ``Visual = V0 = 50``, ``Step = 6``) become ``0.25`` and ``0.03``.
+* ``rand(0, 1)`` in eqs 16 and 21 is read as a per-coordinate uniform in ``[-1, 1]`` (the
+  classic AFSA; with ``[0, 1]`` fish could only ever move towards larger coordinates). In eqs
+  17, 18 and 20 ``rand(0, 1)`` is one uniform in ``[0, 1]`` per fish (it scales the step
+  length along the unit direction).
+* Prey tries are drawn and evaluated all at once; the fish moves towards its *first* better
+  try (the paper's sequential rule), and every try counts against the budget.
+* Swarming and following share one prey outcome per fish when either of them falls back.
+  The fish always moves to the better of the two outcomes, even if it is worse than its
+  current position (classic AFSA; the best point is kept separately, the "bulletin board").
+* The centre ``X_c`` of eq 19 is the mean of the ``n_f`` fish in view; the crowding test is
+  ``n_f / n < delta`` with ``n`` the population size, for swarming and following alike.
+* Points leaving the box are clipped to it (the paper has no repair rule).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.registry import register
+
+
+@dataclass
+class _FishState:
+    U: np.ndarray  # fish positions in unit-box coordinates, (n, d)
+    F: np.ndarray  # their costs, (n,)
+    best_U: np.ndarray  # best position seen (the "bulletin board"), unit box
+    best_F: float
+    stagnation: int = 0  # generations without improvement of best_F (IAFSA's AER trigger)
+
+
+def _to_unit(problem: Problem, X: np.ndarray) -> np.ndarray:
+    span = np.where(problem.span > 0, problem.span, 1.0)
+    return (X - problem.lower) / span
+
+
+def _to_box(problem: Problem, U: np.ndarray) -> np.ndarray:
+    return np.clip(problem.lower + U * problem.span, problem.lower, problem.upper)
+
+
+def _unit_rows(V: np.ndarray) -> np.ndarray:
+    """Rows of ``V`` scaled to length 1 (zero rows stay zero)."""
+    norm = np.linalg.norm(V, axis=1, keepdims=True)
+    return np.divide(V, norm, out=np.zeros_like(V), where=norm > 1e-300)
+
+
+def neighbours(U: np.ndarray, visual: np.ndarray | float) -> np.ndarray:
+    """``mask[i, j]``: fish ``j != i`` is within fish ``i``'s visual range (``d_ij <= visual_i``)."""
+    sq = np.einsum("ij,ij->i", U, U)
+    dist = np.sqrt(np.maximum(sq[:, None] + sq[None, :] - 2.0 * (U @ U.T), 0.0))
+    vis = np.broadcast_to(np.asarray(visual, dtype=float), (len(U),))
+    mask = dist <= vis[:, None]
+    np.fill_diagonal(mask, False)
+    return mask
+
+
+def swarm_centres(U: np.ndarray, mask: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Eq 19 centres of the fish in view and whether swarming may be tried.
+
+    Returns ``(centres, allowed)``: ``allowed[i]`` is true when fish ``i`` sees at least one fish
+    and its view is not crowded (``n_f / n < delta``); ``centres[i]`` is meaningful only then.
+    """
+    nf = mask.sum(axis=1)
+    allowed = (nf > 0) & (nf / len(U) < delta)
+    centres = (mask @ U) / np.maximum(nf, 1)[:, None]
+    return centres, allowed
+
+
+def best_in_view(F: np.ndarray, mask: np.ndarray, delta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Following (eq 18): index of the best fish in view and whether following may be tried."""
+    nf = mask.sum(axis=1)
+    masked = np.where(mask, F[None, :], np.inf)
+    j = np.argmin(masked, axis=1)
+    allowed = (nf > 0) & (nf / len(F) < delta) & (masked[np.arange(len(F)), j] < F)
+    return j, allowed
+
+
+def toward(U: np.ndarray, target: np.ndarray, step: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Eqs 17, 18, 20: ``X + (T - X)/|T - X| * step * rand(0, 1)`` (one rand per fish)."""
+    r = rng.random((len(U), 1))
+    return U + _unit_rows(target - U) * (np.asarray(step).reshape(-1, 1) * r)
+
+
+def refractive_opposite(X: np.ndarray, lower: np.ndarray, upper: np.ndarray, chi: float) -> np.ndarray:
+    """Eq 26 (``eta = 1``): ``x* = (a + b)/2 + (a + b)/(2 chi) - x/chi`` per coordinate.
+
+    The result may lie outside ``[a, b]`` when ``chi < 1``; callers clip it.
+    """
+    mid = lower + upper
+    return mid / 2.0 + mid / (2.0 * chi) - X / chi
+
+
+class _FishBase(Optimizer):
+    """Shared AFSA machinery; subclasses fix the visual field, step and the following move."""
+
+    def validate(self) -> None:
+        p = self.params
+        if not 0.0 < p["delta"] <= 1.0:
+            raise ValueError(f"{self.name}: delta must be in (0, 1], got {p['delta']}")
+        if int(p["try_number"]) != p["try_number"] or p["try_number"] < 1:
+            raise ValueError(f"{self.name}: try_number must be an integer >= 1, got {p['try_number']}")
+
+    def _visual_step(self, state: _FishState, problem: Problem, rng: np.random.Generator):
+        raise NotImplementedError
+
+    def _follow_move(self, state, idx, targets, step, rng) -> np.ndarray:
+        return toward(state.U[idx], state.U[targets], step, rng)
+
+    def _generation(self, state: _FishState, problem: Problem, rng: np.random.Generator) -> None:
+        p = self.params
+        U, F = state.U, state.F
+        n, d = U.shape
+        visual, step = self._visual_step(state, problem, rng)
+        mask = neighbours(U, visual)
+
+        # swarming: evaluate the centres of the uncrowded views
+        centres, sw_try = swarm_centres(U, mask, p["delta"])
+        sw_idx = np.flatnonzero(sw_try)
+        sw_ok = np.zeros(n, dtype=bool)
+        if sw_idx.size:
+            Fc = problem.evaluate(_to_box(problem, centres[sw_idx]))
+            sw_ok[sw_idx] = Fc < F[sw_idx]
+        # following: the best fish in view, if better and uncrowded
+        j, fo_ok = best_in_view(F, mask, p["delta"])
+
+        # preying, shared by the behaviours that fell back: all tries in one batch
+        prey_idx = np.flatnonzero(~sw_ok | ~fo_ok)
+        prey_target = np.empty((prey_idx.size, d))
+        prey_found = np.zeros(prey_idx.size, dtype=bool)
+        if prey_idx.size:
+            tries = int(p["try_number"])
+            k = prey_idx.size
+            vis = np.broadcast_to(np.asarray(visual, dtype=float), (n,))[prey_idx]
+            T = U[prey_idx][:, None, :] + vis[:, None, None] * rng.uniform(-1.0, 1.0, (k, tries, d))
+            T = np.clip(T, 0.0, 1.0)
+            FT = problem.evaluate(_to_box(problem, T.reshape(k * tries, d))).reshape(k, tries)
+            better = FT < F[prey_idx][:, None]
+            prey_found = better.any(axis=1)
+            first = np.argmax(better, axis=1)
+            prey_target = T[np.arange(k), first]
+
+        # all moves in one batch: swarm moves, follow moves, prey moves / random steps
+        step_all = np.broadcast_to(np.asarray(step, dtype=float), (n,))
+        sw_move = np.flatnonzero(sw_ok)
+        fo_move = np.flatnonzero(fo_ok)
+        moves = [
+            toward(U[sw_move], centres[sw_move], step_all[sw_move], rng),
+            self._follow_move(state, fo_move, j[fo_move], step_all[fo_move], rng),
+        ]
+        if prey_idx.size:
+            pm = toward(U[prey_idx], prey_target, step_all[prey_idx], rng)
+            rnd = U[prey_idx] + step_all[prey_idx, None] * rng.uniform(-1.0, 1.0, (prey_idx.size, d))
+            moves.append(np.where(prey_found[:, None], pm, rnd))
+        else:
+            moves.append(np.empty((0, d)))
+        M = np.clip(np.concatenate(moves), 0.0, 1.0)
+        FM = problem.evaluate(_to_box(problem, M))
+        a, b = sw_move.size, sw_move.size + fo_move.size
+        # per fish: outcome of swarming (or its prey fallback) vs following (or its fallback)
+        S_U, S_F = np.empty_like(U), np.empty(n)
+        L_U, L_F = np.empty_like(U), np.empty(n)
+        if prey_idx.size:
+            S_U[prey_idx], S_F[prey_idx] = M[b:], FM[b:]
+            L_U[prey_idx], L_F[prey_idx] = M[b:], FM[b:]
+        S_U[sw_move], S_F[sw_move] = M[:a], FM[:a]
+        L_U[fo_move], L_F[fo_move] = M[a:b], FM[a:b]
+        take_follow = L_F < S_F
+        state.U = np.where(take_follow[:, None], L_U, S_U)
+        state.F = np.where(take_follow, L_F, S_F)
+        self._update_best(state)
+
+    @staticmethod
+    def _update_best(state: _FishState) -> bool:
+        i = int(np.argmin(state.F))
+        if state.F[i] < state.best_F:
+            state.best_F = float(state.F[i])
+            state.best_U = state.U[i].copy()
+            return True
+        return False
+
+
+@register
+class ArtificialFishSwarm(_FishBase):
+    """Artificial fish swarm algorithm, paper 002 section 3.1 (eqs 16-21).
+
+    Prey (eqs 16-17): up to ``try_number`` random points within ``visual``; move a random
+    fraction of ``step`` towards the first better one, else a random step (eq 21). Follow
+    (eq 18): move towards the best fish in view if it is better and the view is not crowded.
+    Swarm (eqs 19-20): move towards the centre of the fish in view if it is better and the
+    view is not crowded. Crowding: ``n_f / n < delta`` means "not crowded".
+
+    Defaults: paper 002 section 4.1 AFSA settings, ``N = 50``, ``Step = 6``, ``Visual = 50``
+    on the box ``[-100, 100]`` (here ``step = 0.03``, ``visual = 0.25`` box widths),
+    ``Try_Num = 5``, ``delta = 0.618``. See the module docstring for the batched reading.
+    """
+
+    name = "afsa"
+    defaults = {"population": 50, "visual": 0.25, "step": 0.03, "try_number": 5, "delta": 0.618}
+
+    def validate(self) -> None:
+        super().validate()
+        for key in ("visual", "step"):
+            if not np.isfinite(self.params[key]) or self.params[key] <= 0:
+                raise ValueError(f"{self.name}: {key} must be > 0, got {self.params[key]}")
+
+    def _visual_step(self, state, problem, rng):
+        return float(self.params["visual"]), float(self.params["step"])
+
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _FishState:
+        X = initial_population(problem, rng, self.population, x0)
+        F = problem.evaluate(X)
+        i = int(np.argmin(F))
+        U = _to_unit(problem, X)
+        return _FishState(U=U, F=F, best_U=U[i].copy(), best_F=float(F[i]))
+
+    def iterate(self, state: _FishState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
+        self._generation(state, problem, rng)
+
+
+@register
+class ImprovedFishSwarm(_FishBase):
+    """Improved AFSA (IAFSA), paper 002 section 3.2.
+
+    * ROL initialisation (eqs 22-27, ``eta = 1``): the ``N`` uniform fish ``P1`` and their
+      refractive opposites ``P1*`` (eq 26, factor ``chi``; opposites outside the box are
+      clipped) are evaluated as one batch and the ``N`` best of ``P1 u P1*`` are kept (eq 27
+      and section 3.2.6).
+    * Adaptive spiral visual field (eq 28): per fish and generation
+      ``Visual_i = |Dis_i * exp(b*w) * cos(2 pi w)| + V0 * (1 - t/T)``, ``w ~ U(-1, 1)``,
+      ``Dis_i = |X_i - X_gm|``; ``Step_i = Visual_i / hbar`` (eq 31).
+      Reading: eq 28 adds a constant ``V0``, which contradicts the text (the view "gradually
+      decreases" towards local search) and would keep ``Step >= V0 / hbar`` forever; we let the
+      ``V0`` term shrink linearly with the fraction ``t/T`` of the evaluation budget used, and
+      take the absolute value because a radius cannot be negative (``cos`` can be).
+    * Enhanced following (eqs 29-30): ``X + Step * (R * unit(X_j - X) + (1 - R) * unit(X_gm - X))``
+      with ``R ~ U(0, 1)`` per fish, when ``X_j`` (best in view) is better and uncrowded.
+    * Adaptive elimination and regeneration (eqs 32-34): after ``k`` generations without
+      improvement of the best cost, ``round(c1 + iter / c2)`` fish (at most ``N - 1``; the
+      best fish is never replaced) chosen by the logistic map ``x <- r0 x (1 - x)`` (eq 33,
+      ``x0`` drawn from the run's rng, indices ``floor(x * N)``) are replaced by
+      ``X_gm * (1 + z)`` (eq 34, in problem coordinates as printed, clipped to the box), with
+      ``z`` per coordinate from a Student t distribution with ``iter`` degrees of freedom
+      (heavy-tailed early, near-Gaussian later; the paper does not give the degrees of freedom).
+      The counter restarts after each regeneration.
+
+    Defaults: paper 002 section 4.1 (CEC2020): ``N = 50``, ``chi = 0.95``, ``V0 = 50`` on
+    ``[-100, 100]`` (``v0 = 0.25`` box widths), ``hbar = 2``, ``Try_Num = 5``,
+    ``delta = 0.618``, ``b = -0.4``. The paper gives no ``k, c1, c2, r0``; ours are ``k = 5``,
+    ``c1 = 1``, ``c2 = 10``, ``r0 = 4`` (the fully chaotic logistic map).
+    """
+
+    name = "iafsa"
+    defaults = {
+        "population": 50,
+        "chi": 0.95,
+        "v0": 0.25,
+        "hbar": 2.0,
+        "try_number": 5,
+        "delta": 0.618,
+        "b": -0.4,
+        "k": 5,
+        "c1": 1.0,
+        "c2": 10.0,
+        "r0": 4.0,
+    }
+
+    def validate(self) -> None:
+        super().validate()
+        p = self.params
+        for key in ("chi", "v0", "hbar", "c2"):
+            if not np.isfinite(p[key]) or p[key] <= 0:
+                raise ValueError(f"{self.name}: {key} must be > 0, got {p[key]}")
+        if not np.isfinite(p["b"]):
+            raise ValueError(f"{self.name}: b must be finite, got {p['b']}")
+        if not np.isfinite(p["c1"]) or p["c1"] < 0:
+            raise ValueError(f"{self.name}: c1 must be >= 0, got {p['c1']}")
+        if int(p["k"]) != p["k"] or p["k"] < 1:
+            raise ValueError(f"{self.name}: k must be an integer >= 1, got {p['k']}")
+        if not 0.0 < p["r0"] <= 4.0:
+            raise ValueError(f"{self.name}: r0 must be in (0, 4], got {p['r0']}")
+
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _FishState:
+        n = self.population
+        P1 = initial_population(problem, rng, n, x0)
+        P1s = problem.clip(refractive_opposite(P1, problem.lower, problem.upper, self.params["chi"]))
+        X = np.concatenate([P1, P1s])
+        F = problem.evaluate(X)
+        keep = np.argsort(F, kind="stable")[:n]
+        U = _to_unit(problem, X[keep])
+        F = F[keep]
+        return _FishState(U=U, F=F, best_U=U[0].copy(), best_F=float(F[0]))
+
+    def _visual_step(self, state, problem, rng):
+        p = self.params
+        n = len(state.U)
+        w = rng.uniform(-1.0, 1.0, n)
+        dis = np.linalg.norm(state.U - state.best_U, axis=1)
+        tau = problem.evaluations / problem.max_evals
+        visual = np.abs(dis * np.exp(p["b"] * w) * np.cos(2.0 * np.pi * w)) + p["v0"] * (1.0 - tau)
+        return visual, visual / p["hbar"]
+
+    def _follow_move(self, state, idx, targets, step, rng) -> np.ndarray:
+        U = state.U[idx]
+        R = rng.random((len(idx), 1))
+        direction = R * _unit_rows(state.U[targets] - U) + (1.0 - R) * _unit_rows(state.best_U - U)
+        return U + np.asarray(step).reshape(-1, 1) * direction
+
+    def regenerate(
+        self, state: _FishState, problem: Problem, rng: np.random.Generator, iteration: int
+    ) -> np.ndarray:
+        """Eqs 32-34: replace logistic-map-chosen fish by t-perturbed copies of the best; returns indices."""
+        p = self.params
+        n, d = state.U.shape
+        count = min(int(round(p["c1"] + iteration / p["c2"])), n - 1)
+        if count < 1:
+            return np.empty(0, dtype=int)
+        x = np.empty(count)
+        x[0] = rng.uniform(0.01, 0.99)
+        for m in range(1, count):  # eq 33 is a recurrence: intrinsically sequential
+            x[m] = p["r0"] * x[m - 1] * (1.0 - x[m - 1])
+        idx = np.unique(np.minimum((x * n).astype(int), n - 1))
+        idx = idx[idx != int(np.argmin(state.F))]
+        if idx.size == 0:
+            return idx
+        xgm = _to_box(problem, state.best_U[None, :])[0]
+        z = rng.standard_t(max(iteration, 1), (idx.size, d))
+        Xnew = problem.clip(xgm * (1.0 + z))
+        Fnew = problem.evaluate(Xnew)
+        state.U[idx] = _to_unit(problem, Xnew)
+        state.F[idx] = Fnew
+        return idx
+
+    def iterate(self, state: _FishState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
+        before = state.best_F
+        self._generation(state, problem, rng)
+        state.stagnation = 0 if state.best_F < before else state.stagnation + 1
+        if state.stagnation >= int(self.params["k"]):
+            self.regenerate(state, problem, rng, iteration)
+            self._update_best(state)
+            state.stagnation = 0
