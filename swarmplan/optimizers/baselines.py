@@ -205,13 +205,13 @@ def sbx_crossover(
     box: the caller repairs.
     """
     n, d = P1.shape
-    u = rng.random((n, d))
-    beta = np.where(u <= 0.5, (2.0 * u) ** (1.0 / (eta + 1.0)), (0.5 / (1.0 - u)) ** (1.0 / (eta + 1.0)))
     mask = (rng.random((n, 1)) < pc) & (rng.random((n, d)) < 0.5)
-    beta = np.where(mask, beta, 1.0)
+    u = rng.random(int(np.count_nonzero(mask)))
+    beta = np.where(u <= 0.5, 2.0 * u, 0.5 / (1.0 - u)) ** (1.0 / (eta + 1.0))
     mean = 0.5 * (P1 + P2)
     half = 0.5 * (P1 - P2)
-    return mean + beta * half, mean - beta * half
+    half[mask] *= beta
+    return mean + half, mean - half
 
 
 def polynomial_mutation(
@@ -220,25 +220,24 @@ def polynomial_mutation(
     """Bounded polynomial mutation (Deb & Goyal 1996; bounded form of Deb & Deb 2014).
 
     Each coordinate mutates with probability ``pm``; results stay inside ``[lower, upper]``.
+    Only the mutated coordinates are computed (with pm = 1/d that is about one per row).
     """
-    span = np.where(upper > lower, upper - lower, 1.0)
-    mutate = rng.random(X.shape) < pm
-    if not mutate.any():
+    rows, cols = np.nonzero(rng.random(X.shape) < pm)
+    if rows.size == 0:
         return X
-    u = rng.random(X.shape)
-    d1 = (X - lower) / span
-    d2 = (upper - X) / span
-    mpow = 1.0 / (eta + 1.0)
+    lo, hi = lower[cols], upper[cols]
+    span = np.where(hi > lo, hi - lo, 1.0)
+    x = X[rows, cols]
+    u = rng.random(rows.size)
     left = u < 0.5
-    xy = np.where(left, 1.0 - d1, 1.0 - d2)
-    val = np.where(
-        left,
-        2.0 * u + (1.0 - 2.0 * u) * xy ** (eta + 1.0),
-        2.0 * (1.0 - u) + 2.0 * (u - 0.5) * xy ** (eta + 1.0),
-    )
-    deltaq = np.where(left, val**mpow - 1.0, 1.0 - val**mpow)
-    Y = np.where(mutate, X + deltaq * span, X)
-    return np.clip(Y, lower, upper)
+    # Deb's two branches folded into one: v = min(u, 1 - u), dist = delta1 (left) or delta2.
+    v = np.where(left, u, 1.0 - u)
+    dist = np.where(left, x - lo, hi - x) / span
+    val = 2.0 * v + (1.0 - 2.0 * v) * (1.0 - dist) ** (eta + 1.0)
+    mag = 1.0 - val ** (1.0 / (eta + 1.0))
+    Y = X.copy()
+    Y[rows, cols] = np.clip(x + np.where(left, -mag, mag) * span, lo, hi)
+    return Y
 
 
 @register
