@@ -57,7 +57,8 @@ def test_improved_beats_base(improved, base, fn_name):
     p = ranksums(a, b, alternative="less").pvalue
     msg = (
         f"{improved} vs {base} on shifted {fn_name} d={DIM}, {BUDGET} evals: p={p:.3g}; "
-        f"{improved} median {np.median(a):.4g} {np.round(a, 4)}; {base} median {np.median(b):.4g} {np.round(b, 4)}"
+        f"{improved} median {np.median(a):.4g} {np.round(a, 4)}; "
+        f"{base} median {np.median(b):.4g} {np.round(b, 4)}"
     )
     print(msg)
     assert p < ALPHA, msg
