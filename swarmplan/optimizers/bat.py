@@ -1,1 +1,561 @@
-"""Placeholder: filled in by the bat family implementation."""
+"""Bat family: the classic bat algorithm and two improved variants.
+
+* ``ba`` — the bat algorithm as written in Zhou et al., *Improved Bat Algorithm for UAV
+  Path Planning in Three-Dimensional Space* (paper 000), eqs 8-10.
+* ``iba_abc`` — the same paper's IBA, section IV: bat + artificial bee colony hybrid
+  (employed bees move by BA, onlookers by roulette eq 11 and a one-dimension mutation
+  eqs 12-13, scouts after ``T_limit``).
+* ``iba_gauss`` — Huang & Ma, *Bat Algorithm Based on an Integration Strategy and Gaussian
+  Distribution* (paper 003): sine adaptive weight (eqs 13-14), two-Gaussian perturbation
+  (eq 15), improved local search ILSA (eq 16), selection among three velocity operators
+  (eqs 17-21).
+
+Readings shared by the three algorithms (the papers are silent, garbled or unworkable):
+
+* Velocity term: attraction, ``V_i += (X* - X_i) f_i``. Paper 000 eq 8 and paper 003 eq 18
+  print ``(X_i - X*) f_i`` (Yang's 2010 pseudocode); paper 003 eqs 3 and 14 print
+  ``(X_i + X*)``, so the sign is not even consistent within paper 003. With ``f_i >= 0`` the
+  printed sign pushes every bat *away* from the best with a velocity that grows every
+  generation, so every velocity move lands on the box boundary (measured: mean ``|V|`` of
+  8e4 on a ``[-5.12, 5.12]`` box after 600 generations) and the improved variants' weighted
+  velocity operators (eqs 14, 17-21), whose removal the paper 003 ablation shows to
+  matter, would do nothing. Yang's reference MATLAB code draws
+  ``Q = Qmin + (Qmin - Qmax) rand``, a frequency in ``[-2, 0]``, i.e. attraction; we take
+  that reading. Eq 21 ``(X_i - W_t) f_i`` is kept as printed: it moves away from the worst.
+  Paper 003 eq 4 moves with ``V^t``; we use the freshly updated velocity (paper 000 eq 8).
+* Bounds. Neither paper has a repair rule; candidates are clipped into the box. Velocities
+  are not clipped (the papers do not).
+* Acceptance (paper 000 eq 10 / paper 003 step 4, parameter ``acceptance``). As printed in
+  both papers (default ``"best"``), a bat's candidate replaces its position, and its
+  loudness and pulse rate are updated, only if ``rand < A_i`` and the candidate beats the
+  global best ``X*`` of the previous generation. ``"own"`` compares with the bat's own cost
+  instead, as Yang's reference code does. ``X*`` itself is the best point ever evaluated
+  ("the optimal solution from time step 1 to time step t-1", paper 000), also when the
+  candidate that found it was not accepted.
+* Random-walk scale. Eqs 9, 13 (paper 000) and 15 (paper 003) add ``eps * A^t`` to ``X*``
+  with ``A^t`` the mean loudness; the step is in the problem's own units, as printed (the
+  papers' benchmarks use ``[-100, 100]``), so these algorithms are not scale invariant.
+  ``eps`` is drawn independently per dimension.
+* The pulse rate update ``r = r0 (1 - exp(-gamma t))`` (eq 10) uses the iteration number
+  ``t``; it is not a ``t / T_max`` schedule. Pulse rates start at ``r0`` and loudness at
+  ``A0``; velocities start at zero; ``f_i`` is redrawn every generation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.registry import register
+
+# --------------------------------------------------------------------------------------
+# shared helpers
+
+
+def _check_bat_params(opt: Optimizer) -> None:
+    p = opt.params
+    if not (np.isfinite(p["f_min"]) and np.isfinite(p["f_max"])) or p["f_min"] > p["f_max"]:
+        raise ValueError(
+            f"{opt.name}: f_min/f_max must be finite with f_min <= f_max, got {p['f_min']}, {p['f_max']}"
+        )
+    if not 0.0 < p["A0"]:
+        raise ValueError(f"{opt.name}: A0 (initial loudness) must be > 0, got {p['A0']}")
+    if not 0.0 < p["alpha"] <= 1.0:
+        raise ValueError(f"{opt.name}: alpha must be in (0, 1], got {p['alpha']}")
+    if not 0.0 <= p["r0"] <= 1.0:
+        raise ValueError(f"{opt.name}: r0 (initial pulse rate) must be in [0, 1], got {p['r0']}")
+    if not 0.0 < p["gamma"]:
+        raise ValueError(f"{opt.name}: gamma must be > 0, got {p['gamma']}")
+    if p["acceptance"] not in ("best", "own"):
+        raise ValueError(f"{opt.name}: acceptance must be 'best' or 'own', got {p['acceptance']!r}")
+
+
+def _bat_acceptance(
+    state, cand: np.ndarray, fc: np.ndarray, rng: np.random.Generator, iteration: int, params
+) -> np.ndarray:
+    """Eq 10: accept where ``rand < A_i`` and the candidate beats ``X*``; update ``A`` and ``r``.
+
+    ``state`` has ``X, fit, A, r, best_f`` for the bats ``cand`` belongs to. Returns the
+    boolean acceptance mask.
+    """
+    reference = state.best_f if params["acceptance"] == "best" else state.fit
+    accept = (rng.random(len(fc)) < state.A) & (fc < reference)
+    if accept.any():
+        state.X[accept] = cand[accept]
+        state.fit[accept] = fc[accept]
+        state.A[accept] *= params["alpha"]
+        state.r[accept] = params["r0"] * (1.0 - np.exp(-params["gamma"] * iteration))
+    return accept
+
+
+def _update_best(state, X: np.ndarray, f: np.ndarray) -> bool:
+    """Track ``X*`` as the best point ever evaluated; True when it improved."""
+    i = int(np.argmin(f))
+    if f[i] < state.best_f:
+        state.best_f = float(f[i])
+        state.best_x = X[i].copy()
+        return True
+    return False
+
+
+# --------------------------------------------------------------------------------------
+# BA
+
+
+@dataclass
+class _BatState:
+    X: np.ndarray  # (n, d) accepted positions
+    fit: np.ndarray  # (n,) their costs
+    V: np.ndarray  # (n, d) velocities
+    A: np.ndarray  # (n,) loudness
+    r: np.ndarray  # (n,) pulse rate
+    best_x: np.ndarray
+    best_f: float
+
+
+@register
+class BatAlgorithm(Optimizer):
+    """Classic bat algorithm, paper 000 section III (Zhou et al., after Yang 2010).
+
+    Per generation every bat draws ``f_i = f_min + (f_max - f_min) beta`` and moves by
+    ``V_i += (X* - X_i) f_i``, ``X_i' = X_i + V_i`` (eq 8; sign: see the module docstring).
+    With probability ``1 - r_i``
+    (``rand_1 > r_i``) the candidate is replaced by a random walk around the best,
+    ``X* + eps A^t`` with ``eps ~ U[-1, 1]`` per dimension and ``A^t`` the mean loudness
+    (eq 9). The whole population is evaluated in one batch; a candidate is accepted when
+    ``rand_2 < A_i`` and it beats ``X*``, and then ``A_i <- alpha A_i`` and
+    ``r_i <- r0 (1 - exp(-gamma t))`` (eq 10).
+
+    Defaults: ``A0 = 0.95, alpha = 0.9, r0 = 0.6, gamma = 0.5`` (the settings of the
+    paper's Tables 5-8), frequencies in ``[0, 100]`` ("each bat was randomly assigned a
+    frequency f_i in [0, 100]", section III), population 30 (inside the 20-50 range the
+    paper recommends). With ``f`` up to 100 the velocity move overshoots far beyond the box
+    whichever sign is used, so in practice this BA searches through the random walk of
+    eq 9; that matches the paper's own poor BA results (Table 10). ``f_max = 2`` (Yang's
+    usual setting) does a little better. See the module docstring for the readings shared
+    with the variants.
+    """
+
+    name = "ba"
+    defaults = {
+        "population": 30,
+        "f_min": 0.0,
+        "f_max": 100.0,
+        "A0": 0.95,
+        "alpha": 0.9,
+        "r0": 0.6,
+        "gamma": 0.5,
+        "acceptance": "best",
+    }
+
+    def validate(self) -> None:
+        _check_bat_params(self)
+
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _BatState:
+        n = self.population
+        X = initial_population(problem, rng, n, x0)
+        fit = problem.evaluate(X)
+        i = int(np.argmin(fit))
+        return _BatState(
+            X=X,
+            fit=fit,
+            V=np.zeros_like(X),
+            A=np.full(n, float(self.params["A0"])),
+            r=np.full(n, float(self.params["r0"])),
+            best_x=X[i].copy(),
+            best_f=float(fit[i]),
+        )
+
+    def iterate(self, state: _BatState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
+        p = self.params
+        n, d = state.X.shape
+        freq = p["f_min"] + (p["f_max"] - p["f_min"]) * rng.random(n)
+        state.V += (state.best_x - state.X) * freq[:, None]
+        cand = state.X + state.V
+        local = rng.random(n) > state.r
+        walk = state.best_x + rng.uniform(-1.0, 1.0, (n, d)) * state.A.mean()
+        cand[local] = walk[local]
+        cand = problem.clip(cand)
+        fc = problem.evaluate(cand)
+        _bat_acceptance(state, cand, fc, rng, iteration, p)
+        _update_best(state, cand, fc)
+
+
+# --------------------------------------------------------------------------------------
+# IBA: bat + artificial bee colony (paper 000 section IV)
+
+
+@dataclass
+class _IbaAbcState:
+    X: np.ndarray  # (ne, d) food sources held by the employed bees
+    fit: np.ndarray  # (ne,)
+    V: np.ndarray  # (ne, d)
+    A: np.ndarray  # (ne,)
+    r: np.ndarray  # (ne,)
+    trial: np.ndarray  # (ne,) generations without change of each source
+    n_onlookers: int
+    best_x: np.ndarray
+    best_f: float
+
+
+def abc_fitness(cost: np.ndarray) -> np.ndarray:
+    """Fitness used by the roulette, paper 000 eq 20: ``1/(1+f)`` if ``f > 0`` else ``1+|f|``.
+
+    For non-negative costs this is the paper's ``1/W`` of eq 11 made safe at ``W = 0``.
+    """
+    cost = np.asarray(cost, dtype=float)
+    pos = cost > 0
+    out = np.empty_like(cost)
+    out[pos] = 1.0 / (1.0 + cost[pos])
+    out[~pos] = 1.0 + np.abs(cost[~pos])
+    return out
+
+
+def roulette_probabilities(cost: np.ndarray) -> np.ndarray:
+    """Eq 11: ``p(i) = fit(X_i) / sum_k fit(X_k)`` over the employed bees."""
+    fit = abc_fitness(cost)
+    fit = np.where(np.isfinite(fit), fit, 0.0)
+    total = fit.sum()
+    if not total > 0:
+        return np.full(len(fit), 1.0 / len(fit))
+    return fit / total
+
+
+def _distinct_donors(rng: np.random.Generator, chosen: np.ndarray, ne: int) -> np.ndarray:
+    """Three employed-bee indices per onlooker, distinct from each other and from ``chosen``.
+
+    Vectorized: rank random keys with the chosen source's key set to +inf. With fewer than
+    four employed bees the donors cannot all be distinct; they are then drawn with
+    replacement (a fallback the paper, whose populations are 10-70, never needs).
+    """
+    m = len(chosen)
+    if ne < 4:
+        return rng.integers(0, ne, size=(m, 3))
+    keys = rng.random((m, ne))
+    keys[np.arange(m), chosen] = np.inf
+    return np.argpartition(keys, 3, axis=1)[:, :3]
+
+
+@register
+class IbaAbc(Optimizer):
+    """IBA of paper 000 section IV: the bat algorithm with artificial bee colony roles.
+
+    The initial population (``population`` bats) is evaluated and sorted; the best
+    ``round(employed_fraction * population)`` become employed bees, each owning a food
+    source with its BA velocity, loudness and pulse rate. One generation:
+
+    1. Employed bees: one BA step exactly as ``ba`` (eqs 8-10), one batch evaluation.
+    2. Onlookers (the other ``population - n_employed`` bees): each picks a source ``k`` by
+       roulette with eq 11 (fitness ``1/(1+f)``, eq 20), copies ``X_k`` and changes one random
+       dimension ``j`` ("node") by eq 12, ``X_{r1,j} + F (X_{r2,j} - X_{r3,j})`` with
+       ``r1, r2, r3`` distinct employed bees other than ``k``; if ``rand_3 > r_k`` that
+       dimension is replaced by the local search of eq 13, ``X*_j + eps A^t``. All onlookers
+       are evaluated in one batch and each source is greedily replaced by the best candidate
+       built from it when that is better (step 11).
+    3. Scouts (step 14): a source unchanged for ``T_limit`` generations that is not the best
+       is replaced by a uniform random point and its velocity, loudness and pulse rate are
+       reset; scouts are evaluated in one batch.
+
+    Readings:
+
+    * Ratio. The text's step (2) says "top 50%" are employed, but Table 3 and section V
+      recommend employed:onlooker = 1:4, and the time complexity
+      ``O(nD + t(Ra nD + (1-Ra) n))`` (Ra = employed share, onlookers touching one node)
+      confirms the ratio is employed-to-onlooker. Default ``employed_fraction = 0.2``: with
+      30 bees, 6 employed food sources and 24 onlookers.
+    * Onlookers own no position between generations: as in ABC (and Algorithm 2 line 11,
+      "update the position of the employed bee node j") each builds its candidate from the
+      source it chose, and it is that source that is greedily replaced.
+    * The paper's onlooker loop is sequential; we build every onlooker's candidate from the
+      sources as they stand after the employed phase, evaluate them together and keep, per
+      source, the best candidate. This only differs from the sequential loop when two
+      onlookers pick the same source in one generation.
+    * ``rand_3 > r_i`` uses the pulse rate of the chosen source (onlookers have none).
+    * ``T_limit`` counts generations ("does not change after a certain period of time"):
+      a source's counter is reset whenever the employed move or an onlooker changes it and
+      incremented otherwise; a scout is sent when it reaches ``T_limit``.
+
+    Defaults from section V / Tables 3-8: ``T_limit = 10, A0 = 0.95, alpha = 0.9, F = 0.5,
+    r0 = 0.6, gamma = 0.5``, ratio 1:4, population 30 (the recommended range is 20-50);
+    frequencies ``[0, 100]`` as for ``ba``.
+    """
+
+    name = "iba_abc"
+    defaults = {
+        "population": 30,
+        "employed_fraction": 0.2,
+        "T_limit": 10,
+        "F": 0.5,
+        "f_min": 0.0,
+        "f_max": 100.0,
+        "A0": 0.95,
+        "alpha": 0.9,
+        "r0": 0.6,
+        "gamma": 0.5,
+        "acceptance": "best",
+    }
+
+    def validate(self) -> None:
+        _check_bat_params(self)
+        p = self.params
+        if not 0.0 < p["employed_fraction"] < 1.0:
+            raise ValueError(
+                f"{self.name}: employed_fraction must be in (0, 1), got {p['employed_fraction']}"
+            )
+        if int(p["T_limit"]) != p["T_limit"] or p["T_limit"] < 1:
+            raise ValueError(f"{self.name}: T_limit must be an integer >= 1, got {p['T_limit']}")
+        if not (np.isfinite(p["F"]) and 0.0 < p["F"] <= 2.0):
+            raise ValueError(f"{self.name}: F must be in (0, 2], got {p['F']}")
+
+    @property
+    def n_employed(self) -> int:
+        n = self.population
+        return int(min(max(round(self.params["employed_fraction"] * n), 1), n - 1))
+
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _IbaAbcState:
+        n, ne = self.population, self.n_employed
+        X = initial_population(problem, rng, n, x0)
+        fit = problem.evaluate(X)
+        order = np.argsort(fit, kind="stable")[:ne]
+        X, fit = X[order], fit[order]
+        return _IbaAbcState(
+            X=X,
+            fit=fit,
+            V=np.zeros_like(X),
+            A=np.full(ne, float(self.params["A0"])),
+            r=np.full(ne, float(self.params["r0"])),
+            trial=np.zeros(ne, dtype=int),
+            n_onlookers=n - ne,
+            best_x=X[0].copy(),
+            best_f=float(fit[0]),
+        )
+
+    def iterate(
+        self, state: _IbaAbcState, problem: Problem, rng: np.random.Generator, iteration: int
+    ) -> None:
+        p = self.params
+        ne, d = state.X.shape
+        changed = np.zeros(ne, dtype=bool)
+
+        # 1. employed bees: one BA step (eqs 8-10)
+        freq = p["f_min"] + (p["f_max"] - p["f_min"]) * rng.random(ne)
+        state.V += (state.best_x - state.X) * freq[:, None]
+        cand = state.X + state.V
+        local = rng.random(ne) > state.r
+        walk = state.best_x + rng.uniform(-1.0, 1.0, (ne, d)) * state.A.mean()
+        cand[local] = walk[local]
+        cand = problem.clip(cand)
+        fc = problem.evaluate(cand)
+        changed |= _bat_acceptance(state, cand, fc, rng, iteration, p)
+        _update_best(state, cand, fc)
+
+        # 2. onlookers: roulette (eq 11), one-dimension mutation (eq 12), local search (eq 13)
+        m = state.n_onlookers
+        src = rng.choice(ne, size=m, p=roulette_probabilities(state.fit))
+        dims = rng.integers(0, d, size=m)
+        donors = _distinct_donors(rng, src, ne)
+        rows = np.arange(m)
+        val = state.X[donors[:, 0], dims] + p["F"] * (
+            state.X[donors[:, 1], dims] - state.X[donors[:, 2], dims]
+        )
+        near_best = rng.random(m) > state.r[src]
+        eps = rng.uniform(-1.0, 1.0, m)
+        val = np.where(near_best, state.best_x[dims] + eps * state.A.mean(), val)
+        val = np.clip(val, problem.lower[dims], problem.upper[dims])
+        on = state.X[src].copy()
+        on[rows, dims] = val
+        fo = problem.evaluate(on)
+        _update_best(state, on, fo)
+        # per source, the best onlooker candidate built from it (greedy, step 11)
+        order = np.lexsort((fo, src))  # grouped by source, best first within a group
+        first = np.ones(m, dtype=bool)
+        first[1:] = src[order][1:] != src[order][:-1]
+        winners = order[first]
+        k = src[winners]
+        better = fo[winners] < state.fit[k]
+        k, winners = k[better], winners[better]
+        state.X[k] = on[winners]
+        state.fit[k] = fo[winners]
+        changed[k] = True
+
+        # 3. scouts after T_limit generations without change (step 14)
+        state.trial = np.where(changed, 0, state.trial + 1)
+        best_idx = int(np.argmin(state.fit))
+        exhausted = state.trial >= int(p["T_limit"])
+        exhausted[best_idx] = False
+        if exhausted.any():
+            idx = np.flatnonzero(exhausted)
+            state.X[idx] = problem.uniform(rng, len(idx))
+            state.V[idx] = 0.0
+            state.A[idx] = p["A0"]
+            state.r[idx] = p["r0"]
+            state.trial[idx] = 0
+            state.fit[idx] = problem.evaluate(state.X[idx])
+            _update_best(state, state.X[idx], state.fit[idx])
+
+
+# --------------------------------------------------------------------------------------
+# IBA: integration strategy + Gaussian perturbation (paper 003)
+
+
+def sine_weight(frac: np.ndarray | float) -> np.ndarray | float:
+    """Adaptive weight of paper 003 eq 13 at budget fraction ``frac = t / T_max``.
+
+    ``w = 1 - sin(pi - pi t / (2 T_max))``, which equals ``1 - sin(pi t / (2 T_max))``:
+    1 at the start, decreasing monotonically towards 0 at ``t = T_max`` (where the paper
+    subtracts an infinitesimal ``eps``; here ``frac`` is clipped just below 1 so ``w``
+    stays in ``[0, 1]``).
+    """
+    frac = np.clip(frac, 0.0, 1.0 - 1e-12)
+    return 1.0 - np.sin(np.pi - np.pi * frac / 2.0)
+
+
+def two_gaussian(rng: np.random.Generator, size) -> np.ndarray:
+    """Paper 003 eq 15 perturbation ``0.5 (N(0, 1) + N(0, 2))``.
+
+    ``N(0, 2)`` has standard deviation 2, as the paper states in words ("a standard
+    deviation of two"); that is also the only reading consistent with its Figure 2 claims
+    (fewer draws near the mean than ``N(0, 1)``, fewer far out than ``N(0, 2)``): the sum
+    is ``N(0, 1.25)``, standard deviation ~1.118. (Variance 2 would give standard deviation
+    ~0.866, more concentrated than ``N(0, 1)``.)
+    """
+    return 0.5 * (rng.standard_normal(size) + 2.0 * rng.standard_normal(size))
+
+
+_OPERATORS = ("standard", "chaotic", "worst")
+
+
+@dataclass
+class _IbaGaussState:
+    X: np.ndarray
+    fit: np.ndarray
+    V: np.ndarray
+    A: np.ndarray
+    r: np.ndarray
+    cm: np.ndarray  # (n,) logistic-map chaotic values in (0, 1) for eqs 19-20
+    operator: int  # index into _OPERATORS of the velocity operator in use
+    best_x: np.ndarray
+    best_f: float
+
+
+@register
+class IbaGauss(Optimizer):
+    """IBA of Huang & Ma (paper 003): integration strategy, Gaussian perturbation, ILSA.
+
+    One generation (Algorithm 2):
+
+    1. Velocity with the sine adaptive weight (eqs 13, 17): ``V_i <- w V_i + mix_k``, where
+       ``w = 1 - sin(pi - pi t / (2 T_max))`` with ``t / T_max`` = evaluations used /
+       ``max_evals``, and ``mix_k`` is the operator in use:
+       eq 18 ``(X* - X_i) f_i``; eqs 19-20 ``(X* - X_i) CM_i f_i`` with
+       ``f_i = f_min + (f_max - f_min) CM_i``; eq 21 ``(X_i - W_t) f_i`` with ``W_t`` the
+       worst bat. Elsewhere ``f_i = f_min + (f_max - f_min) beta`` (eq 2).
+    2. Position ``X_i + V_i`` (eq 4); if ``rand > r_i`` the candidate is instead
+       ``X* + 0.5 (N(0,1) + N(0,2)) A^t`` (eq 15, per dimension; ``N(0, 2)`` read as
+       standard deviation 2, as the paper states, see :func:`two_gaussian`).
+    3. One batch evaluation, acceptance and ``A``/``r`` updates as in the standard BA
+       (eqs 6-7).
+    4. ILSA (eq 16, Algorithm 2 lines 25-32): ``X1 = rand_1 X*``, ``X2 = rand_2 X*`` with
+       scalar ``rand_1 < rand_2`` in ``[0, 1]`` ("we assume X1* < X2*"); ``X1`` replaces
+       ``X*`` if better, otherwise ``X2`` if better. Both are evaluated in one batch of two
+       (the sequential version would sometimes save one evaluation; the outcome is the
+       same). Note that ``rand * X*`` contracts towards the origin: it helps on problems
+       whose optimum is at 0 and is nearly inert elsewhere; benchmark on shifted functions.
+    5. Operator selection (integration strategy). Reading: the printed rule ("if ILSA jumps
+       out of the local optimum select another operator at random, else keep the current
+       one") is garbled -- switching away from an operator exactly when the search improves
+       contradicts the stated aim of keeping the operator that currently performs best. We
+       keep the current operator while the generation (moves or ILSA) improves ``X*`` and
+       switch to a different operator, chosen uniformly, after a generation without
+       improvement. Measured on shifted Rastrigin d=10, 20000 evaluations, 10 seeds: median
+       41.5 with this rule against 51.3 with the literal one.
+
+    Chaotic map for ``CM_i`` (eq 19, "generic name of chaotic maps"): the logistic map
+    ``c <- 4 c (1 - c)``, one value per bat, advanced once per generation.
+
+    Defaults from Table 3: population 100, frequencies ``[0, 5]``, ``A0 = 0.95``,
+    ``r0 = 0.9``, ``alpha = 0.99``, ``gamma = 0.9``.
+    """
+
+    name = "iba_gauss"
+    defaults = {
+        "population": 100,
+        "f_min": 0.0,
+        "f_max": 5.0,
+        "A0": 0.95,
+        "alpha": 0.99,
+        "r0": 0.9,
+        "gamma": 0.9,
+        "acceptance": "best",
+    }
+
+    def validate(self) -> None:
+        _check_bat_params(self)
+
+    def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _IbaGaussState:
+        n = self.population
+        X = initial_population(problem, rng, n, x0)
+        fit = problem.evaluate(X)
+        i = int(np.argmin(fit))
+        return _IbaGaussState(
+            X=X,
+            fit=fit,
+            V=np.zeros_like(X),
+            A=np.full(n, float(self.params["A0"])),
+            r=np.full(n, float(self.params["r0"])),
+            # avoid the logistic map's fixed points and their pre-images (0, 0.25, 0.5, 0.75, 1)
+            cm=0.05 + 0.9 * rng.random(n),
+            operator=0,
+            best_x=X[i].copy(),
+            best_f=float(fit[i]),
+        )
+
+    def iterate(
+        self, state: _IbaGaussState, problem: Problem, rng: np.random.Generator, iteration: int
+    ) -> None:
+        p = self.params
+        n, d = state.X.shape
+        f_lo, f_span = p["f_min"], p["f_max"] - p["f_min"]
+        best_before = state.best_f
+
+        # 1. velocity: sine weight (eqs 13-14) and the operator in use (eqs 17-21)
+        w = sine_weight(problem.evaluations / problem.max_evals)
+        state.cm = 4.0 * state.cm * (1.0 - state.cm)
+        op = _OPERATORS[state.operator]
+        if op == "standard":  # eq 18
+            mix = (state.best_x - state.X) * (f_lo + f_span * rng.random(n))[:, None]
+        elif op == "chaotic":  # eqs 19-20
+            mix = (state.best_x - state.X) * (state.cm * (f_lo + f_span * state.cm))[:, None]
+        else:  # eq 21
+            worst = state.X[int(np.argmax(state.fit))]
+            mix = (state.X - worst) * (f_lo + f_span * rng.random(n))[:, None]
+        state.V = w * state.V + mix
+
+        # 2. position (eq 4) or Gaussian walk around the best (eq 15)
+        cand = state.X + state.V
+        local = rng.random(n) > state.r
+        walk = state.best_x + two_gaussian(rng, (n, d)) * state.A.mean()
+        cand[local] = walk[local]
+        cand = problem.clip(cand)
+
+        # 3. evaluate, accept (eqs 6-7)
+        fc = problem.evaluate(cand)
+        _bat_acceptance(state, cand, fc, rng, iteration, p)
+        _update_best(state, cand, fc)
+
+        # 4. ILSA (eq 16)
+        rs = np.sort(rng.random(2))
+        pair = problem.clip(rs[:, None] * state.best_x)
+        fp = problem.evaluate(pair)
+        for j in range(2):  # X1 has priority over X2 (two points, not a population loop)
+            if fp[j] < state.best_f:
+                state.best_f = float(fp[j])
+                state.best_x = pair[j].copy()
+                break
+
+        # 5. integration strategy: keep the operator while it improves X*, else switch
+        if not state.best_f < best_before:
+            others = [k for k in range(len(_OPERATORS)) if k != state.operator]
+            state.operator = int(others[rng.integers(len(others))])
