@@ -69,13 +69,15 @@ def cfo_acceleration(
     """
     F = _finite_costs(F)
     diff = (F[:, None] - F[None, :]) / mass_scale  # [i, k] = f_i - f_k, > 0 when k is better
-    diff = np.where(diff > 0, diff, 0.0)  # unit step U(.): only better probes attract
+    # unit step U(.): only better probes attract; negligible differences are flushed to 0
+    # (they would only produce subnormal, and very slow, arithmetic)
+    diff = np.where(diff > 1e-100, diff, 0.0)
     sq = np.einsum("ij,ij->i", U, U)
-    dist2 = np.maximum(sq[:, None] + sq[None, :] - 2.0 * (U @ U.T), 0.0)
+    dist2 = np.maximum(sq[:, None] + sq[None, :] - 2.0 * np.einsum("ik,jk->ij", U, U), 0.0)
     dist = np.sqrt(dist2)
     with np.errstate(divide="ignore", invalid="ignore"):
         W = np.where((diff > 0) & (dist > 1e-12), G * diff**alpha / dist**beta, 0.0)
-    return W @ U - W.sum(axis=1)[:, None] * U
+    return np.einsum("ik,kj->ij", W, U) - W.sum(axis=1)[:, None] * U
 
 
 @dataclass

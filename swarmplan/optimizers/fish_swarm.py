@@ -66,7 +66,7 @@ def _unit_rows(V: np.ndarray) -> np.ndarray:
 def neighbours(U: np.ndarray, visual: np.ndarray | float) -> np.ndarray:
     """``mask[i, j]``: fish ``j != i`` is within fish ``i``'s visual range (``d_ij <= visual_i``)."""
     sq = np.einsum("ij,ij->i", U, U)
-    dist = np.sqrt(np.maximum(sq[:, None] + sq[None, :] - 2.0 * (U @ U.T), 0.0))
+    dist = np.sqrt(np.maximum(sq[:, None] + sq[None, :] - 2.0 * np.einsum("ik,jk->ij", U, U), 0.0))
     vis = np.broadcast_to(np.asarray(visual, dtype=float), (len(U),))
     mask = dist <= vis[:, None]
     np.fill_diagonal(mask, False)
@@ -81,7 +81,7 @@ def swarm_centres(U: np.ndarray, mask: np.ndarray, delta: float) -> tuple[np.nda
     """
     nf = mask.sum(axis=1)
     allowed = (nf > 0) & (nf / len(U) < delta)
-    centres = (mask @ U) / np.maximum(nf, 1)[:, None]
+    centres = np.einsum("ij,jk->ik", mask.astype(float), U) / np.maximum(nf, 1)[:, None]
     return centres, allowed
 
 
