@@ -1,0 +1,167 @@
+"""Animated playback of a recorded run: GIF (Pillow) or MP4 (when ffmpeg is installed).
+
+Frames are subsampled from the recorded steps (``fps``, ``max_frames``, ``speed``) so a
+long run still renders in seconds; a progress bar is printed on stderr while rendering.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import sys
+import time
+
+import numpy as np
+from matplotlib.collections import PatchCollection
+from matplotlib.patches import Polygon
+
+from . import plots
+from .metrics import active_mask
+from .recording import Recording
+
+MODE_EDGE = {"escape": "#d62728", "smoothing": "#ffbf00", "collided": "black", "failed": "0.5", "arrived": "#2ca02c"}
+
+
+def frame_steps(rec: Recording, fps: float = 10.0, max_frames: int = 150, speed: float | None = None) -> np.ndarray:
+    """Indices of the recorded steps to draw, evenly spaced in time."""
+    if rec.n_steps == 0:
+        return np.zeros(0, int)
+    n = rec.n_steps
+    if speed is not None and speed > 0 and rec.duration > 0:
+        n = int(math.ceil(rec.duration / speed * fps)) + 1
+    n = max(1, min(n, int(max_frames), rec.n_steps))
+    targets = np.linspace(rec.times[0], rec.times[-1], n)
+    steps = np.searchsorted(rec.times, targets).clip(0, rec.n_steps - 1)
+    return np.unique(steps)
+
+
+class _Progress:
+    def __init__(self, total: int, stream=None, width: int = 30):
+        self.total, self.width = max(total, 1), width
+        self.stream = stream or sys.stderr
+        self.t0 = time.perf_counter()
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+
+    def update(self, done: int):
+        if not self.tty and done != self.total and done % max(1, self.total // 10):
+            return  # not a terminal: about ten updates in all
+        frac = done / self.total
+        bar = "#" * int(round(frac * self.width))
+        el = time.perf_counter() - self.t0
+        eta = el / frac - el if frac > 0 else 0.0
+        self.stream.write(f"\rrendering [{bar:<{self.width}}] {done}/{self.total} frames  {el:.1f}s  eta {eta:.1f}s")
+        self.stream.flush()
+
+    def close(self):
+        self.stream.write("\n")
+        self.stream.flush()
+
+
+def animate(
+    rec: Recording,
+    out: str,
+    fps: float = 10.0,
+    max_frames: int = 150,
+    speed: float | None = None,
+    agents: list[str] | None = None,
+    dpi: int = 80,
+    trail: float = 10.0,
+    progress: bool = True,
+) -> str:
+    """Render a top-view playback to ``out`` (.gif, or .mp4 when ffmpeg exists). Returns the path
+    actually written (a .mp4 request without ffmpeg falls back to .gif, with a notice)."""
+    out = str(out)
+    want_mp4 = out.lower().endswith(".mp4")
+    if want_mp4 and shutil.which("ffmpeg") is None:
+        out = out[:-4] + ".gif"
+        print(f"notice: ffmpeg not found, writing {out} instead", file=sys.stderr)
+        want_mp4 = False
+    steps = frame_steps(rec, fps, max_frames, speed)
+    if not len(steps):
+        raise ValueError("nothing to animate: no recorded steps")
+
+    idx = plots._select(rec, agents)  # noqa: SLF001
+    colors = plots.agent_colors(rec.n_agents)
+    active = active_mask(rec)
+    fig = plots.new_figure(figsize=(7, 7), dpi=dpi)
+    # static background (bounds, terrain, static obstacles, faint full paths)
+    stub = Recording(**{**rec.__dict__, "world": {**rec.world, "obstacles": rec.static_obstacles()}})
+    plots.plot_top(stub, agents=[rec.agent_ids[i] for i in idx], fig=fig)
+    ax = fig.axes[0]
+    for line in list(ax.lines):
+        gid = line.get_gid() or ""
+        if gid.startswith(("path:", "mode:")):
+            line.set_alpha(0.15)
+    title = ax.set_title("")
+    # moving obstacles: one patch collection, redrawn each frame
+    moving = rec.moving_obstacles()
+    mov_coll = PatchCollection([], facecolor=plots.MOVING_COLOR, edgecolor="0.2", alpha=0.75, zorder=5)
+    ax.add_collection(mov_coll)
+    trails = {i: ax.plot([], [], color=colors[i], lw=2.0, zorder=6)[0] for i in idx}
+    # agents as fixed-size markers (real radii are invisible at world scale); edge = mode
+    pts = ax.scatter(
+        np.zeros(len(idx)),
+        np.zeros(len(idx)),
+        s=np.full(len(idx), 40.0),
+        c=[colors[i] for i in idx],
+        edgecolors="k",
+        linewidths=1.5,
+        zorder=7,
+    )
+    n_trail = max(1, int(round(trail / max(rec.dt, 1e-9))))
+
+    def draw(k: int):
+        t = rec.times[k]
+        patches = []
+        for o in moving:
+            oid = o.get("id")
+            if oid in rec.obstacle_tracks:
+                p, q = rec.obstacle_poses(oid, np.array([t]))
+                polys = plots._footprint(o, p[0], q[0])  # noqa: SLF001
+            else:
+                polys = plots._footprint(o)  # noqa: SLF001
+            patches += [Polygon(poly, closed=True) for poly in polys]
+        mov_coll.set_paths(patches)
+        xy, edge = [], []
+        for i in idx:
+            P = rec.positions[i, : k + 1]
+            lo = max(0, k + 1 - n_trail)
+            tr = P[lo:][active[i, lo : k + 1]]
+            trails[i].set_data(tr[:, 0], tr[:, 1])
+            xy.append(P[-1, :2] if np.isfinite(P[-1, 0]) else [np.nan, np.nan])
+            edge.append(MODE_EDGE.get(rec.modes[i, k], "k"))
+        pts.set_offsets(np.asarray(xy))
+        pts.set_edgecolors(edge)
+        counts = {}
+        for i in idx:
+            counts[rec.modes[i, k]] = counts.get(rec.modes[i, k], 0) + 1
+        modes = ", ".join(f"{m} {c}" for m, c in sorted(counts.items()))
+        title.set_text(f"{rec.world.get('name', '?')}  t = {t:6.2f} s   {modes}")
+        title.set_fontsize(9)
+
+    bar = _Progress(len(steps)) if progress else None
+    if want_mp4:
+        from matplotlib.animation import FFMpegWriter
+
+        writer = FFMpegWriter(fps=fps)
+        with writer.saving(fig, out, dpi):
+            for n, k in enumerate(steps):
+                draw(int(k))
+                writer.grab_frame()
+                if bar:
+                    bar.update(n + 1)
+    else:
+        from PIL import Image
+
+        frames = []
+        for n, k in enumerate(steps):
+            draw(int(k))
+            fig.canvas.draw()
+            img = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[:, :, :3])
+            frames.append(img.quantize(colors=128, method=Image.Quantize.MEDIANCUT))
+            if bar:
+                bar.update(n + 1)
+        frames[0].save(out, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
+    if bar:
+        bar.close()
+    return out

@@ -1,0 +1,419 @@
+"""Static plots of a recorded run (matplotlib, Agg canvas, no pyplot global state).
+
+Every ``plot_*`` function returns a :class:`matplotlib.figure.Figure`; :func:`save`
+writes it. Each agent's path artists carry ``gid = "path:<agent id>"`` so callers (and
+tests) can find them: :func:`agent_paths_in` lists the agents drawn in a figure.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Polygon
+
+from .geometry import euler_deg_to_matrix, quat_to_matrix, terrain_height
+from .metrics import active_mask, curvature_series
+from .recording import Recording
+
+MODE_STYLE = {
+    "escape": {"color": "#d62728", "lw": 3.0, "label": "escape (optimizer)"},
+    "smoothing": {"color": "#ffbf00", "lw": 7.0, "label": "smoothing (halo)", "alpha": 0.45, "zorder": 2},
+    "collided": {"color": "black", "lw": 3.0, "label": "collided"},
+    "failed": {"color": "#7f7f7f", "lw": 2.0, "label": "failed"},
+}
+OBSTACLE_COLOR = np.array([0.55, 0.58, 0.65])
+MOVING_COLOR = np.array([0.85, 0.45, 0.10])
+MAX_MESH_FACES = 4000
+
+
+def new_figure(figsize=(9, 7), dpi=100) -> Figure:
+    fig = Figure(figsize=figsize, dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def save(fig: Figure, path: str) -> str:
+    fig.savefig(path)
+    return str(path)
+
+
+def agent_colors(n: int) -> list:
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10" if n <= 10 else "tab20" if n <= 20 else "turbo"]
+    if n <= 20:
+        return [cmap(i % cmap.N) for i in range(n)]
+    return [cmap(x) for x in np.linspace(0.05, 0.95, n)]
+
+
+def agent_paths_in(fig: Figure) -> list[str]:
+    """Agent ids whose path is drawn in ``fig`` (each once, in drawing order)."""
+    seen: list[str] = []
+    for ax in fig.axes:
+        for art in list(ax.lines) + list(ax.collections):
+            gid = art.get_gid() or ""
+            if gid.startswith("path:") and gid[5:] not in seen:
+                seen.append(gid[5:])
+    return seen
+
+
+def _select(rec: Recording, agents: list[str] | None) -> list[int]:
+    if agents is None:
+        return list(range(rec.n_agents))
+    return [rec.agent_index(a) for a in agents]
+
+
+def _mode_runs(modes: np.ndarray, valid: np.ndarray):
+    """(start, stop_inclusive, mode) runs of equal mode over valid steps."""
+    runs = []
+    k, n = 0, len(modes)
+    while k < n:
+        if not valid[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < n and valid[j + 1] and modes[j + 1] == modes[k]:
+            j += 1
+        runs.append((k, j, modes[k]))
+        k = j + 1
+    return runs
+
+
+# ---------------------------------------------------------------------- shapes
+
+
+def obstacle_mesh(obst: dict[str, Any], position=None, quat=None):
+    """(vertices (N,3) world, faces (M,3)) of an obstacle at a pose (default: its world pose)."""
+    import trimesh
+
+    shape = obst.get("shape")
+    if shape == "mesh":
+        if "vertices" not in obst:
+            return None
+        v = np.asarray(obst["vertices"], float)
+        f = np.asarray(obst["faces"], int)
+        if position is not None:  # moving mesh: vertices are the pose at t = 0
+            c0 = np.asarray(obst.get("position", [0, 0, 0]), float)
+            r0 = euler_deg_to_matrix(obst.get("rotation") or [0, 0, 0])
+            r = quat_to_matrix(quat) if quat is not None else r0
+            v = (v - c0) @ r0 @ r.T + np.asarray(position, float)
+        return v, f
+    if shape == "sphere":
+        m = trimesh.creation.icosphere(subdivisions=2, radius=float(obst["radius"]))
+    elif shape == "box":
+        m = trimesh.creation.box(extents=np.asarray(obst["size"], float))
+    elif shape == "cylinder":
+        m = trimesh.creation.cylinder(radius=float(obst["radius"]), height=float(obst["height"]), sections=24)
+    elif shape == "capsule":
+        h = float(obst.get("height", obst.get("length", 0.0)))
+        m = trimesh.creation.capsule(height=max(h, 1e-6), radius=float(obst["radius"]), count=[16, 16])
+    else:
+        return None
+    c = np.asarray(obst.get("position", [0, 0, 0]) if position is None else position, float)
+    r = quat_to_matrix(quat) if quat is not None else euler_deg_to_matrix(obst.get("rotation") or [0, 0, 0])
+    return np.asarray(m.vertices) @ r.T + c, np.asarray(m.faces)
+
+
+def _shaded(v, f, base, alpha):
+    tri = v[f]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-12
+    light = np.array([0.4, 0.3, 0.85])
+    light /= np.linalg.norm(light)
+    k = 0.45 + 0.55 * np.abs(n @ light)
+    cols = np.clip(base[None, :] * k[:, None], 0, 1)
+    return np.concatenate([cols, np.full((len(cols), 1), alpha)], axis=1)
+
+
+def _draw_obstacle_3d(ax, obst, position=None, quat=None, color=OBSTACLE_COLOR, alpha=0.55, label=None):
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    mesh = obstacle_mesh(obst, position, quat)
+    if mesh is None:
+        return None
+    v, f = mesh
+    if len(f) > MAX_MESH_FACES:
+        f = f[np.linspace(0, len(f) - 1, MAX_MESH_FACES).astype(int)]
+    coll = Poly3DCollection(v[f], facecolors=_shaded(v, f, np.asarray(color), alpha), edgecolors="none")
+    coll.set_gid(f"obstacle:{obst.get('id')}")
+    if label:
+        coll.set_label(label)
+    ax.add_collection3d(coll)
+    return coll
+
+
+def _bounds(rec: Recording):
+    b = rec.world.get("bounds") or {}
+    lo = np.asarray(b.get("min", np.nanmin(rec.positions, axis=(0, 1))), float)
+    hi = np.asarray(b.get("max", np.nanmax(rec.positions, axis=(0, 1))), float)
+    return lo, hi
+
+
+def _bounds_edges(lo, hi):
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    edges = []
+    for i in range(8):
+        for j in range(i + 1, 8):
+            if np.count_nonzero(corners[i] != corners[j]) == 1:
+                edges.append((corners[i], corners[j]))
+    return edges
+
+
+# ---------------------------------------------------------------------- 3D
+
+
+def plot_3d(rec: Recording, agents: list[str] | None = None, step: int | None = None, fig: Figure | None = None):
+    """3D view: bounds, terrain, obstacles, moving-obstacle tracks, paths by mode, starts, goals."""
+    import mpl_toolkits.mplot3d  # noqa: F401 - registers the 3d projection
+
+    fig = fig or new_figure()
+    ax = fig.add_subplot(projection="3d")
+    lo, hi = _bounds(rec)
+    for a, b in _bounds_edges(lo, hi):
+        ax.plot(*np.stack([a, b]).T, color="0.6", lw=0.6, ls=":")
+    _terrain_3d(ax, rec, lo, hi)
+    for obst in rec.static_obstacles():
+        _draw_obstacle_3d(ax, obst)
+    for obst in rec.moving_obstacles():
+        oid = obst.get("id")
+        if oid in rec.obstacle_tracks:
+            tr = rec.obstacle_tracks[oid]
+            ax.plot(*tr.positions.T, color=MOVING_COLOR, ls="--", lw=1.2)
+            k = -1 if step is None else int(np.argmin(np.abs(tr.times - rec.times[step])))
+            _draw_obstacle_3d(ax, obst, tr.positions[k], tr.orientations[k], MOVING_COLOR, 0.6)
+        else:
+            _draw_obstacle_3d(ax, obst, color=MOVING_COLOR)
+    idx = _select(rec, agents)
+    colors = agent_colors(rec.n_agents)
+    active = active_mask(rec)
+    used_modes = set()
+    for i in idx:
+        _draw_path(ax, rec, i, colors[i], active[i], used_modes, three_d=True)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ext = np.maximum(hi - lo, 1e-9)
+    ax.set_box_aspect((ext[0], ext[1], max(ext[2], 0.25 * max(ext[0], ext[1]))))
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles()))
+    ax.set_title(_title(rec))
+    return fig
+
+
+def _terrain_3d(ax, rec, lo, hi, n=40):
+    if not (rec.world.get("terrain") or {}).get("peaks"):
+        return
+    xs, ys = np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n)
+    X, Y = np.meshgrid(xs, ys)
+    Z = terrain_height(rec.world, np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(X.shape)
+    top = max(float(Z.max()), 1e-9)
+    ax.plot_surface(
+        X, Y, Z, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, linewidth=0, antialiased=False, gid="terrain"
+    )
+
+
+def _draw_path(ax, rec, i, color, active, used_modes, three_d):
+    aid = rec.agent_ids[i]
+    P = rec.positions[i]
+    valid = np.isfinite(P[:, 0]) & active
+    last = np.flatnonzero(valid)
+    if not len(last):
+        return
+    coords = (lambda Q: Q.T) if three_d else (lambda Q: Q[:, :2].T)
+    # nominal path in the agent's colour, then mode segments on top
+    ax.plot(*coords(P[valid]), color=color, lw=1.4, gid=f"path:{aid}", zorder=3)
+    for a, b, mode in _mode_runs(rec.modes[i], valid):
+        style = MODE_STYLE.get(mode)
+        if style is None:
+            continue
+        seg = P[max(a - 1, 0) : b + 2][valid[max(a - 1, 0) : b + 2]]
+        if len(seg) < 2:
+            seg = P[a : b + 1]
+        ax.plot(
+            *coords(seg),
+            color=style["color"],
+            lw=style["lw"],
+            alpha=style.get("alpha", 0.85),
+            gid=f"mode:{mode}:{aid}",
+            zorder=style.get("zorder", 4),
+            solid_capstyle="round",
+        )
+        used_modes.add(mode)
+    s, g = P[last[0]], rec.goals[i]
+    ax.plot(*coords(s[None]), marker="o", color=color, ms=6, mec="k", ls="none", gid=f"start:{aid}")
+    ax.plot(*coords(g[None]), marker="*", color=color, ms=12, mec="k", ls="none", gid=f"goal:{aid}")
+
+
+def _legend(ax, rec, idx, colors, used_modes, moving):
+    handles = []
+    max_agents = 12
+    for i in idx[:max_agents]:
+        handles.append(Line2D([], [], color=colors[i], lw=2, label=rec.agent_ids[i]))
+    if len(idx) > max_agents:
+        handles.append(Line2D([], [], color="none", label=f"... {len(idx) - max_agents} more agents"))
+    for mode in ("escape", "smoothing", "collided", "failed"):
+        if mode in used_modes:
+            st = MODE_STYLE[mode]
+            handles.append(
+                Line2D([], [], color=st["color"], lw=st["lw"], alpha=st.get("alpha", 0.85), label=st["label"])
+            )
+    handles.append(Line2D([], [], marker="o", color="0.5", mec="k", ls="none", label="start"))
+    handles.append(Line2D([], [], marker="*", color="0.5", mec="k", ms=12, ls="none", label="goal"))
+    if rec.obstacles():
+        handles.append(Line2D([], [], marker="s", color=OBSTACLE_COLOR, ls="none", ms=10, label="obstacle"))
+    if moving:
+        handles.append(Line2D([], [], color=MOVING_COLOR, ls="--", label="moving obstacle track"))
+    ax.legend(handles=handles, loc="upper left", fontsize=7, framealpha=0.8)
+
+
+def _title(rec: Recording) -> str:
+    w = rec.world
+    opt = ((w.get("planner") or {}).get("optimizer") or {}).get("name", "?")
+    extra = " [TRUNCATED LOG]" if rec.truncated else (" [interrupted]" if rec.interrupted else "")
+    return f"{w.get('name', '?')} (seed {w.get('seed', '?')}, {opt}), t = 0..{rec.duration:.1f} s{extra}"
+
+
+# ---------------------------------------------------------------------- 2D top view
+
+
+def _footprint(obst, position=None, quat=None):
+    """Polygons (list of (K,2) arrays) of the obstacle seen from above."""
+    mesh = obstacle_mesh(obst, position, quat)
+    if mesh is None:
+        return []
+    v, f = mesh
+    if obst.get("shape") == "mesh":
+        if len(f) > MAX_MESH_FACES:
+            f = f[np.linspace(0, len(f) - 1, MAX_MESH_FACES).astype(int)]
+        return [v[t][:, :2] for t in f]
+    from scipy.spatial import ConvexHull
+
+    pts = v[:, :2]
+    try:
+        hull = ConvexHull(pts)
+    except Exception:  # noqa: BLE001 - degenerate (flat) footprint
+        return [pts]
+    return [pts[hull.vertices]]
+
+
+def plot_top(rec: Recording, agents: list[str] | None = None, step: int | None = None, fig: Figure | None = None):
+    """Top view (x-y): bounds, terrain contours, obstacle footprints, tracks, paths by mode."""
+    fig = fig or new_figure(figsize=(8, 8))
+    ax = fig.add_subplot()
+    lo, hi = _bounds(rec)
+    ax.add_patch(Polygon([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]], fill=False, ls=":"))
+    if (rec.world.get("terrain") or {}).get("peaks"):
+        xs, ys = np.linspace(lo[0], hi[0], 80), np.linspace(lo[1], hi[1], 80)
+        X, Y = np.meshgrid(xs, ys)
+        Z = terrain_height(rec.world, np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(X.shape)
+        top = max(float(Z.max()), 1e-9)
+        levels = np.linspace(0.05 * top, top, 10)
+        ax.contourf(X, Y, Z, levels=levels, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, extend="neither")
+        ax.contour(X, Y, Z, levels=levels, colors="0.5", linewidths=0.4)
+    for obst in rec.static_obstacles():
+        for poly in _footprint(obst):
+            ax.add_patch(Polygon(poly, closed=True, fc=OBSTACLE_COLOR, ec="0.3", alpha=0.7, lw=0.5))
+    for obst in rec.moving_obstacles():
+        oid = obst.get("id")
+        tr = rec.obstacle_tracks.get(oid)
+        if tr is not None and len(tr.times):
+            ax.plot(tr.positions[:, 0], tr.positions[:, 1], color=MOVING_COLOR, ls="--", lw=1.2)
+            k = -1 if step is None else int(np.argmin(np.abs(tr.times - rec.times[step])))
+            polys = _footprint(obst, tr.positions[k], tr.orientations[k])
+        else:
+            polys = _footprint(obst)
+        for poly in polys:
+            ax.add_patch(Polygon(poly, closed=True, fc=MOVING_COLOR, ec="0.3", alpha=0.6, lw=0.5))
+    idx = _select(rec, agents)
+    colors = agent_colors(rec.n_agents)
+    active = active_mask(rec)
+    used_modes = set()
+    for i in idx:
+        _draw_path(ax, rec, i, colors[i], active[i], used_modes, three_d=False)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.grid(alpha=0.3)
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles()))
+    ax.set_title(_title(rec) + " - top view", fontsize=10)
+    return fig
+
+
+# ---------------------------------------------------------------------- curvature, convergence
+
+
+def plot_curvature(rec: Recording, agents: list[str] | None = None, fig: Figure | None = None):
+    """Discrete curvature of each flown path vs time (same definition as the metrics)."""
+    fig = fig or new_figure(figsize=(9, 5))
+    ax = fig.add_subplot()
+    colors = agent_colors(rec.n_agents)
+    active = active_mask(rec)
+    idx = _select(rec, agents)
+    for i in idx:
+        pts = np.where(active[i][:, None], rec.positions[i], np.nan)
+        t, k = curvature_series(pts, rec.times)
+        ax.plot(t, k, color=colors[i], lw=1.0, label=rec.agent_ids[i], gid=f"path:{rec.agent_ids[i]}")
+        for a, b, mode in _mode_runs(rec.modes[i], np.ones(rec.n_steps, bool)):
+            if mode == "escape":
+                ax.axvspan(rec.times[a], rec.times[b], color=MODE_STYLE["escape"]["color"], alpha=0.06, lw=0)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("curvature [1/m]")
+    ax.grid(alpha=0.3)
+    if len(idx) <= 20:
+        ax.legend(fontsize=7, ncol=2)
+    ax.set_title(_title(rec) + " - path curvature (shaded: escape)", fontsize=10)
+    return fig
+
+
+def plot_convergence(rec: Recording, agents: list[str] | None = None, fig: Figure | None = None):
+    """Best cost per iteration of every optimizer run recorded on /optimizer."""
+    fig = fig or new_figure(figsize=(9, 5))
+    ax = fig.add_subplot()
+    runs = rec.optimizer_runs
+    if agents is not None:
+        runs = [r for r in runs if str(r.get("agent")) in set(agents)]
+    colors = agent_colors(rec.n_agents)
+    styles = {"escape": "-", "smoothing": "--"}
+    positive = True
+    drawn = 0
+    for r in runs:
+        conv = np.asarray(r.get("convergence") or [], float)
+        if not len(conv):
+            continue
+        aid = str(r.get("agent"))
+        col = colors[rec.agent_ids.index(aid)] if aid in rec.agent_ids else "0.4"
+        ax.plot(
+            np.arange(1, len(conv) + 1),
+            conv,
+            color=col,
+            ls=styles.get(r.get("purpose"), ":"),
+            lw=1.0,
+            alpha=0.8,
+            gid=f"run:{aid}:{r.get('purpose')}:{r.get('t')}",
+        )
+        positive &= bool(np.all(conv[np.isfinite(conv)] > 0))
+        drawn += 1
+    if drawn and positive:
+        ax.set_yscale("log")
+    handles = [Line2D([], [], color="0.3", ls=s, label=p) for p, s in styles.items()]
+    shown_agents = sorted({str(r.get("agent")) for r in runs}, key=lambda a: (a not in rec.agent_ids, a))
+    for aid in shown_agents[:12]:
+        if aid in rec.agent_ids:
+            handles.append(Line2D([], [], color=colors[rec.agent_ids.index(aid)], label=aid))
+    ax.legend(handles=handles, fontsize=7)
+    algos = sorted({str(r.get("algorithm")) for r in runs}) or ["-"]
+    ax.set_xlabel("iteration")
+    ax.set_ylabel("best cost")
+    ax.grid(alpha=0.3, which="both")
+    ax.set_title(f"optimizer convergence: {drawn} runs ({', '.join(algos)})", fontsize=10)
+    if not drawn:
+        ax.text(0.5, 0.5, "no optimizer runs recorded", transform=ax.transAxes, ha="center", va="center")
+    return fig
