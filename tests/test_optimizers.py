@@ -257,3 +257,44 @@ def test_beats_random_search(name, fn_name):
     # deterministic (fixed seeds, so not flaky): median of 7 runs below random search's median
     msg = f"{name} on shifted {fn_name}: {np.round(ours, 3)} vs random {np.round(rnd, 3)}"
     assert np.median(ours) < np.median(rnd), msg
+
+
+# --- the benchmark functions and the bench CLI ------------------------------------------------
+@pytest.mark.parametrize("shifted", [False, True])
+def test_benchmark_optima(shifted):
+    from swarmplan.bench.functions import BENCHMARKS
+
+    for d in (2, 10, 30):
+        for b in BENCHMARKS.values():
+            x = b.optimum(d, shifted=shifted)
+            if x is None or b.noisy:
+                continue
+            lo, hi = b.bounds(d)
+            assert np.all(x > lo) and np.all(x < hi), b.name
+            cost = b.cost(d, shifted=shifted)
+            assert cost(x[None])[0] == pytest.approx(b.fopt(d), abs=1e-9), b.name
+            X = lo + np.random.default_rng(0).random((20, d)) * (hi - lo)
+            assert np.all(cost(X) >= b.fopt(d) - 1e-9), b.name
+            assert cost(X).shape == (20,)
+            if shifted:  # moved away from the box centre (and the origin)
+                assert np.linalg.norm(x - 0.5 * (lo + hi)) > 0.1 * np.linalg.norm(hi - lo), b.name
+
+
+def test_bench_cli(tmp_path, capsys, monkeypatch):
+    import sys
+
+    from swarmplan.bench.__main__ import main
+
+    out = tmp_path / "r.csv"
+    argv = ["optimizers", "--suite", "rscdwoa-table4", "--runs", "3", "--algorithms", "random,pso"]
+    argv += ["--functions", "sphere,rastrigin", "--evals", "300", "--jobs", "1", "--out", str(out)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "rastrigin (shifted)" in text and "| pso |" in text
+    lines = out.read_text().splitlines()
+    assert len(lines) == 1 + 2 * 2 * 2  # header + variants x functions x algorithms
+    with pytest.raises(SystemExit):
+        main(["optimizers", "--suite", "no-such-suite"])
+    monkeypatch.setitem(sys.modules, "opfunu", None)  # import opfunu -> ImportError
+    assert main(["optimizers", "--suite", "cec2013", "--runs", "1"]) == 2
+    assert "pip install opfunu" in capsys.readouterr().err
