@@ -144,6 +144,10 @@ class WOA(Optimizer):
     All whales move synchronously from the same X_* and the new population is evaluated in
     one batch; X_* is the best point found so far. Positions leaving the box are clipped
     onto it (the reference implementation's repair). Population 30 (Mirjalili & Lewis).
+
+    WOA is known to favour the box centre (the ``C X_*`` term scales the target towards the
+    origin): on the d = 30 sphere it reaches ~1e-160 in 30000 evaluations when the optimum
+    is at 0 but only ~1e-2 when the optimum is shifted; benchmark on shifted functions.
     """
 
     name = "woa"
