@@ -1,0 +1,249 @@
+"""Artificial potential field for all agents at once: forces in, commanded velocities out.
+
+Terms (all vectorized over agents and bodies):
+- attraction to the goal, quadratic within ``quadratic_radius`` and conic beyond;
+- repulsion from obstacle *surfaces* (true signed distances and their gradients),
+  ``k_rep (1/rho - 1/rho0)`` inside the influence distance ``rho0``, scaled by the
+  goal-distance factor ``min(1, d_goal/rho0)^n`` plus its companion term pulling towards
+  the goal (Ge & Cui's modified APF) so a goal beside an obstacle stays reachable;
+- the same from the terrain/ground (vertical clearance) and the faces of ``bounds``;
+- moving obstacles and other agents: repulsion at the predicted closest approach within
+  ``horizon`` seconds (relative-velocity term), with a right-hand bias that breaks
+  head-on symmetry; agents use the ellipsoidal ``separation`` metric;
+- arrived agents are ordinary spheres to the others.
+The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
+so the agent can still brake before the goal and before any obstacle surface ahead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.dynamics import AgentParams
+from swarmplan.world import World
+
+_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class ApfGains:
+    k_att: float
+    k_rep: float
+    influence: float
+    k_agent: float
+    quadratic_radius: float
+    goal_power: float
+    k_moving: float
+    horizon: float
+
+    @classmethod
+    def from_world(cls, world: World) -> ApfGains:
+        return cls(**{k: float(v) for k, v in world.planner["apf"].items()})
+
+
+@dataclass
+class FieldInputs:
+    """Geometry seen by the active agents this step (computed by the simulation)."""
+
+    obstacle_distance: np.ndarray  # (N, M) signed distance from agent centre to obstacle surface
+    obstacle_gradient: np.ndarray  # (N, M, 3)
+    obstacle_velocity: np.ndarray  # (M, 3), zero for static obstacles
+    obstacle_moving: np.ndarray  # (M,) bool
+    obstacle_radius: np.ndarray  # (M,) bounding radius (prediction of moving bodies)
+    obstacle_center: np.ndarray  # (M, 3)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
+
+
+def _right_of(v: np.ndarray) -> np.ndarray:
+    """Horizontal unit vector to the right of ``v`` (z up)."""
+    r = np.stack([v[..., 1], -v[..., 0], np.zeros(v.shape[:-1])], axis=-1)
+    return _unit(r)
+
+
+def _rep_magnitude(rho: np.ndarray, rho0: float, k: float) -> np.ndarray:
+    rho_c = np.maximum(rho, 0.05)
+    return np.where(rho < rho0, k * (1.0 / rho_c - 1.0 / rho0), 0.0)
+
+
+def apf_forces(
+    world: World,
+    params: AgentParams,
+    gains: ApfGains,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    goal: np.ndarray,
+    field: FieldInputs,
+    all_pos: np.ndarray,
+    all_vel: np.ndarray,
+) -> np.ndarray:
+    """Total APF force on agents ``idx`` (rows of ``pos``/``vel``/``goal``), shape (n, 3)."""
+    n = len(idx)
+    r = params.radius[idx]
+    rho0 = gains.influence
+    e = goal - pos
+    dg = np.linalg.norm(e, axis=1)
+    # Attraction: quadratic near, conic far (continuous at quadratic_radius).
+    dq = gains.quadratic_radius
+    att = gains.k_att * np.where((dg <= dq)[:, None], e, dq * e / np.maximum(dg, _EPS)[:, None])
+    force = att.copy()
+    goal_dir = _unit(e)
+    npow = gains.goal_power
+    gfac = np.minimum(1.0, dg / rho0) ** npow
+    gfac_d = np.where(dg < rho0, npow * np.minimum(1.0, dg / rho0) ** (npow - 1) / rho0, 0.0)
+
+    def add_surface(rho: np.ndarray, grad: np.ndarray, k: float) -> None:
+        """Repulsion from surfaces at clearance ``rho`` (n, K) with outward gradients (n, K, 3)."""
+        mag = _rep_magnitude(rho, rho0, k)
+        pot = np.where(rho < rho0, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
+        nonlocal force
+        force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
+        # Companion of the goal factor: pulls towards the goal as the goal gets close.
+        force = force + (pot.sum(axis=1) * gfac_d)[:, None] * goal_dir
+
+    m_static = ~field.obstacle_moving
+    if field.obstacle_distance.shape[1]:
+        rho = field.obstacle_distance - r[:, None]
+        add_surface(rho[:, m_static], field.obstacle_gradient[:, m_static], gains.k_rep)
+        mv = field.obstacle_moving
+        if mv.any():
+            add_surface(rho[:, mv], field.obstacle_gradient[:, mv], gains.k_rep)
+            force = force + _predicted_repulsion(
+                pos,
+                vel,
+                r,
+                field.obstacle_center[mv],
+                field.obstacle_velocity[mv],
+                field.obstacle_radius[mv],
+                gains,
+                gains.k_rep * gains.k_moving,
+            )
+
+    # Terrain / ground: vertical clearance above the height field, normal of the surface.
+    h = world.terrain_height(pos[:, :2])
+    gh = world.terrain_gradient(pos[:, :2])
+    normal = _unit(np.stack([-gh[:, 0], -gh[:, 1], np.ones(n)], axis=1))
+    floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
+    rho_g = (pos[:, 2] - h) - r
+    rho0_g = max(min(rho0, 3.0 * float(np.max(floor)) if len(floor) else rho0), 2.0)
+    # The ground only pushes while it is not the way to the goal (goals may sit low).
+    low_goal = goal[:, 2] - world.terrain_height(goal[:, :2]) < floor
+    mag_g = np.where(rho_g < rho0_g, gains.k_rep * (1.0 / np.maximum(rho_g, 0.05) - 1.0 / rho0_g), 0.0)
+    mag_g = np.where(low_goal, mag_g * gfac, mag_g)
+    force = force + mag_g[:, None] * normal
+
+    # Faces of the flight volume.
+    lo, hi = world.bounds_min, world.bounds_max
+    rb0 = min(rho0, 10.0)
+    for axis in range(3):
+        for sign, plane in ((1.0, lo[axis]), (-1.0, hi[axis])):
+            if axis == 2 and sign > 0:
+                continue  # the ground term handles the floor
+            rho_b = sign * (pos[:, axis] - plane) - r
+            mag = np.where(rho_b < rb0, gains.k_rep * (1.0 / np.maximum(rho_b, 0.05) - 1.0 / rb0), 0.0)
+            force[:, axis] += sign * mag * gfac
+
+    force = force + _agent_repulsion(params, gains, idx, pos, vel, all_pos, all_vel)
+    return force
+
+
+def _predicted_repulsion(
+    pos: np.ndarray,
+    vel: np.ndarray,
+    r: np.ndarray,
+    centers: np.ndarray,
+    velocities: np.ndarray,
+    radii: np.ndarray,
+    gains: ApfGains,
+    k: float,
+) -> np.ndarray:
+    """Repulsion at the predicted closest approach to bodies moving at constant velocity."""
+    dp = pos[:, None, :] - centers[None, :, :]  # (n, K, 3)
+    dv = vel[:, None, :] - velocities[None, :, :]
+    a = np.sum(dv * dv, axis=-1)
+    tau = np.clip(-np.sum(dp * dv, axis=-1) / np.maximum(a, _EPS), 0.0, gains.horizon)
+    sep = dp + tau[..., None] * dv
+    dist = np.linalg.norm(sep, axis=-1)
+    rho = dist - radii[None, :] - r[:, None]
+    rho0 = gains.influence
+    # Closer in time matters more; a collision course gets a sideways (right-hand) push.
+    urgency = 1.0 - tau / (gains.horizon + _EPS)
+    mag = _rep_magnitude(rho, rho0, k) * urgency * (tau > 0)
+    direction = _unit(sep)
+    head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
+    direction = np.where(head_on[..., None], _right_of(dv), _unit(direction + 0.3 * _right_of(dv)))
+    return np.einsum("nk,nkd->nd", mag, direction)
+
+
+def _agent_repulsion(
+    params: AgentParams,
+    gains: ApfGains,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    all_pos: np.ndarray,
+    all_vel: np.ndarray,
+) -> np.ndarray:
+    """Ellipsoidal separation repulsion from every other agent (current and predicted)."""
+    n_all = len(all_pos)
+    if n_all < 2:
+        return np.zeros_like(pos)
+    others = np.ones((len(idx), n_all), dtype=bool)
+    others[np.arange(len(idx)), idx] = False
+    sep = np.maximum(params.separation[idx][:, None, :], params.separation[None, :, :])
+    rr = params.radius[idx][:, None] + params.radius[None, :]
+    scale = sep + rr[..., None]  # ellipsoid semi-axes where contact-plus-separation begins
+    dp = pos[:, None, :] - all_pos[None, :, :]
+    q = dp / scale
+    e = np.linalg.norm(q, axis=-1)  # < 1: separation violated
+    grad = _unit(q / scale)
+    e0 = 1.0 + gains.influence / np.maximum(np.linalg.norm(scale, axis=-1), _EPS)
+    mag = np.where(
+        others & (e < e0), gains.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0
+    )
+    force = np.einsum("nk,nkd->nd", mag, grad)
+    # Predicted closest approach in the scaled metric, with a right-hand bias.
+    dv = (vel[:, None, :] - all_vel[None, :, :]) / scale
+    a = np.sum(dv * dv, axis=-1)
+    tau = np.clip(-np.sum(q * dv, axis=-1) / np.maximum(a, _EPS), 0.0, gains.horizon)
+    qs = q + tau[..., None] * dv
+    es = np.linalg.norm(qs, axis=-1)
+    urgency = 1.0 - tau / (gains.horizon + _EPS)
+    mag_p = (
+        np.where(
+            others & (es < e0) & (tau > 0),
+            gains.k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)),
+            0.0,
+        )
+        * urgency
+    )
+    direction = _unit(_unit(qs * scale) + 0.5 * _right_of(vel[:, None, :] - all_vel[None, :, :]))
+    return force + np.einsum("nk,nkd->nd", mag_p, direction)
+
+
+def commanded_velocity(
+    params: AgentParams,
+    idx: np.ndarray,
+    force: np.ndarray,
+    pos: np.ndarray,
+    goal: np.ndarray,
+    clearance: np.ndarray,
+    clearance_dir: np.ndarray,
+) -> np.ndarray:
+    """Velocity command from the force: cruise speed along it, slowed to brake before the goal
+    and before the nearest surface ahead (``clearance`` (n,), outward normal ``clearance_dir``)."""
+    amax = params.max_accel[idx]
+    speed = params.speed_cruise[idx].copy()
+    dg = np.linalg.norm(goal - pos, axis=1)
+    speed = np.minimum(speed, np.sqrt(2.0 * 0.8 * amax * dg))
+    v = _unit(force) * speed[:, None]
+    # Component towards the nearest surface may not exceed what can still be braked.
+    toward = -np.sum(v * clearance_dir, axis=1)
+    allowed = np.sqrt(2.0 * 0.8 * amax * np.maximum(clearance - 0.5, 0.0))
+    excess = np.maximum(toward - allowed, 0.0)
+    return v + excess[:, None] * clearance_dir

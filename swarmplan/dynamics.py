@@ -1,0 +1,130 @@
+"""Kinematic models, vectorized over agents: commanded velocity in, limited velocity out.
+
+- ``multirotor``: point mass; |v| <= speed.max and |v1 - v0| <= max_accel * dt per step.
+- ``fixed_wing``: speed in [speed.min, speed.max] changing by at most max_accel * dt; heading
+  rate <= V / min_turn_radius; flight-path angle within ±max_climb_angle.
+Positions advance with the new velocity (semi-implicit Euler), so the recorded velocity
+is exactly the step's displacement over dt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.world import World
+
+
+@dataclass(frozen=True)
+class AgentParams:
+    """Per-agent limits as arrays of shape (N,) (``separation`` (N, 3)), in SI units and radians."""
+
+    ids: tuple[str, ...]
+    fixed_wing: np.ndarray  # bool
+    radius: np.ndarray
+    speed_min: np.ndarray
+    speed_max: np.ndarray
+    speed_cruise: np.ndarray
+    max_accel: np.ndarray
+    min_turn_radius: np.ndarray
+    max_climb: np.ndarray
+    min_altitude: np.ndarray
+    separation: np.ndarray
+
+    @classmethod
+    def from_world(cls, world: World) -> AgentParams:
+        a = world.agents
+        arr = lambda f: np.array([f(x) for x in a], dtype=float)  # noqa: E731
+        return cls(
+            ids=tuple(x.id for x in a),
+            fixed_wing=np.array([x.model == "fixed_wing" for x in a]),
+            radius=arr(lambda x: x.radius),
+            speed_min=arr(lambda x: x.speed_min),
+            speed_max=arr(lambda x: x.speed_max),
+            speed_cruise=arr(lambda x: x.speed_cruise),
+            max_accel=arr(lambda x: x.max_accel),
+            min_turn_radius=arr(lambda x: x.min_turn_radius),
+            max_climb=arr(lambda x: x.max_climb_angle),
+            min_altitude=arr(lambda x: x.min_altitude),
+            separation=np.array([x.separation for x in a], dtype=float).reshape(-1, 3),
+        )
+
+
+def initial_velocity(params: AgentParams, start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """Multirotors start at rest; fixed wings already fly at cruise speed, level, towards the goal."""
+    v = np.zeros_like(start)
+    d = goal - start
+    d[:, 2] = 0.0
+    n = np.linalg.norm(d, axis=1)
+    heading = np.where(n[:, None] > 1e-9, d / np.maximum(n, 1e-9)[:, None], np.array([1.0, 0.0, 0.0]))
+    fw = params.fixed_wing
+    v[fw] = heading[fw] * params.speed_cruise[fw, None]
+    return v
+
+
+def limit_multirotor(
+    v0: np.ndarray, v_cmd: np.ndarray, vmax: np.ndarray, amax: np.ndarray, dt: float
+) -> np.ndarray:
+    """New velocity: the command clipped to vmax, reached with at most amax*dt of change."""
+    s = np.linalg.norm(v_cmd, axis=1)
+    v_cmd = v_cmd * np.minimum(1.0, vmax / np.maximum(s, 1e-12))[:, None]
+    dv = v_cmd - v0
+    n = np.linalg.norm(dv, axis=1)
+    return v0 + dv * np.minimum(1.0, amax * dt / np.maximum(n, 1e-12))[:, None]
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def limit_fixed_wing(
+    v0: np.ndarray,
+    v_cmd: np.ndarray,
+    vmin: np.ndarray,
+    vmax: np.ndarray,
+    amax: np.ndarray,
+    turn_radius: np.ndarray,
+    climb: np.ndarray,
+    dt: float,
+) -> np.ndarray:
+    """New velocity of fixed wings from speed, heading and flight-path angle limits."""
+    speed0 = np.linalg.norm(v0, axis=1)
+    psi0 = np.arctan2(v0[:, 1], v0[:, 0])
+    speed_cmd = np.clip(np.linalg.norm(v_cmd, axis=1), vmin, vmax)
+    psi_cmd = np.arctan2(v_cmd[:, 1], v_cmd[:, 0])
+    hxy = np.linalg.norm(v_cmd[:, :2], axis=1)
+    gamma_cmd = np.arctan2(v_cmd[:, 2], np.maximum(hxy, 1e-12))
+    gamma_cmd = np.where(hxy < 1e-9, np.sign(v_cmd[:, 2]) * climb, gamma_cmd)
+    speed1 = np.clip(speed0 + np.clip(speed_cmd - speed0, -amax * dt, amax * dt), vmin, vmax)
+    # Turn rate V / R_min at the slower of the two speeds keeps the radius >= R_min.
+    max_turn = np.minimum(speed0, speed1) / turn_radius * dt
+    psi1 = psi0 + np.clip(_wrap(psi_cmd - psi0), -max_turn, max_turn)
+    gamma1 = np.clip(gamma_cmd, -climb, climb)
+    c = np.cos(gamma1)
+    return speed1[:, None] * np.stack([c * np.cos(psi1), c * np.sin(psi1), np.sin(gamma1)], axis=1)
+
+
+def limit_velocity(
+    params: AgentParams, v0: np.ndarray, v_cmd: np.ndarray, dt: float, idx: np.ndarray
+) -> np.ndarray:
+    """New velocities of agents ``idx`` under their own model's limits."""
+    out = np.empty((len(idx), 3))
+    fw = params.fixed_wing[idx]
+    mr = ~fw
+    if mr.any():
+        k = idx[mr]
+        out[mr] = limit_multirotor(v0[mr], v_cmd[mr], params.speed_max[k], params.max_accel[k], dt)
+    if fw.any():
+        k = idx[fw]
+        out[fw] = limit_fixed_wing(
+            v0[fw],
+            v_cmd[fw],
+            params.speed_min[k],
+            params.speed_max[k],
+            params.max_accel[k],
+            params.min_turn_radius[k],
+            params.max_climb[k],
+            dt,
+        )
+    return out

@@ -1,0 +1,1 @@
+"""Geometry: analytic distances to obstacle shapes and terrain, and FCL collision checking."""

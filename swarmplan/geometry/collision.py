@@ -1,0 +1,212 @@
+"""FCL collision registry: the authority on contact between agents and obstacles.
+
+Every check is *swept*: a sphere of radius r moving in a straight line from p0 to p1
+covers exactly a capsule, so one discrete capsule test per step cannot tunnel through a
+thin wall, whatever the speed. Moving obstacles translate, so the same holds in the
+obstacle's frame: the agent sweeps from ``p0 - q0`` to ``p1 - q1`` relative to it, and
+that relative capsule is tested against the obstacle placed at ``q0``. This also covers
+meshes, for which FCL's continuous collision segfaults or misses (see
+shared/notes/library-facts.md). Agent-agent contact and terrain/ground are analytic.
+
+Static obstacles live in one ``DynamicAABBTreeCollisionManager`` built once; moving
+obstacles and the query capsule are fcl objects created once and moved by transforms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import fcl
+import numpy as np
+
+from swarmplan.world import Obstacle, World
+
+_Z = np.array([0.0, 0.0, 1.0])
+
+
+def fcl_geometry(o: Obstacle) -> fcl.CollisionGeometry:
+    """The fcl geometry of an obstacle in its local frame."""
+    if o.shape == "sphere":
+        return fcl.Sphere(o.radius)
+    if o.shape == "box":
+        return fcl.Box(*o.size)
+    if o.shape == "cylinder":
+        return fcl.Cylinder(o.radius, o.height)
+    if o.shape == "capsule":
+        return fcl.Capsule(o.radius, o.height)
+    model = fcl.BVHModel()
+    model.beginModel(len(o.vertices), len(o.faces))
+    model.addSubModel(
+        np.ascontiguousarray(o.vertices, dtype=float), np.ascontiguousarray(o.faces, dtype=np.int32)
+    )
+    model.endModel()
+    return model
+
+
+def _align_z(d: np.ndarray) -> np.ndarray:
+    """Rotation matrix taking the local z axis onto the unit vector ``d``."""
+    c = float(np.dot(_Z, d))
+    if c > 1 - 1e-12:
+        return np.eye(3)
+    if c < -1 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    v = np.cross(_Z, d)
+    s2 = float(np.dot(v, v))
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx * ((1 - c) / s2)
+
+
+def segment_segment_min_distance(
+    p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray
+) -> np.ndarray:
+    """Minimum over s in [0, 1] of |(p0 + s(p1-p0)) - (q0 + s(q1-q0))| for rows of points moving together.
+
+    Two bodies moving linearly during the same step: their separation is linear in s, so
+    the closest approach has a closed form.
+    """
+    w0 = p0 - q0
+    dw = (p1 - p0) - (q1 - q0)
+    a = np.sum(dw * dw, axis=-1)
+    s = np.where(a > 1e-18, np.clip(-np.sum(w0 * dw, axis=-1) / np.maximum(a, 1e-18), 0.0, 1.0), 0.0)
+    return np.linalg.norm(w0 + s[..., None] * dw, axis=-1)
+
+
+@dataclass(frozen=True)
+class Hit:
+    agent: int
+    other: str  # obstacle id, agent id, "terrain", "ground" or "bounds"
+
+
+class CollisionWorld:
+    """Swept collision queries of agent spheres against the world's obstacles, terrain and bounds."""
+
+    def __init__(self, world: World):
+        self.world = world
+        self.static = list(world.static_obstacles)
+        self.moving = list(world.moving_obstacles)
+        self._static_objs = []
+        for o in self.static:
+            obj = fcl.CollisionObject(fcl_geometry(o), fcl.Transform(o.rotation, o.position.astype(float)))
+            self._static_objs.append(obj)
+        self._manager = fcl.DynamicAABBTreeCollisionManager()
+        if self._static_objs:
+            self._manager.registerObjects(self._static_objs)
+            self._manager.setup()
+        self._moving_objs = [
+            fcl.CollisionObject(fcl_geometry(o), fcl.Transform(o.rotation, o.position.astype(float)))
+            for o in self.moving
+        ]
+        self._static_centers = np.array([o.position for o in self.static]).reshape(-1, 3)
+        self._static_radii = np.array([o.bounding_radius for o in self.static])
+        self._moving_radii = np.array([o.bounding_radius for o in self.moving])
+        self._capsule = fcl.Capsule(1.0, 1.0)
+        self._capsule_obj = fcl.CollisionObject(self._capsule, fcl.Transform())
+        self._spheres: dict[float, tuple[fcl.Sphere, fcl.CollisionObject]] = {}
+        self._request = fcl.CollisionRequest()
+
+    # ------------------------------------------------------------------ fcl primitives
+
+    def _swept_object(self, a: np.ndarray, b: np.ndarray, radius: float) -> fcl.CollisionObject:
+        d = b - a
+        length = float(np.linalg.norm(d))
+        mid = (a + b) / 2
+        if length < 1e-9:
+            if radius not in self._spheres:
+                g = fcl.Sphere(radius)
+                self._spheres[radius] = (g, fcl.CollisionObject(g, fcl.Transform()))
+            obj = self._spheres[radius][1]
+            obj.setTransform(fcl.Transform(np.ascontiguousarray(mid, dtype=float)))
+            return obj
+        self._capsule.radius = radius
+        self._capsule.lz = length
+        # A changed geometry needs a fresh transform so fcl recomputes the object's AABB.
+        self._capsule_obj.setTransform(
+            fcl.Transform(_align_z(d / length), np.ascontiguousarray(mid, dtype=float))
+        )
+        return self._capsule_obj
+
+    def _collides(self, a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
+        return fcl.collide(a, b, self._request, fcl.CollisionResult()) > 0
+
+    # ------------------------------------------------------------------ queries
+
+    def sweep_static(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> str | None:
+        """Id of a static obstacle the sphere touches moving from ``p0`` to ``p1``, else None."""
+        if not self.static:
+            return None
+        obj = self._swept_object(p0, p1, radius)
+        data = fcl.CollisionData(request=self._request)
+        self._manager.collide(obj, data, fcl.defaultCollisionCallback)
+        if not data.result.is_collision:
+            return None
+        # Name the body: narrow-phase the candidates whose bounding sphere the sweep reaches.
+        reach = np.linalg.norm(self._static_centers - (p0 + p1) / 2, axis=1) - self._static_radii
+        half = np.linalg.norm(p1 - p0) / 2 + radius + 1e-6
+        for k in np.flatnonzero(reach <= half):
+            if self._collides(obj, self._static_objs[k]):
+                return self.static[k].id
+        return self.static[int(np.argmin(reach))].id
+
+    def sweep_moving(
+        self, p0: np.ndarray, p1: np.ndarray, radius: float, q0: np.ndarray, q1: np.ndarray
+    ) -> str | None:
+        """Id of a moving obstacle (at ``q0`` → ``q1`` during the step) the sphere touches, else None."""
+        if not self.moving:
+            return None
+        # Relative motion in each obstacle's frame: the obstacle stays at q0, the agent sweeps.
+        rel1 = p1[None, :] - (q1 - q0)
+        gap = segment_segment_min_distance(p0[None, :], p1[None, :], q0, q1) - self._moving_radii - radius
+        for k in np.flatnonzero(gap <= 1e-6):
+            obj = self._swept_object(p0, rel1[k], radius)
+            mo = self._moving_objs[k]
+            mo.setTransform(fcl.Transform(self.moving[k].rotation, np.ascontiguousarray(q0[k], dtype=float)))
+            if self._collides(obj, mo):
+                return self.moving[k].id
+        return None
+
+    def sweep_terrain(self, p0: np.ndarray, p1: np.ndarray, radius: float) -> str | None:
+        """ "ground"/"terrain" when the sphere dips below the height field during the step.
+
+        Samples the step at a quarter radius (the terrain is smooth at that scale).
+        """
+        n = int(np.ceil(np.linalg.norm(p1 - p0) / max(radius * 0.25, 1e-3))) + 2
+        s = np.linspace(0.0, 1.0, min(n, 4000))[:, None]
+        pts = p0 + s * (p1 - p0)
+        h = self.world.terrain_height(pts[:, :2])
+        if np.any(pts[:, 2] - h < radius - 1e-9):
+            return "terrain" if self.world.peaks else "ground"
+        return None
+
+    def sweep_bounds(self, p1: np.ndarray) -> bool:
+        """True when the centre leaves the flight volume (the volume is convex: the end point suffices)."""
+        return bool(np.any(p1 < self.world.bounds_min - 1e-9) or np.any(p1 > self.world.bounds_max + 1e-9))
+
+    def first_hit(
+        self, p0: np.ndarray, p1: np.ndarray, radius: float, q0: np.ndarray, q1: np.ndarray
+    ) -> str | None:
+        """What a sphere moving ``p0`` → ``p1`` touches: obstacle id, terrain, ground, bounds or None."""
+        if self.sweep_bounds(p1):
+            return "bounds"
+        return (
+            self.sweep_terrain(p0, p1, radius)
+            or self.sweep_static(p0, p1, radius)
+            or self.sweep_moving(p0, p1, radius, q0, q1)
+        )
+
+
+def agent_contacts(
+    p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, active: np.ndarray, margin: float = 0.0
+) -> list[tuple[int, int]]:
+    """Pairs (i, j), i < j, of agents whose spheres (inflated by ``margin``) touch during the step.
+
+    Agents that are not ``active`` (arrived) still count as bodies, standing still.
+    """
+    n = len(p0)
+    if n < 2:
+        return []
+    i, j = np.triu_indices(n, 1)
+    keep = active[i] | active[j]
+    i, j = i[keep], j[keep]
+    d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
+    hit = d < radii[i] + radii[j] + margin
+    return list(zip(i[hit].tolist(), j[hit].tolist(), strict=True))

@@ -1,0 +1,170 @@
+"""Analytic signed distances (and their gradients) from points to obstacle shapes.
+
+Used by the potential field and the planners' costs, where thousands of point/obstacle
+pairs are scored per call; FCL (``collision.py``) remains the authority on contact.
+Distances are to the surface: positive outside, negative inside. Meshes use a signed
+distance grid built once (voxelization + Euclidean distance transform), so their
+distances are approximate to about one voxel.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from swarmplan.world import Obstacle
+
+_EPS = 1e-12
+
+
+def _normalize(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(n, _EPS)
+
+
+def sdf_sphere(p: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    n = np.linalg.norm(p, axis=-1)
+    return n - radius, _normalize(p)
+
+
+def sdf_box(p: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    q = np.abs(p) - half
+    qpos = np.maximum(q, 0.0)
+    outside = np.linalg.norm(qpos, axis=-1)
+    qmax = q.max(axis=-1)
+    d = outside + np.minimum(qmax, 0.0)
+    sign = np.where(p >= 0, 1.0, -1.0)
+    g_out = _normalize(qpos) * sign
+    axis = np.argmax(q, axis=-1)
+    g_in = np.zeros_like(p)
+    np.put_along_axis(g_in, axis[..., None], np.take_along_axis(sign, axis[..., None], axis=-1), axis=-1)
+    g = np.where((outside > 0)[..., None], g_out, g_in)
+    return d, g
+
+
+def sdf_cylinder(p: np.ndarray, radius: float, half_height: float) -> tuple[np.ndarray, np.ndarray]:
+    rxy = np.linalg.norm(p[..., :2], axis=-1)
+    dr = rxy - radius
+    dz = np.abs(p[..., 2]) - half_height
+    out_r, out_z = np.maximum(dr, 0.0), np.maximum(dz, 0.0)
+    outside = np.hypot(out_r, out_z)
+    d = outside + np.minimum(np.maximum(dr, dz), 0.0)
+    radial = np.zeros_like(p)
+    radial[..., :2] = p[..., :2] / np.maximum(rxy, _EPS)[..., None]
+    zdir = np.zeros_like(p)
+    zdir[..., 2] = np.where(p[..., 2] >= 0, 1.0, -1.0)
+    g_out = _normalize(radial * out_r[..., None] + zdir * out_z[..., None])
+    g_in = np.where((dr > dz)[..., None], radial, zdir)
+    return d, np.where((outside > 0)[..., None], g_out, g_in)
+
+
+def sdf_capsule(p: np.ndarray, radius: float, half_height: float) -> tuple[np.ndarray, np.ndarray]:
+    closest = np.zeros_like(p)
+    closest[..., 2] = np.clip(p[..., 2], -half_height, half_height)
+    v = p - closest
+    return np.linalg.norm(v, axis=-1) - radius, _normalize(v)
+
+
+class MeshGrid:
+    """Signed distance grid of a closed mesh in its local frame (trilinear interpolation)."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, cells: int = 48, pad: float | None = None):
+        import trimesh
+        from scipy import ndimage
+
+        mesh = trimesh.Trimesh(vertices, faces, process=False)
+        lo, hi = mesh.bounds
+        extent = float(np.max(hi - lo))
+        pitch = extent / cells
+        pad = 4 * pitch if pad is None else pad
+        self.lo = lo - pad
+        shape = np.ceil((hi - lo + 2 * pad) / pitch).astype(int) + 1
+        self.pitch = pitch
+        # Voxel centres inside the mesh (filled voxelization), then two distance transforms.
+        vox = mesh.voxelized(pitch).fill()
+        occ = np.zeros(shape, dtype=bool)
+        idx = np.round((vox.points - self.lo) / pitch).astype(int)
+        ok = np.all((idx >= 0) & (idx < shape), axis=1)
+        occ[tuple(idx[ok].T)] = True
+        outside = ndimage.distance_transform_edt(~occ) * pitch
+        inside = ndimage.distance_transform_edt(occ) * pitch
+        # Surface lies about half a voxel from voxel centres.
+        self.grid = np.where(occ, -(inside - 0.5 * pitch), outside - 0.5 * pitch)
+        self.grad = np.stack(np.gradient(self.grid, pitch), axis=-1)
+        self.hi = self.lo + (shape - 1) * pitch
+
+    def query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        from scipy import ndimage
+
+        flat = p.reshape(-1, 3)
+        clamped = np.clip(flat, self.lo, self.hi)
+        coords = ((clamped - self.lo) / self.pitch).T
+        d = ndimage.map_coordinates(self.grid, coords, order=1, mode="nearest")
+        g = np.stack(
+            [ndimage.map_coordinates(self.grad[..., k], coords, order=1, mode="nearest") for k in range(3)],
+            -1,
+        )
+        # Outside the grid: add the distance to the grid box (a lower bound stays a lower bound).
+        off = flat - clamped
+        offn = np.linalg.norm(off, axis=-1)
+        far = offn > 0
+        d = d + offn
+        g = np.where(far[:, None], _normalize(off), _normalize(g))
+        return d.reshape(p.shape[:-1]), g.reshape(p.shape)
+
+
+def _local_sdf(o: Obstacle, local: np.ndarray, mesh_grid: MeshGrid | None) -> tuple[np.ndarray, np.ndarray]:
+    if o.shape == "sphere":
+        return sdf_sphere(local, o.radius)
+    if o.shape == "box":
+        return sdf_box(local, o.size / 2)
+    if o.shape == "cylinder":
+        return sdf_cylinder(local, o.radius, o.height / 2)
+    if o.shape == "capsule":
+        return sdf_capsule(local, o.radius, o.height / 2)
+    if mesh_grid is None:
+        mesh_grid = MeshGrid(o.vertices, o.faces)
+    return mesh_grid.query(local)
+
+
+def distance_and_gradient(
+    o: Obstacle, points: np.ndarray, center: np.ndarray | None = None, mesh_grid: MeshGrid | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance from ``points`` (..., 3) to ``o`` placed at ``center`` and its world-frame gradient."""
+    c = o.position if center is None else center
+    local = (np.asarray(points, dtype=float) - c) @ o.rotation
+    d, g = _local_sdf(o, local, mesh_grid)
+    return d, g @ o.rotation.T
+
+
+def signed_distance(o: Obstacle, points: np.ndarray, center: np.ndarray | None = None) -> np.ndarray:
+    """Signed distance from ``points`` (N, 3) to obstacle ``o`` (at ``center``, default its t=0 position)."""
+    return distance_and_gradient(o, points, center)[0]
+
+
+class ObstacleField:
+    """Distances from many points to every obstacle at once, for the potential field and costs.
+
+    Mesh grids are built once here. ``query(points, centers)`` returns ``(N, M)`` distances
+    and ``(N, M, 3)`` gradients for ``N`` points and the ``M`` obstacles placed at ``centers``.
+    """
+
+    def __init__(self, obstacles: Sequence[Obstacle]):
+        self.obstacles = tuple(obstacles)
+        self.mesh_grids = {
+            i: MeshGrid(o.vertices, o.faces) for i, o in enumerate(self.obstacles) if o.shape == "mesh"
+        }
+
+    def __len__(self) -> int:
+        return len(self.obstacles)
+
+    def query(self, points: np.ndarray, centers: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        points = np.asarray(points, dtype=float)
+        n, m = len(points), len(self.obstacles)
+        d = np.empty((n, m))
+        g = np.empty((n, m, 3))
+        for j, o in enumerate(self.obstacles):
+            c = o.position if centers is None else centers[j]
+            d[:, j], g[:, j] = distance_and_gradient(o, points, c, self.mesh_grids.get(j))
+        return d, g

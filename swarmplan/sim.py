@@ -1,0 +1,561 @@
+"""The multi-UAV simulation: ``reset(seed=...)`` / ``step()`` in the manner of Gymnasium.
+
+Each step, for every flying agent at once: potential-field command (or segment following
+while escaping/smoothing) → kinematic limits → a swept FCL safety check of the step
+(alternative feasible commands when the step would touch something) → the committed
+step is checked again (contact ends the agent) → arrival, stuck and near-miss detection
+→ recording. ``terminated`` means every agent arrived, collided or failed; ``truncated``
+means ``sim.max_time`` ran out.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from swarmplan import __version__
+from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
+from swarmplan.geometry.collision import CollisionWorld, agent_contacts, segment_segment_min_distance
+from swarmplan.geometry.shapes import ObstacleField
+from swarmplan.metrics import RunMetrics
+from swarmplan.motion import poses_at
+from swarmplan.state import SwarmState
+from swarmplan.world import World, matrix_to_quaternion
+
+
+@dataclass(frozen=True)
+class Event:
+    t: float
+    agent: str | None
+    kind: str
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"t": round(self.t, 9), "agent": self.agent, "kind": self.kind, "detail": self.detail}
+
+
+@dataclass(frozen=True)
+class PlannedSegment:
+    """A segment an agent follows in ``mode`` ('escape' or 'smoothing') before returning to APF."""
+
+    waypoints: np.ndarray  # (K, 3), the first is the next point to reach
+    mode: str = "escape"
+
+
+class Planner(Protocol):
+    """What the simulation asks of the refinement planner (see ``swarmplan.planner``)."""
+
+    def on_stuck(self, sim: Simulation, agent: int) -> PlannedSegment | None | str:
+        """A segment to escape a trap, None to keep flying APF, or "failed" to give up."""
+
+    def on_step(self, sim: Simulation) -> dict[int, PlannedSegment]:
+        """Segments to start this step for other reasons (e.g. curvature smoothing)."""
+
+
+class Recorder(Protocol):
+    def write_world(self, world: dict[str, Any]) -> None: ...
+    def write_state(self, t: float, agents: list[dict], obstacles: list[dict] | None) -> None: ...
+    def write_event(self, event: dict[str, Any]) -> None: ...
+    def write_optimizer(self, msg: dict[str, Any]) -> None: ...
+    def write_summary(self, summary: dict[str, Any]) -> None: ...
+
+
+@dataclass
+class StepResult:
+    state: SwarmState
+    events: list[Event]
+    terminated: bool
+    truncated: bool
+
+
+class Simulation:
+    """One run of a world. ``planner`` (optional) plans escapes and smoothing; ``recorder`` logs."""
+
+    def __init__(self, world: World, planner: Planner | None = None, recorder: Recorder | None = None):
+        self.world = world
+        self.planner = planner
+        self.recorder = recorder
+        self.params = AgentParams.from_world(world)
+        self.gains = ApfGains.from_world(world)
+        self.collision = CollisionWorld(world)
+        self.field = ObstacleField(world.obstacles)
+        self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
+        self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
+        self.moving_quat = [
+            matrix_to_quaternion(o.rotation).round(9).tolist() for o in world.moving_obstacles
+        ]
+        self.n = len(world.agents)
+        self.ids = self.params.ids
+        self.state: SwarmState | None = None
+        self.seed: int | None = None
+        self.rng: np.random.Generator | None = None
+        self.metrics: RunMetrics | None = None
+        self.wall_start = 0.0
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def reset(self, seed: int | None = None) -> SwarmState:
+        """Start the run at t = 0 with ``seed`` (default: the world's seed)."""
+        self.seed = self.world.seed if seed is None else int(seed)
+        self.rng = np.random.default_rng(self.seed)
+        start = np.array([a.start for a in self.world.agents], dtype=float)
+        goal = np.array([a.goal for a in self.world.agents], dtype=float)
+        self.state = SwarmState(
+            t=0.0,
+            step=0,
+            position=start,
+            velocity=initial_velocity(self.params, start, goal),
+            goal=goal,
+            mode=np.array(["apf"] * self.n, dtype=object),
+            segment=[None] * self.n,
+            segment_index=np.zeros(self.n, dtype=int),
+        )
+        self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
+        self.metrics.positions.append(start.copy())
+        self._progress_ref = np.linalg.norm(goal - start, axis=1)
+        self._progress_t = np.zeros(self.n)
+        self._near = np.zeros((self.n, self.n), dtype=bool)
+        self.interrupted = False
+        self.wall_start = time.perf_counter()
+        if self.recorder is not None:
+            self.recorder.write_world(self.world_message())
+            self.recorder.write_state(0.0, self._agent_dicts(), self._obstacle_dicts(0.0))
+        return self.state
+
+    def world_message(self) -> dict[str, Any]:
+        msg = dict(self.world.resolved)
+        msg["seed"] = self.seed
+        msg["swarmplan_version"] = __version__
+        return msg
+
+    # ------------------------------------------------------------------ one step
+
+    def step(self) -> StepResult:
+        if self.state is None:
+            raise RuntimeError("call reset() before step()")
+        s = self.state
+        w = self.world
+        dt = w.dt
+        events: list[Event] = []
+        t0, t1 = s.t, (s.step + 1) * dt
+        q0, qv0 = poses_at(w.obstacles, t0)
+        q1, _ = poses_at(w.obstacles, t1)
+        mv = self.moving_mask
+        active = s.active
+        idx = np.flatnonzero(active)
+
+        # Extra segments from the planner (e.g. smoothing) start before commands are formed.
+        if self.planner is not None and len(idx):
+            for i, seg in self.planner.on_step(self).items():
+                if s.mode[i] == "apf":
+                    self._start_segment(i, seg, events)
+
+        pos0 = s.position.copy()
+        vel0 = s.velocity.copy()
+        pos1 = pos0.copy()
+        vel1 = np.zeros_like(vel0)
+        obst_clear = np.full(self.n, np.inf)
+        if len(idx):
+            d, g = self.field.query(pos0[idx], q0)
+            inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.bounding_radius, q0)
+            force = apf_forces(
+                w, self.params, self.gains, idx, pos0[idx], vel0[idx], s.goal[idx], inputs, pos0, vel0
+            )
+            clearance, normal = self._nearest_surface(idx, pos0[idx], d, g)
+            obst_clear[idx] = (d - self.params.radius[idx, None]).min(axis=1) if d.shape[1] else np.inf
+            target = s.goal[idx].copy()
+            following = np.array([s.mode[i] in ("escape", "smoothing") for i in idx])
+            for k in np.flatnonzero(following):
+                i = idx[k]
+                force[k] = (
+                    self._segment_direction(i, events) * np.linalg.norm(force[k])
+                    if s.segment[i] is not None
+                    else force[k]
+                )
+                if s.segment[i] is not None:
+                    target[k] = s.segment[i][-1]
+            v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], target, clearance, normal)
+            vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
+            pos1[idx] = pos0[idx] + vel1[idx] * dt
+            self._safety_filter(idx, pos0, vel0, pos1, vel1, v_cmd, q0, q1, events, t1)
+
+        # Contact on the committed step ends the agent.
+        for i in idx:
+            hit = self.collision.first_hit(pos0[i], pos1[i], self.params.radius[i], q0[mv], q1[mv])
+            if hit is not None:
+                self._collide(i, hit, events, t1)
+        for i, j in agent_contacts(pos0, pos1, self.params.radius, active):
+            for a, b in ((i, j), (j, i)):
+                if s.mode[a] not in ("arrived", "collided"):
+                    self._collide(a, self.ids[b], events, t1)
+
+        # Arrival: the step passed within goal tolerance of the goal.
+        tol = w.goal_tolerance
+        for i in np.flatnonzero(s.active):
+            dmin = float(segment_segment_min_distance(pos0[i], pos1[i], s.goal[i], s.goal[i]))
+            if dmin <= tol:
+                s.mode[i] = "arrived"
+                vel1[i] = 0.0
+                s.segment[i] = None
+                self.metrics.arrival_time[i] = t1
+                events.append(Event(t1, self.ids[i], "arrived", {"distance": round(dmin, 6)}))
+
+        agent_clear = self._agent_clearance(pos1)
+        terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
+        self.metrics.add_step(pos0, pos1, active, obst_clear, agent_clear, terr_clear)
+        self._near_misses(pos1, active, events, t1)
+
+        s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
+        self._detect_stuck(events)
+
+        terminated = not s.active.any()
+        truncated = (not terminated) and t1 >= w.max_time - 1e-9
+        if truncated:
+            for i in np.flatnonzero(s.active):
+                events.append(
+                    Event(
+                        t1,
+                        self.ids[i],
+                        "timeout",
+                        {"distance_to_goal": round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6)},
+                    )
+                )
+        if self.recorder is not None:
+            self.recorder.write_state(t1, self._agent_dicts(), self._obstacle_dicts(t1))
+            for e in events:
+                self.recorder.write_event(e.to_json())
+        return StepResult(s, events, terminated, truncated)
+
+    # ------------------------------------------------------------------ helpers
+
+    def _nearest_surface(
+        self, idx: np.ndarray, pos: np.ndarray, d: np.ndarray, g: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Clearance and outward normal of the closest static surface (obstacles, terrain) per agent."""
+        r = self.params.radius[idx]
+        h = self.world.terrain_height(pos[:, :2])
+        clear = pos[:, 2] - h - r
+        gh = self.world.terrain_gradient(pos[:, :2])
+        normal = np.stack([-gh[:, 0], -gh[:, 1], np.ones(len(idx))], axis=1)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        static = ~self.moving_mask
+        if static.any():
+            ds = d[:, static] - r[:, None]
+            j = np.argmin(ds, axis=1)
+            dj = ds[np.arange(len(idx)), j]
+            closer = dj < clear
+            clear = np.where(closer, dj, clear)
+            normal = np.where(closer[:, None], g[:, static][np.arange(len(idx)), j], normal)
+        return clear, normal
+
+    def _segment_direction(self, i: int, events: list[Event]) -> np.ndarray:
+        """Unit direction towards the next waypoint of agent ``i``'s segment; ends the segment at its end."""
+        s = self.state
+        seg = s.segment[i]
+        p = s.position[i]
+        reach = max(self.world.goal_tolerance, float(np.linalg.norm(s.velocity[i])) * self.world.dt * 2.0)
+        k = s.segment_index[i]
+        while k < len(seg) and np.linalg.norm(seg[k] - p) <= reach:
+            k += 1
+        s.segment_index[i] = k
+        if k >= len(seg):
+            events.append(
+                Event(s.t, self.ids[i], "escape_end" if s.mode[i] == "escape" else "smoothing_end", {})
+            )
+            s.mode[i] = "apf"
+            s.segment[i] = None
+            goal_dir = s.goal[i] - p
+            return goal_dir / max(float(np.linalg.norm(goal_dir)), 1e-9)
+        d = seg[k] - p
+        return d / max(float(np.linalg.norm(d)), 1e-9)
+
+    def _start_segment(self, i: int, seg: PlannedSegment, events: list[Event]) -> None:
+        s = self.state
+        s.segment[i] = np.asarray(seg.waypoints, dtype=float)
+        s.segment_index[i] = 0
+        s.mode[i] = seg.mode
+        if seg.mode == "escape":
+            self.metrics.escapes[i] += 1
+            events.append(
+                Event(s.t, self.ids[i], "escape_start", {"waypoints": np.round(s.segment[i], 6).tolist()})
+            )
+        else:
+            events.append(
+                Event(s.t, self.ids[i], "smoothing_start", {"waypoints": np.round(s.segment[i], 6).tolist()})
+            )
+
+    def _step_is_safe(self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> bool:
+        margin = min(0.25, 0.2 * self.params.radius[i])
+        mv = self.moving_mask
+        return self.collision.first_hit(p0, p1, self.params.radius[i] + margin, q0[mv], q1[mv]) is None
+
+    def _safety_filter(
+        self,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        pos1: np.ndarray,
+        vel1: np.ndarray,
+        v_cmd: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        events: list[Event],
+        t1: float,
+    ) -> None:
+        """Replace steps that would touch an obstacle by the closest safe feasible alternative."""
+        dt = self.world.dt
+        for k, i in enumerate(idx):
+            if self._step_is_safe(i, pos0[i], pos1[i], q0, q1):
+                continue
+            cands = self._alternative_velocities(i, vel0[i])
+            safe = [v for v in cands if self._step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
+            if safe:
+                best = min(safe, key=lambda v: float(np.linalg.norm(v - v_cmd[k])))
+                vel1[i] = best
+            elif not self.params.fixed_wing[i]:
+                # No feasible command avoids contact: stop (beyond the accel limit) and say so.
+                vel1[i] = 0.0
+                self.metrics.emergency_stops[i] += 1
+                events.append(
+                    Event(
+                        t1, self.ids[i], "emergency_stop", {"speed": round(float(np.linalg.norm(vel0[i])), 6)}
+                    )
+                )
+            pos1[i] = pos0[i] + vel1[i] * dt
+        # Agents: conflicting pairs stop the multirotor(s) involved, until no conflict remains.
+        active = np.zeros(self.n, dtype=bool)
+        active[idx] = True
+        stopped = np.zeros(self.n, dtype=bool)
+        for _ in range(self.n):
+            margin = 0.2
+            pairs = agent_contacts(
+                pos0, pos1, self.params.radius, active | (self.state.mode == "arrived"), margin
+            )
+            changed = False
+            for a, b in pairs:
+                for i in (a, b):
+                    if active[i] and not stopped[i] and not self.params.fixed_wing[i]:
+                        safe_brake = self._brake(i, vel0[i])
+                        p_brake = pos0[i] + safe_brake * dt
+                        other = b if i == a else a
+                        d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
+                        if d >= self.params.radius[i] + self.params.radius[
+                            other
+                        ] + margin and self._step_is_safe(i, pos0[i], p_brake, q0, q1):
+                            vel1[i] = safe_brake
+                        else:
+                            vel1[i] = 0.0
+                            self.metrics.emergency_stops[i] += 1
+                            events.append(
+                                Event(t1, self.ids[i], "emergency_stop", {"other": self.ids[other]})
+                            )
+                        pos1[i] = pos0[i] + vel1[i] * dt
+                        stopped[i] = True
+                        changed = True
+            if not changed:
+                break
+
+    def _brake(self, i: int, v0: np.ndarray) -> np.ndarray:
+        sp = float(np.linalg.norm(v0))
+        dv = self.params.max_accel[i] * self.world.dt
+        return v0 * max(0.0, sp - dv) / sp if sp > 1e-12 else np.zeros(3)
+
+    def _alternative_velocities(self, i: int, v0: np.ndarray) -> list[np.ndarray]:
+        """Feasible next velocities spanning the model's envelope (brake, turn, climb, dive)."""
+        dt = self.world.dt
+        p = self.params
+        if not p.fixed_wing[i]:
+            dv = p.max_accel[i] * dt
+            dirs = [np.array(v, float) for v in np.ndindex(3, 3, 3) if v != (1, 1, 1)]
+            dirs = [(d - 1) / np.linalg.norm(d - 1) for d in dirs]
+            out = [self._brake(i, v0)] + [v0 + dv * d for d in dirs]
+            vmax = p.speed_max[i]
+            return [v if np.linalg.norm(v) <= vmax else v * vmax / np.linalg.norm(v) for v in out]
+        speed = float(np.linalg.norm(v0))
+        psi = math.atan2(v0[1], v0[0])
+        cmds = []
+        for dpsi in (-1.0, -0.5, 0.0, 0.5, 1.0):
+            for gam in (-1.0, 0.0, 1.0):
+                for sp in (p.speed_min[i], speed, p.speed_max[i]):
+                    a = psi + dpsi * math.pi / 2
+                    g = gam * p.max_climb[i]
+                    cmds.append(
+                        sp * np.array([math.cos(g) * math.cos(a), math.cos(g) * math.sin(a), math.sin(g)])
+                    )
+        cmds = np.array(cmds)
+        v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, np.full(len(cmds), i))
+        return list(v)
+
+    def _collide(self, i: int, other: str, events: list[Event], t1: float) -> None:
+        s = self.state
+        if s.mode[i] == "collided":
+            return
+        s.mode[i] = "collided"
+        s.segment[i] = None
+        self.metrics.collisions[i] += 1
+        self.metrics.collided_with[i].append(other)
+        events.append(Event(t1, self.ids[i], "collision", {"other": other}))
+
+    def _agent_clearance(self, pos: np.ndarray) -> np.ndarray:
+        if self.n < 2:
+            return np.full(self.n, np.inf)
+        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (
+            self.params.radius[:, None] + self.params.radius[None]
+        )
+        np.fill_diagonal(d, np.inf)
+        return d.min(axis=1)
+
+    def _near_misses(self, pos: np.ndarray, active: np.ndarray, events: list[Event], t1: float) -> None:
+        """A pair entering each other's separation ellipsoid is a near miss (reported once per entry)."""
+        if self.n < 2:
+            return
+        sep = np.maximum(self.params.separation[:, None], self.params.separation[None])
+        rr = self.params.radius[:, None] + self.params.radius[None]
+        q = (pos[:, None] - pos[None]) / (sep + rr[..., None])
+        inside = np.linalg.norm(q, axis=-1) < 1.0
+        np.fill_diagonal(inside, False)
+        inside &= active[:, None] | active[None]
+        new = inside & ~self._near
+        self._near = inside
+        for i, j in zip(*np.nonzero(np.triu(new)), strict=True):
+            dist = float(np.linalg.norm(pos[i] - pos[j]))
+            self.metrics.near_misses[[i, j]] += 1
+            events.append(
+                Event(t1, self.ids[i], "near_miss", {"other": self.ids[j], "distance": round(dist, 6)})
+            )
+
+    def _detect_stuck(self, events: list[Event]) -> None:
+        """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum."""
+        s = self.state
+        window = self.world.planner["stuck"]["window"]
+        min_progress = self.world.planner["stuck"]["min_progress"]
+        dg = np.linalg.norm(s.goal - s.position, axis=1)
+        for i in np.flatnonzero(s.active):
+            if s.mode[i] != "apf":
+                self._progress_ref[i], self._progress_t[i] = dg[i], s.t
+                continue
+            if s.t - self._progress_t[i] < window - 1e-9:
+                continue
+            progress = self._progress_ref[i] - dg[i]
+            self._progress_ref[i], self._progress_t[i] = dg[i], s.t
+            if progress < min_progress:
+                self.metrics.stuck_events[i] += 1
+                events.append(
+                    Event(
+                        s.t,
+                        self.ids[i],
+                        "stuck",
+                        {
+                            "progress": round(float(progress), 6),
+                            "window": window,
+                            "distance_to_goal": round(float(dg[i]), 6),
+                        },
+                    )
+                )
+                if self.planner is not None:
+                    outcome = self.planner.on_stuck(self, int(i))
+                    if outcome == "failed":
+                        s.mode[i] = "failed"
+                        events.append(
+                            Event(s.t, self.ids[i], "failed", {"reason": "no valid escape segment"})
+                        )
+                    elif outcome is not None:
+                        self._start_segment(int(i), outcome, events)
+
+    # ------------------------------------------------------------------ messages
+
+    def _agent_dicts(self) -> list[dict[str, Any]]:
+        s = self.state
+        pos = np.round(s.position, 6).tolist()
+        vel = np.round(s.velocity, 6).tolist()
+        goal = s.goal.tolist()
+        return [
+            {
+                "id": self.ids[i],
+                "position": pos[i],
+                "velocity": vel[i],
+                "mode": str(s.mode[i]),
+                "goal": goal[i],
+            }
+            for i in range(self.n)
+        ]
+
+    def _obstacle_dicts(self, t: float) -> list[dict[str, Any]] | None:
+        moving = self.world.moving_obstacles
+        if not moving:
+            return None
+        pos, vel = poses_at(moving, t)
+        pos = np.round(pos, 6).tolist()
+        vel = np.round(vel, 6).tolist()
+        return [
+            {"id": o.id, "position": pos[k], "orientation": self.moving_quat[k], "velocity": vel[k]}
+            for k, o in enumerate(moving)
+        ]
+
+    def summary(self, interrupted: bool = False) -> dict[str, Any]:
+        """Per-agent and overall metrics for ``/summary`` and the CLI table."""
+        m = self.metrics
+        s = self.state
+        agents = []
+        for i, aid in enumerate(self.ids):
+            curv = m.curvature(i)
+            start = self.world.agents[i].start
+            straight = float(np.linalg.norm(self.world.agents[i].goal - start))
+            agents.append(
+                {
+                    "id": aid,
+                    "arrived": bool(s.mode[i] == "arrived"),
+                    "final_mode": str(s.mode[i]),
+                    "arrival_time": None
+                    if math.isnan(m.arrival_time[i])
+                    else round(float(m.arrival_time[i]), 9),
+                    "path_length": round(float(m.path_length[i]), 6),
+                    "straight_line": round(straight, 6),
+                    "length_ratio": round(float(m.path_length[i]) / straight, 6) if straight > 0 else None,
+                    "min_clearance": _finite(min(m.min_clearance[i], m.min_agent_clearance[i])),
+                    "min_obstacle_clearance": _finite(m.min_clearance[i]),
+                    "min_agent_clearance": _finite(m.min_agent_clearance[i]),
+                    "min_terrain_clearance": _finite(m.min_terrain_clearance[i]),
+                    "max_curvature": round(float(curv.max()), 6) if len(curv) else 0.0,
+                    "mean_curvature": round(float(curv.mean()), 6) if len(curv) else 0.0,
+                    "collisions": int(m.collisions[i]),
+                    "collided_with": m.collided_with[i],
+                    "escapes": int(m.escapes[i]),
+                    "escape_planning_ms": [round(x, 3) for x in m.escape_ms[i]],
+                    "stuck_events": int(m.stuck_events[i]),
+                    "near_misses": int(m.near_misses[i]),
+                    "emergency_stops": int(m.emergency_stops[i]),
+                }
+            )
+        arrived = sum(a["arrived"] for a in agents)
+        collisions = sum(a["collisions"] for a in agents)
+        return {
+            "t": round(s.t, 9),
+            "world": self.world.name,
+            "seed": self.seed,
+            "optimizer": self.optimizer_name,
+            "interrupted": interrupted,
+            "success": bool(arrived == self.n and collisions == 0 and not interrupted),
+            "sim_time": round(s.t, 9),
+            "wall_time": round(time.perf_counter() - self.wall_start, 6),
+            "steps": s.step,
+            "arrived": arrived,
+            "agents_total": self.n,
+            "collisions": collisions,
+            "agents": agents,
+        }
+
+    @property
+    def optimizer_name(self) -> str:
+        if self.planner is None:
+            return "none"
+        return str(getattr(self.planner, "optimizer_name", self.world.planner["optimizer"]["name"]))
+
+
+def _finite(x: float) -> float | None:
+    return round(float(x), 6) if math.isfinite(x) else None
