@@ -1,0 +1,435 @@
+"""Foxglove 3D scene channels for a swarmplan run log.
+
+:class:`FoxgloveScene` adds, next to the JSON analysis channels of the log contract,
+channels that use Foxglove's own protobuf schemas (package ``foxglove_schemas_protobuf``)
+so that opening the MCAP file in the Foxglove app shows the run in a 3D panel with no
+setup (frame ``world``):
+
+=================  ======================  ==============================================
+topic              schema                  content
+=================  ======================  ==============================================
+``/scene/world``   ``foxglove.SceneUpdate``  once at t = 0: static obstacles (cubes,
+                                           spheres, cylinders, capsules as cylinder + two
+                                           spheres, meshes as triangle lists), bounds box,
+                                           terrain surface, goals
+``/scene``         ``foxglove.SceneUpdate``  agents (spheres coloured by mode) and moving
+                                           obstacles; every ``scene_period`` s of sim time
+``/scene/paths``   ``foxglove.SceneUpdate``  flown path of each agent (line strip, decimated
+                                           to ``path_max_points``); every ``path_period`` s
+``/tf``            ``foxglove.FrameTransform`` one per agent per step: parent ``world``,
+                                           child = agent id
+=================  ======================  ==============================================
+
+Static, dynamic and path entities are on separate topics because Foxglove, after a seek,
+restores each topic from its latest message only: every topic is self-contained.
+``log_time``/``publish_time`` are simulation time in ns, like every channel of the log.
+
+Cost: entity messages are built once and mutated in place; scene messages are assembled
+from serialized entities. See ``docs/replay.md`` for measured per-step cost.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from google.protobuf.descriptor_pb2 import FileDescriptorSet
+
+FRAME = "world"
+SCENE_TOPIC = "/scene"
+WORLD_TOPIC = "/scene/world"
+PATHS_TOPIC = "/scene/paths"
+TF_TOPIC = "/tf"
+
+MODE_COLORS = {
+    "apf": (0.12, 0.47, 0.71, 1.0),
+    "escape": (0.84, 0.15, 0.16, 1.0),
+    "smoothing": (1.0, 0.75, 0.0, 1.0),
+    "arrived": (0.17, 0.63, 0.17, 1.0),
+    "collided": (0.1, 0.1, 0.1, 1.0),
+    "failed": (0.5, 0.5, 0.5, 1.0),
+}
+OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
+MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
+_ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
+
+
+def file_descriptor_set(message_class) -> FileDescriptorSet:
+    """FileDescriptorSet of a message's .proto file and all its dependencies (deps first)."""
+    fds = FileDescriptorSet()
+    seen: set[str] = set()
+
+    def add(fd):
+        if fd.name in seen:
+            return
+        seen.add(fd.name)
+        for dep in fd.dependencies:
+            add(dep)
+        fd.CopyToProto(fds.file.add())
+
+    add(message_class.DESCRIPTOR.file)
+    return fds
+
+
+def _varint(n: int) -> bytes:
+    out = bytearray()
+    while True:
+        b = n & 0x7F
+        n >>= 7
+        if n:
+            out.append(b | 0x80)
+        else:
+            out.append(b)
+            return bytes(out)
+
+
+def _euler_deg_to_quat(rpy) -> tuple[float, float, float, float]:
+    """[qx, qy, qz, qw] of R = Rz(yaw) Ry(pitch) Rx(roll), angles in degrees."""
+    r, p, y = (math.radians(float(a)) / 2.0 for a in (list(rpy or []) + [0, 0, 0])[:3])
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    return (
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    )
+
+
+def _rotate(q, v) -> np.ndarray:
+    x, y, z, w = q
+    u = np.array([x, y, z])
+    v = np.asarray(v, float)
+    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
+
+
+def _set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)):
+    pose.position.x, pose.position.y, pose.position.z = (float(c) for c in position[:3])
+    o = pose.orientation
+    o.x, o.y, o.z, o.w = (float(c) for c in quat)
+
+
+def _set_color(color, rgba):
+    color.r, color.g, color.b, color.a = rgba
+
+
+def _set_time(ts, t: float):
+    ns = int(round(t * 1e9))
+    ts.seconds, ts.nanos = divmod(ns, 1_000_000_000)
+
+
+class FoxgloveScene:
+    """Write Foxglove scene channels of a run into an open ``mcap.writer.Writer``.
+
+    ``world`` is the resolved world dict (as written on ``/world``). Call
+    :meth:`write_world` once, then :meth:`write_step` every simulation step with the same
+    agent and obstacle entries as ``/agents/state`` and ``/obstacles/state``; call
+    :meth:`finish` (or ``write_step(..., force=True)``) on the last step so the final
+    state and full paths are written regardless of throttling.
+    """
+
+    def __init__(
+        self,
+        writer,
+        world: dict[str, Any],
+        scene_period: float = 0.2,
+        path_period: float = 1.0,
+        path_max_points: int = 400,
+        tf_period: float = 0.0,
+    ):
+        self.writer = writer
+        self.world = world
+        self.scene_period = float(scene_period)
+        self.path_period = float(path_period)
+        self.path_max_points = max(4, int(path_max_points))
+        self.tf_period = float(tf_period)
+        self._channels: dict[str, int] = {}
+        schema_ids: dict[str, int] = {}
+        for topic, cls in (
+            (WORLD_TOPIC, SceneUpdate),
+            (SCENE_TOPIC, SceneUpdate),
+            (PATHS_TOPIC, SceneUpdate),
+            (TF_TOPIC, FrameTransform),
+        ):
+            name = cls.DESCRIPTOR.full_name
+            if name not in schema_ids:
+                schema_ids[name] = writer.register_schema(
+                    name=name, encoding="protobuf", data=file_descriptor_set(cls).SerializeToString()
+                )
+            self._channels[topic] = writer.register_channel(
+                topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
+            )
+        defaults = world.get("agent_defaults") or {}
+        self._radius = {
+            str(a["id"]): float(a.get("radius", defaults.get("radius", 0.5)) or 0.5)
+            for a in world.get("agents") or []
+        }
+        self._obstacles = {str(o["id"]): o for o in world.get("obstacles") or [] if "id" in o}
+        self._agent_entities: dict[str, SceneEntity] = {}
+        self._obstacle_entities: dict[str, SceneEntity] = {}
+        self._path_entities: dict[str, SceneEntity] = {}
+        self._paths: dict[str, list[tuple[float, float, float]]] = {}
+        self._tfs: dict[str, FrameTransform] = {}
+        self._next_scene = -math.inf
+        self._next_path = -math.inf
+        self._next_tf = -math.inf
+        self._last_path_sample = -math.inf
+        self._last: tuple[float, list, list] | None = None
+        self.messages_written = 0
+
+    # ------------------------------------------------------------------ low level
+    def _write(self, topic: str, data: bytes, t: float):
+        ns = int(round(t * 1e9))
+        self.writer.add_message(self._channels[topic], log_time=ns, publish_time=ns, data=data)
+        self.messages_written += 1
+
+    @staticmethod
+    def _scene_bytes(entities) -> bytes:
+        parts = []
+        for e in entities:
+            b = e.SerializeToString()
+            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+        return b"".join(parts)
+
+    @staticmethod
+    def _entity(eid: str, t: float) -> SceneEntity:
+        e = SceneEntity(frame_id=FRAME, id=eid)
+        _set_time(e.timestamp, t)
+        return e
+
+    # ------------------------------------------------------------------ shapes
+    def _obstacle_entity(self, obst: dict[str, Any], t: float, position=None, quat=None, rgba=OBSTACLE_RGBA):
+        e = self._entity(f"obstacle/{obst['id']}", t)
+        self._fill_obstacle(e, obst, position, quat, rgba)
+        return e
+
+    def _fill_obstacle(self, e, obst, position=None, quat=None, rgba=OBSTACLE_RGBA):
+        shape = obst.get("shape")
+        pos = np.asarray(obst.get("position", [0, 0, 0]) if position is None else position, float)
+        q = tuple(quat) if quat is not None else _euler_deg_to_quat(obst.get("rotation"))
+        if shape == "sphere":
+            s = e.spheres.add()
+            _set_pose(s.pose, pos, q)
+            d = 2.0 * float(obst["radius"])
+            s.size.x = s.size.y = s.size.z = d
+            _set_color(s.color, rgba)
+        elif shape == "box":
+            c = e.cubes.add()
+            _set_pose(c.pose, pos, q)
+            c.size.x, c.size.y, c.size.z = (float(v) for v in obst["size"])
+            _set_color(c.color, rgba)
+        elif shape in ("cylinder", "capsule"):
+            r = float(obst["radius"])
+            h = float(obst.get("height", obst.get("length", 0.0)))
+            c = e.cylinders.add()
+            _set_pose(c.pose, pos, q)
+            c.size.x = c.size.y = 2.0 * r
+            c.size.z = h
+            c.bottom_scale = c.top_scale = 1.0
+            _set_color(c.color, rgba)
+            if shape == "capsule":
+                for sign in (-1.0, 1.0):
+                    s = e.spheres.add()
+                    _set_pose(s.pose, pos + _rotate(q, [0.0, 0.0, sign * h / 2.0]), q)
+                    s.size.x = s.size.y = s.size.z = 2.0 * r
+                    _set_color(s.color, rgba)
+        elif shape == "mesh" and "vertices" in obst:
+            tri = e.triangles.add()
+            v = np.asarray(obst["vertices"], float)
+            if position is not None:  # moving mesh: vertices are its pose at t = 0
+                v = v - np.asarray(obst.get("position", [0, 0, 0]), float)
+                _set_pose(tri.pose, pos, q if quat is not None else (0.0, 0.0, 0.0, 1.0))
+            else:
+                _set_pose(tri.pose, (0.0, 0.0, 0.0))
+            for x, y, z in v:
+                tri.points.add(x=float(x), y=float(y), z=float(z))
+            tri.indices.extend(int(i) for i in np.asarray(obst["faces"], int).ravel())
+            _set_color(tri.color, rgba)
+
+    # ------------------------------------------------------------------ world
+    def write_world(self, t: float = 0.0) -> None:
+        """Static obstacles, bounds, terrain and goals on ``/scene/world`` at time ``t``."""
+        entities = []
+        for obst in self._obstacles.values():
+            if not obst.get("motion"):
+                entities.append(self._obstacle_entity(obst, t))
+        b = self.world.get("bounds") or {}
+        if b.get("min") is not None and b.get("max") is not None:
+            lo, hi = np.asarray(b["min"], float), np.asarray(b["max"], float)
+            e = self._entity("bounds", t)
+            line = e.lines.add(type=LinePrimitive.LINE_LIST, thickness=2.0, scale_invariant=True)
+            _set_pose(line.pose, (0.0, 0.0, 0.0))
+            corners = [
+                np.array([x, y, z]) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])
+            ]
+            for i in range(8):
+                for j in range(i + 1, 8):
+                    if np.count_nonzero(corners[i] != corners[j]) == 1:
+                        for p in (corners[i], corners[j]):
+                            line.points.add(x=float(p[0]), y=float(p[1]), z=float(p[2]))
+            _set_color(line.color, (0.6, 0.6, 0.6, 1.0))
+            entities.append(e)
+            terrain = self._terrain_entity(lo, hi, t)
+            if terrain is not None:
+                entities.append(terrain)
+        for a in self.world.get("agents") or []:
+            if a.get("goal") is None:
+                continue
+            e = self._entity(f"goal/{a['id']}", t)
+            s = e.spheres.add()
+            _set_pose(s.pose, a["goal"])
+            tol = float((self.world.get("sim") or {}).get("goal_tolerance", 1.0) or 1.0)
+            s.size.x = s.size.y = s.size.z = 2.0 * tol
+            _set_color(s.color, (0.17, 0.63, 0.17, 0.35))
+            entities.append(e)
+        self._write(WORLD_TOPIC, self._scene_bytes(entities), t)
+
+    def _terrain_entity(self, lo, hi, t, n=32):
+        peaks = (self.world.get("terrain") or {}).get("peaks") or []
+        if not peaks:
+            return None
+        xs, ys = np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n)
+        X, Y = np.meshgrid(xs, ys)
+        Z = np.zeros_like(X)
+        for pk in peaks:
+            cx, cy = pk["center"][:2]
+            sx, sy = (pk.get("spread") or [1, 1])[:2]
+            Z += float(pk["height"]) * np.exp(-(((X - cx) / sx) ** 2) - ((Y - cy) / sy) ** 2)
+        e = self._entity("terrain", t)
+        tri = e.triangles.add()
+        _set_pose(tri.pose, (0.0, 0.0, 0.0))
+        for x, y, z in zip(X.ravel(), Y.ravel(), Z.ravel(), strict=True):
+            tri.points.add(x=float(x), y=float(y), z=float(z))
+        idx = []
+        for r in range(n - 1):
+            for c in range(n - 1):
+                a, b2, c2, d = r * n + c, r * n + c + 1, (r + 1) * n + c, (r + 1) * n + c + 1
+                idx += [a, b2, d, a, d, c2]
+        tri.indices.extend(idx)
+        _set_color(tri.color, (0.45, 0.6, 0.35, 0.5))
+        return e
+
+    # ------------------------------------------------------------------ steps
+    def write_step(
+        self, t: float, agents: list[dict[str, Any]], obstacles: list[dict[str, Any]], force: bool = False
+    ) -> None:
+        """Record one simulation step (``agents``/``obstacles``: the JSON state entries)."""
+        t = float(t)
+        eps = 1e-9
+        self._last = (t, agents, obstacles)
+        if force or t >= self._next_tf - eps:
+            self._write_tf(t, agents)
+            self._next_tf = t + self.tf_period if self.tf_period > 0 else -math.inf
+        scene_due = force or t >= self._next_scene - eps
+        if scene_due:
+            self._sample_paths(t, agents)
+            self._write_scene(t, agents, obstacles)
+            self._next_scene = t + self.scene_period
+        if force or t >= self._next_path - eps:
+            if not scene_due:
+                self._sample_paths(t, agents)
+            self._write_paths(t)
+            self._next_path = t + self.path_period
+
+    def finish(self) -> None:
+        """Write the last step seen (unthrottled) so the scene ends in the final state."""
+        if self._last is not None:
+            t, agents, obstacles = self._last
+            self.write_step(t, agents, obstacles, force=True)
+            self._last = None
+
+    def _write_tf(self, t, agents):
+        for a in agents:
+            aid = str(a["id"])
+            tf = self._tfs.get(aid)
+            if tf is None:
+                tf = self._tfs[aid] = FrameTransform(parent_frame_id=FRAME, child_frame_id=aid)
+                tf.rotation.w = 1.0
+            _set_time(tf.timestamp, t)
+            p = a["position"]
+            tf.translation.x, tf.translation.y, tf.translation.z = float(p[0]), float(p[1]), float(p[2])
+            v = a.get("velocity")
+            if v is not None and (v[0] or v[1]):  # yaw along the horizontal velocity
+                yaw = math.atan2(v[1], v[0]) / 2.0
+                tf.rotation.z, tf.rotation.w = math.sin(yaw), math.cos(yaw)
+            self._write(TF_TOPIC, tf.SerializeToString(), t)
+
+    def _write_scene(self, t, agents, obstacles):
+        entities = []
+        for a in agents:
+            aid = str(a["id"])
+            e = self._agent_entities.get(aid)
+            if e is None:
+                e = self._agent_entities[aid] = self._entity(f"agent/{aid}", t)
+                s = e.spheres.add()
+                d = 2.0 * self._radius.get(aid, 0.5)
+                s.size.x = s.size.y = s.size.z = d
+                s.pose.orientation.w = 1.0
+            _set_time(e.timestamp, t)
+            s = e.spheres[0]
+            p = a["position"]
+            s.pose.position.x, s.pose.position.y, s.pose.position.z = float(p[0]), float(p[1]), float(p[2])
+            _set_color(s.color, MODE_COLORS.get(a.get("mode"), (0.8, 0.2, 0.8, 1.0)))
+            entities.append(e)
+        for o in obstacles or []:
+            oid = str(o["id"])
+            obst = self._obstacles.get(oid)
+            if obst is None:
+                continue
+            e = self._entity(f"obstacle/{oid}", t)
+            self._fill_obstacle(e, obst, o["position"], o.get("orientation"), MOVING_RGBA)
+            entities.append(e)
+        self._write(SCENE_TOPIC, self._scene_bytes(entities), t)
+
+    def _path_line(self, aid: str, t: float):
+        e = self._path_entities.get(aid)
+        if e is None:
+            e = self._path_entities[aid] = self._entity(f"path/{aid}", t)
+            line = e.lines.add(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
+            _set_pose(line.pose, (0.0, 0.0, 0.0))
+            _set_color(line.color, (0.12, 0.47, 0.71, 0.9))
+        return e, e.lines[0]
+
+    def _sample_paths(self, t, agents):
+        """Append the agents' current positions to their path lines (kept as protobuf
+        messages and extended in place: only new points are converted)."""
+        for a in agents:
+            aid = str(a["id"])
+            pts = self._paths.setdefault(aid, [])
+            p = a["position"]
+            pt = (float(p[0]), float(p[1]), float(p[2]))
+            if pts and pts[-1] == pt:
+                continue
+            pts.append(pt)
+            _, line = self._path_line(aid, t)
+            if len(pts) > self.path_max_points:
+                # halve the resolution of the older part, keep the newest point; rebuild
+                pts = self._paths[aid] = pts[:-1:2] + [pts[-1]]
+                del line.points[:]
+                for x, y, z in pts:
+                    line.points.add(x=x, y=y, z=z)
+            else:
+                line.points.add(x=pt[0], y=pt[1], z=pt[2])
+
+    def _write_paths(self, t):
+        entities = []
+        for aid in self._paths:
+            e, _ = self._path_line(aid, t)
+            _set_time(e.timestamp, t)
+            entities.append(e)
+        self._write(PATHS_TOPIC, self._scene_bytes(entities), t)
+
+
+__all__ = [
+    "FoxgloveScene",
+    "file_descriptor_set",
+    "FRAME",
+    "SCENE_TOPIC",
+    "WORLD_TOPIC",
+    "PATHS_TOPIC",
+    "TF_TOPIC",
+]
