@@ -25,7 +25,7 @@ def log_path_for(world: World, seed: int, optimizer: str, out: str | None) -> Pa
     except (KeyError, IndexError, ValueError) as exc:
         raise WorldError(
             [f"log.path: bad template {template!r} ({exc}); use {{name}}, {{seed}}, {{optimizer}}"]
-        )
+        ) from None
 
 
 def make_planner(world: World, optimizer: str):  # noqa: ANN201 - Planner or None

@@ -1,4 +1,6 @@
-"""Metaheuristic optimizers with one interface: ``make(name, **params).minimize(cost, lower, upper, max_evals=...)``.
+"""Metaheuristic optimizers behind one interface.
+
+``make(name, **params).minimize(cost, lower, upper, max_evals=...)`` minimizes a vectorized cost.
 
 Each family lives in its own module; importing this package registers them all.
 """

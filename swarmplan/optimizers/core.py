@@ -131,7 +131,7 @@ class Optimizer(ABC):
         self.params: Mapping[str, Any] = merged
         self.validate()
 
-    def validate(self) -> None:
+    def validate(self) -> None:  # noqa: B027 - optional hook, most algorithms need no checks
         """Check parameter values; raise ``ValueError`` naming the bad one."""
 
     @property
@@ -199,7 +199,9 @@ class Optimizer(ABC):
         return f"{type(self).__name__}({args})"
 
 
-def initial_population(problem: Problem, rng: np.random.Generator, n: int, x0: np.ndarray | None) -> np.ndarray:
+def initial_population(
+    problem: Problem, rng: np.random.Generator, n: int, x0: np.ndarray | None
+) -> np.ndarray:
     """``n`` uniform points in the box, the first rows replaced by ``x0`` when given."""
     X = problem.uniform(rng, n)
     if x0 is not None:
