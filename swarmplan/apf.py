@@ -81,23 +81,32 @@ def apf_forces(
     field: FieldInputs,
     all_pos: np.ndarray,
     all_vel: np.ndarray,
+    target: np.ndarray | None = None,
+    static_scale: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Total APF force on agents ``idx`` (rows of ``pos``/``vel``/``goal``), shape (n, 3)."""
+    """Total APF force on agents ``idx`` (rows of ``pos``/``vel``/``goal``), shape (n, 3).
+
+    ``target`` (default ``goal``) is the point of attraction, e.g. the next waypoint of a
+    route or segment; the goal-distance factor always uses the real ``goal``.
+    ``static_scale`` (n,) scales the repulsion of static obstacles per agent.
+    """
     n = len(idx)
     r = params.radius[idx]
     rho0 = gains.influence
     e = goal - pos
     dg = np.linalg.norm(e, axis=1)
+    et = e if target is None else target - pos
+    dt_ = np.linalg.norm(et, axis=1)
     # Attraction: quadratic near, conic far (continuous at quadratic_radius).
     dq = gains.quadratic_radius
-    att = gains.k_att * np.where((dg <= dq)[:, None], e, dq * e / np.maximum(dg, _EPS)[:, None])
+    att = gains.k_att * np.where((dt_ <= dq)[:, None], et, dq * et / np.maximum(dt_, _EPS)[:, None])
     force = att.copy()
     goal_dir = _unit(e)
     npow = gains.goal_power
     gfac = np.minimum(1.0, dg / rho0) ** npow
     gfac_d = np.where(dg < rho0, npow * np.minimum(1.0, dg / rho0) ** (npow - 1) / rho0, 0.0)
 
-    def add_surface(rho: np.ndarray, grad: np.ndarray, k: float) -> None:
+    def add_surface(rho: np.ndarray, grad: np.ndarray, k: float | np.ndarray) -> None:
         """Repulsion from surfaces at clearance ``rho`` (n, K) with outward gradients (n, K, 3)."""
         mag = _rep_magnitude(rho, rho0, k)
         pot = np.where(rho < rho0, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
@@ -109,7 +118,8 @@ def apf_forces(
     m_static = ~field.obstacle_moving
     if field.obstacle_distance.shape[1]:
         rho = field.obstacle_distance - r[:, None]
-        add_surface(rho[:, m_static], field.obstacle_gradient[:, m_static], gains.k_rep)
+        k_static = gains.k_rep if static_scale is None else gains.k_rep * static_scale[:, None]
+        add_surface(rho[:, m_static], field.obstacle_gradient[:, m_static], k_static)
         mv = field.obstacle_moving
         if mv.any():
             add_surface(rho[:, mv], field.obstacle_gradient[:, mv], gains.k_rep)

@@ -40,6 +40,7 @@ class RunMetrics:
         self.collided_with: list[list[str]] = [[] for _ in range(n)]
         self.escapes = np.zeros(n, dtype=int)
         self.escape_ms: list[list[float]] = [[] for _ in range(n)]
+        self.optimizer_runs = np.zeros(n, dtype=int)
         self.stuck_events = np.zeros(n, dtype=int)
         self.near_misses = np.zeros(n, dtype=int)
         self.emergency_stops = np.zeros(n, dtype=int)

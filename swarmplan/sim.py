@@ -56,6 +56,9 @@ class Planner(Protocol):
     def on_step(self, sim: Simulation) -> dict[int, PlannedSegment]:
         """Segments to start this step for other reasons (e.g. curvature smoothing)."""
 
+    def on_reset(self, sim: Simulation) -> dict[int, np.ndarray]:
+        """Global routes (waypoints to the goal) planned before flight, per agent index."""
+
 
 class Recorder(Protocol):
     def write_world(self, world: dict[str, Any]) -> None: ...
@@ -114,6 +117,8 @@ class Simulation:
             mode=np.array(["apf"] * self.n, dtype=object),
             segment=[None] * self.n,
             segment_index=np.zeros(self.n, dtype=int),
+            route=[None] * self.n,
+            route_index=np.zeros(self.n, dtype=int),
         )
         self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
         self.metrics.positions.append(start.copy())
@@ -124,8 +129,36 @@ class Simulation:
         self.wall_start = time.perf_counter()
         if self.recorder is not None:
             self.recorder.write_world(self.world_message())
+        if self.planner is not None:
+            for i, route in self.planner.on_reset(self).items():
+                self.state.route[i] = np.asarray(route, dtype=float)
+        if self.recorder is not None:
             self.recorder.write_state(0.0, self._agent_dicts(), self._obstacle_dicts(0.0))
         return self.state
+
+    def record_optimizer(
+        self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None
+    ) -> None:
+        """Log one optimizer run (a ``swarmplan.optimizers.Result``) on ``/optimizer`` and in the metrics."""
+        wall_ms = float(result.wall_time) * 1000.0
+        if agent is not None and purpose == "escape":
+            self.metrics.escape_ms[agent].append(wall_ms)
+        if agent is not None:
+            self.metrics.optimizer_runs[agent] += 1
+        if self.recorder is not None:
+            self.recorder.write_optimizer(
+                {
+                    "t": round(self.state.t if t is None else t, 9),
+                    "agent": None if agent is None else self.ids[agent],
+                    "algorithm": algorithm,
+                    "purpose": purpose,
+                    "evaluations": int(result.evaluations),
+                    "iterations": int(result.iterations),
+                    "best_cost": float(result.f),
+                    "wall_ms": round(wall_ms, 3),
+                    "convergence": [float(x) for x in result.history],
+                }
+            )
 
     def world_message(self) -> dict[str, Any]:
         msg = dict(self.world.resolved)
@@ -163,23 +196,24 @@ class Simulation:
         if len(idx):
             d, g = self.field.query(pos0[idx], q0)
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.bounding_radius, q0)
+            target, rep_scale = self._attraction_targets(idx, events)
             force = apf_forces(
-                w, self.params, self.gains, idx, pos0[idx], vel0[idx], s.goal[idx], inputs, pos0, vel0
+                w,
+                self.params,
+                self.gains,
+                idx,
+                pos0[idx],
+                vel0[idx],
+                s.goal[idx],
+                inputs,
+                pos0,
+                vel0,
+                target=target,
+                static_scale=rep_scale,
             )
             clearance, normal = self._nearest_surface(idx, pos0[idx], d, g)
             obst_clear[idx] = (d - self.params.radius[idx, None]).min(axis=1) if d.shape[1] else np.inf
-            target = s.goal[idx].copy()
-            following = np.array([s.mode[i] in ("escape", "smoothing") for i in idx])
-            for k in np.flatnonzero(following):
-                i = idx[k]
-                force[k] = (
-                    self._segment_direction(i, events) * np.linalg.norm(force[k])
-                    if s.segment[i] is not None
-                    else force[k]
-                )
-                if s.segment[i] is not None:
-                    target[k] = s.segment[i][-1]
-            v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], target, clearance, normal)
+            v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             self._safety_filter(idx, pos0, vel0, pos1, vel1, v_cmd, q0, q1, events, t1)
@@ -253,26 +287,40 @@ class Simulation:
             normal = np.where(closer[:, None], g[:, static][np.arange(len(idx)), j], normal)
         return clear, normal
 
-    def _segment_direction(self, i: int, events: list[Event]) -> np.ndarray:
-        """Unit direction towards the next waypoint of agent ``i``'s segment; ends the segment at its end."""
+    def _attraction_targets(self, idx: np.ndarray, events: list[Event]) -> tuple[np.ndarray, np.ndarray]:
+        """Point each agent is attracted to (segment waypoint, route waypoint or goal) and the scale
+        of its static repulsion (reduced along a segment that FCL already validated)."""
         s = self.state
-        seg = s.segment[i]
+        target = s.goal[idx].copy()
+        scale = np.ones(len(idx))
+        for k, i in enumerate(idx):
+            if s.mode[i] in ("escape", "smoothing") and s.segment[i] is not None:
+                wp = self._advance(s.segment[i], i, "segment")
+                if wp is None:
+                    kind = "escape_end" if s.mode[i] == "escape" else "smoothing_end"
+                    events.append(Event(s.t, self.ids[i], kind, {}))
+                    s.mode[i] = "apf"
+                    s.segment[i] = None
+                else:
+                    target[k] = wp
+                    scale[k] = 0.3
+                    continue
+            if s.route[i] is not None:
+                wp = self._advance(s.route[i], i, "route")
+                target[k] = s.goal[i] if wp is None else wp
+        return target, scale
+
+    def _advance(self, pts: np.ndarray, i: int, which: str) -> np.ndarray | None:
+        """Next waypoint of ``pts`` not yet reached by agent ``i`` (None once all are)."""
+        s = self.state
+        index = s.segment_index if which == "segment" else s.route_index
         p = s.position[i]
-        reach = max(self.world.goal_tolerance, float(np.linalg.norm(s.velocity[i])) * self.world.dt * 2.0)
-        k = s.segment_index[i]
-        while k < len(seg) and np.linalg.norm(seg[k] - p) <= reach:
+        reach = max(self.world.goal_tolerance, float(np.linalg.norm(s.velocity[i])) * self.world.dt * 3.0)
+        k = index[i]
+        while k < len(pts) and np.linalg.norm(pts[k] - p) <= reach:
             k += 1
-        s.segment_index[i] = k
-        if k >= len(seg):
-            events.append(
-                Event(s.t, self.ids[i], "escape_end" if s.mode[i] == "escape" else "smoothing_end", {})
-            )
-            s.mode[i] = "apf"
-            s.segment[i] = None
-            goal_dir = s.goal[i] - p
-            return goal_dir / max(float(np.linalg.norm(goal_dir)), 1e-9)
-        d = seg[k] - p
-        return d / max(float(np.linalg.norm(d)), 1e-9)
+        index[i] = k
+        return None if k >= len(pts) else pts[k]
 
     def _start_segment(self, i: int, seg: PlannedSegment, events: list[Event]) -> None:
         s = self.state

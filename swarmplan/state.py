@@ -22,6 +22,8 @@ class SwarmState:
     mode: np.ndarray  # (N,) object array of mode strings
     segment: list[np.ndarray | None] = field(default_factory=list)  # waypoints being followed, per agent
     segment_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    route: list[np.ndarray | None] = field(default_factory=list)  # global path waypoints, per agent
+    route_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
     @property
     def active(self) -> np.ndarray:
