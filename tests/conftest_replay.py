@@ -137,7 +137,9 @@ def states_from_arrays(times, ids, positions, velocities=None, modes=None, goals
     return out
 
 
-def straight_past_sphere_log(path, distance: float = 3.0, radius_obst: float = 1.0, radius_agent: float = 0.5):
+def straight_past_sphere_log(
+    path, distance: float = 3.0, radius_obst: float = 1.0, radius_agent: float = 0.5
+):
     """One agent flying 10 m along x at y = ``distance`` past a sphere at the origin.
 
     Exact answers: path length 10, min clearance distance - radius_obst - radius_agent,
@@ -213,14 +215,38 @@ def rich_log(path, n_agents: int = 3, steps: int = 200, finish: bool = True, chu
     box_mesh.apply_translation([20, 30, 10])
     obstacles = [
         {"id": "ball", "shape": "sphere", "radius": 4.0, "position": [0, 30, 20]},
-        {"id": "block", "shape": "box", "size": [6, 4, 30], "position": [-20, 35, 15], "rotation": [0, 0, 30]},
+        {
+            "id": "block",
+            "shape": "box",
+            "size": [6, 4, 30],
+            "position": [-20, 35, 15],
+            "rotation": [0, 0, 30],
+        },
         {"id": "mast", "shape": "cylinder", "radius": 2, "height": 30, "position": [10, -35, 15]},
-        {"id": "pole", "shape": "capsule", "radius": 1.5, "height": 10, "position": [-10, -35, 20],
-         "rotation": [90, 0, 0]},
-        {"id": "hangar", "shape": "mesh", "file": "meshes/box.stl", "scale": 1.0, "position": [20, 30, 10],
-         "vertices": box_mesh.vertices.tolist(), "faces": box_mesh.faces.tolist()},
-        {"id": "intruder", "shape": "sphere", "radius": 3.0, "position": [30, -45, 25],
-         "motion": {"type": "linear", "velocity": [-2, 0, 0]}},
+        {
+            "id": "pole",
+            "shape": "capsule",
+            "radius": 1.5,
+            "height": 10,
+            "position": [-10, -35, 20],
+            "rotation": [90, 0, 0],
+        },
+        {
+            "id": "hangar",
+            "shape": "mesh",
+            "file": "meshes/box.stl",
+            "scale": 1.0,
+            "position": [20, 30, 10],
+            "vertices": box_mesh.vertices.tolist(),
+            "faces": box_mesh.faces.tolist(),
+        },
+        {
+            "id": "intruder",
+            "shape": "sphere",
+            "radius": 3.0,
+            "position": [30, -45, 25],
+            "motion": {"type": "linear", "velocity": [-2, 0, 0]},
+        },
     ]
     world = base_world(
         [{"id": ids[i], "start": pos[i, 0].tolist(), "goal": goals[i]} for i in range(n_agents)],
@@ -230,8 +256,10 @@ def rich_log(path, n_agents: int = 3, steps: int = 200, finish: bool = True, chu
     )
     states = states_from_arrays(times, ids, pos, modes=modes, goals=goals)
     obst_states = [
-        {"t": float(t), "obstacles": [{"id": "intruder", "position": [30 - 2 * t, -45, 25],
-                                       "orientation": [0, 0, 0, 1]}]}
+        {
+            "t": float(t),
+            "obstacles": [{"id": "intruder", "position": [30 - 2 * t, -45, 25], "orientation": [0, 0, 0, 1]}],
+        }
         for t in times
     ]
     events, opt = [], []
@@ -245,9 +273,38 @@ def rich_log(path, n_agents: int = 3, steps: int = 200, finish: bool = True, chu
         ]
         for purpose, t0 in (("escape", t_esc), ("smoothing", float(times[steps // 2]))):
             conv = list(100.0 / (1 + np.arange(30)) + i)
-            opt.append({"t": t0, "agent": aid, "algorithm": "rscdwoa", "purpose": purpose, "evaluations": 900,
-                        "iterations": 30, "best_cost": conv[-1], "wall_ms": 12.5, "convergence": conv})
-    summary = {"interrupted": False, "success": True, "wall_time": 1.0, "sim_time": float(times[-1]),
-               "agents": []}
-    return write_log(path, world, states, obst_states, events, opt, summary if finish else None,
-                     finish=finish, chunk_size=chunk_size), pos, ids
+            opt.append(
+                {
+                    "t": t0,
+                    "agent": aid,
+                    "algorithm": "rscdwoa",
+                    "purpose": purpose,
+                    "evaluations": 900,
+                    "iterations": 30,
+                    "best_cost": conv[-1],
+                    "wall_ms": 12.5,
+                    "convergence": conv,
+                }
+            )
+    summary = {
+        "interrupted": False,
+        "success": True,
+        "wall_time": 1.0,
+        "sim_time": float(times[-1]),
+        "agents": [],
+    }
+    return (
+        write_log(
+            path,
+            world,
+            states,
+            obst_states,
+            events,
+            opt,
+            summary if finish else None,
+            finish=finish,
+            chunk_size=chunk_size,
+        ),
+        pos,
+        ids,
+    )

@@ -19,10 +19,18 @@ from . import plots
 from .metrics import active_mask
 from .recording import Recording
 
-MODE_EDGE = {"escape": "#d62728", "smoothing": "#ffbf00", "collided": "black", "failed": "0.5", "arrived": "#2ca02c"}
+MODE_EDGE = {
+    "escape": "#d62728",
+    "smoothing": "#ffbf00",
+    "collided": "black",
+    "failed": "0.5",
+    "arrived": "#2ca02c",
+}
 
 
-def frame_steps(rec: Recording, fps: float = 10.0, max_frames: int = 150, speed: float | None = None) -> np.ndarray:
+def frame_steps(
+    rec: Recording, fps: float = 10.0, max_frames: int = 150, speed: float | None = None
+) -> np.ndarray:
     """Indices of the recorded steps to draw, evenly spaced in time."""
     if rec.n_steps == 0:
         return np.zeros(0, int)
@@ -49,7 +57,9 @@ class _Progress:
         bar = "#" * int(round(frac * self.width))
         el = time.perf_counter() - self.t0
         eta = el / frac - el if frac > 0 else 0.0
-        self.stream.write(f"\rrendering [{bar:<{self.width}}] {done}/{self.total} frames  {el:.1f}s  eta {eta:.1f}s")
+        self.stream.write(
+            f"\rrendering [{bar:<{self.width}}] {done}/{self.total} frames  {el:.1f}s  eta {eta:.1f}s"
+        )
         self.stream.flush()
 
     def close(self):

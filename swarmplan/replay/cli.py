@@ -52,8 +52,9 @@ def describe(rec: Recording) -> list[str]:
     planner = w.get("planner") or {}
     opt = planner.get("optimizer") or {}
     lines = []
+    opt_name = (rec.summary or {}).get("optimizer") or opt.get("name", "?")
     lines.append(
-        f"run: {w.get('name', '?')}  seed {w.get('seed', '?')}  optimizer {opt.get('name', '?')}"
+        f"run: {w.get('name', '?')}  seed {w.get('seed', '?')}  optimizer {opt_name}"
         f" (pop {opt.get('population', '?')}, iter {opt.get('iterations', '?')})"
         f"  swarmplan {w.get('swarmplan_version', '?')}"
     )
@@ -67,9 +68,10 @@ def describe(rec: Recording) -> list[str]:
         f" (dt {rec.dt:.3g} s, duration {rec.duration:.2f} s)"
     )
     b = w.get("bounds") or {}
+    n_peaks = len((w.get("terrain") or {}).get("peaks") or [])
     lines.append(
         f"world: {rec.n_agents} agents, {n_obst} obstacles ({n_mov} moving), "
-        f"{len(w.get('threats') or [])} threats, terrain peaks {len((w.get('terrain') or {}).get('peaks') or [])}, "
+        f"{len(w.get('threats') or [])} threats, terrain peaks {n_peaks}, "
         f"bounds {b.get('min')} .. {b.get('max')}"
     )
     kinds: dict[str, int] = {}
@@ -120,7 +122,8 @@ def state_at(rec: Recording, t: float, agents: list[int]) -> list[str]:
         dist = float(np.linalg.norm(p - rec.goals[i]))
         out.append(
             f"  {rec.agent_ids[i]:<10} mode {rec.modes[i, k]:<9} pos [{p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}]"
-            f"  vel [{v[0]:.2f}, {v[1]:.2f}, {v[2]:.2f}] |v| {np.linalg.norm(v):.2f} m/s  to goal {dist:.2f} m"
+            f"  vel [{v[0]:.2f}, {v[1]:.2f}, {v[2]:.2f}] |v| {np.linalg.norm(v):.2f} m/s"
+            f"  to goal {dist:.2f} m"
         )
     for oid in rec.obstacle_tracks:
         pos, q = rec.obstacle_poses(oid, np.array([rec.times[k]]))
@@ -187,7 +190,10 @@ def main(argv: list[str] | None = None) -> int:
         for e in rec.events:
             if args.agent is not None and str(e.get("agent")) != args.agent:
                 continue
-            print(f"  t={float(e.get('t', 0)):8.2f}  {str(e.get('agent')):<10} {e.get('kind'):<13} {e.get('detail')}")
+            print(
+                f"  t={float(e.get('t', 0)):8.2f}  {str(e.get('agent')):<10} {str(e.get('kind')):<13}"
+                f" {e.get('detail')}"
+            )
     if args.at is not None:
         print()
         for line in state_at(rec, args.at, sel):

@@ -331,10 +331,30 @@ def compare_with_summary(
             continue
         checks = [
             ("arrived", m.arrived, row.get("arrived"), None),
-            ("arrival_time", m.arrival_time, row.get("arrival_time"), (tol.arrival_time_steps * dt + 1e-6, 0)),
-            ("path_length", m.path_length, row.get("path_length"), (tol.path_length_abs, tol.path_length_rel)),
-            ("min_clearance", m.min_clearance, row.get("min_clearance"), (tol.clearance_abs, tol.clearance_rel)),
-            ("max_curvature", m.max_curvature, row.get("max_curvature"), (tol.curvature_abs, tol.curvature_rel)),
+            (
+                "arrival_time",
+                m.arrival_time,
+                row.get("arrival_time"),
+                (tol.arrival_time_steps * dt + 1e-6, 0),
+            ),
+            (
+                "path_length",
+                m.path_length,
+                row.get("path_length"),
+                (tol.path_length_abs, tol.path_length_rel),
+            ),
+            (
+                "min_clearance",
+                m.min_clearance,
+                row.get("min_clearance"),
+                (tol.clearance_abs, tol.clearance_rel),
+            ),
+            (
+                "max_curvature",
+                m.max_curvature,
+                row.get("max_curvature"),
+                (tol.curvature_abs, tol.curvature_rel),
+            ),
             ("collisions", m.collisions, row.get("collisions"), None),
             ("escapes", m.escapes, row.get("escapes"), None),
             ("stuck_events", m.stuck_events, row.get("stuck_events"), None),

@@ -166,7 +166,9 @@ def _bounds_edges(lo, hi):
 # ---------------------------------------------------------------------- 3D
 
 
-def plot_3d(rec: Recording, agents: list[str] | None = None, step: int | None = None, fig: Figure | None = None):
+def plot_3d(
+    rec: Recording, agents: list[str] | None = None, step: int | None = None, fig: Figure | None = None
+):
     """3D view: bounds, terrain, obstacles, moving-obstacle tracks, paths by mode, starts, goals."""
     import mpl_toolkits.mplot3d  # noqa: F401 - registers the 3d projection
 
@@ -214,7 +216,16 @@ def _terrain_3d(ax, rec, lo, hi, n=40):
     Z = terrain_height(rec.world, np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(X.shape)
     top = max(float(Z.max()), 1e-9)
     ax.plot_surface(
-        X, Y, Z, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, linewidth=0, antialiased=False, gid="terrain"
+        X,
+        Y,
+        Z,
+        cmap="terrain",
+        vmin=-0.3 * top,
+        vmax=top,
+        alpha=0.35,
+        linewidth=0,
+        antialiased=False,
+        gid="terrain",
     )
 
 
@@ -302,19 +313,25 @@ def _footprint(obst, position=None, quat=None):
     return [pts[hull.vertices]]
 
 
-def plot_top(rec: Recording, agents: list[str] | None = None, step: int | None = None, fig: Figure | None = None):
+def plot_top(
+    rec: Recording, agents: list[str] | None = None, step: int | None = None, fig: Figure | None = None
+):
     """Top view (x-y): bounds, terrain contours, obstacle footprints, tracks, paths by mode."""
     fig = fig or new_figure(figsize=(8, 8))
     ax = fig.add_subplot()
     lo, hi = _bounds(rec)
-    ax.add_patch(Polygon([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]], fill=False, ls=":"))
+    ax.add_patch(
+        Polygon([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]], fill=False, ls=":")
+    )
     if (rec.world.get("terrain") or {}).get("peaks"):
         xs, ys = np.linspace(lo[0], hi[0], 80), np.linspace(lo[1], hi[1], 80)
         X, Y = np.meshgrid(xs, ys)
         Z = terrain_height(rec.world, np.stack([X.ravel(), Y.ravel()], axis=1)).reshape(X.shape)
         top = max(float(Z.max()), 1e-9)
         levels = np.linspace(0.05 * top, top, 10)
-        ax.contourf(X, Y, Z, levels=levels, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, extend="neither")
+        ax.contourf(
+            X, Y, Z, levels=levels, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, extend="neither"
+        )
         ax.contour(X, Y, Z, levels=levels, colors="0.5", linewidths=0.4)
     for obst in rec.static_obstacles():
         for poly in _footprint(obst):
