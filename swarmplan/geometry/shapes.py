@@ -67,7 +67,12 @@ def sdf_capsule(p: np.ndarray, radius: float, half_height: float) -> tuple[np.nd
 
 
 class MeshGrid:
-    """Signed distance grid of a closed mesh in its local frame (trilinear interpolation)."""
+    """Signed distance grid of a closed mesh in its local frame (trilinear interpolation).
+
+    Far from the surface the values come from a voxelization and Euclidean distance
+    transforms (about one voxel accurate); within three voxels of the surface they are
+    exact distances from trimesh, so clearances near walls are reliable.
+    """
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, cells: int = 48, pad: float | None = None):
         import trimesh
@@ -90,7 +95,13 @@ class MeshGrid:
         outside = ndimage.distance_transform_edt(~occ) * pitch
         inside = ndimage.distance_transform_edt(occ) * pitch
         # Surface lies about half a voxel from voxel centres.
-        self.grid = np.where(occ, -(inside - 0.5 * pitch), outside - 0.5 * pitch)
+        grid = np.where(occ, -(inside - 0.5 * pitch), outside - 0.5 * pitch)
+        # Near the surface, where clearance matters, replace the voxel estimate by exact values.
+        band = np.abs(grid) < 3 * pitch
+        nodes = self.lo + np.argwhere(band) * pitch
+        if len(nodes):
+            grid[band] = -trimesh.proximity.signed_distance(mesh, nodes)  # trimesh: positive inside
+        self.grid = grid
         self.grad = np.stack(np.gradient(self.grid, pitch), axis=-1)
         self.hi = self.lo + (shape - 1) * pitch
 
@@ -114,7 +125,18 @@ class MeshGrid:
         return d.reshape(p.shape[:-1]), g.reshape(p.shape)
 
 
-def _local_sdf(o: Obstacle, local: np.ndarray, mesh_grid: MeshGrid | None) -> tuple[np.ndarray, np.ndarray]:
+_GRID_CACHE: dict[tuple[bytes, bytes], MeshGrid] = {}
+
+
+def mesh_grid(o: Obstacle) -> MeshGrid:
+    """The (cached) distance grid of a mesh obstacle: built once per distinct mesh per process."""
+    key = (o.vertices.tobytes(), o.faces.tobytes())
+    if key not in _GRID_CACHE:
+        _GRID_CACHE[key] = MeshGrid(o.vertices, o.faces)
+    return _GRID_CACHE[key]
+
+
+def _local_sdf(o: Obstacle, local: np.ndarray, grid: MeshGrid | None) -> tuple[np.ndarray, np.ndarray]:
     if o.shape == "sphere":
         return sdf_sphere(local, o.radius)
     if o.shape == "box":
@@ -123,18 +145,16 @@ def _local_sdf(o: Obstacle, local: np.ndarray, mesh_grid: MeshGrid | None) -> tu
         return sdf_cylinder(local, o.radius, o.height / 2)
     if o.shape == "capsule":
         return sdf_capsule(local, o.radius, o.height / 2)
-    if mesh_grid is None:
-        mesh_grid = MeshGrid(o.vertices, o.faces)
-    return mesh_grid.query(local)
+    return (grid if grid is not None else mesh_grid(o)).query(local)
 
 
 def distance_and_gradient(
-    o: Obstacle, points: np.ndarray, center: np.ndarray | None = None, mesh_grid: MeshGrid | None = None
+    o: Obstacle, points: np.ndarray, center: np.ndarray | None = None, grid: MeshGrid | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance from ``points`` (..., 3) to ``o`` placed at ``center`` and its world-frame gradient."""
     c = o.position if center is None else center
     local = (np.asarray(points, dtype=float) - c) @ o.rotation
-    d, g = _local_sdf(o, local, mesh_grid)
+    d, g = _local_sdf(o, local, grid)
     return d, g @ o.rotation.T
 
 
@@ -152,9 +172,7 @@ class ObstacleField:
 
     def __init__(self, obstacles: Sequence[Obstacle]):
         self.obstacles = tuple(obstacles)
-        self.mesh_grids = {
-            i: MeshGrid(o.vertices, o.faces) for i, o in enumerate(self.obstacles) if o.shape == "mesh"
-        }
+        self.mesh_grids = {i: mesh_grid(o) for i, o in enumerate(self.obstacles) if o.shape == "mesh"}
 
     def __len__(self) -> int:
         return len(self.obstacles)
