@@ -136,8 +136,8 @@ def curvature_series(points: np.ndarray, times: np.ndarray, min_step: float = MI
 def obstacle_distances(rec: Recording, mesh_cache: dict | None = None) -> dict[str, np.ndarray]:
     """Signed distance (A, T) from every agent centre to every obstacle surface (NaN if unknown).
 
-    For meshes, entries far from the minimum are lower bounds (see MeshDistance); the
-    per-agent minimum and every contact (<= 0) are exact.
+    For meshes, only active steps are evaluated and entries far from the minimum are
+    lower bounds (see MeshDistance); each agent's minimum and every contact (<= 0) are exact.
     """
     mesh_cache = {} if mesh_cache is None else mesh_cache
     A, T = rec.n_agents, rec.n_steps
@@ -165,11 +165,12 @@ def obstacle_distances(rec: Recording, mesh_cache: dict | None = None) -> dict[s
                 R0 = euler_deg_to_matrix(obst.get("rotation") or [0, 0, 0])
                 local = np.einsum("atj,tji->ati", pts - c[None], R)  # R^T (p - c)
                 pts = local @ R0.T + c0
-            d = np.full(A * T, np.nan)
-            flat = pts.reshape(-1, 3)
-            ok = np.isfinite(flat[:, 0])
-            d[ok] = md.distances_pruned(flat[ok])
-            out[oid] = d.reshape(A, T)
+            d = np.full((A, T), np.nan)
+            act = active_mask(rec)
+            for i in range(A):  # prune per agent: each agent's minimum must be exact
+                ok = np.isfinite(pts[i, :, 0]) & act[i]
+                d[i, ok] = md.distances_pruned(pts[i, ok])
+            out[oid] = d
             continue
         if moving:
             local = np.einsum("atj,tji->ati", rec.positions - c[None], R)
