@@ -231,16 +231,27 @@ def load(path: str | Path) -> Recording:
         if a.get("goal") is not None:
             goals[i] = np.asarray(a["goal"], float)[:3]
         radii[i] = float(a.get("radius", defaults.get("radius", 0.0)) or 0.0)
+    full_order = list(agent_ids)
+    nan3 = [math.nan] * 3
     for k, msg in enumerate(states):
-        for a in msg.get("agents", []):
-            i = index[str(a.get("id"))]
-            if a.get("position") is not None:
-                positions[i, k] = a["position"][:3]
-            if a.get("velocity") is not None:
-                velocities[i, k] = a["velocity"][:3]
-            modes[i, k] = str(a.get("mode", ""))
-            if np.isnan(goals[i]).any() and a.get("goal") is not None:
+        agents = msg.get("agents", [])
+        ids_k = [str(a.get("id")) for a in agents]
+        if ids_k == full_order:  # fast path: every agent, in world order
+            positions[:, k] = [(a.get("position") or nan3)[:3] for a in agents]
+            velocities[:, k] = [(a.get("velocity") or nan3)[:3] for a in agents]
+            modes[:, k] = [str(a.get("mode", "")) for a in agents]
+        else:
+            for aid, a in zip(ids_k, agents, strict=True):
+                i = index[aid]
+                positions[i, k] = (a.get("position") or nan3)[:3]
+                velocities[i, k] = (a.get("velocity") or nan3)[:3]
+                modes[i, k] = str(a.get("mode", ""))
+    for i in np.flatnonzero(np.isnan(goals).any(axis=1)):  # goals missing from /world
+        for msg in states:
+            a = next((a for a in msg.get("agents", []) if str(a.get("id")) == agent_ids[i]), None)
+            if a is not None and a.get("goal") is not None:
                 goals[i] = np.asarray(a["goal"], float)[:3]
+                break
     modes = modes.astype(str)
 
     tracks: dict[str, dict[str, list]] = {}
