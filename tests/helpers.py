@@ -1,0 +1,193 @@
+"""Shared helpers for the core tests: world builders, running a simulation to its end,
+reading logs back, and the independent log audit ``shared/tools/check_log.py``.
+
+``check_log.py`` is not part of the package. It is found through the environment variable
+``SWARMPLAN_CHECK_LOG`` or next to the repository (``<repo>/../shared/tools/check_log.py``);
+tests that need it are skipped, with the places searched, only when it truly is missing.
+"""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from swarmplan.world import World, parse_world
+
+_HERE = Path(__file__).resolve()
+_CHECK_LOG_MODULE = None
+
+
+def check_log_candidates() -> list[Path]:
+    """Where ``check_log.py`` is looked for, in order."""
+    out = []
+    env = os.environ.get("SWARMPLAN_CHECK_LOG")
+    if env:
+        out.append(Path(env).expanduser())
+    for k in range(len(_HERE.parents)):
+        out.append((_HERE.parents[k] / "../shared/tools/check_log.py").resolve())
+    return out
+
+
+def find_check_log() -> Path | None:
+    for p in check_log_candidates():
+        if p.is_file():
+            return p
+    return None
+
+
+def check_log_module():
+    """The ``check_log`` module imported from its file (skips the test if it cannot be found)."""
+    global _CHECK_LOG_MODULE
+    if _CHECK_LOG_MODULE is not None:
+        return _CHECK_LOG_MODULE
+    path = find_check_log()
+    if path is None:
+        searched = ", ".join(str(p) for p in check_log_candidates()[:4])
+        pytest.skip(f"shared/tools/check_log.py not found (set SWARMPLAN_CHECK_LOG); searched {searched}")
+    spec = importlib.util.spec_from_file_location("swarmplan_check_log", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    _CHECK_LOG_MODULE = mod
+    return mod
+
+
+def audit(log_path: Path, allow_failure: bool = False) -> tuple[list[str], list[str], dict[str, Any]]:
+    """``check_log.check``: (problems, notes, stats) of a log, audited without swarmplan."""
+    return check_log_module().check(str(log_path), allow_failure)
+
+
+# ----------------------------------------------------------------------------- worlds
+
+
+def base_world(**top: Any) -> dict[str, Any]:
+    """A small valid raw world (one multirotor in an empty 100 m box); ``top`` replaces keys."""
+    raw: dict[str, Any] = {
+        "name": "t",
+        "seed": 0,
+        "bounds": {"min": [0, 0, 0], "max": [100, 100, 50]},
+        "sim": {"dt": 0.1, "max_time": 60, "goal_tolerance": 2.0},
+        "agent_defaults": {
+            "model": "multirotor",
+            "radius": 1.0,
+            "speed": {"min": 0, "max": 12, "cruise": 8},
+            "max_accel": 4,
+            "min_altitude": 5,
+            "separation": [4, 4, 2],
+        },
+        "agents": [{"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]}],
+        "planner": {"optimizer": {"name": "none"}},
+        "log": {"foxglove": False},
+    }
+    raw.update(copy.deepcopy(top))
+    return raw
+
+
+def make_world(raw: dict[str, Any], base_dir: Path | str = ".") -> World:
+    return parse_world(copy.deepcopy(raw), base_dir=base_dir)
+
+
+def run_to_end(
+    world: World,
+    seed: int | None = None,
+    log_path: Path | None = None,
+    planner: Any = None,
+    foxglove: bool = False,
+) -> tuple[Any, dict[str, Any], list]:
+    """Run ``world`` until terminated/truncated; returns (simulation, summary, per-step positions).
+
+    With ``log_path`` the run is recorded by :class:`McapRecorder` (summary included).
+    """
+    from swarmplan.recording import McapRecorder
+    from swarmplan.sim import Simulation
+
+    rec = McapRecorder(log_path, foxglove=foxglove) if log_path is not None else None
+    sim = Simulation(world, planner=planner, recorder=rec)
+    positions = []
+    try:
+        state = sim.reset(seed=seed)
+        positions.append(state.position.copy())
+        while True:
+            r = sim.step()
+            positions.append(r.state.position.copy())
+            if r.terminated or r.truncated:
+                break
+        summary = sim.summary()
+        if rec is not None:
+            rec.write_summary(summary)
+    finally:
+        if rec is not None:
+            rec.close()
+    return sim, summary, positions
+
+
+def default_planner(world: World) -> Any:
+    """The package's default refinement planner when ``swarmplan.planner`` exists, else None (pure APF)."""
+    try:
+        from swarmplan.planner import RefinementPlanner  # noqa: F401
+    except ImportError:
+        return None
+    from swarmplan.run import make_planner
+
+    name = world.planner["optimizer"]["name"]
+    return make_planner(world, "rscdwoa" if name == "none" else name)
+
+
+# ----------------------------------------------------------------------------- logs
+
+
+def read_log(path: Path) -> dict[str, list[tuple[int, Any]]]:
+    """{topic: [(log_time_ns, decoded JSON or raw bytes)]} read with the indexed MCAP reader."""
+    from mcap.reader import make_reader
+
+    out: dict[str, list[tuple[int, Any]]] = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        for _schema, channel, message in reader.iter_messages(log_time_order=False):
+            data = json.loads(message.data) if channel.message_encoding == "json" else bytes(message.data)
+            out.setdefault(channel.topic, []).append((message.log_time, data))
+    return out
+
+
+def log_positions(path: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """(agent ids, times (T,), positions (T, N, 3)) from a log's ``/agents/state``."""
+    states = [d for _, d in read_log(path)["/agents/state"]]
+    ids = [a["id"] for a in states[0]["agents"]]
+    t = np.array([s["t"] for s in states])
+    p = np.array([[a["position"] for a in s["agents"]] for s in states])
+    return ids, t, p
+
+
+def events_of(path: Path, kind: str | None = None) -> list[dict[str, Any]]:
+    ev = [d for _, d in read_log(path).get("/events", [])]
+    return [e for e in ev if kind is None or e["kind"] == kind]
+
+
+def describe_failure(summary: dict[str, Any], log_path: Path | None = None) -> str:
+    """A precise account of what went wrong in a run, for assertion messages."""
+    lines = [
+        f"world {summary.get('world')!r} seed {summary.get('seed')}: "
+        f"{summary.get('arrived')}/{summary.get('agents_total')} arrived, "
+        f"{summary.get('collisions')} collision(s), t={summary.get('sim_time')}"
+    ]
+    for a in summary.get("agents", []):
+        if not a["arrived"] or a["collisions"]:
+            lines.append(
+                f"  agent {a['id']}: final_mode={a['final_mode']} collided_with={a['collided_with']} "
+                f"min_clearance={a['min_clearance']} stuck={a['stuck_events']} "
+                f"emergency_stops={a['emergency_stops']}"
+            )
+    if log_path is not None and Path(log_path).exists():
+        for e in events_of(log_path):
+            if e["kind"] in ("collision", "timeout", "failed"):
+                lines.append(f"  event t={e['t']}: {e['agent']} {e['kind']} {e['detail']}")
+        ids, _t, p = log_positions(log_path)
+        final = ", ".join(f"{i}={np.round(p[-1, k], 2).tolist()}" for k, i in enumerate(ids))
+        lines.append(f"  final positions: {final}")
+    return "\n".join(lines)
