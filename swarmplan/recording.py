@@ -171,8 +171,9 @@ class McapRecorder:
         self._sequence = 0
         self.closed = False
 
-    def _write(self, topic: str, t: float, msg: dict[str, Any]) -> None:
-        data = json.dumps(_clean(msg), separators=(",", ":"), allow_nan=False).encode()
+    def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
+        # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
+        data = json.dumps(_clean(msg) if clean else msg, separators=(",", ":"), allow_nan=False).encode()
         ns = _ns(t)
         self._sequence += 1
         self._writer.add_message(
@@ -189,9 +190,9 @@ class McapRecorder:
 
     def write_state(self, t: float, agents: list[dict], obstacles: list[dict] | None) -> None:
         self._last_t = t
-        self._write("/agents/state", t, {"t": round(t, 9), "agents": agents})
+        self._write("/agents/state", t, {"t": round(t, 9), "agents": agents}, clean=False)
         if obstacles is not None:
-            self._write("/obstacles/state", t, {"t": round(t, 9), "obstacles": obstacles})
+            self._write("/obstacles/state", t, {"t": round(t, 9), "obstacles": obstacles}, clean=False)
         if self._scene is not None:
             self._scene.write_step(t, agents, obstacles or [])
         if t - self._last_flush >= self._flush_interval - 1e-9:

@@ -20,7 +20,12 @@ import numpy as np
 from swarmplan import __version__
 from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
 from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
-from swarmplan.geometry.collision import CollisionWorld, agent_contacts, segment_segment_min_distance
+from swarmplan.geometry.collision import (
+    CollisionWorld,
+    agent_contacts,
+    first_hits,
+    segment_segment_min_distance,
+)
 from swarmplan.geometry.shapes import ObstacleField
 from swarmplan.metrics import RunMetrics
 from swarmplan.motion import poses_at
@@ -216,13 +221,17 @@ class Simulation:
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
-            self._safety_filter(idx, pos0, vel0, pos1, vel1, v_cmd, q0, q1, events, t1)
-
-        # Contact on the committed step ends the agent.
-        for i in idx:
-            hit = self.collision.first_hit(pos0[i], pos1[i], self.params.radius[i], q0[mv], q1[mv])
-            if hit is not None:
-                self._collide(i, hit, events, t1)
+            validated = self._safety_filter(idx, pos0, vel0, pos1, vel1, v_cmd, q0, q1, events, t1)
+            # Contact on the committed step ends the agent. Steps the filter cleared with a
+            # margin cannot touch anything; the rest (stops, agent-conflict brakes) are checked.
+            check = idx[~validated]
+            if len(check):
+                hits = first_hits(
+                    self.collision, pos0[check], pos1[check], self.params.radius[check], q0[mv], q1[mv]
+                )
+                for i, hit in zip(check, hits, strict=True):
+                    if hit is not None:
+                        self._collide(i, hit, events, t1)
         for i, j in agent_contacts(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] not in ("arrived", "collided"):
@@ -337,10 +346,14 @@ class Simulation:
                 Event(s.t, self.ids[i], "smoothing_start", {"waypoints": np.round(s.segment[i], 6).tolist()})
             )
 
+    def _margin(self, i: int | np.ndarray) -> np.ndarray:
+        return np.minimum(0.25, 0.2 * self.params.radius[i])
+
     def _step_is_safe(self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> bool:
-        margin = min(0.25, 0.2 * self.params.radius[i])
         mv = self.moving_mask
-        return self.collision.first_hit(p0, p1, self.params.radius[i] + margin, q0[mv], q1[mv]) is None
+        return (
+            self.collision.first_hit(p0, p1, self.params.radius[i] + self._margin(i), q0[mv], q1[mv]) is None
+        )
 
     def _safety_filter(
         self,
@@ -354,17 +367,25 @@ class Simulation:
         q1: np.ndarray,
         events: list[Event],
         t1: float,
-    ) -> None:
-        """Replace steps that would touch an obstacle by the closest safe feasible alternative."""
+    ) -> np.ndarray:
+        """Replace steps that would touch an obstacle by the closest safe feasible alternative.
+
+        Returns, per agent of ``idx``, whether its final step was cleared with the safety margin.
+        """
         dt = self.world.dt
-        for k, i in enumerate(idx):
-            if self._step_is_safe(i, pos0[i], pos1[i], q0, q1):
-                continue
+        mv = self.moving_mask
+        hits = first_hits(
+            self.collision, pos0[idx], pos1[idx], self.params.radius[idx] + self._margin(idx), q0[mv], q1[mv]
+        )
+        validated = np.array([h is None for h in hits], dtype=bool)
+        for k in np.flatnonzero(~validated):
+            i = idx[k]
             cands = self._alternative_velocities(i, vel0[i])
             safe = [v for v in cands if self._step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
             if safe:
                 best = min(safe, key=lambda v: float(np.linalg.norm(v - v_cmd[k])))
                 vel1[i] = best
+                validated[k] = True
             elif not self.params.fixed_wing[i]:
                 # No feasible command avoids contact: stop (beyond the accel limit) and say so.
                 vel1[i] = 0.0
@@ -407,6 +428,7 @@ class Simulation:
                         changed = True
             if not changed:
                 break
+        return validated & ~stopped[idx]
 
     def _brake(self, i: int, v0: np.ndarray) -> np.ndarray:
         sp = float(np.linalg.norm(v0))

@@ -44,16 +44,30 @@ def fcl_geometry(o: Obstacle) -> fcl.CollisionGeometry:
 
 
 def _align_z(d: np.ndarray) -> np.ndarray:
-    """Rotation matrix taking the local z axis onto the unit vector ``d``."""
-    c = float(np.dot(_Z, d))
-    if c > 1 - 1e-12:
+    """Rotation matrix taking the local z axis onto the unit vector ``d`` (Rodrigues, scalar math)."""
+    x, y, z = float(d[0]), float(d[1]), float(d[2])
+    if z > 1 - 1e-12:
         return np.eye(3)
-    if c < -1 + 1e-12:
+    if z < -1 + 1e-12:
         return np.diag([1.0, -1.0, -1.0])
-    v = np.cross(_Z, d)
-    s2 = float(np.dot(v, v))
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx * ((1 - c) / s2)
+    # v = z_hat x d = (-y, x, 0); R = I + [v]x + [v]x^2 / (1 + z)
+    k = 1.0 / (1.0 + z)
+    return np.array(
+        [
+            [1.0 - x * x * k, -x * y * k, x],
+            [-x * y * k, 1.0 - y * y * k, y],
+            [-x, -y, 1.0 - (x * x + y * y) * k],
+        ]
+    )
+
+
+def point_segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance from points ``c`` (M, 3) to each segment ``a``→``b`` (N, 3): shape (N, M)."""
+    ab = b - a
+    ac = c[None, :, :] - a[:, None, :]
+    den = np.maximum(np.einsum("nd,nd->n", ab, ab), 1e-18)
+    s = np.clip(np.einsum("nmd,nd->nm", ac, ab) / den[:, None], 0.0, 1.0)
+    return np.linalg.norm(ac - s[..., None] * ab[:, None, :], axis=-1)
 
 
 def segment_segment_min_distance(
@@ -192,6 +206,51 @@ class CollisionWorld:
             or self.sweep_static(p0, p1, radius)
             or self.sweep_moving(p0, p1, radius, q0, q1)
         )
+
+
+def first_hits(
+    cw: CollisionWorld, p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, q0: np.ndarray, q1: np.ndarray
+) -> list[str | None]:
+    """:meth:`CollisionWorld.first_hit` for many agents at once, with vectorized prefilters.
+
+    Bounds, ground and terrain are decided in numpy for all agents; FCL only sees the
+    (agent, body) pairs whose bounding spheres the swept sphere can reach.
+    """
+    w = cw.world
+    n = len(p0)
+    out: list[str | None] = [None] * n
+    oob = np.any(p1 < w.bounds_min - 1e-9, axis=1) | np.any(p1 > w.bounds_max + 1e-9, axis=1)
+    if w.peaks:
+        step = np.linalg.norm(p1 - p0, axis=1)
+        k = int(min(4000, np.ceil(np.max(step / np.maximum(radii * 0.25, 1e-3), initial=0.0)) + 2))
+        s = np.linspace(0.0, 1.0, k)
+        pts = p0[:, None, :] + s[None, :, None] * (p1 - p0)[:, None, :]
+        low = np.any(pts[..., 2] - w.terrain_height(pts[..., :2]) < radii[:, None] - 1e-9, axis=1)
+        ground_name = "terrain"
+    else:
+        low = np.minimum(p0[:, 2], p1[:, 2]) < radii - 1e-9
+        ground_name = "ground"
+    if cw.static:
+        reach = point_segment_distance(cw._static_centers, p0, p1) - cw._static_radii[None, :]
+        near_static = np.any(reach <= radii[:, None] + 1e-6, axis=1)
+    else:
+        near_static = np.zeros(n, dtype=bool)
+    if cw.moving:
+        gap = segment_segment_min_distance(p0[:, None, :], p1[:, None, :], q0[None], q1[None])
+        near_moving = np.any(gap - cw._moving_radii[None, :] - radii[:, None] <= 1e-6, axis=1)
+    else:
+        near_moving = np.zeros(n, dtype=bool)
+    for i in range(n):
+        if oob[i]:
+            out[i] = "bounds"
+        elif low[i]:
+            out[i] = ground_name
+        else:
+            hit = cw.sweep_static(p0[i], p1[i], radii[i]) if near_static[i] else None
+            if hit is None and near_moving[i]:
+                hit = cw.sweep_moving(p0[i], p1[i], radii[i], q0, q1)
+            out[i] = hit
+    return out
 
 
 def agent_contacts(

@@ -1,0 +1,163 @@
+"""Simulation throughput: simulated seconds per wall second on a generated swarm world, and
+the wall time of every shipped world.
+
+``python -m swarmplan.bench sim --agents 64 --movers 16 [--statics 24] [--sim-time 30]``
+builds a 64-agent world with 16 moving and 24 static obstacles (seeded layout), runs it
+for ``--sim-time`` simulated seconds (with the MCAP recorder unless ``--no-log``) and
+prints sim-s per wall-s and the mean step time. ``--worlds`` instead runs every world in
+``worlds/`` (and its sub-folders) to its end and prints each one's wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def swarm_world(agents: int, movers: int, statics: int, seed: int = 0) -> dict[str, Any]:
+    """A square field with agents crossing between opposite edges among random obstacles."""
+    rng = np.random.default_rng(seed)
+    size = 100.0 * max(2.0, np.sqrt(agents / 4.0))
+    obstacles = []
+    for k in range(statics):
+        c = rng.uniform(0.2 * size, 0.8 * size, 2)
+        if k % 3 == 0:
+            obstacles.append({"id": f"s{k}", "shape": "sphere", "radius": 6.0, "position": [*c, 25.0]})
+        elif k % 3 == 1:
+            obstacles.append(
+                {
+                    "id": f"s{k}",
+                    "shape": "box",
+                    "size": [10.0, 10.0, 50.0],
+                    "position": [*c, 25.0],
+                    "rotation": [0, 0, float(rng.uniform(0, 90))],
+                }
+            )
+        else:
+            obstacles.append(
+                {"id": f"s{k}", "shape": "cylinder", "radius": 5.0, "height": 50.0, "position": [*c, 25.0]}
+            )
+    for k in range(movers):
+        c = rng.uniform(0.15 * size, 0.85 * size, 2)
+        v = rng.normal(size=2)
+        v = 4.0 * v / np.linalg.norm(v)
+        obstacles.append(
+            {
+                "id": f"m{k}",
+                "shape": "sphere",
+                "radius": 4.0,
+                "position": [*c, 25.0],
+                "motion": {"type": "linear", "velocity": [*v, 0.0]},
+            }
+        )
+    agent_list = []
+    for i in range(agents):
+        side = i % 4
+        u = (i // 4 + 0.5) / max(1, int(np.ceil(agents / 4))) * size
+        start, goal = {
+            0: ([5.0, u, 20.0], [size - 5.0, size - u, 25.0]),
+            1: ([size - 5.0, u, 25.0], [5.0, size - u, 20.0]),
+            2: ([u, 5.0, 30.0], [size - u, size - 5.0, 30.0]),
+            3: ([u, size - 5.0, 35.0], [size - u, 5.0, 35.0]),
+        }[side]
+        agent_list.append({"id": f"a{i}", "start": start, "goal": goal})
+    return {
+        "name": f"bench-{agents}a-{movers}m",
+        "seed": seed,
+        "bounds": {"min": [0, 0, 0], "max": [size, size, 60]},
+        "sim": {"dt": 0.1, "max_time": 600, "goal_tolerance": 2.0},
+        "obstacles": obstacles,
+        "agent_defaults": {
+            "radius": 1.0,
+            "speed": {"min": 0, "max": 12, "cruise": 8},
+            "max_accel": 4,
+            "separation": [4, 4, 2],
+        },
+        "agents": agent_list,
+        "planner": {"apf": {"influence": 20.0}},
+    }
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--agents", type=int, default=64)
+    parser.add_argument("--movers", type=int, default=16)
+    parser.add_argument("--statics", type=int, default=24)
+    parser.add_argument("--sim-time", type=float, default=30.0, help="simulated seconds to run")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--optimizer", default="none", help="planner optimizer ('none' = pure APF)")
+    parser.add_argument("--no-log", action="store_true", help="do not record (measures the simulator alone)")
+    parser.add_argument("--worlds", action="store_true", help="time every shipped world instead")
+
+
+def _time_worlds() -> int:
+    from swarmplan.run import simulate
+    from swarmplan.world import load_world
+
+    root = Path(__file__).resolve().parents[2] / "worlds"
+    print(f"{'world':45s} {'sim s':>7s} {'wall s':>7s} {'sim-s/s':>8s}  result")
+    with tempfile.TemporaryDirectory() as tmp:
+        for path in sorted(root.rglob("*.yaml")):
+            world = load_world(path)
+            start = time.perf_counter()
+            summary = simulate(world, world.seed, Path(tmp) / f"{path.stem}.mcap")
+            wall = time.perf_counter() - start
+            verdict = (
+                "success" if summary["success"] else f"{summary['arrived']}/{summary['agents_total']} arrived"
+            )
+            print(
+                f"{str(path.relative_to(root)):45s} {summary['sim_time']:7.1f} {wall:7.2f} "
+                f"{summary['sim_time'] / wall:8.1f}  {verdict}"
+            )
+    return 0
+
+
+def main(args: argparse.Namespace) -> int:
+    if args.worlds:
+        return _time_worlds()
+    from swarmplan.recording import McapRecorder
+    from swarmplan.run import make_planner
+    from swarmplan.sim import Simulation
+    from swarmplan.world import parse_world
+
+    world = parse_world(swarm_world(args.agents, args.movers, args.statics, args.seed))
+    with tempfile.TemporaryDirectory() as tmp:
+        recorder = None if args.no_log else McapRecorder(Path(tmp) / "bench.mcap")
+        sim = Simulation(world, planner=make_planner(world, args.optimizer), recorder=recorder)
+        sim.reset(seed=args.seed)
+        start = time.perf_counter()
+        steps = 0
+        try:
+            while sim.state.t < args.sim_time - 1e-9:
+                r = sim.step()
+                steps += 1
+                if r.terminated:
+                    break
+        finally:
+            wall = time.perf_counter() - start
+            if recorder is not None:
+                recorder.write_summary(sim.summary())
+                recorder.close()
+        size = (Path(tmp) / "bench.mcap").stat().st_size if recorder is not None else 0
+    s = sim.summary()
+    print(
+        f"world: {world.name}: {len(world.agents)} agents, {len(world.moving_obstacles)} moving and "
+        f"{len(world.static_obstacles)} static obstacles, dt {world.dt} s, optimizer {args.optimizer}, "
+        f"recording {'off' if args.no_log else 'on'}"
+    )
+    print(f"simulated {sim.state.t:.1f} s in {steps} steps, wall {wall:.2f} s")
+    print(f"sim-seconds per wall-second: {sim.state.t / wall:.2f}")
+    print(
+        f"mean step: {1000 * wall / max(steps, 1):.2f} ms "
+        f"({1e6 * wall / max(steps, 1) / len(world.agents):.0f} "
+        f"us per agent-step)"
+    )
+    print(
+        f"agents arrived {s['arrived']}/{s['agents_total']}, collisions {s['collisions']}"
+        + (f", log {size / 1e6:.1f} MB" if size else "")
+    )
+    return 0
