@@ -239,8 +239,9 @@ class Simulation:
 
         # Arrival: the step passed within goal tolerance of the goal.
         tol = w.goal_tolerance
-        for i in np.flatnonzero(s.active):
-            dmin = float(segment_segment_min_distance(pos0[i], pos1[i], s.goal[i], s.goal[i]))
+        flying = np.flatnonzero(s.active)
+        dmins = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
+        for i, dmin in zip(flying, dmins.tolist(), strict=True):
             if dmin <= tol:
                 s.mode[i] = "arrived"
                 vel1[i] = 0.0
