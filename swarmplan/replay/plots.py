@@ -285,7 +285,9 @@ def _legend(ax, rec, idx, colors, used_modes, moving):
 
 def _title(rec: Recording) -> str:
     w = rec.world
-    opt = ((w.get("planner") or {}).get("optimizer") or {}).get("name", "?")
+    opt = (rec.summary or {}).get("optimizer") or ((w.get("planner") or {}).get("optimizer") or {}).get(
+        "name", "?"
+    )
     extra = " [TRUNCATED LOG]" if rec.truncated else (" [interrupted]" if rec.interrupted else "")
     return f"{w.get('name', '?')} (seed {w.get('seed', '?')}, {opt}), t = 0..{rec.duration:.1f} s{extra}"
 
