@@ -790,8 +790,7 @@ def parse_world(
         log["flush_interval"] = c.number(raw["log"], "flush_interval", "log", 1.0, positive=True)
 
     # Geometry checks need a valid frame; run them only when the parts they use are sound.
-    if bmin is not None and bmax is not None:
-        _check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
+    _check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
 
     if c.problems:
         raise WorldError(c.problems, label)
@@ -847,8 +846,8 @@ def _check_placements(
     agents: list[AgentSpec],
     raw_agents: list,
     obstacles: list[Obstacle],
-    bmin: np.ndarray,
-    bmax: np.ndarray,
+    bmin: np.ndarray | None,
+    bmax: np.ndarray | None,
     peaks: list[Peak],
 ) -> None:
     from swarmplan.geometry.shapes import signed_distance
@@ -858,7 +857,7 @@ def _check_placements(
     for a in agents:
         p = f"agents[{index.get(a.id, '?')}]"
         for key, point, against in (("start", a.start, obstacles), ("goal", a.goal, static)):
-            if np.any(point < bmin) or np.any(point > bmax):
+            if bmin is not None and bmax is not None and (np.any(point < bmin) or np.any(point > bmax)):
                 c.add(f"{p}.{key}", f"{point.tolist()} is outside bounds {bmin.tolist()}..{bmax.tolist()}")
                 continue
             for o in against:
