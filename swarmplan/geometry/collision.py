@@ -133,7 +133,9 @@ class CollisionWorld:
             return obj
         self._capsule.radius = radius
         self._capsule.lz = length
-        # A changed geometry needs a fresh transform so fcl recomputes the object's AABB.
+        # A changed geometry keeps its old local AABB (the broadphase then misses long
+        # sweeps): recompute it, then set a fresh transform so the world AABB follows.
+        self._capsule.computeLocalAABB()
         self._capsule_obj.setTransform(
             fcl.Transform(_align_z(d / length), np.ascontiguousarray(mid, dtype=float))
         )
