@@ -214,6 +214,8 @@ class McapRecorder:
             return
         self.closed = True
         try:
+            if self._scene is not None:
+                self._scene.finish()  # the last throttled scene update
             self._writer.finish()
         finally:
             self._file.close()

@@ -130,6 +130,7 @@ class Simulation:
         self._progress_ref = np.linalg.norm(goal - start, axis=1)
         self._progress_t = np.zeros(self.n)
         self._near = np.zeros((self.n, self.n), dtype=bool)
+        self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.interrupted = False
         self.wall_start = time.perf_counter()
         if self.recorder is not None:
@@ -199,7 +200,10 @@ class Simulation:
         vel1 = np.zeros_like(vel0)
         obst_clear = np.full(self.n, np.inf)
         if len(idx):
-            d, g = self.field.query(pos0[idx], q0)
+            # The previous step already measured every agent's distances at this position and time.
+            if self._field_cache is None:
+                self._field_cache = self.field.query(pos0, q0)
+            d, g = self._field_cache[0][idx], self._field_cache[1][idx]
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.bounding_radius, q0)
             target, rep_scale = self._attraction_targets(idx, events)
             force = apf_forces(
@@ -217,7 +221,6 @@ class Simulation:
                 static_scale=rep_scale,
             )
             clearance, normal = self._nearest_surface(idx, pos0[idx], d, g)
-            obst_clear[idx] = (d - self.params.radius[idx, None]).min(axis=1) if d.shape[1] else np.inf
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
@@ -249,6 +252,10 @@ class Simulation:
                 self.metrics.arrival_time[i] = t1
                 events.append(Event(t1, self.ids[i], "arrived", {"distance": round(dmin, 6)}))
 
+        # Clearances at the committed positions (also the next step's distances).
+        self._field_cache = self.field.query(pos1, q1)
+        if len(self.world.obstacles):
+            obst_clear = (self._field_cache[0] - self.params.radius[:, None]).min(axis=1)
         agent_clear = self._agent_clearance(pos1)
         terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
         self.metrics.add_step(pos0, pos1, active, obst_clear, agent_clear, terr_clear)
