@@ -1,0 +1,51 @@
+"""Refinement planning on top of the potential field: escapes, smoothing, global routes.
+
+:class:`RefinementPlanner` implements the simulation's ``Planner`` protocol
+(``swarmplan.sim``): ``on_reset`` asks the global-path planner for routes when
+``planner.mode`` is ``global``; ``on_stuck`` plans an escape segment (or a yield in a
+deadlock between agents, see :mod:`swarmplan.planner.escape`); ``on_step`` starts yield
+segments planned for other agents and curvature-smoothing segments
+(:mod:`swarmplan.planner.smoothing`) when ``planner.smoothing.enabled``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmplan.planner.escape import EscapePlanner
+from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
+
+__all__ = ["RefinementPlanner", "fillet_path"]
+
+
+class RefinementPlanner:
+    """The planner the simulation calls; ``optimizer_name`` names the metaheuristic it uses."""
+
+    def __init__(self, world, optimizer_name: str):  # noqa: ANN001 - swarmplan.world.World
+        self.world = world
+        self.optimizer_name = optimizer_name
+        self.escape = EscapePlanner(world, optimizer_name)
+        self.smoother = CurvatureSmoother(self.escape)
+        self.smoothing = bool(world.planner.get("smoothing", {}).get("enabled", True))
+
+    def on_reset(self, sim) -> dict[int, np.ndarray]:  # noqa: ANN001
+        self.escape.escapes.clear()
+        self.escape.pending.clear()
+        self.smoother.next_check.clear()
+        if self.world.planner.get("mode") != "global":
+            return {}
+        try:
+            from swarmplan.planner.global_path import plan_global_routes
+        except ImportError:
+            return {}
+        return plan_global_routes(sim, self.optimizer_name, sim.rng)
+
+    def on_stuck(self, sim, agent: int):  # noqa: ANN001, ANN201 - PlannedSegment | None | "failed"
+        return self.escape.on_stuck(sim, agent)
+
+    def on_step(self, sim) -> dict:  # noqa: ANN001
+        out = self.escape.take_pending(sim)
+        if self.smoothing:
+            for i, seg in self.smoother.on_step(sim).items():
+                out.setdefault(i, seg)
+        return out

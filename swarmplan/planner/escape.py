@@ -1,0 +1,387 @@
+"""Escape planning: a short optimized segment out of a local minimum of the potential field.
+
+When the simulation reports an agent stuck (``Planner.on_stuck``):
+
+1. a **sub-goal** is chosen on the ray to the goal: past the obstacles that block the ray
+   (the first point beyond them with the required clearance), at least ``horizon`` metres
+   out, or the goal itself when it is nearer;
+2. the segment ``agent → K free waypoints → sub-goal`` is optimized with the world's
+   optimizer (``planner.optimizer``: name, population, iterations → max_evals =
+   population × iterations, params) using the simulation's seeded ``sim.rng``; the cost
+   (:mod:`swarmplan.planner.segment_cost`) scores the whole population in one call;
+3. the best segment is **validated with FCL**: every leg swept with the agent radius plus
+   a margin against the static obstacles, terrain and bounds; if it touches something
+   the search is retried with a larger horizon and budget (``retries`` times) before
+   giving up (``"failed"``).
+
+Deadlocks between agents (two stuck agents close together, e.g. at a narrow gap) are
+resolved by priority: the agent with the higher index steps aside (a yield segment to a
+point off the other's path, optimized the same way), the other one goes through.
+
+Every optimizer run is logged with ``sim.record_optimizer(i, "escape", name, result)``.
+
+Settings (``planner.escape``, all optional): ``waypoints`` (K, 4), ``horizon`` (m, default
+2 × apf influence, at least 15), ``margin`` (m of clearance beyond the radius, 1.0),
+``fcl_margin`` (m, 0.3), ``retries`` (2), ``growth`` (1.5, horizon and budget factor per
+retry), ``max_escapes`` (per agent before giving up, 25).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan import optimizers
+from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
+
+ESCAPE_DEFAULTS = {
+    "waypoints": 4,
+    "horizon": None,
+    "margin": 1.0,
+    "fcl_margin": 0.3,
+    "retries": 2,
+    "growth": 1.5,
+    "max_escapes": 25,
+}
+
+
+def escape_settings(world) -> dict:  # noqa: ANN001
+    """``planner.escape`` merged over the defaults; unknown keys raise ``ValueError``."""
+    raw = dict(world.planner.get("escape") or {})
+    unknown = sorted(set(raw) - set(ESCAPE_DEFAULTS))
+    if unknown:
+        raise ValueError(
+            f"planner.escape: unknown key(s) {', '.join(unknown)}; known: {', '.join(ESCAPE_DEFAULTS)}"
+        )
+    cfg = dict(ESCAPE_DEFAULTS)
+    cfg.update(raw)
+    if cfg["horizon"] is None:
+        cfg["horizon"] = max(15.0, 2.0 * float(world.planner["apf"]["influence"]))
+    for k in ("horizon", "margin", "growth"):
+        if not float(cfg[k]) > 0:
+            raise ValueError(f"planner.escape.{k}: must be > 0, got {cfg[k]}")
+    if int(cfg["waypoints"]) < 1:
+        raise ValueError(f"planner.escape.waypoints: must be >= 1, got {cfg['waypoints']}")
+    return cfg
+
+
+def model_turn_radius(sim, i: int) -> float:  # noqa: ANN001
+    """Minimum turn radius of agent ``i``: ``min_turn_radius`` (fixed wing) or v²/a (paper 004 eq 34)."""
+    p = sim.params
+    if p.fixed_wing[i]:
+        return float(p.min_turn_radius[i])
+    return float(p.speed_cruise[i]) ** 2 / max(float(p.max_accel[i]), 1e-9)
+
+
+def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:  # noqa: ANN001
+    """Clearance (surface distance minus ``radius``) of ``pts`` to static obstacles, floor and bounds."""
+    w = sim.world
+    pts = np.atleast_2d(pts)
+    clear = pts[:, 2] - w.terrain_height(pts[:, :2]) - radius
+    clear = np.minimum(clear, (np.minimum(pts - w.bounds_min, w.bounds_max - pts) - radius).min(axis=1))
+    static = ~sim.moving_mask
+    if static.any():
+        d, _ = sim.field.query(pts)
+        clear = np.minimum(clear, d[:, static].min(axis=1) - radius)
+    return clear
+
+
+def choose_subgoal(sim, i: int, horizon: float, need: float) -> np.ndarray:  # noqa: ANN001
+    """Point on the ray to the goal past whatever blocks it (clearance < ``need``), at least
+    ``horizon`` out, or the goal when that is nearer."""
+    s = sim.state
+    p, g = s.position[i], s.goal[i]
+    d = g - p
+    dist = float(np.linalg.norm(d))
+    if dist <= horizon:
+        return g.copy()
+    u = d / dist
+    step = max(0.5, dist / 400)
+    ts = np.arange(0.0, dist, step)
+    clear = static_clearance(sim, p + ts[:, None] * u, float(sim.params.radius[i]))
+    blocked = np.flatnonzero(clear < need)
+    blocked = blocked[ts[blocked] > 0.5]
+    t_end = horizon
+    if len(blocked):
+        after = np.flatnonzero((np.arange(len(ts)) > blocked[-1]) & (clear >= need))
+        first_free = ts[after[0]] + need if len(after) else dist
+        # Only the first blocked stretch matters; later ones are for later escapes.
+        runs = np.split(blocked, np.flatnonzero(np.diff(blocked) > 1) + 1)
+        last_of_first = runs[0][-1]
+        after1 = np.flatnonzero((np.arange(len(ts)) > last_of_first) & (clear >= need))
+        first_free = ts[after1[0]] + need if len(after1) else first_free
+        t_end = max(horizon, first_free)
+    if t_end >= dist - 1e-9:
+        return g.copy()
+    return p + t_end * u
+
+
+@dataclass
+class EscapeOutcome:
+    waypoints: np.ndarray | None  # (K+1, 3) without the start, or None when nothing valid was found
+    attempts: int
+    costs: list[float]
+
+
+class EscapePlanner:
+    """Plans escape and yield segments for one simulation (holds the optimizer and settings)."""
+
+    def __init__(self, world, optimizer_name: str):  # noqa: ANN001
+        self.world = world
+        self.name = optimizer_name
+        self.cfg = escape_settings(world)
+        opt = world.planner["optimizer"]
+        self.population = int(opt["population"])
+        self.iterations = int(opt["iterations"])
+        params = dict(opt.get("params") or {})
+        try:
+            self.optimizer = optimizers.make(optimizer_name, population=self.population, **params)
+        except ValueError:
+            # The world's params belong to another algorithm (e.g. --optimizer overrode the name).
+            self.optimizer = optimizers.make(optimizer_name, population=self.population)
+        self.escapes: dict[int, int] = {}
+        self.pending: dict[int, object] = {}  # yield segments planned for other agents
+
+    # ------------------------------------------------------------------ validation
+
+    def segment_hit(self, sim, i: int, polyline: np.ndarray, start_clearance: float) -> str | None:  # noqa: ANN001
+        """What the first leg of ``polyline`` touching something (static, terrain, bounds) hits, else None.
+
+        Each leg is swept with radius + ``fcl_margin``; the first leg starts at the agent,
+        which may already be closer than that, so its margin is what the agent has."""
+        col = sim.collision
+        r = float(sim.params.radius[i])
+        m = float(self.cfg["fcl_margin"])
+        for k in range(len(polyline) - 1):
+            a, b = polyline[k], polyline[k + 1]
+            rr = r + (min(m, max(0.0, 0.5 * start_clearance)) if k == 0 else m)
+            hit = col.sweep_bounds(b) and "bounds"
+            hit = hit or col.sweep_terrain(a, b, rr) or col.sweep_static(a, b, rr)
+            if hit:
+                return hit
+        return None
+
+    # ------------------------------------------------------------------ planning
+
+    def make_cost(
+        self,
+        sim,
+        i: int,
+        margin: float,
+        extra: dict[int, Intent] | None = None,
+        ignore: set[int] | None = None,
+    ) -> SegmentCost:  # noqa: ANN001
+        s, p = sim.state, sim.params
+        r = float(p.radius[i])
+        start_clear = float(static_clearance(sim, s.position[i], r)[0])
+        v = s.velocity[i]
+        intents = [it for j, it in self._intents(sim, i, extra).items() if not ignore or j not in ignore]
+        return SegmentCost(
+            sim.world,
+            radius=r,
+            speed=float(p.speed_cruise[i]),
+            turn_radius=model_turn_radius(sim, i),
+            max_climb=float(p.max_climb[i]),
+            min_altitude=float(p.min_altitude[i]),
+            t0=s.t,
+            margin=margin,
+            heading=v if np.linalg.norm(v) > 0.5 else None,
+            start_clearance=start_clear,
+            intents=intents,
+            fixed_wing=bool(p.fixed_wing[i]),
+        )
+
+    def _intents(self, sim, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:  # noqa: ANN001
+        others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in ("collided", "failed")]
+        its = agent_intents(sim, i, extra=extra)
+        return dict(zip(others, its, strict=True))
+
+    def optimize_segment(
+        self,
+        sim,  # noqa: ANN001
+        i: int,
+        end: np.ndarray,
+        purpose: str,
+        width: float,
+        budget_factor: float = 1.0,
+        extra: dict[int, Intent] | None = None,
+        ignore: set[int] | None = None,
+        n_free: int | None = None,
+    ) -> tuple[np.ndarray, float, SegmentCost]:
+        """Optimize one segment from agent ``i`` to ``end``; returns (polyline, cost, cost model)."""
+        s = sim.state
+        w = sim.world
+        r = float(sim.params.radius[i])
+        k = int(n_free or self.cfg["waypoints"])
+        # Keep waypoints where the potential field lets the agent reach them: out of the
+        # repulsion of the bounds' faces and of the ground (see swarmplan.apf).
+        rho0 = float(w.planner["apf"]["influence"])
+        rb0 = min(rho0, 10.0)
+        floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
+        rho0_g = max(min(rho0, 3.0 * floor), 2.0)
+        lo = w.bounds_min + r + 0.6 * rb0
+        hi = w.bounds_max - r - 0.6 * rb0
+        lo[2] = max(w.bounds_min[2] + r, floor + r + 0.6 * rho0_g)
+        lo = np.minimum(lo, np.minimum(s.position[i], end))
+        hi = np.maximum(hi, np.maximum(s.position[i], end))
+        enc = SegmentEncoding(s.position[i], end, k, width=width, height=0.5 * width, lo=lo, hi=hi)
+        cost = self.make_cost(sim, i, float(self.cfg["margin"]), extra, ignore)
+        evals = max(self.population, int(self.population * self.iterations * budget_factor))
+        x0 = seed_candidates(enc, width)
+        res = self.optimizer.minimize(
+            lambda X: cost(enc.decode(X)), enc.lower, enc.upper, max_evals=evals, seed=sim.rng, x0=x0
+        )
+        sim.record_optimizer(i, purpose, self.name, res)
+        return enc.decode(res.x)[0], float(res.f), cost
+
+    def plan(
+        self,
+        sim,  # noqa: ANN001
+        i: int,
+        end_fn,  # noqa: ANN001 - horizon -> end point
+        purpose: str = "escape",
+        extra: dict[int, Intent] | None = None,
+        ignore: set[int] | None = None,
+    ) -> EscapeOutcome:
+        """Optimize, validate with FCL, retry with a larger horizon and budget."""
+        cfg = self.cfg
+        horizon = float(cfg["horizon"])
+        r = float(sim.params.radius[i])
+        start_clear = float(static_clearance(sim, sim.state.position[i], r)[0])
+        costs = []
+        for attempt in range(int(cfg["retries"]) + 1):
+            grow = float(cfg["growth"]) ** attempt
+            end = end_fn(horizon * grow)
+            L = float(np.linalg.norm(end - sim.state.position[i]))
+            width = 1.25 * max(L, horizon * grow, 10.0)
+            poly, f, _ = self.optimize_segment(sim, i, end, purpose, width, grow, extra, ignore)
+            costs.append(f)
+            if self.segment_hit(sim, i, poly, start_clear) is None:
+                return EscapeOutcome(poly[1:], attempt + 1, costs)
+        return EscapeOutcome(None, int(cfg["retries"]) + 1, costs)
+
+    # ------------------------------------------------------------------ events
+
+    def deadlock_partners(self, sim, i: int) -> list[int]:  # noqa: ANN001
+        """Other flying agents close to ``i`` and slow (or coming at it): a mutual blockage."""
+        s, p = sim.state, sim.params
+        out = []
+        for j in np.flatnonzero(s.active):
+            if j == i:
+                continue
+            sep = float(np.linalg.norm(np.maximum(p.separation[i], p.separation[j])))
+            reach = 3.0 * (sep + p.radius[i] + p.radius[j])
+            dp = s.position[j] - s.position[i]
+            dist = float(np.linalg.norm(dp))
+            if dist > reach:
+                continue
+            slow = np.linalg.norm(s.velocity[j]) < 0.5 * p.speed_cruise[j]
+            towards = float(np.dot(s.velocity[j], -dp)) > 0.3 * dist * np.linalg.norm(s.velocity[j])
+            if slow or towards:
+                out.append(int(j))
+        return out
+
+    def yield_point(self, sim, i: int, j: int, dist: float) -> np.ndarray:  # noqa: ANN001
+        """A point ``dist`` to the side of the line between ``j`` and its goal, on ``i``'s side,
+        where ``i`` waits out of ``j``'s way (the side with more clearance)."""
+        s = sim.state
+        pj, gj = s.position[j], s.goal[j]
+        u = gj - pj
+        u[2] = 0.0
+        nu = np.linalg.norm(u)
+        u = u / nu if nu > 1e-9 else np.array([1.0, 0.0, 0.0])
+        side = np.array([-u[1], u[0], 0.0])
+        r = float(sim.params.radius[i])
+        best, best_c = None, -np.inf
+        for sgn in (1.0, -1.0):
+            for back in (0.0, 0.5, 1.0):
+                q = s.position[i] + sgn * dist * side + back * dist * u
+                q = np.clip(q, sim.world.bounds_min + r + 1, sim.world.bounds_max - r - 1)
+                c = float(static_clearance(sim, q, r)[0])
+                c = min(c, 2.0 * dist)  # enough clearance is enough: prefer the nearest
+                score = c - 0.2 * back * dist
+                if score > best_c:
+                    best, best_c = q, score
+        return best
+
+    def on_stuck(self, sim, i: int):  # noqa: ANN001, ANN201 - PlannedSegment | None | "failed"
+        from swarmplan.sim import PlannedSegment
+
+        if i in self.pending:  # a yield planned for us by the agent we block
+            return self.pending.pop(i)
+        n_done = self.escapes.get(i, 0)
+        if n_done >= int(self.cfg["max_escapes"]):
+            return "failed"
+        self.escapes[i] = n_done + 1
+        r = float(sim.params.radius[i])
+        need = r + float(self.cfg["margin"]) + 1.0
+        s = sim.state
+        partners = [j for j in self.deadlock_partners(sim, i) if s.mode[j] == "apf" and j not in self.pending]
+        # Deadlock: the agent with the higher index steps aside, the other goes on.
+        if any(j < i for j in partners):
+            j = min(partners)
+            q = self.yield_point(sim, i, j, self._yield_distance(sim, i))
+            out = self.plan(sim, i, lambda _h, q=q: q, ignore={j})
+            if out.waypoints is not None:
+                return PlannedSegment(out.waypoints, mode="escape")
+        extra = {}
+        for j in partners:
+            if j > i:
+                q = self.yield_point(sim, j, i, self._yield_distance(sim, j))
+                out = self.plan(sim, j, lambda _h, q=q, j=j: q, ignore={i})
+                if out.waypoints is not None:
+                    self.pending[j] = PlannedSegment(out.waypoints, mode="escape")
+                    extra[j] = _intent_of(sim, j, out.waypoints)
+        out = self.plan(sim, i, lambda h: choose_subgoal(sim, i, h, need), extra=extra)
+        if out.waypoints is None:
+            return "failed"
+        return PlannedSegment(out.waypoints, mode="escape")
+
+    def take_pending(self, sim) -> dict:  # noqa: ANN001
+        """Yield segments planned for other agents, to start now (``Planner.on_step``)."""
+        out = {j: seg for j, seg in self.pending.items() if sim.state.mode[j] == "apf"}
+        self.pending = {}
+        return out
+
+    def _yield_distance(self, sim, i: int) -> float:  # noqa: ANN001
+        p = sim.params
+        return max(8.0, 2.0 * (float(np.linalg.norm(p.separation[i])) + 2.0 * float(p.radius[i])))
+
+
+def _intent_of(sim, j: int, waypoints: np.ndarray) -> Intent:  # noqa: ANN001
+    """Agent ``j`` flying ``waypoints`` from where it is at cruise speed."""
+    s, p = sim.state, sim.params
+    pts = np.vstack([s.position[j], waypoints])
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    keep = np.concatenate([[True], seg > 1e-9])
+    times = s.t + np.concatenate([[0.0], np.cumsum(seg)]) / max(float(p.speed_cruise[j]), 0.1)
+    return Intent(times[keep], pts[keep], float(p.radius[j]), p.separation[j])
+
+
+def seed_candidates(enc: SegmentEncoding, width: float) -> np.ndarray:
+    """A few structured starting points for the optimizer: the straight line, lateral detours
+    on both sides (half and full width), and the same detours backing out first (a pocket)."""
+    k = enc.k
+    frac = np.arange(1, k + 1) / (k + 1)
+    L = max(enc.length, 1.0)
+    rows = [np.zeros((k, 3))]
+    back = -np.minimum(0.75 * L, frac * L + 0.5 * L) * (frac <= 0.5)
+    for side in (1.0, -1.0):
+        for w in (0.5, 1.0):
+            for along in (np.zeros(k), back):
+                r = np.zeros((k, 3))
+                r[:, 0] = along
+                r[:, 1] = side * w * width
+                rows.append(r)
+    X = np.array([r.reshape(-1) for r in rows])
+    return np.clip(X, enc.lower, enc.upper)
+
+
+def turn_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """Angle between two direction vectors (radians)."""
+    na, nb = np.linalg.norm(a), np.linalg.norm(b)
+    if na < 1e-12 or nb < 1e-12:
+        return 0.0
+    return math.acos(float(np.clip(np.dot(a, b) / (na * nb), -1.0, 1.0)))

@@ -1,0 +1,342 @@
+"""Cost of short candidate segments (escape and smoothing), vectorized over a whole population.
+
+A candidate is a polyline ``start → K free waypoints → end``. :class:`SegmentEncoding` maps
+a decision vector (offsets of the K waypoints in a box around the line ``start → end``)
+to the polyline; :class:`SegmentCost` scores ``(n, K+2, 3)`` polylines in one call:
+
+- length (a straight, free segment costs exactly its length);
+- turning: a vertex whose fillet of the model's turn radius R (``min_turn_radius`` for
+  fixed wings, ``v²/a`` at cruise speed for multirotors, paper 004 eq 34) does not fit
+  in half of each adjacent leg, including the turn from the current heading; climb
+  angles above ``max_climb_angle``;
+- clearance to static obstacles on points sampled densely along each polyline
+  (``ObstacleField``), below the ground/terrain floor and outside ``bounds``;
+- threats (soft, inside ``r_max``);
+- moving obstacles at their *predicted* positions (``motion.poses_at``) at the time the
+  agent would reach each sample at cruise speed;
+- other agents at their intended positions at that time (their segment or route, else
+  their velocity extrapolated for a few seconds).
+
+Every penalty is zero for a path with the required clearance everywhere, so such a path
+costs its length plus its turning term (zero for a straight segment).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
+from swarmplan.motion import poses_at
+
+_EPS = 1e-9
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
+
+
+@dataclass(frozen=True)
+class Weights:
+    """Penalty weights (per metre of path unless noted)."""
+
+    clearance: float = 200.0  # per metre of path per metre of missing clearance
+    collision: float = 2000.0  # per metre of path inside an obstacle (clearance < 0)
+    floor: float = 200.0  # below ground/terrain clearance
+    bounds: float = 200.0
+    turn: float = 1.0  # m per radian of heading change (mild smoothness term)
+    turn_radius: float = 20.0  # per metre of fillet tangent that does not fit
+    climb: float = 50.0  # per metre of path per radian above the climb limit
+    threat: float = 20.0  # per metre of path, scaled by the threat's weight and depth
+    moving: float = 200.0
+    agents: float = 100.0
+
+
+@dataclass
+class Intent:
+    """Where another agent means to be: a polyline with times (piecewise linear, then it stays)."""
+
+    times: np.ndarray  # (m,), increasing, absolute sim time
+    points: np.ndarray  # (m, 3)
+    radius: float
+    separation: np.ndarray  # (3,)
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """Positions at times ``t`` (any shape) → (..., 3)."""
+        if len(self.times) == 1:
+            return np.broadcast_to(self.points[0], t.shape + (3,)).copy()
+        return np.stack([np.interp(t, self.times, self.points[:, k]) for k in range(3)], axis=-1)
+
+
+class SegmentEncoding:
+    """Decision vector ↔ polyline: K waypoints offset in a box around the line start → end.
+
+    Waypoint k sits at fraction k/(K+1) of the line plus an offset (along, lateral, vertical)
+    in the line's frame; along ∈ ±``along`` (default ``width``), lateral ∈ ±``width``,
+    vertical ∈ ±``height``; backing out of a pocket needs negative along-offsets.
+    Waypoints are clipped into ``lo``..``hi`` (the flight volume shrunk by the radius).
+    """
+
+    def __init__(
+        self,
+        start: np.ndarray,
+        end: np.ndarray,
+        n_free: int,
+        width: float,
+        height: float,
+        along: float | None = None,
+        lo: np.ndarray | None = None,
+        hi: np.ndarray | None = None,
+    ):
+        self.start = np.asarray(start, dtype=float)
+        self.end = np.asarray(end, dtype=float)
+        self.k = int(n_free)
+        d = self.end - self.start
+        self.length = float(np.linalg.norm(d))
+        e1 = d / self.length if self.length > _EPS else np.array([1.0, 0.0, 0.0])
+        e2 = np.cross([0.0, 0.0, 1.0], e1)
+        if np.linalg.norm(e2) < 1e-6:
+            e2 = np.array([0.0, 1.0, 0.0])
+        e2 = e2 / np.linalg.norm(e2)
+        e3 = np.cross(e1, e2)
+        self.frame = np.stack([e1, e2, e3])  # rows
+        a = width if along is None else along
+        half = np.array([a, width, height])
+        self.upper = np.tile(half, self.k)
+        self.lower = -self.upper
+        self.lo = lo
+        self.hi = hi
+        s = np.arange(1, self.k + 1) / (self.k + 1)
+        self.base = self.start + s[:, None] * d  # (K, 3)
+
+    @property
+    def dim(self) -> int:
+        return 3 * self.k
+
+    def decode(self, X: np.ndarray) -> np.ndarray:
+        """(n, 3K) → polylines (n, K+2, 3)."""
+        X = np.atleast_2d(X)
+        off = X.reshape(len(X), self.k, 3) @ self.frame
+        wp = self.base[None] + off
+        if self.lo is not None:
+            wp = np.clip(wp, self.lo, self.hi)
+        n = len(X)
+        return np.concatenate(
+            [np.broadcast_to(self.start, (n, 1, 3)), wp, np.broadcast_to(self.end, (n, 1, 3))], axis=1
+        )
+
+    def encode(self, waypoints: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`decode` for K free waypoints (no clipping) → (3K,)."""
+        off = (np.asarray(waypoints, dtype=float) - self.base) @ self.frame.T
+        return np.clip(off.reshape(-1), self.lower, self.upper)
+
+
+class SegmentCost:
+    """Scores candidate polylines of one agent; build with :meth:`for_agent` from a simulation."""
+
+    def __init__(
+        self,
+        world,  # noqa: ANN001 - swarmplan.world.World
+        *,
+        radius: float,
+        speed: float,
+        turn_radius: float,
+        max_climb: float,
+        min_altitude: float,
+        t0: float = 0.0,
+        margin: float = 1.0,
+        heading: np.ndarray | None = None,
+        start_clearance: float | None = None,
+        intents: list[Intent] | None = None,
+        weights: Weights | None = None,
+        spacing: float | None = None,
+        fixed_wing: bool = False,
+    ):
+        self.world = world
+        self.r = float(radius)
+        self.speed = max(float(speed), 0.1)
+        self.turn_radius = float(turn_radius)
+        self.max_climb = float(max_climb)
+        self.min_alt = float(min_altitude)
+        self.t0 = float(t0)
+        self.margin = float(margin)
+        self.heading = None if heading is None else _unit(np.asarray(heading, dtype=float))
+        self.intents = intents or []
+        self.w = weights or Weights()
+        self.spacing = spacing if spacing is not None else max(0.5 * self.r, 0.25)
+        self.fixed_wing = fixed_wing
+        self.static = [o for o in world.obstacles if not o.moving]
+        self.moving = [o for o in world.obstacles if o.moving]
+        self.field = ObstacleField(self.static)
+        self.required = self.r + self.margin
+        # Near the start the agent may already be closer than required: ask only for what
+        # it has plus the distance travelled (the path must not get worse, then must clear).
+        self.start_clearance = np.inf if start_clearance is None else float(start_clearance)
+        self.max_samples = 4000
+
+    # ------------------------------------------------------------------ sampling
+
+    def sample(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Points (n, S, 3) sampled along each polyline, their path-length weights ds (n, S) and
+        arc length s (n, S) from the start. Same sample count per leg for every candidate."""
+        n, m, _ = P.shape
+        legs = np.diff(P, axis=1)  # (n, m-1, 3)
+        lens = np.linalg.norm(legs, axis=-1)
+        per_leg = int(np.clip(np.ceil(lens.max() / self.spacing), 4, max(4, self.max_samples // (m - 1))))
+        u = (np.arange(per_leg) + 0.5) / per_leg  # midpoints: weights sum to each leg's length
+        pts = P[:, :-1, None, :] + u[None, None, :, None] * legs[:, :, None, :]
+        ds = np.repeat(lens[:, :, None] / per_leg, per_leg, axis=2)
+        cum = np.concatenate([np.zeros((n, 1)), np.cumsum(lens, axis=1)[:, :-1]], axis=1)
+        s = cum[:, :, None] + u[None, None, :] * lens[:, :, None]
+        return pts.reshape(n, -1, 3), ds.reshape(n, -1), s.reshape(n, -1)
+
+    # ------------------------------------------------------------------ terms
+
+    def length(self, P: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(np.diff(P, axis=1), axis=-1).sum(axis=1)
+
+    def turning(self, P: np.ndarray) -> np.ndarray:
+        """Mild heading-change term plus the turn-radius and climb-angle violations."""
+        legs = np.diff(P, axis=1)
+        lens = np.linalg.norm(legs, axis=-1)
+        dirs = legs / np.maximum(lens, _EPS)[..., None]
+        valid = lens > 1e-6
+        cos = np.clip(np.sum(dirs[:, 1:] * dirs[:, :-1], axis=-1), -1.0, 1.0)
+        theta = np.where(valid[:, 1:] & valid[:, :-1], np.arccos(cos), 0.0)
+        avail = np.minimum(lens[:, 1:], lens[:, :-1]) / 2
+        need = self.turn_radius * np.tan(np.minimum(theta, 3.0) / 2)
+        cost = self.w.turn * theta.sum(axis=1) + self.w.turn_radius * np.maximum(need - avail, 0).sum(axis=1)
+        if self.heading is not None:
+            c0 = np.clip(dirs[:, 0] @ self.heading, -1.0, 1.0)
+            th0 = np.where(valid[:, 0], np.arccos(c0), 0.0)
+            need0 = self.turn_radius * np.tan(np.minimum(th0, 3.0) / 2)
+            k = self.w.turn_radius if self.fixed_wing else 0.1 * self.w.turn_radius
+            cost = cost + self.w.turn * th0 + k * np.maximum(need0 - lens[:, 0], 0)
+        horiz = np.linalg.norm(legs[..., :2], axis=-1)
+        climb = np.arctan2(np.abs(legs[..., 2]), np.maximum(horiz, _EPS))
+        cost = cost + self.w.climb * (np.maximum(climb - self.max_climb, 0) * lens).sum(axis=1)
+        return cost
+
+    def _required(self, s: np.ndarray) -> np.ndarray:
+        return np.minimum(self.required, self.start_clearance + self.r + s)
+
+    def static_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
+        n, S, _ = pts.shape
+        if not self.static:
+            return np.zeros(n)
+        d, _ = self.field.query(pts.reshape(-1, 3))
+        d = d.min(axis=1).reshape(n, S)
+        req = self._required(s)
+        return self.w.clearance * (np.maximum(req - d, 0) * ds).sum(axis=1) + self.w.collision * (
+            (d < self.r) * ds
+        ).sum(axis=1)
+
+    def floor_bounds_penalty(self, pts: np.ndarray, ds: np.ndarray) -> np.ndarray:
+        w = self.world
+        h = w.terrain_height(pts[..., :2])
+        floor = max(self.min_alt, w.terrain_clearance if w.peaks else 0.0)
+        below = np.maximum(h + floor - pts[..., 2], 0)
+        out = np.maximum(w.bounds_min + self.r - pts, 0).sum(-1) + np.maximum(
+            pts - w.bounds_max + self.r, 0
+        ).sum(-1)
+        return self.w.floor * (below * ds).sum(1) + self.w.bounds * (out * ds).sum(1)
+
+    def threat_penalty(self, pts: np.ndarray, ds: np.ndarray) -> np.ndarray:
+        cost = np.zeros(len(pts))
+        for th in self.world.threats:
+            d = np.linalg.norm(pts - th.position, axis=-1)
+            depth = np.clip((th.r_max - d) / max(th.r_max - th.r_min, _EPS), 0.0, 1.0)
+            cost = cost + self.w.threat * th.weight * (depth * ds).sum(1)
+        return cost
+
+    def moving_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
+        n, S, _ = pts.shape
+        if not self.moving:
+            return np.zeros(n)
+        t = self.t0 + s / self.speed
+        # Predicted poses on a 0.2 s grid (translations only, so shifting the points is exact).
+        step = 0.2
+        k = np.round((t - self.t0) / step).astype(int)
+        grid = np.arange(k.max() + 1) * step + self.t0
+        centers = np.stack([poses_at(self.moving, tt)[0] for tt in grid])  # (T, Mm, 3)
+        cost = np.zeros(n)
+        flat = pts.reshape(-1, 3)
+        kf = k.reshape(-1)
+        for j, o in enumerate(self.moving):
+            shifted = flat - (centers[kf, j] - o.position)
+            d, _ = distance_and_gradient(o, shifted)
+            d = d.reshape(n, S)
+            cost = cost + self.w.moving * (np.maximum(self.required - d, 0) * ds).sum(1)
+            cost = cost + self.w.collision * ((d < self.r) * ds).sum(1)
+        return cost
+
+    def agent_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
+        n = len(pts)
+        cost = np.zeros(n)
+        if not self.intents:
+            return cost
+        t = self.t0 + s / self.speed
+        for it in self.intents:
+            q = it.at(t)
+            scale = it.separation + self.r + it.radius
+            e = np.linalg.norm((pts - q) / scale, axis=-1)
+            cost = cost + self.w.agents * (np.maximum(1.2 - e, 0) * ds).sum(1)
+            d = np.linalg.norm(pts - q, axis=-1)
+            cost = cost + self.w.collision * ((d < self.r + it.radius) * ds).sum(1)
+        return cost
+
+    # ------------------------------------------------------------------ total
+
+    def terms(self, P: np.ndarray) -> dict[str, np.ndarray]:
+        P = np.asarray(P, dtype=float)
+        pts, ds, s = self.sample(P)
+        return {
+            "length": self.length(P),
+            "turning": self.turning(P),
+            "static": self.static_penalty(pts, ds, s),
+            "floor_bounds": self.floor_bounds_penalty(pts, ds),
+            "threats": self.threat_penalty(pts, ds),
+            "moving": self.moving_penalty(pts, ds, s),
+            "agents": self.agent_penalty(pts, ds, s),
+        }
+
+    def __call__(self, P: np.ndarray) -> np.ndarray:
+        """Total cost of polylines ``P`` (n, m, 3) → (n,)."""
+        return sum(self.terms(P).values())
+
+
+def agent_intents(
+    sim, agent: int, horizon: float = 4.0, extra: dict[int, Intent] | None = None
+) -> list[Intent]:  # noqa: ANN001
+    """Intended positions of every other agent: its segment (or route) at cruise speed, else
+    its current velocity extrapolated for ``horizon`` s; arrived agents stand still."""
+    s = sim.state
+    p = sim.params
+    out = []
+    for j in range(sim.n):
+        if j == agent or s.mode[j] in ("collided", "failed"):
+            continue
+        if extra and j in extra:
+            out.append(extra[j])
+            continue
+        pos = s.position[j].copy()
+        sep, rad = p.separation[j], float(p.radius[j])
+        if s.mode[j] == "arrived":
+            out.append(Intent(np.array([s.t]), pos[None], rad, sep))
+            continue
+        path = None
+        if s.mode[j] in ("escape", "smoothing") and s.segment[j] is not None:
+            path = s.segment[j][s.segment_index[j] :]
+        elif s.route[j] is not None:
+            path = s.route[j][s.route_index[j] :]
+        if path is not None and len(path):
+            pts = np.vstack([pos, path])
+            seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+            times = s.t + np.concatenate([[0.0], np.cumsum(seg)]) / max(float(p.speed_cruise[j]), 0.1)
+            keep = np.concatenate([[True], seg > 1e-9])
+            out.append(Intent(times[keep], pts[keep], rad, sep))
+            continue
+        v = s.velocity[j]
+        out.append(Intent(np.array([s.t, s.t + horizon]), np.stack([pos, pos + v * horizon]), rad, sep))
+    return out

@@ -1,0 +1,168 @@
+"""Curvature smoothing: arc fillets (paper 004 §6) and optimized smoothing segments.
+
+``fillet_path`` replaces each corner of a polyline by a circular arc of radius
+ρ = v²/a (paper 004 eq 34: a = v²/ρ with the rated speed v and acceleration a), tangent to
+both legs; a corner whose arc would not fit in half of each adjacent leg, or whose arc
+collides (``collision_check``), keeps its sharp corner (the paper's "special broken
+points", where the UAV stops instead).
+
+:class:`CurvatureSmoother` watches agents flying APF: when the point they are attracted to
+(the next route waypoint, or the goal) lies inside one of their minimum turning circles,
+or the route turns at the next waypoint more tightly than the model's radius allows, it
+plans a ``smoothing`` segment with the optimizer (same cost as escapes, purpose
+"smoothing"), validated with FCL. Checks are rate-limited per agent.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+_EPS = 1e-9
+
+
+def fillet_corner(
+    a: np.ndarray, v: np.ndarray, b: np.ndarray, rho: float, n_arc: int = 8
+) -> np.ndarray | None:
+    """Arc points (tangent point on va, …, tangent point on vb) replacing corner ``v`` of
+    a → v → b with radius ``rho``; None when the legs are straight or too short."""
+    d1 = v - a
+    d2 = b - v
+    l1, l2 = float(np.linalg.norm(d1)), float(np.linalg.norm(d2))
+    if l1 < _EPS or l2 < _EPS:
+        return None
+    d1, d2 = d1 / l1, d2 / l2
+    c = float(np.clip(np.dot(d1, d2), -1.0, 1.0))
+    theta = math.acos(c)  # deflection angle
+    if theta < 1e-6 or theta > math.pi - 1e-6:
+        return None
+    tangent = rho * math.tan(theta / 2)
+    if tangent > min(l1, l2) / 2 + 1e-12:
+        return None
+    p1 = v - d1 * tangent
+    p2 = v + d2 * tangent
+    bis = d2 - d1
+    center = v + bis / np.linalg.norm(bis) * (rho / math.cos(theta / 2))
+    u1 = (p1 - center) / rho
+    u2 = (p2 - center) / rho
+    # Slerp from u1 to u2 (angle theta between them).
+    s = np.linspace(0.0, 1.0, max(2, n_arc + 1))[:, None]
+    arc = (np.sin((1 - s) * theta) * u1 + np.sin(s * theta) * u2) / math.sin(theta)
+    return center + rho * arc
+
+
+def fillet_path(
+    waypoints: np.ndarray,
+    speed: float,
+    accel: float,
+    collision_check: Callable[[np.ndarray], bool] | None = None,
+    n_arc: int = 8,
+) -> np.ndarray:
+    """Polyline with every corner replaced by an arc of radius ρ = speed²/accel (paper 004 eq 34).
+
+    ``collision_check(points)`` returns True when the polyline ``points`` collides; such
+    fillets are skipped (the corner stays). Endpoints are kept exactly.
+    """
+    P = np.asarray(waypoints, dtype=float)
+    if len(P) < 3:
+        return P.copy()
+    rho = float(speed) ** 2 / float(accel)
+    out = [P[0]]
+    for k in range(1, len(P) - 1):
+        arc = fillet_corner(P[k - 1], P[k], P[k + 1], rho, n_arc)
+        if arc is not None and collision_check is not None and collision_check(arc):
+            arc = None
+        if arc is None:
+            out.append(P[k])
+        else:
+            out.extend(arc)
+    out.append(P[-1])
+    return np.array(out)
+
+
+class CurvatureSmoother:
+    """Plans smoothing segments in ``on_step`` (see the module docstring)."""
+
+    def __init__(self, escape_planner, check_interval: float = 1.0, cooldown: float = 6.0):  # noqa: ANN001
+        self.ep = escape_planner
+        self.check_interval = check_interval
+        self.cooldown = cooldown
+        self.next_check: dict[int, float] = {}
+
+    def _target(self, sim, i: int) -> tuple[np.ndarray, np.ndarray | None, int]:  # noqa: ANN001
+        """Next attraction point, the point after it (route corner) and its route index (-1: goal)."""
+        s = sim.state
+        route = s.route[i]
+        if route is not None and s.route_index[i] < len(route):
+            k = int(s.route_index[i])
+            after = route[k + 1] if k + 1 < len(route) else s.goal[i]
+            return route[k], after, k
+        return s.goal[i], None, -1
+
+    def check(self, sim, i: int) -> tuple[np.ndarray, int] | None:  # noqa: ANN001
+        """(end point of a smoothing segment, route index it passes) when agent ``i`` must turn
+        more tightly than its model allows, else None."""
+        from swarmplan.planner.escape import model_turn_radius
+
+        s = sim.state
+        p, v = s.position[i], s.velocity[i]
+        speed = float(np.linalg.norm(v))
+        if speed < 0.5 * float(sim.params.speed_cruise[i]):
+            return None
+        R = model_turn_radius(sim, i)
+        target, after, k = self._target(sim, i)
+        to_t = target - p
+        dist = float(np.linalg.norm(to_t))
+        if dist <= sim.world.goal_tolerance:
+            return None
+        h = v / speed
+        # Target inside a minimum turning circle (in the plane of heading and target): unreachable
+        # by turning at the limit, the APF would circle or overshoot.
+        lateral = to_t - np.dot(to_t, h) * h
+        nl = float(np.linalg.norm(lateral))
+        if nl > 1e-6:
+            center = p + R * lateral / nl
+            if np.linalg.norm(target - center) < R * 0.98:
+                return (target.copy(), -1) if k < 0 else (target.copy(), k)
+        # Route corner at the next waypoint tighter than the turn radius allows.
+        if after is not None and dist < 2.0 * R:
+            d1 = to_t / dist
+            d2 = after - target
+            l2 = float(np.linalg.norm(d2))
+            if l2 > 1e-6:
+                theta = math.acos(float(np.clip(np.dot(d1, d2 / l2), -1, 1)))
+                tangent = R * math.tan(min(theta, 3.0) / 2)
+                if theta > math.radians(30) and tangent > min(dist, l2) / 2:
+                    end = target + d2 / l2 * min(l2, max(tangent, R))
+                    return end, k
+        return None
+
+    def on_step(self, sim) -> dict:  # noqa: ANN001
+        from swarmplan.sim import PlannedSegment
+
+        s = sim.state
+        out = {}
+        for i in np.flatnonzero(s.active):
+            i = int(i)
+            if s.mode[i] != "apf" or s.t < self.next_check.get(i, 0.0):
+                continue
+            self.next_check[i] = s.t + self.check_interval
+            found = self.check(sim, i)
+            if found is None:
+                continue
+            end, k = found
+            self.next_check[i] = s.t + self.cooldown
+            L = float(np.linalg.norm(end - s.position[i]))
+            poly, _, _ = self.ep.optimize_segment(sim, i, end, "smoothing", width=max(L, 5.0), n_free=3)
+            r = float(sim.params.radius[i])
+            from swarmplan.planner.escape import static_clearance
+
+            c0 = float(static_clearance(sim, s.position[i], r)[0])
+            if self.ep.segment_hit(sim, i, poly, c0) is not None:
+                continue
+            if k >= 0 and s.route[i] is not None and not np.allclose(end, s.route[i][k]):
+                s.route_index[i] = k + 1  # the segment rounds this corner: the route goes on after it
+            out[i] = PlannedSegment(poly[1:], mode="smoothing")
+        return out
