@@ -1,0 +1,180 @@
+"""Potential-field directions on simple layouts, and a goal beside an obstacle stays reachable."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import audit, base_world, describe_failure, make_world, run_to_end
+
+from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.dynamics import AgentParams
+from swarmplan.geometry.shapes import ObstacleField
+from swarmplan.motion import poses_at
+
+
+def _unit(v):
+    return np.asarray(v, float) / np.linalg.norm(v)
+
+
+def field_forces(world, pos, vel=None, t=0.0):
+    """APF force on every agent of ``world`` placed at ``pos`` (N, 3) with ``vel``, at time ``t``."""
+    pos = np.asarray(pos, float).reshape(-1, 3)
+    vel = np.zeros_like(pos) if vel is None else np.asarray(vel, float).reshape(-1, 3)
+    params = AgentParams.from_world(world)
+    gains = ApfGains.from_world(world)
+    idx = np.arange(len(pos))
+    goal = np.array([a.goal for a in world.agents], float)
+    q, qv = poses_at(world.obstacles, t)
+    moving = np.array([o.moving for o in world.obstacles], bool)
+    if len(world.obstacles):
+        d, g = ObstacleField(world.obstacles).query(pos, q)
+    else:
+        d, g = np.zeros((len(pos), 0)), np.zeros((len(pos), 0, 3))
+    radii = np.array([o.bounding_radius for o in world.obstacles])
+    inputs = FieldInputs(d, g, qv * moving[:, None], moving, radii, q.reshape(-1, 3))
+    return apf_forces(world, params, gains, idx, pos, vel, goal, inputs, pos, vel)
+
+
+def world_of(obstacles=(), start=(30, 50, 25), goal=(90, 50, 25), **kw):
+    raw = base_world(
+        obstacles=list(obstacles), agents=[{"id": "a", "start": list(start), "goal": list(goal)}]
+    )
+    raw.update(kw)
+    return make_world(raw)
+
+
+def test_free_space_force_points_at_the_goal():
+    w = world_of(start=(30, 40, 25), goal=(70, 65, 30))
+    f = field_forces(w, [30, 40, 25])[0]
+    cos = float(np.dot(_unit(f), _unit(np.subtract((70, 65, 30), (30, 40, 25)))))
+    assert cos > 0.9999
+    # Inside the quadratic radius the attraction is k_att * (goal - p).
+    near = np.array([66.0, 62, 29])
+    f = field_forces(w, near)[0]
+    np.testing.assert_allclose(f, 1.0 * (np.array([70, 65, 30]) - near), atol=1e-9)
+
+
+def test_obstacle_between_repels_away_from_it():
+    obstacle = {"id": "rock", "shape": "sphere", "radius": 5, "position": [45, 51, 25]}
+    w_free = world_of()
+    w = world_of([obstacle])
+    p = np.array([30.0, 50, 25])
+    rep = field_forces(w, p)[0] - field_forces(w_free, p)[0]
+    away = _unit(p - np.array([45, 51, 25]))
+    assert np.linalg.norm(rep) > 0.5
+    # The repulsion points along the outward surface normal, i.e. away from the centre.
+    assert float(np.dot(_unit(rep), away)) > 0.999
+    assert rep[0] < 0 and rep[1] < 0  # back from it and sideways away from its off-centre bulk
+
+
+def test_repulsion_grows_as_the_surface_nears_and_vanishes_beyond_influence():
+    obstacle = {"id": "rock", "shape": "box", "size": [4, 40, 40], "position": [60, 50, 25]}
+    # The goal is off to the side and far, so the goal-distance factor stays 1.
+    w_free, w = world_of(goal=(10, 95, 25)), world_of([obstacle], goal=(10, 95, 25))
+    mags = []
+    for x in (10.0, 20.0, 40.0, 50.0, 55.0):
+        p = np.array([x, 50, 25])
+        rep = field_forces(w, p)[0] - field_forces(w_free, p)[0]
+        mags.append(-rep[0])
+        assert abs(rep[1]) < 1e-9 and abs(rep[2]) < 1e-9
+    # Surface at x = 58; influence 40 m (+ radius 1): nothing at x <= 17, then monotone growth.
+    assert mags[0] == pytest.approx(0.0, abs=1e-12)
+    assert 0 < mags[1] < mags[2] < mags[3] < mags[4]
+
+
+def test_moving_obstacle_on_collision_course_gives_a_lateral_push():
+    mover = {
+        "id": "intruder",
+        "shape": "sphere",
+        "radius": 3,
+        "position": [70, 50, 25],
+        "motion": {"type": "linear", "velocity": [-10, 0, 0]},
+    }
+    w_mov = world_of([mover])
+    w_static = world_of([dict(mover, motion=None)])
+    p, v = np.array([30.0, 50, 25]), np.array([6.0, 0, 0])
+    f_mov = field_forces(w_mov, p, v)[0]
+    f_static = field_forces(w_static, p, v)[0]
+    lateral = np.linalg.norm(f_mov[1:])
+    # The static sphere dead ahead only pushes straight back: no sideways component.
+    assert np.linalg.norm(f_static[1:]) < 1e-9
+    # On a collision course the field steers sideways, and noticeably.
+    assert lateral > 0.2 * np.linalg.norm(f_mov)
+    # Head-on symmetry is broken to the agent's right (z up): -y when flying +x.
+    assert f_mov[1] < 0
+
+
+def _miss_distance(p, v, q, qv, horizon=4.0):
+    """Closest predicted centre distance within ``horizon`` seconds at constant velocities."""
+    dp, dv = p - q, v - qv
+    tau = np.clip(-np.dot(dp, dv) / max(np.dot(dv, dv), 1e-12), 0.0, horizon)
+    return float(np.linalg.norm(dp + tau * dv))
+
+
+@pytest.mark.parametrize(
+    "mover_pos, mover_vel",
+    [([45, 70, 25], [0, -8, 0]), ([70, 50, 25], [-10, 0, 0]), ([57, 38, 25], [-3, 4, 0])],
+    ids=["crossing", "head-on", "oblique"],
+)
+def test_mover_on_collision_course_steers_to_a_wider_miss(mover_pos, mover_vel):
+    """Flying along the field's force instead of straight on enlarges the predicted miss distance."""
+    mover = {
+        "id": "m",
+        "shape": "sphere",
+        "radius": 2,
+        "position": mover_pos,
+        "motion": {"type": "linear", "velocity": mover_vel},
+    }
+    w = world_of([mover])
+    p, v = np.array([30.0, 50, 25]), np.array([6.0, 0, 0])
+    q, qv = np.array(mover_pos, float), np.array(mover_vel, float)
+    before = _miss_distance(p, v, q, qv)
+    assert before < 3.0  # the layouts are collision courses (radii sum 3)
+    f = field_forces(w, p, v)[0]
+    after = _miss_distance(p, 6.0 * _unit(f), q, qv)
+    assert after > before + 2.0, (before, after, f)
+
+
+def test_commanded_velocity_cruise_brake_and_surface_limit():
+    w = world_of()
+    params = AgentParams.from_world(w)
+    idx = np.array([0])
+    goal = np.array([[90.0, 50, 25]])
+    far = np.array([[30.0, 50, 25]])
+    inf, up = np.array([np.inf]), np.array([[0.0, 0, 1]])
+    v = commanded_velocity(params, idx, np.array([[5.0, 0, 0]]), far, goal, inf, up)
+    np.testing.assert_allclose(v, [[8.0, 0, 0]])  # cruise speed along the force
+    near = np.array([[89.0, 50, 25]])
+    v = commanded_velocity(params, idx, np.array([[5.0, 0, 0]]), near, goal, inf, up)
+    # Braking distance to the goal: v <= sqrt(2 * 0.8 * amax * d) with amax 4, d 1.
+    assert np.linalg.norm(v) == pytest.approx(np.sqrt(2 * 0.8 * 4 * 1.0))
+    # A surface 1.5 m ahead (normal -x): the approach speed is cut to the braking speed.
+    v = commanded_velocity(
+        params, idx, np.array([[5.0, 0, 0]]), far, goal, np.array([1.5]), np.array([[-1.0, 0, 0]])
+    )
+    assert v[0, 0] == pytest.approx(np.sqrt(2 * 0.8 * 4 * 1.0))
+
+
+@pytest.mark.parametrize(
+    "obstacle, goal",
+    [
+        # Goal 1.5 m from the side of a sphere (0.5 m clearance for radius 1).
+        ({"id": "rock", "shape": "sphere", "radius": 6, "position": [60, 50, 25]}, [60, 57.5, 25]),
+        # Goal beside a wall, 2 m from its face.
+        ({"id": "wall", "shape": "box", "size": [2, 30, 40], "position": [70, 50, 20]}, [67.0, 50, 25]),
+        # Goal next to a tall cylinder, off the straight line.
+        (
+            {"id": "mast", "shape": "cylinder", "radius": 4, "height": 50, "position": [60, 50, 25]},
+            [60, 56, 25],
+        ),
+    ],
+    ids=["beside-sphere", "before-wall", "beside-mast"],
+)
+def test_goal_beside_an_obstacle_is_reached(tmp_path, obstacle, goal):
+    w = world_of([obstacle], start=(10, 50, 25), goal=goal)
+    log = tmp_path / "run.mcap"
+    _sim, summary, _ = run_to_end(w, seed=0, log_path=log)
+    assert summary["success"], describe_failure(summary, log)
+    problems, _notes, stats = audit(log)
+    assert problems == [], problems
+    assert stats["arrived"] == 1
