@@ -1,0 +1,249 @@
+"""Global-path mode: plan each agent's whole path before flight with a paper's cost model.
+
+``planner: {mode: global, global: {...}}`` in the world file selects it; the keys of
+``planner.global`` (all optional) are::
+
+    cost: mcfo | iba | iafsa    # paper 004 (length/height/smoothness), 000 (threats), 002 (energy)
+    encoding: planes | spline   # default: planes, spline for iafsa (paper 002)
+    waypoints: 8                # planes (waypoints) or spline control points across start→goal
+    lateral: 0                  # m, ± range of the lateral offsets (0 = |start→goal| / 2)
+    vertical: 0                 # m, ± range of the vertical offsets (0 = height of the bounds)
+    margin: 0                   # m of clearance beyond the agent radius (0 = half apf.influence)
+    samples: 40                 # spline samples (the route's vertices)
+    population: 0               # 0 = planner.optimizer.population
+    iterations: 0               # 0 = planner.optimizer.iterations
+    weights: {}                 # the cost model's weights (see cost_models.py)
+
+:func:`plan_global_routes` optimizes every agent's path with the named optimizer (budget
+``population × iterations`` evaluations, vectorized over the population), logs each run
+on ``/optimizer`` with purpose ``global``, checks the best path with FCL against the static
+obstacles, the terrain and the bounds, and returns the valid ones as routes (resampled so
+the APF pursuit follows the planned polyline closely). An invalid best path means no
+route for that agent (it flies plain APF to its goal), said in a ``global_plan_invalid``
+event; valid ones get a ``global_plan`` event with their length and cost.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from swarmplan.planner.cost_models import MODELS, PathContext, make_cost
+from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
+from swarmplan.world import AgentSpec, World, WorldError
+
+ENCODINGS = ("planes", "spline")
+_NUMBERS = ("lateral", "vertical", "margin")
+_COUNTS = ("waypoints", "samples", "population", "iterations")
+_KEYS = ("cost", "encoding", "waypoints", "lateral", "vertical", "margin", "samples", "population",
+         "iterations", "weights")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class GlobalConfig:
+    cost: str = "mcfo"
+    encoding: str = "planes"
+    waypoints: int = 8
+    lateral: float = 0.0
+    vertical: float = 0.0
+    margin: float = 0.0
+    samples: int = 40
+    population: int = 0
+    iterations: int = 0
+    weights: dict[str, float] = field(default_factory=dict)
+
+
+def global_config(world: World) -> GlobalConfig:
+    """Validate ``planner.global`` of ``world``; raise ``WorldError`` listing every problem."""
+    raw = world.planner.get("global") or {}
+    problems: list[str] = []
+    p = "planner.global"
+    if not isinstance(raw, dict):
+        raise WorldError([f"{p}: expected a mapping"])
+    for k in raw:
+        if k not in _KEYS:
+            problems.append(f"{p}.{k}: unknown key (known keys: {', '.join(_KEYS)})")
+    cost = raw.get("cost", "mcfo")
+    if cost not in MODELS:
+        problems.append(f"{p}.cost: '{cost}' is not one of {', '.join(MODELS)}")
+        cost = "mcfo"
+    encoding = raw.get("encoding", "spline" if cost == "iafsa" else "planes")
+    if encoding not in ENCODINGS:
+        problems.append(f"{p}.encoding: '{encoding}' is not one of {', '.join(ENCODINGS)}")
+    values: dict[str, Any] = {}
+    for k in _NUMBERS + _COUNTS:
+        if k not in raw:
+            continue
+        v = raw[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            problems.append(f"{p}.{k}: expected a number >= 0, got {v!r}")
+        elif k in _COUNTS and v != int(v):
+            problems.append(f"{p}.{k}: must be a whole number, got {v!r}")
+        elif k == "waypoints" and v < 1:
+            problems.append(f"{p}.{k}: must be >= 1, got {v!r}")
+        elif k == "population" and 0 < v < 2:
+            problems.append(f"{p}.{k}: must be >= 2 (or 0 for planner.optimizer.population), got {v!r}")
+        else:
+            values[k] = int(v) if k in _COUNTS else float(v)
+    weights = raw.get("weights") or {}
+    if not isinstance(weights, dict):
+        problems.append(f"{p}.weights: expected a mapping, got {weights!r}")
+        weights = {}
+    known = MODELS[cost].defaults
+    for k, v in weights.items():
+        if k not in known:
+            problems.append(f"{p}.weights.{k}: unknown weight for cost '{cost}' (known: {', '.join(known)})")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            problems.append(f"{p}.weights.{k}: expected a number >= 0, got {v!r}")
+    if cost == "mcfo" and not problems:
+        w = {**known, **weights}
+        if abs(w["w1"] + w["w2"] + w["w3"] - 1.0) > 1e-6:
+            problems.append(f"{p}.weights: w1 + w2 + w3 must be 1 (004 eq 2), got {w['w1'] + w['w2'] + w['w3']:g}")
+    if cost == "iafsa" and not problems:
+        w = {**known, **weights}
+        if abs(w["alpha1"] + w["alpha2"] - 1.0) > 1e-6:
+            problems.append(f"{p}.weights: alpha1 + alpha2 must be 1 (002 eq 2)")
+        if w["payload_max"] <= 0:
+            problems.append(f"{p}.weights.payload_max: must be > 0")
+    if cost == "iba" and not problems and {**known, **weights}["threat_unit"] <= 0:
+        problems.append(f"{p}.weights.threat_unit: must be > 0")
+    if problems:
+        raise WorldError(problems)
+    return GlobalConfig(cost=cost, encoding=encoding, weights=dict(weights), **values)
+
+
+@dataclass
+class AgentProblem:
+    """The encoding and cost model of one agent's global path."""
+
+    encoding: PlaneEncoding
+    model: Any
+    margin: float
+
+    def cost(self, X: np.ndarray) -> np.ndarray:
+        nodes = self.encoding.decode(X)
+        return self.model(nodes, self.encoding.dense(X, nodes))
+
+
+def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentProblem:
+    span = float(np.linalg.norm(agent.goal - agent.start))
+    # Default clearance: half the APF influence distance, so the route stays where the static
+    # repulsion is weak and the pursuit of the route's points is not pushed off them.
+    margin = cfg.margin or max(agent.radius, 0.5 * float(world.planner["apf"]["influence"]))
+    lateral = cfg.lateral or span / 2
+    vertical = cfg.vertical or float(world.bounds_max[2] - world.bounds_min[2])
+    lo = world.bounds_min + agent.radius + margin
+    hi = world.bounds_max - agent.radius - margin
+    lo[2] = world.bounds_min[2] + max(agent.min_altitude, agent.radius + margin)
+    hi = np.maximum(hi, lo)
+    step = max(2.0 * (agent.radius + margin), span / 200)
+    cls = SplineEncoding if cfg.encoding == "spline" else PlaneEncoding
+    kw = {"samples": cfg.samples} if cls is SplineEncoding else {}
+    enc = cls(agent.start, agent.goal, cfg.waypoints, lateral, vertical, lo, hi, step=step, **kw)
+    ctx = PathContext(world, agent, margin=margin)
+    return AgentProblem(enc, make_cost(cfg.cost, ctx, cfg.weights), margin)
+
+
+def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | None:
+    """What the agent's sphere (radius + ``inflate``) touches along ``path`` (FCL, static world), or None."""
+    r = float(sim.params.radius[i]) + inflate
+    for p0, p1 in zip(path[:-1], path[1:], strict=True):
+        if sim.collision.sweep_bounds(p1):
+            return "bounds"
+        hit = sim.collision.sweep_terrain(p0, p1, r) or sim.collision.sweep_static(p0, p1, r)
+        if hit is not None:
+            return hit
+    return None
+
+
+def route_spacing(world: World, agent: AgentSpec) -> float:
+    """Spacing of the route's points: the APF's quadratic radius (so the next point is far enough for
+    the full, conic attraction) but at least the sim's waypoint reach (3 steps at cruise speed)."""
+    return max(world.goal_tolerance, 3.0 * agent.speed_cruise * world.dt, world.planner["apf"]["quadratic_radius"])
+
+
+def _event(sim: Any, agent: str, kind: str, detail: dict[str, Any]) -> None:
+    if sim.recorder is not None:
+        sim.recorder.write_event({"t": 0.0, "agent": agent, "kind": kind, "detail": detail})
+
+
+def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) -> dict[int, np.ndarray]:
+    """Plan every agent's whole path with ``optimizer_name``; {agent index: route (K, 3)} for valid plans."""
+    from swarmplan import optimizers
+
+    world: World = sim.world
+    cfg = global_config(world)
+    opt_cfg = world.planner["optimizer"]
+    population = cfg.population or int(opt_cfg["population"])
+    iterations = cfg.iterations or int(opt_cfg["iterations"])
+    params = dict(opt_cfg.get("params") or {}) if opt_cfg.get("name") == optimizer_name else {}
+    opt = optimizers.make(optimizer_name, population=population, **params)
+    routes: dict[int, np.ndarray] = {}
+    for i, agent in enumerate(world.agents):
+        prob = agent_problem(world, agent, cfg)
+        enc = prob.encoding
+        t0 = time.perf_counter()
+        res = opt.minimize(prob.cost, enc.lower, enc.upper, max_evals=population * iterations, seed=rng)
+        sim.record_optimizer(i, "global", optimizer_name, res, t=0.0)
+        nodes = enc.decode(res.x[None])
+        dense = enc.dense(res.x[None], nodes)
+        violation = float(prob.model.violation(nodes, dense)[0])
+        route = resample_route(nodes[0], route_spacing(world, agent))
+        # FCL on the planned polyline itself (its vertices are on the route).
+        hit = validate_path(sim, i, nodes[0], 0.5 * prob.margin) if violation == 0 else None
+        detail = {
+            "algorithm": optimizer_name,
+            "cost_model": cfg.cost,
+            "encoding": cfg.encoding,
+            "best_cost": round(float(res.f), 6),
+            "length": round(float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum()), 6),
+            "planning_ms": round((time.perf_counter() - t0) * 1000.0, 3),
+        }
+        if violation > 0 or hit is not None:
+            detail["reason"] = (
+                f"best path violates constraints (violation {violation:.3g})"
+                if violation > 0
+                else f"best path touches '{hit}' (FCL)"
+            )
+            detail["fallback"] = "no route: plain APF to the goal"
+            _event(sim, agent.id, "global_plan_invalid", detail)
+            continue
+        detail["waypoints"] = np.round(nodes[0], 3).tolist()
+        _event(sim, agent.id, "global_plan", detail)
+        routes[i] = route[1:]
+    return routes
+
+
+class GlobalRoutePlanner:
+    """A minimal planner for ``mode: global`` when the refinement planner is not available:
+    global routes at reset, no escapes, no smoothing."""
+
+    def __init__(self, world: World, optimizer: str):
+        self.world = world
+        self.optimizer_name = optimizer
+
+    def on_reset(self, sim: Any) -> dict[int, np.ndarray]:
+        if self.world.planner.get("mode") != "global" or self.optimizer_name == "none":
+            return {}
+        return plan_global_routes(sim, self.optimizer_name, sim.rng)
+
+    def on_stuck(self, sim: Any, agent: int) -> None:
+        return None
+
+    def on_step(self, sim: Any) -> dict:
+        return {}
+
+
+def make_planner(world: World, optimizer: str) -> Any:
+    """The project's planner (``swarmplan.run.make_planner``), or :class:`GlobalRoutePlanner` when that
+    is unavailable and the world is in global mode."""
+    from swarmplan.run import make_planner as project_planner
+
+    planner = project_planner(world, optimizer)
+    if planner is None and optimizer != "none" and world.planner.get("mode") == "global":
+        planner = GlobalRoutePlanner(world, optimizer)
+    return planner
