@@ -129,6 +129,7 @@ class Simulation:
         self.metrics.positions.append(start.copy())
         self._progress_ref = np.linalg.norm(goal - start, axis=1)
         self._progress_t = np.zeros(self.n)
+        self._segment_ref: dict[int, tuple] = {}  # agent -> (waypoint index, distance, t, segment)
         self._near = np.zeros((self.n, self.n), dtype=bool)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.interrupted = False
@@ -516,6 +517,7 @@ class Simulation:
         for i in np.flatnonzero(s.active):
             if s.mode[i] != "apf":
                 self._progress_ref[i], self._progress_t[i] = dg[i], s.t
+                self._segment_watchdog(int(i), window, min_progress, events)
                 continue
             if s.t - self._progress_t[i] < window - 1e-9:
                 continue
@@ -544,6 +546,30 @@ class Simulation:
                         )
                     elif outcome is not None:
                         self._start_segment(int(i), outcome, events)
+
+    def _segment_watchdog(self, i: int, window: float, min_progress: float, events: list[Event]) -> None:
+        """A segment whose next waypoint gets no closer for ``window`` s is abandoned (back to APF,
+        whose stuck detection then asks the planner again)."""
+        s = self.state
+        seg = s.segment[i]
+        if seg is None or s.segment_index[i] >= len(seg):
+            return
+        k = int(s.segment_index[i])
+        d = float(np.linalg.norm(seg[k] - s.position[i]))
+        ref = self._segment_ref.get(i)
+        if ref is None or ref[0] != k or ref[3] is not seg:
+            self._segment_ref[i] = (k, d, s.t, seg)
+            return
+        if s.t - ref[2] < window - 1e-9:
+            return
+        if ref[1] - d >= min_progress:
+            self._segment_ref[i] = (k, d, s.t, seg)
+            return
+        kind = "escape_end" if s.mode[i] == "escape" else "smoothing_end"
+        events.append(Event(s.t, self.ids[i], kind, {"abandoned": True, "waypoint": k}))
+        s.mode[i] = "apf"
+        s.segment[i] = None
+        self._segment_ref.pop(i, None)
 
     # ------------------------------------------------------------------ messages
 
