@@ -121,3 +121,36 @@ def test_several_movers(run_scenario, planner):
 @pytest.mark.parametrize("seed", [1, 2])
 def test_crossing_other_seeds(run_scenario, seed):
     run_scenario(CROSSING, DEFAULT, seed)
+
+
+FOUR_WAY = scenario_world(
+    "four-way",
+    agents=[
+        {"id": "u1", "start": [10, 60, 20], "goal": [190, 60, 20]},
+        {"id": "u2", "start": [190, 60, 20], "goal": [10, 60, 20]},
+        {"id": "u3", "start": [100, 5, 20], "goal": [100, 115, 20]},
+        {"id": "u4", "start": [100, 115, 22], "goal": [100, 5, 22]},
+    ],
+    movers=[
+        sphere_mover("diag_a", [40, 100, 20], [4, -3, 0]),
+        sphere_mover("diag_b", [160, 20, 20], [-4, 3, 0]),
+    ],
+)
+
+FROM_BEHIND = scenario_world(
+    "from-behind",
+    agents=[{"id": "uav1", "start": [30, 60, 20], "goal": [190, 60, 20]}],
+    # Faster than the agent's top speed, on its line, catching up from behind.
+    movers=[sphere_mover("chaser", [5, 60, 20], [14, 0, 0])],
+)
+
+
+@pytest.mark.parametrize("planner", PLANNERS)
+def test_four_way_with_diagonal_movers(run_scenario, planner):
+    run_scenario(FOUR_WAY, planner)
+
+
+@pytest.mark.parametrize("planner", PLANNERS)
+def test_faster_mover_from_behind(run_scenario, planner):
+    _summary, log = run_scenario(FROM_BEHIND, planner)
+    assert lateral_deviation(log) > 3.0
