@@ -249,11 +249,17 @@ def unit_box_mesh():
     return np.asarray(m.vertices, dtype=float), np.asarray(m.faces, dtype=np.int64), m
 
 
-def test_mesh_grid_within_one_voxel_of_exact(unit_box_mesh):
+@pytest.fixture(scope="module")
+def unit_box_grid(unit_box_mesh):
+    v, f, _ = unit_box_mesh
+    return MeshGrid(v, f)
+
+
+def test_mesh_grid_within_one_voxel_of_exact(unit_box_mesh, unit_box_grid):
     import trimesh
 
-    v, f, mesh = unit_box_mesh
-    grid = MeshGrid(v, f)
+    mesh = unit_box_mesh[2]
+    grid = unit_box_grid
     rng = np.random.default_rng(11)
     pts = rng.uniform(-0.6, 0.6, size=(2000, 3))  # inside and outside, all within the grid
     d, g = grid.query(pts)
@@ -272,9 +278,8 @@ def test_mesh_grid_within_one_voxel_of_exact(unit_box_mesh):
     assert np.median(cos) > 0.95
 
 
-def test_mesh_grid_beyond_the_grid_along_the_axes(unit_box_mesh):
-    v, f, _ = unit_box_mesh
-    grid = MeshGrid(v, f)
+def test_mesh_grid_beyond_the_grid_along_the_axes(unit_box_grid):
+    grid = unit_box_grid
     pts = np.array([[5.0, 0, 0], [0, -7.5, 0], [3, 3, 3]])
     d, g = grid.query(pts)
     exact = signed_distance(obstacle("box", size=(1, 1, 1)), pts)
@@ -310,9 +315,8 @@ def test_mesh_obstacle_in_world_frame(unit_box_mesh):
     "inequality that is an upper bound, not the lower bound its comment promises; it overstates "
     "clearance by up to ~(sqrt3-1)*pad (about 3 voxels) off the diagonals",
 )
-def test_mesh_grid_beyond_the_grid_never_overstates_clearance(unit_box_mesh):
-    v, f, _ = unit_box_mesh
-    grid = MeshGrid(v, f)
+def test_mesh_grid_beyond_the_grid_never_overstates_clearance(unit_box_grid):
+    grid = unit_box_grid
     # Beyond +x, level with the box's top-front edge region (clamped onto the grid face).
     pts = np.array([[3.0, 0.6, 0.6], [1.5, 0.66, 0.0], [10.0, 0.66, 0.66]])
     d, _ = grid.query(pts)
