@@ -191,7 +191,18 @@ class EscapePlanner:
             start_clearance=start_clear,
             intents=intents,
             fixed_wing=bool(p.fixed_wing[i]),
+            vertex_clearance=self.vertex_clearance(sim),
         )
+
+    @staticmethod
+    def vertex_clearance(sim) -> float:  # noqa: ANN001
+        """Clearance a waypoint needs so the agent can reach it: the static repulsion the
+        simulation keeps along a segment (0.3 k_rep (1/rho - 1/rho0)) must not exceed the
+        attraction k_att * 1.5 m at the waypoint (it counts as reached within ~2 m)."""
+        apf = sim.world.planner["apf"]
+        k = 0.3 * float(apf["k_rep"])
+        rho0 = float(apf["influence"])
+        return 1.0 / (1.5 * float(apf["k_att"]) / k + 1.0 / rho0)
 
     def _intents(self, sim, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:  # noqa: ANN001
         others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in ("collided", "failed")]
@@ -221,9 +232,9 @@ class EscapePlanner:
         rb0 = min(rho0, 10.0)
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
         rho0_g = max(min(rho0, 3.0 * floor), 2.0)
-        lo = w.bounds_min + r + 0.6 * rb0
-        hi = w.bounds_max - r - 0.6 * rb0
-        lo[2] = max(w.bounds_min[2] + r, floor + r + 0.6 * rho0_g)
+        lo = w.bounds_min + r + rb0
+        hi = w.bounds_max - r - rb0
+        lo[2] = max(w.bounds_min[2] + r, floor + r + rho0_g)
         lo = np.minimum(lo, np.minimum(s.position[i], end))
         hi = np.maximum(hi, np.maximum(s.position[i], end))
         enc = SegmentEncoding(s.position[i], end, k, width=width, height=0.5 * width, lo=lo, hi=hi)

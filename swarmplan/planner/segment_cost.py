@@ -51,6 +51,7 @@ class Weights:
     threat: float = 20.0  # per metre of path, scaled by the threat's weight and depth
     moving: float = 200.0
     agents: float = 100.0
+    vertex: float = 20.0  # per metre a free waypoint lacks of ``vertex_clearance``
 
 
 @dataclass
@@ -152,6 +153,7 @@ class SegmentCost:
         weights: Weights | None = None,
         spacing: float | None = None,
         fixed_wing: bool = False,
+        vertex_clearance: float = 0.0,
     ):
         self.world = world
         self.r = float(radius)
@@ -166,6 +168,7 @@ class SegmentCost:
         self.w = weights or Weights()
         self.spacing = spacing if spacing is not None else max(0.5 * self.r, 0.25)
         self.fixed_wing = fixed_wing
+        self.vertex_clearance = float(vertex_clearance)
         self.static = [o for o in world.obstacles if not o.moving]
         self.moving = [o for o in world.obstacles if o.moving]
         self.field = ObstacleField(self.static)
@@ -232,6 +235,15 @@ class SegmentCost:
             (d < self.r) * ds
         ).sum(axis=1)
 
+    def vertex_penalty(self, P: np.ndarray) -> np.ndarray:
+        """Free waypoints closer to a static surface than ``vertex_clearance`` (hard to reach)."""
+        n, m, _ = P.shape
+        if not self.static or self.vertex_clearance <= 0 or m <= 2:
+            return np.zeros(n)
+        d, _ = self.field.query(P[:, 1:-1].reshape(-1, 3))
+        c = d.min(axis=1).reshape(n, m - 2) - self.r
+        return self.w.vertex * np.maximum(self.vertex_clearance - c, 0).sum(axis=1)
+
     def floor_bounds_penalty(self, pts: np.ndarray, ds: np.ndarray) -> np.ndarray:
         w = self.world
         h = w.terrain_height(pts[..., :2])
@@ -295,6 +307,7 @@ class SegmentCost:
             "length": self.length(P),
             "turning": self.turning(P),
             "static": self.static_penalty(pts, ds, s),
+            "vertices": self.vertex_penalty(P),
             "floor_bounds": self.floor_bounds_penalty(pts, ds),
             "threats": self.threat_penalty(pts, ds),
             "moving": self.moving_penalty(pts, ds, s),
