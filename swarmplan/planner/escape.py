@@ -378,7 +378,8 @@ def seed_candidates(enc: SegmentEncoding, width: float) -> np.ndarray:
     frac = np.arange(1, k + 1) / (k + 1)
     L = max(enc.length, 1.0)
     rows = [np.zeros((k, 3))]
-    back = -np.minimum(0.75 * L, frac * L + 0.5 * L) * (frac <= 0.5)
+    # Backing out: the first half of the waypoints go behind the start by most of the width.
+    back = -(frac * L + 0.8 * width) * (frac <= 0.5)
     for side in (1.0, -1.0):
         for w in (0.5, 1.0):
             for along in (np.zeros(k), back):
