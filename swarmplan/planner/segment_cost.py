@@ -37,6 +37,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
 
 
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle between unit vectors (exactly 0 for parallel ones, unlike arccos of a rounded dot)."""
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+
+
 @dataclass(frozen=True)
 class Weights:
     """Penalty weights (per metre of path unless noted)."""
@@ -205,14 +210,12 @@ class SegmentCost:
         lens = np.linalg.norm(legs, axis=-1)
         dirs = legs / np.maximum(lens, _EPS)[..., None]
         valid = lens > 1e-6
-        cos = np.clip(np.sum(dirs[:, 1:] * dirs[:, :-1], axis=-1), -1.0, 1.0)
-        theta = np.where(valid[:, 1:] & valid[:, :-1], np.arccos(cos), 0.0)
+        theta = np.where(valid[:, 1:] & valid[:, :-1], _angle(dirs[:, :-1], dirs[:, 1:]), 0.0)
         avail = np.minimum(lens[:, 1:], lens[:, :-1]) / 2
         need = self.turn_radius * np.tan(np.minimum(theta, 3.0) / 2)
         cost = self.w.turn * theta.sum(axis=1) + self.w.turn_radius * np.maximum(need - avail, 0).sum(axis=1)
         if self.heading is not None:
-            c0 = np.clip(dirs[:, 0] @ self.heading, -1.0, 1.0)
-            th0 = np.where(valid[:, 0], np.arccos(c0), 0.0)
+            th0 = np.where(valid[:, 0], _angle(dirs[:, 0], self.heading[None]), 0.0)
             need0 = self.turn_radius * np.tan(np.minimum(th0, 3.0) / 2)
             k = self.w.turn_radius if self.fixed_wing else 0.1 * self.w.turn_radius
             cost = cost + self.w.turn * th0 + k * np.maximum(need0 - lens[:, 0], 0)

@@ -1,0 +1,169 @@
+"""Escape planning: the segment cost on exact geometry, FCL validation and retries, determinism."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import base_world, make_world
+
+from swarmplan.planner import RefinementPlanner
+from swarmplan.planner.escape import EscapePlanner, choose_subgoal
+from swarmplan.planner.segment_cost import SegmentCost, SegmentEncoding
+from swarmplan.sim import PlannedSegment, Simulation
+
+TRAPS = Path(__file__).resolve().parents[1] / "worlds" / "traps"
+SPHERE = {"id": "ball", "shape": "sphere", "radius": 5.0, "position": [50, 50, 25]}
+
+
+def cost_for(world, **kw) -> SegmentCost:
+    args = dict(radius=1.0, speed=8.0, turn_radius=16.0, max_climb=np.radians(45), min_altitude=5.0)
+    args.update(kw)
+    return SegmentCost(world, **args)
+
+
+def test_straight_free_segment_costs_exactly_its_length():
+    world = make_world(base_world(obstacles=[SPHERE]))
+    cost = cost_for(world)
+    P = np.array([[[10.0, 10.0, 20.0], [20.0, 15.0, 20.0], [30.0, 20.0, 20.0], [40.0, 25.0, 20.0]]])
+    length = float(np.linalg.norm(P[0, -1] - P[0, 0]))
+    terms = cost.terms(P)
+    assert terms["length"][0] == pytest.approx(length, rel=1e-12)
+    for k, v in terms.items():
+        if k != "length":
+            assert v[0] == 0.0, k
+    assert cost(P)[0] == pytest.approx(length, rel=1e-12)
+
+
+def test_segment_through_a_sphere_is_penalized_by_the_length_inside():
+    world = make_world(base_world(obstacles=[SPHERE]))
+    cost = cost_for(world)
+    through = np.array([[[30.0, 50.0, 25.0], [70.0, 50.0, 25.0]]])
+    beside = through + np.array([0.0, 20.0, 0.0])
+    c_through, c_beside = cost(through)[0], cost(beside)[0]
+    assert c_beside == pytest.approx(40.0)
+    # Inside the sphere for 10 m (closer than the radius for 12 m): at least the collision weight.
+    assert c_through > 40.0 + cost.w.collision * 11.0
+    # Vectorized: one call scores both, identically.
+    np.testing.assert_allclose(cost(np.concatenate([through, beside])), [c_through, c_beside])
+
+
+def test_turning_penalizes_corners_tighter_than_the_turn_radius():
+    world = make_world(base_world())
+    cost = cost_for(world, turn_radius=20.0)
+    wide = np.array([[[10.0, 10, 20], [50.0, 10, 20], [50.0, 50, 20]]])  # legs 40 m, fillet tangent 20
+    tight = np.array([[[10.0, 10, 20], [20.0, 10, 20], [20.0, 20, 20]]])  # legs 10 m
+    t_wide = cost.turning(wide)[0]
+    t_tight = cost.turning(tight)[0]
+    assert t_wide == pytest.approx(cost.w.turn * np.pi / 2)
+    assert t_tight == pytest.approx(cost.w.turn * np.pi / 2 + cost.w.turn_radius * (20.0 - 5.0))
+
+
+def test_encoding_zero_offsets_is_the_straight_line_and_roundtrips():
+    enc = SegmentEncoding(np.array([0.0, 0, 10]), np.array([40.0, 0, 10]), 3, width=10, height=5)
+    P = enc.decode(np.zeros((1, enc.dim)))[0]
+    np.testing.assert_allclose(P[:, 0], [0, 10, 20, 30, 40])
+    x = np.array([1.0, 2.0, -1.0, 0.0, -3.0, 2.0, 0.5, 0.5, 0.5])
+    np.testing.assert_allclose(enc.encode(enc.decode(x[None])[0, 1:-1]), x)
+
+
+def test_moving_obstacle_is_avoided_at_its_predicted_position():
+    mover = dict(SPHERE, id="m", position=[50, 10, 25], motion={"type": "linear", "velocity": [0, 8, 0]})
+    world = make_world(base_world(obstacles=[mover]))
+    cost = cost_for(world, speed=8.0, t0=0.0)
+    # The agent reaches x = 50 after 5 s at 8 m/s, when the mover has come to y = 50.
+    P = np.array([[[10.0, 50.0, 25.0], [90.0, 50.0, 25.0]]])
+    assert cost.terms(P)["moving"][0] > 0
+    later = cost_for(world, speed=8.0, t0=20.0)  # long gone by then
+    assert later.terms(P)["moving"][0] == 0.0
+
+
+def _pocket_sim(optimizer="de"):
+    from swarmplan.world import load_world
+
+    world = load_world(TRAPS / "u_pocket.yaml")
+    planner = RefinementPlanner(world, optimizer)
+    sim = Simulation(world, planner=planner)
+    sim.reset(seed=3)
+    sim.state.position[0] = np.array([54.0, 40.0, 15.0])  # deep in the pocket
+    sim.state.velocity[0] = np.zeros(3)
+    return sim, planner
+
+
+def test_subgoal_lies_past_the_blocking_wall():
+    sim, _ = _pocket_sim()
+    g = choose_subgoal(sim, 0, 10.0, 3.0)
+    assert g[0] > 64.0 + 3.0  # beyond the back wall (x 60..64) with the clearance asked for
+    np.testing.assert_allclose(g[1:], [40.0, 15.0])
+
+
+def test_escape_out_of_the_pocket_is_valid_and_recorded():
+    sim, planner = _pocket_sim()
+    out = planner.on_stuck(sim, 0)
+    assert isinstance(out, PlannedSegment) and out.mode == "escape"
+    poly = np.vstack([sim.state.position[0], out.waypoints])
+    assert planner.escape.segment_hit(sim, 0, poly, 1.0) is None
+    assert sim.metrics.optimizer_runs[0] >= 1
+    assert len(sim.metrics.escape_ms[0]) == sim.metrics.optimizer_runs[0]
+
+
+def test_fcl_rejection_triggers_a_retry_with_a_larger_horizon_and_budget(monkeypatch):
+    sim, planner = _pocket_sim()
+    calls = []
+    real_hit = EscapePlanner.segment_hit
+    real_opt = EscapePlanner.optimize_segment
+
+    def fake_hit(self, sim, i, poly, c0):
+        calls.append("hit")
+        return "back" if calls.count("hit") == 1 else real_hit(self, sim, i, poly, c0)
+
+    widths = []
+
+    def spy_opt(self, sim, i, end, purpose, width, budget_factor=1.0, *a, **k):
+        widths.append((width, budget_factor))
+        return real_opt(self, sim, i, end, purpose, width, budget_factor, *a, **k)
+
+    monkeypatch.setattr(EscapePlanner, "segment_hit", fake_hit)
+    monkeypatch.setattr(EscapePlanner, "optimize_segment", spy_opt)
+    out = planner.on_stuck(sim, 0)
+    assert isinstance(out, PlannedSegment)
+    assert len(widths) >= 2
+    assert widths[1][0] > widths[0][0] and widths[1][1] > widths[0][1]
+    assert sim.metrics.optimizer_runs[0] == len(widths)
+
+
+def test_every_attempt_rejected_gives_failed(monkeypatch):
+    sim, planner = _pocket_sim()
+    monkeypatch.setattr(EscapePlanner, "segment_hit", lambda *a: "back")
+    assert planner.on_stuck(sim, 0) == "failed"
+    assert sim.metrics.optimizer_runs[0] == 1 + planner.escape.cfg["retries"]
+
+
+def test_same_seed_same_run():
+    from swarmplan.world import load_world
+
+    world = load_world(TRAPS / "goal_beside_obstacle.yaml")
+
+    def run(seed):
+        sim = Simulation(world, planner=RefinementPlanner(world, "pso"))
+        sim.reset(seed=seed)
+        traj = []
+        while True:
+            r = sim.step()
+            traj.append(sim.state.position.copy())
+            if r.terminated or r.truncated:
+                return np.array(traj), sim.summary()
+
+    a, sa = run(5)
+    b, sb = run(5)
+    np.testing.assert_array_equal(a, b)
+    assert sa["success"] and sa["agents"][0]["escapes"] >= 1
+    for key in ("arrived", "collisions", "steps"):
+        assert sa[key] == sb[key]
+
+
+def test_unknown_escape_setting_is_an_error():
+    world = make_world(base_world(planner={"escape": {"horizn": 5}}))
+    with pytest.raises(ValueError, match="horizn"):
+        RefinementPlanner(world, "de")
