@@ -163,6 +163,27 @@ class EscapePlanner:
                 return hit
         return None
 
+    def shortcut(self, sim, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:  # noqa: ANN001
+        """Greedy shortcutting: from each kept point jump to the farthest later one whose straight
+        leg keeps the full clearance (radius + ``margin``, FCL). Fewer, farther waypoints are
+        also followed more firmly: the field's attraction grows with the target's distance."""
+        col = sim.collision
+        r = float(sim.params.radius[i])
+        m = float(self.cfg["margin"])
+        kept = [0]
+        j = 0
+        while j < len(poly) - 1:
+            nxt = j + 1
+            for k in range(len(poly) - 1, j + 1, -1):
+                rr = r + (min(m, max(0.0, 0.5 * start_clearance)) if j == 0 else m)
+                a, b = poly[j], poly[k]
+                if not (col.sweep_terrain(a, b, rr) or col.sweep_static(a, b, rr)):
+                    nxt = k
+                    break
+            kept.append(nxt)
+            j = nxt
+        return poly[kept]
+
     # ------------------------------------------------------------------ planning
 
     def make_cost(
@@ -270,6 +291,7 @@ class EscapePlanner:
             poly, f, _ = self.optimize_segment(sim, i, end, purpose, width, grow, extra, ignore)
             costs.append(f)
             if self.segment_hit(sim, i, poly, start_clear) is None:
+                poly = self.shortcut(sim, i, poly, start_clear)
                 return EscapeOutcome(poly[1:], attempt + 1, costs)
         return EscapeOutcome(None, int(cfg["retries"]) + 1, costs)
 
