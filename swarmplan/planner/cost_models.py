@@ -45,7 +45,6 @@ import numpy as np
 from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
 from swarmplan.world import AgentSpec, World
 
-
 # ----------------------------------------------------------------------------- geometry helpers
 
 
@@ -100,6 +99,7 @@ class PathContext:
     world: World
     agent: AgentSpec
     margin: float = 0.0  # extra clearance beyond the agent's radius (m)
+    ramp: float = 0.0  # m from the start/goal over which the altitude floor rises (0: half climb slope)
     field: ObstacleField = field(init=False)
 
     def __post_init__(self) -> None:
@@ -134,21 +134,27 @@ class PathContext:
         """(n, P) ≥ 0: how far each dense point is below the required height above the terrain.
 
         The requirement is ``max(min_altitude, terrain.clearance, radius + margin)``, ramped up
-        from the start's and goal's own height (which the user places, possibly lower) at half
-        the maximum climb slope, and never below the radius (contact).
+        linearly from the start's and goal's own height (which the user places, possibly lower)
+        over ``ramp`` metres (default: at half the maximum climb slope), never below the radius.
         """
         alt = dense[..., 2] - self.world.terrain_height(dense[..., :2])
         need = max(self.agent.min_altitude, self.world.terrain_clearance, self.need)
         ends = np.minimum(
-            np.linalg.norm(dense - self.agent.start, axis=-1), np.linalg.norm(dense - self.agent.goal, axis=-1)
+            np.linalg.norm(dense - self.agent.start, axis=-1),
+            np.linalg.norm(dense - self.agent.goal, axis=-1),
         )
-        ramp = max(self.radius, min(self.end_altitude)) + ends * 0.5 * np.tan(self.agent.max_climb_angle)
+        low = max(self.radius, min(self.end_altitude))
+        if self.ramp > 0:
+            ramp = low + (need - low) * ends / self.ramp
+        else:
+            ramp = low + ends * 0.5 * np.tan(self.agent.max_climb_angle)
         req = np.minimum(need, ramp)
         return np.maximum(0.0, req - alt)
 
     def violation(self, nodes: np.ndarray, dense: np.ndarray) -> np.ndarray:
         """(n,) ≥ 0, zero iff the path is valid: penetration (m) into the clearance margin of the
-        obstacles and the altitude floor along the dense path, climb angle excess (rad, times |S→G|) and fillet excess (m) for fixed wings."""
+        obstacles and the altitude floor along the dense path, climb angle excess (rad, times |S→G|)
+        and fillet excess (m) for fixed wings."""
         pen = np.maximum(0.0, self.margin - self.obstacle_clearance(dense))
         pen = np.maximum(pen, self.altitude_shortfall(dense))
         v = pen.max(axis=1) + pen.mean(axis=1)

@@ -21,14 +21,17 @@ Two encodings, both built on the frame of paper 000's eq (1): ``x'`` along start
   lets its fish move the control points freely in the box; keeping them on planes across
   S→E keeps the spline from folding back on itself, which free points make likely.
 
-Decoded points are clipped into the flight volume shrunk by ``margin`` (the agent's radius
-and altitude floor), so every decoded path at least stays inside the bounds.
+Decoded points are clipped into the flight volume shrunk by the agent's clearance, and
+lifted above ``floor(x, y)`` (the terrain plus the altitude floor) when given, so every
+decoded vertex at least stays inside the bounds and above the ground.
 ``decode(X)`` gives the *nodes* (n, K, 3) a cost model scores and the agent flies as its
 route; ``dense(X)`` gives a finely resampled polyline (n, P, 3) for clearance checks.
 The validity of the chosen path is then decided by FCL (``global_path.validate_path``).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -99,6 +102,7 @@ class PlaneEncoding:
         box_min: np.ndarray,
         box_max: np.ndarray,
         step: float = 1.0,
+        floor: Callable[[np.ndarray], np.ndarray] | None = None,
     ):
         if waypoints < 1:
             raise ValueError("waypoints must be >= 1")
@@ -109,6 +113,7 @@ class PlaneEncoding:
         self.box_min = np.asarray(box_min, float)
         self.box_max = np.asarray(box_max, float)
         self.step = float(step)
+        self.floor = floor
         span = float(np.linalg.norm(self.goal - self.start))
         self.dense_count = int(np.clip(np.ceil(2.0 * span / max(self.step, 1e-9)), 2 * self.D + 4, 1000))
         self.dim = 2 * self.D
@@ -127,7 +132,14 @@ class PlaneEncoding:
         X = np.atleast_2d(np.asarray(X, float))
         y, z = X[:, : self.D], X[:, self.D :]
         pts = self.base[None] + y[..., None] * self.frame[1] + z[..., None] * self.frame[2]
-        return np.clip(pts, self.box_min, self.box_max)
+        return self._clip(pts)
+
+    def _clip(self, pts: np.ndarray) -> np.ndarray:
+        """Into the box, and above ``floor(x, y)`` (e.g. the terrain plus the altitude floor)."""
+        pts = np.clip(pts, self.box_min, self.box_max)
+        if self.floor is not None:
+            pts[..., 2] = np.clip(np.maximum(pts[..., 2], self.floor(pts[..., :2])), None, self.box_max[2])
+        return pts
 
     def decode(self, X: np.ndarray) -> np.ndarray:
         """(n, D + 2, 3): S, the waypoints, E."""
@@ -158,7 +170,6 @@ class SplineEncoding(PlaneEncoding):
     def decode(self, X: np.ndarray) -> np.ndarray:
         """(n, samples, 3): the spline sampled at ``samples`` uniform parameter values."""
         ctrl = super().decode(X)  # (n, D+2, 3)
-        pts = CubicSpline(self.knots, ctrl, axis=1)(self.t)
-        pts = np.clip(pts, self.box_min, self.box_max)
+        pts = self._clip(CubicSpline(self.knots, ctrl, axis=1)(self.t))
         pts[:, 0], pts[:, -1] = self.start, self.goal
         return pts

@@ -102,7 +102,9 @@ def global_config(world: World) -> GlobalConfig:
     if cost == "mcfo" and not problems:
         w = {**known, **weights}
         if abs(w["w1"] + w["w2"] + w["w3"] - 1.0) > 1e-6:
-            problems.append(f"{p}.weights: w1 + w2 + w3 must be 1 (004 eq 2), got {w['w1'] + w['w2'] + w['w3']:g}")
+            problems.append(
+                f"{p}.weights: w1 + w2 + w3 must be 1 (004 eq 2), got {w['w1'] + w['w2'] + w['w3']:g}"
+            )
     if cost == "iafsa" and not problems:
         w = {**known, **weights}
         if abs(w["alpha1"] + w["alpha2"] - 1.0) > 1e-6:
@@ -143,8 +145,12 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
     step = max(2.0 * (agent.radius + margin), span / 200)
     cls = SplineEncoding if cfg.encoding == "spline" else PlaneEncoding
     kw = {"samples": cfg.samples} if cls is SplineEncoding else {}
-    enc = cls(agent.start, agent.goal, cfg.waypoints, lateral, vertical, lo, hi, step=step, **kw)
-    ctx = PathContext(world, agent, margin=margin)
+    alt = max(agent.min_altitude, world.terrain_clearance, agent.radius + margin)
+    floor = (lambda xy: world.terrain_height(xy) + alt) if world.peaks else None  # noqa: E731
+    enc = cls(agent.start, agent.goal, cfg.waypoints, lateral, vertical, lo, hi, step=step, floor=floor, **kw)
+    # The altitude floor rises from the start's/goal's own height over two plane spacings, so
+    # a path through waypoints at the floor is valid however low the user put its ends.
+    ctx = PathContext(world, agent, margin=margin, ramp=2.0 * span / (cfg.waypoints + 1))
     return AgentProblem(enc, make_cost(cfg.cost, ctx, cfg.weights), margin)
 
 
@@ -163,7 +169,9 @@ def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | N
 def route_spacing(world: World, agent: AgentSpec) -> float:
     """Spacing of the route's points: the APF's quadratic radius (so the next point is far enough for
     the full, conic attraction) but at least the sim's waypoint reach (3 steps at cruise speed)."""
-    return max(world.goal_tolerance, 3.0 * agent.speed_cruise * world.dt, world.planner["apf"]["quadratic_radius"])
+    return max(
+        world.goal_tolerance, 3.0 * agent.speed_cruise * world.dt, world.planner["apf"]["quadratic_radius"]
+    )
 
 
 def _event(sim: Any, agent: str, kind: str, detail: dict[str, Any]) -> None:
