@@ -32,6 +32,9 @@ from swarmplan.motion import poses_at
 from swarmplan.state import SwarmState
 from swarmplan.world import World, matrix_to_quaternion
 
+CRASH_DEPTH = 0.02
+"""Metres a crashed agent is recorded past its first contact (see ``Simulation._crash_point``)."""
+
 
 @dataclass(frozen=True)
 class Event:
@@ -236,6 +239,8 @@ class Simulation:
                 for i, hit in zip(check, hits, strict=True):
                     if hit is not None:
                         self._collide(i, hit, events, t1)
+                        pos1[i] = self._crash_point(i, pos0[i], pos1[i], t0, dt)
+                        vel1[i] = 0.0
         for i, j in agent_contacts(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] not in ("arrived", "collided"):
@@ -469,6 +474,36 @@ class Simulation:
         cmds = np.array(cmds)
         v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, np.full(len(cmds), i))
         return list(v)
+
+    def _crash_point(self, i: int, p0: np.ndarray, p1: np.ndarray, t0: float, dt: float) -> np.ndarray:
+        """Where the agent strikes on the step ``p0 → p1``: it stops there instead of flying on.
+
+        Bisection on the swept check finds the first contact; the crash is recorded
+        ``CRASH_DEPTH`` past it (bodies overlap in a crash), so an audit from positions alone
+        sees the contact, and an agent never appears on the far side of a thin obstacle.
+        """
+        mv = self.moving_mask
+        r = self.params.radius[i]
+        step = p1 - p0
+        length = float(np.linalg.norm(step))
+        if length < 1e-12:
+            return p1.copy()
+
+        def hits(s: float) -> bool:
+            qa = poses_at(self.world.obstacles, t0)[0][mv]
+            qb = poses_at(self.world.obstacles, t0 + s * dt)[0][mv]
+            return first_hits(self.collision, p0[None], (p0 + s * step)[None], r[None], qa, qb)[0] is not None
+
+        lo, hi = 0.0, 1.0
+        if not hits(hi):  # a contact only another check saw (e.g. agent-agent): keep the step
+            return p1.copy()
+        while (hi - lo) * length > 1e-4:
+            mid = 0.5 * (lo + hi)
+            if hits(mid):
+                hi = mid
+            else:
+                lo = mid
+        return p0 + min(1.0, hi + CRASH_DEPTH / length) * step
 
     def _collide(self, i: int, other: str, events: list[Event], t1: float) -> None:
         s = self.state

@@ -221,7 +221,11 @@ class _Checker:
         self.problems: list[str] = []
 
     def add(self, path: str, msg: str) -> None:
-        self.problems.append(f"{path}: {msg}")
+        # Several checks may reach the same missing key (the required-keys pass and the typed
+        # read that follows it); the user should see each problem once.
+        problem = f"{path}: {msg}"
+        if problem not in self.problems:
+            self.problems.append(problem)
 
     def keys(
         self, node: Any, path: str, allowed: list[str] | tuple[str, ...], required: tuple[str, ...] = ()

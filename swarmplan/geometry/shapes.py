@@ -104,6 +104,7 @@ class MeshGrid:
         self.grid = grid
         self.grad = np.stack(np.gradient(self.grid, pitch), axis=-1)
         self.hi = self.lo + (shape - 1) * pitch
+        self.mesh_lo, self.mesh_hi = lo, hi
 
     def query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         from scipy import ndimage
@@ -116,12 +117,19 @@ class MeshGrid:
             [ndimage.map_coordinates(self.grad[..., k], coords, order=1, mode="nearest") for k in range(3)],
             -1,
         )
-        # Outside the grid: add the distance to the grid box (a lower bound stays a lower bound).
+        # Outside the grid the clamped value plus the offset would overstate clearance off the
+        # diagonals. Two lower bounds hold there: the distance to the mesh's bounding box (the
+        # surface lies inside it) and the clamped value minus the offset (triangle inequality);
+        # the larger is within a few voxels of the truth and exact far away along the axes.
         off = flat - clamped
-        offn = np.linalg.norm(off, axis=-1)
-        far = offn > 0
-        d = d + offn
-        g = np.where(far[:, None], _normalize(off), _normalize(g))
+        far = np.linalg.norm(off, axis=-1) > 0
+        if far.any():
+            pf = flat[far]
+            to_box = pf - np.clip(pf, self.mesh_lo, self.mesh_hi)
+            d_box = np.linalg.norm(to_box, axis=-1)
+            d[far] = np.maximum(d_box, d[far] - np.linalg.norm(off[far], axis=-1))
+            g[far] = to_box
+        g = _normalize(g)
         return d.reshape(p.shape[:-1]), g.reshape(p.shape)
 
 
