@@ -176,7 +176,9 @@ def main(argv: list[str] | None = None) -> int:
     if not names:
         problems.append("--optimizers: give at least one")
     try:
-        load_world(args.world, optimizers.available())
+        from swarmplan.run import check_planner_settings
+
+        check_planner_settings(load_world(args.world, optimizers.available()), str(args.world))
     except WorldError as exc:
         problems += [f"{exc.source}: {p}" for p in exc.problems]
     if problems:

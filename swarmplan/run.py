@@ -195,6 +195,16 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def check_planner_settings(world: World, source: str) -> None:
+    """The planner's own sections of the world file (``planner.escape``, ``planner.global``)."""
+    from swarmplan.planner import validate_planner_settings
+
+    try:
+        validate_planner_settings(world)
+    except WorldError as exc:
+        raise WorldError(exc.problems, source) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
@@ -211,6 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.seed is not None and args.seed < 0:
             raise WorldError([f"--seed: must be >= 0, got {args.seed}"], "command line")
         world = apply_overrides(load_world(args.world, names), args.optimizer, args.max_time)
+        check_planner_settings(world, str(args.world))
         seed = world.seed if args.seed is None else args.seed
         log_path = log_path_for(world, seed, world.planner["optimizer"]["name"], args.out)
     except WorldError as exc:

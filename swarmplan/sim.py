@@ -107,6 +107,7 @@ class Simulation:
         self.rng: np.random.Generator | None = None
         self.metrics: RunMetrics | None = None
         self.wall_start = 0.0
+        self._events: list[Event] = []  # the running step's events (see note_event)
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -114,6 +115,7 @@ class Simulation:
         """Start the run at t = 0 with ``seed`` (default: the world's seed)."""
         self.seed = self.world.seed if seed is None else int(seed)
         self.rng = np.random.default_rng(self.seed)
+        self._events = []
         start = np.array([a.start for a in self.world.agents], dtype=float)
         goal = np.array([a.goal for a in self.world.agents], dtype=float)
         self.state = SwarmState(
@@ -170,6 +172,12 @@ class Simulation:
                 }
             )
 
+    def note_event(self, agent: int | None, kind: str, detail: dict[str, Any]) -> None:
+        """An event the planner reports during ``step()`` (recorded with that step's events)."""
+        if self.state is None:
+            raise RuntimeError("call reset() before note_event()")
+        self._events.append(Event(self.state.t, None if agent is None else self.ids[agent], kind, detail))
+
     def world_message(self) -> dict[str, Any]:
         msg = dict(self.world.resolved)
         msg["seed"] = self.seed
@@ -184,7 +192,7 @@ class Simulation:
         s = self.state
         w = self.world
         dt = w.dt
-        events: list[Event] = []
+        events = self._events  # with any noted between steps
         t0, t1 = s.t, (s.step + 1) * dt
         q0, qv0 = poses_at(w.obstacles, t0)
         q1, _ = poses_at(w.obstacles, t1)
@@ -282,6 +290,7 @@ class Simulation:
                         {"distance_to_goal": round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6)},
                     )
                 )
+        self._events = []
         if self.recorder is not None:
             self.recorder.write_state(t1, self._agent_dicts(), self._obstacle_dicts(t1))
             for e in events:
@@ -595,7 +604,12 @@ class Simulation:
         if ref is None or ref[0] != k or ref[3] is not seg:
             self._segment_ref[i] = (k, d, s.t, seg)
             return
-        if s.t - ref[2] < window - 1e-9:
+        # A sharp corner at a waypoint costs a turnaround (brake, turn, speed up again) before
+        # the distance to the next one falls: half a minimum-radius circle at cruise speed.
+        p = self.params
+        turn_radius = p.min_turn_radius[i] if p.fixed_wing[i] else p.speed_cruise[i] ** 2 / p.max_accel[i]
+        grace = math.pi * turn_radius / max(p.speed_cruise[i], 1e-6)
+        if s.t - ref[2] < window + grace - 1e-9:
             return
         if ref[1] - d >= min_progress:
             self._segment_ref[i] = (k, d, s.t, seg)

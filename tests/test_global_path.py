@@ -105,6 +105,9 @@ def test_impossible_plan_falls_back_with_an_event():
     assert plan_global_routes(sim, "random", sim.rng) == {}
     assert rec.events[0]["kind"] == "global_plan_invalid"
     assert "no route" in rec.events[0]["detail"]["fallback"]
+    # Planned again before giving up: 1 + retries runs, the budget growing by 1.5 each time.
+    assert rec.events[0]["detail"]["attempts"] == 3
+    assert [m["evaluations"] for m in rec.optimizer] == [800, 1200, 1800]
 
 
 def test_sim_flies_the_route_to_arrival():

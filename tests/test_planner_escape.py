@@ -12,6 +12,7 @@ from swarmplan.planner import RefinementPlanner
 from swarmplan.planner.escape import EscapePlanner, choose_subgoal
 from swarmplan.planner.segment_cost import SegmentCost, SegmentEncoding
 from swarmplan.sim import PlannedSegment, Simulation
+from swarmplan.world import WorldError
 
 TRAPS = Path(__file__).resolve().parents[1] / "worlds" / "traps"
 SPHERE = {"id": "ball", "shape": "sphere", "radius": 5.0, "position": [50, 50, 25]}
@@ -136,8 +137,18 @@ def test_fcl_rejection_triggers_a_retry_with_a_larger_horizon_and_budget(monkeyp
 def test_every_attempt_rejected_gives_failed(monkeypatch):
     sim, planner = _pocket_sim()
     monkeypatch.setattr(EscapePlanner, "segment_hit", lambda *a: "back")
+    rounds = planner.escape.cfg["rounds"]
+    attempts = 1 + planner.escape.cfg["retries"]
+    # Each round but the last defers (the agent holds on under APF and is asked again) ...
+    for r in range(1, rounds):
+        assert planner.on_stuck(sim, 0) is None
+        assert [(e.kind, e.detail) for e in sim._events][-1] == (
+            "escape_deferred",
+            {"round": r, "attempts": attempts},
+        )
+    # ... and the last declares the agent failed.
     assert planner.on_stuck(sim, 0) == "failed"
-    assert sim.metrics.optimizer_runs[0] == 1 + planner.escape.cfg["retries"]
+    assert sim.metrics.optimizer_runs[0] == rounds * attempts
 
 
 def test_same_seed_same_run():
@@ -165,5 +176,5 @@ def test_same_seed_same_run():
 
 def test_unknown_escape_setting_is_an_error():
     world = make_world(base_world(planner={"escape": {"horizn": 5}}))
-    with pytest.raises(ValueError, match="horizn"):
+    with pytest.raises(WorldError, match="horizn"):
         RefinementPlanner(world, "de")

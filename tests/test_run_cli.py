@@ -89,6 +89,25 @@ def test_unknown_optimizer_in_world_lists_known(tmp_path, monkeypatch, capsys):
     assert "rscdwoa" in err and "pso" in err
 
 
+def test_bad_planner_sections_exit_2_listing_every_problem(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    raw = base_world(
+        planner={"escape": {"horizn": 5, "rounds": 0}, "global": {"cost": "mfco", "waypoints": 2.5}}
+    )
+    world = write_world(tmp_path, raw)
+    assert main([str(world), "--out", str(tmp_path / "x.mcap")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    for fragment in (
+        "planner.escape.horizn: unknown key (did you mean 'horizon'?)",
+        "planner.escape.rounds: expected a whole number >= 1, got 0",
+        "planner.global.cost: 'mfco' is not one of",
+        "planner.global.waypoints: must be a whole number, got 2.5",
+    ):
+        assert fragment in err, err
+    assert not (tmp_path / "x.mcap").exists()
+
+
 def test_success_exit_0_default_log_path_and_check_log(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     raw = base_world(name="cli-ok", seed=4)

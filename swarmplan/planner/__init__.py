@@ -15,7 +15,24 @@ import numpy as np
 from swarmplan.planner.escape import EscapePlanner
 from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
 
-__all__ = ["RefinementPlanner", "fillet_path"]
+__all__ = ["RefinementPlanner", "fillet_path", "validate_planner_settings"]
+
+
+def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.World
+    """Check ``planner.escape`` and ``planner.global`` (owned by this package); raise one
+    ``WorldError`` listing every problem of both, so a bad world fails before any run starts."""
+    from swarmplan.planner.escape import escape_settings
+    from swarmplan.planner.global_path import global_config
+    from swarmplan.world import WorldError
+
+    problems: list[str] = []
+    for check in (escape_settings, global_config):
+        try:
+            check(world)
+        except WorldError as exc:
+            problems += exc.problems
+    if problems:
+        raise WorldError(problems)
 
 
 class RefinementPlanner:
@@ -31,6 +48,7 @@ class RefinementPlanner:
     def on_reset(self, sim) -> dict[int, np.ndarray]:  # noqa: ANN001
         self.escape.escapes.clear()
         self.escape.pending.clear()
+        self.escape.failures.clear()
         self.smoother.next_check.clear()
         if self.world.planner.get("mode") != "global":
             return {}

@@ -23,11 +23,15 @@ Every optimizer run is logged with ``sim.record_optimizer(i, "escape", name, res
 Settings (``planner.escape``, all optional): ``waypoints`` (K, 4), ``horizon`` (m, default
 2 × apf influence, at least 15), ``margin`` (m of clearance beyond the radius, 1.0),
 ``fcl_margin`` (m, 0.3), ``retries`` (2), ``growth`` (1.5, horizon and budget factor per
-retry), ``max_escapes`` (per agent before giving up, 25).
+retry), ``max_escapes`` (per agent before giving up, 25), ``rounds`` (3: planning rounds in a
+row, each with its retries, that find no valid segment before the agent is declared
+``failed``; between rounds the agent holds on under APF — other agents and moving obstacles
+move on, so a later round may find a way — and an ``escape_deferred`` event is logged).
 """
 
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass
 
@@ -44,26 +48,41 @@ ESCAPE_DEFAULTS = {
     "retries": 2,
     "growth": 1.5,
     "max_escapes": 25,
+    "rounds": 3,
 }
 
 
 def escape_settings(world) -> dict:  # noqa: ANN001
-    """``planner.escape`` merged over the defaults; unknown keys raise ``ValueError``."""
-    raw = dict(world.planner.get("escape") or {})
-    unknown = sorted(set(raw) - set(ESCAPE_DEFAULTS))
-    if unknown:
-        raise ValueError(
-            f"planner.escape: unknown key(s) {', '.join(unknown)}; known: {', '.join(ESCAPE_DEFAULTS)}"
-        )
+    """``planner.escape`` merged over the defaults; every problem raises one ``WorldError``."""
+    from swarmplan.world import WorldError
+
+    raw = world.planner.get("escape") or {}
+    if not isinstance(raw, dict):
+        raise WorldError([f"planner.escape: expected a mapping, got {raw!r}"])
+    problems = []
+    for k in raw:
+        if k not in ESCAPE_DEFAULTS:
+            close = difflib.get_close_matches(str(k), list(ESCAPE_DEFAULTS), n=1, cutoff=0.6)
+            hint = f"did you mean '{close[0]}'?" if close else f"known keys: {', '.join(ESCAPE_DEFAULTS)}"
+            problems.append(f"planner.escape.{k}: unknown key ({hint})")
     cfg = dict(ESCAPE_DEFAULTS)
-    cfg.update(raw)
+    cfg.update({k: v for k, v in raw.items() if k in ESCAPE_DEFAULTS and v is not None})
     if cfg["horizon"] is None:
         cfg["horizon"] = max(15.0, 2.0 * float(world.planner["apf"]["influence"]))
-    for k in ("horizon", "margin", "growth"):
-        if not float(cfg[k]) > 0:
-            raise ValueError(f"planner.escape.{k}: must be > 0, got {cfg[k]}")
-    if int(cfg["waypoints"]) < 1:
-        raise ValueError(f"planner.escape.waypoints: must be >= 1, got {cfg['waypoints']}")
+    counts = {"waypoints": 1, "retries": 0, "max_escapes": 1, "rounds": 1}
+    for k, v in cfg.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            problems.append(f"planner.escape.{k}: expected a number, got {v!r}")
+        elif k in counts and (v != int(v) or v < counts[k]):
+            problems.append(f"planner.escape.{k}: expected a whole number >= {counts[k]}, got {v!r}")
+        elif k in ("horizon", "margin") and v <= 0:
+            problems.append(f"planner.escape.{k}: must be > 0, got {v!r}")
+        elif k == "growth" and v < 1:
+            problems.append(f"planner.escape.{k}: must be >= 1, got {v!r}")
+        elif k == "fcl_margin" and v < 0:
+            problems.append(f"planner.escape.{k}: must be >= 0, got {v!r}")
+    if problems:
+        raise WorldError(problems)
     return cfg
 
 
@@ -143,6 +162,7 @@ class EscapePlanner:
             self.optimizer = optimizers.make(optimizer_name, population=self.population)
         self.escapes: dict[int, int] = {}
         self.pending: dict[int, object] = {}  # yield segments planned for other agents
+        self.failures: dict[int, int] = {}  # planning rounds in a row without a valid segment
 
     # ------------------------------------------------------------------ validation
 
@@ -369,7 +389,13 @@ class EscapePlanner:
                     extra[j] = _intent_of(sim, j, out.waypoints)
         out = self.plan(sim, i, lambda h: choose_subgoal(sim, i, h, need), extra=extra)
         if out.waypoints is None:
-            return "failed"
+            failures = self.failures.get(i, 0) + 1
+            self.failures[i] = failures
+            if failures >= int(self.cfg["rounds"]):
+                return "failed"
+            sim.note_event(i, "escape_deferred", {"round": failures, "attempts": out.attempts})
+            return None
+        self.failures[i] = 0
         return PlannedSegment(out.waypoints, mode="escape")
 
     def take_pending(self, sim) -> dict:  # noqa: ANN001

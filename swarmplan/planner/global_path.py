@@ -12,15 +12,17 @@
     samples: 40                 # spline samples (the route's vertices)
     population: 0               # 0 = planner.optimizer.population
     iterations: 0               # 0 = planner.optimizer.iterations
+    retries: 2                  # new runs with budget x 1.5 each when the best path is invalid
     weights: {}                 # the cost model's weights (see cost_models.py)
 
 :func:`plan_global_routes` optimizes every agent's path with the named optimizer (budget
 ``population × iterations`` evaluations, vectorized over the population), logs each run
 on ``/optimizer`` with purpose ``global``, checks the best path with FCL against the static
 obstacles, the terrain and the bounds, and returns the valid ones as routes (resampled so
-the APF pursuit follows the planned polyline closely). An invalid best path means no
-route for that agent (it flies plain APF to its goal), said in a ``global_plan_invalid``
-event; valid ones get a ``global_plan`` event with their length and cost.
+the APF pursuit follows the planned polyline closely). An invalid best path is planned
+again (``retries`` times, the budget × 1.5 each time); if none is valid the agent has no
+route (it flies reactively: APF with escapes), said in a ``global_plan_invalid`` event;
+valid ones get a ``global_plan`` event with their length, cost and attempts.
 """
 
 from __future__ import annotations
@@ -38,9 +40,10 @@ from swarmplan.world import AgentSpec, World, WorldError
 
 ENCODINGS = ("planes", "spline")
 _NUMBERS = ("lateral", "vertical", "margin")
-_COUNTS = ("waypoints", "samples", "population", "iterations")
+_COUNTS = ("waypoints", "samples", "population", "iterations", "retries")
 _KEYS = ("cost", "encoding", "waypoints", "lateral", "vertical", "margin", "samples", "population",
-         "iterations", "weights")  # fmt: skip
+         "iterations", "retries", "weights")  # fmt: skip
+RETRY_GROWTH = 1.5
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,7 @@ class GlobalConfig:
     samples: int = 40
     population: int = 0
     iterations: int = 0
+    retries: int = 2
     weights: dict[str, float] = field(default_factory=dict)
 
 
@@ -195,14 +199,18 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
         prob = agent_problem(world, agent, cfg)
         enc = prob.encoding
         t0 = time.perf_counter()
-        res = opt.minimize(prob.cost, enc.lower, enc.upper, max_evals=population * iterations, seed=rng)
-        sim.record_optimizer(i, "global", optimizer_name, res, t=0.0)
-        nodes = enc.decode(res.x[None])
-        dense = enc.dense(res.x[None], nodes)
-        violation = float(prob.model.violation(nodes, dense)[0])
+        for attempt in range(cfg.retries + 1):
+            budget = int(population * iterations * RETRY_GROWTH**attempt)
+            res = opt.minimize(prob.cost, enc.lower, enc.upper, max_evals=budget, seed=rng)
+            sim.record_optimizer(i, "global", optimizer_name, res, t=0.0)
+            nodes = enc.decode(res.x[None])
+            dense = enc.dense(res.x[None], nodes)
+            violation = float(prob.model.violation(nodes, dense)[0])
+            # FCL on the planned polyline itself (its vertices are on the route).
+            hit = validate_path(sim, i, nodes[0], 0.5 * prob.margin) if violation == 0 else None
+            if violation == 0 and hit is None:
+                break
         route = resample_route(nodes[0], route_spacing(world, agent))
-        # FCL on the planned polyline itself (its vertices are on the route).
-        hit = validate_path(sim, i, nodes[0], 0.5 * prob.margin) if violation == 0 else None
         detail = {
             "algorithm": optimizer_name,
             "cost_model": cfg.cost,
@@ -210,6 +218,7 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
             "best_cost": round(float(res.f), 6),
             "length": round(float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum()), 6),
             "planning_ms": round((time.perf_counter() - t0) * 1000.0, 3),
+            "attempts": attempt + 1,
         }
         if violation > 0 or hit is not None:
             detail["reason"] = (
@@ -217,7 +226,7 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
                 if violation > 0
                 else f"best path touches '{hit}' (FCL)"
             )
-            detail["fallback"] = "no route: plain APF to the goal"
+            detail["fallback"] = "no route: reactive flight (APF with escapes) to the goal"
             _event(sim, agent.id, "global_plan_invalid", detail)
             continue
         detail["waypoints"] = np.round(nodes[0], 3).tolist()
