@@ -97,9 +97,15 @@ def apf_forces(
     dg = np.linalg.norm(e, axis=1)
     et = e if target is None else target - pos
     dt_ = np.linalg.norm(et, axis=1)
-    # Attraction: quadratic near, conic far (continuous at quadratic_radius).
+    # Attraction: quadratic near, conic far (continuous at quadratic_radius). Only the goal
+    # itself gets the quadratic well: an intermediate waypoint (route, segment) keeps the full
+    # conic pull up to it, or a close waypoint's weak pull would be swamped by the repulsion of
+    # the ground or a wall it runs along, and the agent would crawl.
     dq = gains.quadratic_radius
-    att = gains.k_att * np.where((dt_ <= dq)[:, None], et, dq * et / np.maximum(dt_, _EPS)[:, None])
+    well = dt_ <= dq
+    if target is not None:
+        well &= np.all(np.abs(target - goal) <= 1e-9, axis=1)
+    att = gains.k_att * np.where(well[:, None], et, dq * et / np.maximum(dt_, _EPS)[:, None])
     force = att.copy()
     goal_dir = _unit(e)
     npow = gains.goal_power

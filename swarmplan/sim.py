@@ -144,6 +144,7 @@ class Simulation:
         if self.planner is not None:
             for i, route in self.planner.on_reset(self).items():
                 self.state.route[i] = np.asarray(route, dtype=float)
+            self._progress_ref = self._distance_to_go()
         if self.recorder is not None:
             self.recorder.write_state(0.0, self._agent_dicts(), self._obstacle_dicts(0.0))
         return self.state
@@ -333,6 +334,7 @@ class Simulation:
                     events.append(Event(s.t, self.ids[i], kind, {}))
                     s.mode[i] = "apf"
                     s.segment[i] = None
+                    self._rejoin_route(i)
                 else:
                     target[k] = wp
                     scale[k] = 0.3
@@ -553,11 +555,15 @@ class Simulation:
             )
 
     def _detect_stuck(self, events: list[Event]) -> None:
-        """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum."""
+        """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
+
+        Progress is measured as the distance still to fly: straight to the goal, or along the
+        rest of the global route when the agent has one (a route may detour away from the goal).
+        """
         s = self.state
         window = self.world.planner["stuck"]["window"]
         min_progress = self.world.planner["stuck"]["min_progress"]
-        dg = np.linalg.norm(s.goal - s.position, axis=1)
+        dg = self._distance_to_go()
         for i in np.flatnonzero(s.active):
             if s.mode[i] != "apf":
                 self._progress_ref[i], self._progress_t[i] = dg[i], s.t
@@ -577,7 +583,8 @@ class Simulation:
                         {
                             "progress": round(float(progress), 6),
                             "window": window,
-                            "distance_to_goal": round(float(dg[i]), 6),
+                            "distance_to_goal": round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6),
+                            "distance_to_go": round(float(dg[i]), 6),
                         },
                     )
                 )
@@ -590,6 +597,18 @@ class Simulation:
                         )
                     elif outcome is not None:
                         self._start_segment(int(i), outcome, events)
+
+    def _distance_to_go(self) -> np.ndarray:
+        """Per agent: straight to the goal, or along the rest of its global route when it has one."""
+        s = self.state
+        dg = np.linalg.norm(s.goal - s.position, axis=1)
+        for i, route in enumerate(s.route):
+            k = int(s.route_index[i])
+            if route is not None and k < len(route):
+                rest = np.vstack([route[k:], s.goal[i]])
+                legs = np.linalg.norm(np.diff(rest, axis=0), axis=1).sum()
+                dg[i] = np.linalg.norm(route[k] - s.position[i]) + legs
+        return dg
 
     def _segment_watchdog(self, i: int, window: float, min_progress: float, events: list[Event]) -> None:
         """A segment whose next waypoint gets no closer for ``window`` s is abandoned (back to APF,
@@ -619,6 +638,18 @@ class Simulation:
         s.mode[i] = "apf"
         s.segment[i] = None
         self._segment_ref.pop(i, None)
+        self._rejoin_route(i)
+
+    def _rejoin_route(self, i: int) -> None:
+        """After a segment, go on along the global route from its nearest point ahead of where the
+        agent left it (the route is what avoids the obstacles: never straight to the goal, and
+        not back to the point where the segment began)."""
+        s = self.state
+        route, k0 = s.route[i], int(s.route_index[i])
+        if route is None or k0 >= len(route):
+            return
+        d = np.linalg.norm(route[k0:] - s.position[i], axis=1)
+        s.route_index[i] = k0 + int(np.argmin(d))
 
     # ------------------------------------------------------------------ messages
 

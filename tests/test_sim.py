@@ -19,6 +19,7 @@ from helpers import (
     log_positions,
     make_world,
     read_log,
+    run_to_end,
 )
 
 from swarmplan.run import simulate
@@ -104,6 +105,40 @@ def test_velocity_matches_displacement():
             r.state.velocity[flying], (r.state.position[flying] - p_prev[flying]) / w.dt, atol=1e-9
         )
         p_prev = r.state.position.copy()
+
+
+class _RoutePlanner:
+    """Gives agent 0 a route that first flies away from the goal (a detour), nothing else."""
+
+    def __init__(self, route):
+        self.route = np.asarray(route, float)
+        self.stuck_calls = 0
+
+    def on_reset(self, sim):
+        return {0: self.route}
+
+    def on_stuck(self, sim, agent):
+        self.stuck_calls += 1
+        return None
+
+    def on_step(self, sim):
+        return {}
+
+
+def test_stuck_progress_is_measured_along_the_route():
+    raw = base_world(
+        sim={"dt": 0.1, "max_time": 40.0, "goal_tolerance": 2.0},
+        agents=[{"id": "a", "start": [40, 50, 20], "goal": [60, 50, 20]}],
+        planner={"stuck": {"window": 2.0, "min_progress": 0.5}},
+    )
+    world = make_world(raw)
+    # Back 30 m, round and forward: for ~6 s the distance to the goal grows while the agent
+    # flies its route as planned. That is progress, not a local minimum.
+    route = [[25, 50, 20], [10, 50, 20], [10, 65, 20], [40, 65, 20], [60, 50, 20]]
+    planner = _RoutePlanner(route)
+    sim, summary, _ = run_to_end(world, seed=0, planner=planner)
+    assert summary["success"], describe_failure(summary)
+    assert planner.stuck_calls == 0 and summary["agents"][0]["stuck_events"] == 0
 
 
 # ----------------------------------------------------------------------------- determinism
