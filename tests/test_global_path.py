@@ -121,3 +121,43 @@ def test_sim_flies_the_route_to_arrival():
             break
     s = sim.summary()
     assert s["success"], s
+
+
+def test_shortcut_prunes_free_detours_and_keeps_the_one_around_the_tower():
+    from swarmplan.planner.global_path import shortcut_path
+
+    w = _world()
+    sim = Simulation(w)
+    sim.reset(0)
+    # Free zig-zag before the tower, then round it (y = 75: 25 m from its axis), then to the goal.
+    path = np.array(
+        [[10, 50, 20], [30, 80, 20], [50, 20, 20], [70, 75, 20], [100, 75, 20], [130, 75, 20], [190, 50, 20]],
+        float,
+    )
+    out = shortcut_path(sim, 0, path, 1.0)
+    # The zig-zag vertices are skippable; the legs that pass the tower must stay 25 m off its
+    # axis, which start → goal does not.
+    np.testing.assert_array_equal(out[0], path[0])
+    np.testing.assert_array_equal(out[-1], path[-1])
+    assert len(out) < len(path)
+    for a, b in zip(out[:-1], out[1:], strict=True):
+        assert sim.collision.sweep_static(a, b, 2.0) is None
+    # Straight start → goal hits the tower, so at least one vertex stays.
+    assert sim.collision.sweep_static(path[0], path[-1], 2.0) == "tower"
+    assert len(out) >= 3
+    # A path with nothing to prune is unchanged.
+    np.testing.assert_array_equal(shortcut_path(sim, 0, out, 1.0), out)
+
+
+def test_shortcut_respects_the_climb_angle():
+    from swarmplan.planner.global_path import shortcut_path
+
+    w = _world(obstacles=[])
+    sim = Simulation(w)
+    sim.reset(0)
+    # Two 20° legs in line: the direct leg also climbs 20° (max 45°), so the middle vertex goes.
+    path = np.array([[10, 50, 20], [20, 50, 23.64], [30, 50, 27.28]], float)
+    assert len(shortcut_path(sim, 0, path, 1.0)) == 2
+    # A shallow leg, then a steep one: the direct leg would climb 55° > 45°, so the vertex stays.
+    steep = np.array([[10, 50, 10], [30, 50, 17], [31, 50, 40]], float)
+    assert len(shortcut_path(sim, 0, steep, 1.0)) == 3

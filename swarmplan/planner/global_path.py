@@ -13,6 +13,7 @@
     population: 0               # 0 = planner.optimizer.population
     iterations: 0               # 0 = planner.optimizer.iterations
     retries: 2                  # new runs with budget x 1.5 each when the best path is invalid
+    shortcut: true              # prune the valid plan: drop vertices a straight leg can skip (FCL)
     weights: {}                 # the cost model's weights (see cost_models.py)
 
 :func:`plan_global_routes` optimizes every agent's path with the named optimizer (budget
@@ -42,7 +43,7 @@ ENCODINGS = ("planes", "spline")
 _NUMBERS = ("lateral", "vertical", "margin")
 _COUNTS = ("waypoints", "samples", "population", "iterations", "retries")
 _KEYS = ("cost", "encoding", "waypoints", "lateral", "vertical", "margin", "samples", "population",
-         "iterations", "retries", "weights")  # fmt: skip
+         "iterations", "retries", "shortcut", "weights")  # fmt: skip
 RETRY_GROWTH = 1.5
 
 
@@ -58,6 +59,7 @@ class GlobalConfig:
     population: int = 0
     iterations: int = 0
     retries: int = 2
+    shortcut: bool = True
     weights: dict[str, float] = field(default_factory=dict)
 
 
@@ -93,6 +95,10 @@ def global_config(world: World) -> GlobalConfig:
             problems.append(f"{p}.{k}: must be >= 2 (or 0 for planner.optimizer.population), got {v!r}")
         else:
             values[k] = int(v) if k in _COUNTS else float(v)
+    if "shortcut" in raw and not isinstance(raw["shortcut"], bool):
+        problems.append(f"{p}.shortcut: expected true or false, got {raw['shortcut']!r}")
+    else:
+        values["shortcut"] = bool(raw.get("shortcut", True))
     weights = raw.get("weights") or {}
     if not isinstance(weights, dict):
         problems.append(f"{p}.weights: expected a mapping, got {weights!r}")
@@ -170,6 +176,36 @@ def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | N
     return None
 
 
+def shortcut_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> np.ndarray:
+    """Greedy pruning of a valid path: from each kept vertex, jump to the farthest later one whose
+    straight leg FCL finds clear (radius + ``inflate``) and whose climb angle the agent can fly.
+
+    The metaheuristics' best paths at a planning budget often keep detours the cost barely
+    penalizes (a zig-zag across free space); pruning them is the usual post-processing of
+    sampled and evolved paths. Fixed wings are left as planned: removing vertices can sharpen
+    the remaining turns below the minimum turn radius that the cost model enforced.
+    """
+    if sim.params.fixed_wing[i]:
+        return path
+    r = float(sim.params.radius[i]) + inflate
+    max_climb = float(sim.params.max_climb[i])
+    kept, j = [0], 0
+    while j < len(path) - 1:
+        nxt = j + 1
+        for k in range(len(path) - 1, j + 1, -1):
+            leg = path[k] - path[j]
+            climb = math.atan2(abs(leg[2]), float(np.hypot(leg[0], leg[1])))
+            if climb > max_climb:
+                continue
+            a, b = path[j], path[k]
+            if not (sim.collision.sweep_terrain(a, b, r) or sim.collision.sweep_static(a, b, r)):
+                nxt = k
+                break
+        kept.append(nxt)
+        j = nxt
+    return path[kept]
+
+
 def route_spacing(world: World, agent: AgentSpec) -> float:
     """Spacing of the route's points: the APF's quadratic radius (so the next point is far enough for
     the full, conic attraction) but at least the sim's waypoint reach (3 steps at cruise speed)."""
@@ -210,7 +246,11 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
             hit = validate_path(sim, i, nodes[0], 0.5 * prob.margin) if violation == 0 else None
             if violation == 0 and hit is None:
                 break
-        route = resample_route(nodes[0], route_spacing(world, agent))
+        path = nodes[0]
+        valid = violation == 0 and hit is None
+        if valid and cfg.shortcut:
+            path = shortcut_path(sim, i, path, 0.5 * prob.margin)
+        route = resample_route(path, route_spacing(world, agent))
         detail = {
             "algorithm": optimizer_name,
             "cost_model": cfg.cost,
@@ -219,6 +259,7 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
             "length": round(float(np.linalg.norm(np.diff(route, axis=0), axis=1).sum()), 6),
             "planning_ms": round((time.perf_counter() - t0) * 1000.0, 3),
             "attempts": attempt + 1,
+            "planned_length": round(float(np.linalg.norm(np.diff(nodes[0], axis=0), axis=1).sum()), 6),
         }
         if violation > 0 or hit is not None:
             detail["reason"] = (
@@ -229,7 +270,8 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
             detail["fallback"] = "no route: reactive flight (APF with escapes) to the goal"
             _event(sim, agent.id, "global_plan_invalid", detail)
             continue
-        detail["waypoints"] = np.round(nodes[0], 3).tolist()
+        detail["waypoints"] = np.round(path, 3).tolist()
+        detail["planned_waypoints"] = np.round(nodes[0], 3).tolist()
         _event(sim, agent.id, "global_plan", detail)
         routes[i] = route[1:]
     return routes
