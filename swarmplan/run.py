@@ -45,7 +45,12 @@ def apply_overrides(world: World, optimizer: str | None, max_time: float | None)
         changes["max_time"] = float(max_time)
     if optimizer is not None:
         planner = dict(world.planner)
-        planner["optimizer"] = dict(planner["optimizer"], name=optimizer)
+        opt = dict(planner["optimizer"], name=optimizer)
+        if optimizer != world.planner["optimizer"]["name"]:
+            # The world's params are settings of its own algorithm (e.g. rscdwoa's beta): another
+            # algorithm runs with its papers' defaults.
+            opt["params"] = {}
+        planner["optimizer"] = opt
         changes["planner"] = planner
     return world.with_overrides(**changes) if changes else world
 

@@ -108,6 +108,16 @@ def test_bad_planner_sections_exit_2_listing_every_problem(tmp_path, monkeypatch
     assert not (tmp_path / "x.mcap").exists()
 
 
+def test_optimizer_override_drops_the_worlds_algorithm_params(tmp_path, monkeypatch, capsys):
+    """rscdwoa's beta in the world must not reach woa when --optimizer woa runs it."""
+    monkeypatch.chdir(tmp_path)
+    raw = base_world(planner={"optimizer": {"name": "rscdwoa", "params": {"beta": 0.74}}})
+    world = write_world(tmp_path, raw)
+    assert main([str(world), "--optimizer", "woa", "--out", str(tmp_path / "w.mcap"), "--quiet"]) in (0, 1)
+    assert "Traceback" not in capsys.readouterr().err
+    assert (tmp_path / "w.mcap").exists()
+
+
 def test_success_exit_0_default_log_path_and_check_log(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     raw = base_world(name="cli-ok", seed=4)

@@ -19,8 +19,9 @@ __all__ = ["RefinementPlanner", "fillet_path", "validate_planner_settings"]
 
 
 def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.World
-    """Check ``planner.escape`` and ``planner.global`` (owned by this package); raise one
-    ``WorldError`` listing every problem of both, so a bad world fails before any run starts."""
+    """Check ``planner.escape`` and ``planner.global`` (owned by this package; the world parser
+    checks the rest, including the optimizer's params); raise one ``WorldError`` listing every
+    problem, so a bad world fails before any run starts."""
     from swarmplan.planner.escape import escape_settings
     from swarmplan.planner.global_path import global_config
     from swarmplan.world import WorldError

@@ -155,11 +155,9 @@ class EscapePlanner:
         self.population = int(opt["population"])
         self.iterations = int(opt["iterations"])
         params = dict(opt.get("params") or {})
-        try:
-            self.optimizer = optimizers.make(optimizer_name, population=self.population, **params)
-        except ValueError:
-            # The world's params belong to another algorithm (e.g. --optimizer overrode the name).
-            self.optimizer = optimizers.make(optimizer_name, population=self.population)
+        # The params are the world's for this algorithm (``run.apply_overrides`` clears them when
+        # --optimizer names another one); wrong ones were reported by validate_planner_settings.
+        self.optimizer = optimizers.make(optimizer_name, population=self.population, **params)
         self.escapes: dict[int, int] = {}
         self.pending: dict[int, object] = {}  # yield segments planned for other agents
         self.failures: dict[int, int] = {}  # planning rounds in a row without a valid segment

@@ -165,9 +165,24 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
 
 
 def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | None:
-    """What the agent's sphere (radius + ``inflate``) touches along ``path`` (FCL, static world), or None."""
-    r = float(sim.params.radius[i]) + inflate
-    for p0, p1 in zip(path[:-1], path[1:], strict=True):
+    """What the agent's sphere (radius + ``inflate``) touches along ``path`` (FCL, static world), or None.
+
+    The start and the goal may lie closer to the ground or an obstacle than the inflated radius
+    (a take-off from the ground): the legs leaving the start and reaching the goal are swept
+    with the margin those points have (never less than the bare radius).
+    """
+    from swarmplan.planner.escape import static_clearance
+
+    radius = float(sim.params.radius[i])
+    ends = static_clearance(sim, path[[0, -1]], radius)
+    n = len(path) - 1
+    for k, (p0, p1) in enumerate(zip(path[:-1], path[1:], strict=True)):
+        margin = inflate
+        if k == 0:
+            margin = min(margin, max(0.0, 0.5 * float(ends[0])))
+        if k == n - 1:
+            margin = min(margin, max(0.0, 0.5 * float(ends[1])))
+        r = radius + margin
         if sim.collision.sweep_bounds(p1):
             return "bounds"
         hit = sim.collision.sweep_terrain(p0, p1, r) or sim.collision.sweep_static(p0, p1, r)
