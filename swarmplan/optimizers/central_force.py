@@ -5,8 +5,9 @@ under "gravity": a probe is pulled by every probe with a better cost, with a for
 grows with the cost ("mass") difference and falls with distance (eq 14); probes move by
 Newton's law with zero velocity (eq 15); a probe leaving the box is put back between its
 old position and the violated bound with the accommodation coefficient ``frep`` (eq 16).
-MCFO (section 4) adds a PSO memory step towards the personal and global bests (eq 18) and
-a mutation of probes whose new cost is worse (eq 19).
+MCFO (section 4) adds a PSO memory pull towards the personal and global bests (eq 18),
+summed with the gravity step as the paper's eq 23 writes the whole update, and a mutation of
+probes whose new cost is worse (eq 19).
 
 Readings chosen where the paper is silent, garbled or scale-dependent (see the class
 docstrings for the per-algorithm ones):
@@ -143,12 +144,15 @@ class CentralForce(Optimizer):
         F = problem.evaluate(X)
         return _CFOState(U=_to_unit(problem, X), F=F, mass_scale=_mass_scale(F))
 
-    def _cfo_move(self, state: _CFOState) -> np.ndarray:
-        """Eqs 14-16: the probes' new unit-box positions (not yet evaluated)."""
+    def _cfo_step(self, state: _CFOState) -> np.ndarray:
+        """Eqs 14-15 with ``v = 0``: the probes' unit-box displacements ``a * dt**2 / 2``."""
         p = self.params
         A = cfo_acceleration(state.U, state.F, state.mass_scale, p["G"], p["alpha"], p["beta"])
-        new = state.U + 0.5 * A * p["dt"] ** 2
-        return accommodate(new, state.U, 0.0, 1.0, p["frep"])
+        return 0.5 * A * p["dt"] ** 2
+
+    def _cfo_move(self, state: _CFOState) -> np.ndarray:
+        """Eqs 14-16: the probes' new unit-box positions (not yet evaluated)."""
+        return accommodate(state.U + self._cfo_step(state), state.U, 0.0, 1.0, self.params["frep"])
 
     def iterate(self, state: _CFOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
         U = self._cfo_move(state)
@@ -160,25 +164,46 @@ class CentralForce(Optimizer):
 class ModifiedCentralForce(CentralForce):
     """Modified CFO (MCFO2 of paper 004 section 4): CFO + PSO memory (eq 18) + mutation (eq 19).
 
-    One generation (paper 004 section 4.4, step 4):
+    One generation (paper 004 section 4.4 step 4, in the combined form of eq 23):
 
-    1. CFO move with eqs 14-16 (as :class:`CentralForce`).
-    2. PSO memory step, eq 18, applied to the moved probe ``p``:
-       ``p~ = p + c1*r1*(pbest_i - p) + c2*r2*(gbest - p)``, ``r1, r2 ~ U(0, 1)`` one per
-       probe (eq 18 indexes them by probe only); repaired with eq 16; evaluated (one batch).
-    3. Mutation, eq 19: a probe whose new cost is worse than its previous cost, and whose
-       judge variable ``zeta ~ U(0, 1)`` satisfies ``zeta <= c3``, gets
-       ``m(d) = xi(d) * exp(-c * t/T) * (upper - lower)(d)`` with ``xi ~ U(-0.5, 0.5)``,
-       is repaired with eq 16 and re-evaluated (one small batch); the mutant replaces it.
-    4. Update ``pbest_i`` and ``gbest``.
+    1. Gravity + memory, eqs 14, 15, 18 as composed by eq 23 (and eqs 25-26)::
 
-    Readings: the printed eq 19 ``xi * e^(-zeta)`` lost the "decreasing expression" the text
-    describes and the constant ``c > 0`` it defines; we read it as ``xi * e^(-c * t/T)``
-    with ``t/T`` the fraction of the evaluation budget used, scaled by the box width (the
-    paper's ``xi in [-0.5, 0.5]`` is in metres of a 600 m box). ``c3 = 0.1`` is the paper's
-    "mutation probability 10 %" (section 8, printed there as ``c_1 = 0.1``). The paper gives
-    no ``c1, c2``; we take ``c1 = c2 = 1``, the largest equal pair for which
-    ``c1*r1 + c2*r2 <= 2`` so the stability condition eq 29 can hold. ``c = 3`` (ours).
+           p~_i = p_i + a_i*dt**2/2 + c1*r1_i*(pbest_i - p_i) + c2*r2_i*(gbest - p_i)
+
+       with ``a_i`` from eq 14 and every term taken from the probe's position ``p_i`` at the
+       start of the generation; ``r1, r2 ~ U(0, 1)`` one per probe (eqs 17-18 index them by
+       probe only). Step 4 lists "(a) eq 15, (b) eq 18" one after the other, but eq 18 is
+       written on ``p_i^j`` (eq 15's *old* position), and eq 23 spells the whole update out
+       as a sum; applying eq 18 to the already moved probe instead would multiply the
+       gravity step by ``1 - c1*r1 - c2*r2`` (mean 0 for ``c1 = c2 = 1``), i.e. cancel CFO
+       on average. Repaired with eq 16 (old position ``p_i``), evaluated in one batch.
+    2. Mutation, eq 19: one judge variable ``zeta ~ U(0, 1)`` per probe ("a judge variable
+       zeta ... judges whether the mutation is effective or not for p_i^j", section 4.3;
+       step 4 "create a random number zeta"; eq 23 writes ``xi^j e^(-zeta^j)``). A probe
+       with ``zeta <= c3`` whose new cost is *worse* than its cost at the start of the
+       generation (eq 19 ``f(p~) > f(p)``, strict; "modifies the solutions with poor
+       fitness") gets ``m(d) = xi(d) * exp(-c * t/T)`` in every coordinate,
+       ``xi(d) ~ U(-0.5, 0.5)``, is repaired with eq 16 and re-evaluated (one small batch);
+       the mutant replaces it (eq 19 keeps no greedy selection; ``pbest`` keeps the memory).
+    3. Update ``pbest_i`` (best position of probe ``i`` so far) and ``gbest`` (best so far).
+
+    Readings of the garbled eq 19: the printed ``xi * e^(-zeta)`` has no ``c``, although
+    the text defines the constant ``c > 0`` for it and says the mutation range is "limited
+    by a decreasing expression"; we read the expression as ``e^(-c * t/T)`` with ``t/T``
+    the fraction of the evaluation budget used (the printed ``e^(-zeta)`` lies in
+    [0.90, 1] whenever ``zeta <= c3 = 0.1``, so dropping it changes the range by < 10 %).
+    ``xi`` is in the unit-box coordinates the whole algorithm runs in (module docstring),
+    i.e. a step of up to half the box width at the start, ``e^-c`` of that at the end.
+
+    Parameters: ``c3 = 0.1`` is the paper's "mutation probability 10 %" (section 8, printed
+    there as ``c_1 = 0.1``). The paper gives no ``c1, c2``; we take ``c1 = c2 = 1``, the
+    largest equal pair with ``c1*r1 + c2*r2 <= 2``, so that the memory part of the
+    stability condition eq 29 can hold. ``c = 3`` is ours (the paper gives no value). The
+    CFO parameters are :class:`CentralForce`'s (section 8: all methods share the same
+    initial parameters). Note that with them the gravity part of eq 29 alone,
+    ``dt**2 * theta_i / 2``, is typically far above 2 (median 5-8 on shifted Rastrigin and
+    120-160 on shifted Ackley, d = 10), so eq 29 does not hold: the gravity step overshoots,
+    many coordinates are repaired by eq 16 each generation, and it dominates the memory pull.
     """
 
     name = "mcfo"
@@ -209,21 +234,25 @@ class ModifiedCentralForce(CentralForce):
     def iterate(self, state: _MCFOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
         p = self.params
         n, d = state.U.shape
-        moved = self._cfo_move(state)
-        # eq 18: PSO memory step from the moved position
+        U = state.U
+        # eq 23: gravity (eqs 14-15) and memory (eq 18) displacements, both from p_i^j
         r1 = rng.random((n, 1))
         r2 = rng.random((n, 1))
-        new = moved + p["c1"] * r1 * (state.pbest_U - moved) + p["c2"] * r2 * (state.gbest_U - moved)
-        new = accommodate(new, moved, 0.0, 1.0, p["frep"])
+        new = (
+            U
+            + self._cfo_step(state)
+            + p["c1"] * r1 * (state.pbest_U - U)
+            + p["c2"] * r2 * (state.gbest_U - U)
+        )
+        new = accommodate(new, U, 0.0, 1.0, p["frep"])
         F = problem.evaluate(_to_box(problem, new))
-        # eq 19: mutate probes that got worse, with probability c3
-        zeta = rng.random((n, d))
-        genes = (zeta <= p["c3"]) & (F >= state.F)[:, None]
-        mut = genes.any(axis=1)
+        # eq 19: one judge variable per probe; mutate probes that got worse, when zeta <= c3
+        zeta = rng.random(n)
+        mut = (zeta <= p["c3"]) & (F > state.F)
         if mut.any():
             k = int(mut.sum())
             tau = problem.evaluations / problem.max_evals
-            m = rng.uniform(-0.5, 0.5, (k, d)) * np.exp(-p["c"] * tau) * genes[mut]
+            m = rng.uniform(-0.5, 0.5, (k, d)) * np.exp(-p["c"] * tau)
             new[mut] = accommodate(new[mut] + m, new[mut], 0.0, 1.0, p["frep"])
             F[mut] = problem.evaluate(_to_box(problem, new[mut]))
         state.U, state.F = new, F
