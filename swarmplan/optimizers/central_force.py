@@ -7,7 +7,9 @@ Newton's law with zero velocity (eq 15); a probe leaving the box is put back bet
 old position and the violated bound with the accommodation coefficient ``frep`` (eq 16).
 MCFO (section 4) adds a PSO memory pull towards the personal and global bests (eq 18),
 summed with the gravity step as the paper's eq 23 writes the whole update, and a mutation of
-probes whose new cost is worse (eq 19).
+probes whose new cost is worse (eq 19); per probe, its random memory weights (and where
+that cannot suffice its gravity step) are fitted to the stability condition of section 5
+(eq 29).
 
 Readings chosen where the paper is silent, garbled or scale-dependent (see the class
 docstrings for the per-algorithm ones):
@@ -61,12 +63,13 @@ def _finite_costs(F: np.ndarray) -> np.ndarray:
     return np.where(finite, F, F[finite].max())
 
 
-def cfo_acceleration(
+def cfo_weights(
     U: np.ndarray, F: np.ndarray, mass_scale: float, G: float, alpha: float, beta: float
 ) -> np.ndarray:
-    """Eq 14 for every probe at once (minimisation form), ``U`` in unit-box coordinates.
+    """The pairwise gravity weights of eq 14 (minimisation form), ``U`` in unit-box coordinates.
 
-    ``a_i = G * sum_k U(f_i - f_k) * ((f_i - f_k)/mass_scale)**alpha * (u_k - u_i) / |u_k - u_i|**beta``.
+    ``W[i, k] = G * U(f_i - f_k) * ((f_i - f_k)/mass_scale)**alpha / |u_k - u_i|**beta``, so
+    that ``a_i = sum_k W[i, k] * (u_k - u_i)`` (eq 14) and ``theta_i = sum_k W[i, k]`` (eq 24).
     """
     F = _finite_costs(F)
     diff = (F[:, None] - F[None, :]) / mass_scale  # [i, k] = f_i - f_k, > 0 when k is better
@@ -77,8 +80,57 @@ def cfo_acceleration(
     dist2 = np.maximum(sq[:, None] + sq[None, :] - 2.0 * np.einsum("ik,jk->ij", U, U), 0.0)
     dist = np.sqrt(dist2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        W = np.where((diff > 0) & (dist > 1e-12), G * diff**alpha / dist**beta, 0.0)
+        return np.where((diff > 0) & (dist > 1e-12), G * diff**alpha / dist**beta, 0.0)
+
+
+def gravity_from_weights(U: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """Eq 14 from :func:`cfo_weights`: ``a_i = sum_k W[i, k] * (u_k - u_i) = phi_i - theta_i * u_i``."""
     return np.einsum("ik,kj->ij", W, U) - W.sum(axis=1)[:, None] * U
+
+
+def cfo_acceleration(
+    U: np.ndarray, F: np.ndarray, mass_scale: float, G: float, alpha: float, beta: float
+) -> np.ndarray:
+    """Eq 14 for every probe at once (minimisation form), ``U`` in unit-box coordinates.
+
+    ``a_i = G * sum_k U(f_i - f_k) * ((f_i - f_k)/mass_scale)**alpha * (u_k - u_i) / |u_k - u_i|**beta``.
+    """
+    return gravity_from_weights(U, cfo_weights(U, F, mass_scale, G, alpha, beta))
+
+
+def eq29_limits(
+    theta: np.ndarray, r1: np.ndarray, r2: np.ndarray, c1: float, c2: float, dt: float, j: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Make each probe's eq 26 coefficient satisfy eq 29: ``|A_i(j)| <= rho = (j+1)/(j+2)``.
+
+    ``A_i(j) = 1 - g_i - m_i`` with the gravity factor ``g_i = dt**2 * theta_i / 2`` (eq 24)
+    and the memory factor ``m_i = c1*r1_i + c2*r2_i``, ``r1, r2`` as drawn for eq 18.
+
+    1. ``g_i > 1 + rho``: no ``r >= 0`` can satisfy eq 29, the gravity term alone breaks it.
+       Only then is the gravity step scaled, by ``s_i = (1 + rho)/g_i`` (an effective
+       ``dt_i**2 = s_i * dt**2``), so that ``g_i = 1 + rho``.
+    2. The random variables are then brought into eq 29 ("as long as these random variables
+       satisfy Eq. (29)", end of section 5): ``r1_i, r2_i`` are scaled by one common factor
+       so that ``m_i`` lies in ``[max(0, 1 - rho - g_i), 1 + rho - g_i]`` (down if it is
+       above, up if it is below; unchanged if it is inside). Scaling up stops at
+       ``max(r1_i, r2_i) = 1`` (eq 17: ``r in [0, 1]``).
+
+    Both sides of eq 29 then hold, except where the lower end ``1 - rho - g_i`` is out of
+    reach of ``r <= 1`` along the drawn ratio (never for ``c1 = c2 = 1``, as
+    ``1 - rho <= 1/3``) or ``r1_i = r2_i = 0``. Returns ``(r1, r2, s)`` with ``s in (0, 1]``.
+    """
+    rho = (j + 1.0) / (j + 2.0)
+    g = 0.5 * dt**2 * theta
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(g > 1.0 + rho, (1.0 + rho) / g, 1.0)
+    g = g * s
+    m = c1 * r1 + c2 * r2
+    target = np.clip(m, np.maximum(1.0 - rho - g, 0.0), np.maximum(1.0 + rho - g, 0.0))
+    r_max = np.maximum(r1, r2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(m > 0, target / m, 1.0)
+        k = np.where(r_max > 0, np.minimum(k, 1.0 / r_max), k)
+    return r1 * k, r2 * k, s
 
 
 @dataclass
@@ -176,7 +228,34 @@ class ModifiedCentralForce(CentralForce):
        written on ``p_i^j`` (eq 15's *old* position), and eq 23 spells the whole update out
        as a sum; applying eq 18 to the already moved probe instead would multiply the
        gravity step by ``1 - c1*r1 - c2*r2`` (mean 0 for ``c1 = c2 = 1``), i.e. cancel CFO
-       on average. Repaired with eq 16 (old position ``p_i``), evaluated in one batch.
+       on average. ``r1, r2`` and, where unavoidable, the gravity step are fitted to the
+       stability condition (below), then the probe is repaired with eq 16 (old position
+       ``p_i``); one evaluation batch.
+
+       Stability, eq 29: eqs 24-27 write this update as ``p_i^(j+1) = A_i(j) p_i^j + f_i*(j)``
+       with ``A_i(j) = 1 - g_i - m_i`` (eq 26), gravity factor ``g_i = dt**2 * theta_i / 2``
+       (``theta_i = sum_k W[i, k]`` of eq 24, the sum of probe ``i``'s gravity weights) and
+       memory factor ``m_i = c1*r1_i + c2*r2_i``; eq 29 asks
+       ``|A_i(j)| <= rho_j = (j+1)/(j+2)``, and section 5 ends "the convergence of the MCFO
+       method can be guaranteed as long as these random variables satisfy Eq. (29)". We take
+       that sentence as the prescription: per probe and generation (:func:`eq29_limits`;
+       ``j`` = generation counter from 1, as in step 2) the drawn ``r1, r2`` are scaled by a common
+       factor into the range of ``m_i`` that satisfies eq 29. With our CFO parameters (004 gives
+       none) ``g_i`` alone is often above ``1 + rho_j``, where no ``r1, r2 >= 0`` can satisfy
+       eq 29 (without a limit its median over a run is about 4-8 on shifted Rastrigin and
+       20-190 on shifted Ackley, d = 10); only for those probes the gravity step is scaled down to
+       ``g_i = 1 + rho_j`` (an effective per-probe ``dt_i**2 < dt**2``; ``dt`` is the "time
+       constant" of step 2) and their memory pull is then zero. Geometrically, the gravity step
+       ``g_i * (phi_i/theta_i - p_i)`` (eq 25) goes at most ``1 + rho_j`` times the way to the
+       weighted centre ``phi_i/theta_i`` of the better probes instead of overshooting it many
+       times. Both sides of eq 29 hold for every probe, including ``theta_i = 0`` (no better
+       probe, e.g. the best one: ``m_i >= 1 - rho_j`` is then reached by scaling ``r1, r2`` up),
+       except in the degenerate cases listed in :func:`eq29_limits`. Why ``r`` first and ``dt``
+       only where unavoidable: ``dt`` is a constant of step 2 and the paper puts the burden on
+       the random variables; cutting the gravity step first and keeping ``r1, r2`` as drawn
+       would also satisfy ``A_i(j) >= -rho_j`` but not, at ``theta_i = 0``, the other side.
+       Eq 16's repair and the eq 19 mutation act outside this linear analysis (``xi`` only
+       enters ``f_i*``).
     2. Mutation, eq 19: one judge variable ``zeta ~ U(0, 1)`` per probe ("a judge variable
        zeta ... judges whether the mutation is effective or not for p_i^j", section 4.3;
        step 4 "create a random number zeta"; eq 23 writes ``xi^j e^(-zeta^j)``). A probe
@@ -200,10 +279,8 @@ class ModifiedCentralForce(CentralForce):
     largest equal pair with ``c1*r1 + c2*r2 <= 2``, so that the memory part of the
     stability condition eq 29 can hold. ``c = 3`` is ours (the paper gives no value). The
     CFO parameters are :class:`CentralForce`'s (section 8: all methods share the same
-    initial parameters). Note that with them the gravity part of eq 29 alone,
-    ``dt**2 * theta_i / 2``, is typically far above 2 (median 5-8 on shifted Rastrigin and
-    120-160 on shifted Ackley, d = 10), so eq 29 does not hold: the gravity step overshoots,
-    many coordinates are repaired by eq 16 each generation, and it dominates the memory pull.
+    initial parameters); eq 29 is met per probe (above), not by other defaults.
+    :class:`CentralForce` has no such limit (004 gives CFO no stability analysis).
     """
 
     name = "mcfo"
@@ -235,12 +312,16 @@ class ModifiedCentralForce(CentralForce):
         p = self.params
         n, d = state.U.shape
         U = state.U
-        # eq 23: gravity (eqs 14-15) and memory (eq 18) displacements, both from p_i^j
+        # eq 23: gravity (eqs 14-15) and memory (eq 18) displacements, both from p_i^j,
+        # with r1, r2 (and where unavoidable the gravity step) fitted to eq 29 per probe
         r1 = rng.random((n, 1))
         r2 = rng.random((n, 1))
+        W = cfo_weights(U, state.F, state.mass_scale, p["G"], p["alpha"], p["beta"])
+        theta = W.sum(axis=1)[:, None]
+        r1, r2, s = eq29_limits(theta, r1, r2, p["c1"], p["c2"], p["dt"], iteration)
         new = (
             U
-            + self._cfo_step(state)
+            + s * 0.5 * p["dt"] ** 2 * gravity_from_weights(U, W)
             + p["c1"] * r1 * (state.pbest_U - U)
             + p["c2"] * r2 * (state.gbest_U - U)
         )
