@@ -44,6 +44,7 @@ class RunMetrics:
         self.stuck_events = np.zeros(n, dtype=int)
         self.near_misses = np.zeros(n, dtype=int)
         self.emergency_stops = np.zeros(n, dtype=int)
+        self.guard_steps = np.zeros(n, dtype=int)  # fixed-wing steps flown by the turn-ahead guard
         self.positions: list[np.ndarray] = []  # per step (N, 3), for curvature
 
     def add_step(

@@ -66,6 +66,18 @@ def pose_at(o: Obstacle, t: float) -> tuple[np.ndarray, np.ndarray]:
     return pts[k] + u * seg, seg / length * m.speed
 
 
+def max_speed(o: Obstacle) -> float:
+    """Highest speed obstacle ``o`` ever moves at (0 for static ones)."""
+    m = o.motion
+    if m is None:
+        return 0.0
+    if m.type == "linear":
+        return float(np.linalg.norm(m.velocity))
+    if m.type == "circle":
+        return abs(m.radius * m.angular_speed)
+    return float(m.speed)
+
+
 def poses_at(obstacles: tuple[Obstacle, ...] | list[Obstacle], t: float) -> tuple[np.ndarray, np.ndarray]:
     """Positions (M, 3) and velocities (M, 3) of ``obstacles`` at time ``t``."""
     if not obstacles:

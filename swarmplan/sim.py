@@ -26,9 +26,10 @@ from swarmplan.geometry.collision import (
     first_hits,
     segment_segment_min_distance,
 )
-from swarmplan.geometry.shapes import ObstacleField
+from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
+from swarmplan.lookahead import guard_commands, horizon_steps
 from swarmplan.metrics import RunMetrics
-from swarmplan.motion import poses_at
+from swarmplan.motion import max_speed, poses_at
 from swarmplan.state import SwarmState
 from swarmplan.world import World, matrix_to_quaternion
 
@@ -97,6 +98,7 @@ class Simulation:
         self.field = ObstacleField(world.obstacles)
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
         self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
+        self._max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
         self.moving_quat = [
             matrix_to_quaternion(o.rotation).round(9).tolist() for o in world.moving_obstacles
         ]
@@ -235,6 +237,7 @@ class Simulation:
             )
             clearance, normal = self._nearest_surface(idx, pos0[idx], d, g)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
+            v_cmd = self._guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             validated = self._safety_filter(idx, pos0, vel0, pos1, vel1, v_cmd, q0, q1, events, t1)
@@ -370,6 +373,64 @@ class Simulation:
             events.append(
                 Event(s.t, self.ids[i], "smoothing_start", {"waypoints": np.round(s.segment[i], 6).tolist()})
             )
+
+    def _guard_fixed_wings(
+        self,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        v_cmd: np.ndarray,
+        d: np.ndarray,
+        clearance: np.ndarray,
+        t0: float,
+    ) -> np.ndarray:
+        """Fixed wings keep the field's command only while they could still turn away
+        (``swarmplan.lookahead``); only agents with an obstacle or the terrain within reach of
+        the horizon are rolled out, against the obstacles within that reach."""
+        p = self.params
+        fw = p.fixed_wing[idx]
+        if not fw.any():
+            return v_cmd
+        dt = self.world.dt
+        speed = np.linalg.norm(vel0[idx], axis=1)
+        horizon = horizon_steps(p, idx[fw], speed[fw], dt) * dt
+        required = p.radius[idx]
+        reach = (speed + self._max_obstacle_speed) * horizon + required + p.radius[idx]
+        obstacle_clear = (d - p.radius[idx, None]).min(axis=1) if d.shape[1] else np.full(len(idx), np.inf)
+        q = pos0[idx]
+        bounds_clear = (
+            np.minimum(q - self.world.bounds_min, self.world.bounds_max - q).min(axis=1) - p.radius[idx]
+        )
+        near = fw & (np.minimum(np.minimum(clearance, obstacle_clear), bounds_clear) < reach)
+        if not near.any():
+            return v_cmd
+        rows = np.flatnonzero(near)
+        close = np.flatnonzero((d[rows] < reach[rows, None]).any(axis=0)) if d.shape[1] else np.array([], int)
+        obstacles = self.world.obstacles
+
+        def clearance_at(points: np.ndarray, radii: np.ndarray, t: float) -> np.ndarray:
+            w = self.world
+            c = points[:, 2] - w.terrain_height(points[:, :2]) - radii
+            # Leaving the flight volume counts as a collision ('bounds') as well.
+            inside = np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1)
+            c = np.minimum(c, inside - radii)
+            if len(close):
+                centers = poses_at(obstacles, t)[0]
+                for j in close:
+                    dj = distance_and_gradient(
+                        obstacles[j], points, centers[j], self.field.mesh_grids.get(j)
+                    )[0]
+                    c = np.minimum(c, dj - radii)
+            return c
+
+        guarded, replaced = guard_commands(
+            p, idx[rows], pos0[idx[rows]], vel0[idx[rows]], v_cmd[rows], t0, dt, clearance_at, required[rows]
+        )
+        out = v_cmd.copy()
+        out[rows] = guarded
+        for i in idx[rows][replaced]:
+            self.metrics.guard_steps[i] += 1
+        return out
 
     def _margin(self, i: int | np.ndarray) -> np.ndarray:
         return np.minimum(0.25, 0.2 * self.params.radius[i])
@@ -714,6 +775,7 @@ class Simulation:
                     "stuck_events": int(m.stuck_events[i]),
                     "near_misses": int(m.near_misses[i]),
                     "emergency_stops": int(m.emergency_stops[i]),
+                    "guard_steps": int(m.guard_steps[i]),
                 }
             )
         arrived = sum(a["arrived"] for a in agents)

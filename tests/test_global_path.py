@@ -64,6 +64,7 @@ def _world(glob=None, obstacles=None):
         ({"weights": {"w9": 1}}, "planner.global.weights.w9"),
         ({"weights": {"w1": 0.9}}, "w1 + w2 + w3 must be 1"),
         ({"cost": "iafsa", "weights": {"alpha1": 0.9}}, "alpha1 + alpha2"),
+        ({"warm_start": "yes"}, "planner.global.warm_start: expected true or false"),
     ],
 )
 def test_bad_config_is_reported(glob, fragment):
@@ -161,3 +162,26 @@ def test_shortcut_respects_the_climb_angle():
     # A shallow leg, then a steep one: the direct leg would climb 55° > 45°, so the vertex stays.
     steep = np.array([[10, 50, 10], [30, 50, 17], [31, 50, 40]], float)
     assert len(shortcut_path(sim, 0, steep, 1.0)) == 3
+
+
+def test_warm_start_rows_are_the_straight_line_and_smooth_detours():
+    from swarmplan.planner.encodings import PlaneEncoding
+
+    enc = PlaneEncoding(
+        np.array([0.0, 0.0, 10.0]),
+        np.array([100.0, 0.0, 10.0]),
+        5,
+        40.0,
+        20.0,
+        np.zeros(3),
+        np.full(3, 200.0),
+    )
+    X = enc.warm_start()
+    assert X.shape == (9, enc.dim)
+    assert np.all(X >= enc.lower) and np.all(X <= enc.upper)
+    nodes = enc.decode(X)
+    # Row 0: every waypoint on the straight line start -> goal.
+    assert np.allclose(nodes[0, :, 1], 0.0) and np.allclose(nodes[0, :, 2], 10.0)
+    # The widest lateral detour peaks at the full lateral range mid-way, both sides.
+    assert np.max(np.abs(X[3, : enc.D])) == pytest.approx(40.0 * np.sin(np.pi * 3 / 6))
+    assert np.allclose(X[3], -X[6])

@@ -127,6 +127,21 @@ class PlaneEncoding:
         """The decision vector of the straight line S→E (all offsets zero)."""
         return np.zeros(self.dim)
 
+    def warm_start(self) -> np.ndarray:
+        """Structured starting points (k, dim): the straight line, half-sine detours to each side
+        at a quarter, half and all of the lateral range, and over the top at half and all of the
+        vertical range. Half sines leave start and goal straight and turn gently (fixed wings)."""
+        s = np.arange(1, self.D + 1) / (self.D + 1)
+        bump = np.sin(np.pi * s)
+        lateral, vertical = self.upper[0], self.upper[self.D]
+        rows = [np.zeros(self.dim)]
+        for side in (1.0, -1.0):
+            for w in (0.25, 0.5, 1.0):
+                rows.append(np.concatenate([side * w * lateral * bump, np.zeros(self.D)]))
+        for w in (0.5, 1.0):
+            rows.append(np.concatenate([np.zeros(self.D), w * vertical * bump]))
+        return np.array(rows)
+
     def control_points(self, X: np.ndarray) -> np.ndarray:
         """(n, D, 3) waypoints in world coordinates, clipped into the box."""
         X = np.atleast_2d(np.asarray(X, float))

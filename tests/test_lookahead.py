@@ -1,0 +1,86 @@
+"""The fixed-wing turn-ahead guard (``swarmplan.lookahead``): a fixed wing whose potential field
+reacts later than it can turn must still turn away in time."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import base_world, make_world, run_to_end
+
+from swarmplan.dynamics import AgentParams
+from swarmplan.lookahead import guard_commands, horizon_steps
+from swarmplan.sim import Simulation
+
+WALL_X = 100.0
+
+
+def wall_world(influence: float = 3.0):
+    """A fixed wing (15 m/s, turn radius 20 m) flying at a wall that spans the whole height,
+    the goal behind it; the field's influence distance (3 m) is far shorter than the turn radius."""
+    raw = base_world(
+        bounds={"min": [0, 0, 0], "max": [200, 200, 60]},
+        sim={"dt": 0.1, "max_time": 30, "goal_tolerance": 2.0},
+        obstacles=[{"id": "wall", "shape": "box", "size": [2, 120, 60], "position": [WALL_X, 100, 30]}],
+        agent_defaults={
+            "model": "fixed_wing",
+            "radius": 1.0,
+            "speed": {"min": 12, "max": 16, "cruise": 15},
+            "max_accel": 5,
+            "min_turn_radius": 20,
+            "max_climb_angle": 10,
+            "min_altitude": 5,
+            "separation": [4, 4, 2],
+        },
+        agents=[{"id": "a", "start": [30, 100, 30], "goal": [170, 100, 30]}],
+        planner={"optimizer": {"name": "none"}, "apf": {"influence": influence}},
+    )
+    return make_world(raw)
+
+
+def test_fixed_wing_turns_away_from_a_wall_its_field_sees_too_late():
+    sim, summary, _ = run_to_end(wall_world(), seed=0)
+    agent = summary["agents"][0]
+    assert summary["collisions"] == 0, agent
+    assert agent["guard_steps"] > 0
+    assert agent["min_clearance"] >= 0.5 * sim.params.radius[0]
+
+
+def test_without_the_guard_the_same_flight_hits_the_wall(monkeypatch):
+    """Negative control: the scenario above is a real test of the guard."""
+    monkeypatch.setattr(Simulation, "_guard_fixed_wings", lambda self, idx, p, v, v_cmd, *a: v_cmd)
+    _, summary, _ = run_to_end(wall_world(), seed=0)
+    assert summary["collisions"] == 1
+    assert summary["agents"][0]["collided_with"] == ["wall"]
+
+
+def _one_agent_params() -> AgentParams:
+    return AgentParams.from_world(wall_world())
+
+
+def _wall_clearance(points: np.ndarray, radii: np.ndarray, t: float) -> np.ndarray:
+    """Half-space x < WALL_X - 1 (the wall's near face) as the only obstacle."""
+    return (WALL_X - 1.0) - points[:, 0] - radii
+
+
+def test_guard_keeps_a_safe_command_and_replaces_a_doomed_one():
+    p = _one_agent_params()
+    idx = np.array([0])
+    vel = np.array([[15.0, 0.0, 0.0]])
+    cmd = vel.copy()  # straight on at the wall
+    required = np.array([1.0])
+    # Far away (200 m): the horizon (pi * 20 / 15 + 1 = 5.2 s, 78 m) does not reach the wall.
+    far = np.array([[WALL_X - 1 - 200.0, 100.0, 30.0]])
+    out, replaced = guard_commands(p, idx, far, vel, cmd, 0.0, 0.1, _wall_clearance, required)
+    assert not replaced[0] and np.allclose(out, cmd)
+    # 40 m before the face: straight on hits within the horizon, a hard turn (radius 20 m) does not.
+    near = np.array([[WALL_X - 1 - 40.0, 100.0, 30.0]])
+    out, replaced = guard_commands(p, idx, near, vel, cmd, 0.0, 0.1, _wall_clearance, required)
+    assert replaced[0]
+    heading = np.degrees(np.arctan2(out[0, 1], out[0, 0]))
+    # One step of a maximum-rate turn: V / R * dt = 15 / 20 * 0.1 rad = 4.3 degrees.
+    assert abs(heading) == pytest.approx(np.degrees(15 / 20 * 0.1), abs=1e-6)
+
+
+def test_horizon_is_half_a_turn_plus_a_second():
+    p = _one_agent_params()
+    assert horizon_steps(p, np.array([0]), np.array([15.0]), 0.1) == int(np.ceil((np.pi * 20 / 15 + 1) / 0.1))
