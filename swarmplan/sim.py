@@ -408,18 +408,24 @@ class Simulation:
         close = np.flatnonzero((d[rows] < reach[rows, None]).any(axis=0)) if d.shape[1] else np.array([], int)
         obstacles = self.world.obstacles
 
-        def clearance_at(points: np.ndarray, radii: np.ndarray, t: float) -> np.ndarray:
+        def clearance_at(points: np.ndarray, radii: np.ndarray, times: np.ndarray) -> np.ndarray:
             w = self.world
             c = points[:, 2] - w.terrain_height(points[:, :2]) - radii
             # Leaving the flight volume counts as a collision ('bounds') as well.
             inside = np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1)
             c = np.minimum(c, inside - radii)
             if len(close):
-                centers = poses_at(obstacles, t)[0]
+                movers = [obstacles[j] for j in close if obstacles[j].moving]
+                if movers:
+                    when, which = np.unique(times, return_inverse=True)
+                    centers = np.stack([poses_at(movers, t)[0] for t in when])  # (T, movers, 3)
+                k = 0
                 for j in close:
-                    dj = distance_and_gradient(
-                        obstacles[j], points, centers[j], self.field.mesh_grids.get(j)
-                    )[0]
+                    o = obstacles[j]
+                    at = o.position
+                    if o.moving:
+                        at, k = centers[which, k], k + 1
+                    dj = distance_and_gradient(o, points, at, self.field.mesh_grids.get(j))[0]
                     c = np.minimum(c, dj - radii)
             return c
 

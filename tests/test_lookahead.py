@@ -84,3 +84,25 @@ def test_guard_keeps_a_safe_command_and_replaces_a_doomed_one():
 def test_horizon_is_half_a_turn_plus_a_second():
     p = _one_agent_params()
     assert horizon_steps(p, np.array([0]), np.array([15.0]), 0.1) == int(np.ceil((np.pi * 20 / 15 + 1) / 0.1))
+
+
+def test_predicted_positions_are_exact_arcs():
+    from swarmplan.lookahead import predicted_positions
+
+    pos = np.zeros((1, 3))
+    vel = np.array([[15.0, 0.0, 0.0]])
+    radius = np.array([20.0])
+    w = 15.0 / 20.0
+    quarter = (np.pi / 2) / w
+    turn = np.array([[1.0, -1.0, 1.0, 0.0]])
+    turn_time = np.array([[np.inf, np.inf, quarter, 0.0]])
+    gamma = np.array([[0.0, 0.0, 0.0, np.radians(10)]])
+    times = np.array([np.pi / w, quarter + 1.0])
+    P = predicted_positions(pos, vel, turn, turn_time, gamma, radius, times)
+    assert P.shape == (1, 4, 2, 3)
+    np.testing.assert_allclose(P[0, 0, 0], [0.0, 40.0, 0.0], atol=1e-9)  # half a left turn: 2 R across
+    np.testing.assert_allclose(P[0, 1, 0], [0.0, -40.0, 0.0], atol=1e-9)  # half a right turn
+    np.testing.assert_allclose(P[0, 2, 1], [20.0, 35.0, 0.0], atol=1e-9)  # quarter turn, then 1 s straight
+    t = times[1]
+    c, s = np.cos(np.radians(10)), np.sin(np.radians(10))
+    np.testing.assert_allclose(P[0, 3, 1], [15 * c * t, 0.0, 15 * s * t], atol=1e-9)  # straight climb
