@@ -4,15 +4,15 @@ A multirotor can brake, so the one-step safety filter of the simulation is enoug
 fixed wing cannot stop: by the time one step would touch a wall, no command avoids it. The
 potential field does not know this either (its influence distance may be shorter than the
 turn radius). So, each step, for every fixed wing that has something within reach, the
-guard predicts its flight for the time of a half turn plus a second under a few commands —
-the field's command (turn towards its heading at the maximum rate, then straight), and
-sustained hard left/right turns and straight flight, each level, climbing and diving — and
-measures the clearance of every predicted position to the obstacles (moving ones at their
-predicted poses), the terrain and the bounds. If the field's command keeps the required
-clearance over the whole horizon it stands; otherwise the guard flies the safe manoeuvre
-closest to it, or, when none is safe, the one that keeps the most clearance. Because the
-hard turns are among the candidates at every step, the guard takes over while a turn away
-still exists.
+guard predicts, for the time of a half turn plus a second, the sustained manoeuvres — hard
+left/right turns and straight flight, each level, climbing and diving — and measures the
+clearance of every predicted position to the obstacles (moving ones at their predicted
+poses), the terrain and the bounds. The field's command stands if, after one step of it, at
+least one manoeuvre keeps the required clearance: a way out always remains (the invariant
+of braking-distance checks, with turns in place of brakes). Otherwise the guard starts now
+the safe manoeuvre closest to the field's command, or, when none is safe, the one that keeps
+the most clearance. Flying the field's command until the last step that keeps a way out
+leaves the field in charge everywhere but where it would corner the aircraft.
 
 The predictions are closed-form arcs and helices of the model (constant speed, heading rate
 V / R_min, flight-path angle set at once, as ``swarmplan.dynamics.limit_fixed_wing`` flies
@@ -92,6 +92,25 @@ def predicted_positions(
     return pos[:, None, None, :] + np.stack([x, y, z], axis=-1)
 
 
+def _manoeuvre_clearance(
+    params: AgentParams,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    times: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted positions (n, C, H, 3) of the sustained manoeuvres from ``pos``/``vel``, and the
+    matching body radii (n, C, H)."""
+    n, c = len(idx), len(_MANOEUVRES)
+    turn = np.broadcast_to(np.array([m[0] for m in _MANOEUVRES], dtype=float), (n, c))
+    climb = np.array([m[1] for m in _MANOEUVRES], dtype=float)[None, :] * params.max_climb[idx][:, None]
+    points = predicted_positions(
+        pos, vel, turn, np.full((n, c), np.inf), climb, params.min_turn_radius[idx], times
+    )
+    radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
+    return points, radii
+
+
 def guard_commands(
     params: AgentParams,
     idx: np.ndarray,
@@ -105,54 +124,48 @@ def guard_commands(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Guarded commands of fixed wings ``idx`` (rows of ``pos``, ``vel``, ``v_cmd``).
 
-    ``required`` (n,) is the clearance each must keep over the horizon. Returns the commands
-    (n, 3) and a mask (n,) of the agents whose field command was replaced.
+    The field's command stands if, after one step of it, at least one sustained manoeuvre
+    (hard left/right turn or straight, level/climbing/diving) keeps ``required`` (n,) clearance
+    over the horizon: a way out is always kept. Otherwise the agent starts now the safe
+    manoeuvre whose next velocity is nearest the field's (or, if none is safe, the one keeping
+    the most clearance). Returns the commands (n, 3) and a mask (n,) of the replaced ones.
     """
     n = len(idx)
     out = v_cmd.copy()
     replaced = np.zeros(n, dtype=bool)
     if n == 0:
         return out, replaced
-    speed = np.linalg.norm(vel, axis=1)
-    steps = horizon_steps(params, idx, speed, dt)
+    steps = horizon_steps(params, idx, np.linalg.norm(vel, axis=1), dt)
     times = np.arange(1, steps + 1) * dt
-    climb = params.max_climb[idx]
-    radius = params.min_turn_radius[idx]
-    # Candidate 0, the field's command: turn towards its heading at the maximum rate, then straight.
-    psi0 = np.arctan2(vel[:, 1], vel[:, 0])
-    hxy = np.linalg.norm(v_cmd[:, :2], axis=1)
-    gamma_cmd = np.where(
-        hxy < 1e-9, np.sign(v_cmd[:, 2]) * climb, np.arctan2(v_cmd[:, 2], np.maximum(hxy, 1e-12))
-    )
-    dpsi = np.where(hxy < 1e-9, 0.0, _wrap_angle(np.arctan2(v_cmd[:, 1], v_cmd[:, 0]) - psi0))
-    omega = np.maximum(speed, 1e-6) / radius
-    man_turn = np.array([m[0] for m in _MANOEUVRES], dtype=float)
-    man_climb = np.array([m[1] for m in _MANOEUVRES], dtype=float)
-    turn = np.concatenate([np.sign(dpsi)[:, None], np.broadcast_to(man_turn, (n, len(man_turn)))], axis=1)
-    turn_time = np.concatenate([(np.abs(dpsi) / omega)[:, None], np.full((n, len(man_turn)), np.inf)], axis=1)
-    gamma = np.concatenate(
-        [np.clip(gamma_cmd, -climb, climb)[:, None], man_climb[None, :] * climb[:, None]], axis=1
-    )
-    c = turn.shape[1]
-    points = predicted_positions(pos, vel, turn, turn_time, gamma, radius, times)  # (n, c, H, 3)
-    radii = np.repeat(params.radius[idx], c * steps)
-    when = t0 + np.tile(times, n * c)
-    worst = clearance(points.reshape(-1, 3), radii, when).reshape(n, c, steps).min(axis=2)
-    # What each candidate flies on the next step, under the model itself.
-    cmds = np.concatenate([v_cmd[:, None, :], _manoeuvre_commands(vel, climb)], axis=1)
+    c = len(_MANOEUVRES)
+    # After one step of the field's command ...
+    v_next = limit_velocity(params, vel, v_cmd, dt, idx)
+    p_next = pos + v_next * dt
+    after, r_after = _manoeuvre_clearance(params, idx, p_next, v_next, times)
+    # ... and from where the agent is now.
+    now, r_now = _manoeuvre_clearance(params, idx, pos, vel, times)
+    points = np.concatenate([after.reshape(-1, 3), now.reshape(-1, 3), p_next])
+    radii = np.concatenate([r_after.reshape(-1), r_now.reshape(-1), params.radius[idx]])
+    when = np.concatenate([np.tile(t0 + dt + times, n * c), np.tile(t0 + times, n * c), np.full(n, t0 + dt)])
+    clear = clearance(points, radii, when)
+    m = n * c * steps
+    worst_after = clear[:m].reshape(n, c, steps).min(axis=2)
+    worst_now = clear[m : 2 * m].reshape(n, c, steps).min(axis=2)
+    step_clear = clear[2 * m :]
+    keep = (step_clear >= required) & np.any(worst_after >= required[:, None], axis=1)
+    if keep.all():
+        return out, replaced
+    # What each manoeuvre flies on the next step, under the model itself.
+    cmds = _manoeuvre_commands(vel, params.max_climb[idx])
     first = limit_velocity(params, np.repeat(vel, c, axis=0), cmds.reshape(-1, 3), dt, np.repeat(idx, c))
     first = first.reshape(n, c, 3)
-    for i in range(n):
-        if worst[i, 0] >= required[i]:
-            continue
-        safe = np.flatnonzero(worst[i, 1:] >= required[i]) + 1
+    for i in np.flatnonzero(~keep):
+        safe = np.flatnonzero(worst_now[i] >= required[i])
         if len(safe):
-            # Of the safe manoeuvres, the one whose next velocity is nearest the field's.
-            gap = np.linalg.norm(first[i, safe] - first[i, 0], axis=1)
+            gap = np.linalg.norm(first[i, safe] - v_next[i], axis=1)
             j = int(safe[np.argmin(gap)])
         else:
-            j = int(np.argmax(worst[i]))
-        if j != 0:
-            out[i] = first[i, j]
-            replaced[i] = True
+            j = int(np.argmax(worst_now[i]))
+        out[i] = first[i, j]
+        replaced[i] = True
     return out, replaced

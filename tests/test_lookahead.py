@@ -62,23 +62,30 @@ def _wall_clearance(points: np.ndarray, radii: np.ndarray, t: float) -> np.ndarr
     return (WALL_X - 1.0) - points[:, 0] - radii
 
 
-def test_guard_keeps_a_safe_command_and_replaces_a_doomed_one():
+def test_guard_keeps_the_field_command_while_a_way_out_remains():
+    """Straight at a wall, radius 20 m turns, 1.5 m per step, 1 m body, 1 m required clearance:
+    a hard turn started at distance D from the face comes within D - 20 of it (centre), so the
+    body keeps D - 21 >= 1 for D >= 22. The command stands while the next state (D - 1.5) still
+    has that way out, i.e. down to D = 23.5; below, the guard turns at once."""
     p = _one_agent_params()
     idx = np.array([0])
     vel = np.array([[15.0, 0.0, 0.0]])
     cmd = vel.copy()  # straight on at the wall
     required = np.array([1.0])
-    # Far away (200 m): the horizon (pi * 20 / 15 + 1 = 5.2 s, 78 m) does not reach the wall.
-    far = np.array([[WALL_X - 1 - 200.0, 100.0, 30.0]])
-    out, replaced = guard_commands(p, idx, far, vel, cmd, 0.0, 0.1, _wall_clearance, required)
-    assert not replaced[0] and np.allclose(out, cmd)
-    # 40 m before the face: straight on hits within the horizon, a hard turn (radius 20 m) does not.
-    near = np.array([[WALL_X - 1 - 40.0, 100.0, 30.0]])
-    out, replaced = guard_commands(p, idx, near, vel, cmd, 0.0, 0.1, _wall_clearance, required)
+
+    def at(distance: float) -> tuple[np.ndarray, np.ndarray]:
+        pos = np.array([[WALL_X - 1 - distance, 100.0, 30.0]])
+        return guard_commands(p, idx, pos, vel, cmd, 0.0, 0.1, _wall_clearance, required)
+
+    for distance in (200.0, 40.0, 24.0):
+        out, replaced = at(distance)
+        assert not replaced[0] and np.allclose(out, cmd), distance
+    out, replaced = at(23.0)
     assert replaced[0]
+    # One step of a maximum-rate turn, level: V / R * dt = 15 / 20 * 0.1 rad = 4.3 degrees.
     heading = np.degrees(np.arctan2(out[0, 1], out[0, 0]))
-    # One step of a maximum-rate turn: V / R * dt = 15 / 20 * 0.1 rad = 4.3 degrees.
     assert abs(heading) == pytest.approx(np.degrees(15 / 20 * 0.1), abs=1e-6)
+    assert out[0, 2] == pytest.approx(0.0, abs=1e-9)
 
 
 def test_horizon_is_half_a_turn_plus_a_second():
