@@ -178,3 +178,54 @@ def test_unknown_escape_setting_is_an_error():
     world = make_world(base_world(planner={"escape": {"horizn": 5}}))
     with pytest.raises(WorldError, match="horizn"):
         RefinementPlanner(world, "de")
+
+
+def test_culling_leaves_the_static_and_moving_terms_exactly_unchanged():
+    """The terms skip bodies (and points) out of reach; on random polylines among boxes,
+    cylinders, spheres and movers they must equal the brute-force sums over every body."""
+    from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
+    from swarmplan.motion import poses_at
+
+    obstacles = [
+        {"id": "b1", "shape": "box", "size": [8, 4, 30], "position": [30, 40, 15], "rotation": [0, 0, 30]},
+        {"id": "c1", "shape": "cylinder", "radius": 4, "height": 30, "position": [60, 60, 15]},
+        SPHERE,
+        {"id": "far", "shape": "box", "size": [2, 2, 2], "position": [95, 5, 45]},
+        dict(
+            SPHERE,
+            id="m1",
+            radius=3.0,
+            position=[20, 80, 20],
+            motion={"type": "linear", "velocity": [2, -3, 0]},
+        ),
+        dict(
+            SPHERE,
+            id="m2",
+            radius=2.0,
+            position=[70, 30, 20],
+            motion={"type": "circle", "center": [60, 30, 20], "radius": 10, "angular_speed": 0.3},
+        ),
+    ]
+    world = make_world(base_world(obstacles=obstacles))
+    cost = cost_for(world, margin=3.0, t0=1.0)
+    rng = np.random.default_rng(0)
+    P = rng.uniform([5, 5, 6], [95, 95, 44], size=(40, 5, 3))
+    pts, ds, s = cost.sample(P)
+    n, S, _ = pts.shape
+    # Brute force: every static body at every point ...
+    d = ObstacleField(cost.static).query(pts.reshape(-1, 3))[0].min(axis=1).reshape(n, S)
+    req = cost._required(s)
+    static = cost.w.clearance * (np.maximum(req - d, 0) * ds).sum(1) + cost.w.collision * (
+        (d < cost.r) * ds
+    ).sum(1)
+    # ... and every mover where the agent would meet it (same 0.2 s time grid as the term).
+    k = np.round((s / cost.speed) / 0.2).astype(int).reshape(-1)
+    moving = np.zeros(n)
+    for o in cost.moving:
+        centers = np.array([poses_at([o], cost.t0 + kk * 0.2)[0][0] for kk in k])
+        dm = distance_and_gradient(o, pts.reshape(-1, 3) - centers + o.position)[0].reshape(n, S)
+        moving += cost.w.moving * (np.maximum(cost.required - dm, 0) * ds).sum(1)
+        moving += cost.w.collision * ((dm < cost.r) * ds).sum(1)
+    assert np.any(static > 0) and np.any(static == 0) and np.any(moving > 0)
+    np.testing.assert_allclose(cost.static_penalty(pts, ds, s), static, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(cost.moving_penalty(pts, ds, s), moving, rtol=0, atol=1e-9)

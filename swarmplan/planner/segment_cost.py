@@ -59,6 +59,15 @@ class Weights:
     vertex: float = 20.0  # per metre a free waypoint lacks of ``vertex_clearance``
 
 
+def _box_gap(pts: np.ndarray, lo: np.ndarray, hi: np.ndarray | None = None) -> np.ndarray:
+    """Distance from the bounding box of ``pts`` (..., 3) to each box ``lo``..``hi`` (M, 3)
+    (points when ``hi`` is None): a lower bound of every point's distance to it."""
+    flat = pts.reshape(-1, 3)
+    plo, phi = flat.min(axis=0), flat.max(axis=0)
+    hi = lo if hi is None else hi
+    return np.linalg.norm(np.maximum(np.maximum(lo - phi, plo - hi), 0.0), axis=-1)
+
+
 @dataclass
 class Intent:
     """Where another agent means to be: a polyline with times (piecewise linear, then it stays)."""
@@ -177,6 +186,12 @@ class SegmentCost:
         self.static = [o for o in world.obstacles if not o.moving]
         self.moving = [o for o in world.obstacles if o.moving]
         self.field = ObstacleField(self.static)
+        # Culling data: a body can only add to the cost where it comes within reach of the
+        # sampled points, so the terms skip those that cannot (the values are unchanged).
+        self._static_center = np.array([o.position for o in self.static]).reshape(-1, 3)
+        self._static_bound = np.array([o.bounding_radius for o in self.static])
+        self._moving_bound = np.array([o.bounding_radius for o in self.moving])
+        self._intent_box = [(it.points.min(axis=0), it.points.max(axis=0)) for it in self.intents]
         self.required = self.r + self.margin
         # Near the start the agent may already be closer than required: ask only for what
         # it has plus the distance travelled (the path must not get worse, then must clear).
@@ -232,10 +247,22 @@ class SegmentCost:
 
     def static_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
         n, S, _ = pts.shape
-        if not self.static:
+        # Bodies whose bounding sphere stays ``required`` away from the points' box add nothing.
+        near = np.flatnonzero(_box_gap(pts, self._static_center) - self._static_bound < self.required)
+        if not len(near):
             return np.zeros(n)
-        d, _ = self.field.query(pts.reshape(-1, 3))
-        d = d.min(axis=1).reshape(n, S)
+        flat = pts.reshape(-1, 3)
+        d = np.full(len(flat), np.inf)
+        for j in near:
+            # Only the points its bounding sphere lets come within ``required`` of it: for the
+            # others any distance >= required gives the same cost as the true one.
+            rel = flat - self._static_center[j]
+            reach = self.required + self._static_bound[j]
+            m = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) < reach * reach)
+            if len(m):
+                dj = distance_and_gradient(self.static[j], flat[m], None, self.field.mesh_grids.get(j))[0]
+                d[m] = np.minimum(d[m], dj)
+        d = d.reshape(n, S)
         req = self._required(s)
         return self.w.clearance * (np.maximum(req - d, 0) * ds).sum(axis=1) + self.w.collision * (
             (d < self.r) * ds
@@ -281,9 +308,19 @@ class SegmentCost:
         cost = np.zeros(n)
         flat = pts.reshape(-1, 3)
         kf = k.reshape(-1)
+        # A body whose centre track stays farther than its bounding radius + ``required`` from
+        # the points' box adds nothing.
+        track_gap = _box_gap(pts, centers.min(axis=0), centers.max(axis=0))
         for j, o in enumerate(self.moving):
-            shifted = flat - (centers[kf, j] - o.position)
-            d, _ = distance_and_gradient(o, shifted)
+            if track_gap[j] - self._moving_bound[j] >= self.required:
+                continue
+            rel = flat - centers[kf, j]
+            reach = self.required + self._moving_bound[j]
+            m = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) < reach * reach)
+            if not len(m):
+                continue
+            d = np.full(len(flat), np.inf)  # beyond reach: as good as the true distance here
+            d[m] = distance_and_gradient(o, rel[m] + o.position)[0]
             d = d.reshape(n, S)
             cost = cost + self.w.moving * (np.maximum(self.required - d, 0) * ds).sum(1)
             cost = cost + self.w.collision * ((d < self.r) * ds).sum(1)
@@ -295,9 +332,14 @@ class SegmentCost:
         if not self.intents:
             return cost
         t = self.t0 + s / self.speed
-        for it in self.intents:
-            q = it.at(t)
+        lo, hi = pts.reshape(-1, 3).min(axis=0), pts.reshape(-1, 3).max(axis=0)
+        for it, (ilo, ihi) in zip(self.intents, self._intent_box, strict=True):
             scale = it.separation + self.r + it.radius
+            # The intent stays inside its points' box: beyond reach of both terms it adds nothing.
+            gap = float(np.linalg.norm(np.maximum(np.maximum(ilo - hi, lo - ihi), 0.0)))
+            if gap >= max(1.2 * float(scale.max()), self.r + it.radius):
+                continue
+            q = it.at(t)
             e = np.linalg.norm((pts - q) / scale, axis=-1)
             cost = cost + self.w.agents * (np.maximum(1.2 - e, 0) * ds).sum(1)
             d = np.linalg.norm(pts - q, axis=-1)
