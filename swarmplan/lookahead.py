@@ -88,7 +88,7 @@ def predicted_positions(
     rest = t - t1
     x = ax + vh * rest * np.cos(psi1)
     y = ay + vh * rest * np.sin(psi1)
-    z = v * np.sin(g) * t + 0.0 * x
+    z = np.broadcast_to(v * np.sin(g) * t, x.shape)
     return pos[:, None, None, :] + np.stack([x, y, z], axis=-1)
 
 
