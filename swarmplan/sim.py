@@ -385,8 +385,9 @@ class Simulation:
         t0: float,
     ) -> np.ndarray:
         """Fixed wings keep the field's command only while they could still turn away
-        (``swarmplan.lookahead``); only agents with an obstacle or the terrain within reach of
-        the horizon are rolled out, against the obstacles within that reach."""
+        (``swarmplan.lookahead``). Only agents with an obstacle, the terrain or the bounds within
+        reach of the horizon (obstacles' own motion included) are checked, and only against the
+        obstacles within that reach."""
         p = self.params
         fw = p.fixed_wing[idx]
         if not fw.any():
