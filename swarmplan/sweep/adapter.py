@@ -58,6 +58,20 @@ def set_dotted(raw: dict[str, Any], key: str, value: Any) -> None:
             raise OverrideError(key, f"{where} is a {type(node).__name__}, not a mapping or a list")
 
 
+def read_raw(path: str | Path) -> dict[str, Any]:
+    """The world file's YAML mapping, as written (before defaults)."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise WorldError([f"cannot read file: {exc.strerror or exc}"], str(path)) from None
+    except yaml.YAMLError as exc:
+        raise WorldError([f"invalid YAML: {' '.join(str(exc).split())}"], str(path)) from None
+    if not isinstance(raw, dict):
+        raise WorldError([f"expected a mapping, got {type(raw).__name__}"], str(path))
+    return raw
+
+
 def build_world(world_path: str | Path, optimizer: str, overrides: tuple[tuple[str, Any], ...]) -> World:
     """The world one run flies: the file with the dotted ``overrides`` applied to its raw mapping,
     validated by ``parse_world``, flown with ``optimizer`` as ``swarmplan.run --optimizer`` would.
@@ -70,14 +84,7 @@ def build_world(world_path: str | Path, optimizer: str, overrides: tuple[tuple[s
     from swarmplan.world import parse_world
 
     path = Path(world_path)
-    try:
-        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise WorldError([f"cannot read file: {exc.strerror or exc}"], str(path)) from None
-    except yaml.YAMLError as exc:
-        raise WorldError([f"invalid YAML: {exc}"], str(path)) from None
-    if not isinstance(raw, dict):
-        raise WorldError([f"expected a mapping, got {type(raw).__name__}"], str(path))
+    raw = read_raw(path)
     for key, value in overrides:
         set_dotted(raw, key, value)
     names = optimizers.available()

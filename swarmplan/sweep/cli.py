@@ -60,10 +60,10 @@ def main(argv: list[str] | None = None) -> int:
 
     out_dir = Path(args.out if args.out is not None else f"logs/sweeps/{spec.name}")
     tasks = spec.tasks()
+    combos = len(tasks) // max(1, len(spec.worlds) * len(spec.optimizers) * len(spec.seeds))
     print(
         f"sweep {spec.name}: {len(spec.worlds)} world(s) x {len(spec.optimizers)} optimizer(s) x "
-        f"{len(spec.seeds)} seed(s) x {len(tasks) // max(1, len(spec.worlds) * len(spec.optimizers) * len(spec.seeds))} "
-        f"override combination(s) = {len(tasks)} runs -> {out_dir}",
+        f"{len(spec.seeds)} seed(s) x {combos} override combination(s) = {len(tasks)} runs -> {out_dir}",
         file=sys.stderr,
     )
     start = time.perf_counter()

@@ -217,7 +217,9 @@ def dashboard_line(client) -> str:  # noqa: ANN001
     try:
         import bokeh  # noqa: F401
     except ImportError:
-        return f"dashboard: {client.dashboard_link} (served once bokeh is installed: pip install 'bokeh>=3.1')"
+        return (
+            f"dashboard: {client.dashboard_link} (served once bokeh is installed: pip install 'bokeh>=3.1')"
+        )
     return f"dashboard: {client.dashboard_link}"
 
 
@@ -285,6 +287,8 @@ def run_tasks(
         for f in futures:
             if not f.done():
                 f.cancel()
+    for stale in (out_dir / "runs").glob("*.part"):  # attempts whose worker died
+        stale.unlink(missing_ok=True)
     ordered = [rows[i] for i in sorted(rows)]
     ResultsFile(out_dir / "results.csv", cols, ordered).close()
     return ordered, skipped

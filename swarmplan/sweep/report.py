@@ -84,7 +84,9 @@ def table(rows: list[dict[str, Any]], optimizers: list[str], alpha: float = 0.05
     for n in optimizers:
         rs = by[n]
         cells = [n, _success(rs), *(mean_std(_vals(rs, c), f) for c, _, f in stats)]
-        cols = [c for c, _ in VERDICTS] + (["plan_cost"] if len(head) > 2 + len(stats) + len(VERDICTS) else [])
+        cols = [c for c, _ in VERDICTS] + (
+            ["plan_cost"] if len(head) > 2 + len(stats) + len(VERDICTS) else []
+        )
         for c in cols:
             cells.append("(reference)" if n == ref else verdict(_vals(by[ref], c), _vals(rs, c), alpha))
         out_rows.append(cells)
@@ -167,12 +169,16 @@ def write_report(
         labels: list[tuple[str, Any]] = []
         for _, vals, _rs in groups(wrows, override_keys):
             for o in optimizers:
-                tag = " ".join(f"{k.rsplit('.', 1)[-1]}={json.loads(v)}" for k, v in zip(override_keys, vals, strict=True))
+                tag = " ".join(
+                    f"{k.rsplit('.', 1)[-1]}={json.loads(v)}"
+                    for k, v in zip(override_keys, vals, strict=True)
+                )
 
                 def sel(r: dict, o: str = o, vals: tuple = vals) -> bool:
-                    return r["optimizer"] == o and tuple(
-                        json.dumps(r.get(k), default=str) for k in override_keys
-                    ) == vals
+                    return (
+                        r["optimizer"] == o
+                        and tuple(json.dumps(r.get(k), default=str) for k in override_keys) == vals
+                    )
 
                 labels.append((f"{o} {tag}".strip(), sel))
         png = out_dir / f"box-{re.sub(r'[^A-Za-z0-9_.-]+', '_', Path(w).with_suffix('').as_posix())}.png"

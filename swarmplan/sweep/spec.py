@@ -7,6 +7,7 @@ world format rejects) and raised together in one :class:`SpecError`.
 
 from __future__ import annotations
 
+import copy
 import difflib
 import glob
 import hashlib
@@ -19,7 +20,7 @@ from typing import Any
 
 import yaml
 
-from swarmplan.sweep.adapter import OverrideError, build_world
+from swarmplan.sweep.adapter import OverrideError, build_world, read_raw, set_dotted
 from swarmplan.world import WorldError
 
 SPEC_KEYS = ("name", "worlds", "optimizers", "seeds", "overrides", "alpha")
@@ -115,7 +116,9 @@ def parse_spec(raw: Any, base_dir: str | Path = ".", source: str | Path = "spec"
     base_dir = Path(base_dir).resolve()
     problems: list[str] = []
     if not isinstance(raw, dict):
-        raise SpecError([f"expected a mapping of {', '.join(SPEC_KEYS)}, got {type(raw).__name__}"], str(source))
+        raise SpecError(
+            [f"expected a mapping of {', '.join(SPEC_KEYS)}, got {type(raw).__name__}"], str(source)
+        )
     for k in raw:
         if k not in SPEC_KEYS:
             close = difflib.get_close_matches(str(k), SPEC_KEYS, n=1)
@@ -197,7 +200,9 @@ def parse_spec(raw: Any, base_dir: str | Path = ".", source: str | Path = "spec"
         ovr_raw = {}
     for k, vals in ovr_raw.items():
         if not isinstance(k, str) or not k or any(not part for part in k.split(".")):
-            problems.append(f"overrides: bad path {k!r} (dotted world keys, e.g. planner.optimizer.population)")
+            problems.append(
+                f"overrides: bad path {k!r} (dotted world keys, e.g. planner.optimizer.population)"
+            )
         elif k in ("planner.optimizer.name", "planner.optimizer", "planner"):
             problems.append(f"overrides.{k}: the optimizer is chosen by 'optimizers:', not by an override")
         elif k == "seed":
@@ -210,8 +215,10 @@ def parse_spec(raw: Any, base_dir: str | Path = ".", source: str | Path = "spec"
             overrides.append((k, tuple(vals)))
 
     spec = Spec(name, Path(str(source)), tuple(worlds), tuple(opts), tuple(seeds), tuple(overrides), alpha)
-    if not problems:
-        problems += check_worlds(spec)
+    # The worlds are built with whatever is valid so far, so that one call names every problem.
+    good_opts = tuple(dict.fromkeys(o for o in opts if o in known))
+    if worlds and good_opts:
+        problems += check_worlds(Spec(name, spec.source, spec.worlds, good_opts, (0,), spec.overrides, alpha))
     if problems:
         raise SpecError(problems, str(source))
     return spec
@@ -222,25 +229,31 @@ def check_worlds(spec: Spec) -> list[str]:
     paths and values are validated against the world format before any task starts."""
     problems: list[str] = []
     seen: set[str] = set()
-    combos = list(itertools.product(*(vals for _, vals in spec.overrides)))
     for label, path in spec.worlds:
-        for combo in combos:
-            ovr = tuple(zip(spec.override_keys, combo, strict=True))
+        try:
+            raw = read_raw(path)
+        except WorldError as exc:
+            problems += [f"{label}: {p}" for p in exc.problems]
+            continue
+        keys = []
+        for key, vals in spec.overrides:  # paths that do not fit the file's structure, each once
+            try:
+                set_dotted(copy.deepcopy(raw), key, vals[0])
+                keys.append((key, vals))
+            except OverrideError as exc:
+                problems.append(f"overrides.{key}: {exc} (in {label})")
+        for combo in itertools.product(*(vals for _, vals in keys)):
+            ovr = tuple(zip([k for k, _ in keys], combo, strict=True))
             for opt in spec.optimizers:
                 try:
                     build_world(path, opt, ovr)
-                except OverrideError as exc:
-                    msgs = [(f"overrides.{exc.key}: {exc} (in {label})", "")]
-                except WorldError as exc:
+                except (OverrideError, WorldError) as exc:
                     # The same problem usually shows for every optimizer and combination: name it
                     # once, with the first setting that shows it.
                     where = ", ".join(f"{k}={json.dumps(v, default=str)}" for k, v in ovr)
                     ctx = f" [optimizer {opt}{', ' + where if where else ''}]"
-                    msgs = [(f"{label}: {p}", ctx) for p in exc.problems]
-                else:
-                    continue
-                for m, ctx in msgs:
-                    if m not in seen:
-                        seen.add(m)
-                        problems.append(m + ctx)
+                    for p in getattr(exc, "problems", None) or [str(exc)]:
+                        if f"{label}: {p}" not in seen:
+                            seen.add(f"{label}: {p}")
+                            problems.append(f"{label}: {p}{ctx}")
     return problems
