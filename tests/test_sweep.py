@@ -254,7 +254,7 @@ def test_worker_killed_mid_run_loses_nothing(cluster, tmp_path):
         busy = {w: ks for w, ks in client.processing().items() if ks}
         if parts and busy:
             worker, keys = next(iter(busy.items()))
-            running = [p for p in parts if any(k.endswith(p.name.split(".mcap")[0]) for k in keys)]
+            running = [p for p in parts if any(p.name.split(".mcap")[0] in k for k in keys)]
             if running:
                 victim = (worker, keys, running)
                 pid = client.run(os.getpid, workers=[worker])[worker]

@@ -67,7 +67,11 @@ def main(argv: list[str] | None = None) -> int:
         file=sys.stderr,
     )
     start = time.perf_counter()
-    client = make_client(args.workers, args.scheduler)
+    try:
+        client = make_client(args.workers, args.scheduler)
+    except (OSError, TimeoutError) as exc:
+        print(f"error: --scheduler: cannot reach {args.scheduler!r}: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     interrupted = False
     try:
         n_workers = len(client.scheduler_info()["workers"])

@@ -203,7 +203,7 @@ def make_client(workers: int | None, scheduler: str | None):  # noqa: ANN201 - d
     from distributed import Client, LocalCluster
 
     if scheduler:
-        return Client(scheduler)
+        return Client(scheduler, timeout="20s")
     cluster = LocalCluster(
         n_workers=workers or os.cpu_count() or 1,
         threads_per_worker=1,  # the simulator is single-threaded Python: one run per process
@@ -258,8 +258,11 @@ def run_tasks(
     todo = [t for t in tasks if t.index not in rows]
     by_key: dict[str, Task] = {}
     futures = []
+    # Keys unique to this sweep: the scheduler would hand a second sweep of the same runs (into
+    # another folder) the first one's results.
+    token = uuid.uuid4().hex[:8]
     for t in todo:
-        key = f"swarmplan-run-{t.run_id}"
+        key = f"swarmplan-{token}-{t.run_id}"
         by_key[key] = t
         futures.append(client.submit(run_task, t, str(out_dir.resolve()), key=key, pure=False))
     failed = sum(r["status"] != "ok" for r in rows.values())
