@@ -17,7 +17,6 @@ import csv
 import math
 import os
 import sys
-import time
 import uuid
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -295,7 +294,3 @@ def run_tasks(
     ordered = [rows[i] for i in sorted(rows)]
     ResultsFile(out_dir / "results.csv", cols, ordered).close()
     return ordered, skipped
-
-
-def elapsed(start: float) -> str:
-    return f"{time.perf_counter() - start:.1f} s"
