@@ -1,0 +1,5 @@
+import sys
+
+from swarmplan.sweep.cli import main
+
+sys.exit(main())

@@ -1,0 +1,189 @@
+"""Tables in the papers' style, Wilcoxon rank-sum verdicts and box plots from a sweep's rows.
+
+Each group of rows (one world and one combination of override values) gives one table: a line
+per optimizer with mean ± std over its seeds, and a verdict against the first optimizer:
+``+`` significantly lower (better) than it, ``-`` significantly higher, ``=`` no significant
+difference (scipy ``ranksums``, p >= alpha). Error rows count as runs but give no metrics.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: (column, header, number format) of the tables.
+STATS = [
+    ("path_length_mean", "length m", "{:.1f}"),
+    ("path_ratio_mean", "length ratio", "{:.3f}"),
+    ("curvature_mean", "curvature 1/m", "{:.4f}"),
+    ("arrival_time_mean", "arrival s", "{:.1f}"),
+    ("planning_ms", "planning ms", "{:.0f}"),
+    ("plan_cost", "plan cost", "{:.4g}"),
+]
+#: Columns that get a verdict against the first optimizer (lower is better for all of them).
+VERDICTS = [("path_length_mean", "length"), ("arrival_time_mean", "arrival"), ("planning_ms", "planning")]
+BOXES = [("path_length_mean", "path length (m)"), ("arrival_time_mean", "arrival time (s)"),
+         ("planning_ms", "planning time (ms)")]  # fmt: skip
+
+
+def _vals(rows: list[dict[str, Any]], col: str) -> list[float]:
+    out = []
+    for r in rows:
+        if r.get("status") != "ok":
+            continue
+        try:
+            v = float(r[col])
+        except (TypeError, ValueError, KeyError):
+            continue
+        if math.isfinite(v):
+            out.append(v)
+    return out
+
+
+def mean_std(xs: list[float], fmt: str = "{:.1f}") -> str:
+    if not xs:
+        return "-"
+    return f"{fmt.format(np.mean(xs))} ± {fmt.format(np.std(xs))}"
+
+
+def verdict(base: list[float], other: list[float], alpha: float) -> str:
+    """'+' (other significantly lower = better), '-' (higher), '=' by the Wilcoxon rank-sum test."""
+    from scipy.stats import ranksums
+
+    a = [x for x in base if math.isfinite(x)]
+    b = [x for x in other if math.isfinite(x)]
+    if len(a) < 2 or len(b) < 2:
+        return "n/a"
+    p = float(ranksums(b, a).pvalue)
+    if p >= alpha or np.median(a) == np.median(b):
+        return f"= (p={p:.2g})"
+    return f"{'+' if np.median(b) < np.median(a) else '-'} (p={p:.2g})"
+
+
+def _success(rows: list[dict[str, Any]]) -> str:
+    ok = sum(str(r.get("success")) == "True" for r in rows)
+    errors = sum(r.get("status") != "ok" for r in rows)
+    pct = 100.0 * ok / len(rows) if rows else 0.0
+    return f"{ok}/{len(rows)} ({pct:.0f}%)" + (f", {errors} error(s)" if errors else "")
+
+
+def table(rows: list[dict[str, Any]], optimizers: list[str], alpha: float = 0.05) -> str:
+    """A markdown table: one line per optimizer (in the given order; the first is the reference)."""
+    by = {n: [r for r in rows if r["optimizer"] == n] for n in optimizers}
+    ref = optimizers[0]
+    stats = [s for s in STATS if s[0] != "plan_cost" or _vals(rows, "plan_cost")]
+    head = ["optimizer", "success", *(h for _, h, _ in stats), *(f"{h} vs {ref}" for _, h in VERDICTS)]
+    if any(s[0] == "plan_cost" for s in stats):
+        head.append(f"cost vs {ref}")
+    out_rows = []
+    for n in optimizers:
+        rs = by[n]
+        cells = [n, _success(rs), *(mean_std(_vals(rs, c), f) for c, _, f in stats)]
+        cols = [c for c, _ in VERDICTS] + (
+            ["plan_cost"] if len(head) > 2 + len(stats) + len(VERDICTS) else []
+        )
+        for c in cols:
+            cells.append("(reference)" if n == ref else verdict(_vals(by[ref], c), _vals(rs, c), alpha))
+        out_rows.append(cells)
+    widths = [max(len(h), *(len(r[k]) for r in out_rows)) for k, h in enumerate(head)]
+
+    def line(cells: list[str]) -> str:
+        return "| " + " | ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True)) + " |"
+
+    return "\n".join([line(head), line(["-" * w for w in widths])] + [line(r) for r in out_rows])
+
+
+def groups(rows: list[dict[str, Any]], override_keys: list[str]) -> list[tuple[str, tuple, list[dict]]]:
+    """(world, override values, rows) in order of first appearance."""
+    out: dict[tuple, list[dict]] = {}
+    for r in rows:
+        key = (r["world"], tuple(json.dumps(r.get(k), default=str) for k in override_keys))
+        out.setdefault(key, []).append(r)
+    return [(w, vals, rs) for (w, vals), rs in out.items()]
+
+
+def box_plot(path: Path, title: str, rows: list[dict[str, Any]], labels: list[tuple[str, Any]]) -> Path:
+    """One PNG: a panel per metric of :data:`BOXES`, a box per (label, selector) over its runs."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(4.0 * len(BOXES), 4.2), dpi=100, layout="constrained")
+    axes = fig.subplots(1, len(BOXES))
+    for ax, (col, name) in zip(np.atleast_1d(axes), BOXES, strict=True):
+        data = [_vals([r for r in rows if sel(r)], col) for _, sel in labels]
+        names = [lab for lab, _ in labels]
+        keep = [i for i, d in enumerate(data) if d]
+        if keep:
+            ax.boxplot([data[i] for i in keep], showmeans=True)
+            ax.set_xticks(range(1, len(keep) + 1), [names[i] for i in keep], rotation=30, ha="right")
+        else:
+            ax.text(0.5, 0.5, "no finished run", ha="center", va="center", transform=ax.transAxes)
+        ax.set_title(name)
+        ax.grid(True, axis="y", alpha=0.3)
+    fig.suptitle(title)
+    fig.savefig(path)
+    return path
+
+
+def _fmt_combo(override_keys: list[str], vals: tuple) -> str:
+    return ", ".join(f"`{k}` = {v}" for k, v in zip(override_keys, vals, strict=True))
+
+
+def write_report(
+    out_dir: Path,
+    name: str,
+    rows: list[dict[str, Any]],
+    optimizers: list[str],
+    override_keys: list[str],
+    alpha: float,
+    notes: list[str],
+) -> Path:
+    """report.md (and one box-plot PNG per world) in ``out_dir``."""
+    lines = [f"# Sweep `{name}`", ""]
+    lines += notes
+    lines += [
+        "",
+        f"Mean ± std over the seeds. Verdicts: Wilcoxon rank-sum test against `{optimizers[0]}` at "
+        f"alpha = {alpha:g}: `+` significantly lower (better), `-` significantly higher, `=` no "
+        "significant difference. Length, ratio, curvature and arrival time average the agents that "
+        "arrived; planning time is the wall time of all optimizer calls in a run.",
+    ]
+    worlds: list[str] = []
+    for w, vals, rs in groups(rows, override_keys):
+        if w not in worlds:
+            worlds.append(w)
+            lines += ["", f"## {w}"]
+        if override_keys:
+            lines += ["", f"### {_fmt_combo(override_keys, tuple(json.loads(v) for v in vals))}"]
+        lines += ["", table(rs, optimizers, alpha)]
+        errors = [r for r in rs if r.get("status") != "ok"]
+        for r in errors:
+            lines.append(f"\nerror: {r['optimizer']} seed {r['seed']}: {r.get('error', '')}")
+    lines += ["", "## Box plots"]
+    for w in worlds:
+        wrows = [r for r in rows if r["world"] == w]
+        labels: list[tuple[str, Any]] = []
+        for _, vals, _rs in groups(wrows, override_keys):
+            for o in optimizers:
+                tag = " ".join(
+                    f"{k.rsplit('.', 1)[-1]}={json.loads(v)}"
+                    for k, v in zip(override_keys, vals, strict=True)
+                )
+
+                def sel(r: dict, o: str = o, vals: tuple = vals) -> bool:
+                    return (
+                        r["optimizer"] == o
+                        and tuple(json.dumps(r.get(k), default=str) for k in override_keys) == vals
+                    )
+
+                labels.append((f"{o} {tag}".strip(), sel))
+        png = out_dir / f"box-{re.sub(r'[^A-Za-z0-9_.-]+', '_', Path(w).with_suffix('').as_posix())}.png"
+        box_plot(png, w, wrows, labels)
+        lines += ["", f"![{w}]({png.name})"]
+    path = out_dir / "report.md"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
