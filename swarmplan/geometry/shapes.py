@@ -105,6 +105,26 @@ class MeshGrid:
         self.grad = np.stack(np.gradient(self.grid, pitch), axis=-1)
         self.hi = self.lo + (shape - 1) * pitch
         self.mesh_lo, self.mesh_hi = lo, hi
+        self.mesh = mesh
+        self.watertight = bool(mesh.is_watertight)
+
+    def exact(self, p: np.ndarray) -> np.ndarray:
+        """Exact distances from local points (N, 3) to the mesh surface (trimesh), for metrics.
+
+        Signed (<0 inside) on a closed mesh; on an open one inside is undefined, so unsigned.
+        """
+        import trimesh
+
+        pts = np.asarray(p, dtype=float).reshape(-1, 3)
+        if not len(pts):
+            return np.zeros(0)
+        if self.watertight:
+            return -trimesh.proximity.signed_distance(self.mesh, pts)  # trimesh: positive inside
+        return trimesh.proximity.closest_point(self.mesh, pts)[1]
+
+    def box_lower_bound(self, p: np.ndarray) -> np.ndarray:
+        """Distance from local points (N, 3) to the mesh's bounding box: never above the true distance."""
+        return np.linalg.norm(p - np.clip(p, self.mesh_lo, self.mesh_hi), axis=-1)
 
     def query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         from scipy import ndimage
@@ -194,3 +214,31 @@ class ObstacleField:
             c = o.position if centers is None else centers[j]
             d[:, j], g[:, j] = distance_and_gradient(o, points, c, self.mesh_grids.get(j))
         return d, g
+
+    def min_distance(
+        self, points: np.ndarray, centers: np.ndarray | None = None, d: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Exact minimum signed distance from each of ``points`` (N, 3) to any obstacle, for metrics.
+
+        ``query`` is exact for primitives, but mesh values come from the distance grid: about
+        one voxel off in it, and beyond it only a lower bound (several metres low over a
+        hangar's roof). A mesh is queried exactly (trimesh) only at the points where it can be
+        the nearest body: where its bounding-box distance, a strict lower bound, does not exceed
+        the smallest distance known so far. ``d`` is this field's ``query`` at the same points
+        and centers, when already at hand. Returns ``inf`` per point when there are no obstacles.
+        """
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        if d is None:
+            d = self.query(points, centers)[0]
+        best = np.full(len(points), np.inf)
+        prim = [j for j in range(len(self.obstacles)) if j not in self.mesh_grids]
+        if prim:
+            best = d[:, prim].min(axis=1)
+        for j, grid in self.mesh_grids.items():
+            o = self.obstacles[j]
+            c = o.position if centers is None else centers[j]
+            local = (points - c) @ o.rotation
+            rows = np.flatnonzero(grid.box_lower_bound(local) <= best)
+            if len(rows):
+                best[rows] = np.minimum(best[rows], grid.exact(local[rows]))
+        return best
