@@ -1,7 +1,7 @@
 """Animated playback of a recorded run: GIF (Pillow) or MP4 (when ffmpeg is installed).
 
 Frames are subsampled from the recorded steps (``fps``, ``max_frames``, ``speed``) so a
-long run still renders in seconds; a progress bar is printed on stderr while rendering.
+long run still renders in seconds; a progress bar (tqdm) is shown on stderr while rendering.
 """
 
 from __future__ import annotations
@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 import shutil
 import sys
-import time
 
 import numpy as np
 from matplotlib.collections import PatchCollection
@@ -43,30 +42,6 @@ def frame_steps(
     return np.unique(steps)
 
 
-class _Progress:
-    def __init__(self, total: int, stream=None, width: int = 30):
-        self.total, self.width = max(total, 1), width
-        self.stream = stream or sys.stderr
-        self.t0 = time.perf_counter()
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-
-    def update(self, done: int):
-        if not self.tty and done != self.total and done % max(1, self.total // 10):
-            return  # not a terminal: about ten updates in all
-        frac = done / self.total
-        bar = "#" * int(round(frac * self.width))
-        el = time.perf_counter() - self.t0
-        eta = el / frac - el if frac > 0 else 0.0
-        self.stream.write(
-            f"\rrendering [{bar:<{self.width}}] {done}/{self.total} frames  {el:.1f}s  eta {eta:.1f}s"
-        )
-        self.stream.flush()
-
-    def close(self):
-        self.stream.write("\n")
-        self.stream.flush()
-
-
 def animate(
     rec: Recording,
     out: str,
@@ -81,6 +56,12 @@ def animate(
     """Render a top-view playback to ``out`` (.gif, or .mp4 when ffmpeg exists). Returns the path
     actually written (a .mp4 request without ffmpeg falls back to .gif, with a notice)."""
     out = str(out)
+    if not out.lower().endswith((".gif", ".mp4")):
+        raise ValueError(f"{out}: unsupported animation type; use .gif or .mp4")
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be a positive number, got {fps:g}")
+    if int(max_frames) < 1:
+        raise ValueError(f"max_frames must be >= 1, got {max_frames}")
     want_mp4 = out.lower().endswith(".mp4")
     if want_mp4 and shutil.which("ffmpeg") is None:
         out = out[:-4] + ".gif"
@@ -95,7 +76,7 @@ def animate(
     active = active_mask(rec)
     fig = plots.new_figure(figsize=(7, 7), dpi=dpi)
     # static background (bounds, terrain, static obstacles, faint full paths)
-    stub = Recording(**{**rec.__dict__, "world": {**rec.world, "obstacles": rec.static_obstacles()}})
+    stub = Recording(**{**rec.__dict__, "world": {**rec.world, "obstacles": rec.static_obstacles}})
     plots.plot_top(stub, agents=[rec.agent_ids[i] for i in idx], fig=fig)
     ax = fig.axes[0]
     for line in list(ax.lines):
@@ -104,7 +85,7 @@ def animate(
             line.set_alpha(0.15)
     title = ax.set_title("")
     # moving obstacles: one patch collection, redrawn each frame
-    moving = rec.moving_obstacles()
+    moving = rec.moving_obstacles
     mov_coll = PatchCollection([], facecolor=plots.MOVING_COLOR, edgecolor="0.2", alpha=0.75, zorder=5)
     ax.add_collection(mov_coll)
     trails = {i: ax.plot([], [], color=colors[i], lw=2.0, zorder=6)[0] for i in idx}
@@ -149,29 +130,28 @@ def animate(
         title.set_text(f"{rec.world.get('name', '?')}  t = {t:6.2f} s   {modes}")
         title.set_fontsize(9)
 
-    bar = _Progress(len(steps)) if progress else None
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(steps), desc="rendering", unit="frame", file=sys.stderr, disable=not progress)
     if want_mp4:
         from matplotlib.animation import FFMpegWriter
 
         writer = FFMpegWriter(fps=fps)
         with writer.saving(fig, out, dpi):
-            for n, k in enumerate(steps):
+            for k in steps:
                 draw(int(k))
                 writer.grab_frame()
-                if bar:
-                    bar.update(n + 1)
+                bar.update()
     else:
         from PIL import Image
 
         frames = []
-        for n, k in enumerate(steps):
+        for k in steps:
             draw(int(k))
             fig.canvas.draw()
             img = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[:, :, :3])
             frames.append(img.quantize(colors=128, method=Image.Quantize.MEDIANCUT))
-            if bar:
-                bar.update(n + 1)
+            bar.update()
         frames[0].save(out, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
-    if bar:
-        bar.close()
+    bar.close()
     return out

@@ -178,9 +178,9 @@ def plot_3d(
     for a, b in _bounds_edges(lo, hi):
         ax.plot(*np.stack([a, b]).T, color="0.6", lw=0.6, ls=":")
     _terrain_3d(ax, rec, lo, hi)
-    for obst in rec.static_obstacles():
+    for obst in rec.static_obstacles:
         _draw_obstacle_3d(ax, obst)
-    for obst in rec.moving_obstacles():
+    for obst in rec.moving_obstacles:
         oid = obst.get("id")
         if oid in rec.obstacle_tracks:
             tr = rec.obstacle_tracks[oid]
@@ -203,7 +203,7 @@ def plot_3d(
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles()))
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles))
     ax.set_title(_title(rec))
     return fig
 
@@ -276,7 +276,7 @@ def _legend(ax, rec, idx, colors, used_modes, moving):
             )
     handles.append(Line2D([], [], marker="o", color="0.5", mec="k", ls="none", label="start"))
     handles.append(Line2D([], [], marker="*", color="0.5", mec="k", ms=12, ls="none", label="goal"))
-    if rec.obstacles():
+    if rec.obstacles:
         handles.append(Line2D([], [], marker="s", color=OBSTACLE_COLOR, ls="none", ms=10, label="obstacle"))
     if moving:
         handles.append(Line2D([], [], color=MOVING_COLOR, ls="--", label="moving obstacle track"))
@@ -335,10 +335,10 @@ def plot_top(
             X, Y, Z, levels=levels, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, extend="neither"
         )
         ax.contour(X, Y, Z, levels=levels, colors="0.5", linewidths=0.4)
-    for obst in rec.static_obstacles():
+    for obst in rec.static_obstacles:
         for poly in _footprint(obst):
             ax.add_patch(Polygon(poly, closed=True, fc=OBSTACLE_COLOR, ec="0.3", alpha=0.7, lw=0.5))
-    for obst in rec.moving_obstacles():
+    for obst in rec.moving_obstacles:
         oid = obst.get("id")
         tr = rec.obstacle_tracks.get(oid)
         if tr is not None and len(tr.times):
@@ -361,7 +361,7 @@ def plot_top(
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.grid(alpha=0.3)
-    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles()))
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles))
     ax.set_title(_title(rec) + " - top view", fontsize=10)
     return fig
 
