@@ -42,7 +42,9 @@ def test_replay_audit_flags_a_summary_that_disagrees(no_checker, monkeypatch, tm
     summary = dict(rec.summary)
     summary["agents"] = [dict(summary["agents"][0], min_clearance=clearance + 3.0)]
     states = states_from_arrays(rec.times, ["a1"], rec.positions, modes=rec.modes, goals=rec.goals)
-    bad = write_log(tmp_path / "bad.mcap", rec.world, states, events=[e.to_json() for e in rec.events], summary=summary)
+    bad = write_log(
+        tmp_path / "bad.mcap", rec.world, states, events=[e.to_json() for e in rec.events], summary=summary
+    )
     problems, _notes, _stats = helpers.audit(bad)
     assert problems == ["replay vs /summary: a1: min_clearance recomputed 1.5 vs recorded 4.5"]
 
