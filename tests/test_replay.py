@@ -281,7 +281,7 @@ def test_plot_3d_draws_every_obstacle_and_mode(rich):
         assert f"obstacle:{o['id']}" in gids
     assert {"mode:escape:uav1", "mode:smoothing:uav1", "goal:uav3", "start:uav3", "terrain"} <= gids
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert labels[:3] == rich.agent_ids and "escape (optimizer)" in labels
+    assert labels[:3] == rich.agent_ids and "escape (optimizer) (agent colour)" in labels
 
 
 def test_animation_gif(rich, tmp_path):
