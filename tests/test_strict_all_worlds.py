@@ -86,3 +86,36 @@ def test_min_distance_mixes_primitives_and_meshes_exactly() -> None:
             want[:, j] = -trimesh.proximity.signed_distance(mesh, (points - o.position) @ o.rotation)
     assert np.allclose(field.min_distance(points, d=d), want.min(axis=1), atol=1e-9)
     assert np.all(np.isinf(ObstacleField([]).min_distance(points)))
+
+
+def test_point_triangle_distance_matches_trimesh() -> None:
+    import trimesh
+
+    from swarmplan.geometry.shapes import point_triangle_distance
+
+    rng = np.random.default_rng(2)
+    tri = rng.normal(size=(60, 3, 3))
+    tri[0, 2] = tri[0, 0] + 2.0 * (tri[0, 1] - tri[0, 0])  # a degenerate (flat) triangle too
+    pts = rng.normal(size=(50, 3)) * 3.0
+    cp = trimesh.triangles.closest_point(np.tile(tri, (len(pts), 1, 1)), np.repeat(pts, len(tri), axis=0))
+    want = np.linalg.norm(cp - np.repeat(pts, len(tri), axis=0), axis=1).reshape(len(pts), len(tri))
+    got = point_triangle_distance(pts, tri)
+    assert np.allclose(got[:, 1:], want[:, 1:], atol=1e-12)
+    assert np.all(got[:, 0] >= want[:, 0].min() - 1e-9) and np.all(np.isfinite(got))
+
+
+def test_mesh_exact_is_signed_inside_and_out() -> None:
+    """Around and inside the hangar (local frame), ``MeshGrid.exact`` equals trimesh's signed distance."""
+    import trimesh
+
+    world = load_world(ROOT / "worlds" / "mesh_hangar.yaml")
+    hangar = next(o for o in world.obstacles if o.shape == "mesh")
+    grid = ObstacleField([hangar]).mesh_grids[0]
+    rng = np.random.default_rng(3)
+    local = rng.uniform(grid.mesh_lo - 15, grid.mesh_hi + 15, (600, 3))
+    want = -trimesh.proximity.signed_distance(
+        trimesh.Trimesh(hangar.vertices, hangar.faces, process=False), local
+    )
+    assert (want < 0).sum() > 50  # inside points are tested
+    got = np.concatenate([grid.exact(local[k : k + 30]) for k in range(0, len(local), 30)])
+    assert np.allclose(got, want, atol=1e-9)
