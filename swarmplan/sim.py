@@ -273,7 +273,8 @@ class Simulation:
         # Clearances at the committed positions (also the next step's distances).
         self._field_cache = self.field.query(pos1, q1)
         if len(self.world.obstacles):
-            obst_clear = (self._field_cache[0] - self.params.radius[:, None]).min(axis=1)
+            # Exact for meshes too (the grid in the cache is approximate, a lower bound beyond it).
+            obst_clear = self.field.min_distance(pos1, q1, self._field_cache[0]) - self.params.radius
         agent_clear = self._agent_clearance(pos1)
         terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
         self.metrics.add_step(pos0, pos1, active, obst_clear, agent_clear, terr_clear)

@@ -1,9 +1,12 @@
 """Shared helpers for the core tests: world builders, running a simulation to its end,
-reading logs back, and the independent log audit ``shared/tools/check_log.py``.
+reading logs back, and the independent log audit.
 
-``check_log.py`` is not part of the package. It is found through the environment variable
-``SWARMPLAN_CHECK_LOG`` or next to the repository (``<repo>/../shared/tools/check_log.py``);
-tests that need it are skipped, with the places searched, only when it truly is missing.
+The audit of a log (:func:`audit`) always recomputes everything from the recorded states with
+the package's own replay (``swarmplan.replay``: it shares no code with the simulator) and
+compares it with the recorded ``/summary``. Where the shared checker ``check_log.py`` exists
+(not part of the package: found through the environment variable ``SWARMPLAN_CHECK_LOG`` or at
+``<repo>/../shared/tools/check_log.py``) it audits the log too. On CI (``CI=true``) a missing
+checker is a failure, never a skip.
 """
 
 from __future__ import annotations
@@ -20,18 +23,21 @@ import pytest
 
 from swarmplan.world import World, parse_world
 
-_HERE = Path(__file__).resolve()
+REPO = Path(__file__).resolve().parents[1]
 _CHECK_LOG_MODULE = None
 
 
+def on_ci() -> bool:
+    return os.environ.get("CI", "").strip().lower() in ("1", "true", "yes")
+
+
 def check_log_candidates() -> list[Path]:
-    """Where ``check_log.py`` is looked for, in order."""
+    """Where ``check_log.py`` is looked for, in order: $SWARMPLAN_CHECK_LOG, then beside the repo."""
     out = []
     env = os.environ.get("SWARMPLAN_CHECK_LOG")
     if env:
         out.append(Path(env).expanduser())
-    for k in range(len(_HERE.parents)):
-        out.append((_HERE.parents[k] / "../shared/tools/check_log.py").resolve())
+    out.append((REPO / ".." / "shared" / "tools" / "check_log.py").resolve())
     return out
 
 
@@ -42,15 +48,28 @@ def find_check_log() -> Path | None:
     return None
 
 
-def check_log_module():
-    """The ``check_log`` module imported from its file (skips the test if it cannot be found)."""
+def _missing_check_log() -> str:
+    return "shared/tools/check_log.py not found (set SWARMPLAN_CHECK_LOG); searched " + ", ".join(
+        str(p) for p in check_log_candidates()
+    )
+
+
+def check_log_module(required: bool = True):
+    """The ``check_log`` module imported from its file.
+
+    When it cannot be found: None if not ``required``; otherwise the test is skipped, or fails
+    on CI, where every audit must run.
+    """
     global _CHECK_LOG_MODULE
     if _CHECK_LOG_MODULE is not None:
         return _CHECK_LOG_MODULE
     path = find_check_log()
     if path is None:
-        searched = ", ".join(str(p) for p in check_log_candidates()[:4])
-        pytest.skip(f"shared/tools/check_log.py not found (set SWARMPLAN_CHECK_LOG); searched {searched}")
+        if on_ci():
+            pytest.fail(f"CI=true but {_missing_check_log()}")
+        if required:
+            pytest.skip(_missing_check_log())
+        return None
     spec = importlib.util.spec_from_file_location("swarmplan_check_log", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -58,9 +77,63 @@ def check_log_module():
     return mod
 
 
+def replay_audit(log_path: Path, allow_failure: bool = False) -> tuple[list[str], list[str], dict[str, Any]]:
+    """The package's independent audit: metrics recomputed from the recorded states by
+    ``swarmplan.replay`` (no simulator code), compared with the recorded ``/summary``.
+
+    Problems: every disagreement with the summary, every collision, a missing summary and,
+    unless ``allow_failure``, every agent that did not arrive. Same shape as ``check_log.check``.
+    """
+    from swarmplan.replay import compare_with_summary, compute_metrics, load
+
+    rec = load(log_path)
+    problems: list[str] = []
+    notes = ["file was cut short: read by streaming"] if rec.truncated else []
+    if rec.n_steps == 0:
+        return [f"{log_path}: no /agents/state steps"], notes, {}
+    metrics = compute_metrics(rec)
+    if rec.summary is None:
+        problems.append("no /summary recorded")
+    else:
+        disagreements, _n = compare_with_summary(rec, metrics)
+        problems += [f"replay vs /summary: {d}" for d in disagreements]
+    for m in metrics:
+        if m.collisions:
+            problems.append(f"replay: agent {m.id} collided with {', '.join(m.collision_bodies)}")
+        if not m.arrived and not allow_failure:
+            problems.append(f"replay: agent {m.id} did not arrive ({m.final_goal_distance:.2f} m from goal)")
+    clear = [m.min_obstacle_clearance for m in metrics if m.min_obstacle_clearance is not None]
+    stats = {
+        "steps": rec.n_steps,
+        "agents": rec.n_agents,
+        "arrived": sum(m.arrived for m in metrics),
+        "collisions": sum(m.collisions for m in metrics),
+        "min_obstacle_clearance": min(clear) if clear else None,
+        "sim_time": float(rec.times[-1]),
+    }
+    return problems, notes, stats
+
+
 def audit(log_path: Path, allow_failure: bool = False) -> tuple[list[str], list[str], dict[str, Any]]:
-    """``check_log.check``: (problems, notes, stats) of a log, audited without swarmplan."""
-    return check_log_module().check(str(log_path), allow_failure)
+    """(problems, notes, stats) of a log: replay's audit always, ``check_log.check`` in addition
+    where the checker exists (on CI it must). Where both ran, their counts of arrivals and
+    collisions must agree; ``stats`` are replay's."""
+    problems, notes, stats = replay_audit(log_path, allow_failure)
+    mod = check_log_module(required=False)
+    if mod is None:
+        notes.append(f"audited by swarmplan.replay only: {_missing_check_log()}")
+        return problems, notes, stats
+    c_problems, c_notes, c_stats = mod.check(str(log_path), allow_failure)
+    problems += [f"check_log: {p}" for p in c_problems]
+    notes += [f"check_log: {n}" for n in c_notes]
+    for key in ("agents", "arrived"):
+        if key in c_stats and c_stats[key] != stats.get(key):
+            problems.append(f"replay and check_log disagree on {key}: {stats.get(key)} vs {c_stats[key]}")
+    if c_stats.get("collisions") is not None and (c_stats["collisions"] == 0) != (stats["collisions"] == 0):
+        problems.append(
+            f"replay and check_log disagree on collisions: {stats['collisions']} vs {c_stats['collisions']}"
+        )
+    return problems, notes, stats
 
 
 # ----------------------------------------------------------------------------- worlds

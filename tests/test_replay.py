@@ -277,11 +277,11 @@ def test_plot_3d_draws_every_obstacle_and_mode(rich):
     fig = plots.plot_3d(rich)
     ax = fig.axes[0]
     gids = {c.get_gid() for c in ax.collections} | {line.get_gid() for line in ax.lines}
-    for o in rich.obstacles():
+    for o in rich.obstacles:
         assert f"obstacle:{o['id']}" in gids
     assert {"mode:escape:uav1", "mode:smoothing:uav1", "goal:uav3", "start:uav3", "terrain"} <= gids
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert labels[:3] == rich.agent_ids and "escape (optimizer)" in labels
+    assert labels[:3] == rich.agent_ids and "escape (optimizer) (agent colour)" in labels
 
 
 def test_animation_gif(rich, tmp_path):
@@ -368,7 +368,7 @@ def test_real_run_round_trip(tmp_path):
     assert rec.agent_ids == [a["id"] for a in rec.world["agents"]]
     assert rec.n_steps >= 2 and rec.times[-1] == pytest.approx(rec.summary["sim_time"])
     assert np.isfinite(rec.positions).all()
-    assert set(rec.obstacle_tracks) == {o["id"] for o in rec.moving_obstacles()}
+    assert set(rec.obstacle_tracks) == {o["id"] for o in rec.moving_obstacles}
     metrics = compute_metrics(rec)
     problems, n = compare_with_summary(rec, metrics)
     assert problems == [], problems

@@ -16,6 +16,7 @@ import numpy as np
 from swarmplan.world import Obstacle
 
 _EPS = 1e-12
+_DIRECT_PAIRS = 50_000  # point-triangle pairs measured directly in MeshGrid.exact
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:
@@ -66,6 +67,41 @@ def sdf_capsule(p: np.ndarray, radius: float, half_height: float) -> tuple[np.nd
     return np.linalg.norm(v, axis=-1) - radius, _normalize(v)
 
 
+def point_triangle_distance(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Unsigned distances (N, F) from points (N, 3) to triangles (F, 3, 3), exact.
+
+    Closest point by Voronoi region of the triangle (vertex, edge or face), as in Ericson,
+    *Real-Time Collision Detection*, 5.1.5, vectorized over every point-triangle pair.
+    """
+    p = np.asarray(points, dtype=float)[:, None, :]
+    a, b, c = (np.asarray(triangles, dtype=float)[None, :, k, :] for k in range(3))
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = (ab * ap).sum(-1), (ac * ap).sum(-1)
+    bp = p - b
+    d3, d4 = (ab * bp).sum(-1), (ac * bp).sum(-1)
+    cp = p - c
+    d5, d6 = (ab * cp).sum(-1), (ac * cp).sum(-1)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v_face, w_face = vb / denom, vc / denom
+        w_ab, w_ac = d1 / (d1 - d3), d2 / (d2 - d6)
+        w_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    # Regions, checked in Ericson's order: the first that applies wins.
+    regions = [
+        ((d1 <= 0) & (d2 <= 0), a),
+        ((d3 >= 0) & (d4 <= d3), b),
+        ((d6 >= 0) & (d5 <= d6), c),
+        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), a + w_ab[..., None] * ab),
+        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), a + w_ac[..., None] * ac),
+        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), b + w_bc[..., None] * (c - b)),
+    ]
+    closest = a + v_face[..., None] * ab + w_face[..., None] * ac
+    for mask, point in reversed(regions):
+        closest = np.where(mask[..., None], np.broadcast_to(point, closest.shape), closest)
+    return np.linalg.norm(p - closest, axis=-1)
+
+
 class MeshGrid:
     """Signed distance grid of a closed mesh in its local frame (trilinear interpolation).
 
@@ -105,6 +141,37 @@ class MeshGrid:
         self.grad = np.stack(np.gradient(self.grid, pitch), axis=-1)
         self.hi = self.lo + (shape - 1) * pitch
         self.mesh_lo, self.mesh_hi = lo, hi
+        self.mesh = mesh
+        self.watertight = bool(mesh.is_watertight)
+
+    def exact(self, p: np.ndarray, approx: np.ndarray | None = None) -> np.ndarray:
+        """Exact distances from local points (N, 3) to the mesh surface, for metrics.
+
+        Signed (<0 inside) on a closed mesh; on an open one inside is undefined, so unsigned.
+        Small meshes are measured against every triangle at once in numpy (trimesh's per-call
+        set-up costs milliseconds, every step); the sign is asked of trimesh only where the
+        grid value (``approx``, this grid's ``query`` at ``p`` when at hand) is within two
+        voxels of the surface or below it, i.e. where the point may be inside.
+        """
+        import trimesh
+
+        pts = np.asarray(p, dtype=float).reshape(-1, 3)
+        if not len(pts):
+            return np.zeros(0)
+        if len(pts) * len(self.mesh.faces) <= _DIRECT_PAIRS:
+            dist = point_triangle_distance(pts, self.mesh.triangles).min(axis=1)
+        else:
+            dist = trimesh.proximity.closest_point(self.mesh, pts)[1]
+        if self.watertight:
+            approx = self.query(pts)[0] if approx is None else np.asarray(approx, dtype=float)
+            maybe_inside = approx < 2 * self.pitch
+            if maybe_inside.any():  # trimesh: positive inside
+                dist[maybe_inside] = -trimesh.proximity.signed_distance(self.mesh, pts[maybe_inside])
+        return dist
+
+    def box_lower_bound(self, p: np.ndarray) -> np.ndarray:
+        """Distance from local points (N, 3) to the mesh's bounding box: never above the true distance."""
+        return np.linalg.norm(p - np.clip(p, self.mesh_lo, self.mesh_hi), axis=-1)
 
     def query(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         from scipy import ndimage
@@ -194,3 +261,31 @@ class ObstacleField:
             c = o.position if centers is None else centers[j]
             d[:, j], g[:, j] = distance_and_gradient(o, points, c, self.mesh_grids.get(j))
         return d, g
+
+    def min_distance(
+        self, points: np.ndarray, centers: np.ndarray | None = None, d: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Exact minimum signed distance from each of ``points`` (N, 3) to any obstacle, for metrics.
+
+        ``query`` is exact for primitives, but mesh values come from the distance grid: about
+        one voxel off in it, and beyond it only a lower bound (several metres low over a
+        hangar's roof). A mesh is queried exactly (trimesh) only at the points where it can be
+        the nearest body: where its bounding-box distance, a strict lower bound, does not exceed
+        the smallest distance known so far. ``d`` is this field's ``query`` at the same points
+        and centers, when already at hand. Returns ``inf`` per point when there are no obstacles.
+        """
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        if d is None:
+            d = self.query(points, centers)[0]
+        best = np.full(len(points), np.inf)
+        prim = [j for j in range(len(self.obstacles)) if j not in self.mesh_grids]
+        if prim:
+            best = d[:, prim].min(axis=1)
+        for j, grid in self.mesh_grids.items():
+            o = self.obstacles[j]
+            c = o.position if centers is None else centers[j]
+            local = (points - c) @ o.rotation
+            rows = np.flatnonzero(grid.box_lower_bound(local) <= best)
+            if len(rows):
+                best[rows] = np.minimum(best[rows], grid.exact(local[rows], d[rows, j]))
+        return best

@@ -6,10 +6,11 @@
 """
 
 from .metrics import AgentMetrics, compare_with_summary, compute_metrics
-from .recording import ObstacleTrack, Recording, RecordingError, load
+from .recording import Event, ObstacleTrack, Recording, RecordingError, load
 
 __all__ = [
     "AgentMetrics",
+    "Event",
     "ObstacleTrack",
     "Recording",
     "RecordingError",

@@ -1,7 +1,7 @@
 """Animated playback of a recorded run: GIF (Pillow) or MP4 (when ffmpeg is installed).
 
 Frames are subsampled from the recorded steps (``fps``, ``max_frames``, ``speed``) so a
-long run still renders in seconds; a progress bar is printed on stderr while rendering.
+long run still renders in seconds; a progress bar (tqdm) is shown on stderr while rendering.
 """
 
 from __future__ import annotations
@@ -9,22 +9,35 @@ from __future__ import annotations
 import math
 import shutil
 import sys
-import time
+from collections.abc import Callable
 
 import numpy as np
 from matplotlib.collections import PatchCollection
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Polygon
 
 from . import plots
 from .metrics import active_mask
 from .recording import Recording
 
+# Agent marker edge (colour, width) by mode: the face keeps the agent's colour, so the edge
+# must not look like another agent (no tab10 colours).
 MODE_EDGE = {
-    "escape": "#d62728",
-    "smoothing": "#ffbf00",
-    "collided": "black",
-    "failed": "0.5",
-    "arrived": "#2ca02c",
+    "apf": ("black", 1.0),
+    "escape": ("black", 3.0),
+    "smoothing": ("#ffd700", 3.0),
+    "arrived": ("white", 1.5),
+    "collided": ("#ff00ff", 3.0),
+    "failed": ("0.6", 3.0),
+}
+MODE_EDGE_LABEL = {
+    "apf": "flying (APF)",
+    "escape": "escaping",
+    "smoothing": "smoothing",
+    "arrived": "arrived",
+    "collided": "collided",
+    "failed": "failed",
 }
 
 
@@ -43,69 +56,50 @@ def frame_steps(
     return np.unique(steps)
 
 
-class _Progress:
-    def __init__(self, total: int, stream=None, width: int = 30):
-        self.total, self.width = max(total, 1), width
-        self.stream = stream or sys.stderr
-        self.t0 = time.perf_counter()
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-
-    def update(self, done: int):
-        if not self.tty and done != self.total and done % max(1, self.total // 10):
-            return  # not a terminal: about ten updates in all
-        frac = done / self.total
-        bar = "#" * int(round(frac * self.width))
-        el = time.perf_counter() - self.t0
-        eta = el / frac - el if frac > 0 else 0.0
-        self.stream.write(
-            f"\rrendering [{bar:<{self.width}}] {done}/{self.total} frames  {el:.1f}s  eta {eta:.1f}s"
-        )
-        self.stream.flush()
-
-    def close(self):
-        self.stream.write("\n")
-        self.stream.flush()
-
-
-def animate(
-    rec: Recording,
-    out: str,
-    fps: float = 10.0,
-    max_frames: int = 150,
-    speed: float | None = None,
-    agents: list[str] | None = None,
-    dpi: int = 80,
-    trail: float = 10.0,
-    progress: bool = True,
-) -> str:
-    """Render a top-view playback to ``out`` (.gif, or .mp4 when ffmpeg exists). Returns the path
-    actually written (a .mp4 request without ffmpeg falls back to .gif, with a notice)."""
-    out = str(out)
-    want_mp4 = out.lower().endswith(".mp4")
-    if want_mp4 and shutil.which("ffmpeg") is None:
-        out = out[:-4] + ".gif"
-        print(f"notice: ffmpeg not found, writing {out} instead", file=sys.stderr)
-        want_mp4 = False
-    steps = frame_steps(rec, fps, max_frames, speed)
-    if not len(steps):
-        raise ValueError("nothing to animate: no recorded steps")
-
+def animation_figure(
+    rec: Recording, agents: list[str] | None = None, dpi: int = 80, trail: float = 10.0
+) -> tuple[Figure, Callable[[int], None]]:
+    """The animation's figure and ``draw(k)``, which puts it at recorded step ``k``."""
     idx = plots._select(rec, agents)  # noqa: SLF001
     colors = plots.agent_colors(rec.n_agents)
     active = active_mask(rec)
-    fig = plots.new_figure(figsize=(7, 7), dpi=dpi)
+    fig = plots.new_figure(figsize=(9.5, 7), dpi=dpi)
     # static background (bounds, terrain, static obstacles, faint full paths)
-    stub = Recording(**{**rec.__dict__, "world": {**rec.world, "obstacles": rec.static_obstacles()}})
+    stub = Recording(**{**rec.__dict__, "world": {**rec.world, "obstacles": rec.static_obstacles}})
     plots.plot_top(stub, agents=[rec.agent_ids[i] for i in idx], fig=fig)
     ax = fig.axes[0]
     for line in list(ax.lines):
         gid = line.get_gid() or ""
         if gid.startswith(("path:", "mode:")):
             line.set_alpha(0.15)
+            line.set_path_effects([])
     title = ax.set_title("")
+    # the legend of the stub lacks what only moves: moving obstacles and the agents' modes
+    used_modes = {m for m in ("escape", "smoothing", "collided", "failed") if (rec.modes == m).any()}
+    handles = plots.legend_handles(rec, idx, colors, used_modes, bool(rec.moving_obstacles), tracks=False)
+    for mode, label in MODE_EDGE_LABEL.items():
+        if mode == "apf" or (rec.modes[idx] == mode).any():
+            col, width = MODE_EDGE[mode]
+            handles.append(
+                Line2D(
+                    [],
+                    [],
+                    marker="o",
+                    ls="none",
+                    color="0.8",
+                    mec=col,
+                    mew=width,
+                    ms=8,
+                    label=f"agent {label}",
+                )
+            )
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=7)
+    fig.subplots_adjust(left=0.08, right=0.7, bottom=0.08, top=0.93)  # frames are not "tight": room for it
     # moving obstacles: one patch collection, redrawn each frame
-    moving = rec.moving_obstacles()
-    mov_coll = PatchCollection([], facecolor=plots.MOVING_COLOR, edgecolor="0.2", alpha=0.75, zorder=5)
+    moving = rec.moving_obstacles
+    mov_coll = PatchCollection(
+        [], facecolor=plots.MOVING_COLOR, edgecolor="0.2", alpha=0.75, zorder=5, hatch=plots.MOVING_HATCH
+    )
     ax.add_collection(mov_coll)
     trails = {i: ax.plot([], [], color=colors[i], lw=2.0, zorder=6)[0] for i in idx}
     # agents as fixed-size markers (real radii are invisible at world scale); edge = mode
@@ -139,9 +133,10 @@ def animate(
             tr = P[lo:][active[i, lo : k + 1]]
             trails[i].set_data(tr[:, 0], tr[:, 1])
             xy.append(P[-1, :2] if np.isfinite(P[-1, 0]) else [np.nan, np.nan])
-            edge.append(MODE_EDGE.get(rec.modes[i, k], "k"))
+            edge.append(MODE_EDGE.get(rec.modes[i, k], ("black", 1.0)))
         pts.set_offsets(np.asarray(xy))
-        pts.set_edgecolors(edge)
+        pts.set_edgecolors([e[0] for e in edge])
+        pts.set_linewidths([e[1] for e in edge])
         counts = {}
         for i in idx:
             counts[rec.modes[i, k]] = counts.get(rec.modes[i, k], 0) + 1
@@ -149,29 +144,61 @@ def animate(
         title.set_text(f"{rec.world.get('name', '?')}  t = {t:6.2f} s   {modes}")
         title.set_fontsize(9)
 
-    bar = _Progress(len(steps)) if progress else None
+    return fig, draw
+
+
+def animate(
+    rec: Recording,
+    out: str,
+    fps: float = 10.0,
+    max_frames: int = 150,
+    speed: float | None = None,
+    agents: list[str] | None = None,
+    dpi: int = 80,
+    trail: float = 10.0,
+    progress: bool = True,
+) -> str:
+    """Render a top-view playback to ``out`` (.gif, or .mp4 when ffmpeg exists). Returns the path
+    actually written (a .mp4 request without ffmpeg falls back to .gif, with a notice)."""
+    out = str(out)
+    if not out.lower().endswith((".gif", ".mp4")):
+        raise ValueError(f"{out}: unsupported animation type; use .gif or .mp4")
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps must be a positive number, got {fps:g}")
+    if int(max_frames) < 1:
+        raise ValueError(f"max_frames must be >= 1, got {max_frames}")
+    want_mp4 = out.lower().endswith(".mp4")
+    if want_mp4 and shutil.which("ffmpeg") is None:
+        out = out[:-4] + ".gif"
+        print(f"notice: ffmpeg not found, writing {out} instead", file=sys.stderr)
+        want_mp4 = False
+    steps = frame_steps(rec, fps, max_frames, speed)
+    if not len(steps):
+        raise ValueError("nothing to animate: no recorded steps")
+
+    fig, draw = animation_figure(rec, agents, dpi, trail)
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(steps), desc="rendering", unit="frame", file=sys.stderr, disable=not progress)
     if want_mp4:
         from matplotlib.animation import FFMpegWriter
 
         writer = FFMpegWriter(fps=fps)
         with writer.saving(fig, out, dpi):
-            for n, k in enumerate(steps):
+            for k in steps:
                 draw(int(k))
                 writer.grab_frame()
-                if bar:
-                    bar.update(n + 1)
+                bar.update()
     else:
         from PIL import Image
 
         frames = []
-        for n, k in enumerate(steps):
+        for k in steps:
             draw(int(k))
             fig.canvas.draw()
             img = Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[:, :, :3])
             frames.append(img.quantize(colors=128, method=Image.Quantize.MEDIANCUT))
-            if bar:
-                bar.update(n + 1)
+            bar.update()
         frames[0].save(out, save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
-    if bar:
-        bar.close()
+    bar.close()
     return out

@@ -3,7 +3,10 @@
 Prints what the run was, the metrics recomputed from the recorded states and whether
 they agree with the recorded ``/summary``; optionally the state at a time, plots and an
 animation. Exit codes: 0 normally, 1 with ``--strict`` when metrics disagree with the
-summary, 2 when the file cannot be read (or an unknown agent is asked for).
+summary, 2 on bad input (a file that cannot be read, an unknown agent, an output path that
+cannot be written or has an unsupported extension, a non-positive ``--fps``), with one line
+on stderr. Output paths and numbers are checked before the log is read; missing parent
+folders of output files are created, as ``swarmplan.run`` does for its log.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import math
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -24,9 +28,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="python -m swarmplan.replay",
         description="Replay a swarmplan run log: run overview, recomputed metrics, plots, animation.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     ap.add_argument("log", help="run log (.mcap)")
-    ap.add_argument("--at", type=float, metavar="T", help="print the state at time T (nearest step)")
+    ap.add_argument(
+        "--at", type=float, default=None, metavar="T", help="print the state at time T (nearest step)"
+    )
     ap.add_argument("--agent", metavar="ID", help="only this agent")
     ap.add_argument("--events", action="store_true", help="list the recorded events")
     ap.add_argument("--plot", metavar="PNG", help="3D view of the run")
@@ -34,11 +41,96 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--curvature", metavar="PNG", help="curvature along each path vs time")
     ap.add_argument("--convergence", metavar="PNG", help="optimizer convergence curves")
     ap.add_argument("--animate", metavar="GIF|MP4", help="animated playback (.gif, or .mp4 with ffmpeg)")
-    ap.add_argument("--fps", type=float, default=10.0, help="animation frames per second (default 10)")
-    ap.add_argument("--max-frames", type=int, default=150, help="animation frame cap (default 150)")
+    ap.add_argument("--fps", type=float, default=10.0, help="animation frames per second")
+    ap.add_argument("--max-frames", type=int, default=150, help="animation frame cap")
     ap.add_argument("--speed", type=float, default=None, help="animation sim-seconds per video second")
     ap.add_argument("--strict", action="store_true", help="exit 1 when metrics disagree with /summary")
     return ap
+
+
+IMAGE_OPTIONS = ("plot", "plot_2d", "curvature", "convergence")
+ANIMATION_EXTENSIONS = (".gif", ".mp4")
+
+
+def _option(dest: str) -> str:
+    return "--" + dest.replace("_", "-")
+
+
+def _image_extensions() -> list[str]:
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return sorted("." + e for e in FigureCanvasBase.get_supported_filetypes())
+
+
+def _check_writable(option: str, path: str) -> str | None:
+    """Why ``path`` cannot be written as an output file, or None. Leaves nothing behind: the
+    first existing folder on its way is probed with a temporary entry (permissions alone do
+    not tell, e.g. for root under /proc)."""
+    import tempfile
+
+    p = Path(path)
+    if p.is_dir():
+        return f"{option} {path}: is a directory, not a file"
+    parent = p.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"{option} {path}: {parent} is not a directory"
+    try:
+        if parent == p.parent:
+            with tempfile.NamedTemporaryFile(dir=parent, prefix=".swarmplan-probe-"):
+                pass
+        else:  # the missing folders will be created there
+            os.rmdir(tempfile.mkdtemp(dir=parent, prefix=".swarmplan-probe-"))
+    except OSError as exc:
+        return f"{option} {path}: cannot write in {parent} ({exc.strerror or exc})"
+    return None
+
+
+def check_arguments(args: argparse.Namespace) -> str | None:
+    """The first problem with the command line's outputs and numbers, as one line, or None."""
+    for dest in IMAGE_OPTIONS:
+        path = getattr(args, dest)
+        if path is None:
+            continue
+        ext = Path(path).suffix.lower()
+        known = _image_extensions()
+        if Path(path).is_dir():
+            return f"{_option(dest)} {path}: is a directory, not a file"
+        if ext not in known:
+            return (
+                f"{_option(dest)} {path}: unsupported image type {ext or '(no extension)'!r};"
+                f" use one of {', '.join(known)}"
+            )
+        problem = _check_writable(_option(dest), path)
+        if problem:
+            return problem
+    if args.animate is not None:
+        ext = Path(args.animate).suffix.lower()
+        if Path(args.animate).is_dir():
+            return f"--animate {args.animate}: is a directory, not a file"
+        if ext not in ANIMATION_EXTENSIONS:
+            return (
+                f"--animate {args.animate}: unsupported animation type {ext or '(no extension)'!r};"
+                " use .gif or .mp4"
+            )
+        problem = _check_writable("--animate", args.animate)
+        if problem:
+            return problem
+    if not (math.isfinite(args.fps) and args.fps > 0):
+        return f"--fps: must be a positive number, got {args.fps:g}"
+    if args.max_frames < 1:
+        return f"--max-frames: must be >= 1, got {args.max_frames}"
+    if args.speed is not None and not (math.isfinite(args.speed) and args.speed > 0):
+        return f"--speed: must be a positive number, got {args.speed:g}"
+    if args.at is not None and not math.isfinite(args.at):
+        return f"--at: must be a finite time, got {args.at:g}"
+    return None
+
+
+def _prepare(path: str) -> str:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def _f(v, fmt="{:.2f}", none="-") -> str:
@@ -58,13 +150,13 @@ def describe(rec: Recording) -> list[str]:
         f" (pop {opt.get('population', '?')}, iter {opt.get('iterations', '?')})"
         f"  swarmplan {w.get('swarmplan_version', '?')}"
     )
-    size = os.path.getsize(rec.path)
-    n_obst = len(rec.obstacles())
-    n_mov = len(rec.moving_obstacles())
+    size = os.path.getsize(rec.file)
+    n_obst = len(rec.obstacles)
+    n_mov = len(rec.moving_obstacles)
     t0 = rec.times[0] if rec.n_steps else 0.0
     t1 = rec.times[-1] if rec.n_steps else 0.0
     lines.append(
-        f"file: {rec.path} ({size / 1e6:.2f} MB)  {rec.n_steps} steps, t = {t0:.2f} .. {t1:.2f} s"
+        f"file: {rec.file} ({size / 1e6:.2f} MB)  {rec.n_steps} steps, t = {t0:.2f} .. {t1:.2f} s"
         f" (dt {rec.dt:.3g} s, duration {rec.duration:.2f} s)"
     )
     b = w.get("bounds") or {}
@@ -76,7 +168,7 @@ def describe(rec: Recording) -> list[str]:
     )
     kinds: dict[str, int] = {}
     for e in rec.events:
-        kinds[str(e.get("kind"))] = kinds.get(str(e.get("kind")), 0) + 1
+        kinds[e.kind] = kinds.get(e.kind, 0) + 1
     ev = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items())) or "none"
     lines.append(f"events: {ev};  optimizer runs: {len(rec.optimizer_runs)}")
     if rec.truncated:
@@ -134,8 +226,42 @@ def state_at(rec: Recording, t: float, agents: list[int]) -> list[str]:
     return out
 
 
+def _write_outputs(rec: Recording, args: argparse.Namespace, agent_ids: list[str] | None) -> list[str]:
+    outputs: list[str] = []
+    if args.plot or args.plot_2d or args.curvature or args.convergence:
+        from . import plots
+
+        if args.plot:
+            outputs.append(plots.save(plots.plot_3d(rec, agents=agent_ids), _prepare(args.plot)))
+        if args.plot_2d:
+            outputs.append(plots.save(plots.plot_top(rec, agents=agent_ids), _prepare(args.plot_2d)))
+        if args.curvature:
+            outputs.append(plots.save(plots.plot_curvature(rec, agents=agent_ids), _prepare(args.curvature)))
+        if args.convergence:
+            fig = plots.plot_convergence(rec, agents=agent_ids)
+            outputs.append(plots.save(fig, _prepare(args.convergence)))
+    if args.animate:
+        from .animate import animate
+
+        outputs.append(
+            animate(
+                rec,
+                _prepare(args.animate),
+                fps=args.fps,
+                max_frames=args.max_frames,
+                speed=args.speed,
+                agents=agent_ids,
+            )
+        )
+    return outputs
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    problem = check_arguments(args)
+    if problem:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
     t_start = time.perf_counter()
     try:
         rec = load(args.log)
@@ -188,43 +314,20 @@ def main(argv: list[str] | None = None) -> int:
         print()
         print("events:")
         for e in rec.events:
-            if args.agent is not None and str(e.get("agent")) != args.agent:
+            if args.agent is not None and e.agent != args.agent:
                 continue
-            print(
-                f"  t={float(e.get('t', 0)):8.2f}  {str(e.get('agent')):<10} {str(e.get('kind')):<13}"
-                f" {e.get('detail')}"
-            )
+            print(f"  t={e.t:8.2f}  {str(e.agent):<10} {e.kind:<13} {e.detail}")
     if args.at is not None:
         print()
         for line in state_at(rec, args.at, sel):
             print(line)
 
     agent_ids = [rec.agent_ids[i] for i in sel] if args.agent is not None else None
-    outputs = []
-    if args.plot or args.plot_2d or args.curvature or args.convergence:
-        from . import plots
-
-        if args.plot:
-            outputs.append(plots.save(plots.plot_3d(rec, agents=agent_ids), args.plot))
-        if args.plot_2d:
-            outputs.append(plots.save(plots.plot_top(rec, agents=agent_ids), args.plot_2d))
-        if args.curvature:
-            outputs.append(plots.save(plots.plot_curvature(rec, agents=agent_ids), args.curvature))
-        if args.convergence:
-            outputs.append(plots.save(plots.plot_convergence(rec, agents=agent_ids), args.convergence))
-    if args.animate:
-        from .animate import animate
-
-        outputs.append(
-            animate(
-                rec,
-                args.animate,
-                fps=args.fps,
-                max_frames=args.max_frames,
-                speed=args.speed,
-                agents=agent_ids,
-            )
-        )
+    try:
+        outputs = _write_outputs(rec, args, agent_ids)
+    except OSError as exc:  # checked up front; a disk filling up or a race still ends here
+        print(f"error: cannot write {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     for path in outputs:
         print(f"wrote {path}")
     if args.strict and disagreements:

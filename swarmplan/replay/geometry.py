@@ -12,50 +12,34 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def _euler(rpy) -> Rotation:
+    """R = Rz(yaw) Ry(pitch) Rx(roll): extrinsic x, then y, then z ("xyz" in scipy)."""
+    return Rotation.from_euler("xyz", np.asarray((list(rpy) + [0, 0, 0])[:3], float), degrees=True)
 
 
 def euler_deg_to_matrix(rpy) -> np.ndarray:
-    r, p, y = (math.radians(float(a)) for a in (list(rpy) + [0, 0, 0])[:3])
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return rz @ ry @ rx
+    """3x3 rotation matrix of [roll, pitch, yaw] in degrees."""
+    return _euler(rpy).as_matrix()
 
 
 def euler_deg_to_quat(rpy) -> np.ndarray:
-    """[qx, qy, qz, qw] of R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    r, p, y = (math.radians(float(a)) / 2.0 for a in (list(rpy) + [0, 0, 0])[:3])
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return np.array(
-        [
-            sr * cp * cy - cr * sp * sy,
-            cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy,
-            cr * cp * cy + sr * sp * sy,
-        ]
-    )
+    """[qx, qy, qz, qw] of R = Rz(yaw) Ry(pitch) Rx(roll), with qw >= 0."""
+    q = _euler(rpy).as_quat()
+    return -q if q[3] < 0 else q
 
 
 def quat_to_matrix(q) -> np.ndarray:
-    """Rotation matrices from quaternions [qx, qy, qz, qw]: (4,) -> (3,3), (N,4) -> (N,3,3)."""
-    q = np.asarray(q, float)
-    single = q.ndim == 1
-    q = np.atleast_2d(q)
-    n = np.linalg.norm(q, axis=1, keepdims=True)
-    n[n == 0] = 1.0
-    x, y, z, w = (q / n).T
-    m = np.empty((len(q), 3, 3))
-    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    m[:, 0, 1] = 2 * (x * y - z * w)
-    m[:, 0, 2] = 2 * (x * z + y * w)
-    m[:, 1, 0] = 2 * (x * y + z * w)
-    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    m[:, 1, 2] = 2 * (y * z - x * w)
-    m[:, 2, 0] = 2 * (x * z - y * w)
-    m[:, 2, 1] = 2 * (y * z + x * w)
-    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return m[0] if single else m
+    """Rotation matrices from quaternions [qx, qy, qz, qw]: (4,) -> (3,3), (N,4) -> (N,3,3).
+
+    Quaternions need not be unit length; an all-zero one (a missing orientation) is the identity.
+    """
+    q = np.array(q, dtype=float)
+    zero = ~np.any(q, axis=-1)
+    q[zero] = [0.0, 0.0, 0.0, 1.0]
+    return Rotation.from_quat(q).as_matrix()
 
 
 def primitive_distance(local: np.ndarray, obst: dict[str, Any]) -> np.ndarray | None:

@@ -143,7 +143,7 @@ def obstacle_distances(rec: Recording, mesh_cache: dict | None = None) -> dict[s
     A, T = rec.n_agents, rec.n_steps
     P = rec.positions.reshape(-1, 3)
     out: dict[str, np.ndarray] = {}
-    for obst in rec.obstacles():
+    for obst in rec.obstacles:
         oid = str(obst.get("id"))
         moving = bool(obst.get("motion")) and oid in rec.obstacle_tracks
         if moving:
@@ -218,7 +218,7 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
 
     event_counts: dict[tuple[str, str], int] = {}
     for e in rec.events:
-        key = (str(e.get("agent")), str(e.get("kind")))
+        key = (str(e.agent), e.kind)
         event_counts[key] = event_counts.get(key, 0) + 1
 
     result = []

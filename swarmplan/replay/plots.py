@@ -3,6 +3,11 @@
 Every ``plot_*`` function returns a :class:`matplotlib.figure.Figure`; :func:`save`
 writes it. Each agent's path artists carry ``gid = "path:<agent id>"`` so callers (and
 tests) can find them: :func:`agent_paths_in` lists the agents drawn in a figure.
+
+Colours: each agent has its own colour everywhere, also along its escape (a thick line
+outlined in black) and smoothing segments (a translucent halo); obstacles are grey,
+moving ones dark teal and hatched, a colour no agent gets; threats are red markers with a
+filled core (``r_min``) and a dotted outer ring (``r_max``). Legends sit outside the axes.
 """
 
 from __future__ import annotations
@@ -10,24 +15,33 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from matplotlib import patheffects
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Polygon
+from matplotlib.patches import Circle, Polygon
 
 from .geometry import euler_deg_to_matrix, quat_to_matrix, terrain_height
 from .metrics import active_mask, curvature_series
 from .recording import Recording
 
+# Mode segments are drawn over the agent's path in the agent's own colour ("color": None) or
+# in a fixed colour; the style alone tells the mode.
 MODE_STYLE = {
-    "escape": {"color": "#d62728", "lw": 3.0, "label": "escape (optimizer)"},
-    "smoothing": {"color": "#ffbf00", "lw": 7.0, "label": "smoothing (halo)", "alpha": 0.45, "zorder": 2},
+    "escape": {"color": None, "lw": 3.5, "outline": True, "label": "escape (optimizer)"},
+    "smoothing": {"color": None, "lw": 8.0, "alpha": 0.3, "zorder": 2, "label": "smoothing (halo)"},
     "collided": {"color": "black", "lw": 3.0, "label": "collided"},
-    "failed": {"color": "#7f7f7f", "lw": 2.0, "label": "failed"},
+    "failed": {"color": "#7f7f7f", "lw": 2.0, "ls": ":", "label": "failed"},
 }
 OBSTACLE_COLOR = np.array([0.55, 0.58, 0.65])
-MOVING_COLOR = np.array([0.85, 0.45, 0.10])
+MOVING_COLOR = np.array([0.10, 0.30, 0.30])  # dark teal: not in the tab10/tab20 agent palettes
+MOVING_HATCH = "////"
+THREAT_COLOR = "#b00020"
+THREAT_MARKERS = {"radar": "^", "missile": "X", "artillery": "s", "weather": "o"}
 MAX_MESH_FACES = 4000
+# A mode segment shorter than this fraction of the scene's size is also marked by a dot, so a
+# one-step segment stays visible.
+SHORT_SEGMENT = 0.02
 
 
 def new_figure(figsize=(9, 7), dpi=100) -> Figure:
@@ -37,7 +51,8 @@ def new_figure(figsize=(9, 7), dpi=100) -> Figure:
 
 
 def save(fig: Figure, path: str) -> str:
-    fig.savefig(path)
+    # "tight" keeps the legends placed outside the axes inside the image.
+    fig.savefig(path, bbox_inches="tight")
     return str(path)
 
 
@@ -178,17 +193,18 @@ def plot_3d(
     for a, b in _bounds_edges(lo, hi):
         ax.plot(*np.stack([a, b]).T, color="0.6", lw=0.6, ls=":")
     _terrain_3d(ax, rec, lo, hi)
-    for obst in rec.static_obstacles():
+    for obst in rec.static_obstacles:
         _draw_obstacle_3d(ax, obst)
-    for obst in rec.moving_obstacles():
+    for obst in rec.moving_obstacles:
         oid = obst.get("id")
         if oid in rec.obstacle_tracks:
             tr = rec.obstacle_tracks[oid]
-            ax.plot(*tr.positions.T, color=MOVING_COLOR, ls="--", lw=1.2)
+            ax.plot(*tr.positions.T, color=MOVING_COLOR, ls="--", lw=1.2, gid=f"track:{oid}")
             k = -1 if step is None else int(np.argmin(np.abs(tr.times - rec.times[step])))
             _draw_obstacle_3d(ax, obst, tr.positions[k], tr.orientations[k], MOVING_COLOR, 0.6)
         else:
             _draw_obstacle_3d(ax, obst, color=MOVING_COLOR)
+    _threats_3d(ax, rec)
     idx = _select(rec, agents)
     colors = agent_colors(rec.n_agents)
     active = active_mask(rec)
@@ -203,9 +219,56 @@ def plot_3d(
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles()))
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles))
     ax.set_title(_title(rec))
     return fig
+
+
+def _threats(rec: Recording) -> list[dict[str, Any]]:
+    return [t for t in rec.world.get("threats") or [] if t.get("position") is not None]
+
+
+def _threats_3d(ax, rec: Recording) -> None:
+    """Threat centres as markers, and their r_min ring in the horizontal plane of the centre."""
+    ang = np.linspace(0, 2 * np.pi, 48)
+    for k, th in enumerate(_threats(rec)):
+        c = np.asarray(th["position"], float)
+        ax.plot(
+            [c[0]],
+            [c[1]],
+            [c[2]],
+            marker=THREAT_MARKERS.get(th.get("kind"), "P"),
+            color=THREAT_COLOR,
+            mec="k",
+            ms=8,
+            ls="none",
+            gid=f"threat:{k}",
+        )
+        r = float(th.get("r_min") or 0.0)
+        if r > 0:
+            ax.plot(c[0] + r * np.cos(ang), c[1] + r * np.sin(ang), np.full_like(ang, c[2]),
+                    color=THREAT_COLOR, lw=1.0, alpha=0.8)  # fmt: skip
+
+
+def _threats_top(ax, rec: Recording) -> None:
+    """Threat centres as markers, a translucent core out to r_min and a dotted ring at r_max."""
+    for k, th in enumerate(_threats(rec)):
+        c = np.asarray(th["position"], float)[:2]
+        r_min, r_max = float(th.get("r_min") or 0.0), float(th.get("r_max") or 0.0)
+        if r_min > 0:
+            ax.add_patch(Circle(c, r_min, fc=THREAT_COLOR, ec=THREAT_COLOR, alpha=0.18, lw=1.0, zorder=1.5))
+        if r_max > r_min:
+            ax.add_patch(Circle(c, r_max, fill=False, ec=THREAT_COLOR, ls=":", lw=0.8, alpha=0.6, zorder=1.5))
+        ax.plot(
+            *c,
+            marker=THREAT_MARKERS.get(th.get("kind"), "P"),
+            color=THREAT_COLOR,
+            mec="k",
+            ms=8,
+            ls="none",
+            zorder=6,
+            gid=f"threat:{k}",
+        )
 
 
 def _terrain_3d(ax, rec, lo, hi, n=40):
@@ -237,6 +300,8 @@ def _draw_path(ax, rec, i, color, active, used_modes, three_d):
     if not len(last):
         return
     coords = (lambda Q: Q.T) if three_d else (lambda Q: Q[:, :2].T)
+    lo, hi = _bounds(rec)
+    short = SHORT_SEGMENT * float(np.linalg.norm(hi - lo))
     # nominal path in the agent's colour, then mode segments on top
     ax.plot(*coords(P[valid]), color=color, lw=1.4, gid=f"path:{aid}", zorder=3)
     for a, b, mode in _mode_runs(rec.modes[i], valid):
@@ -246,22 +311,45 @@ def _draw_path(ax, rec, i, color, active, used_modes, three_d):
         seg = P[max(a - 1, 0) : b + 2][valid[max(a - 1, 0) : b + 2]]
         if len(seg) < 2:
             seg = P[a : b + 1]
+        col = color if style["color"] is None else style["color"]
+        effects = [patheffects.withStroke(linewidth=style["lw"] + 1.6, foreground="k")]
         ax.plot(
             *coords(seg),
-            color=style["color"],
+            color=col,
             lw=style["lw"],
-            alpha=style.get("alpha", 0.85),
+            ls=style.get("ls", "-"),
+            alpha=style.get("alpha", 0.95),
             gid=f"mode:{mode}:{aid}",
             zorder=style.get("zorder", 4),
             solid_capstyle="round",
+            path_effects=effects if style.get("outline") else None,
         )
+        if path_length_of(seg) < short:  # too short to see at this scale: mark it
+            ax.plot(
+                *coords(seg[len(seg) // 2][None]),
+                marker="o",
+                ms=style["lw"] + 3,
+                color=col,
+                alpha=max(style.get("alpha", 0.95), 0.6),
+                mec="k" if style.get("outline") else "none",
+                ls="none",
+                zorder=style.get("zorder", 4),
+                gid=f"mode-dot:{mode}:{aid}",
+            )
         used_modes.add(mode)
     s, g = P[last[0]], rec.goals[i]
-    ax.plot(*coords(s[None]), marker="o", color=color, ms=6, mec="k", ls="none", gid=f"start:{aid}")
-    ax.plot(*coords(g[None]), marker="*", color=color, ms=12, mec="k", ls="none", gid=f"goal:{aid}")
+    ax.plot(*coords(s[None]), marker="o", color=color, ms=6, mec="k", ls="none", gid=f"start:{aid}", zorder=6)
+    ax.plot(*coords(g[None]), marker="*", color=color, ms=12, mec="k", ls="none", gid=f"goal:{aid}", zorder=6)
 
 
-def _legend(ax, rec, idx, colors, used_modes, moving):
+def path_length_of(points: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()) if len(points) > 1 else 0.0
+
+
+def legend_handles(rec, idx, colors, used_modes, moving: bool, tracks: bool = True) -> list[Line2D]:
+    """Legend entries: agents, the modes drawn, start/goal, obstacles, moving obstacles, threats."""
+    from matplotlib.patches import Patch
+
     handles = []
     max_agents = 12
     for i in idx[:max_agents]:
@@ -271,16 +359,51 @@ def _legend(ax, rec, idx, colors, used_modes, moving):
     for mode in ("escape", "smoothing", "collided", "failed"):
         if mode in used_modes:
             st = MODE_STYLE[mode]
+            effects = [patheffects.withStroke(linewidth=st["lw"] + 1.6, foreground="k")]
             handles.append(
-                Line2D([], [], color=st["color"], lw=st["lw"], alpha=st.get("alpha", 0.85), label=st["label"])
+                Line2D(
+                    [],
+                    [],
+                    color=st["color"] or "0.45",
+                    lw=st["lw"],
+                    ls=st.get("ls", "-"),
+                    alpha=st.get("alpha", 0.95),
+                    path_effects=effects if st.get("outline") else None,
+                    label=st["label"] + (" (agent colour)" if st["color"] is None else ""),
+                )
             )
     handles.append(Line2D([], [], marker="o", color="0.5", mec="k", ls="none", label="start"))
     handles.append(Line2D([], [], marker="*", color="0.5", mec="k", ms=12, ls="none", label="goal"))
-    if rec.obstacles():
-        handles.append(Line2D([], [], marker="s", color=OBSTACLE_COLOR, ls="none", ms=10, label="obstacle"))
+    if rec.static_obstacles:
+        handles.append(Patch(fc=OBSTACLE_COLOR, ec="0.3", label="obstacle"))
     if moving:
-        handles.append(Line2D([], [], color=MOVING_COLOR, ls="--", label="moving obstacle track"))
-    ax.legend(handles=handles, loc="upper left", fontsize=7, framealpha=0.8)
+        handles.append(
+            Patch(fc=MOVING_COLOR, ec="0.3", hatch=MOVING_HATCH, alpha=0.75, label="moving obstacle")
+        )
+        if tracks:
+            handles.append(Line2D([], [], color=MOVING_COLOR, ls="--", label="moving obstacle track"))
+    kinds = []
+    for th in _threats(rec):
+        if th.get("kind") not in kinds:
+            kinds.append(th.get("kind"))
+    for kind in kinds:
+        handles.append(
+            Line2D([], [], marker=THREAT_MARKERS.get(kind, "P"), color=THREAT_COLOR, mec="k", ms=8, ls="none",
+                   label=f"threat: {kind} (core r_min)")
+        )  # fmt: skip
+    return handles
+
+
+def _legend(ax, rec, idx, colors, used_modes, moving):
+    # Outside the axes, so it never hides a start, a goal or a path.
+    ax.legend(
+        handles=legend_handles(rec, idx, colors, used_modes, moving),
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        borderaxespad=0.0,
+        fontsize=7,
+        framealpha=0.9,
+    )
 
 
 def _title(rec: Recording) -> str:
@@ -319,7 +442,7 @@ def plot_top(
     rec: Recording, agents: list[str] | None = None, step: int | None = None, fig: Figure | None = None
 ):
     """Top view (x-y): bounds, terrain contours, obstacle footprints, tracks, paths by mode."""
-    fig = fig or new_figure(figsize=(8, 8))
+    fig = fig or new_figure(figsize=(10, 8))
     ax = fig.add_subplot()
     lo, hi = _bounds(rec)
     ax.add_patch(
@@ -335,20 +458,30 @@ def plot_top(
             X, Y, Z, levels=levels, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, extend="neither"
         )
         ax.contour(X, Y, Z, levels=levels, colors="0.5", linewidths=0.4)
-    for obst in rec.static_obstacles():
+    for obst in rec.static_obstacles:
         for poly in _footprint(obst):
             ax.add_patch(Polygon(poly, closed=True, fc=OBSTACLE_COLOR, ec="0.3", alpha=0.7, lw=0.5))
-    for obst in rec.moving_obstacles():
+    for obst in rec.moving_obstacles:
         oid = obst.get("id")
         tr = rec.obstacle_tracks.get(oid)
         if tr is not None and len(tr.times):
-            ax.plot(tr.positions[:, 0], tr.positions[:, 1], color=MOVING_COLOR, ls="--", lw=1.2)
+            ax.plot(
+                tr.positions[:, 0],
+                tr.positions[:, 1],
+                color=MOVING_COLOR,
+                ls="--",
+                lw=1.2,
+                gid=f"track:{oid}",
+            )
             k = -1 if step is None else int(np.argmin(np.abs(tr.times - rec.times[step])))
             polys = _footprint(obst, tr.positions[k], tr.orientations[k])
         else:
             polys = _footprint(obst)
         for poly in polys:
-            ax.add_patch(Polygon(poly, closed=True, fc=MOVING_COLOR, ec="0.3", alpha=0.6, lw=0.5))
+            ax.add_patch(
+                Polygon(poly, closed=True, fc=MOVING_COLOR, ec="0.2", alpha=0.6, lw=0.5, hatch=MOVING_HATCH)
+            )
+    _threats_top(ax, rec)
     idx = _select(rec, agents)
     colors = agent_colors(rec.n_agents)
     active = active_mask(rec)
@@ -361,7 +494,7 @@ def plot_top(
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.grid(alpha=0.3)
-    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles()))
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles))
     ax.set_title(_title(rec) + " - top view", fontsize=10)
     return fig
 
@@ -370,37 +503,74 @@ def plot_top(
 
 
 def plot_curvature(rec: Recording, agents: list[str] | None = None, fig: Figure | None = None):
-    """Discrete curvature of each flown path vs time (same definition as the metrics)."""
-    fig = fig or new_figure(figsize=(9, 5))
+    """Discrete curvature of each flown path vs time (same definition as the metrics).
+
+    A cusp (a turn-back, curvature orders of magnitude above the rest) would flatten every
+    other curve on a linear axis, so the axis is clipped at 1.5 times the 98th percentile of
+    all values and every value above it is marked by a triangle at the top edge (its value in
+    the legend).
+    """
+    fig = fig or new_figure(figsize=(10, 5))
     ax = fig.add_subplot()
     colors = agent_colors(rec.n_agents)
     active = active_mask(rec)
     idx = _select(rec, agents)
+    series = []
     for i in idx:
         pts = np.where(active[i][:, None], rec.positions[i], np.nan)
-        t, k = curvature_series(pts, rec.times)
-        ax.plot(t, k, color=colors[i], lw=1.0, label=rec.agent_ids[i], gid=f"path:{rec.agent_ids[i]}")
+        series.append(curvature_series(pts, rec.times))
+    values = np.concatenate([k[np.isfinite(k)] for _t, k in series] or [np.zeros(0)])
+    top = None
+    if len(values):
+        cap = 1.5 * float(np.percentile(values, 98))
+        if cap > 0 and values.max() > cap:
+            top = cap
+    n_cusps, worst = 0, 0.0
+    for i, (t, k) in zip(idx, series, strict=True):
+        aid = rec.agent_ids[i]
+        ax.plot(
+            t, k if top is None else np.minimum(k, top), color=colors[i], lw=1.0, label=aid, gid=f"path:{aid}"
+        )
+        if top is not None:
+            over = np.isfinite(k) & (k > top)
+            if over.any():
+                edge = np.full(over.sum(), top)
+                ax.plot(t[over], edge, marker="^", ms=8, color=colors[i], mec="k", ls="none",
+                        clip_on=False, zorder=5, gid=f"cusp:{aid}")  # fmt: skip
+                n_cusps += int(over.sum())
+                worst = max(worst, float(k[over].max()))
         for a, b, mode in _mode_runs(rec.modes[i], np.ones(rec.n_steps, bool)):
             if mode == "escape":
-                ax.axvspan(rec.times[a], rec.times[b], color=MODE_STYLE["escape"]["color"], alpha=0.06, lw=0)
+                ax.axvspan(rec.times[a], rec.times[b], color=colors[i], alpha=0.08, lw=0)
+    handles, _labels = ax.get_legend_handles_labels()
+    if top is not None:
+        ax.set_ylim(0, top * 1.02)
+        handles.append(
+            Line2D([], [], marker="^", color="0.5", mec="k", ms=8, ls="none",
+                   label=f"cusp: {n_cusps} value(s) above {top:.3g} 1/m (max {worst:.3g})")
+        )  # fmt: skip
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("curvature [1/m]")
+    ax.set_ylabel("curvature [1/m]" + ("  (clipped)" if top is not None else ""))
     ax.grid(alpha=0.3)
     if len(idx) <= 20:
-        ax.legend(fontsize=7, ncol=2)
+        ax.legend(
+            handles=handles[:21], fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0
+        )
     ax.set_title(_title(rec) + " - path curvature (shaded: escape)", fontsize=10)
     return fig
 
 
 def plot_convergence(rec: Recording, agents: list[str] | None = None, fig: Figure | None = None):
     """Best cost per iteration of every optimizer run recorded on /optimizer."""
-    fig = fig or new_figure(figsize=(9, 5))
+    fig = fig or new_figure(figsize=(10, 5))
     ax = fig.add_subplot()
     runs = rec.optimizer_runs
     if agents is not None:
         runs = [r for r in runs if str(r.get("agent")) in set(agents)]
     colors = agent_colors(rec.n_agents)
-    styles = {"escape": "-", "smoothing": "--"}
+    styles = {"escape": "-", "smoothing": "--", "global": ":"}
+    labels = {"escape": "escape", "smoothing": "smoothing", "global": "global plan"}
+    used: list[str] = []
     positive = True
     drawn = 0
     for r in runs:
@@ -409,30 +579,42 @@ def plot_convergence(rec: Recording, agents: list[str] | None = None, fig: Figur
             continue
         aid = str(r.get("agent"))
         col = colors[rec.agent_ids.index(aid)] if aid in rec.agent_ids else "0.4"
+        purpose = str(r.get("purpose"))
+        if purpose not in used:
+            used.append(purpose)
         ax.plot(
             np.arange(1, len(conv) + 1),
             conv,
             color=col,
-            ls=styles.get(r.get("purpose"), ":"),
+            ls=styles.get(purpose, "-."),
             lw=1.0,
             alpha=0.8,
             gid=f"run:{aid}:{r.get('purpose')}:{r.get('t')}",
         )
         positive &= bool(np.all(conv[np.isfinite(conv)] > 0))
         drawn += 1
-    if drawn and positive:
+    finite = [np.asarray(r.get("convergence") or [], float) for r in runs]
+    finite = np.concatenate([c[np.isfinite(c)] for c in finite] or [np.zeros(0)])
+    # Log scale only where it helps: costs spanning more than a decade.
+    if drawn and positive and len(finite) and finite.max() > 10 * finite.min():
         ax.set_yscale("log")
-    handles = [Line2D([], [], color="0.3", ls=s, label=p) for p, s in styles.items()]
+    handles = [
+        Line2D([], [], color="0.3", ls=styles.get(p, "-."), label=labels.get(p, p))
+        for p in sorted(used, key=lambda p: (p not in styles, list(styles).index(p) if p in styles else 0, p))
+    ]
     shown_agents = sorted({str(r.get("agent")) for r in runs}, key=lambda a: (a not in rec.agent_ids, a))
     for aid in shown_agents[:12]:
         if aid in rec.agent_ids:
             handles.append(Line2D([], [], color=colors[rec.agent_ids.index(aid)], label=aid))
-    ax.legend(handles=handles, fontsize=7)
+    if handles:
+        ax.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0)
     algos = sorted({str(r.get("algorithm")) for r in runs}) or ["-"]
     ax.set_xlabel("iteration")
     ax.set_ylabel("best cost")
     ax.grid(alpha=0.3, which="both")
-    ax.set_title(f"optimizer convergence: {drawn} runs ({', '.join(algos)})", fontsize=10)
+    ax.set_title(
+        f"optimizer convergence: {drawn} run{'' if drawn == 1 else 's'} ({', '.join(algos)})", fontsize=10
+    )
     if not drawn:
         ax.text(0.5, 0.5, "no optimizer runs recorded", transform=ax.transAxes, ha="center", va="center")
     return fig

@@ -25,6 +25,55 @@ class RecordingError(Exception):
     """The file cannot be read as a swarmplan run log."""
 
 
+# Simulation times are multiples of dt computed in floating point (40.800000000000004); they
+# are rounded to this many decimals on reading, far below any dt, so they print and compare
+# as the step grid they are.
+TIME_DECIMALS = 9
+
+
+@dataclass(frozen=True)
+class Event:
+    """One ``/events`` message: at time ``t`` (s, on the step grid), ``agent`` (None for the
+    whole run) had an event of ``kind`` with ``detail`` (the contract's event fields)."""
+
+    t: float
+    agent: str | None
+    kind: str
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_json(cls, msg: dict[str, Any], dt: float | None = None) -> Event:
+        t = float(msg.get("t", math.nan))
+        agent = msg.get("agent")
+        detail = msg.get("detail")
+        return cls(
+            snap_time(t, dt),
+            None if agent is None else str(agent),
+            str(msg.get("kind")),
+            dict(detail) if isinstance(detail, dict) else {},
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        return {"t": self.t, "agent": self.agent, "kind": self.kind, "detail": dict(self.detail)}
+
+
+def snap_time(t: float, dt: float | None) -> float:
+    """``t`` on the step grid (the nearest multiple of ``dt`` when within 1e-6 s of one), rounded."""
+    if dt and math.isfinite(t):
+        k = round(t / dt)
+        if abs(t - k * dt) < 1e-6:
+            t = k * dt
+    return round(t, TIME_DECIMALS) if math.isfinite(t) else t
+
+
+def _world_dt(world: dict[str, Any]) -> float | None:
+    try:
+        dt = float((world.get("sim") or {}).get("dt"))
+    except (TypeError, ValueError):
+        return None
+    return dt if dt > 0 and math.isfinite(dt) else None
+
+
 @dataclass
 class ObstacleTrack:
     """Pose of one moving obstacle over time (its own sample times)."""
@@ -35,23 +84,28 @@ class ObstacleTrack:
     orientations: np.ndarray  # (K, 4) quaternions [qx, qy, qz, qw]
 
     def at(self, times: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (linear interpolation) and orientations (nearest sample) at ``times``."""
-        t = np.atleast_1d(np.asarray(times, float))
+        """Positions (linear interpolation) and orientations (nearest sample) at ``times``.
+
+        A scalar time gives shapes (3,) and (4,); an array of K times (K, 3) and (K, 4).
+        """
         if len(self.times) == 0:
             raise ValueError(f"obstacle {self.id}: empty track")
+        scalar = np.ndim(times) == 0
+        t = np.atleast_1d(np.asarray(times, float))
         pos = np.stack([np.interp(t, self.times, self.positions[:, i]) for i in range(3)], axis=1)
         idx = np.clip(np.searchsorted(self.times, t), 0, len(self.times) - 1)
         prev = np.clip(idx - 1, 0, len(self.times) - 1)
         use_prev = np.abs(self.times[prev] - t) < np.abs(self.times[idx] - t)
         idx = np.where(use_prev, prev, idx)
-        return pos, self.orientations[idx]
+        quat = self.orientations[idx]
+        return (pos[0], quat[0]) if scalar else (pos, quat)
 
 
 @dataclass
 class Recording:
     """Everything a run log holds, as arrays. Agent axis first: ``positions[a, k]``."""
 
-    path: str
+    file: str  # the log's path
     world: dict[str, Any]
     times: np.ndarray  # (T,) simulation time of each /agents/state step, s
     agent_ids: list[str]
@@ -61,7 +115,7 @@ class Recording:
     goals: np.ndarray  # (A, 3)
     radii: np.ndarray  # (A,)
     obstacle_tracks: dict[str, ObstacleTrack] = field(default_factory=dict)
-    events: list[dict[str, Any]] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
     optimizer_runs: list[dict[str, Any]] = field(default_factory=list)
     summary: dict[str, Any] | None = None
     truncated: bool = False
@@ -81,10 +135,21 @@ class Recording:
         return float(self.times[-1] - self.times[0]) if len(self.times) else 0.0
 
     @property
+    def world_dt(self) -> float | None:
+        """``sim.dt`` of the recorded world, when it has one."""
+        return _world_dt(self.world)
+
+    @property
     def dt(self) -> float:
+        """Step of the recording: the world's ``sim.dt`` when the recorded steps follow it, else
+        the median recorded step (rounded like the times)."""
+        wdt = self.world_dt
         if len(self.times) < 2:
-            return float((self.world.get("sim") or {}).get("dt", 0.0) or 0.0)
-        return float(np.median(np.diff(self.times)))
+            return wdt or 0.0
+        step = float(np.median(np.diff(self.times)))
+        if wdt is not None and abs(step - wdt) <= 1e-6 * max(1.0, wdt):
+            return wdt
+        return round(step, TIME_DECIMALS)
 
     @property
     def goal_tolerance(self) -> float:
@@ -106,14 +171,18 @@ class Recording:
             raise ValueError("recording has no steps")
         return int(np.argmin(np.abs(self.times - float(t))))
 
+    @property
     def obstacles(self) -> list[dict[str, Any]]:
+        """Every obstacle of the recorded world (resolved dicts, as in ``/world``)."""
         return list(self.world.get("obstacles") or [])
 
+    @property
     def static_obstacles(self) -> list[dict[str, Any]]:
-        return [o for o in self.obstacles() if not o.get("motion")]
+        return [o for o in self.obstacles if not o.get("motion")]
 
+    @property
     def moving_obstacles(self) -> list[dict[str, Any]]:
-        return [o for o in self.obstacles() if o.get("motion")]
+        return [o for o in self.obstacles if o.get("motion")]
 
     def obstacle_poses(self, oid: str, times: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Positions (K,3) and quaternions (K,4) of obstacle ``oid`` at ``times`` (default: steps).
@@ -124,7 +193,7 @@ class Recording:
         track = self.obstacle_tracks.get(oid)
         if track is not None and len(track.times):
             return track.at(t)
-        obst = next((o for o in self.obstacles() if o.get("id") == oid), None)
+        obst = next((o for o in self.obstacles if o.get("id") == oid), None)
         if obst is None:
             raise KeyError(f"no obstacle {oid!r}")
         from .geometry import euler_deg_to_quat
@@ -217,7 +286,8 @@ def load(path: str | Path) -> Recording:
                 agent_ids.append(str(a.get("id")))
     index = {aid: i for i, aid in enumerate(agent_ids)}
     n_a, n_t = len(agent_ids), len(states)
-    times = np.array([float(m.get("t", math.nan)) for m in states], float)
+    world_dt = _world_dt(world)
+    times = np.round(np.array([float(m.get("t", math.nan)) for m in states], float), TIME_DECIMALS)
     positions = np.full((n_a, n_t, 3), np.nan)
     velocities = np.full((n_a, n_t, 3), np.nan)
     modes = np.full((n_a, n_t), "", dtype=object)
@@ -256,7 +326,7 @@ def load(path: str | Path) -> Recording:
 
     tracks: dict[str, dict[str, list]] = {}
     for msg in _decode(raw.get("/obstacles/state", [])):
-        t = float(msg.get("t", math.nan))
+        t = round(float(msg.get("t", math.nan)), TIME_DECIMALS)
         for o in msg.get("obstacles", []):
             tr = tracks.setdefault(str(o.get("id")), {"t": [], "p": [], "q": []})
             tr["t"].append(t)
@@ -272,13 +342,13 @@ def load(path: str | Path) -> Recording:
             np.asarray(tr["q"], float).reshape(-1, 4)[order],
         )
 
-    events = _decode(raw.get("/events", []))
-    events.sort(key=lambda e: float(e.get("t", 0.0)))
+    events = [Event.from_json(e, world_dt) for e in _decode(raw.get("/events", []))]
+    events.sort(key=lambda e: e.t)
     optimizer_runs = _decode(raw.get("/optimizer", []))
     optimizer_runs.sort(key=lambda e: float(e.get("t", 0.0)))
     summaries = _decode(raw.get("/summary", []))
     return Recording(
-        path=path,
+        file=path,
         world=world,
         times=times,
         agent_ids=agent_ids,

@@ -1,6 +1,6 @@
 """Scenario runner for the dynamic-obstacle scenarios: build the world, run it through the real
 ``simulate`` path (pure APF, or the default refinement planner when ``swarmplan.planner`` exists),
-then audit the log independently with ``check_log.py``."""
+then audit the log independently (replay's recomputation, plus ``check_log.py`` where it exists)."""
 
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def run_scenario(tmp_path):
         summary = simulate(world, seed, log)
         why = describe_failure(summary, log)
         problems, _notes, stats = audit(log)
-        assert problems == [], f"check_log on {log.name}: {problems}\n{why}"
+        assert problems == [], f"audit of {log.name}: {problems}\n{why}"
         assert stats["arrived"] == stats["agents"] == len(raw["agents"]), why
         assert stats["collisions"] == 0, why
         assert summary["success"], why
