@@ -65,6 +65,15 @@ def _body_z(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
     return np.stack([cr * sp * cy + sr * sy, cr * sp * sy - sr * cy, cr * cp], axis=-1)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (A, 3) arrays (np.cross costs ~10x more on small arrays)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _deriv(
     x: np.ndarray, t_cmd: np.ndarray, tau: np.ndarray, cfg: TrackerConfig, inertia: np.ndarray
 ) -> np.ndarray:
@@ -87,7 +96,7 @@ def _deriv(
     dx[:, 7] = cr * q - sr * r
     dx[:, 8] = (sr * q + cr * r) / cp
     jw = w * inertia
-    dx[:, 9:12] = (tau - np.cross(w, jw)) / inertia
+    dx[:, 9:12] = (tau - _cross(w, jw)) / inertia
     dx[:, 12] = (t_cmd - thrust) / cfg.motor_time_constant
     return dx
 
@@ -176,7 +185,7 @@ def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
         i_rate = np.clip(i_rate + e_w * dt, -lim, lim)
         alpha = rate_g.kp * e_w + rate_g.ki * i_rate + rate_g.kd * (e_w - prev_rate_err) / dt * (k > 0)
         prev_rate_err = e_w
-        tau = inertia * alpha + np.cross(w, w * inertia)
+        tau = inertia * alpha + _cross(w, w * inertia)
 
         # --- RK4 with the commands held over the period
         k1 = _deriv(x, t_cmd, tau, cfg, inertia)
