@@ -35,8 +35,8 @@ from .config import G, TrackerConfig
 from .reference import Reference
 
 # Clamp of the integral terms' contribution (m/s^2 for position, rad/s^2 for rates): anti-windup
-# so a saturated stretch (an infeasible reference) does not leave a long overshoot behind it.
-_POS_I_LIMIT = 2.0
+# so a large error (an infeasible reference) does not leave a long drift behind it.
+_POS_I_LIMIT = 1.0
 _RATE_I_LIMIT = 5.0
 
 
@@ -126,6 +126,7 @@ def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
     out_eul = np.empty((n_a, n_k, 3))
     out_thr = np.empty((n_a, n_k))
     out_sat = np.zeros((n_a, n_k), bool)
+    sat_prev = np.zeros(n_a, bool)
 
     for k in range(n_k):
         p, v = x[:, 0:3], x[:, 3:6]
@@ -140,9 +141,10 @@ def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
         # --- position loop (PID, velocity error as the derivative of the position error)
         e_p = ref.pos[:, k] - p
         e_v = ref.vel[:, k] - v
-        i_pos = np.clip(
-            i_pos + e_p * dt, -_POS_I_LIMIT / max(pos_g.ki, 1e-12), _POS_I_LIMIT / max(pos_g.ki, 1e-12)
-        )
+        # Conditional integration: no integrating while the last command was saturated (a jump
+        # in the reference would otherwise charge the integrator and leave a slow drift behind).
+        i_lim = _POS_I_LIMIT / max(pos_g.ki, 1e-12)
+        i_pos = np.clip(i_pos + np.where(sat_prev[:, None], 0.0, e_p * dt), -i_lim, i_lim)
         a_cmd = ref.acc[:, k] + pos_g.kp * e_p + pos_g.kd * e_v + pos_g.ki * i_pos
         f = cfg.mass * a_cmd
         f[:, 2] += cfg.mass * G
@@ -162,6 +164,7 @@ def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
         b3 = _body_z(roll, pitch, yaw)
         t_cmd = np.clip(np.einsum("ij,ij->i", f, b3), 0.0, t_max)
         out_sat[:, k] = sat
+        sat_prev = sat
 
         # --- attitude loop: Euler-angle PID -> Euler rates -> body rates (W^-1)
         e_att = np.column_stack([roll_d - roll, pitch_d - pitch, -yaw])
