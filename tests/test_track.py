@@ -20,6 +20,7 @@ from helpers import check_log_module  # noqa: E402
 
 from swarmplan.replay import load  # noqa: E402
 from swarmplan.track import PID, TrackerConfig, parse_tracker, track  # noqa: E402
+from swarmplan.track.cli import main as cli_main  # noqa: E402
 from swarmplan.track.config import G  # noqa: E402
 from swarmplan.track.quadrotor import _deriv, simulate  # noqa: E402
 from swarmplan.track.reference import Reference, build_reference, feasibility, fill_gaps  # noqa: E402
@@ -67,10 +68,19 @@ def line_positions(n_t: int, start, end, t0: float, t1: float) -> np.ndarray:
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
+    """``python -m swarmplan.track`` in a subprocess (the real entry point)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run(
         [sys.executable, "-m", "swarmplan.track", *args], capture_output=True, text=True, env=env, timeout=300
     )
+
+
+def run_main(capsys, *args: str) -> subprocess.CompletedProcess:
+    """The CLI in-process (an uncaught exception fails the test, like a traceback would)."""
+    capsys.readouterr()
+    code = cli_main(list(args))
+    cap = capsys.readouterr()
+    return subprocess.CompletedProcess(list(args), code, cap.out, cap.err)
 
 
 # ------------------------------------------------------------------------- model physics
@@ -168,7 +178,7 @@ def test_thrust_never_exceeds_the_thrust_to_weight_limit():
 # ------------------------------------------------------------------------- reference honesty
 
 
-def test_teleport_in_the_log_is_reported_not_hidden(tmp_path):
+def test_teleport_in_the_log_is_reported_not_hidden(tmp_path, capsys):
     # Hover, then a 20 m jump in one recorded step: no vehicle can do that.
     pos = np.tile([0.0, 0.0, 20.0], (1, 80, 1))
     pos[0, 40:, 0] = 20.0
@@ -185,7 +195,7 @@ def test_teleport_in_the_log_is_reported_not_hidden(tmp_path):
     out = json.loads(run_cli(log, "--json").stdout)
     assert out["agents"]["u0"]["reference_feasible"] is False
     assert out["agents"]["u0"]["max_error_m"] > 5.0
-    text = run_cli(log).stdout
+    text = run_main(capsys, log).stdout
     assert "WARNING u0: reference infeasible" in text
 
 
@@ -320,8 +330,8 @@ def test_cli_json_reports_every_agent_and_skips_fixed_wings(two_agent_log):
     assert plane["max_error_m"] is None and "fixed_wing" in plane["skipped"]
 
 
-def test_cli_table_and_single_agent(two_agent_log):
-    r = run_cli(two_agent_log, "--agent", "quad")
+def test_cli_table_and_single_agent(two_agent_log, capsys):
+    r = run_main(capsys, two_agent_log, "--agent", "quad")
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     assert lines[0].split()[:3] == ["agent", "max", "err"]
@@ -357,11 +367,11 @@ def test_cli_out_is_a_contract_log_with_the_tracking_channel(two_agent_log, tmp_
     np.testing.assert_allclose(trk, rec.positions[0, -1])
 
 
-def test_cli_reads_the_tracker_section_of_the_world(tmp_path):
+def test_cli_reads_the_tracker_section_of_the_world(tmp_path, capsys):
     pos = line_positions(120, [0, 0, 10], [60, 0, 10], 1.0, 7.0)[None]
     default = track(load(make_log(tmp_path / "a.mcap", pos)), TrackerConfig())
     log = make_log(tmp_path / "b.mcap", pos, tracker={"max_tilt_deg": 5.0})
-    out = json.loads(run_cli(log, "--json").stdout)["agents"]["u0"]
+    out = json.loads(run_main(capsys, log, "--json").stdout)["agents"]["u0"]
     assert out["max_tilt_deg"] < 5.5 < default.agents["u0"].max_tilt_deg
     assert out["reference_feasible"] is False  # 5 degrees cannot give the line's acceleration
 
@@ -378,9 +388,9 @@ def test_cli_reads_the_tracker_section_of_the_world(tmp_path):
         (["{log}", "--plot", "{tmp}/noext"], "no extension"),
     ],
 )
-def test_cli_bad_input_exits_2_with_one_line(two_agent_log, tmp_path, args, message):
+def test_cli_bad_input_exits_2_with_one_line(two_agent_log, tmp_path, capsys, args, message):
     args = [a.format(log=two_agent_log, tmp=tmp_path) for a in args]
-    r = run_cli(*args)
+    r = run_main(capsys, *args)
     assert r.returncode == 2
     assert r.stdout == ""
     assert len(r.stderr.strip().splitlines()) == 1 and message in r.stderr
@@ -388,18 +398,24 @@ def test_cli_bad_input_exits_2_with_one_line(two_agent_log, tmp_path, args, mess
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
-def test_cli_bad_tracker_section_exits_2(tmp_path):
+def test_cli_bad_tracker_section_exits_2(tmp_path, capsys):
     pos = np.tile([0.0, 0.0, 10.0], (1, 20, 1))
     log = make_log(tmp_path / "bad.mcap", pos, tracker={"mass": -2, "dragg": 1})
-    r = run_cli(log, "--json")
+    r = run_main(capsys, log, "--json")
     assert r.returncode == 2 and r.stdout == ""
     assert r.stderr.strip() == (
         "track: /world tracker.dragg: unknown key (did you mean 'drag'?) (and 1 more)"
     )
 
 
-def test_cli_not_a_log_exits_2(tmp_path):
+def test_cli_not_a_log_exits_2(tmp_path, capsys):
     p = tmp_path / "junk.mcap"
     p.write_bytes(b"not an mcap file at all")
-    r = run_cli(str(p))
+    r = run_main(capsys, str(p))
     assert r.returncode == 2 and "not an MCAP file" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_python_dash_m_missing_file_exits_2_without_traceback():
+    r = run_cli("no/such/run.mcap", "--json")
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.strip() == "track: no/such/run.mcap: no such file"
