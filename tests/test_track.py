@@ -226,6 +226,49 @@ def test_stop_at_the_end_of_the_log_is_flown_out_in_the_settle_hover(tmp_path):
     assert with_hold.agents["u0"].max_error_m > without.agents["u0"].max_error_m
 
 
+def point_mass(accels: np.ndarray) -> np.ndarray:
+    """Positions (T, 3) of the simulator's multirotor: v += a dt, then p += v dt (semi-implicit)."""
+    v = np.cumsum(accels * DT, axis=0)
+    v[0] = 0.0
+    p = np.cumsum(v * DT, axis=0) + np.array([0.0, 0.0, 10.0])
+    return p
+
+
+def test_velocity_reference_reproduces_the_recorded_kinematics():
+    rng = np.random.default_rng(4)
+    acc = rng.uniform(-4.0, 4.0, size=(80, 3))  # within the point mass's max_accel of 4 (per axis)
+    acc[0] = 0.0
+    p = point_mass(acc)
+    times = DT * np.arange(len(p))
+    u = np.diff(p, axis=0) / DT  # the recorded velocities (each step's displacement over h)
+    ends = np.stack([np.zeros(3), u[-1]])[None]  # at rest at t = 0, last step's velocity at the end
+    ref = build_reference(times, p[None], ends, 0.005, "velocity")
+    at = np.round(times / 0.005).astype(int)
+    dv = np.abs(np.diff(u, axis=0)).max()
+    # through every inner recorded position within |dv| h / 8, every mid-step point exactly
+    assert np.abs(ref.pos[0, at[1:-1]] - p[1:-1]).max() <= dv * DT / 8 + 1e-9
+    assert np.abs(ref.pos[0, 0] - p[0]).max() <= np.abs(u[0]).max() * DT / 4 + 1e-9  # from rest
+    np.testing.assert_allclose(ref.pos[0, at[-1]], p[-1], atol=1e-9)
+    mid = at[:-1] + 10
+    np.testing.assert_allclose(ref.pos[0, mid], 0.5 * (p[:-1] + p[1:]), atol=1e-9)
+    # its acceleration is the recorded one: each step's velocity change over h (after the first)
+    inner = ref.acc[0, at[2] + 1 : at[-1] - 11]
+    assert np.abs(inner).max() <= 4.0 + 1e-9
+
+
+def test_chatter_is_feasible_for_the_velocity_reference_but_not_for_the_cubic_spline():
+    # The APF sometimes alternates +-a every step. The point mass does that within its limit;
+    # an interpolating cubic spline triples it (3 a / h^2 second differences) at the knots.
+    acc = np.zeros((60, 3))
+    acc[10:50, 0] = 5.0 * (-1.0) ** np.arange(40)
+    p = point_mass(acc)
+    times = DT * np.arange(len(p))
+    cfg = TrackerConfig(max_tilt_deg=40.0)  # g tan 40 = 8.2 m/s^2: above 5, below 3 x 5
+    vel = np.zeros((1, 2, 3))
+    assert not feasibility(build_reference(times, p[None], vel, 0.005, "velocity"), cfg).any()
+    assert feasibility(build_reference(times, p[None], vel, 0.005, "cubic"), cfg).any()
+
+
 def test_fill_gaps_holds_the_nearest_sample():
     times = np.arange(5) * 0.1
     p = np.full((1, 5, 3), np.nan)
@@ -258,6 +301,7 @@ def test_parse_tracker_reads_every_key():
         "max_rate_deg_s": 180,
         "dt": 0.004,
         "settle_time": 1.0,
+        "reference": "cubic",
         "position": {"kp": 3, "ki": 0.2, "kd": 2.5},
         "attitude": {"kp": 9},
         "rate": {"kp": 30, "kd": 0.1},
@@ -282,6 +326,10 @@ def test_parse_tracker_reads_every_key():
         ({"inertia": [1, 0, 1]}, "tracker.inertia: every value must be > 0, got [1, 0, 1]"),
         ({"drag_feedforward": "yes"}, "tracker.drag_feedforward: expected true or false, got 'yes'"),
         ({"mas": 1.0}, "tracker.mas: unknown key (did you mean 'mass'?)"),
+        (
+            {"reference": "cubik"},
+            "tracker.reference: 'cubik' is not one of velocity, cubic (did you mean 'cubic'?)",
+        ),
         ({"position": {"kq": 1}}, "tracker.position.kq: unknown key (did you mean 'kp'?)"),
         ({"position": {"kp": 0}}, "tracker.position.kp: must be > 0, got 0"),
         ({"rate": {"ki": -1}}, "tracker.rate.ki: must be >= 0, got -1"),
@@ -299,7 +347,8 @@ def test_parse_tracker_collects_every_problem_under_the_given_path():
     _, problems = parse_tracker({"mass": 0, "drag": -1, "zzz": 1}, "world.tracker")
     assert problems == [
         "world.tracker.zzz: unknown key (known keys: mass, thrust_to_weight, drag, motor_time_constant, "
-        "max_tilt_deg, max_rate_deg_s, dt, settle_time, inertia, drag_feedforward, position, attitude, rate)",
+        "max_tilt_deg, max_rate_deg_s, dt, settle_time, inertia, drag_feedforward, reference, position, "
+        "attitude, rate)",
         "world.tracker.mass: must be > 0, got 0",
         "world.tracker.drag: must be >= 0, got -1",
     ]

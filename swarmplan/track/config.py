@@ -67,6 +67,7 @@ class TrackerConfig:
     max_rate_deg_s: float = 220.0  # body-rate set-points are clipped to this
     dt: float = 0.005  # s, control period and fixed RK4 integration step
     settle_time: float = 2.0  # s of hover at the last recorded position after the log ends
+    reference: str = "velocity"  # how the recorded samples become a reference (reference.py)
     position: PID = field(default_factory=_pos_pid)
     attitude: PID = field(default_factory=_att_pid)
     rate: PID = field(default_factory=_rate_pid)
@@ -97,7 +98,8 @@ _SCALARS: dict[str, tuple[float, bool]] = {
 }
 _LOOPS = ("position", "attitude", "rate")
 _GAINS = ("kp", "ki", "kd")
-KEYS = (*_SCALARS, "inertia", "drag_feedforward", *_LOOPS)
+REFERENCE_METHODS = ("velocity", "cubic")
+KEYS = (*_SCALARS, "inertia", "drag_feedforward", "reference", *_LOOPS)
 
 
 def _typename(v: Any) -> str:
@@ -172,6 +174,14 @@ def parse_tracker(raw: object, path: str = "tracker") -> tuple[TrackerConfig, li
             vals["drag_feedforward"] = v
         else:
             problems.append(f"{path}.drag_feedforward: expected true or false, got {v!r}")
+    if raw.get("reference") is not None:
+        v = raw["reference"]
+        if v in REFERENCE_METHODS:
+            vals["reference"] = v
+        else:
+            close = difflib.get_close_matches(str(v), list(REFERENCE_METHODS), n=1, cutoff=0.5)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
+            problems.append(f"{path}.reference: {v!r} is not one of {', '.join(REFERENCE_METHODS)}{hint}")
     for loop in _LOOPS:
         node = raw.get(loop)
         if node is None:

@@ -36,6 +36,7 @@ class AgentTrack:
     infeasible_at: tuple[float, ...]  # start time of each infeasible stretch
     max_reference_accel: float  # m/s^2
     max_error_away_from_infeasible_m: float | None  # max error > RECOVERY_S from any infeasible instant
+    max_error_vs_recorded_m: float  # max distance to the recorded positions, at the recorded times
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -53,6 +54,7 @@ class AgentTrack:
             "max_error_away_from_infeasible_m": None
             if self.max_error_away_from_infeasible_m is None
             else round(self.max_error_away_from_infeasible_m, 4),
+            "max_error_vs_recorded_m": round(self.max_error_vs_recorded_m, 4),
             "skipped": None,
         }
 
@@ -128,7 +130,7 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
         pos = np.concatenate([pos, np.repeat(pos[:, -1:], n_hold, axis=1)], axis=1)
         vel[:, -1] = 0.0
     if chosen:
-        ref = build_reference(times, pos, vel, cfg.dt)
+        ref = build_reference(times, pos, vel, cfg.dt, cfg.reference)
     else:  # nothing to fly (only fixed wings): empty arrays keep one result shape
         empty = np.zeros((0, 1, 3))
         ref = Reference(times[:1], empty, empty, empty)
@@ -138,6 +140,8 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
     dt = cfg.dt
     agents: dict[str, AgentTrack] = {}
     recovery = int(round(RECOVERY_S / dt))
+    rec_t = np.asarray(rec.times, float)
+    rec_pos = fill_gaps(rec_t, rec.positions[chosen]) if chosen else np.zeros((0, len(rec_t), 3))
     for a, i in enumerate(chosen):
         aid = rec.agent_ids[i]
         near = np.zeros(len(ref.times), bool)
@@ -150,6 +154,8 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
             near = np.cumsum(hit)[:-1] > 0
         away = error[a][~near]
         k = int(np.argmax(error[a]))
+        flown = np.column_stack([np.interp(rec_t, ref.times, flight.pos[a, :, j]) for j in range(3)])
+        vs_recorded = float(np.linalg.norm(flown - rec_pos[a], axis=1).max())
         agents[aid] = AgentTrack(
             id=aid,
             max_error_m=float(error[a].max()),
@@ -164,6 +170,7 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
             infeasible_at=_stretch_starts(infeasible[a], ref.times),
             max_reference_accel=float(np.linalg.norm(ref.acc[a], axis=1).max()),
             max_error_away_from_infeasible_m=float(away.max()) if len(away) else None,
+            max_error_vs_recorded_m=vs_recorded,
         )
     return TrackResult(
         cfg=cfg,
