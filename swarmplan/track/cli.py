@@ -1,0 +1,171 @@
+"""Command line: ``python -m swarmplan.track RUN.mcap [--agent ID] [--out T.mcap] [--plot P.png] [--json]``.
+
+Flies each multirotor agent's recorded trajectory with a quadrotor model under paper 004's
+cascaded PID and prints, per agent, the max and RMS tracking error, the peak tilt and thrust,
+and whether the reference was flyable (every infeasible stretch is reported). The vehicle and
+gains come from the ``tracker:`` section of the log's /world message when it has one, else the
+documented defaults (``swarmplan/track/config.py``).
+
+Exit codes: 0 normally; 2 for bad input (missing or unreadable log, unknown agent, bad
+``tracker:`` section, unwritable ``--out``, unsupported ``--plot`` extension), with one line on
+stderr and nothing done.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from .config import TrackerConfig, parse_tracker
+from .output import PLOT_FORMATS
+
+
+class InputError(Exception):
+    """Bad command-line input: one line for the user, exit 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="python -m swarmplan.track",
+        description="Fly the recorded multirotor trajectories of a run log with a quadrotor model "
+        "and a cascaded PID (paper 004) and report the tracking error.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    ap.add_argument("log", help="run log (.mcap) written by python -m swarmplan.run")
+    ap.add_argument("--agent", metavar="ID", default=None, help="only this agent (default: every agent)")
+    ap.add_argument("--out", metavar="TRACK.mcap", default=None, help="write the tracked flight as a run log")
+    ap.add_argument(
+        "--plot", metavar="PNG", default=None, help=f"reference vs tracked plot ({', '.join(PLOT_FORMATS)})"
+    )
+    ap.add_argument("--json", action="store_true", help='print {"agents": {ID: {...}}} instead of a table')
+    return ap
+
+
+def _check_writable(path: str, what: str) -> None:
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{what} {path}: is a directory")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{what} {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise InputError(f"{what} {path}: not writable")
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Everything that can be checked without reading the log."""
+    if not Path(args.log).is_file():
+        raise InputError(f"{args.log}: no such file")
+    if not os.access(args.log, os.R_OK):
+        raise InputError(f"{args.log}: not readable")
+    if args.out is not None:
+        if Path(args.out).suffix.lower() != ".mcap":
+            raise InputError(f"--out {args.out}: expected a .mcap file")
+        if Path(args.out).resolve() == Path(args.log).resolve():
+            raise InputError(f"--out {args.out}: would overwrite the input log")
+        _check_writable(args.out, "--out")
+    if args.plot is not None:
+        ext = Path(args.plot).suffix.lower().lstrip(".")
+        if ext not in PLOT_FORMATS:
+            raise InputError(
+                f"--plot {args.plot}: unsupported extension '.{ext}' (use one of: {', '.join(PLOT_FORMATS)})"
+                if ext
+                else f"--plot {args.plot}: no extension (use one of: {', '.join(PLOT_FORMATS)})"
+            )
+        _check_writable(args.plot, "--plot")
+
+
+def tracker_config(world: dict) -> TrackerConfig:
+    cfg, problems = parse_tracker(world.get("tracker"), "tracker")
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise InputError(f"/world {problems[0]}{more}")
+    return cfg
+
+
+def _fmt_table(result, wall: float) -> list[str]:
+    lines = [
+        f"{'agent':<10} {'max err m':>9} {'rms err m':>9} {'at t s':>7} {'tilt deg':>8} "
+        f"{'thrust N':>8} {'T/W':>5} {'sat s':>6} {'ref ok':>6}"
+    ]
+    for aid in result.ids:
+        m = result.agents[aid]
+        lines.append(
+            f"{aid:<10} {m.max_error_m:9.3f} {m.rms_error_m:9.3f} {m.time_of_max_error_s:7.2f} "
+            f"{m.max_tilt_deg:8.1f} {m.max_thrust_n:8.2f} {m.max_thrust_to_weight:5.2f} "
+            f"{m.saturated_s:6.2f} {'yes' if m.reference_feasible else 'NO':>6}"
+        )
+    for aid, reason in result.skipped.items():
+        lines.append(f"{aid:<10} skipped: {reason}")
+    for aid in result.ids:
+        m = result.agents[aid]
+        if not m.reference_feasible:
+            at = ", ".join(f"{t:.2f}" for t in m.infeasible_at[:8]) + (
+                " ..." if len(m.infeasible_at) > 8 else ""
+            )
+            away = m.max_error_away_from_infeasible_m
+            lines.append(
+                f"WARNING {aid}: reference infeasible for {m.infeasible_s:.2f} s (needs up to "
+                f"{m.max_reference_accel:.1f} m/s^2; starts at t = {at} s); max error more than 2 s "
+                f"away from those instants: {'-' if away is None else f'{away:.3f} m'}"
+            )
+    cfg = result.cfg
+    lines.append(
+        f"vehicle: {cfg.mass:g} kg, T/W {cfg.thrust_to_weight:g}, tilt <= {cfg.max_tilt_deg:g} deg, "
+        f"drag {cfg.drag:g} N s^2/m^2; PID pos {cfg.position.kp:g}/{cfg.position.ki:g}/{cfg.position.kd:g}, "
+        f"att {cfg.attitude.kp:g}, rate {cfg.rate.kp:g}; RK4 dt {cfg.dt:g} s; "
+        f"wall {wall:.2f} s"
+    )
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    from swarmplan.replay import RecordingError, load
+
+    try:
+        check_args(args)
+        try:
+            rec = load(args.log)
+        except RecordingError as exc:
+            raise InputError(str(exc)) from None
+        if args.agent is not None and args.agent not in rec.agent_ids:
+            raise InputError(f"--agent {args.agent}: no such agent (agents: {', '.join(rec.agent_ids)})")
+        if rec.n_steps < 2:
+            raise InputError(f"{args.log}: the log has {rec.n_steps} step(s); tracking needs at least two")
+        cfg = tracker_config(rec.world)
+    except InputError as exc:
+        print(f"track: {exc}", file=sys.stderr)
+        return 2
+
+    from .core import track
+    from .output import plot, write_mcap
+
+    start = time.perf_counter()
+    result = track(rec, cfg, args.agent)
+    wall = time.perf_counter() - start
+    if args.out:
+        write_mcap(result, rec, args.out, source=str(args.log))
+    if args.plot:
+        plot(
+            result,
+            args.plot,
+            title=f"{rec.world.get('name', '')}: quadrotor tracking ({Path(args.log).name})",
+        )
+    if args.json:
+        print(json.dumps(result.to_json()))
+    else:
+        print("\n".join(_fmt_table(result, wall)))
+        if args.out:
+            print(f"tracked log: {args.out}")
+        if args.plot:
+            print(f"plot: {args.plot}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
