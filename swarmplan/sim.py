@@ -12,13 +12,23 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from swarmplan import __version__
 from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.core import (
+    FAILED,
+    SEGMENT_MODES,
+    Event,
+    Mode,
+    PlannedSegment,
+    Planner,
+    Recorder,
+    StepResult,
+    SwarmState,
+)
 from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import (
     CollisionWorld,
@@ -30,59 +40,10 @@ from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
 from swarmplan.lookahead import guard_commands, horizon_steps
 from swarmplan.metrics import RunMetrics
 from swarmplan.motion import max_speed, poses_at
-from swarmplan.state import SwarmState
 from swarmplan.world import World, matrix_to_quaternion
 
 CRASH_DEPTH = 0.02
 """Metres a crashed agent is recorded past its first contact (see ``Simulation._crash_point``)."""
-
-
-@dataclass(frozen=True)
-class Event:
-    t: float
-    agent: str | None
-    kind: str
-    detail: dict[str, Any] = field(default_factory=dict)
-
-    def to_json(self) -> dict[str, Any]:
-        return {"t": round(self.t, 9), "agent": self.agent, "kind": self.kind, "detail": self.detail}
-
-
-@dataclass(frozen=True)
-class PlannedSegment:
-    """A segment an agent follows in ``mode`` ('escape' or 'smoothing') before returning to APF."""
-
-    waypoints: np.ndarray  # (K, 3), the first is the next point to reach
-    mode: str = "escape"
-
-
-class Planner(Protocol):
-    """What the simulation asks of the refinement planner (see ``swarmplan.planner``)."""
-
-    def on_stuck(self, sim: Simulation, agent: int) -> PlannedSegment | None | str:
-        """A segment to escape a trap, None to keep flying APF, or "failed" to give up."""
-
-    def on_step(self, sim: Simulation) -> dict[int, PlannedSegment]:
-        """Segments to start this step for other reasons (e.g. curvature smoothing)."""
-
-    def on_reset(self, sim: Simulation) -> dict[int, np.ndarray]:
-        """Global routes (waypoints to the goal) planned before flight, per agent index."""
-
-
-class Recorder(Protocol):
-    def write_world(self, world: dict[str, Any]) -> None: ...
-    def write_state(self, t: float, agents: list[dict], obstacles: list[dict] | None) -> None: ...
-    def write_event(self, event: dict[str, Any]) -> None: ...
-    def write_optimizer(self, msg: dict[str, Any]) -> None: ...
-    def write_summary(self, summary: dict[str, Any]) -> None: ...
-
-
-@dataclass
-class StepResult:
-    state: SwarmState
-    events: list[Event]
-    terminated: bool
-    truncated: bool
 
 
 class Simulation:
@@ -126,7 +87,7 @@ class Simulation:
             position=start,
             velocity=initial_velocity(self.params, start, goal),
             goal=goal,
-            mode=np.array(["apf"] * self.n, dtype=object),
+            mode=np.array([Mode.APF] * self.n, dtype=object),
             segment=[None] * self.n,
             segment_index=np.zeros(self.n, dtype=int),
             route=[None] * self.n,
@@ -206,7 +167,7 @@ class Simulation:
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
         if self.planner is not None and len(idx):
             for i, seg in self.planner.on_step(self).items():
-                if s.mode[i] == "apf":
+                if s.mode[i] == Mode.APF:
                     self._start_segment(i, seg, events)
 
         pos0 = s.position.copy()
@@ -255,7 +216,7 @@ class Simulation:
                         vel1[i] = 0.0
         for i, j in agent_contacts(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
-                if s.mode[a] not in ("arrived", "collided"):
+                if s.mode[a] not in (Mode.ARRIVED, Mode.COLLIDED):
                     self._collide(a, self.ids[b], events, t1)
 
         # Arrival: the step passed within goal tolerance of the goal.
@@ -264,7 +225,7 @@ class Simulation:
         dmins = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
         for i, dmin in zip(flying, dmins.tolist(), strict=True):
             if dmin <= tol:
-                s.mode[i] = "arrived"
+                s.mode[i] = Mode.ARRIVED
                 vel1[i] = 0.0
                 s.segment[i] = None
                 self.metrics.arrival_time[i] = t1
@@ -330,12 +291,12 @@ class Simulation:
         target = s.goal[idx].copy()
         scale = np.ones(len(idx))
         for k, i in enumerate(idx):
-            if s.mode[i] in ("escape", "smoothing") and s.segment[i] is not None:
+            if s.mode[i] in SEGMENT_MODES and s.segment[i] is not None:
                 wp = self._advance(s.segment[i], i, "segment")
                 if wp is None:
-                    kind = "escape_end" if s.mode[i] == "escape" else "smoothing_end"
+                    kind = "escape_end" if s.mode[i] == Mode.ESCAPE else "smoothing_end"
                     events.append(Event(s.t, self.ids[i], kind, {}))
-                    s.mode[i] = "apf"
+                    s.mode[i] = Mode.APF
                     s.segment[i] = None
                     self._rejoin_route(i)
                 else:
@@ -364,7 +325,7 @@ class Simulation:
         s.segment[i] = np.asarray(seg.waypoints, dtype=float)
         s.segment_index[i] = 0
         s.mode[i] = seg.mode
-        if seg.mode == "escape":
+        if seg.mode == Mode.ESCAPE:
             self.metrics.escapes[i] += 1
             events.append(
                 Event(s.t, self.ids[i], "escape_start", {"waypoints": np.round(s.segment[i], 6).tolist()})
@@ -496,7 +457,7 @@ class Simulation:
         for _ in range(self.n):
             margin = 0.2
             pairs = agent_contacts(
-                pos0, pos1, self.params.radius, active | (self.state.mode == "arrived"), margin
+                pos0, pos1, self.params.radius, active | (self.state.mode == Mode.ARRIVED), margin
             )
             changed = False
             for a, b in pairs:
@@ -586,9 +547,9 @@ class Simulation:
 
     def _collide(self, i: int, other: str, events: list[Event], t1: float) -> None:
         s = self.state
-        if s.mode[i] == "collided":
+        if s.mode[i] == Mode.COLLIDED:
             return
-        s.mode[i] = "collided"
+        s.mode[i] = Mode.COLLIDED
         s.segment[i] = None
         self.metrics.collisions[i] += 1
         self.metrics.collided_with[i].append(other)
@@ -633,7 +594,7 @@ class Simulation:
         min_progress = self.world.planner["stuck"]["min_progress"]
         dg = self._distance_to_go()
         for i in np.flatnonzero(s.active):
-            if s.mode[i] != "apf":
+            if s.mode[i] != Mode.APF:
                 self._progress_ref[i], self._progress_t[i] = dg[i], s.t
                 self._segment_watchdog(int(i), window, min_progress, events)
                 continue
@@ -658,8 +619,8 @@ class Simulation:
                 )
                 if self.planner is not None:
                     outcome = self.planner.on_stuck(self, int(i))
-                    if outcome == "failed":
-                        s.mode[i] = "failed"
+                    if outcome == FAILED:
+                        s.mode[i] = Mode.FAILED
                         events.append(
                             Event(s.t, self.ids[i], "failed", {"reason": "no valid escape segment"})
                         )
@@ -701,9 +662,9 @@ class Simulation:
         if ref[1] - d >= min_progress:
             self._segment_ref[i] = (k, d, s.t, seg)
             return
-        kind = "escape_end" if s.mode[i] == "escape" else "smoothing_end"
+        kind = "escape_end" if s.mode[i] == Mode.ESCAPE else "smoothing_end"
         events.append(Event(s.t, self.ids[i], kind, {"abandoned": True, "waypoint": k}))
-        s.mode[i] = "apf"
+        s.mode[i] = Mode.APF
         s.segment[i] = None
         self._segment_ref.pop(i, None)
         self._rejoin_route(i)
@@ -761,7 +722,7 @@ class Simulation:
             agents.append(
                 {
                     "id": aid,
-                    "arrived": bool(s.mode[i] == "arrived"),
+                    "arrived": bool(s.mode[i] == Mode.ARRIVED),
                     "final_mode": str(s.mode[i]),
                     "arrival_time": None
                     if math.isnan(m.arrival_time[i])

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world
 
+from swarmplan.core import PlannedSegment
 from swarmplan.planner import RefinementPlanner
 from swarmplan.planner.escape import EscapePlanner, choose_subgoal
 from swarmplan.planner.segment_cost import SegmentCost, SegmentEncoding
-from swarmplan.sim import PlannedSegment, Simulation
+from swarmplan.sim import Simulation
 from swarmplan.world import WorldError
 
 TRAPS = Path(__file__).resolve().parents[1] / "worlds" / "traps"

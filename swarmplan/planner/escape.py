@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan import optimizers
+from swarmplan.core import FAILED, Mode, PlannedSegment, StuckOutcome
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 
 ESCAPE_DEFAULTS = {
@@ -244,7 +245,7 @@ class EscapePlanner:
         return 1.0 / (1.5 * float(apf["k_att"]) / k + 1.0 / rho0)
 
     def _intents(self, sim, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:  # noqa: ANN001
-        others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in ("collided", "failed")]
+        others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in (Mode.COLLIDED, Mode.FAILED)]
         its = agent_intents(sim, i, extra=extra)
         return dict(zip(others, its, strict=True))
 
@@ -357,48 +358,49 @@ class EscapePlanner:
                     best, best_c = q, score
         return best
 
-    def on_stuck(self, sim, i: int):  # noqa: ANN001, ANN201 - PlannedSegment | None | "failed"
-        from swarmplan.sim import PlannedSegment
+    def on_stuck(self, sim, i: int) -> StuckOutcome:  # noqa: ANN001
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
-            return "failed"
+            return FAILED
         self.escapes[i] = n_done + 1
         r = float(sim.params.radius[i])
         need = r + float(self.cfg["margin"]) + 1.0
         s = sim.state
-        partners = [j for j in self.deadlock_partners(sim, i) if s.mode[j] == "apf" and j not in self.pending]
+        partners = [
+            j for j in self.deadlock_partners(sim, i) if s.mode[j] == Mode.APF and j not in self.pending
+        ]
         # Deadlock: the agent with the higher index steps aside, the other goes on.
         if any(j < i for j in partners):
             j = min(partners)
             q = self.yield_point(sim, i, j, self._yield_distance(sim, i))
             out = self.plan(sim, i, lambda _h, q=q: q, ignore={j})
             if out.waypoints is not None:
-                return PlannedSegment(out.waypoints, mode="escape")
+                return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
         extra = {}
         for j in partners:
             if j > i:
                 q = self.yield_point(sim, j, i, self._yield_distance(sim, j))
                 out = self.plan(sim, j, lambda _h, q=q, j=j: q, ignore={i})
                 if out.waypoints is not None:
-                    self.pending[j] = PlannedSegment(out.waypoints, mode="escape")
+                    self.pending[j] = PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
                     extra[j] = _intent_of(sim, j, out.waypoints)
         out = self.plan(sim, i, lambda h: choose_subgoal(sim, i, h, need), extra=extra)
         if out.waypoints is None:
             failures = self.failures.get(i, 0) + 1
             self.failures[i] = failures
             if failures >= int(self.cfg["rounds"]):
-                return "failed"
+                return FAILED
             sim.note_event(i, "escape_deferred", {"round": failures, "attempts": out.attempts})
             return None
         self.failures[i] = 0
-        return PlannedSegment(out.waypoints, mode="escape")
+        return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
 
     def take_pending(self, sim) -> dict:  # noqa: ANN001
         """Yield segments planned for other agents, to start now (``Planner.on_step``)."""
-        out = {j: seg for j, seg in self.pending.items() if sim.state.mode[j] == "apf"}
+        out = {j: seg for j, seg in self.pending.items() if sim.state.mode[j] == Mode.APF}
         self.pending = {}
         return out
 

@@ -20,6 +20,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from swarmplan.core import Mode, PlannedSegment
+
 _EPS = 1e-9
 
 
@@ -140,13 +142,12 @@ class CurvatureSmoother:
         return None
 
     def on_step(self, sim) -> dict:  # noqa: ANN001
-        from swarmplan.sim import PlannedSegment
 
         s = sim.state
         out = {}
         for i in np.flatnonzero(s.active):
             i = int(i)
-            if s.mode[i] != "apf" or s.t < self.next_check.get(i, 0.0):
+            if s.mode[i] != Mode.APF or s.t < self.next_check.get(i, 0.0):
                 continue
             self.next_check[i] = s.t + self.check_interval
             found = self.check(sim, i)
@@ -164,5 +165,5 @@ class CurvatureSmoother:
                 continue
             if k >= 0 and s.route[i] is not None and not np.allclose(end, s.route[i][k]):
                 s.route_index[i] = k + 1  # the segment rounds this corner: the route goes on after it
-            out[i] = PlannedSegment(poly[1:], mode="smoothing")
+            out[i] = PlannedSegment(poly[1:], mode=Mode.SMOOTHING)
         return out
