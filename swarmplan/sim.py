@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan import __version__
 from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
 from swarmplan.core import (
     FAILED,
@@ -36,11 +35,12 @@ from swarmplan.geometry.collision import (
     first_hits,
     segment_segment_min_distance,
 )
+from swarmplan.geometry.rotation import matrix_to_quaternion
 from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
 from swarmplan.lookahead import guard_commands, horizon_steps
 from swarmplan.metrics import RunMetrics
 from swarmplan.motion import max_speed, poses_at
-from swarmplan.world import World, matrix_to_quaternion
+from swarmplan.world.model import World
 
 CRASH_DEPTH = 0.02
 """Metres a crashed agent is recorded past its first contact (see ``Simulation._crash_point``)."""
@@ -143,10 +143,7 @@ class Simulation:
         self._events.append(Event(self.state.t, None if agent is None else self.ids[agent], kind, detail))
 
     def world_message(self) -> dict[str, Any]:
-        msg = dict(self.world.resolved)
-        msg["seed"] = self.seed
-        msg["swarmplan_version"] = __version__
-        return msg
+        return self.world.to_message(self.seed)
 
     # ------------------------------------------------------------------ one step
 

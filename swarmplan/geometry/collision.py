@@ -15,11 +15,14 @@ obstacles and the query capsule are fcl objects created once and moved by transf
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import fcl
 import numpy as np
 
-from swarmplan.world import Obstacle, World
+if TYPE_CHECKING:
+    from swarmplan.world.model import Obstacle, World
+
 
 _Z = np.array([0.0, 0.0, 1.0])
 

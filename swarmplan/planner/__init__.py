@@ -14,6 +14,7 @@ import numpy as np
 
 from swarmplan.planner.escape import EscapePlanner
 from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
+from swarmplan.world.model import WorldError
 
 __all__ = ["RefinementPlanner", "fillet_path", "validate_planner_settings"]
 
@@ -24,7 +25,6 @@ def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.
     problem, so a bad world fails before any run starts."""
     from swarmplan.planner.escape import escape_settings
     from swarmplan.planner.global_path import global_config
-    from swarmplan.world import WorldError
 
     problems: list[str] = []
     for check in (escape_settings, global_config):

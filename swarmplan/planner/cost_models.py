@@ -38,12 +38,14 @@ for a circular fillet of radius R). A path violating any of them gets
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
-from swarmplan.world import AgentSpec, World
+
+if TYPE_CHECKING:
+    from swarmplan.world.model import AgentSpec, World
 
 # ----------------------------------------------------------------------------- geometry helpers
 

@@ -40,6 +40,7 @@ import numpy as np
 from swarmplan import optimizers
 from swarmplan.core import FAILED, Mode, PlannedSegment, StuckOutcome
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
+from swarmplan.world.model import WorldError
 
 ESCAPE_DEFAULTS = {
     "waypoints": 4,
@@ -55,7 +56,6 @@ ESCAPE_DEFAULTS = {
 
 def escape_settings(world) -> dict:  # noqa: ANN001
     """``planner.escape`` merged over the defaults; every problem raises one ``WorldError``."""
-    from swarmplan.world import WorldError
 
     raw = world.planner.get("escape") or {}
     if not isinstance(raw, dict):

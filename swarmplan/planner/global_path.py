@@ -45,7 +45,7 @@ import numpy as np
 
 from swarmplan.planner.cost_models import MODELS, PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
-from swarmplan.world import AgentSpec, World, WorldError
+from swarmplan.world.model import AgentSpec, World, WorldError
 
 ENCODINGS = ("planes", "spline")
 _NUMBERS = ("lateral", "vertical", "margin")
