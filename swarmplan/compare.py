@@ -47,7 +47,7 @@ class _Collect:
 def run_one(world_path: str, optimizer: str, seed: int, out_dir: str | None) -> dict[str, Any]:
     """One run of ``world_path`` with ``optimizer`` and ``seed``; the row the table needs."""
     from swarmplan import optimizers
-    from swarmplan.planner.global_path import make_planner
+    from swarmplan.planner import make_planner
     from swarmplan.recording import McapRecorder
     from swarmplan.run import apply_overrides
     from swarmplan.sim import Simulation

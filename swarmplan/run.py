@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from swarmplan.planner import make_planner, validate_planner_settings
 from swarmplan.world import World, WorldError, load_world
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -26,17 +27,6 @@ def log_path_for(world: World, seed: int, optimizer: str, out: str | None) -> Pa
         raise WorldError(
             [f"log.path: bad template {template!r} ({exc}); use {{name}}, {{seed}}, {{optimizer}}"]
         ) from None
-
-
-def make_planner(world: World, optimizer: str):  # noqa: ANN201 - Planner or None
-    """The refinement planner for ``optimizer`` ('none' = pure APF)."""
-    if optimizer == "none":
-        return None
-    try:
-        from swarmplan.planner import RefinementPlanner
-    except ImportError:  # the planner package is optional until it lands
-        return None
-    return RefinementPlanner(world, optimizer)
 
 
 def apply_overrides(world: World, optimizer: str | None, max_time: float | None) -> World:
@@ -202,8 +192,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def check_planner_settings(world: World, source: str) -> None:
     """The planner's own sections of the world file (``planner.escape``, ``planner.global``)."""
-    from swarmplan.planner import validate_planner_settings
-
     try:
         validate_planner_settings(world)
     except WorldError as exc:

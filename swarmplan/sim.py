@@ -71,6 +71,7 @@ class Simulation:
         self.metrics: RunMetrics | None = None
         self.wall_start = 0.0
         self._events: list[Event] = []  # the running step's events (see note_event)
+        self._planning_before_flight = False
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -105,7 +106,12 @@ class Simulation:
         if self.recorder is not None:
             self.recorder.write_world(self.world_message())
         if self.planner is not None:
-            for i, route in self.planner.on_reset(self).items():
+            self._planning_before_flight = True  # its events are logged as they come (see note_event)
+            try:
+                routes = self.planner.on_reset(self)
+            finally:
+                self._planning_before_flight = False
+            for i, route in routes.items():
                 self.state.route[i] = np.asarray(route, dtype=float)
             self._progress_ref = self._distance_to_go()
         if self.recorder is not None:
@@ -140,7 +146,14 @@ class Simulation:
         """An event the planner reports during ``step()`` (recorded with that step's events)."""
         if self.state is None:
             raise RuntimeError("call reset() before note_event()")
-        self._events.append(Event(self.state.t, None if agent is None else self.ids[agent], kind, detail))
+        event = Event(self.state.t, None if agent is None else self.ids[agent], kind, detail)
+        if self._planning_before_flight:
+            # Before the first step there is no step to carry it: it goes to the log at t = 0,
+            # between the optimizer runs it follows.
+            if self.recorder is not None:
+                self.recorder.write_event(event.to_json())
+            return
+        self._events.append(event)
 
     def world_message(self) -> dict[str, Any]:
         return self.world.to_message(self.seed)

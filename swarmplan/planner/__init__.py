@@ -12,20 +12,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarmplan.planner.escape import EscapePlanner
+from swarmplan.core import StuckOutcome
+from swarmplan.planner.escape import EscapePlanner, escape_settings
+from swarmplan.planner.global_path import global_config, plan_global_routes
 from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
 from swarmplan.world.model import WorldError
 
-__all__ = ["RefinementPlanner", "fillet_path", "validate_planner_settings"]
+__all__ = ["RefinementPlanner", "fillet_path", "make_planner", "validate_planner_settings"]
 
 
 def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.World
     """Check ``planner.escape`` and ``planner.global`` (owned by this package; the world parser
     checks the rest, including the optimizer's params); raise one ``WorldError`` listing every
     problem, so a bad world fails before any run starts."""
-    from swarmplan.planner.escape import escape_settings
-    from swarmplan.planner.global_path import global_config
-
     problems: list[str] = []
     for check in (escape_settings, global_config):
         try:
@@ -53,13 +52,9 @@ class RefinementPlanner:
         self.smoother.next_check.clear()
         if self.world.planner.get("mode") != "global":
             return {}
-        try:
-            from swarmplan.planner.global_path import plan_global_routes
-        except ImportError:
-            return {}
         return plan_global_routes(sim, self.optimizer_name, sim.rng)
 
-    def on_stuck(self, sim, agent: int):  # noqa: ANN001, ANN201 - PlannedSegment | None | "failed"
+    def on_stuck(self, sim, agent: int) -> StuckOutcome:  # noqa: ANN001
         return self.escape.on_stuck(sim, agent)
 
     def on_step(self, sim) -> dict:  # noqa: ANN001
@@ -68,3 +63,12 @@ class RefinementPlanner:
             for i, seg in self.smoother.on_step(sim).items():
                 out.setdefault(i, seg)
         return out
+
+
+def make_planner(world, optimizer: str | None = None) -> RefinementPlanner | None:  # noqa: ANN001
+    """The planner a run of ``world`` flies: the refinement planner with ``optimizer`` (default:
+    the world's ``planner.optimizer.name``), or None for ``'none'`` (pure APF)."""
+    name = world.planner["optimizer"]["name"] if optimizer is None else optimizer
+    if name == "none":
+        return None
+    return RefinementPlanner(world, name)

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from swarmplan import optimizers
 from swarmplan.planner.cost_models import MODELS, PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
 from swarmplan.world.model import AgentSpec, World, WorldError
@@ -239,15 +240,8 @@ def route_spacing(world: World, agent: AgentSpec) -> float:
     )
 
 
-def _event(sim: Any, agent: str, kind: str, detail: dict[str, Any]) -> None:
-    if sim.recorder is not None:
-        sim.recorder.write_event({"t": 0.0, "agent": agent, "kind": kind, "detail": detail})
-
-
 def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) -> dict[int, np.ndarray]:
     """Plan every agent's whole path with ``optimizer_name``; {agent index: route (K, 3)} for valid plans."""
-    from swarmplan import optimizers
-
     world: World = sim.world
     cfg = global_config(world)
     opt_cfg = world.planner["optimizer"]
@@ -294,41 +288,10 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
                 else f"best path touches '{hit}' (FCL)"
             )
             detail["fallback"] = "no route: reactive flight (APF with escapes) to the goal"
-            _event(sim, agent.id, "global_plan_invalid", detail)
+            sim.note_event(i, "global_plan_invalid", detail)
             continue
         detail["waypoints"] = np.round(path, 3).tolist()
         detail["planned_waypoints"] = np.round(nodes[0], 3).tolist()
-        _event(sim, agent.id, "global_plan", detail)
+        sim.note_event(i, "global_plan", detail)
         routes[i] = route[1:]
     return routes
-
-
-class GlobalRoutePlanner:
-    """A minimal planner for ``mode: global`` when the refinement planner is not available:
-    global routes at reset, no escapes, no smoothing."""
-
-    def __init__(self, world: World, optimizer: str):
-        self.world = world
-        self.optimizer_name = optimizer
-
-    def on_reset(self, sim: Any) -> dict[int, np.ndarray]:
-        if self.world.planner.get("mode") != "global" or self.optimizer_name == "none":
-            return {}
-        return plan_global_routes(sim, self.optimizer_name, sim.rng)
-
-    def on_stuck(self, sim: Any, agent: int) -> None:
-        return None
-
-    def on_step(self, sim: Any) -> dict:
-        return {}
-
-
-def make_planner(world: World, optimizer: str) -> Any:
-    """The project's planner (``swarmplan.run.make_planner``), or :class:`GlobalRoutePlanner` when that
-    is unavailable and the world is in global mode."""
-    from swarmplan.run import make_planner as project_planner
-
-    planner = project_planner(world, optimizer)
-    if planner is None and optimizer != "none" and world.planner.get("mode") == "global":
-        planner = GlobalRoutePlanner(world, optimizer)
-    return planner
