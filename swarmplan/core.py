@@ -19,6 +19,16 @@ TIME_DIGITS = 9
 40.800000000000004), the same value the log carries."""
 
 
+SEGMENT_REPULSION_SCALE = 0.3
+"""Scale of static-obstacle repulsion while an agent follows a planned segment: FCL already
+validated the segment, so the field only nudges. The escape planner's clearance target is
+derived from it (``swarmplan.planner.escape``), so both read this one constant."""
+
+REACH_STEPS = 3.0
+"""A waypoint counts as reached within this many steps of flight at the current speed (or the
+goal tolerance, if larger): waypoints are passed, not hit exactly."""
+
+
 class Mode(StrEnum):
     """What an agent is doing; the values are the log's ``mode`` strings."""
 

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan import optimizers
-from swarmplan.core import FAILED, Mode, PlannedSegment, StuckOutcome
+from swarmplan.core import FAILED, SEGMENT_REPULSION_SCALE, Mode, PlannedSegment, StuckOutcome
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 from swarmplan.world.model import WorldError
 
@@ -240,7 +240,7 @@ class EscapePlanner:
         simulation keeps along a segment (0.3 k_rep (1/rho - 1/rho0)) must not exceed the
         attraction k_att * 1.5 m at the waypoint (it counts as reached within ~2 m)."""
         apf = sim.world.planner["apf"]
-        k = 0.3 * float(apf["k_rep"])
+        k = SEGMENT_REPULSION_SCALE * float(apf["k_rep"])
         rho0 = float(apf["influence"])
         return 1.0 / (1.5 * float(apf["k_att"]) / k + 1.0 / rho0)
 
