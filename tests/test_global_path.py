@@ -86,7 +86,7 @@ def test_defaults():
 def test_plan_is_valid_and_recorded(cost):
     w = _world({"cost": cost, "waypoints": 6})
     rec = _Rec()
-    sim = Simulation(w, recorder=rec)
+    sim = Simulation(w, planner="none", recorder=rec)
     sim.reset(3)
     routes = plan_global_routes(sim, "rscdwoa", sim.rng)
     assert list(routes) == [0]
@@ -107,7 +107,7 @@ def test_impossible_plan_falls_back_with_an_event():
     wall = [{"id": "wall", "shape": "box", "size": [4, 100, 60], "position": [100, 50, 30]}]
     w = _world(obstacles=wall)
     rec = _Rec()
-    sim = Simulation(w, recorder=rec)
+    sim = Simulation(w, planner="none", recorder=rec)
     sim.reset(0)
     assert plan_global_routes(sim, "random", sim.rng) == {}
     sim.step()
@@ -135,7 +135,7 @@ def test_shortcut_prunes_free_detours_and_keeps_the_one_around_the_tower():
     from swarmplan.planner.global_path import shortcut_path
 
     w = _world()
-    sim = Simulation(w)
+    sim = Simulation(w, planner="none")
     sim.reset(0)
     # Free zig-zag before the tower, then round it (y = 75: 25 m from its axis), then to the goal.
     path = np.array(
@@ -161,7 +161,7 @@ def test_shortcut_respects_the_climb_angle():
     from swarmplan.planner.global_path import shortcut_path
 
     w = _world(obstacles=[])
-    sim = Simulation(w)
+    sim = Simulation(w, planner="none")
     sim.reset(0)
     # Two 20° legs in line: the direct leg also climbs 20° (max 45°), so the middle vertex goes.
     path = np.array([[10, 50, 20], [20, 50, 23.64], [30, 50, 27.28]], float)

@@ -16,7 +16,7 @@ This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.sce
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -25,6 +25,7 @@ from swarmplan.core import Event, Mode, Planner, Recorder, StepResult, SwarmStat
 from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import agent_contacts, first_hits
 from swarmplan.metrics import RunMetrics, summary_report
+from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
 from swarmplan.sim.navigation import Navigator, distance_to_go
 from swarmplan.sim.safety import SafetyFilter
@@ -33,10 +34,26 @@ from swarmplan.world.model import World
 
 
 class Simulation:
-    """One run of a world. ``planner`` (optional) plans escapes and smoothing; ``recorder`` logs."""
+    """One run of a world; ``recorder`` (optional) logs it.
 
-    def __init__(self, world: World, planner: Planner | None = None, recorder: Recorder | None = None):
+    ``planner`` plans global routes, escapes and smoothing: by default (``"world"``) the
+    world's own ``planner.optimizer``, as the command line flies it; ``"none"`` (or None) is
+    pure APF; or any object with the :class:`~swarmplan.core.Planner` methods.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        planner: Planner | Literal["world", "none"] | None = "world",
+        recorder: Recorder | None = None,
+    ):
         self.world = world
+        if planner == "world":
+            planner = make_planner(world)
+        elif planner == "none":
+            planner = None
+        elif isinstance(planner, str):
+            raise ValueError(f"planner: expected 'world', 'none' or a Planner, got {planner!r}")
         self.planner = planner
         self.recorder = recorder
         self.params = AgentParams.from_world(world)
