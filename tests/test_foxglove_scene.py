@@ -16,7 +16,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from conftest_replay import base_world  # noqa: E402
 
-from swarmplan.foxglove_scene import FoxgloveScene, file_descriptor_set  # noqa: E402
+from swarmplan.io.foxglove_scene import FoxgloveScene, file_descriptor_set  # noqa: E402
 
 
 def _world(n_agents=3):
