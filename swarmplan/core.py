@@ -90,6 +90,7 @@ class PlannedSegment:
 
     waypoints: np.ndarray  # (K, 3), the first is the next point to reach
     mode: Literal[Mode.ESCAPE, Mode.SMOOTHING] = Mode.ESCAPE
+    route_index: int | None = None  # the global-route waypoint to go on from (e.g. a rounded corner skipped)
 
 
 FAILED: Literal["failed"] = "failed"

@@ -154,7 +154,7 @@ class McapRecorder:
     def __init__(self, path: str | Path, flush_interval: float = 1.0, foxglove: bool = True):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._file = open(self.path, "wb")
         self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="swarmplan")
         self._channels: dict[str, int] = {}

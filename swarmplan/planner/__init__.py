@@ -21,7 +21,7 @@ from swarmplan.world.model import WorldError
 __all__ = ["RefinementPlanner", "fillet_path", "make_planner", "validate_planner_settings"]
 
 
-def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.World
+def validate_planner_settings(world) -> None:
     """Check ``planner.escape`` and ``planner.global`` (owned by this package; the world parser
     checks the rest, including the optimizer's params); raise one ``WorldError`` listing every
     problem, so a bad world fails before any run starts."""
@@ -38,14 +38,14 @@ def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.
 class RefinementPlanner:
     """The planner the simulation calls; ``optimizer_name`` names the metaheuristic it uses."""
 
-    def __init__(self, world, optimizer_name: str):  # noqa: ANN001 - swarmplan.world.World
+    def __init__(self, world, optimizer_name: str):
         self.world = world
         self.optimizer_name = optimizer_name
         self.escape = EscapePlanner(world, optimizer_name)
         self.smoother = CurvatureSmoother(self.escape)
         self.smoothing = bool(world.planner.get("smoothing", {}).get("enabled", True))
 
-    def on_reset(self, sim) -> dict[int, np.ndarray]:  # noqa: ANN001
+    def on_reset(self, sim) -> dict[int, np.ndarray]:
         self.escape.escapes.clear()
         self.escape.pending.clear()
         self.escape.failures.clear()
@@ -54,10 +54,10 @@ class RefinementPlanner:
             return {}
         return plan_global_routes(sim, self.optimizer_name, sim.rng)
 
-    def on_stuck(self, sim, agent: int) -> StuckOutcome:  # noqa: ANN001
+    def on_stuck(self, sim, agent: int) -> StuckOutcome:
         return self.escape.on_stuck(sim, agent)
 
-    def on_step(self, sim) -> dict:  # noqa: ANN001
+    def on_step(self, sim) -> dict:
         out = self.escape.take_pending(sim)
         if self.smoothing:
             for i, seg in self.smoother.on_step(sim).items():
@@ -65,7 +65,7 @@ class RefinementPlanner:
         return out
 
 
-def make_planner(world, optimizer: str | None = None) -> RefinementPlanner | None:  # noqa: ANN001
+def make_planner(world, optimizer: str | None = None) -> RefinementPlanner | None:
     """The planner a run of ``world`` flies: the refinement planner with ``optimizer`` (default:
     the world's ``planner.optimizer.name``), or None for ``'none'`` (pure APF)."""
     name = world.planner["optimizer"]["name"] if optimizer is None else optimizer

@@ -47,17 +47,6 @@ def se_frame(start: np.ndarray, goal: np.ndarray) -> np.ndarray:
     return np.array([[cp * ct, sp * ct, st], [-sp, cp, 0.0], [-cp * st, -sp * st, ct]])
 
 
-def resample_polyline(P: np.ndarray, step: float) -> np.ndarray:
-    """Points along each polyline of ``P`` (n, K, 3) at most ``step`` apart (same count for all)."""
-    seg = np.linalg.norm(np.diff(P, axis=1), axis=-1)  # (n, K-1)
-    per = int(np.clip(np.ceil(seg.max() / max(step, 1e-9)), 1, 200)) if seg.size else 1
-    s = np.arange(per) / per  # (per,)
-    a, b = P[:, :-1, None, :], P[:, 1:, None, :]
-    pts = a + s[None, None, :, None] * (b - a)  # (n, K-1, per, 3)
-    out = pts.reshape(len(P), -1, 3)
-    return np.concatenate([out, P[:, -1:, :]], axis=1)
-
-
 def resample_uniform(P: np.ndarray, count: int) -> np.ndarray:
     """``count`` points evenly spaced in arc length along each polyline of ``P`` (n, K, 3).
 

@@ -54,7 +54,7 @@ ESCAPE_DEFAULTS = {
 }
 
 
-def escape_settings(world) -> dict:  # noqa: ANN001
+def escape_settings(world) -> dict:
     """``planner.escape`` merged over the defaults; every problem raises one ``WorldError``."""
 
     raw = world.planner.get("escape") or {}
@@ -87,7 +87,7 @@ def escape_settings(world) -> dict:  # noqa: ANN001
     return cfg
 
 
-def model_turn_radius(sim, i: int) -> float:  # noqa: ANN001
+def model_turn_radius(sim, i: int) -> float:
     """Minimum turn radius of agent ``i``: ``min_turn_radius`` (fixed wing) or v²/a (paper 004 eq 34)."""
     p = sim.params
     if p.fixed_wing[i]:
@@ -95,7 +95,7 @@ def model_turn_radius(sim, i: int) -> float:  # noqa: ANN001
     return float(p.speed_cruise[i]) ** 2 / max(float(p.max_accel[i]), 1e-9)
 
 
-def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:  # noqa: ANN001
+def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:
     """Clearance (surface distance minus ``radius``) of ``pts`` to static obstacles, floor and bounds."""
     w = sim.world
     pts = np.atleast_2d(pts)
@@ -108,7 +108,7 @@ def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:  # noqa
     return clear
 
 
-def choose_subgoal(sim, i: int, horizon: float, need: float) -> np.ndarray:  # noqa: ANN001
+def choose_subgoal(sim, i: int, horizon: float, need: float) -> np.ndarray:
     """Point on the ray to the goal past whatever blocks it (clearance < ``need``), at least
     ``horizon`` out, or the goal when that is nearer."""
     s = sim.state
@@ -148,7 +148,7 @@ class EscapeOutcome:
 class EscapePlanner:
     """Plans escape and yield segments for one simulation (holds the optimizer and settings)."""
 
-    def __init__(self, world, optimizer_name: str):  # noqa: ANN001
+    def __init__(self, world, optimizer_name: str):
         self.world = world
         self.name = optimizer_name
         self.cfg = escape_settings(world)
@@ -165,7 +165,7 @@ class EscapePlanner:
 
     # ------------------------------------------------------------------ validation
 
-    def segment_hit(self, sim, i: int, polyline: np.ndarray, start_clearance: float) -> str | None:  # noqa: ANN001
+    def segment_hit(self, sim, i: int, polyline: np.ndarray, start_clearance: float) -> str | None:
         """What the first leg of ``polyline`` touching something (static, terrain, bounds) hits, else None.
 
         Each leg is swept with radius + ``fcl_margin``; the first leg starts at the agent,
@@ -182,7 +182,7 @@ class EscapePlanner:
                 return hit
         return None
 
-    def shortcut(self, sim, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:  # noqa: ANN001
+    def shortcut(self, sim, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:
         """Greedy shortcutting: from each kept point jump to the farthest later one whose straight
         leg keeps the full clearance (radius + ``margin``, FCL). Fewer, farther waypoints are
         also followed more firmly: the field's attraction grows with the target's distance."""
@@ -212,7 +212,7 @@ class EscapePlanner:
         margin: float,
         extra: dict[int, Intent] | None = None,
         ignore: set[int] | None = None,
-    ) -> SegmentCost:  # noqa: ANN001
+    ) -> SegmentCost:
         s, p = sim.state, sim.params
         r = float(p.radius[i])
         start_clear = float(static_clearance(sim, s.position[i], r)[0])
@@ -235,7 +235,7 @@ class EscapePlanner:
         )
 
     @staticmethod
-    def vertex_clearance(sim) -> float:  # noqa: ANN001
+    def vertex_clearance(sim) -> float:
         """Clearance a waypoint needs so the agent can reach it: the static repulsion the
         simulation keeps along a segment (0.3 k_rep (1/rho - 1/rho0)) must not exceed the
         attraction k_att * 1.5 m at the waypoint (it counts as reached within ~2 m)."""
@@ -244,14 +244,14 @@ class EscapePlanner:
         rho0 = float(apf["influence"])
         return 1.0 / (1.5 * float(apf["k_att"]) / k + 1.0 / rho0)
 
-    def _intents(self, sim, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:  # noqa: ANN001
+    def _intents(self, sim, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:
         others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in (Mode.COLLIDED, Mode.FAILED)]
         its = agent_intents(sim, i, extra=extra)
         return dict(zip(others, its, strict=True))
 
     def optimize_segment(
         self,
-        sim,  # noqa: ANN001
+        sim,
         i: int,
         end: np.ndarray,
         purpose: str,
@@ -289,9 +289,9 @@ class EscapePlanner:
 
     def plan(
         self,
-        sim,  # noqa: ANN001
+        sim,
         i: int,
-        end_fn,  # noqa: ANN001 - horizon -> end point
+        end_fn,
         purpose: str = "escape",
         extra: dict[int, Intent] | None = None,
         ignore: set[int] | None = None,
@@ -316,7 +316,7 @@ class EscapePlanner:
 
     # ------------------------------------------------------------------ events
 
-    def deadlock_partners(self, sim, i: int) -> list[int]:  # noqa: ANN001
+    def deadlock_partners(self, sim, i: int) -> list[int]:
         """Other flying agents close to ``i`` and slow (or coming at it): a mutual blockage."""
         s, p = sim.state, sim.params
         out = []
@@ -335,7 +335,7 @@ class EscapePlanner:
                 out.append(int(j))
         return out
 
-    def yield_point(self, sim, i: int, j: int, dist: float) -> np.ndarray:  # noqa: ANN001
+    def yield_point(self, sim, i: int, j: int, dist: float) -> np.ndarray:
         """A point ``dist`` to the side of the line between ``j`` and its goal, on ``i``'s side,
         where ``i`` waits out of ``j``'s way (the side with more clearance)."""
         s = sim.state
@@ -358,7 +358,7 @@ class EscapePlanner:
                     best, best_c = q, score
         return best
 
-    def on_stuck(self, sim, i: int) -> StuckOutcome:  # noqa: ANN001
+    def on_stuck(self, sim, i: int) -> StuckOutcome:
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
@@ -398,18 +398,18 @@ class EscapePlanner:
         self.failures[i] = 0
         return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
 
-    def take_pending(self, sim) -> dict:  # noqa: ANN001
+    def take_pending(self, sim) -> dict:
         """Yield segments planned for other agents, to start now (``Planner.on_step``)."""
         out = {j: seg for j, seg in self.pending.items() if sim.state.mode[j] == Mode.APF}
         self.pending = {}
         return out
 
-    def _yield_distance(self, sim, i: int) -> float:  # noqa: ANN001
+    def _yield_distance(self, sim, i: int) -> float:
         p = sim.params
         return max(8.0, 2.0 * (float(np.linalg.norm(p.separation[i])) + 2.0 * float(p.radius[i])))
 
 
-def _intent_of(sim, j: int, waypoints: np.ndarray) -> Intent:  # noqa: ANN001
+def _intent_of(sim, j: int, waypoints: np.ndarray) -> Intent:
     """Agent ``j`` flying ``waypoints`` from where it is at cruise speed."""
     s, p = sim.state, sim.params
     pts = np.vstack([s.position[j], waypoints])
@@ -437,11 +437,3 @@ def seed_candidates(enc: SegmentEncoding, width: float) -> np.ndarray:
                 rows.append(r)
     X = np.array([r.reshape(-1) for r in rows])
     return np.clip(X, enc.lower, enc.upper)
-
-
-def turn_angle(a: np.ndarray, b: np.ndarray) -> float:
-    """Angle between two direction vectors (radians)."""
-    na, nb = np.linalg.norm(a), np.linalg.norm(b)
-    if na < 1e-12 or nb < 1e-12:
-        return 0.0
-    return math.acos(float(np.clip(np.dot(a, b) / (na * nb), -1.0, 1.0)))

@@ -46,6 +46,7 @@ import numpy as np
 from swarmplan import optimizers
 from swarmplan.planner.cost_models import MODELS, PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
+from swarmplan.planner.escape import static_clearance
 from swarmplan.world.model import AgentSpec, World, WorldError
 
 ENCODINGS = ("planes", "spline")
@@ -167,7 +168,7 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
     cls = SplineEncoding if cfg.encoding == "spline" else PlaneEncoding
     kw = {"samples": cfg.samples} if cls is SplineEncoding else {}
     alt = max(agent.min_altitude, world.terrain_clearance, agent.radius + margin)
-    floor = (lambda xy: world.terrain_height(xy) + alt) if world.peaks else None  # noqa: E731
+    floor = (lambda xy: world.terrain_height(xy) + alt) if world.peaks else None
     enc = cls(agent.start, agent.goal, cfg.waypoints, lateral, vertical, lo, hi, step=step, floor=floor, **kw)
     # The altitude floor rises from the start's/goal's own height over two plane spacings, so
     # a path through waypoints at the floor is valid however low the user put its ends.
@@ -182,8 +183,6 @@ def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | N
     (a take-off from the ground): the legs leaving the start and reaching the goal are swept
     with the margin those points have (never less than the bare radius).
     """
-    from swarmplan.planner.escape import static_clearance
-
     radius = float(sim.params.radius[i])
     ends = static_clearance(sim, path[[0, -1]], radius)
     n = len(path) - 1

@@ -84,6 +84,8 @@ class Navigator:
     ) -> None:
         s.segment[i] = np.asarray(seg.waypoints, dtype=float)
         s.segment_index[i] = 0
+        if seg.route_index is not None:
+            s.route_index[i] = seg.route_index
         s.mode[i] = seg.mode
         if seg.mode == Mode.ESCAPE:
             metrics.escapes[i] += 1
