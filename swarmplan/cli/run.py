@@ -203,7 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def check_planner_settings(world: World, source: str) -> None:
-    """The planner's own sections of the world file (``planner.escape``, ``planner.global``)."""
+    """The planner's own sections of the world file (``planner.escape``, ``planner.global``);
+    ``load_world`` checks them already, this is for a world changed since."""
     try:
         validate_planner_settings(world)
     except WorldError as exc:
@@ -224,7 +225,6 @@ def main(argv: list[str] | None = None) -> int:
         if args.seed is not None and args.seed < 0:
             raise WorldError([f"--seed: must be >= 0, got {args.seed}"], "command line")
         world = apply_overrides(load_world(args.world, names), args.optimizer, args.max_time)
-        check_planner_settings(world, str(args.world))
         seed = world.seed if args.seed is None else args.seed
         log_path = log_path_for(world, seed, world.planner["optimizer"]["name"], args.out)
         check_writable(log_path, "--out" if args.out is not None else "log.path")

@@ -22,9 +22,9 @@ __all__ = ["RefinementPlanner", "fillet_path", "make_planner", "validate_planner
 
 
 def validate_planner_settings(world) -> None:
-    """Check ``planner.escape`` and ``planner.global`` (owned by this package; the world parser
-    checks the rest, including the optimizer's params); raise one ``WorldError`` listing every
-    problem, so a bad world fails before any run starts."""
+    """Check ``planner.escape`` and ``planner.global`` of ``world`` again; raise one ``WorldError``
+    listing every problem. ``load_world`` / ``parse_world`` already do this; it is for worlds
+    whose planner mapping was replaced afterwards (``World.with_overrides``)."""
     problems: list[str] = []
     for check in (escape_settings, global_config):
         try:

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
+from swarmplan.world.planner_config import COST_WEIGHTS
 
 if TYPE_CHECKING:
     from swarmplan.world.model import AgentSpec, World
@@ -202,7 +203,7 @@ class McfoCost(CostModel):
     """Paper 004: J = w1·length + w2·height std + w3·smoothness; infeasible → c_j·(J + |S→T|·V)."""
 
     name = "mcfo"
-    defaults = {"w1": 0.6, "w2": 0.2, "w3": 0.2, "penalty": 1000.0}
+    defaults = COST_WEIGHTS["mcfo"]
 
     def terms(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(J_path, J_height, J_smooth) of eqs 3, 4 and 6."""
@@ -233,10 +234,8 @@ class ThreatCost(CostModel):
     """Paper 000: W = δ_O·L + Σ_seg l·mean_k(Σ δ P_threat + P_T + P_B + P_H) (eqs 2-7, Table 1)."""
 
     name = "iba"
-    # path: δ_O; threat_unit: metres per paper unit (km); max_altitude: 0 = the bounds' top;
-    # max_climb_angle: degrees for P_B (0 = the agent's).
-    defaults = {"path": 0.1, "threat_unit": 1000.0, "max_altitude": 0.0, "max_climb_angle": 0.0,
-                "penalty": 1000.0}  # fmt: skip
+    # Weight names and meanings: swarmplan.world.planner_config.COST_WEIGHTS.
+    defaults = COST_WEIGHTS["iba"]
 
     def __init__(self, ctx: PathContext, **weights: float):
         super().__init__(ctx, **weights)
@@ -277,10 +276,8 @@ class EnergyCost(CostModel):
     """Paper 002: C = α1·L + α2·℘_E·(E1 + E2) with turning/climb limits (eqs 2-12)."""
 
     name = "iafsa"
-    # max_turn_angle / max_climb_angle in degrees (0 = no turn limit / the agent's climb limit).
-    defaults = {"alpha1": 0.5, "alpha2": 0.5, "xi1": 1.0, "xi2": 2.0, "payload": 0.5,
-                "payload_max": 1.0, "payload_penalty_max": 1.5, "max_turn_angle": 0.0,
-                "max_climb_angle": 0.0, "penalty": 1000.0}  # fmt: skip
+    # Weight names and meanings: swarmplan.world.planner_config.COST_WEIGHTS.
+    defaults = COST_WEIGHTS["iafsa"]
 
     @property
     def payload_factor(self) -> float:

@@ -31,8 +31,6 @@ move on, so a later round may find a way — and an ``escape_deferred`` event is
 
 from __future__ import annotations
 
-import difflib
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,51 +38,12 @@ import numpy as np
 from swarmplan import optimizers
 from swarmplan.core import FAILED, SEGMENT_REPULSION_SCALE, Mode, PlannedSegment, StuckOutcome
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
-from swarmplan.world.model import WorldError
-
-ESCAPE_DEFAULTS = {
-    "waypoints": 4,
-    "horizon": None,
-    "margin": 1.0,
-    "fcl_margin": 0.3,
-    "retries": 2,
-    "growth": 1.5,
-    "max_escapes": 25,
-    "rounds": 3,
-}
+from swarmplan.world.planner_config import check_escape
 
 
 def escape_settings(world) -> dict:
-    """``planner.escape`` merged over the defaults; every problem raises one ``WorldError``."""
-
-    raw = world.planner.get("escape") or {}
-    if not isinstance(raw, dict):
-        raise WorldError([f"planner.escape: expected a mapping, got {raw!r}"])
-    problems = []
-    for k in raw:
-        if k not in ESCAPE_DEFAULTS:
-            close = difflib.get_close_matches(str(k), list(ESCAPE_DEFAULTS), n=1, cutoff=0.6)
-            hint = f"did you mean '{close[0]}'?" if close else f"known keys: {', '.join(ESCAPE_DEFAULTS)}"
-            problems.append(f"planner.escape.{k}: unknown key ({hint})")
-    cfg = dict(ESCAPE_DEFAULTS)
-    cfg.update({k: v for k, v in raw.items() if k in ESCAPE_DEFAULTS and v is not None})
-    if cfg["horizon"] is None:
-        cfg["horizon"] = max(15.0, 2.0 * float(world.planner["apf"]["influence"]))
-    counts = {"waypoints": 1, "retries": 0, "max_escapes": 1, "rounds": 1}
-    for k, v in cfg.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            problems.append(f"planner.escape.{k}: expected a number, got {v!r}")
-        elif k in counts and (v != int(v) or v < counts[k]):
-            problems.append(f"planner.escape.{k}: expected a whole number >= {counts[k]}, got {v!r}")
-        elif k in ("horizon", "margin") and v <= 0:
-            problems.append(f"planner.escape.{k}: must be > 0, got {v!r}")
-        elif k == "growth" and v < 1:
-            problems.append(f"planner.escape.{k}: must be >= 1, got {v!r}")
-        elif k == "fcl_margin" and v < 0:
-            problems.append(f"planner.escape.{k}: must be >= 0, got {v!r}")
-    if problems:
-        raise WorldError(problems)
-    return cfg
+    """``planner.escape`` of ``world`` merged over the defaults (validated by the world parser)."""
+    return check_escape(world.planner)
 
 
 def model_turn_radius(sim, i: int) -> float:

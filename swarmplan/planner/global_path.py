@@ -38,106 +38,24 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from swarmplan import optimizers
-from swarmplan.planner.cost_models import MODELS, PathContext, make_cost
+from swarmplan.planner.cost_models import PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
 from swarmplan.planner.escape import static_clearance
-from swarmplan.world.model import AgentSpec, World, WorldError
+from swarmplan.world.model import AgentSpec, World
+from swarmplan.world.planner_config import GlobalConfig, check_global
 
-ENCODINGS = ("planes", "spline")
-_NUMBERS = ("lateral", "vertical", "margin")
-_COUNTS = ("waypoints", "samples", "population", "iterations", "retries")
-_KEYS = ("cost", "encoding", "waypoints", "lateral", "vertical", "margin", "samples", "population",
-         "iterations", "retries", "shortcut", "warm_start", "weights")  # fmt: skip
 RETRY_GROWTH = 1.5
 
 
-@dataclass(frozen=True)
-class GlobalConfig:
-    cost: str = "mcfo"
-    encoding: str = "planes"
-    waypoints: int = 8
-    lateral: float = 0.0
-    vertical: float = 0.0
-    margin: float = 0.0
-    samples: int = 40
-    population: int = 0
-    iterations: int = 0
-    retries: int = 2
-    shortcut: bool = True
-    warm_start: bool = True
-    weights: dict[str, float] = field(default_factory=dict)
-
-
 def global_config(world: World) -> GlobalConfig:
-    """Validate ``planner.global`` of ``world``; raise ``WorldError`` listing every problem."""
-    raw = world.planner.get("global") or {}
-    problems: list[str] = []
-    p = "planner.global"
-    if not isinstance(raw, dict):
-        raise WorldError([f"{p}: expected a mapping"])
-    for k in raw:
-        if k not in _KEYS:
-            problems.append(f"{p}.{k}: unknown key (known keys: {', '.join(_KEYS)})")
-    cost = raw.get("cost", "mcfo")
-    if cost not in MODELS:
-        problems.append(f"{p}.cost: '{cost}' is not one of {', '.join(MODELS)}")
-        cost = "mcfo"
-    encoding = raw.get("encoding", "spline" if cost == "iafsa" else "planes")
-    if encoding not in ENCODINGS:
-        problems.append(f"{p}.encoding: '{encoding}' is not one of {', '.join(ENCODINGS)}")
-    values: dict[str, Any] = {}
-    for k in _NUMBERS + _COUNTS:
-        if k not in raw:
-            continue
-        v = raw[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            problems.append(f"{p}.{k}: expected a number >= 0, got {v!r}")
-        elif k in _COUNTS and v != int(v):
-            problems.append(f"{p}.{k}: must be a whole number, got {v!r}")
-        elif k == "waypoints" and v < 1:
-            problems.append(f"{p}.{k}: must be >= 1, got {v!r}")
-        elif k == "population" and 0 < v < 2:
-            problems.append(f"{p}.{k}: must be >= 2 (or 0 for planner.optimizer.population), got {v!r}")
-        else:
-            values[k] = int(v) if k in _COUNTS else float(v)
-    for k in ("shortcut", "warm_start"):
-        if k in raw and not isinstance(raw[k], bool):
-            problems.append(f"{p}.{k}: expected true or false, got {raw[k]!r}")
-        else:
-            values[k] = bool(raw.get(k, True))
-    weights = raw.get("weights") or {}
-    if not isinstance(weights, dict):
-        problems.append(f"{p}.weights: expected a mapping, got {weights!r}")
-        weights = {}
-    known = MODELS[cost].defaults
-    for k, v in weights.items():
-        if k not in known:
-            problems.append(f"{p}.weights.{k}: unknown weight for cost '{cost}' (known: {', '.join(known)})")
-        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            problems.append(f"{p}.weights.{k}: expected a number >= 0, got {v!r}")
-    if cost == "mcfo" and not problems:
-        w = {**known, **weights}
-        if abs(w["w1"] + w["w2"] + w["w3"] - 1.0) > 1e-6:
-            problems.append(
-                f"{p}.weights: w1 + w2 + w3 must be 1 (004 eq 2), got {w['w1'] + w['w2'] + w['w3']:g}"
-            )
-    if cost == "iafsa" and not problems:
-        w = {**known, **weights}
-        if abs(w["alpha1"] + w["alpha2"] - 1.0) > 1e-6:
-            problems.append(f"{p}.weights: alpha1 + alpha2 must be 1 (002 eq 2)")
-        if w["payload_max"] <= 0:
-            problems.append(f"{p}.weights.payload_max: must be > 0")
-    if cost == "iba" and not problems and {**known, **weights}["threat_unit"] <= 0:
-        problems.append(f"{p}.weights.threat_unit: must be > 0")
-    if problems:
-        raise WorldError(problems)
-    return GlobalConfig(cost=cost, encoding=encoding, weights=dict(weights), **values)
+    """``planner.global`` of ``world`` (validated by the world parser)."""
+    return check_global(world.planner)
 
 
 @dataclass

@@ -34,6 +34,7 @@ from swarmplan.world.model import (
     World,
     WorldError,
 )
+from swarmplan.world.planner_config import check_escape, check_global
 
 AGENT_DEFAULTS: dict[str, Any] = {
     "model": "multirotor",
@@ -432,6 +433,7 @@ def parse_world(
     _check_defaults_alone(c, defaults)
 
     planner = _resolve_planner(c, raw.get("planner"), optimizer_names)
+    _check_planner_sections(c, planner)
 
     log = dict(LOG_DEFAULTS)
     if raw.get("log") is not None and c.keys(raw["log"], "log", list(LOG_DEFAULTS)):
@@ -489,3 +491,15 @@ def _check_defaults_alone(c: Checker, defaults: dict) -> None:
     sp = defaults["speed"]
     if None not in (sp["min"], sp["max"]) and sp["min"] > sp["max"]:
         c.add("agent_defaults.speed", f"min ({sp['min']:g}) is above max ({sp['max']:g})")
+
+
+def _check_planner_sections(c: Checker, planner: dict[str, Any]) -> None:
+    """``planner.escape`` and ``planner.global`` (a non-mapping was reported already)."""
+    for section, check in (("escape", check_escape), ("global", check_global)):
+        if isinstance(planner.get(section, {}), dict):
+            try:
+                check(planner)
+            except WorldError as exc:
+                for problem in exc.problems:
+                    path, _, msg = problem.partition(": ")
+                    c.add(path, msg)
