@@ -3,26 +3,29 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 
 def rotation_matrix(roll_pitch_yaw_deg: np.ndarray | tuple[float, float, float]) -> np.ndarray:
     """R = Rz(yaw) Ry(pitch) Rx(roll), angles in degrees."""
-    r, p, y = (math.radians(float(a)) for a in roll_pitch_yaw_deg)
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return rz @ ry @ rx
+    return _from_rpy(roll_pitch_yaw_deg).as_matrix()
 
 
 def euler_to_quaternion(roll_pitch_yaw_deg: np.ndarray | tuple[float, float, float]) -> np.ndarray:
     """Roll, pitch, yaw in degrees -> quaternion [qx, qy, qz, qw]."""
+    return _from_rpy(roll_pitch_yaw_deg).as_quat()
+
+
+def rotate(quaternion: np.ndarray | tuple[float, ...], v: np.ndarray) -> np.ndarray:
+    """``v`` (..., 3) rotated by the quaternion [qx, qy, qz, qw]."""
+    return Rotation.from_quat(quaternion).apply(np.asarray(v, dtype=float))
+
+
+def _from_rpy(roll_pitch_yaw_deg: np.ndarray | tuple[float, float, float]) -> Rotation:
+    # Intrinsic Z, then Y', then X'' is Rz(yaw) Ry(pitch) Rx(roll).
     r, p, y = (float(a) for a in roll_pitch_yaw_deg)
-    return Rotation.from_euler("ZYX", [y, p, r], degrees=True).as_quat()
+    return Rotation.from_euler("ZYX", [y, p, r], degrees=True)
 
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
