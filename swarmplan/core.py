@@ -112,8 +112,13 @@ class PlanningContext(Protocol):
 
     world: Any  # swarmplan.world.World
     state: SwarmState
-    rng: np.random.Generator
-    ids: list[str]
+    ids: tuple[str, ...]
+    n: int
+    params: Any  # swarmplan.dynamics.AgentParams
+    collision: Any  # swarmplan.geometry.collision.CollisionWorld
+    field: Any  # swarmplan.geometry.shapes.ObstacleField
+    moving_mask: np.ndarray
+    rng: np.random.Generator  # the run's seeded stream for planning
 
     def record_optimizer(
         self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None

@@ -40,6 +40,7 @@ from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
 
+from swarmplan.core import Mode
 from swarmplan.geometry.rotation import euler_to_quaternion, rotate
 
 FRAME = "world"
@@ -49,12 +50,12 @@ PATHS_TOPIC = "/scene/paths"
 TF_TOPIC = "/tf"
 
 MODE_COLORS = {
-    "apf": (0.12, 0.47, 0.71, 1.0),
-    "escape": (0.84, 0.15, 0.16, 1.0),
-    "smoothing": (1.0, 0.75, 0.0, 1.0),
-    "arrived": (0.17, 0.63, 0.17, 1.0),
-    "collided": (0.1, 0.1, 0.1, 1.0),
-    "failed": (0.5, 0.5, 0.5, 1.0),
+    Mode.APF: (0.12, 0.47, 0.71, 1.0),
+    Mode.ESCAPE: (0.84, 0.15, 0.16, 1.0),
+    Mode.SMOOTHING: (1.0, 0.75, 0.0, 1.0),
+    Mode.ARRIVED: (0.17, 0.63, 0.17, 1.0),
+    Mode.COLLIDED: (0.1, 0.1, 0.1, 1.0),
+    Mode.FAILED: (0.5, 0.5, 0.5, 1.0),
 }
 OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
 MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)

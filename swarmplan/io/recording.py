@@ -15,6 +15,7 @@ from typing import Any
 
 from mcap.writer import CompressionType, Writer
 
+from swarmplan.core import Mode
 from swarmplan.io.foxglove_scene import FoxgloveScene
 
 _NUM3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
@@ -49,7 +50,7 @@ SCHEMAS: dict[str, dict[str, Any]] = {
                         "position": _NUM3,
                         "velocity": _NUM3,
                         "goal": _NUM3,
-                        "mode": {"enum": ["apf", "escape", "smoothing", "arrived", "collided", "failed"]},
+                        "mode": {"enum": [m.value for m in Mode]},
                     },
                 },
             },

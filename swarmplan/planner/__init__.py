@@ -12,16 +12,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarmplan.core import StuckOutcome
+from swarmplan.core import PlannedSegment, PlanningContext, StuckOutcome
 from swarmplan.planner.escape import EscapePlanner, escape_settings
 from swarmplan.planner.global_path import global_config, plan_global_routes
 from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
-from swarmplan.world.model import WorldError
+from swarmplan.world.model import World, WorldError
 
 __all__ = ["RefinementPlanner", "fillet_path", "make_planner", "validate_planner_settings"]
 
 
-def validate_planner_settings(world) -> None:
+def validate_planner_settings(world: World) -> None:
     """Check ``planner.escape`` and ``planner.global`` of ``world`` again; raise one ``WorldError``
     listing every problem. ``load_world`` / ``parse_world`` already do this; it is for worlds
     whose planner mapping was replaced afterwards (``World.with_overrides``)."""
@@ -38,14 +38,14 @@ def validate_planner_settings(world) -> None:
 class RefinementPlanner:
     """The planner the simulation calls; ``optimizer_name`` names the metaheuristic it uses."""
 
-    def __init__(self, world, optimizer_name: str):
+    def __init__(self, world: World, optimizer_name: str):
         self.world = world
         self.optimizer_name = optimizer_name
         self.escape = EscapePlanner(world, optimizer_name)
         self.smoother = CurvatureSmoother(self.escape)
         self.smoothing = bool(world.planner.get("smoothing", {}).get("enabled", True))
 
-    def on_reset(self, sim) -> dict[int, np.ndarray]:
+    def on_reset(self, sim: PlanningContext) -> dict[int, np.ndarray]:
         self.escape.escapes.clear()
         self.escape.pending.clear()
         self.escape.failures.clear()
@@ -54,10 +54,10 @@ class RefinementPlanner:
             return {}
         return plan_global_routes(sim, self.optimizer_name, sim.rng)
 
-    def on_stuck(self, sim, agent: int) -> StuckOutcome:
+    def on_stuck(self, sim: PlanningContext, agent: int) -> StuckOutcome:
         return self.escape.on_stuck(sim, agent)
 
-    def on_step(self, sim) -> dict:
+    def on_step(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
         out = self.escape.take_pending(sim)
         if self.smoothing:
             for i, seg in self.smoother.on_step(sim).items():
@@ -65,7 +65,7 @@ class RefinementPlanner:
         return out
 
 
-def make_planner(world, optimizer: str | None = None) -> RefinementPlanner | None:
+def make_planner(world: World, optimizer: str | None = None) -> RefinementPlanner | None:
     """The planner a run of ``world`` flies: the refinement planner with ``optimizer`` (default:
     the world's ``planner.optimizer.name``), or None for ``'none'`` (pure APF)."""
     name = world.planner["optimizer"]["name"] if optimizer is None else optimizer

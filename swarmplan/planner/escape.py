@@ -36,7 +36,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan import optimizers
-from swarmplan.core import FAILED, SEGMENT_REPULSION_SCALE, Mode, PlannedSegment, StuckOutcome
+from swarmplan.core import (
+    FAILED,
+    SEGMENT_REPULSION_SCALE,
+    Mode,
+    PlannedSegment,
+    PlanningContext,
+    StuckOutcome,
+)
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 from swarmplan.world.planner_config import check_escape
 
@@ -46,7 +53,7 @@ def escape_settings(world) -> dict:
     return check_escape(world.planner)
 
 
-def model_turn_radius(sim, i: int) -> float:
+def model_turn_radius(sim: PlanningContext, i: int) -> float:
     """Minimum turn radius of agent ``i``: ``min_turn_radius`` (fixed wing) or v²/a (paper 004 eq 34)."""
     p = sim.params
     if p.fixed_wing[i]:
@@ -54,7 +61,7 @@ def model_turn_radius(sim, i: int) -> float:
     return float(p.speed_cruise[i]) ** 2 / max(float(p.max_accel[i]), 1e-9)
 
 
-def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:
+def static_clearance(sim: PlanningContext, pts: np.ndarray, radius: float) -> np.ndarray:
     """Clearance (surface distance minus ``radius``) of ``pts`` to static obstacles, floor and bounds."""
     w = sim.world
     pts = np.atleast_2d(pts)
@@ -67,7 +74,7 @@ def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:
     return clear
 
 
-def choose_subgoal(sim, i: int, horizon: float, need: float) -> np.ndarray:
+def choose_subgoal(sim: PlanningContext, i: int, horizon: float, need: float) -> np.ndarray:
     """Point on the ray to the goal past whatever blocks it (clearance < ``need``), at least
     ``horizon`` out, or the goal when that is nearer."""
     s = sim.state
@@ -124,7 +131,9 @@ class EscapePlanner:
 
     # ------------------------------------------------------------------ validation
 
-    def segment_hit(self, sim, i: int, polyline: np.ndarray, start_clearance: float) -> str | None:
+    def segment_hit(
+        self, sim: PlanningContext, i: int, polyline: np.ndarray, start_clearance: float
+    ) -> str | None:
         """What the first leg of ``polyline`` touching something (static, terrain, bounds) hits, else None.
 
         Each leg is swept with radius + ``fcl_margin``; the first leg starts at the agent,
@@ -141,7 +150,7 @@ class EscapePlanner:
                 return hit
         return None
 
-    def shortcut(self, sim, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:
+    def shortcut(self, sim: PlanningContext, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:
         """Greedy shortcutting: from each kept point jump to the farthest later one whose straight
         leg keeps the full clearance (radius + ``margin``, FCL). Fewer, farther waypoints are
         also followed more firmly: the field's attraction grows with the target's distance."""
@@ -194,7 +203,7 @@ class EscapePlanner:
         )
 
     @staticmethod
-    def vertex_clearance(sim) -> float:
+    def vertex_clearance(sim: PlanningContext) -> float:
         """Clearance a waypoint needs so the agent can reach it: the static repulsion the
         simulation keeps along a segment (0.3 k_rep (1/rho - 1/rho0)) must not exceed the
         attraction k_att * 1.5 m at the waypoint (it counts as reached within ~2 m)."""
@@ -203,7 +212,7 @@ class EscapePlanner:
         rho0 = float(apf["influence"])
         return 1.0 / (1.5 * float(apf["k_att"]) / k + 1.0 / rho0)
 
-    def _intents(self, sim, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:
+    def _intents(self, sim: PlanningContext, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:
         others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in (Mode.COLLIDED, Mode.FAILED)]
         its = agent_intents(sim, i, extra=extra)
         return dict(zip(others, its, strict=True))
@@ -241,7 +250,12 @@ class EscapePlanner:
         evals = max(self.population, int(self.population * self.iterations * budget_factor))
         x0 = seed_candidates(enc, width)
         res = self.optimizer.minimize(
-            lambda X: cost(enc.decode(X)), enc.lower, enc.upper, max_evals=evals, seed=sim.rng, x0=x0
+            lambda X: cost(enc.decode(X)),
+            enc.lower,
+            enc.upper,
+            max_evals=evals,
+            seed=sim.rng,
+            x0=x0,
         )
         sim.record_optimizer(i, purpose, self.name, res)
         return enc.decode(res.x)[0], float(res.f), cost
@@ -275,7 +289,7 @@ class EscapePlanner:
 
     # ------------------------------------------------------------------ events
 
-    def deadlock_partners(self, sim, i: int) -> list[int]:
+    def deadlock_partners(self, sim: PlanningContext, i: int) -> list[int]:
         """Other flying agents close to ``i`` and slow (or coming at it): a mutual blockage."""
         s, p = sim.state, sim.params
         out = []
@@ -294,7 +308,7 @@ class EscapePlanner:
                 out.append(int(j))
         return out
 
-    def yield_point(self, sim, i: int, j: int, dist: float) -> np.ndarray:
+    def yield_point(self, sim: PlanningContext, i: int, j: int, dist: float) -> np.ndarray:
         """A point ``dist`` to the side of the line between ``j`` and its goal, on ``i``'s side,
         where ``i`` waits out of ``j``'s way (the side with more clearance)."""
         s = sim.state
@@ -317,7 +331,7 @@ class EscapePlanner:
                     best, best_c = q, score
         return best
 
-    def on_stuck(self, sim, i: int) -> StuckOutcome:
+    def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
@@ -357,18 +371,18 @@ class EscapePlanner:
         self.failures[i] = 0
         return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
 
-    def take_pending(self, sim) -> dict:
+    def take_pending(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
         """Yield segments planned for other agents, to start now (``Planner.on_step``)."""
         out = {j: seg for j, seg in self.pending.items() if sim.state.mode[j] == Mode.APF}
         self.pending = {}
         return out
 
-    def _yield_distance(self, sim, i: int) -> float:
+    def _yield_distance(self, sim: PlanningContext, i: int) -> float:
         p = sim.params
         return max(8.0, 2.0 * (float(np.linalg.norm(p.separation[i])) + 2.0 * float(p.radius[i])))
 
 
-def _intent_of(sim, j: int, waypoints: np.ndarray) -> Intent:
+def _intent_of(sim: PlanningContext, j: int, waypoints: np.ndarray) -> Intent:
     """Agent ``j`` flying ``waypoints`` from where it is at cruise speed."""
     s, p = sim.state, sim.params
     pts = np.vstack([s.position[j], waypoints])

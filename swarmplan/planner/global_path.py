@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from swarmplan import optimizers
+from swarmplan.core import PlanningContext
 from swarmplan.planner.cost_models import PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
 from swarmplan.planner.escape import static_clearance
@@ -94,7 +95,7 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
     return AgentProblem(enc, make_cost(cfg.cost, ctx, cfg.weights), margin)
 
 
-def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | None:
+def validate_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float) -> str | None:
     """What the agent's sphere (radius + ``inflate``) touches along ``path`` (FCL, static world), or None.
 
     The start and the goal may lie closer to the ground or an obstacle than the inflated radius
@@ -119,7 +120,7 @@ def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | N
     return None
 
 
-def shortcut_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> np.ndarray:
+def shortcut_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float) -> np.ndarray:
     """Greedy pruning of a valid path: from each kept vertex, jump to the farthest later one whose
     straight leg FCL finds clear (radius + ``inflate``) and whose climb angle the agent can fly.
 
@@ -157,7 +158,9 @@ def route_spacing(world: World, agent: AgentSpec) -> float:
     )
 
 
-def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) -> dict[int, np.ndarray]:
+def plan_global_routes(
+    sim: PlanningContext, optimizer_name: str, rng: np.random.Generator
+) -> dict[int, np.ndarray]:
     """Plan every agent's whole path with ``optimizer_name``; {agent index: route (K, 3)} for valid plans."""
     world: World = sim.world
     cfg = global_config(world)

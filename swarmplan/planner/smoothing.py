@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from swarmplan.core import Mode, PlannedSegment
+from swarmplan.core import Mode, PlannedSegment, PlanningContext
 from swarmplan.planner.escape import model_turn_radius, static_clearance
 
 _EPS = 1e-9
@@ -94,7 +94,7 @@ class CurvatureSmoother:
         self.cooldown = cooldown
         self.next_check: dict[int, float] = {}
 
-    def _target(self, sim, i: int) -> tuple[np.ndarray, np.ndarray | None, int]:
+    def _target(self, sim: PlanningContext, i: int) -> tuple[np.ndarray, np.ndarray | None, int]:
         """Next attraction point, the point after it (route corner) and its route index (-1: goal)."""
         s = sim.state
         route = s.route[i]
@@ -104,7 +104,7 @@ class CurvatureSmoother:
             return route[k], after, k
         return s.goal[i], None, -1
 
-    def check(self, sim, i: int) -> tuple[np.ndarray, int] | None:
+    def check(self, sim: PlanningContext, i: int) -> tuple[np.ndarray, int] | None:
         """(end point of a smoothing segment, route index it passes) when agent ``i`` must turn
         more tightly than its model allows, else None."""
         s = sim.state
@@ -140,7 +140,7 @@ class CurvatureSmoother:
                     return end, k
         return None
 
-    def on_step(self, sim) -> dict:
+    def on_step(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
 
         s = sim.state
         out = {}
