@@ -118,7 +118,9 @@ class PlanningContext(Protocol):
     collision: Any  # swarmplan.geometry.collision.CollisionWorld
     field: Any  # swarmplan.geometry.shapes.ObstacleField
     moving_mask: np.ndarray
-    rng: np.random.Generator  # the run's seeded stream for planning
+
+    def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
+        """The seeded random stream of one purpose ('global', 'escape', ...) for one agent."""
 
     def record_optimizer(
         self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None

@@ -88,7 +88,7 @@ def test_plan_is_valid_and_recorded(cost):
     rec = _Rec()
     sim = Simulation(w, planner="none", recorder=rec)
     sim.reset(3)
-    routes = plan_global_routes(sim, "rscdwoa", sim.rng)
+    routes = plan_global_routes(sim, "rscdwoa")
     assert list(routes) == [0]
     route = routes[0]
     assert np.allclose(route[-1], w.agents[0].goal)
@@ -109,7 +109,7 @@ def test_impossible_plan_falls_back_with_an_event():
     rec = _Rec()
     sim = Simulation(w, planner="none", recorder=rec)
     sim.reset(0)
-    assert plan_global_routes(sim, "random", sim.rng) == {}
+    assert plan_global_routes(sim, "random") == {}
     sim.step()
     assert rec.events[0]["kind"] == "global_plan_invalid"
     assert "no route" in rec.events[0]["detail"]["fallback"]

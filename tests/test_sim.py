@@ -357,3 +357,25 @@ def test_truncated_log_is_read_by_the_stream_fallback(tmp_path):
     # Only the summary is missing; what was recorded is complete and safe.
     assert problems == ["missing topic /summary"], problems
     assert stats["steps"] == len(states)
+
+
+def test_random_streams_are_per_purpose_and_agent_and_seeded():
+    w = small_world()
+
+    def draws(extra: bool) -> tuple[np.ndarray, np.ndarray]:
+        sim = Simulation(w, planner="none")
+        sim.reset(seed=5)
+        if extra:  # one more optimizer run elsewhere must not shift these streams
+            sim.rng_for("escape", 1).random(1000)
+            sim.rng_for("global", 0).random(10)
+        return sim.rng_for("escape", 0).random(4), sim.rng_for("smoothing", 0).random(4)
+
+    a, b = draws(False), draws(True)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+    assert not np.array_equal(a[0], a[1])  # different purposes, different streams
+    sim = Simulation(w, planner="none")
+    sim.reset(seed=6)
+    assert not np.array_equal(sim.rng_for("escape", 0).random(4), a[0])  # the seed matters
+    sim.reset(seed=5)  # reset starts the streams again
+    np.testing.assert_array_equal(sim.rng_for("escape", 0).random(4), a[0])

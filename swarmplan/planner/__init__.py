@@ -52,7 +52,7 @@ class RefinementPlanner:
         self.smoother.next_check.clear()
         if self.world.planner.get("mode") != "global":
             return {}
-        return plan_global_routes(sim, self.optimizer_name, sim.rng)
+        return plan_global_routes(sim, self.optimizer_name)
 
     def on_stuck(self, sim: PlanningContext, agent: int) -> StuckOutcome:
         return self.escape.on_stuck(sim, agent)

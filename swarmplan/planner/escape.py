@@ -7,7 +7,8 @@ When the simulation reports an agent stuck (``Planner.on_stuck``):
    out, or the goal itself when it is nearer;
 2. the segment ``agent → K free waypoints → sub-goal`` is optimized with the world's
    optimizer (``planner.optimizer``: name, population, iterations → max_evals =
-   population × iterations, params) using the simulation's seeded ``sim.rng``; the cost
+   population × iterations, params) using the simulation's seeded stream for that purpose
+   and agent (``sim.rng_for``); the cost
    (:mod:`swarmplan.planner.segment_cost`) scores the whole population in one call;
 3. the best segment is **validated with FCL**: every leg swept with the agent radius plus
    a margin against the static obstacles, terrain and bounds; if it touches something
@@ -254,7 +255,7 @@ class EscapePlanner:
             enc.lower,
             enc.upper,
             max_evals=evals,
-            seed=sim.rng,
+            seed=sim.rng_for(purpose, i),
             x0=x0,
         )
         sim.record_optimizer(i, purpose, self.name, res)

@@ -158,9 +158,7 @@ def route_spacing(world: World, agent: AgentSpec) -> float:
     )
 
 
-def plan_global_routes(
-    sim: PlanningContext, optimizer_name: str, rng: np.random.Generator
-) -> dict[int, np.ndarray]:
+def plan_global_routes(sim: PlanningContext, optimizer_name: str) -> dict[int, np.ndarray]:
     """Plan every agent's whole path with ``optimizer_name``; {agent index: route (K, 3)} for valid plans."""
     world: World = sim.world
     cfg = global_config(world)
@@ -171,6 +169,7 @@ def plan_global_routes(
     opt = optimizers.make(optimizer_name, population=population, **params)
     routes: dict[int, np.ndarray] = {}
     for i, agent in enumerate(world.agents):
+        rng = sim.rng_for("global", i)
         prob = agent_problem(world, agent, cfg)
         enc = prob.encoding
         t0 = time.perf_counter()

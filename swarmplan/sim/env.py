@@ -16,6 +16,7 @@ This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.sce
 from __future__ import annotations
 
 import time
+import zlib
 from typing import Any, Literal
 
 import numpy as np
@@ -69,7 +70,7 @@ class Simulation:
         self.navigator = Navigator(world, self.params)
         self.state: SwarmState | None = None
         self.seed: int | None = None
-        self.rng: np.random.Generator | None = None
+        self._streams: dict[tuple[str, int | None], np.random.Generator] = {}
         self.metrics: RunMetrics | None = None
         self.wall_start = 0.0
         self._events: list[Event] = []  # the running step's events (see note_event)
@@ -80,7 +81,7 @@ class Simulation:
     def reset(self, seed: int | None = None) -> SwarmState:
         """Start the run at t = 0 with ``seed`` (default: the world's seed)."""
         self.seed = self.world.seed if seed is None else int(seed)
-        self.rng = np.random.default_rng(self.seed)
+        self._streams = {}
         self._events = []
         start = np.array([a.start for a in self.world.agents], dtype=float)
         goal = np.array([a.goal for a in self.world.agents], dtype=float)
@@ -116,6 +117,19 @@ class Simulation:
         if self.recorder is not None:
             self.recorder.write_state(0.0, self._agent_dicts(), self.scene.obstacle_dicts(0.0))
         return self.state
+
+    def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
+        """The random stream of one purpose (e.g. 'escape') for one agent, seeded from the run's
+        seed: each stream is its own child of ``SeedSequence(seed)``, so one more optimizer run
+        for one purpose or agent does not shift the draws of any other."""
+        key = (purpose, agent)
+        if key not in self._streams:
+            if self.seed is None:
+                raise RuntimeError("call reset() before rng_for()")
+            # A stable key per (purpose, agent): the purpose's CRC-32 and the agent index + 1 (0: none).
+            spawn_key = (zlib.crc32(purpose.encode()), 0 if agent is None else agent + 1)
+            self._streams[key] = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=spawn_key))
+        return self._streams[key]
 
     def record_optimizer(
         self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None
