@@ -158,7 +158,13 @@ class World:
         return msg
 
     def with_overrides(self, **changes: Any) -> World:
-        """A copy with some top-level fields replaced (e.g. ``max_time``); ``resolved`` follows."""
+        """A copy with ``max_time``, ``planner`` or ``seed`` replaced; ``resolved`` (the ``/world``
+        message) follows. Other fields are refused: they would leave ``resolved`` out of step."""
+        unknown = sorted(set(changes) - {"max_time", "planner", "seed"})
+        if unknown:
+            raise ValueError(
+                f"with_overrides: cannot override {', '.join(unknown)} (max_time, planner, seed)"
+            )
         resolved = copy.deepcopy(self.resolved)
         if "max_time" in changes:
             resolved["sim"]["max_time"] = changes["max_time"]
