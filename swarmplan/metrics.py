@@ -9,29 +9,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
+from swarmplan.geometry.polyline import path_curvature
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
-
-
-def path_curvature(points: np.ndarray, min_step: float = 1e-3) -> np.ndarray:
-    """Discrete curvature (1/m) at the interior vertices of a polyline: turning angle / mean step.
-
-    Steps shorter than ``min_step`` are dropped first (hovering, arrival) so noise cannot
-    produce huge curvatures.
-    """
-    pts = np.asarray(points, dtype=float)
-    if len(pts) < 3:
-        return np.zeros(0)
-    d = np.diff(pts, axis=0)
-    n = np.linalg.norm(d, axis=1)
-    keep = n > min_step
-    d, n = d[keep], n[keep]
-    if len(d) < 2:
-        return np.zeros(0)
-    u = d / n[:, None]
-    cosang = np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0)
-    return np.arccos(cosang) / (0.5 * (n[1:] + n[:-1]))
 
 
 class RunMetrics:

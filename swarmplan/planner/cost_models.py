@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from swarmplan.geometry.polyline import climb_angles, horizontal_turn_angles, polyline_length, turn_angles
 from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
 from swarmplan.world.planner_config import COST_WEIGHTS
 
@@ -51,35 +52,9 @@ if TYPE_CHECKING:
 # ----------------------------------------------------------------------------- geometry helpers
 
 
-def polyline_length(P: np.ndarray) -> np.ndarray:
-    """Length of each polyline (n, K, 3) → (n,) (004 eq 3, 002 eq 4)."""
-    return np.linalg.norm(np.diff(P, axis=1), axis=-1).sum(axis=1)
-
-
 def height_std(P: np.ndarray) -> np.ndarray:
     """Population standard deviation of the node heights (004 eqs 4-5)."""
     return P[..., 2].std(axis=1)
-
-
-def turn_angles(P: np.ndarray) -> np.ndarray:
-    """Angle (rad) between consecutive segments at every interior node → (n, K-2); 0 for zero-length."""
-    d = np.diff(P, axis=1)
-    a, b = d[:, :-1], d[:, 1:]
-    na, nb = np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1)
-    c = np.sum(a * b, axis=-1) / np.maximum(na * nb, 1e-12)
-    ang = np.arccos(np.clip(c, -1.0, 1.0))
-    return np.where((na > 1e-9) & (nb > 1e-9), ang, 0.0)
-
-
-def horizontal_turn_angles(P: np.ndarray) -> np.ndarray:
-    """Heading change (rad) at interior nodes in the horizontal plane (002 eq 10) → (n, K-2)."""
-    return turn_angles(np.concatenate([P[..., :2], np.zeros_like(P[..., :1])], axis=-1))
-
-
-def climb_angles(P: np.ndarray) -> np.ndarray:
-    """Flight-path angle (rad) of every segment, signed (002 eq 11) → (n, K-1)."""
-    d = np.diff(P, axis=1)
-    return np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1]))
 
 
 def fillet_violation(P: np.ndarray, r_min: float) -> np.ndarray:

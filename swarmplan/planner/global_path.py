@@ -45,8 +45,9 @@ import numpy as np
 
 from swarmplan import optimizers
 from swarmplan.core import PlanningContext
+from swarmplan.geometry.polyline import resample_route
 from swarmplan.planner.cost_models import PathContext, make_cost
-from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
+from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding
 from swarmplan.planner.escape import static_clearance
 from swarmplan.world.model import AgentSpec, World
 from swarmplan.world.planner_config import GlobalConfig, check_global
