@@ -13,10 +13,11 @@ from __future__ import annotations
 import numpy as np
 
 from swarmplan.core import PlannedSegment, PlanningContext, StuckOutcome
-from swarmplan.planner.escape import EscapePlanner, escape_settings
-from swarmplan.planner.global_path import global_config, plan_global_routes
+from swarmplan.planner.escape import EscapePlanner
+from swarmplan.planner.global_path import plan_global_routes
 from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
 from swarmplan.world.model import World, WorldError
+from swarmplan.world.planner_config import check_escape, check_global
 
 __all__ = ["RefinementPlanner", "fillet_path", "make_planner", "validate_planner_settings"]
 
@@ -26,9 +27,9 @@ def validate_planner_settings(world: World) -> None:
     listing every problem. ``load_world`` / ``parse_world`` already do this; it is for worlds
     whose planner mapping was replaced afterwards (``World.with_overrides``)."""
     problems: list[str] = []
-    for check in (escape_settings, global_config):
+    for check in (check_escape, check_global):
         try:
-            check(world)
+            check(world.planner)
         except WorldError as exc:
             problems += exc.problems
     if problems:
@@ -43,14 +44,14 @@ class RefinementPlanner:
         self.optimizer_name = optimizer_name
         self.escape = EscapePlanner(world, optimizer_name)
         self.smoother = CurvatureSmoother(self.escape)
-        self.smoothing = bool(world.planner.get("smoothing", {}).get("enabled", True))
+        self.smoothing = world.planner_config.smoothing
 
     def on_reset(self, sim: PlanningContext) -> dict[int, np.ndarray]:
         self.escape.escapes.clear()
         self.escape.pending.clear()
         self.escape.failures.clear()
         self.smoother.next_check.clear()
-        if self.world.planner.get("mode") != "global":
+        if self.world.planner_config.mode != "global":
             return {}
         return plan_global_routes(sim, self.optimizer_name)
 

@@ -46,12 +46,11 @@ from swarmplan.core import (
     StuckOutcome,
 )
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
-from swarmplan.world.planner_config import check_escape
 
 
 def escape_settings(world) -> dict:
     """``planner.escape`` of ``world`` merged over the defaults (validated by the world parser)."""
-    return check_escape(world.planner)
+    return dict(world.planner_config.escape)
 
 
 def model_turn_radius(sim: PlanningContext, i: int) -> float:

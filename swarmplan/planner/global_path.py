@@ -50,14 +50,14 @@ from swarmplan.planner.cost_models import PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding
 from swarmplan.planner.escape import static_clearance
 from swarmplan.world.model import AgentSpec, World
-from swarmplan.world.planner_config import GlobalConfig, check_global
+from swarmplan.world.planner_config import GlobalConfig
 
 RETRY_GROWTH = 1.5
 
 
 def global_config(world: World) -> GlobalConfig:
     """``planner.global`` of ``world`` (validated by the world parser)."""
-    return check_global(world.planner)
+    return world.planner_config.global_
 
 
 @dataclass

@@ -116,8 +116,8 @@ class Navigator:
         Progress is measured as the distance still to fly: straight to the goal, or along the
         rest of the global route when the agent has one (a route may detour away from the goal).
         """
-        window = self.world.planner["stuck"]["window"]
-        min_progress = self.world.planner["stuck"]["min_progress"]
+        window = self.world.planner_config.stuck.window
+        min_progress = self.world.planner_config.stuck.min_progress
         dg = distance_to_go(s)
         for i in np.flatnonzero(s.active):
             if s.mode[i] != Mode.APF:

@@ -14,6 +14,7 @@ typos; :class:`WorldError` carries the list.
 from swarmplan.geometry.rotation import matrix_to_quaternion, rotation_matrix
 from swarmplan.world.io import load_world
 from swarmplan.world.model import AgentSpec, Motion, Obstacle, Peak, Threat, World, WorldError
+from swarmplan.world.planner_config import PlannerConfig
 from swarmplan.world.schema import parse_world
 
 __all__ = [
@@ -21,6 +22,7 @@ __all__ = [
     "Motion",
     "Obstacle",
     "Peak",
+    "PlannerConfig",
     "Threat",
     "World",
     "WorldError",

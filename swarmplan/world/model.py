@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +18,8 @@ import numpy as np
 
 from swarmplan import __version__
 from swarmplan.world import terrain
+from swarmplan.world.errors import WorldError as WorldError  # re-exported: the model module names it too
+from swarmplan.world.planner_config import PlannerConfig, planner_config
 
 SHAPES = ("sphere", "box", "cylinder", "capsule", "mesh")
 
@@ -27,15 +30,6 @@ MODELS = ("multirotor", "fixed_wing")
 THREAT_KINDS = ("radar", "missile", "artillery", "weather")
 
 PLANNER_MODES = ("reactive", "global")
-
-
-class WorldError(Exception):
-    """A world file with problems; ``problems`` lists every one as ``path: message``."""
-
-    def __init__(self, problems: list[str], source: str = "world"):
-        self.problems = list(problems)
-        self.source = source
-        super().__init__(f"{source}: {len(problems)} problem(s)\n" + "\n".join(f"  {p}" for p in problems))
 
 
 @dataclass(frozen=True)
@@ -133,6 +127,11 @@ class World:
     log_path: str
     resolved: dict[str, Any] = field(repr=False)  # the /world message (before seed/version)
     source: Path | None = None
+
+    @functools.cached_property
+    def planner_config(self) -> PlannerConfig:
+        """``planner`` as typed, frozen settings (read from the validated mapping)."""
+        return planner_config(self.planner)
 
     @property
     def static_obstacles(self) -> tuple[Obstacle, ...]:

@@ -1,15 +1,18 @@
-"""The planner's own sections of a world file, ``planner.escape`` and ``planner.global``,
-validated here so that ``load_world`` returns a world that is valid as a whole; and the
-cost models' weights (the names ``planner.global.weights`` may use, with their defaults)."""
+"""The ``planner`` section of a world file as typed, frozen settings (:class:`PlannerConfig`);
+the checks of its own sections ``planner.escape`` and ``planner.global``, run by the world
+parser so that ``load_world`` returns a world that is valid as a whole; and the cost models'
+weights (the names ``planner.global.weights`` may use, with their defaults)."""
 
 from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
-from swarmplan.world.model import WorldError
+from swarmplan.world.errors import WorldError
 
 COST_WEIGHTS: dict[str, dict[str, float]] = {
     # Paper 004: J = w1 L + w2 H + w3 S, with a penalty per unit of violation.
@@ -173,3 +176,62 @@ def check_global(planner: dict[str, Any]) -> GlobalConfig:
     if problems:
         raise WorldError(problems)
     return GlobalConfig(cost=cost, encoding=encoding, weights=dict(weights), **values)
+
+
+@dataclass(frozen=True)
+class ApfConfig:
+    """``planner.apf``: gains and ranges of the potential field (``swarmplan.apf``)."""
+
+    k_att: float
+    k_rep: float
+    influence: float
+    k_agent: float
+    quadratic_radius: float
+    goal_power: float
+    k_moving: float
+    horizon: float
+
+
+@dataclass(frozen=True)
+class StuckConfig:
+    """``planner.stuck``: less than ``min_progress`` m towards the goal in ``window`` s is stuck."""
+
+    window: float
+    min_progress: float
+
+
+@dataclass(frozen=True)
+class OptimizerConfig:
+    name: str
+    population: int
+    iterations: int
+    params: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """The whole ``planner`` section, defaults applied."""
+
+    mode: str  # reactive | global
+    apf: ApfConfig
+    stuck: StuckConfig
+    optimizer: OptimizerConfig
+    smoothing: bool
+    escape: Mapping[str, Any]  # ESCAPE_DEFAULTS' keys
+    global_: GlobalConfig
+
+
+def planner_config(planner: dict[str, Any]) -> PlannerConfig:
+    """The typed view of a validated ``planner`` mapping (raises ``WorldError`` if it is not valid)."""
+    opt = planner["optimizer"]
+    return PlannerConfig(
+        mode=planner["mode"],
+        apf=ApfConfig(**planner["apf"]),
+        stuck=StuckConfig(**planner["stuck"]),
+        optimizer=OptimizerConfig(
+            opt["name"], int(opt["population"]), int(opt["iterations"]), MappingProxyType(dict(opt["params"]))
+        ),
+        smoothing=bool(planner.get("smoothing", {}).get("enabled", True)),
+        escape=MappingProxyType(check_escape(planner)),
+        global_=check_global(planner),
+    )
