@@ -69,7 +69,7 @@ class RefinementPlanner:
 def make_planner(world: World, optimizer: str | None = None) -> RefinementPlanner | None:
     """The planner a run of ``world`` flies: the refinement planner with ``optimizer`` (default:
     the world's ``planner.optimizer.name``), or None for ``'none'`` (pure APF)."""
-    name = world.planner["optimizer"]["name"] if optimizer is None else optimizer
+    name = world.planner_config.optimizer.name if optimizer is None else optimizer
     if name == "none":
         return None
     return RefinementPlanner(world, name)

@@ -118,12 +118,12 @@ class EscapePlanner:
         self.world = world
         self.name = optimizer_name
         self.cfg = escape_settings(world)
-        opt = world.planner["optimizer"]
-        self.population = int(opt["population"])
-        self.iterations = int(opt["iterations"])
-        params = dict(opt.get("params") or {})
+        opt = world.planner_config.optimizer
+        self.population = opt.population
+        self.iterations = opt.iterations
+        params = dict(opt.params)
         # The params are the world's for this algorithm (``run.apply_overrides`` clears them when
-        # --optimizer names another one); wrong ones were reported by validate_planner_settings.
+        # --optimizer names another one); wrong ones were reported by the world parser.
         self.optimizer = optimizers.make(optimizer_name, population=self.population, **params)
         self.escapes: dict[int, int] = {}
         self.pending: dict[int, object] = {}  # yield segments planned for other agents
@@ -205,12 +205,11 @@ class EscapePlanner:
     @staticmethod
     def vertex_clearance(sim: PlanningContext) -> float:
         """Clearance a waypoint needs so the agent can reach it: the static repulsion the
-        simulation keeps along a segment (0.3 k_rep (1/rho - 1/rho0)) must not exceed the
+        simulation keeps along a segment (SEGMENT_REPULSION_SCALE k_rep (1/rho - 1/rho0)) must not exceed the
         attraction k_att * 1.5 m at the waypoint (it counts as reached within ~2 m)."""
-        apf = sim.world.planner["apf"]
-        k = SEGMENT_REPULSION_SCALE * float(apf["k_rep"])
-        rho0 = float(apf["influence"])
-        return 1.0 / (1.5 * float(apf["k_att"]) / k + 1.0 / rho0)
+        apf = sim.world.planner_config.apf
+        k = SEGMENT_REPULSION_SCALE * apf.k_rep
+        return 1.0 / (1.5 * apf.k_att / k + 1.0 / apf.influence)
 
     def _intents(self, sim: PlanningContext, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:
         others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in (Mode.COLLIDED, Mode.FAILED)]
@@ -236,7 +235,7 @@ class EscapePlanner:
         k = int(n_free or self.cfg["waypoints"])
         # Keep waypoints where the potential field lets the agent reach them: out of the
         # repulsion of the bounds' faces and of the ground (see swarmplan.apf).
-        rho0 = float(w.planner["apf"]["influence"])
+        rho0 = w.planner_config.apf.influence
         rb0 = min(rho0, 10.0)
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
         rho0_g = max(min(rho0, 3.0 * floor), 2.0)

@@ -77,7 +77,7 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
     span = float(np.linalg.norm(agent.goal - agent.start))
     # Default clearance: half the APF influence distance, so the route stays where the static
     # repulsion is weak and the pursuit of the route's points is not pushed off them.
-    margin = cfg.margin or max(agent.radius, 0.5 * float(world.planner["apf"]["influence"]))
+    margin = cfg.margin or max(agent.radius, 0.5 * world.planner_config.apf.influence)
     lateral = cfg.lateral or span / 2
     vertical = cfg.vertical or float(world.bounds_max[2] - world.bounds_min[2])
     lo = world.bounds_min + agent.radius + margin
@@ -155,7 +155,7 @@ def route_spacing(world: World, agent: AgentSpec) -> float:
     """Spacing of the route's points: the APF's quadratic radius (so the next point is far enough for
     the full, conic attraction) but at least the sim's waypoint reach (3 steps at cruise speed)."""
     return max(
-        world.goal_tolerance, 3.0 * agent.speed_cruise * world.dt, world.planner["apf"]["quadratic_radius"]
+        world.goal_tolerance, 3.0 * agent.speed_cruise * world.dt, world.planner_config.apf.quadratic_radius
     )
 
 
@@ -163,10 +163,10 @@ def plan_global_routes(sim: PlanningContext, optimizer_name: str) -> dict[int, n
     """Plan every agent's whole path with ``optimizer_name``; {agent index: route (K, 3)} for valid plans."""
     world: World = sim.world
     cfg = global_config(world)
-    opt_cfg = world.planner["optimizer"]
-    population = cfg.population or int(opt_cfg["population"])
-    iterations = cfg.iterations or int(opt_cfg["iterations"])
-    params = dict(opt_cfg.get("params") or {}) if opt_cfg.get("name") == optimizer_name else {}
+    opt_cfg = world.planner_config.optimizer
+    population = cfg.population or opt_cfg.population
+    iterations = cfg.iterations or opt_cfg.iterations
+    params = dict(opt_cfg.params) if opt_cfg.name == optimizer_name else {}
     opt = optimizers.make(optimizer_name, population=population, **params)
     routes: dict[int, np.ndarray] = {}
     for i, agent in enumerate(world.agents):

@@ -311,4 +311,4 @@ class Simulation:
     def optimizer_name(self) -> str:
         if self.planner is None:
             return "none"
-        return str(getattr(self.planner, "optimizer_name", self.world.planner["optimizer"]["name"]))
+        return str(getattr(self.planner, "optimizer_name", self.world.planner_config.optimizer.name))
