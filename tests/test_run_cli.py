@@ -198,7 +198,7 @@ def test_unwritable_out_exit_2_one_line_before_any_work(tmp_path, monkeypatch, c
 
 
 def test_bench_sim_zero_agents_exit_2(capsys):
-    from swarmplan.bench.__main__ import main as bench
+    from swarmplan.cli.bench import main as bench
 
     assert bench(["sim", "--agents", "0"]) == 2
     err = capsys.readouterr().err
