@@ -18,11 +18,14 @@ so the agent can still brake before the goal and before any obstacle surface ahe
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from swarmplan.dynamics import AgentParams
-from swarmplan.world import World
+
+if TYPE_CHECKING:
+    from swarmplan.world.model import World
 
 _EPS = 1e-9
 

@@ -10,10 +10,12 @@ is exactly the step's displacement over dt.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.world import World
+if TYPE_CHECKING:
+    from swarmplan.world.model import World
 
 
 @dataclass(frozen=True)

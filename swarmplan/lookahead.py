@@ -36,10 +36,6 @@ nearest obstacle surface (moving ones where they are at that time), the terrain 
 _MANOEUVRES = tuple((turn, climb) for turn in (-1, 0, 1) for climb in (0, 1, -1))
 
 
-def _wrap_angle(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
-
 def horizon_steps(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: float) -> int:
     """Steps needed to turn through 180 degrees at the minimum radius, plus one second."""
     v = np.maximum(speed, 1e-6)

@@ -1,28 +1,18 @@
-"""Per-agent run metrics: path length, clearance, curvature, arrival, events counts."""
+"""Per-agent run metrics (path length, clearance, curvature, arrival, event counts) and the
+summary report built from them."""
 
 from __future__ import annotations
 
+import math
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
+from swarmplan.core import Mode, SwarmState
+from swarmplan.geometry.polyline import path_curvature
 
-def path_curvature(points: np.ndarray, min_step: float = 1e-3) -> np.ndarray:
-    """Discrete curvature (1/m) at the interior vertices of a polyline: turning angle / mean step.
-
-    Steps shorter than ``min_step`` are dropped first (hovering, arrival) so noise cannot
-    produce huge curvatures.
-    """
-    pts = np.asarray(points, dtype=float)
-    if len(pts) < 3:
-        return np.zeros(0)
-    d = np.diff(pts, axis=0)
-    n = np.linalg.norm(d, axis=1)
-    keep = n > min_step
-    d, n = d[keep], n[keep]
-    if len(d) < 2:
-        return np.zeros(0)
-    u = d / n[:, None]
-    cosang = np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0)
-    return np.arccos(cosang) / (0.5 * (n[1:] + n[:-1]))
+if TYPE_CHECKING:
+    from swarmplan.world.model import World
 
 
 class RunMetrics:
@@ -71,3 +61,69 @@ class RunMetrics:
     def curvature(self, i: int, until: int | None = None) -> np.ndarray:
         pts = np.array([p[i] for p in self.positions[:until]])
         return path_curvature(pts)
+
+
+def summary_report(
+    world: World,
+    s: SwarmState,
+    metrics: RunMetrics,
+    *,
+    seed: int,
+    optimizer: str,
+    wall_time: float,
+    interrupted: bool = False,
+) -> dict[str, Any]:
+    """Per-agent and overall metrics for ``/summary`` and the CLI table."""
+    m = metrics
+    n = len(m.ids)
+    agents = []
+    for i, aid in enumerate(m.ids):
+        curv = m.curvature(i)
+        start = world.agents[i].start
+        straight = float(np.linalg.norm(world.agents[i].goal - start))
+        agents.append(
+            {
+                "id": aid,
+                "arrived": bool(s.mode[i] == Mode.ARRIVED),
+                "final_mode": str(s.mode[i]),
+                "arrival_time": None if math.isnan(m.arrival_time[i]) else round(float(m.arrival_time[i]), 9),
+                "path_length": round(float(m.path_length[i]), 6),
+                "straight_line": round(straight, 6),
+                "length_ratio": round(float(m.path_length[i]) / straight, 6) if straight > 0 else None,
+                "min_clearance": _finite(min(m.min_clearance[i], m.min_agent_clearance[i])),
+                "min_obstacle_clearance": _finite(m.min_clearance[i]),
+                "min_agent_clearance": _finite(m.min_agent_clearance[i]),
+                "min_terrain_clearance": _finite(m.min_terrain_clearance[i]),
+                "max_curvature": round(float(curv.max()), 6) if len(curv) else 0.0,
+                "mean_curvature": round(float(curv.mean()), 6) if len(curv) else 0.0,
+                "collisions": int(m.collisions[i]),
+                "collided_with": m.collided_with[i],
+                "escapes": int(m.escapes[i]),
+                "escape_planning_ms": [round(x, 3) for x in m.escape_ms[i]],
+                "stuck_events": int(m.stuck_events[i]),
+                "near_misses": int(m.near_misses[i]),
+                "emergency_stops": int(m.emergency_stops[i]),
+                "guard_steps": int(m.guard_steps[i]),
+            }
+        )
+    arrived = sum(a["arrived"] for a in agents)
+    collisions = sum(a["collisions"] for a in agents)
+    return {
+        "t": round(s.t, 9),
+        "world": world.name,
+        "seed": seed,
+        "optimizer": optimizer,
+        "interrupted": interrupted,
+        "success": bool(arrived == n and collisions == 0 and not interrupted),
+        "sim_time": round(s.t, 9),
+        "wall_time": round(wall_time, 6),
+        "steps": s.step,
+        "arrived": arrived,
+        "agents_total": n,
+        "collisions": collisions,
+        "agents": agents,
+    }
+
+
+def _finite(x: float) -> float | None:
+    return round(float(x), 6) if math.isfinite(x) else None

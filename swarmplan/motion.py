@@ -14,10 +14,12 @@ Orientation stays the obstacle's ``rotation`` (the motions translate only).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.world import Motion, Obstacle
+if TYPE_CHECKING:
+    from swarmplan.world.model import Motion, Obstacle
 
 
 def _waypoint_path(o: Obstacle) -> tuple[np.ndarray, np.ndarray]:

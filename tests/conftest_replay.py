@@ -25,7 +25,7 @@ def write_log(
     flush_every: int = 0,
 ) -> str:
     """Write a contract log. ``finish=False`` leaves the file like a hard-killed writer."""
-    f = open(path, "wb")  # noqa: SIM115
+    f = open(path, "wb")
     w = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
     w.start(profile="", library="swarmplan-tests")
     chans = {}
@@ -53,7 +53,7 @@ def write_log(
         if round(t, 9) in obst_by_t:
             put("/obstacles/state", obst_by_t[round(t, 9)], t)
         if flush_every and k % flush_every == flush_every - 1 and hasattr(w, "_maybe_finalize_chunk"):
-            w._maybe_finalize_chunk()  # noqa: SLF001
+            w._maybe_finalize_chunk()
     for e in ev:
         put("/events", e, e["t"])
     for o in opt:

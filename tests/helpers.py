@@ -201,12 +201,8 @@ def run_to_end(
 
 
 def default_planner(world: World) -> Any:
-    """The package's default refinement planner when ``swarmplan.planner`` exists, else None (pure APF)."""
-    try:
-        from swarmplan.planner import RefinementPlanner  # noqa: F401
-    except ImportError:
-        return None
-    from swarmplan.run import make_planner
+    """The package's refinement planner with the world's optimizer (rscdwoa when that is 'none')."""
+    from swarmplan.planner import make_planner
 
     name = world.planner["optimizer"]["name"]
     return make_planner(world, "rscdwoa" if name == "none" else name)

@@ -14,9 +14,9 @@ from mcap_protobuf.decoder import DecoderFactory
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from conftest_replay import base_world  # noqa: E402
+from conftest_replay import base_world
 
-from swarmplan.foxglove_scene import FoxgloveScene, file_descriptor_set  # noqa: E402
+from swarmplan.io.foxglove_scene import FoxgloveScene, file_descriptor_set
 
 
 def _world(n_agents=3):

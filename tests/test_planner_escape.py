@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world
 
+from swarmplan.core import PlannedSegment
 from swarmplan.planner import RefinementPlanner
 from swarmplan.planner.escape import EscapePlanner, choose_subgoal
 from swarmplan.planner.segment_cost import SegmentCost, SegmentEncoding
-from swarmplan.sim import PlannedSegment, Simulation
+from swarmplan.sim import Simulation
 from swarmplan.world import WorldError
 
 TRAPS = Path(__file__).resolve().parents[1] / "worlds" / "traps"
@@ -174,10 +175,13 @@ def test_same_seed_same_run():
         assert sa[key] == sb[key]
 
 
-def test_unknown_escape_setting_is_an_error():
-    world = make_world(base_world(planner={"escape": {"horizn": 5}}))
-    with pytest.raises(WorldError, match="horizn"):
-        RefinementPlanner(world, "de")
+def test_unknown_escape_setting_is_an_error_of_the_world_file():
+    with pytest.raises(WorldError, match="did you mean 'horizon'") as exc:
+        make_world(base_world(planner={"escape": {"horizn": 5, "retries": -1}}))
+    assert [p.split(":")[0] for p in exc.value.problems] == [
+        "planner.escape.horizn",
+        "planner.escape.retries",
+    ]
 
 
 def test_culling_leaves_the_static_and_moving_terms_exactly_unchanged():

@@ -181,3 +181,58 @@ def test_quickstart_world_runs_clean(tmp_path, monkeypatch, capsys):
     problems, _notes, stats = audit(out, allow_failure=True)
     assert problems == [], problems
     assert code == 0, f"quickstart did not succeed: {stats}"
+
+
+@pytest.mark.parametrize("where", ["a directory", "/proc/x.mcap"])
+def test_unwritable_out_exit_2_one_line_before_any_work(tmp_path, monkeypatch, capsys, where):
+    from swarmplan.sim import Simulation
+
+    monkeypatch.chdir(tmp_path)
+    world = write_world(tmp_path, base_world())
+    out = str(tmp_path) if where == "a directory" else where
+    monkeypatch.setattr(Simulation, "reset", lambda *a, **k: pytest.fail("the run started"))
+    assert main([str(world), "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert "--out: cannot write the log" in err and "Traceback" not in err
+    assert len([line for line in err.splitlines() if line.strip()]) == 2  # "error: ..." + the problem
+
+
+def test_bench_sim_zero_agents_exit_2(capsys):
+    from swarmplan.cli.bench import main as bench
+
+    assert bench(["sim", "--agents", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == "error: --agents: must be >= 1, got 0"
+
+
+def test_sigterm_closes_the_log_like_ctrl_c_and_counts_only_written_steps(tmp_path):
+    """SIGTERM ends the run at a step boundary: exit 1, a readable log whose /summary says
+    interrupted and counts exactly the steps whose states are in the log."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "term.mcap"
+    world = REPO / "worlds" / "traps" / "concave_wall.yaml"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "swarmplan.run", str(world), "--out", str(out), "--optimizer", "none",
+         "--max-time", "100000", "--quiet"],
+        env=env, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60
+        while (not out.exists() or out.stat().st_size < 20000) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 1, err
+    assert "interrupted" in err and "Traceback" not in err
+    log = read_log(out)
+    summary = log["/summary"][-1][1]
+    assert summary["interrupted"] is True and summary["success"] is False
+    states = [m for _, m in log["/agents/state"]]
+    assert summary["steps"] == len(states) - 1 > 0
+    assert summary["sim_time"] == states[-1]["t"]

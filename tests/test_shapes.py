@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
+from swarmplan.geometry.rotation import rotation_matrix
 from swarmplan.geometry.shapes import MeshGrid, ObstacleField, distance_and_gradient, signed_distance
-from swarmplan.world import Obstacle, rotation_matrix
+from swarmplan.world import Obstacle
 
 S2, S3 = math.sqrt(2.0), math.sqrt(3.0)
 

@@ -22,7 +22,8 @@ from helpers import (
     run_to_end,
 )
 
-from swarmplan.run import simulate
+from swarmplan.core import Event
+from swarmplan.run import apply_overrides, simulate
 from swarmplan.sim import Simulation
 from swarmplan.world import load_world
 
@@ -77,9 +78,24 @@ def test_reset_and_step_contract():
     assert Simulation(w).reset().t == 0.0
 
 
+def test_default_planner_is_the_worlds_and_pure_apf_is_explicit():
+    w = apply_overrides(small_world(), "rscdwoa", None)
+    sim = Simulation(w)
+    assert sim.planner is not None and sim.optimizer_name == "rscdwoa"
+    assert Simulation(w, planner="none").planner is None
+    assert Simulation(w, planner="none").optimizer_name == "none"
+    with pytest.raises(ValueError, match="planner"):
+        Simulation(w, planner="rscdwoa")
+    # An event's time is on the step grid (k * dt, not its float sum).
+    sim.reset(seed=0)
+    for _ in range(7):
+        r = sim.step()
+    assert r.state.t != 0.7 and Event(r.state.t, None, "x").t == 0.7
+
+
 def test_runs_until_terminated_or_truncated():
     w = small_world(max_time=3.0)
-    sim = Simulation(w)
+    sim = Simulation(w, planner="none")
     sim.reset(seed=0)
     steps = 0
     while True:
@@ -95,7 +111,7 @@ def test_runs_until_terminated_or_truncated():
 
 def test_velocity_matches_displacement():
     w = small_world()
-    sim = Simulation(w)
+    sim = Simulation(w, planner="none")
     s = sim.reset(seed=0)
     p_prev = s.position.copy()
     for _ in range(50):
@@ -341,3 +357,25 @@ def test_truncated_log_is_read_by_the_stream_fallback(tmp_path):
     # Only the summary is missing; what was recorded is complete and safe.
     assert problems == ["missing topic /summary"], problems
     assert stats["steps"] == len(states)
+
+
+def test_random_streams_are_per_purpose_and_agent_and_seeded():
+    w = small_world()
+
+    def draws(extra: bool) -> tuple[np.ndarray, np.ndarray]:
+        sim = Simulation(w, planner="none")
+        sim.reset(seed=5)
+        if extra:  # one more optimizer run elsewhere must not shift these streams
+            sim.rng_for("escape", 1).random(1000)
+            sim.rng_for("global", 0).random(10)
+        return sim.rng_for("escape", 0).random(4), sim.rng_for("smoothing", 0).random(4)
+
+    a, b = draws(False), draws(True)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+    assert not np.array_equal(a[0], a[1])  # different purposes, different streams
+    sim = Simulation(w, planner="none")
+    sim.reset(seed=6)
+    assert not np.array_equal(sim.rng_for("escape", 0).random(4), a[0])  # the seed matters
+    sim.reset(seed=5)  # reset starts the streams again
+    np.testing.assert_array_equal(sim.rng_for("escape", 0).random(4), a[0])

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import copy
+from pathlib import Path
 
 import pytest
 import yaml
 from helpers import base_world, make_world
 
 from swarmplan.world import WorldError, load_world
+
+WORLDS = Path(__file__).resolve().parents[1] / "worlds"
 
 KNOWN = [
     "afsa",
@@ -380,3 +383,32 @@ def test_duplicate_ids():
     probs = problems_of(raw)
     assert_has(probs, "obstacles[1].id", "already used")
     assert_has(probs, "agents[1].id", "already used")
+
+
+def test_with_overrides_keeps_the_world_message_in_step_and_refuses_other_fields():
+    w = load_world(WORLDS / "quickstart.yaml")
+    v = w.with_overrides(max_time=7.5, seed=3)
+    assert v.max_time == 7.5 and v.seed == 3
+    msg = v.to_message(3)
+    assert msg["sim"]["max_time"] == 7.5 and msg["seed"] == 3
+    assert w.resolved["sim"]["max_time"] == w.max_time != 7.5  # the original is untouched
+    with pytest.raises(ValueError, match="dt"):
+        w.with_overrides(dt=0.05)
+
+
+def test_typed_planner_config_reads_the_validated_mapping_and_is_frozen():
+    import dataclasses
+
+    w = load_world(WORLDS / "papers" / "rscdwoa_multi_uav.yaml")
+    cfg = w.planner_config
+    assert cfg.mode == w.planner["mode"] == "global"
+    assert cfg.apf.influence == w.planner["apf"]["influence"]
+    assert cfg.stuck.window == w.planner["stuck"]["window"]
+    assert cfg.optimizer.name == "rscdwoa" and cfg.optimizer.params["beta"] == 0.74
+    assert cfg.escape["retries"] == 2 and cfg.global_.cost in ("mcfo", "iba", "iafsa")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.stuck.window = 1.0  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        cfg.escape["retries"] = 5  # type: ignore[index]
+    # An override is seen by the typed view of the new world.
+    assert w.with_overrides(planner={**w.planner, "mode": "reactive"}).planner_config.mode == "reactive"

@@ -11,6 +11,7 @@ prints sim-s per wall-s and the mean step time. ``--worlds`` instead runs every 
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -116,7 +117,25 @@ def _time_worlds() -> int:
     return 0
 
 
+def check_arguments(args: argparse.Namespace) -> list[str]:
+    """Every bad argument, before any work."""
+    problems = []
+    if args.agents < 1:
+        problems.append(f"--agents: must be >= 1, got {args.agents}")
+    for name in ("movers", "statics", "seed"):
+        if getattr(args, name) < 0:
+            problems.append(f"--{name}: must be >= 0, got {getattr(args, name)}")
+    if not args.sim_time > 0:
+        problems.append(f"--sim-time: must be > 0, got {args.sim_time:g}")
+    return problems
+
+
 def main(args: argparse.Namespace) -> int:
+    problems = check_arguments(args)
+    if problems:
+        for p in problems:
+            print(f"error: {p}", file=sys.stderr)
+        return 2
     if args.worlds:
         return _time_worlds()
     from swarmplan.recording import McapRecorder

@@ -14,12 +14,14 @@ obstacles and the query capsule are fcl objects created once and moved by transf
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import fcl
 import numpy as np
 
-from swarmplan.world import Obstacle, World
+if TYPE_CHECKING:
+    from swarmplan.world.model import Obstacle, World
+
 
 _Z = np.array([0.0, 0.0, 1.0])
 
@@ -83,12 +85,6 @@ def segment_segment_min_distance(
     a = np.sum(dw * dw, axis=-1)
     s = np.where(a > 1e-18, np.clip(-np.sum(w0 * dw, axis=-1) / np.maximum(a, 1e-18), 0.0, 1.0), 0.0)
     return np.linalg.norm(w0 + s[..., None] * dw, axis=-1)
-
-
-@dataclass(frozen=True)
-class Hit:
-    agent: int
-    other: str  # obstacle id, agent id, "terrain", "ground" or "bounds"
 
 
 class CollisionWorld:

@@ -10,10 +10,13 @@ distances are approximate to about one voxel.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.world import Obstacle
+if TYPE_CHECKING:
+    from swarmplan.world.model import Obstacle
+
 
 _EPS = 1e-12
 _DIRECT_PAIRS = 50_000  # point-triangle pairs measured directly in MeshGrid.exact

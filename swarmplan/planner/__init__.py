@@ -12,24 +12,24 @@ from __future__ import annotations
 
 import numpy as np
 
+from swarmplan.core import PlannedSegment, PlanningContext, StuckOutcome
 from swarmplan.planner.escape import EscapePlanner
+from swarmplan.planner.global_path import plan_global_routes
 from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
+from swarmplan.world.model import World, WorldError
+from swarmplan.world.planner_config import check_escape, check_global
 
-__all__ = ["RefinementPlanner", "fillet_path", "validate_planner_settings"]
+__all__ = ["RefinementPlanner", "fillet_path", "make_planner", "validate_planner_settings"]
 
 
-def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.World
-    """Check ``planner.escape`` and ``planner.global`` (owned by this package; the world parser
-    checks the rest, including the optimizer's params); raise one ``WorldError`` listing every
-    problem, so a bad world fails before any run starts."""
-    from swarmplan.planner.escape import escape_settings
-    from swarmplan.planner.global_path import global_config
-    from swarmplan.world import WorldError
-
+def validate_planner_settings(world: World) -> None:
+    """Check ``planner.escape`` and ``planner.global`` of ``world`` again; raise one ``WorldError``
+    listing every problem. ``load_world`` / ``parse_world`` already do this; it is for worlds
+    whose planner mapping was replaced afterwards (``World.with_overrides``)."""
     problems: list[str] = []
-    for check in (escape_settings, global_config):
+    for check in (check_escape, check_global):
         try:
-            check(world)
+            check(world.planner)
         except WorldError as exc:
             problems += exc.problems
     if problems:
@@ -39,32 +39,37 @@ def validate_planner_settings(world) -> None:  # noqa: ANN001 - swarmplan.world.
 class RefinementPlanner:
     """The planner the simulation calls; ``optimizer_name`` names the metaheuristic it uses."""
 
-    def __init__(self, world, optimizer_name: str):  # noqa: ANN001 - swarmplan.world.World
+    def __init__(self, world: World, optimizer_name: str):
         self.world = world
         self.optimizer_name = optimizer_name
         self.escape = EscapePlanner(world, optimizer_name)
         self.smoother = CurvatureSmoother(self.escape)
-        self.smoothing = bool(world.planner.get("smoothing", {}).get("enabled", True))
+        self.smoothing = world.planner_config.smoothing
 
-    def on_reset(self, sim) -> dict[int, np.ndarray]:  # noqa: ANN001
+    def on_reset(self, sim: PlanningContext) -> dict[int, np.ndarray]:
         self.escape.escapes.clear()
         self.escape.pending.clear()
         self.escape.failures.clear()
         self.smoother.next_check.clear()
-        if self.world.planner.get("mode") != "global":
+        if self.world.planner_config.mode != "global":
             return {}
-        try:
-            from swarmplan.planner.global_path import plan_global_routes
-        except ImportError:
-            return {}
-        return plan_global_routes(sim, self.optimizer_name, sim.rng)
+        return plan_global_routes(sim, self.optimizer_name)
 
-    def on_stuck(self, sim, agent: int):  # noqa: ANN001, ANN201 - PlannedSegment | None | "failed"
+    def on_stuck(self, sim: PlanningContext, agent: int) -> StuckOutcome:
         return self.escape.on_stuck(sim, agent)
 
-    def on_step(self, sim) -> dict:  # noqa: ANN001
+    def on_step(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
         out = self.escape.take_pending(sim)
         if self.smoothing:
             for i, seg in self.smoother.on_step(sim).items():
                 out.setdefault(i, seg)
         return out
+
+
+def make_planner(world: World, optimizer: str | None = None) -> RefinementPlanner | None:
+    """The planner a run of ``world`` flies: the refinement planner with ``optimizer`` (default:
+    the world's ``planner.optimizer.name``), or None for ``'none'`` (pure APF)."""
+    name = world.planner_config.optimizer.name if optimizer is None else optimizer
+    if name == "none":
+        return None
+    return RefinementPlanner(world, name)

@@ -38,45 +38,23 @@ for a circular fillet of radius R). A path violating any of them gets
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from swarmplan.geometry.polyline import climb_angles, horizontal_turn_angles, polyline_length, turn_angles
 from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
-from swarmplan.world import AgentSpec, World
+from swarmplan.world.planner_config import COST_WEIGHTS
+
+if TYPE_CHECKING:
+    from swarmplan.world.model import AgentSpec, World
 
 # ----------------------------------------------------------------------------- geometry helpers
-
-
-def polyline_length(P: np.ndarray) -> np.ndarray:
-    """Length of each polyline (n, K, 3) → (n,) (004 eq 3, 002 eq 4)."""
-    return np.linalg.norm(np.diff(P, axis=1), axis=-1).sum(axis=1)
 
 
 def height_std(P: np.ndarray) -> np.ndarray:
     """Population standard deviation of the node heights (004 eqs 4-5)."""
     return P[..., 2].std(axis=1)
-
-
-def turn_angles(P: np.ndarray) -> np.ndarray:
-    """Angle (rad) between consecutive segments at every interior node → (n, K-2); 0 for zero-length."""
-    d = np.diff(P, axis=1)
-    a, b = d[:, :-1], d[:, 1:]
-    na, nb = np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1)
-    c = np.sum(a * b, axis=-1) / np.maximum(na * nb, 1e-12)
-    ang = np.arccos(np.clip(c, -1.0, 1.0))
-    return np.where((na > 1e-9) & (nb > 1e-9), ang, 0.0)
-
-
-def horizontal_turn_angles(P: np.ndarray) -> np.ndarray:
-    """Heading change (rad) at interior nodes in the horizontal plane (002 eq 10) → (n, K-2)."""
-    return turn_angles(np.concatenate([P[..., :2], np.zeros_like(P[..., :1])], axis=-1))
-
-
-def climb_angles(P: np.ndarray) -> np.ndarray:
-    """Flight-path angle (rad) of every segment, signed (002 eq 11) → (n, K-1)."""
-    d = np.diff(P, axis=1)
-    return np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1]))
 
 
 def fillet_violation(P: np.ndarray, r_min: float) -> np.ndarray:
@@ -200,7 +178,7 @@ class McfoCost(CostModel):
     """Paper 004: J = w1·length + w2·height std + w3·smoothness; infeasible → c_j·(J + |S→T|·V)."""
 
     name = "mcfo"
-    defaults = {"w1": 0.6, "w2": 0.2, "w3": 0.2, "penalty": 1000.0}
+    defaults = COST_WEIGHTS["mcfo"]
 
     def terms(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(J_path, J_height, J_smooth) of eqs 3, 4 and 6."""
@@ -231,10 +209,8 @@ class ThreatCost(CostModel):
     """Paper 000: W = δ_O·L + Σ_seg l·mean_k(Σ δ P_threat + P_T + P_B + P_H) (eqs 2-7, Table 1)."""
 
     name = "iba"
-    # path: δ_O; threat_unit: metres per paper unit (km); max_altitude: 0 = the bounds' top;
-    # max_climb_angle: degrees for P_B (0 = the agent's).
-    defaults = {"path": 0.1, "threat_unit": 1000.0, "max_altitude": 0.0, "max_climb_angle": 0.0,
-                "penalty": 1000.0}  # fmt: skip
+    # Weight names and meanings: swarmplan.world.planner_config.COST_WEIGHTS.
+    defaults = COST_WEIGHTS["iba"]
 
     def __init__(self, ctx: PathContext, **weights: float):
         super().__init__(ctx, **weights)
@@ -275,10 +251,8 @@ class EnergyCost(CostModel):
     """Paper 002: C = α1·L + α2·℘_E·(E1 + E2) with turning/climb limits (eqs 2-12)."""
 
     name = "iafsa"
-    # max_turn_angle / max_climb_angle in degrees (0 = no turn limit / the agent's climb limit).
-    defaults = {"alpha1": 0.5, "alpha2": 0.5, "xi1": 1.0, "xi2": 2.0, "payload": 0.5,
-                "payload_max": 1.0, "payload_penalty_max": 1.5, "max_turn_angle": 0.0,
-                "max_climb_angle": 0.0, "penalty": 1000.0}  # fmt: skip
+    # Weight names and meanings: swarmplan.world.planner_config.COST_WEIGHTS.
+    defaults = COST_WEIGHTS["iafsa"]
 
     @property
     def payload_factor(self) -> float:

@@ -36,6 +36,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from swarmplan.geometry.polyline import resample_uniform
+
 
 def se_frame(start: np.ndarray, goal: np.ndarray) -> np.ndarray:
     """Rows e_x, e_y, e_z of paper 000's eq (1) rotation for the line start→goal."""
@@ -45,46 +47,6 @@ def se_frame(start: np.ndarray, goal: np.ndarray) -> np.ndarray:
     theta = float(np.arctan2(d[2], horiz))
     cp, sp, ct, st = np.cos(phi), np.sin(phi), np.cos(theta), np.sin(theta)
     return np.array([[cp * ct, sp * ct, st], [-sp, cp, 0.0], [-cp * st, -sp * st, ct]])
-
-
-def resample_polyline(P: np.ndarray, step: float) -> np.ndarray:
-    """Points along each polyline of ``P`` (n, K, 3) at most ``step`` apart (same count for all)."""
-    seg = np.linalg.norm(np.diff(P, axis=1), axis=-1)  # (n, K-1)
-    per = int(np.clip(np.ceil(seg.max() / max(step, 1e-9)), 1, 200)) if seg.size else 1
-    s = np.arange(per) / per  # (per,)
-    a, b = P[:, :-1, None, :], P[:, 1:, None, :]
-    pts = a + s[None, None, :, None] * (b - a)  # (n, K-1, per, 3)
-    out = pts.reshape(len(P), -1, 3)
-    return np.concatenate([out, P[:, -1:, :]], axis=1)
-
-
-def resample_uniform(P: np.ndarray, count: int) -> np.ndarray:
-    """``count`` points evenly spaced in arc length along each polyline of ``P`` (n, K, 3).
-
-    Each row is resampled on its own (the result for a path never depends on the rest of
-    the batch, so a cost is the same whether a candidate is scored alone or in a population).
-    """
-    seg = np.linalg.norm(np.diff(P, axis=1), axis=-1)  # (n, K-1)
-    cum = np.concatenate([np.zeros((len(P), 1)), np.cumsum(seg, axis=1)], axis=1)  # (n, K)
-    q = np.linspace(0.0, 1.0, count)[None, :] * cum[:, -1:]  # (n, count)
-    j = np.clip((cum[:, None, 1:-1] <= q[:, :, None]).sum(axis=-1), 0, P.shape[1] - 2)  # segment
-    c0 = np.take_along_axis(cum, j, axis=1)
-    sl = np.take_along_axis(seg, j, axis=1)
-    u = np.clip((q - c0) / np.maximum(sl, 1e-12), 0.0, 1.0)[..., None]
-    a = np.take_along_axis(P, j[..., None], axis=1)
-    b = np.take_along_axis(P, j[..., None] + 1, axis=1)
-    return a + u * (b - a)
-
-
-def resample_route(path: np.ndarray, spacing: float) -> np.ndarray:
-    """Points along one polyline (K, 3) every ``spacing`` metres of arc length, ending at its end."""
-    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if s[-1] <= 1e-12:
-        return path[-1:].copy()
-    count = max(1, int(np.ceil(s[-1] / max(spacing, 1e-9))))
-    q = np.linspace(0.0, s[-1], count + 1)
-    return np.stack([np.interp(q, s, path[:, k]) for k in range(3)], axis=1)
 
 
 class PlaneEncoding:

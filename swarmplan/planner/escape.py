@@ -7,7 +7,8 @@ When the simulation reports an agent stuck (``Planner.on_stuck``):
    out, or the goal itself when it is nearer;
 2. the segment ``agent → K free waypoints → sub-goal`` is optimized with the world's
    optimizer (``planner.optimizer``: name, population, iterations → max_evals =
-   population × iterations, params) using the simulation's seeded ``sim.rng``; the cost
+   population × iterations, params) using the simulation's seeded stream for that purpose
+   and agent (``sim.rng_for``); the cost
    (:mod:`swarmplan.planner.segment_cost`) scores the whole population in one call;
 3. the best segment is **validated with FCL**: every leg swept with the agent radius plus
    a margin against the static obstacles, terrain and bounds; if it touches something
@@ -31,62 +32,28 @@ move on, so a later round may find a way — and an ``escape_deferred`` event is
 
 from __future__ import annotations
 
-import difflib
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan import optimizers
+from swarmplan.core import (
+    FAILED,
+    SEGMENT_REPULSION_SCALE,
+    Mode,
+    PlannedSegment,
+    PlanningContext,
+    StuckOutcome,
+)
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 
-ESCAPE_DEFAULTS = {
-    "waypoints": 4,
-    "horizon": None,
-    "margin": 1.0,
-    "fcl_margin": 0.3,
-    "retries": 2,
-    "growth": 1.5,
-    "max_escapes": 25,
-    "rounds": 3,
-}
+
+def escape_settings(world) -> dict:
+    """``planner.escape`` of ``world`` merged over the defaults (validated by the world parser)."""
+    return dict(world.planner_config.escape)
 
 
-def escape_settings(world) -> dict:  # noqa: ANN001
-    """``planner.escape`` merged over the defaults; every problem raises one ``WorldError``."""
-    from swarmplan.world import WorldError
-
-    raw = world.planner.get("escape") or {}
-    if not isinstance(raw, dict):
-        raise WorldError([f"planner.escape: expected a mapping, got {raw!r}"])
-    problems = []
-    for k in raw:
-        if k not in ESCAPE_DEFAULTS:
-            close = difflib.get_close_matches(str(k), list(ESCAPE_DEFAULTS), n=1, cutoff=0.6)
-            hint = f"did you mean '{close[0]}'?" if close else f"known keys: {', '.join(ESCAPE_DEFAULTS)}"
-            problems.append(f"planner.escape.{k}: unknown key ({hint})")
-    cfg = dict(ESCAPE_DEFAULTS)
-    cfg.update({k: v for k, v in raw.items() if k in ESCAPE_DEFAULTS and v is not None})
-    if cfg["horizon"] is None:
-        cfg["horizon"] = max(15.0, 2.0 * float(world.planner["apf"]["influence"]))
-    counts = {"waypoints": 1, "retries": 0, "max_escapes": 1, "rounds": 1}
-    for k, v in cfg.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            problems.append(f"planner.escape.{k}: expected a number, got {v!r}")
-        elif k in counts and (v != int(v) or v < counts[k]):
-            problems.append(f"planner.escape.{k}: expected a whole number >= {counts[k]}, got {v!r}")
-        elif k in ("horizon", "margin") and v <= 0:
-            problems.append(f"planner.escape.{k}: must be > 0, got {v!r}")
-        elif k == "growth" and v < 1:
-            problems.append(f"planner.escape.{k}: must be >= 1, got {v!r}")
-        elif k == "fcl_margin" and v < 0:
-            problems.append(f"planner.escape.{k}: must be >= 0, got {v!r}")
-    if problems:
-        raise WorldError(problems)
-    return cfg
-
-
-def model_turn_radius(sim, i: int) -> float:  # noqa: ANN001
+def model_turn_radius(sim: PlanningContext, i: int) -> float:
     """Minimum turn radius of agent ``i``: ``min_turn_radius`` (fixed wing) or v²/a (paper 004 eq 34)."""
     p = sim.params
     if p.fixed_wing[i]:
@@ -94,7 +61,7 @@ def model_turn_radius(sim, i: int) -> float:  # noqa: ANN001
     return float(p.speed_cruise[i]) ** 2 / max(float(p.max_accel[i]), 1e-9)
 
 
-def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:  # noqa: ANN001
+def static_clearance(sim: PlanningContext, pts: np.ndarray, radius: float) -> np.ndarray:
     """Clearance (surface distance minus ``radius``) of ``pts`` to static obstacles, floor and bounds."""
     w = sim.world
     pts = np.atleast_2d(pts)
@@ -107,7 +74,7 @@ def static_clearance(sim, pts: np.ndarray, radius: float) -> np.ndarray:  # noqa
     return clear
 
 
-def choose_subgoal(sim, i: int, horizon: float, need: float) -> np.ndarray:  # noqa: ANN001
+def choose_subgoal(sim: PlanningContext, i: int, horizon: float, need: float) -> np.ndarray:
     """Point on the ray to the goal past whatever blocks it (clearance < ``need``), at least
     ``horizon`` out, or the goal when that is nearer."""
     s = sim.state
@@ -147,16 +114,16 @@ class EscapeOutcome:
 class EscapePlanner:
     """Plans escape and yield segments for one simulation (holds the optimizer and settings)."""
 
-    def __init__(self, world, optimizer_name: str):  # noqa: ANN001
+    def __init__(self, world, optimizer_name: str):
         self.world = world
         self.name = optimizer_name
         self.cfg = escape_settings(world)
-        opt = world.planner["optimizer"]
-        self.population = int(opt["population"])
-        self.iterations = int(opt["iterations"])
-        params = dict(opt.get("params") or {})
+        opt = world.planner_config.optimizer
+        self.population = opt.population
+        self.iterations = opt.iterations
+        params = dict(opt.params)
         # The params are the world's for this algorithm (``run.apply_overrides`` clears them when
-        # --optimizer names another one); wrong ones were reported by validate_planner_settings.
+        # --optimizer names another one); wrong ones were reported by the world parser.
         self.optimizer = optimizers.make(optimizer_name, population=self.population, **params)
         self.escapes: dict[int, int] = {}
         self.pending: dict[int, object] = {}  # yield segments planned for other agents
@@ -164,7 +131,9 @@ class EscapePlanner:
 
     # ------------------------------------------------------------------ validation
 
-    def segment_hit(self, sim, i: int, polyline: np.ndarray, start_clearance: float) -> str | None:  # noqa: ANN001
+    def segment_hit(
+        self, sim: PlanningContext, i: int, polyline: np.ndarray, start_clearance: float
+    ) -> str | None:
         """What the first leg of ``polyline`` touching something (static, terrain, bounds) hits, else None.
 
         Each leg is swept with radius + ``fcl_margin``; the first leg starts at the agent,
@@ -181,7 +150,7 @@ class EscapePlanner:
                 return hit
         return None
 
-    def shortcut(self, sim, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:  # noqa: ANN001
+    def shortcut(self, sim: PlanningContext, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:
         """Greedy shortcutting: from each kept point jump to the farthest later one whose straight
         leg keeps the full clearance (radius + ``margin``, FCL). Fewer, farther waypoints are
         also followed more firmly: the field's attraction grows with the target's distance."""
@@ -211,7 +180,7 @@ class EscapePlanner:
         margin: float,
         extra: dict[int, Intent] | None = None,
         ignore: set[int] | None = None,
-    ) -> SegmentCost:  # noqa: ANN001
+    ) -> SegmentCost:
         s, p = sim.state, sim.params
         r = float(p.radius[i])
         start_clear = float(static_clearance(sim, s.position[i], r)[0])
@@ -234,23 +203,22 @@ class EscapePlanner:
         )
 
     @staticmethod
-    def vertex_clearance(sim) -> float:  # noqa: ANN001
+    def vertex_clearance(sim: PlanningContext) -> float:
         """Clearance a waypoint needs so the agent can reach it: the static repulsion the
-        simulation keeps along a segment (0.3 k_rep (1/rho - 1/rho0)) must not exceed the
+        simulation keeps along a segment (SEGMENT_REPULSION_SCALE k_rep (1/rho - 1/rho0)) must not exceed the
         attraction k_att * 1.5 m at the waypoint (it counts as reached within ~2 m)."""
-        apf = sim.world.planner["apf"]
-        k = 0.3 * float(apf["k_rep"])
-        rho0 = float(apf["influence"])
-        return 1.0 / (1.5 * float(apf["k_att"]) / k + 1.0 / rho0)
+        apf = sim.world.planner_config.apf
+        k = SEGMENT_REPULSION_SCALE * apf.k_rep
+        return 1.0 / (1.5 * apf.k_att / k + 1.0 / apf.influence)
 
-    def _intents(self, sim, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:  # noqa: ANN001
-        others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in ("collided", "failed")]
+    def _intents(self, sim: PlanningContext, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:
+        others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in (Mode.COLLIDED, Mode.FAILED)]
         its = agent_intents(sim, i, extra=extra)
         return dict(zip(others, its, strict=True))
 
     def optimize_segment(
         self,
-        sim,  # noqa: ANN001
+        sim,
         i: int,
         end: np.ndarray,
         purpose: str,
@@ -267,7 +235,7 @@ class EscapePlanner:
         k = int(n_free or self.cfg["waypoints"])
         # Keep waypoints where the potential field lets the agent reach them: out of the
         # repulsion of the bounds' faces and of the ground (see swarmplan.apf).
-        rho0 = float(w.planner["apf"]["influence"])
+        rho0 = w.planner_config.apf.influence
         rb0 = min(rho0, 10.0)
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
         rho0_g = max(min(rho0, 3.0 * floor), 2.0)
@@ -281,16 +249,21 @@ class EscapePlanner:
         evals = max(self.population, int(self.population * self.iterations * budget_factor))
         x0 = seed_candidates(enc, width)
         res = self.optimizer.minimize(
-            lambda X: cost(enc.decode(X)), enc.lower, enc.upper, max_evals=evals, seed=sim.rng, x0=x0
+            lambda X: cost(enc.decode(X)),
+            enc.lower,
+            enc.upper,
+            max_evals=evals,
+            seed=sim.rng_for(purpose, i),
+            x0=x0,
         )
         sim.record_optimizer(i, purpose, self.name, res)
         return enc.decode(res.x)[0], float(res.f), cost
 
     def plan(
         self,
-        sim,  # noqa: ANN001
+        sim,
         i: int,
-        end_fn,  # noqa: ANN001 - horizon -> end point
+        end_fn,
         purpose: str = "escape",
         extra: dict[int, Intent] | None = None,
         ignore: set[int] | None = None,
@@ -315,7 +288,7 @@ class EscapePlanner:
 
     # ------------------------------------------------------------------ events
 
-    def deadlock_partners(self, sim, i: int) -> list[int]:  # noqa: ANN001
+    def deadlock_partners(self, sim: PlanningContext, i: int) -> list[int]:
         """Other flying agents close to ``i`` and slow (or coming at it): a mutual blockage."""
         s, p = sim.state, sim.params
         out = []
@@ -334,7 +307,7 @@ class EscapePlanner:
                 out.append(int(j))
         return out
 
-    def yield_point(self, sim, i: int, j: int, dist: float) -> np.ndarray:  # noqa: ANN001
+    def yield_point(self, sim: PlanningContext, i: int, j: int, dist: float) -> np.ndarray:
         """A point ``dist`` to the side of the line between ``j`` and its goal, on ``i``'s side,
         where ``i`` waits out of ``j``'s way (the side with more clearance)."""
         s = sim.state
@@ -357,57 +330,58 @@ class EscapePlanner:
                     best, best_c = q, score
         return best
 
-    def on_stuck(self, sim, i: int):  # noqa: ANN001, ANN201 - PlannedSegment | None | "failed"
-        from swarmplan.sim import PlannedSegment
+    def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
-            return "failed"
+            return FAILED
         self.escapes[i] = n_done + 1
         r = float(sim.params.radius[i])
         need = r + float(self.cfg["margin"]) + 1.0
         s = sim.state
-        partners = [j for j in self.deadlock_partners(sim, i) if s.mode[j] == "apf" and j not in self.pending]
+        partners = [
+            j for j in self.deadlock_partners(sim, i) if s.mode[j] == Mode.APF and j not in self.pending
+        ]
         # Deadlock: the agent with the higher index steps aside, the other goes on.
         if any(j < i for j in partners):
             j = min(partners)
             q = self.yield_point(sim, i, j, self._yield_distance(sim, i))
             out = self.plan(sim, i, lambda _h, q=q: q, ignore={j})
             if out.waypoints is not None:
-                return PlannedSegment(out.waypoints, mode="escape")
+                return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
         extra = {}
         for j in partners:
             if j > i:
                 q = self.yield_point(sim, j, i, self._yield_distance(sim, j))
                 out = self.plan(sim, j, lambda _h, q=q, j=j: q, ignore={i})
                 if out.waypoints is not None:
-                    self.pending[j] = PlannedSegment(out.waypoints, mode="escape")
+                    self.pending[j] = PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
                     extra[j] = _intent_of(sim, j, out.waypoints)
         out = self.plan(sim, i, lambda h: choose_subgoal(sim, i, h, need), extra=extra)
         if out.waypoints is None:
             failures = self.failures.get(i, 0) + 1
             self.failures[i] = failures
             if failures >= int(self.cfg["rounds"]):
-                return "failed"
+                return FAILED
             sim.note_event(i, "escape_deferred", {"round": failures, "attempts": out.attempts})
             return None
         self.failures[i] = 0
-        return PlannedSegment(out.waypoints, mode="escape")
+        return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
 
-    def take_pending(self, sim) -> dict:  # noqa: ANN001
+    def take_pending(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
         """Yield segments planned for other agents, to start now (``Planner.on_step``)."""
-        out = {j: seg for j, seg in self.pending.items() if sim.state.mode[j] == "apf"}
+        out = {j: seg for j, seg in self.pending.items() if sim.state.mode[j] == Mode.APF}
         self.pending = {}
         return out
 
-    def _yield_distance(self, sim, i: int) -> float:  # noqa: ANN001
+    def _yield_distance(self, sim: PlanningContext, i: int) -> float:
         p = sim.params
         return max(8.0, 2.0 * (float(np.linalg.norm(p.separation[i])) + 2.0 * float(p.radius[i])))
 
 
-def _intent_of(sim, j: int, waypoints: np.ndarray) -> Intent:  # noqa: ANN001
+def _intent_of(sim: PlanningContext, j: int, waypoints: np.ndarray) -> Intent:
     """Agent ``j`` flying ``waypoints`` from where it is at cruise speed."""
     s, p = sim.state, sim.params
     pts = np.vstack([s.position[j], waypoints])
@@ -435,11 +409,3 @@ def seed_candidates(enc: SegmentEncoding, width: float) -> np.ndarray:
                 rows.append(r)
     X = np.array([r.reshape(-1) for r in rows])
     return np.clip(X, enc.lower, enc.upper)
-
-
-def turn_angle(a: np.ndarray, b: np.ndarray) -> float:
-    """Angle between two direction vectors (radians)."""
-    na, nb = np.linalg.norm(a), np.linalg.norm(b)
-    if na < 1e-12 or nb < 1e-12:
-        return 0.0
-    return math.acos(float(np.clip(np.dot(a, b) / (na * nb), -1.0, 1.0)))

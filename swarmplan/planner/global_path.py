@@ -38,104 +38,26 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from swarmplan.planner.cost_models import MODELS, PathContext, make_cost
-from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding, resample_route
-from swarmplan.world import AgentSpec, World, WorldError
+from swarmplan import optimizers
+from swarmplan.core import PlanningContext
+from swarmplan.geometry.polyline import resample_route
+from swarmplan.planner.cost_models import PathContext, make_cost
+from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding
+from swarmplan.planner.escape import static_clearance
+from swarmplan.world.model import AgentSpec, World
+from swarmplan.world.planner_config import GlobalConfig
 
-ENCODINGS = ("planes", "spline")
-_NUMBERS = ("lateral", "vertical", "margin")
-_COUNTS = ("waypoints", "samples", "population", "iterations", "retries")
-_KEYS = ("cost", "encoding", "waypoints", "lateral", "vertical", "margin", "samples", "population",
-         "iterations", "retries", "shortcut", "warm_start", "weights")  # fmt: skip
 RETRY_GROWTH = 1.5
 
 
-@dataclass(frozen=True)
-class GlobalConfig:
-    cost: str = "mcfo"
-    encoding: str = "planes"
-    waypoints: int = 8
-    lateral: float = 0.0
-    vertical: float = 0.0
-    margin: float = 0.0
-    samples: int = 40
-    population: int = 0
-    iterations: int = 0
-    retries: int = 2
-    shortcut: bool = True
-    warm_start: bool = True
-    weights: dict[str, float] = field(default_factory=dict)
-
-
 def global_config(world: World) -> GlobalConfig:
-    """Validate ``planner.global`` of ``world``; raise ``WorldError`` listing every problem."""
-    raw = world.planner.get("global") or {}
-    problems: list[str] = []
-    p = "planner.global"
-    if not isinstance(raw, dict):
-        raise WorldError([f"{p}: expected a mapping"])
-    for k in raw:
-        if k not in _KEYS:
-            problems.append(f"{p}.{k}: unknown key (known keys: {', '.join(_KEYS)})")
-    cost = raw.get("cost", "mcfo")
-    if cost not in MODELS:
-        problems.append(f"{p}.cost: '{cost}' is not one of {', '.join(MODELS)}")
-        cost = "mcfo"
-    encoding = raw.get("encoding", "spline" if cost == "iafsa" else "planes")
-    if encoding not in ENCODINGS:
-        problems.append(f"{p}.encoding: '{encoding}' is not one of {', '.join(ENCODINGS)}")
-    values: dict[str, Any] = {}
-    for k in _NUMBERS + _COUNTS:
-        if k not in raw:
-            continue
-        v = raw[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            problems.append(f"{p}.{k}: expected a number >= 0, got {v!r}")
-        elif k in _COUNTS and v != int(v):
-            problems.append(f"{p}.{k}: must be a whole number, got {v!r}")
-        elif k == "waypoints" and v < 1:
-            problems.append(f"{p}.{k}: must be >= 1, got {v!r}")
-        elif k == "population" and 0 < v < 2:
-            problems.append(f"{p}.{k}: must be >= 2 (or 0 for planner.optimizer.population), got {v!r}")
-        else:
-            values[k] = int(v) if k in _COUNTS else float(v)
-    for k in ("shortcut", "warm_start"):
-        if k in raw and not isinstance(raw[k], bool):
-            problems.append(f"{p}.{k}: expected true or false, got {raw[k]!r}")
-        else:
-            values[k] = bool(raw.get(k, True))
-    weights = raw.get("weights") or {}
-    if not isinstance(weights, dict):
-        problems.append(f"{p}.weights: expected a mapping, got {weights!r}")
-        weights = {}
-    known = MODELS[cost].defaults
-    for k, v in weights.items():
-        if k not in known:
-            problems.append(f"{p}.weights.{k}: unknown weight for cost '{cost}' (known: {', '.join(known)})")
-        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            problems.append(f"{p}.weights.{k}: expected a number >= 0, got {v!r}")
-    if cost == "mcfo" and not problems:
-        w = {**known, **weights}
-        if abs(w["w1"] + w["w2"] + w["w3"] - 1.0) > 1e-6:
-            problems.append(
-                f"{p}.weights: w1 + w2 + w3 must be 1 (004 eq 2), got {w['w1'] + w['w2'] + w['w3']:g}"
-            )
-    if cost == "iafsa" and not problems:
-        w = {**known, **weights}
-        if abs(w["alpha1"] + w["alpha2"] - 1.0) > 1e-6:
-            problems.append(f"{p}.weights: alpha1 + alpha2 must be 1 (002 eq 2)")
-        if w["payload_max"] <= 0:
-            problems.append(f"{p}.weights.payload_max: must be > 0")
-    if cost == "iba" and not problems and {**known, **weights}["threat_unit"] <= 0:
-        problems.append(f"{p}.weights.threat_unit: must be > 0")
-    if problems:
-        raise WorldError(problems)
-    return GlobalConfig(cost=cost, encoding=encoding, weights=dict(weights), **values)
+    """``planner.global`` of ``world`` (validated by the world parser)."""
+    return world.planner_config.global_
 
 
 @dataclass
@@ -155,7 +77,7 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
     span = float(np.linalg.norm(agent.goal - agent.start))
     # Default clearance: half the APF influence distance, so the route stays where the static
     # repulsion is weak and the pursuit of the route's points is not pushed off them.
-    margin = cfg.margin or max(agent.radius, 0.5 * float(world.planner["apf"]["influence"]))
+    margin = cfg.margin or max(agent.radius, 0.5 * world.planner_config.apf.influence)
     lateral = cfg.lateral or span / 2
     vertical = cfg.vertical or float(world.bounds_max[2] - world.bounds_min[2])
     lo = world.bounds_min + agent.radius + margin
@@ -166,7 +88,7 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
     cls = SplineEncoding if cfg.encoding == "spline" else PlaneEncoding
     kw = {"samples": cfg.samples} if cls is SplineEncoding else {}
     alt = max(agent.min_altitude, world.terrain_clearance, agent.radius + margin)
-    floor = (lambda xy: world.terrain_height(xy) + alt) if world.peaks else None  # noqa: E731
+    floor = (lambda xy: world.terrain_height(xy) + alt) if world.peaks else None
     enc = cls(agent.start, agent.goal, cfg.waypoints, lateral, vertical, lo, hi, step=step, floor=floor, **kw)
     # The altitude floor rises from the start's/goal's own height over two plane spacings, so
     # a path through waypoints at the floor is valid however low the user put its ends.
@@ -174,15 +96,13 @@ def agent_problem(world: World, agent: AgentSpec, cfg: GlobalConfig) -> AgentPro
     return AgentProblem(enc, make_cost(cfg.cost, ctx, cfg.weights), margin)
 
 
-def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | None:
+def validate_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float) -> str | None:
     """What the agent's sphere (radius + ``inflate``) touches along ``path`` (FCL, static world), or None.
 
     The start and the goal may lie closer to the ground or an obstacle than the inflated radius
     (a take-off from the ground): the legs leaving the start and reaching the goal are swept
     with the margin those points have (never less than the bare radius).
     """
-    from swarmplan.planner.escape import static_clearance
-
     radius = float(sim.params.radius[i])
     ends = static_clearance(sim, path[[0, -1]], radius)
     n = len(path) - 1
@@ -201,7 +121,7 @@ def validate_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> str | N
     return None
 
 
-def shortcut_path(sim: Any, i: int, path: np.ndarray, inflate: float) -> np.ndarray:
+def shortcut_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float) -> np.ndarray:
     """Greedy pruning of a valid path: from each kept vertex, jump to the farthest later one whose
     straight leg FCL finds clear (radius + ``inflate``) and whose climb angle the agent can fly.
 
@@ -235,28 +155,22 @@ def route_spacing(world: World, agent: AgentSpec) -> float:
     """Spacing of the route's points: the APF's quadratic radius (so the next point is far enough for
     the full, conic attraction) but at least the sim's waypoint reach (3 steps at cruise speed)."""
     return max(
-        world.goal_tolerance, 3.0 * agent.speed_cruise * world.dt, world.planner["apf"]["quadratic_radius"]
+        world.goal_tolerance, 3.0 * agent.speed_cruise * world.dt, world.planner_config.apf.quadratic_radius
     )
 
 
-def _event(sim: Any, agent: str, kind: str, detail: dict[str, Any]) -> None:
-    if sim.recorder is not None:
-        sim.recorder.write_event({"t": 0.0, "agent": agent, "kind": kind, "detail": detail})
-
-
-def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) -> dict[int, np.ndarray]:
+def plan_global_routes(sim: PlanningContext, optimizer_name: str) -> dict[int, np.ndarray]:
     """Plan every agent's whole path with ``optimizer_name``; {agent index: route (K, 3)} for valid plans."""
-    from swarmplan import optimizers
-
     world: World = sim.world
     cfg = global_config(world)
-    opt_cfg = world.planner["optimizer"]
-    population = cfg.population or int(opt_cfg["population"])
-    iterations = cfg.iterations or int(opt_cfg["iterations"])
-    params = dict(opt_cfg.get("params") or {}) if opt_cfg.get("name") == optimizer_name else {}
+    opt_cfg = world.planner_config.optimizer
+    population = cfg.population or opt_cfg.population
+    iterations = cfg.iterations or opt_cfg.iterations
+    params = dict(opt_cfg.params) if opt_cfg.name == optimizer_name else {}
     opt = optimizers.make(optimizer_name, population=population, **params)
     routes: dict[int, np.ndarray] = {}
     for i, agent in enumerate(world.agents):
+        rng = sim.rng_for("global", i)
         prob = agent_problem(world, agent, cfg)
         enc = prob.encoding
         t0 = time.perf_counter()
@@ -294,41 +208,10 @@ def plan_global_routes(sim: Any, optimizer_name: str, rng: np.random.Generator) 
                 else f"best path touches '{hit}' (FCL)"
             )
             detail["fallback"] = "no route: reactive flight (APF with escapes) to the goal"
-            _event(sim, agent.id, "global_plan_invalid", detail)
+            sim.note_event(i, "global_plan_invalid", detail)
             continue
         detail["waypoints"] = np.round(path, 3).tolist()
         detail["planned_waypoints"] = np.round(nodes[0], 3).tolist()
-        _event(sim, agent.id, "global_plan", detail)
+        sim.note_event(i, "global_plan", detail)
         routes[i] = route[1:]
     return routes
-
-
-class GlobalRoutePlanner:
-    """A minimal planner for ``mode: global`` when the refinement planner is not available:
-    global routes at reset, no escapes, no smoothing."""
-
-    def __init__(self, world: World, optimizer: str):
-        self.world = world
-        self.optimizer_name = optimizer
-
-    def on_reset(self, sim: Any) -> dict[int, np.ndarray]:
-        if self.world.planner.get("mode") != "global" or self.optimizer_name == "none":
-            return {}
-        return plan_global_routes(sim, self.optimizer_name, sim.rng)
-
-    def on_stuck(self, sim: Any, agent: int) -> None:
-        return None
-
-    def on_step(self, sim: Any) -> dict:
-        return {}
-
-
-def make_planner(world: World, optimizer: str) -> Any:
-    """The project's planner (``swarmplan.run.make_planner``), or :class:`GlobalRoutePlanner` when that
-    is unavailable and the world is in global mode."""
-    from swarmplan.run import make_planner as project_planner
-
-    planner = project_planner(world, optimizer)
-    if planner is None and optimizer != "none" and world.planner.get("mode") == "global":
-        planner = GlobalRoutePlanner(world, optimizer)
-    return planner

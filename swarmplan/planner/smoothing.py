@@ -20,6 +20,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from swarmplan.core import Mode, PlannedSegment, PlanningContext
+from swarmplan.planner.escape import model_turn_radius, static_clearance
+
 _EPS = 1e-9
 
 
@@ -85,13 +88,13 @@ def fillet_path(
 class CurvatureSmoother:
     """Plans smoothing segments in ``on_step`` (see the module docstring)."""
 
-    def __init__(self, escape_planner, check_interval: float = 1.0, cooldown: float = 6.0):  # noqa: ANN001
+    def __init__(self, escape_planner, check_interval: float = 1.0, cooldown: float = 6.0):
         self.ep = escape_planner
         self.check_interval = check_interval
         self.cooldown = cooldown
         self.next_check: dict[int, float] = {}
 
-    def _target(self, sim, i: int) -> tuple[np.ndarray, np.ndarray | None, int]:  # noqa: ANN001
+    def _target(self, sim: PlanningContext, i: int) -> tuple[np.ndarray, np.ndarray | None, int]:
         """Next attraction point, the point after it (route corner) and its route index (-1: goal)."""
         s = sim.state
         route = s.route[i]
@@ -101,11 +104,9 @@ class CurvatureSmoother:
             return route[k], after, k
         return s.goal[i], None, -1
 
-    def check(self, sim, i: int) -> tuple[np.ndarray, int] | None:  # noqa: ANN001
+    def check(self, sim: PlanningContext, i: int) -> tuple[np.ndarray, int] | None:
         """(end point of a smoothing segment, route index it passes) when agent ``i`` must turn
         more tightly than its model allows, else None."""
-        from swarmplan.planner.escape import model_turn_radius
-
         s = sim.state
         p, v = s.position[i], s.velocity[i]
         speed = float(np.linalg.norm(v))
@@ -139,14 +140,13 @@ class CurvatureSmoother:
                     return end, k
         return None
 
-    def on_step(self, sim) -> dict:  # noqa: ANN001
-        from swarmplan.sim import PlannedSegment
+    def on_step(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
 
         s = sim.state
         out = {}
         for i in np.flatnonzero(s.active):
             i = int(i)
-            if s.mode[i] != "apf" or s.t < self.next_check.get(i, 0.0):
+            if s.mode[i] != Mode.APF or s.t < self.next_check.get(i, 0.0):
                 continue
             self.next_check[i] = s.t + self.check_interval
             found = self.check(sim, i)
@@ -157,12 +157,11 @@ class CurvatureSmoother:
             L = float(np.linalg.norm(end - s.position[i]))
             poly, _, _ = self.ep.optimize_segment(sim, i, end, "smoothing", width=max(L, 5.0), n_free=3)
             r = float(sim.params.radius[i])
-            from swarmplan.planner.escape import static_clearance
-
             c0 = float(static_clearance(sim, s.position[i], r)[0])
             if self.ep.segment_hit(sim, i, poly, c0) is not None:
                 continue
+            route_index = None
             if k >= 0 and s.route[i] is not None and not np.allclose(end, s.route[i][k]):
-                s.route_index[i] = k + 1  # the segment rounds this corner: the route goes on after it
-            out[i] = PlannedSegment(poly[1:], mode="smoothing")
+                route_index = k + 1  # the segment rounds this corner: the route goes on after it
+            out[i] = PlannedSegment(poly[1:], mode=Mode.SMOOTHING, route_index=route_index)
         return out

@@ -40,6 +40,9 @@ from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
 
+from swarmplan.core import Mode
+from swarmplan.geometry.rotation import euler_to_quaternion, rotate
+
 FRAME = "world"
 SCENE_TOPIC = "/scene"
 WORLD_TOPIC = "/scene/world"
@@ -47,12 +50,12 @@ PATHS_TOPIC = "/scene/paths"
 TF_TOPIC = "/tf"
 
 MODE_COLORS = {
-    "apf": (0.12, 0.47, 0.71, 1.0),
-    "escape": (0.84, 0.15, 0.16, 1.0),
-    "smoothing": (1.0, 0.75, 0.0, 1.0),
-    "arrived": (0.17, 0.63, 0.17, 1.0),
-    "collided": (0.1, 0.1, 0.1, 1.0),
-    "failed": (0.5, 0.5, 0.5, 1.0),
+    Mode.APF: (0.12, 0.47, 0.71, 1.0),
+    Mode.ESCAPE: (0.84, 0.15, 0.16, 1.0),
+    Mode.SMOOTHING: (1.0, 0.75, 0.0, 1.0),
+    Mode.ARRIVED: (0.17, 0.63, 0.17, 1.0),
+    Mode.COLLIDED: (0.1, 0.1, 0.1, 1.0),
+    Mode.FAILED: (0.5, 0.5, 0.5, 1.0),
 }
 OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
 MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
@@ -86,25 +89,6 @@ def _varint(n: int) -> bytes:
         else:
             out.append(b)
             return bytes(out)
-
-
-def _euler_deg_to_quat(rpy) -> tuple[float, float, float, float]:
-    """[qx, qy, qz, qw] of R = Rz(yaw) Ry(pitch) Rx(roll), angles in degrees."""
-    r, p, y = (math.radians(float(a)) / 2.0 for a in (list(rpy or []) + [0, 0, 0])[:3])
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return (
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-        cr * cp * cy + sr * sp * sy,
-    )
-
-
-def _rotate(q, v) -> np.ndarray:
-    x, y, z, w = q
-    u = np.array([x, y, z])
-    v = np.asarray(v, float)
-    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)
 
 
 def _set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)):
@@ -210,7 +194,11 @@ class FoxgloveScene:
     def _fill_obstacle(self, e, obst, position=None, quat=None, rgba=OBSTACLE_RGBA):
         shape = obst.get("shape")
         pos = np.asarray(obst.get("position", [0, 0, 0]) if position is None else position, float)
-        q = tuple(quat) if quat is not None else _euler_deg_to_quat(obst.get("rotation"))
+        q = (
+            tuple(quat)
+            if quat is not None
+            else tuple(euler_to_quaternion((list(obst.get("rotation") or []) + [0, 0, 0])[:3]))
+        )
         if shape == "sphere":
             s = e.spheres.add()
             _set_pose(s.pose, pos, q)
@@ -234,7 +222,7 @@ class FoxgloveScene:
             if shape == "capsule":
                 for sign in (-1.0, 1.0):
                     s = e.spheres.add()
-                    _set_pose(s.pose, pos + _rotate(q, [0.0, 0.0, sign * h / 2.0]), q)
+                    _set_pose(s.pose, pos + rotate(q, [0.0, 0.0, sign * h / 2.0]), q)
                     s.size.x = s.size.y = s.size.z = 2.0 * r
                     _set_color(s.color, rgba)
         elif shape == "mesh" and "vertices" in obst:

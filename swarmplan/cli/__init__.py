@@ -1,0 +1,1 @@
+"""Command-line programs (``python -m swarmplan.run`` is :mod:`swarmplan.cli.run`)."""

@@ -1,0 +1,251 @@
+"""``python -m swarmplan.run WORLD [--seed N] [--out PATH] [--optimizer NAME] [--max-time S] [--quiet]``.
+
+Exit status: 0 when every agent arrived without collision, 1 when the run finished
+otherwise (or was interrupted: Ctrl-C or SIGTERM close the log with a summary that says so),
+2 on bad input, including a log path that cannot be written (nothing is written then).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, TextIO
+
+from tqdm import tqdm
+
+from swarmplan import optimizers
+from swarmplan.core import StepResult
+from swarmplan.io.recording import McapRecorder
+from swarmplan.io.runner import run_episode
+from swarmplan.planner import make_planner, validate_planner_settings
+from swarmplan.sim import Simulation
+from swarmplan.world import World, WorldError, load_world
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def log_path_for(world: World, seed: int, optimizer: str, out: str | None) -> Path:
+    """Where the log goes: ``--out`` or the world's ``log.path`` template (relative to the cwd)."""
+    template = out if out is not None else world.log_path
+    try:
+        return Path(template.format(name=world.name, seed=seed, optimizer=optimizer))
+    except (KeyError, IndexError, ValueError) as exc:
+        raise WorldError(
+            [f"log.path: bad template {template!r} ({exc}); use {{name}}, {{seed}}, {{optimizer}}"]
+        ) from None
+
+
+def check_writable(path: Path, label: str) -> None:
+    """Fail before any work when the log cannot be written (a directory, no such place, no rights)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("ab"):  # appends nothing: an existing file is left as it is until the run
+            pass
+    except OSError as exc:
+        raise WorldError(
+            [f"{label}: cannot write the log {str(path)!r}: {exc.strerror or exc}"], "command line"
+        ) from None
+
+
+def apply_overrides(world: World, optimizer: str | None, max_time: float | None) -> World:
+    changes: dict[str, Any] = {}
+    if max_time is not None:
+        changes["max_time"] = float(max_time)
+    if optimizer is not None:
+        planner = dict(world.planner)
+        opt = dict(planner["optimizer"], name=optimizer)
+        if optimizer != world.planner["optimizer"]["name"]:
+            # The world's params are settings of its own algorithm (e.g. rscdwoa's beta): another
+            # algorithm runs with its papers' defaults.
+            opt["params"] = {}
+        planner["optimizer"] = opt
+        changes["planner"] = planner
+    return world.with_overrides(**changes) if changes else world
+
+
+def simulate(
+    world: World,
+    seed: int,
+    log_path: Path | None,
+    *,
+    progress: bool = False,
+    stream: TextIO = sys.stderr,
+    stop_on_signals: bool = False,
+) -> dict[str, Any]:
+    """Run ``world`` to its end with ``seed``, recording to ``log_path``; returns the summary.
+
+    The log is finished whatever happens: on an exception the summary says ``interrupted``
+    and the exception propagates after the file is closed. With ``stop_on_signals`` (the
+    command line), Ctrl-C and SIGTERM end the run at the next step boundary instead, and the
+    summary says ``interrupted``; a second signal stops at once.
+    """
+    recorder = (
+        McapRecorder(
+            log_path,
+            flush_interval=world.resolved["log"]["flush_interval"],
+            foxglove=world.resolved["log"]["foxglove"],
+        )
+        if log_path is not None
+        else None
+    )
+    sim = Simulation(world, planner=make_planner(world), recorder=recorder)
+    bar = tqdm(
+        total=world.max_time,
+        unit="sim-s",
+        file=stream,
+        disable=not progress,
+        delay=2.0,  # only runs that take a while show a bar
+        mininterval=0.2,
+        bar_format="{l_bar}{bar}| t={n:.1f}/{total:.0f} s [{elapsed}<{remaining}, {rate_fmt}]{postfix}",
+    )
+
+    def show(result: StepResult) -> None:
+        bar.update(result.state.t - bar.n)
+        bar.set_postfix_str(f"{int(result.state.active.sum())} flying", refresh=False)
+
+    try:
+        with _stop_requests(stop_on_signals) as stop_requested:
+            return run_episode(sim, seed, observers=[show], should_stop=stop_requested)
+    finally:
+        bar.close()
+
+
+@contextmanager
+def _stop_requests(enabled: bool) -> Iterator[Callable[[], bool]]:
+    """While active, SIGINT and SIGTERM only request a stop (the second one stops at once)."""
+    requested: list[int] = []
+    if not enabled or threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        if requested:
+            raise KeyboardInterrupt
+        requested.append(signum)
+
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield lambda: bool(requested)
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
+    """The per-agent table printed at the end of a run."""
+    head = (
+        "agent",
+        "arrived",
+        "time s",
+        "length m",
+        "ratio",
+        "min clear m",
+        "max curv 1/m",
+        "collisions",
+        "stuck",
+        "escapes",
+    )
+    rows = []
+    for a in summary["agents"]:
+        rows.append(
+            (
+                a["id"],
+                "yes" if a["arrived"] else f"no ({a['final_mode']})",
+                "-" if a["arrival_time"] is None else f"{a['arrival_time']:.1f}",
+                f"{a['path_length']:.1f}",
+                "-" if a["length_ratio"] is None else f"{a['length_ratio']:.3f}",
+                "-" if a["min_clearance"] is None else f"{a['min_clearance']:.2f}",
+                f"{a['max_curvature']:.3f}",
+                str(a["collisions"]),
+                str(a["stuck_events"]),
+                str(a["escapes"]),
+            )
+        )
+    widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(head)]
+    line = lambda cells: "  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True))  # noqa: E731
+    out = [line(head), line(["-" * w for w in widths])] + [line(r) for r in rows]
+    verdict = "SUCCESS" if summary["success"] else ("INTERRUPTED" if summary["interrupted"] else "FAILED")
+    out.append("")
+    out.append(
+        f"{verdict}: {summary['arrived']}/{summary['agents_total']} arrived, "
+        f"{summary['collisions']} collision(s), "
+        f"sim {summary['sim_time']:.1f} s in {summary['wall_time']:.2f} s wall "
+        f"({summary['sim_time'] / max(summary['wall_time'], 1e-9):.1f} sim-s/s), "
+        f"world {summary['world']!r}, seed {summary['seed']}, optimizer {summary['optimizer']}"
+    )
+    if log_path is not None:
+        out.append(f"log: {log_path}")
+    return "\n".join(out)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m swarmplan.run",
+        description="Simulate a swarmplan world and log it to MCAP.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("world", help="world YAML file")
+    p.add_argument("--seed", type=int, default=None, help="random seed; unset: the world's seed")
+    p.add_argument("--out", default=None, help="log file; unset: the world's log.path")
+    p.add_argument(
+        "--optimizer",
+        default=None,
+        help="escape/smoothing optimizer, or 'none' for pure APF; unset: the world's",
+    )
+    p.add_argument("--max-time", type=float, default=None, help="override the world's sim.max_time (s)")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    return p
+
+
+def check_planner_settings(world: World, source: str) -> None:
+    """The planner's own sections of the world file (``planner.escape``, ``planner.global``);
+    ``load_world`` checks them already, this is for a world changed since."""
+    try:
+        validate_planner_settings(world)
+    except WorldError as exc:
+        raise WorldError(exc.problems, source) from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        names = optimizers.available()
+        if args.optimizer is not None and args.optimizer != "none" and args.optimizer not in names:
+            raise WorldError(
+                [f"--optimizer: unknown optimizer '{args.optimizer}'; known: none, {', '.join(names)}"],
+                "command line",
+            )
+        if args.max_time is not None and not args.max_time > 0:
+            raise WorldError([f"--max-time: must be > 0, got {args.max_time:g}"], "command line")
+        if args.seed is not None and args.seed < 0:
+            raise WorldError([f"--seed: must be >= 0, got {args.seed}"], "command line")
+        world = apply_overrides(load_world(args.world, names), args.optimizer, args.max_time)
+        seed = world.seed if args.seed is None else args.seed
+        log_path = log_path_for(world, seed, world.planner["optimizer"]["name"], args.out)
+        check_writable(log_path, "--out" if args.out is not None else "log.path")
+    except WorldError as exc:
+        print(f"error: {exc.source}: invalid input", file=sys.stderr)
+        for p in exc.problems:
+            print(f"  {p}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        summary = simulate(
+            world, seed, log_path, progress=not args.quiet and sys.stderr.isatty(), stop_on_signals=True
+        )
+    except KeyboardInterrupt:
+        summary = {"interrupted": True}
+    if summary["interrupted"]:
+        print(f"\ninterrupted: the log {log_path} was closed with every step so far", file=sys.stderr)
+        return EXIT_FAILED
+    if not args.quiet:
+        print(format_summary(summary, log_path))
+    return EXIT_OK if summary["success"] else EXIT_FAILED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,156 @@
+"""Contracts shared by the simulator, the planners and the recorders: data types and protocols.
+
+Nothing here does work; every other module may import it and it imports none of ours, so
+it is the place to read first: what a run's state looks like (:class:`SwarmState`), what a
+step reports (:class:`StepResult`, :class:`Event`), what a planner gives back
+(:class:`PlannedSegment`) and what the simulator asks of planners and recorders.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any, Literal, Protocol
+
+import numpy as np
+
+TIME_DIGITS = 9
+"""Times are rounded to this many decimals: ``k * dt`` lands on the step grid (40.8, not
+40.800000000000004), the same value the log carries."""
+
+
+SEGMENT_REPULSION_SCALE = 0.3
+"""Scale of static-obstacle repulsion while an agent follows a planned segment: FCL already
+validated the segment, so the field only nudges. The escape planner's clearance target is
+derived from it (``swarmplan.planner.escape``), so both read this one constant."""
+
+REACH_STEPS = 3.0
+"""A waypoint counts as reached within this many steps of flight at the current speed (or the
+goal tolerance, if larger): waypoints are passed, not hit exactly."""
+
+
+class Mode(StrEnum):
+    """What an agent is doing; the values are the log's ``mode`` strings."""
+
+    APF = "apf"  # flying the potential field (towards its goal or along its global route)
+    ESCAPE = "escape"  # following an escape segment out of a trap
+    SMOOTHING = "smoothing"  # following a curvature-smoothing segment
+    ARRIVED = "arrived"
+    COLLIDED = "collided"
+    FAILED = "failed"  # the planner found no way out
+
+
+SEGMENT_MODES = (Mode.ESCAPE, Mode.SMOOTHING)
+DONE_MODES = (Mode.ARRIVED, Mode.COLLIDED, Mode.FAILED)
+
+
+@dataclass
+class SwarmState:
+    """Agent state at time ``t``; arrays have one row per agent in world order."""
+
+    t: float
+    step: int
+    position: np.ndarray  # (N, 3)
+    velocity: np.ndarray  # (N, 3)
+    goal: np.ndarray  # (N, 3)
+    mode: np.ndarray  # (N,) object array of Mode
+    segment: list[np.ndarray | None] = field(default_factory=list)  # waypoints being followed, per agent
+    segment_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    route: list[np.ndarray | None] = field(default_factory=list)  # global path waypoints, per agent
+    route_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    @property
+    def active(self) -> np.ndarray:
+        """Agents still flying (not arrived, collided or failed)."""
+        return ~np.isin(self.mode, DONE_MODES)
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something that happened to an agent (or to the run when ``agent`` is None) at ``t``.
+
+    The same shape as a ``/events`` message; ``t`` is rounded to the step grid on creation.
+    """
+
+    t: float
+    agent: str | None
+    kind: str
+    detail: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "t", round(float(self.t), TIME_DIGITS))
+
+    def to_json(self) -> dict[str, Any]:
+        return {"t": self.t, "agent": self.agent, "kind": self.kind, "detail": self.detail}
+
+
+@dataclass(frozen=True)
+class PlannedSegment:
+    """A segment an agent follows in ``mode`` (escape or smoothing) before returning to APF."""
+
+    waypoints: np.ndarray  # (K, 3), the first is the next point to reach
+    mode: Literal[Mode.ESCAPE, Mode.SMOOTHING] = Mode.ESCAPE
+    route_index: int | None = None  # the global-route waypoint to go on from (e.g. a rounded corner skipped)
+
+
+FAILED: Literal["failed"] = "failed"
+"""What ``Planner.on_stuck`` returns when no escape exists (the agent then stops flying)."""
+
+StuckOutcome = PlannedSegment | None | Literal["failed"]
+
+
+@dataclass
+class StepResult:
+    state: SwarmState
+    events: list[Event]
+    terminated: bool
+    truncated: bool
+
+
+class PlanningContext(Protocol):
+    """What a planner may read of the running simulation, and the two ways it reports back."""
+
+    world: Any  # swarmplan.world.World
+    state: SwarmState
+    ids: tuple[str, ...]
+    n: int
+    params: Any  # swarmplan.dynamics.AgentParams
+    collision: Any  # swarmplan.geometry.collision.CollisionWorld
+    field: Any  # swarmplan.geometry.shapes.ObstacleField
+    moving_mask: np.ndarray
+
+    def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
+        """The seeded random stream of one purpose ('global', 'escape', ...) for one agent."""
+
+    def record_optimizer(
+        self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None
+    ) -> None:
+        """Log one optimizer run (a ``swarmplan.optimizers.Result``)."""
+
+    def note_event(self, agent: int | None, kind: str, detail: dict[str, Any]) -> None:
+        """Report an event; it is recorded with the running step's events."""
+
+
+class Planner(Protocol):
+    """What the simulation asks of the refinement planner (see ``swarmplan.planner``)."""
+
+    optimizer_name: str
+
+    def on_reset(self, sim: PlanningContext) -> dict[int, np.ndarray]:
+        """Global routes (waypoints to the goal) planned before flight, per agent index."""
+
+    def on_stuck(self, sim: PlanningContext, agent: int) -> StuckOutcome:
+        """A segment to escape a trap, None to keep flying APF, or ``FAILED`` to give up."""
+
+    def on_step(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
+        """Segments to start this step for other reasons (e.g. curvature smoothing)."""
+
+
+class Recorder(Protocol):
+    """Where a run's messages go (``swarmplan.recording.McapRecorder`` writes MCAP)."""
+
+    def write_world(self, world: dict[str, Any]) -> None: ...
+    def write_state(self, t: float, agents: list[dict], obstacles: list[dict] | None) -> None: ...
+    def write_event(self, event: dict[str, Any]) -> None: ...
+    def write_optimizer(self, msg: dict[str, Any]) -> None: ...
+    def write_summary(self, summary: dict[str, Any]) -> None: ...

@@ -1,0 +1,1 @@
+"""Getting runs out: the MCAP recorder (with Foxglove scene channels) and the episode runner."""

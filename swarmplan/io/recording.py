@@ -1,0 +1,228 @@
+"""MCAP recording of a run, per ``shared/spec/log-format.md``.
+
+JSON channels with ``jsonschema`` schemas, timestamps in simulation nanoseconds, zstd
+chunks. The writer is flushed every ``flush_interval`` simulated seconds so a hard kill
+loses at most about that much; ``close`` always finishes the file (use the recorder as a
+context manager). Foxglove's protobuf scene channels are written alongside when enabled.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from mcap.writer import CompressionType, Writer
+
+from swarmplan.core import Mode
+from swarmplan.io.foxglove_scene import FoxgloveScene
+
+_NUM3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
+
+SCHEMAS: dict[str, dict[str, Any]] = {
+    "/world": {
+        "title": "swarmplan.World",
+        "type": "object",
+        "required": ["name", "bounds", "agents", "seed", "swarmplan_version"],
+        "properties": {
+            "name": {"type": "string"},
+            "seed": {"type": "integer"},
+            "swarmplan_version": {"type": "string"},
+            "bounds": {"type": "object"},
+            "agents": {"type": "array"},
+            "obstacles": {"type": "array"},
+        },
+    },
+    "/agents/state": {
+        "title": "swarmplan.AgentsState",
+        "type": "object",
+        "required": ["t", "agents"],
+        "properties": {
+            "t": {"type": "number"},
+            "agents": {
+                "type": "array",
+                "items": {
+                    "type": "object",
+                    "required": ["id", "position", "velocity", "mode", "goal"],
+                    "properties": {
+                        "id": {"type": "string"},
+                        "position": _NUM3,
+                        "velocity": _NUM3,
+                        "goal": _NUM3,
+                        "mode": {"enum": [m.value for m in Mode]},
+                    },
+                },
+            },
+        },
+    },
+    "/obstacles/state": {
+        "title": "swarmplan.ObstaclesState",
+        "type": "object",
+        "required": ["t", "obstacles"],
+        "properties": {
+            "t": {"type": "number"},
+            "obstacles": {
+                "type": "array",
+                "items": {
+                    "type": "object",
+                    "required": ["id", "position", "orientation"],
+                    "properties": {
+                        "id": {"type": "string"},
+                        "position": _NUM3,
+                        "orientation": {
+                            "type": "array",
+                            "items": {"type": "number"},
+                            "minItems": 4,
+                            "maxItems": 4,
+                        },
+                        "velocity": _NUM3,
+                    },
+                },
+            },
+        },
+    },
+    "/events": {
+        "title": "swarmplan.Event",
+        "type": "object",
+        "required": ["t", "agent", "kind", "detail"],
+        "properties": {
+            "t": {"type": "number"},
+            "agent": {"type": ["string", "null"]},
+            "kind": {"type": "string"},
+            "detail": {"type": "object"},
+        },
+    },
+    "/optimizer": {
+        "title": "swarmplan.OptimizerRun",
+        "type": "object",
+        "required": [
+            "t",
+            "agent",
+            "algorithm",
+            "purpose",
+            "evaluations",
+            "iterations",
+            "best_cost",
+            "wall_ms",
+            "convergence",
+        ],
+        "properties": {
+            "t": {"type": "number"},
+            "agent": {"type": ["string", "null"]},
+            "algorithm": {"type": "string"},
+            "purpose": {"type": "string"},
+            "evaluations": {"type": "integer"},
+            "iterations": {"type": "integer"},
+            "best_cost": {"type": ["number", "null"]},
+            "wall_ms": {"type": "number"},
+            "convergence": {"type": "array", "items": {"type": ["number", "null"]}},
+        },
+    },
+    "/summary": {
+        "title": "swarmplan.Summary",
+        "type": "object",
+        "required": ["interrupted", "success", "wall_time", "agents"],
+        "properties": {
+            "interrupted": {"type": "boolean"},
+            "success": {"type": "boolean"},
+            "wall_time": {"type": "number"},
+            "sim_time": {"type": "number"},
+            "agents": {"type": "array"},
+        },
+    },
+}
+
+
+def _ns(t: float) -> int:
+    return int(round(t * 1e9))
+
+
+def _clean(x: Any) -> Any:
+    """JSON cannot hold inf/nan: they become null."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
+
+
+class McapRecorder:
+    """Writes one run to ``path``. Use ``with McapRecorder(...) as rec:`` so the file is always finished."""
+
+    def __init__(self, path: str | Path, flush_interval: float = 1.0, foxglove: bool = True):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.path, "wb")
+        self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library="swarmplan")
+        self._channels: dict[str, int] = {}
+        for topic, schema in SCHEMAS.items():
+            sid = self._writer.register_schema(
+                name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
+            )
+            self._channels[topic] = self._writer.register_channel(
+                topic=topic, message_encoding="json", schema_id=sid
+            )
+        self._flush_interval = flush_interval
+        self._last_flush = 0.0
+        self._foxglove_enabled = foxglove
+        self._scene = None
+        self._last_t = 0.0
+        self._sequence = 0
+        self.closed = False
+
+    def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
+        # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
+        data = json.dumps(_clean(msg) if clean else msg, separators=(",", ":"), allow_nan=False).encode()
+        ns = _ns(t)
+        self._sequence += 1
+        self._writer.add_message(
+            self._channels[topic], log_time=ns, data=data, publish_time=ns, sequence=self._sequence
+        )
+
+    def write_world(self, world: dict[str, Any]) -> None:
+        self._write("/world", 0.0, world)
+        if self._foxglove_enabled:
+            self._scene = FoxgloveScene(self._writer, world)
+            self._scene.write_world()
+
+    def write_state(self, t: float, agents: list[dict], obstacles: list[dict] | None) -> None:
+        self._last_t = t
+        self._write("/agents/state", t, {"t": round(t, 9), "agents": agents}, clean=False)
+        if obstacles is not None:
+            self._write("/obstacles/state", t, {"t": round(t, 9), "obstacles": obstacles}, clean=False)
+        if self._scene is not None:
+            self._scene.write_step(t, agents, obstacles or [])
+        if t - self._last_flush >= self._flush_interval - 1e-9:
+            self._writer.flush()
+            self._file.flush()
+            self._last_flush = t
+
+    def write_event(self, event: dict[str, Any]) -> None:
+        self._write("/events", float(event["t"]), event)
+
+    def write_optimizer(self, msg: dict[str, Any]) -> None:
+        self._write("/optimizer", float(msg["t"]), msg)
+
+    def write_summary(self, summary: dict[str, Any]) -> None:
+        self._write("/summary", self._last_t, summary)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            if self._scene is not None:
+                self._scene.finish()  # the last throttled scene update
+            self._writer.finish()
+        finally:
+            self._file.close()
+
+    def __enter__(self) -> McapRecorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,126 @@
+"""Contacts and arrivals: where a crashing agent stops, collisions, goals reached, and near
+misses between agents."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmplan.core import Event, Mode, SwarmState
+from swarmplan.dynamics import AgentParams
+from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.metrics import RunMetrics
+from swarmplan.motion import poses_at
+from swarmplan.sim.scene import Scene
+
+CRASH_DEPTH = 0.02
+"""Metres a crashed agent is recorded past its first contact (see :func:`crash_point`)."""
+
+
+def crash_point(
+    scene: Scene, radius: np.float64, p0: np.ndarray, p1: np.ndarray, t0: float, dt: float
+) -> np.ndarray:
+    """Where the agent strikes on the step ``p0 → p1``: it stops there instead of flying on.
+
+    Bisection on the swept check finds the first contact; the crash is recorded
+    ``CRASH_DEPTH`` past it (bodies overlap in a crash), so an audit from positions alone
+    sees the contact, and an agent never appears on the far side of a thin obstacle.
+    """
+    mv = scene.moving_mask
+    r = radius
+    step = p1 - p0
+    length = float(np.linalg.norm(step))
+    if length < 1e-12:
+        return p1.copy()
+
+    def hits(s: float) -> bool:
+        qa = poses_at(scene.world.obstacles, t0)[0][mv]
+        qb = poses_at(scene.world.obstacles, t0 + s * dt)[0][mv]
+        return first_hits(scene.collision, p0[None], (p0 + s * step)[None], r[None], qa, qb)[0] is not None
+
+    lo, hi = 0.0, 1.0
+    if not hits(hi):  # a contact only another check saw (e.g. agent-agent): keep the step
+        return p1.copy()
+    while (hi - lo) * length > 1e-4:
+        mid = 0.5 * (lo + hi)
+        if hits(mid):
+            hi = mid
+        else:
+            lo = mid
+    return p0 + min(1.0, hi + CRASH_DEPTH / length) * step
+
+
+def collide(
+    s: SwarmState,
+    metrics: RunMetrics,
+    ids: tuple[str, ...],
+    i: int,
+    other: str,
+    events: list[Event],
+    t1: float,
+) -> None:
+    """Agent ``i`` touched ``other`` (an obstacle id, an agent id or 'bounds'): it stops flying."""
+    if s.mode[i] == Mode.COLLIDED:
+        return
+    s.mode[i] = Mode.COLLIDED
+    s.segment[i] = None
+    metrics.collisions[i] += 1
+    metrics.collided_with[i].append(other)
+    events.append(Event(t1, ids[i], "collision", {"other": other}))
+
+
+def arrivals(
+    s: SwarmState,
+    metrics: RunMetrics,
+    ids: tuple[str, ...],
+    pos0: np.ndarray,
+    pos1: np.ndarray,
+    vel1: np.ndarray,
+    tolerance: float,
+    events: list[Event],
+    t1: float,
+) -> None:
+    """Agents whose step passed within ``tolerance`` of their goal have arrived (and stop)."""
+    flying = np.flatnonzero(s.active)
+    dmins = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
+    for i, dmin in zip(flying, dmins.tolist(), strict=True):
+        if dmin <= tolerance:
+            s.mode[i] = Mode.ARRIVED
+            vel1[i] = 0.0
+            s.segment[i] = None
+            metrics.arrival_time[i] = t1
+            events.append(Event(t1, ids[i], "arrived", {"distance": round(dmin, 6)}))
+
+
+class NearMisses:
+    """Pairs of agents inside each other's separation ellipsoid, remembered between steps."""
+
+    def __init__(self, params: AgentParams):
+        self.params = params
+        n = len(params.ids)
+        self._near = np.zeros((n, n), dtype=bool)
+
+    def update(
+        self, pos: np.ndarray, active: np.ndarray, metrics: RunMetrics, events: list[Event], t1: float
+    ) -> None:
+        """A pair entering each other's separation ellipsoid is a near miss (reported once per entry)."""
+        if len(pos) < 2:
+            return
+        sep = np.maximum(self.params.separation[:, None], self.params.separation[None])
+        rr = self.params.radius[:, None] + self.params.radius[None]
+        q = (pos[:, None] - pos[None]) / (sep + rr[..., None])
+        inside = np.linalg.norm(q, axis=-1) < 1.0
+        np.fill_diagonal(inside, False)
+        inside &= active[:, None] | active[None]
+        new = inside & ~self._near
+        self._near = inside
+        for i, j in zip(*np.nonzero(np.triu(new)), strict=True):
+            dist = float(np.linalg.norm(pos[i] - pos[j]))
+            metrics.near_misses[[i, j]] += 1
+            events.append(
+                Event(
+                    t1,
+                    self.params.ids[i],
+                    "near_miss",
+                    {"other": self.params.ids[j], "distance": round(dist, 6)},
+                )
+            )

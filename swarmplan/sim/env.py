@@ -1,0 +1,315 @@
+"""The multi-UAV simulation: ``reset(seed=...)`` / ``step()`` in the manner of Gymnasium.
+
+Each step, for every flying agent at once: potential-field command (or segment following
+while escaping/smoothing) → kinematic limits → a swept FCL safety check of the step
+(alternative feasible commands when the step would touch something) → the committed
+step is checked again (contact ends the agent) → arrival, stuck and near-miss detection
+→ recording. ``terminated`` means every agent arrived, collided or failed; ``truncated``
+means the world's ``sim.max_time`` ran out.
+
+This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.scene`
+(obstacles, distances), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection),
+:mod:`~swarmplan.sim.safety` (safety filter, deconfliction, fixed-wing guard),
+:mod:`~swarmplan.sim.contacts` (collisions, crash point, arrival, near misses).
+"""
+
+from __future__ import annotations
+
+import time
+import zlib
+from typing import Any, Literal
+
+import numpy as np
+
+from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.core import Event, Mode, Planner, Recorder, StepResult, SwarmState
+from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
+from swarmplan.geometry.collision import agent_contacts, first_hits
+from swarmplan.metrics import RunMetrics, summary_report
+from swarmplan.planner import make_planner
+from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
+from swarmplan.sim.navigation import Navigator, distance_to_go
+from swarmplan.sim.safety import SafetyFilter
+from swarmplan.sim.scene import Scene
+from swarmplan.world.model import World
+
+
+class Simulation:
+    """One run of a world; ``recorder`` (optional) logs it.
+
+    ``planner`` plans global routes, escapes and smoothing: by default (``"world"``) the
+    world's own ``planner.optimizer``, as the command line flies it; ``"none"`` (or None) is
+    pure APF; or any object with the :class:`~swarmplan.core.Planner` methods.
+    """
+
+    def __init__(
+        self,
+        world: World,
+        planner: Planner | Literal["world", "none"] | None = "world",
+        recorder: Recorder | None = None,
+    ):
+        self.world = world
+        if planner == "world":
+            planner = make_planner(world)
+        elif planner == "none":
+            planner = None
+        elif isinstance(planner, str):
+            raise ValueError(f"planner: expected 'world', 'none' or a Planner, got {planner!r}")
+        self.planner = planner
+        self.recorder = recorder
+        self.params = AgentParams.from_world(world)
+        self.gains = ApfGains.from_world(world)
+        self.scene = Scene(world, self.params)
+        # What planners read (see swarmplan.core.PlanningContext).
+        self.collision = self.scene.collision
+        self.field = self.scene.field
+        self.moving_mask = self.scene.moving_mask
+        self.n = len(world.agents)
+        self.ids = self.params.ids
+        self.safety = SafetyFilter(world, self.params, self.scene)
+        self.navigator = Navigator(world, self.params)
+        self.state: SwarmState | None = None
+        self.seed: int | None = None
+        self._streams: dict[tuple[str, int | None], np.random.Generator] = {}
+        self.metrics: RunMetrics | None = None
+        self.wall_start = 0.0
+        self._events: list[Event] = []  # the running step's events (see note_event)
+        self._planning_before_flight = False
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def reset(self, seed: int | None = None) -> SwarmState:
+        """Start the run at t = 0 with ``seed`` (default: the world's seed)."""
+        self.seed = self.world.seed if seed is None else int(seed)
+        self._streams = {}
+        self._events = []
+        start = np.array([a.start for a in self.world.agents], dtype=float)
+        goal = np.array([a.goal for a in self.world.agents], dtype=float)
+        self.state = SwarmState(
+            t=0.0,
+            step=0,
+            position=start,
+            velocity=initial_velocity(self.params, start, goal),
+            goal=goal,
+            mode=np.array([Mode.APF] * self.n, dtype=object),
+            segment=[None] * self.n,
+            segment_index=np.zeros(self.n, dtype=int),
+            route=[None] * self.n,
+            route_index=np.zeros(self.n, dtype=int),
+        )
+        self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
+        self.metrics.positions.append(start.copy())
+        self.navigator.reset(self.state)
+        self.near_misses = NearMisses(self.params)
+        self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
+        self.wall_start = time.perf_counter()
+        if self.recorder is not None:
+            self.recorder.write_world(self.world.to_message(self.seed))
+        if self.planner is not None:
+            self._planning_before_flight = True  # its events are logged as they come (see note_event)
+            try:
+                routes = self.planner.on_reset(self)
+            finally:
+                self._planning_before_flight = False
+            for i, route in routes.items():
+                self.state.route[i] = np.asarray(route, dtype=float)
+            self.navigator.reset(self.state)
+        if self.recorder is not None:
+            self.recorder.write_state(0.0, self._agent_dicts(), self.scene.obstacle_dicts(0.0))
+        return self.state
+
+    def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
+        """The random stream of one purpose (e.g. 'escape') for one agent, seeded from the run's
+        seed: each stream is its own child of ``SeedSequence(seed)``, so one more optimizer run
+        for one purpose or agent does not shift the draws of any other."""
+        key = (purpose, agent)
+        if key not in self._streams:
+            if self.seed is None:
+                raise RuntimeError("call reset() before rng_for()")
+            # A stable key per (purpose, agent): the purpose's CRC-32 and the agent index + 1 (0: none).
+            spawn_key = (zlib.crc32(purpose.encode()), 0 if agent is None else agent + 1)
+            self._streams[key] = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=spawn_key))
+        return self._streams[key]
+
+    def record_optimizer(
+        self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None
+    ) -> None:
+        """Log one optimizer run (a ``swarmplan.optimizers.Result``) on ``/optimizer`` and in the metrics."""
+        wall_ms = float(result.wall_time) * 1000.0
+        if agent is not None and purpose == "escape":
+            self.metrics.escape_ms[agent].append(wall_ms)
+        if agent is not None:
+            self.metrics.optimizer_runs[agent] += 1
+        if self.recorder is not None:
+            self.recorder.write_optimizer(
+                {
+                    "t": round(self.state.t if t is None else t, 9),
+                    "agent": None if agent is None else self.ids[agent],
+                    "algorithm": algorithm,
+                    "purpose": purpose,
+                    "evaluations": int(result.evaluations),
+                    "iterations": int(result.iterations),
+                    "best_cost": float(result.f),
+                    "wall_ms": round(wall_ms, 3),
+                    "convergence": [float(x) for x in result.history],
+                }
+            )
+
+    def note_event(self, agent: int | None, kind: str, detail: dict[str, Any]) -> None:
+        """An event the planner reports during ``step()`` (recorded with that step's events)."""
+        if self.state is None:
+            raise RuntimeError("call reset() before note_event()")
+        event = Event(self.state.t, None if agent is None else self.ids[agent], kind, detail)
+        if self._planning_before_flight:
+            # Before the first step there is no step to carry it: it goes to the log at t = 0,
+            # between the optimizer runs it follows.
+            if self.recorder is not None:
+                self.recorder.write_event(event.to_json())
+            return
+        self._events.append(event)
+
+    def world_message(self) -> dict[str, Any]:
+        return self.world.to_message(self.seed)
+
+    # ------------------------------------------------------------------ one step
+
+    def step(self) -> StepResult:
+        if self.state is None:
+            raise RuntimeError("call reset() before step()")
+        s = self.state
+        w = self.world
+        dt = w.dt
+        nav = self.navigator
+        events = self._events  # with any noted between steps
+        t0, t1 = s.t, (s.step + 1) * dt
+        q0, qv0 = self.scene.poses(t0)
+        q1, _ = self.scene.poses(t1)
+        mv = self.moving_mask
+        active = s.active
+        idx = np.flatnonzero(active)
+
+        # Extra segments from the planner (e.g. smoothing) start before commands are formed.
+        if self.planner is not None and len(idx):
+            for i, seg in self.planner.on_step(self).items():
+                if s.mode[i] == Mode.APF:
+                    nav.start_segment(s, self.metrics, i, seg, events)
+
+        pos0 = s.position.copy()
+        vel0 = s.velocity.copy()
+        pos1 = pos0.copy()
+        vel1 = np.zeros_like(vel0)
+        obst_clear = np.full(self.n, np.inf)
+        if len(idx):
+            # The previous step already measured every agent's distances at this position and time.
+            if self._field_cache is None:
+                self._field_cache = self.field.query(pos0, q0)
+            d, g = self._field_cache[0][idx], self._field_cache[1][idx]
+            inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
+            target, rep_scale = nav.attraction_targets(s, idx, events)
+            force = apf_forces(
+                w,
+                self.params,
+                self.gains,
+                idx,
+                pos0[idx],
+                vel0[idx],
+                s.goal[idx],
+                inputs,
+                pos0,
+                vel0,
+                target=target,
+                static_scale=rep_scale,
+            )
+            clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
+            v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
+            v_cmd = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0, self.metrics)
+            vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
+            pos1[idx] = pos0[idx] + vel1[idx] * dt
+            validated = self.safety.filter(
+                idx, pos0, vel0, pos1, vel1, v_cmd, q0, q1, s.mode, self.metrics, events, t1
+            )
+            # Contact on the committed step ends the agent. Steps the filter cleared with a
+            # margin cannot touch anything; the rest (stops, agent-conflict brakes) are checked.
+            check = idx[~validated]
+            if len(check):
+                hits = first_hits(
+                    self.collision, pos0[check], pos1[check], self.params.radius[check], q0[mv], q1[mv]
+                )
+                for i, hit in zip(check, hits, strict=True):
+                    if hit is not None:
+                        collide(s, self.metrics, self.ids, i, hit, events, t1)
+                        pos1[i] = crash_point(self.scene, self.params.radius[i], pos0[i], pos1[i], t0, dt)
+                        vel1[i] = 0.0
+        for i, j in agent_contacts(pos0, pos1, self.params.radius, active):
+            for a, b in ((i, j), (j, i)):
+                if s.mode[a] not in (Mode.ARRIVED, Mode.COLLIDED):
+                    collide(s, self.metrics, self.ids, a, self.ids[b], events, t1)
+
+        arrivals(s, self.metrics, self.ids, pos0, pos1, vel1, w.goal_tolerance, events, t1)
+
+        # Clearances at the committed positions (also the next step's distances).
+        self._field_cache = self.field.query(pos1, q1)
+        if len(self.world.obstacles):
+            # Exact for meshes too (the grid in the cache is approximate, a lower bound beyond it).
+            obst_clear = self.field.min_distance(pos1, q1, self._field_cache[0]) - self.params.radius
+        agent_clear = self.scene.agent_clearance(pos1)
+        terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
+        self.metrics.add_step(pos0, pos1, active, obst_clear, agent_clear, terr_clear)
+        self.near_misses.update(pos1, active, self.metrics, events, t1)
+
+        s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
+        on_stuck = None if self.planner is None else (lambda i: self.planner.on_stuck(self, i))
+        nav.detect_stuck(s, self.metrics, events, on_stuck)
+
+        terminated = not s.active.any()
+        truncated = (not terminated) and t1 >= w.max_time - 1e-9
+        if truncated:
+            for i in np.flatnonzero(s.active):
+                distance = round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6)
+                events.append(Event(t1, self.ids[i], "timeout", {"distance_to_goal": distance}))
+        self._events = []
+        if self.recorder is not None:
+            self.recorder.write_state(t1, self._agent_dicts(), self.scene.obstacle_dicts(t1))
+            for e in events:
+                self.recorder.write_event(e.to_json())
+        return StepResult(s, events, terminated, truncated)
+
+    # ------------------------------------------------------------------ reports
+
+    def distance_to_go(self) -> np.ndarray:
+        """Per agent: straight to the goal, or along the rest of its global route."""
+        return distance_to_go(self.state)
+
+    def _agent_dicts(self) -> list[dict[str, Any]]:
+        s = self.state
+        pos = np.round(s.position, 6).tolist()
+        vel = np.round(s.velocity, 6).tolist()
+        goal = s.goal.tolist()
+        return [
+            {
+                "id": self.ids[i],
+                "position": pos[i],
+                "velocity": vel[i],
+                "mode": str(s.mode[i]),
+                "goal": goal[i],
+            }
+            for i in range(self.n)
+        ]
+
+    def summary(self, interrupted: bool = False) -> dict[str, Any]:
+        """Per-agent and overall metrics for ``/summary`` and the CLI table."""
+        return summary_report(
+            self.world,
+            self.state,
+            self.metrics,
+            seed=self.seed,
+            optimizer=self.optimizer_name,
+            wall_time=time.perf_counter() - self.wall_start,
+            interrupted=interrupted,
+        )
+
+    @property
+    def optimizer_name(self) -> str:
+        if self.planner is None:
+            return "none"
+        return str(getattr(self.planner, "optimizer_name", self.world.planner_config.optimizer.name))

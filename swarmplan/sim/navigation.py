@@ -1,0 +1,208 @@
+"""Plan following: which point each agent flies at (segment waypoint, route waypoint or
+goal), starting and ending segments, the segment watchdog, and stuck detection."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from swarmplan.core import (
+    FAILED,
+    REACH_STEPS,
+    SEGMENT_MODES,
+    SEGMENT_REPULSION_SCALE,
+    Event,
+    Mode,
+    PlannedSegment,
+    StuckOutcome,
+    SwarmState,
+)
+from swarmplan.dynamics import AgentParams
+from swarmplan.metrics import RunMetrics
+from swarmplan.world.model import World
+
+
+class Navigator:
+    """Per-agent progress bookkeeping over a run (reset with :meth:`reset`)."""
+
+    def __init__(self, world: World, params: AgentParams):
+        self.world = world
+        self.params = params
+        n = len(params.ids)
+        self.progress_ref = np.zeros(n)
+        self.progress_t = np.zeros(n)
+        self.segment_ref: dict[int, tuple] = {}  # agent -> (waypoint index, distance, t, segment)
+
+    def reset(self, s: SwarmState) -> None:
+        """Progress is measured from here on (call again once global routes are known)."""
+        self.progress_ref = distance_to_go(s)
+        self.progress_t = np.zeros(len(self.params.ids))
+        self.segment_ref = {}
+
+    def attraction_targets(
+        self, s: SwarmState, idx: np.ndarray, events: list[Event]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Point each agent is attracted to (segment waypoint, route waypoint or goal) and the scale
+        of its static repulsion (reduced along a segment that FCL already validated)."""
+        target = s.goal[idx].copy()
+        scale = np.ones(len(idx))
+        for k, i in enumerate(idx):
+            if s.mode[i] in SEGMENT_MODES and s.segment[i] is not None:
+                wp = self.advance(s, s.segment[i], i, "segment")
+                if wp is None:
+                    kind = "escape_end" if s.mode[i] == Mode.ESCAPE else "smoothing_end"
+                    events.append(Event(s.t, self.params.ids[i], kind, {}))
+                    s.mode[i] = Mode.APF
+                    s.segment[i] = None
+                    rejoin_route(s, i)
+                else:
+                    target[k] = wp
+                    scale[k] = SEGMENT_REPULSION_SCALE
+                    continue
+            if s.route[i] is not None:
+                wp = self.advance(s, s.route[i], i, "route")
+                target[k] = s.goal[i] if wp is None else wp
+        return target, scale
+
+    def advance(self, s: SwarmState, pts: np.ndarray, i: int, which: str) -> np.ndarray | None:
+        """Next waypoint of ``pts`` not yet reached by agent ``i`` (None once all are)."""
+        index = s.segment_index if which == "segment" else s.route_index
+        p = s.position[i]
+        reach = max(
+            self.world.goal_tolerance, float(np.linalg.norm(s.velocity[i])) * self.world.dt * REACH_STEPS
+        )
+        k = index[i]
+        while k < len(pts) and np.linalg.norm(pts[k] - p) <= reach:
+            k += 1
+        index[i] = k
+        return None if k >= len(pts) else pts[k]
+
+    def start_segment(
+        self, s: SwarmState, metrics: RunMetrics, i: int, seg: PlannedSegment, events: list[Event]
+    ) -> None:
+        s.segment[i] = np.asarray(seg.waypoints, dtype=float)
+        s.segment_index[i] = 0
+        if seg.route_index is not None:
+            s.route_index[i] = seg.route_index
+        s.mode[i] = seg.mode
+        if seg.mode == Mode.ESCAPE:
+            metrics.escapes[i] += 1
+            events.append(
+                Event(
+                    s.t, self.params.ids[i], "escape_start", {"waypoints": np.round(s.segment[i], 6).tolist()}
+                )
+            )
+        else:
+            events.append(
+                Event(
+                    s.t,
+                    self.params.ids[i],
+                    "smoothing_start",
+                    {"waypoints": np.round(s.segment[i], 6).tolist()},
+                )
+            )
+
+    def detect_stuck(
+        self,
+        s: SwarmState,
+        metrics: RunMetrics,
+        events: list[Event],
+        on_stuck: Callable[[int], StuckOutcome] | None,
+    ) -> None:
+        """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
+
+        Progress is measured as the distance still to fly: straight to the goal, or along the
+        rest of the global route when the agent has one (a route may detour away from the goal).
+        """
+        window = self.world.planner_config.stuck.window
+        min_progress = self.world.planner_config.stuck.min_progress
+        dg = distance_to_go(s)
+        for i in np.flatnonzero(s.active):
+            if s.mode[i] != Mode.APF:
+                self.progress_ref[i], self.progress_t[i] = dg[i], s.t
+                self.segment_watchdog(s, int(i), window, min_progress, events)
+                continue
+            if s.t - self.progress_t[i] < window - 1e-9:
+                continue
+            progress = self.progress_ref[i] - dg[i]
+            self.progress_ref[i], self.progress_t[i] = dg[i], s.t
+            if progress < min_progress:
+                metrics.stuck_events[i] += 1
+                events.append(
+                    Event(
+                        s.t,
+                        self.params.ids[i],
+                        "stuck",
+                        {
+                            "progress": round(float(progress), 6),
+                            "window": window,
+                            "distance_to_goal": round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6),
+                            "distance_to_go": round(float(dg[i]), 6),
+                        },
+                    )
+                )
+                if on_stuck is not None:
+                    outcome = on_stuck(int(i))
+                    if outcome == FAILED:
+                        s.mode[i] = Mode.FAILED
+                        events.append(
+                            Event(s.t, self.params.ids[i], "failed", {"reason": "no valid escape segment"})
+                        )
+                    elif outcome is not None:
+                        self.start_segment(s, metrics, int(i), outcome, events)
+
+    def segment_watchdog(
+        self, s: SwarmState, i: int, window: float, min_progress: float, events: list[Event]
+    ) -> None:
+        """A segment whose next waypoint gets no closer for ``window`` s is abandoned (back to APF,
+        whose stuck detection then asks the planner again)."""
+        seg = s.segment[i]
+        if seg is None or s.segment_index[i] >= len(seg):
+            return
+        k = int(s.segment_index[i])
+        d = float(np.linalg.norm(seg[k] - s.position[i]))
+        ref = self.segment_ref.get(i)
+        if ref is None or ref[0] != k or ref[3] is not seg:
+            self.segment_ref[i] = (k, d, s.t, seg)
+            return
+        # A sharp corner at a waypoint costs a turnaround (brake, turn, speed up again) before
+        # the distance to the next one falls: half a minimum-radius circle at cruise speed.
+        p = self.params
+        turn_radius = p.min_turn_radius[i] if p.fixed_wing[i] else p.speed_cruise[i] ** 2 / p.max_accel[i]
+        grace = math.pi * turn_radius / max(p.speed_cruise[i], 1e-6)
+        if s.t - ref[2] < window + grace - 1e-9:
+            return
+        if ref[1] - d >= min_progress:
+            self.segment_ref[i] = (k, d, s.t, seg)
+            return
+        kind = "escape_end" if s.mode[i] == Mode.ESCAPE else "smoothing_end"
+        events.append(Event(s.t, self.params.ids[i], kind, {"abandoned": True, "waypoint": k}))
+        s.mode[i] = Mode.APF
+        s.segment[i] = None
+        self.segment_ref.pop(i, None)
+        rejoin_route(s, i)
+
+
+def distance_to_go(s: SwarmState) -> np.ndarray:
+    """Per agent: straight to the goal, or along the rest of its global route when it has one."""
+    dg = np.linalg.norm(s.goal - s.position, axis=1)
+    for i, route in enumerate(s.route):
+        k = int(s.route_index[i])
+        if route is not None and k < len(route):
+            rest = np.vstack([route[k:], s.goal[i]])
+            legs = np.linalg.norm(np.diff(rest, axis=0), axis=1).sum()
+            dg[i] = np.linalg.norm(route[k] - s.position[i]) + legs
+    return dg
+
+
+def rejoin_route(s: SwarmState, i: int) -> None:
+    """After a segment, go on along the global route from its nearest point ahead of where the
+    agent left it (the route is what avoids the obstacles: never straight to the goal, and
+    not back to the point where the segment began)."""
+    route, k0 = s.route[i], int(s.route_index[i])
+    if route is None or k0 >= len(route):
+        return
+    d = np.linalg.norm(route[k0:] - s.position[i], axis=1)
+    s.route_index[i] = k0 + int(np.argmin(d))

@@ -1,0 +1,217 @@
+"""Keeping each step safe: the fixed-wing turn-ahead guard, the swept FCL check of every
+commanded step with feasible alternatives when it would touch something, and agent
+deconfliction (conflicting pairs stop their multirotors)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from swarmplan.core import Event, Mode
+from swarmplan.dynamics import AgentParams, limit_velocity
+from swarmplan.geometry.collision import agent_contacts, first_hits, segment_segment_min_distance
+from swarmplan.geometry.shapes import distance_and_gradient
+from swarmplan.lookahead import guard_commands, horizon_steps
+from swarmplan.metrics import RunMetrics
+from swarmplan.motion import poses_at
+from swarmplan.sim.scene import Scene
+from swarmplan.world.model import World
+
+AGENT_MARGIN = 0.2
+"""Metres kept between two agents' swept bodies by deconfliction."""
+
+
+class SafetyFilter:
+    """Turns commanded velocities into steps that touch nothing (or stops, and says so)."""
+
+    def __init__(self, world: World, params: AgentParams, scene: Scene):
+        self.world = world
+        self.params = params
+        self.scene = scene
+
+    def guard_fixed_wings(
+        self,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        v_cmd: np.ndarray,
+        d: np.ndarray,
+        clearance: np.ndarray,
+        t0: float,
+        metrics: RunMetrics,
+    ) -> np.ndarray:
+        """Fixed wings keep the field's command only while they could still turn away
+        (``swarmplan.lookahead``). Only agents with an obstacle, the terrain or the bounds within
+        reach of the horizon (obstacles' own motion included) are checked, and only against the
+        obstacles within that reach."""
+        p = self.params
+        fw = p.fixed_wing[idx]
+        if not fw.any():
+            return v_cmd
+        dt = self.world.dt
+        speed = np.linalg.norm(vel0[idx], axis=1)
+        horizon = horizon_steps(p, idx[fw], speed[fw], dt) * dt
+        required = p.radius[idx]
+        reach = (speed + self.scene.max_obstacle_speed) * horizon + required + p.radius[idx]
+        obstacle_clear = (d - p.radius[idx, None]).min(axis=1) if d.shape[1] else np.full(len(idx), np.inf)
+        q = pos0[idx]
+        bounds_clear = (
+            np.minimum(q - self.world.bounds_min, self.world.bounds_max - q).min(axis=1) - p.radius[idx]
+        )
+        near = fw & (np.minimum(np.minimum(clearance, obstacle_clear), bounds_clear) < reach)
+        if not near.any():
+            return v_cmd
+        rows = np.flatnonzero(near)
+        close = np.flatnonzero((d[rows] < reach[rows, None]).any(axis=0)) if d.shape[1] else np.array([], int)
+        obstacles = self.world.obstacles
+
+        def clearance_at(points: np.ndarray, radii: np.ndarray, times: np.ndarray) -> np.ndarray:
+            w = self.world
+            c = points[:, 2] - w.terrain_height(points[:, :2]) - radii
+            # Leaving the flight volume counts as a collision ('bounds') as well.
+            inside = np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1)
+            c = np.minimum(c, inside - radii)
+            if len(close):
+                movers = [obstacles[j] for j in close if obstacles[j].moving]
+                if movers:
+                    when, which = np.unique(times, return_inverse=True)
+                    centers = np.stack([poses_at(movers, t)[0] for t in when])  # (T, movers, 3)
+                k = 0
+                for j in close:
+                    o = obstacles[j]
+                    at = o.position
+                    if o.moving:
+                        at, k = centers[which, k], k + 1
+                    dj = distance_and_gradient(o, points, at, self.scene.field.mesh_grids.get(j))[0]
+                    c = np.minimum(c, dj - radii)
+            return c
+
+        guarded, replaced = guard_commands(
+            p, idx[rows], pos0[idx[rows]], vel0[idx[rows]], v_cmd[rows], t0, dt, clearance_at, required[rows]
+        )
+        out = v_cmd.copy()
+        out[rows] = guarded
+        for i in idx[rows][replaced]:
+            metrics.guard_steps[i] += 1
+        return out
+
+    def margin(self, i: int | np.ndarray) -> np.ndarray:
+        return np.minimum(0.25, 0.2 * self.params.radius[i])
+
+    def step_is_safe(self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> bool:
+        mv = self.scene.moving_mask
+        return (
+            self.scene.collision.first_hit(p0, p1, self.params.radius[i] + self.margin(i), q0[mv], q1[mv])
+            is None
+        )
+
+    def filter(
+        self,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        pos1: np.ndarray,
+        vel1: np.ndarray,
+        v_cmd: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        mode: np.ndarray,
+        metrics: RunMetrics,
+        events: list[Event],
+        t1: float,
+    ) -> np.ndarray:
+        """Replace steps that would touch an obstacle by the closest safe feasible alternative.
+
+        Returns, per agent of ``idx``, whether its final step was cleared with the safety margin.
+        """
+        dt = self.world.dt
+        ids = self.params.ids
+        mv = self.scene.moving_mask
+        hits = first_hits(
+            self.scene.collision,
+            pos0[idx],
+            pos1[idx],
+            self.params.radius[idx] + self.margin(idx),
+            q0[mv],
+            q1[mv],
+        )
+        validated = np.array([h is None for h in hits], dtype=bool)
+        for k in np.flatnonzero(~validated):
+            i = idx[k]
+            cands = self.alternative_velocities(i, vel0[i])
+            safe = [v for v in cands if self.step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
+            if safe:
+                best = min(safe, key=lambda v: float(np.linalg.norm(v - v_cmd[k])))
+                vel1[i] = best
+                validated[k] = True
+            elif not self.params.fixed_wing[i]:
+                # No feasible command avoids contact: stop (beyond the accel limit) and say so.
+                vel1[i] = 0.0
+                metrics.emergency_stops[i] += 1
+                events.append(
+                    Event(t1, ids[i], "emergency_stop", {"speed": round(float(np.linalg.norm(vel0[i])), 6)})
+                )
+            pos1[i] = pos0[i] + vel1[i] * dt
+        # Agents: conflicting pairs stop the multirotor(s) involved, until no conflict remains.
+        n = len(ids)
+        active = np.zeros(n, dtype=bool)
+        active[idx] = True
+        stopped = np.zeros(n, dtype=bool)
+        for _ in range(n):
+            pairs = agent_contacts(
+                pos0, pos1, self.params.radius, active | (mode == Mode.ARRIVED), AGENT_MARGIN
+            )
+            changed = False
+            for a, b in pairs:
+                for i in (a, b):
+                    if active[i] and not stopped[i] and not self.params.fixed_wing[i]:
+                        safe_brake = self.brake(i, vel0[i])
+                        p_brake = pos0[i] + safe_brake * dt
+                        other = b if i == a else a
+                        d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
+                        if d >= self.params.radius[i] + self.params.radius[
+                            other
+                        ] + AGENT_MARGIN and self.step_is_safe(i, pos0[i], p_brake, q0, q1):
+                            vel1[i] = safe_brake
+                        else:
+                            vel1[i] = 0.0
+                            metrics.emergency_stops[i] += 1
+                            events.append(Event(t1, ids[i], "emergency_stop", {"other": ids[other]}))
+                        pos1[i] = pos0[i] + vel1[i] * dt
+                        stopped[i] = True
+                        changed = True
+            if not changed:
+                break
+        return validated & ~stopped[idx]
+
+    def brake(self, i: int, v0: np.ndarray) -> np.ndarray:
+        sp = float(np.linalg.norm(v0))
+        dv = self.params.max_accel[i] * self.world.dt
+        return v0 * max(0.0, sp - dv) / sp if sp > 1e-12 else np.zeros(3)
+
+    def alternative_velocities(self, i: int, v0: np.ndarray) -> list[np.ndarray]:
+        """Feasible next velocities spanning the model's envelope (brake, turn, climb, dive)."""
+        dt = self.world.dt
+        p = self.params
+        if not p.fixed_wing[i]:
+            dv = p.max_accel[i] * dt
+            dirs = [np.array(v, float) for v in np.ndindex(3, 3, 3) if v != (1, 1, 1)]
+            dirs = [(d - 1) / np.linalg.norm(d - 1) for d in dirs]
+            out = [self.brake(i, v0)] + [v0 + dv * d for d in dirs]
+            vmax = p.speed_max[i]
+            return [v if np.linalg.norm(v) <= vmax else v * vmax / np.linalg.norm(v) for v in out]
+        speed = float(np.linalg.norm(v0))
+        psi = math.atan2(v0[1], v0[0])
+        cmds = []
+        for dpsi in (-1.0, -0.5, 0.0, 0.5, 1.0):
+            for gam in (-1.0, 0.0, 1.0):
+                for sp in (p.speed_min[i], speed, p.speed_max[i]):
+                    a = psi + dpsi * math.pi / 2
+                    g = gam * p.max_climb[i]
+                    cmds.append(
+                        sp * np.array([math.cos(g) * math.cos(a), math.cos(g) * math.sin(a), math.sin(g)])
+                    )
+        cmds = np.array(cmds)
+        v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, np.full(len(cmds), i))
+        return list(v)

@@ -1,0 +1,79 @@
+"""The obstacles as the simulation sees them: the FCL world for swept checks, the distance
+field for the potential field and clearances, which obstacles move, and their poses."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from swarmplan.dynamics import AgentParams
+from swarmplan.geometry.collision import CollisionWorld
+from swarmplan.geometry.rotation import matrix_to_quaternion
+from swarmplan.geometry.shapes import ObstacleField
+from swarmplan.motion import max_speed, poses_at
+from swarmplan.world.model import World
+
+
+class Scene:
+    """Everything about a world's obstacles that stays fixed over a run."""
+
+    def __init__(self, world: World, params: AgentParams):
+        self.world = world
+        self.params = params
+        self.collision = CollisionWorld(world)
+        self.field = ObstacleField(world.obstacles)
+        self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
+        self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
+        self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
+        self.moving_quat = [
+            matrix_to_quaternion(o.rotation).round(9).tolist() for o in world.moving_obstacles
+        ]
+
+    def poses(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Every obstacle's position and velocity at ``t``."""
+        return poses_at(self.world.obstacles, t)
+
+    def nearest_surface(
+        self, idx: np.ndarray, pos: np.ndarray, d: np.ndarray, g: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Clearance and outward normal of the closest static surface (obstacles, terrain) per agent."""
+        r = self.params.radius[idx]
+        h = self.world.terrain_height(pos[:, :2])
+        clear = pos[:, 2] - h - r
+        gh = self.world.terrain_gradient(pos[:, :2])
+        normal = np.stack([-gh[:, 0], -gh[:, 1], np.ones(len(idx))], axis=1)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        static = ~self.moving_mask
+        if static.any():
+            ds = d[:, static] - r[:, None]
+            j = np.argmin(ds, axis=1)
+            dj = ds[np.arange(len(idx)), j]
+            closer = dj < clear
+            clear = np.where(closer, dj, clear)
+            normal = np.where(closer[:, None], g[:, static][np.arange(len(idx)), j], normal)
+        return clear, normal
+
+    def agent_clearance(self, pos: np.ndarray) -> np.ndarray:
+        """Per agent: surface distance to the nearest other agent."""
+        n = len(pos)
+        if n < 2:
+            return np.full(n, np.inf)
+        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (
+            self.params.radius[:, None] + self.params.radius[None]
+        )
+        np.fill_diagonal(d, np.inf)
+        return d.min(axis=1)
+
+    def obstacle_dicts(self, t: float) -> list[dict[str, Any]] | None:
+        """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
+        moving = self.world.moving_obstacles
+        if not moving:
+            return None
+        pos, vel = poses_at(moving, t)
+        pos = np.round(pos, 6).tolist()
+        vel = np.round(vel, 6).tolist()
+        return [
+            {"id": o.id, "position": pos[k], "orientation": self.moving_quat[k], "velocity": vel[k]}
+            for k, o in enumerate(moving)
+        ]

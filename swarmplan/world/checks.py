@@ -1,0 +1,39 @@
+"""Cross-field checks of a parsed world: agents' starts and goals against the bounds, the
+obstacles (exact signed distances) and the terrain."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmplan.geometry.shapes import signed_distance
+from swarmplan.world import terrain
+from swarmplan.world.checker import Checker
+from swarmplan.world.model import AgentSpec, Obstacle, Peak
+
+
+def check_placements(
+    c: Checker,
+    agents: list[AgentSpec],
+    raw_agents: list,
+    obstacles: list[Obstacle],
+    bmin: np.ndarray | None,
+    bmax: np.ndarray | None,
+    peaks: list[Peak],
+) -> None:
+    index = {a.get("id"): i for i, a in enumerate(raw_agents) if isinstance(a, dict)}
+    static = [o for o in obstacles if not o.moving]
+    for a in agents:
+        p = f"agents[{index.get(a.id, '?')}]"
+        for key, point, against in (("start", a.start, obstacles), ("goal", a.goal, static)):
+            if bmin is not None and bmax is not None and (np.any(point < bmin) or np.any(point > bmax)):
+                c.add(f"{p}.{key}", f"{point.tolist()} is outside bounds {bmin.tolist()}..{bmax.tolist()}")
+                continue
+            for o in against:
+                d = float(signed_distance(o, point[None, :])[0])
+                if d < a.radius:
+                    what = "inside" if d < 0 else "touching"
+                    c.add(f"{p}.{key}", f"{what} obstacle '{o.id}' (clearance {d - a.radius:.2f} m)")
+            if peaks:
+                ground = float(terrain.height(peaks, point[:2]))
+                if point[2] - ground < a.radius:
+                    c.add(f"{p}.{key}", f"below the terrain (terrain height {ground:.2f} m at this point)")

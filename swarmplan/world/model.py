@@ -1,0 +1,174 @@
+"""The typed world: frozen dataclasses a validated world file resolves into.
+
+``World.resolved`` is the same world as a plain mapping (defaults applied, mesh geometry
+inlined): the ``/world`` message of the log (:meth:`World.to_message`).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import functools
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from swarmplan import __version__
+from swarmplan.world import terrain
+from swarmplan.world.errors import WorldError as WorldError  # re-exported: the model module names it too
+from swarmplan.world.planner_config import PlannerConfig, planner_config
+
+SHAPES = ("sphere", "box", "cylinder", "capsule", "mesh")
+
+MOTIONS = ("linear", "waypoints", "circle")
+
+MODELS = ("multirotor", "fixed_wing")
+
+THREAT_KINDS = ("radar", "missile", "artillery", "weather")
+
+PLANNER_MODES = ("reactive", "global")
+
+
+@dataclass(frozen=True)
+class Motion:
+    type: str
+    velocity: np.ndarray | None = None  # linear
+    waypoints: np.ndarray | None = None  # waypoints (k, 3), path starts at the obstacle's position
+    speed: float = 0.0
+    loop: bool = False
+    center: np.ndarray | None = None  # circle
+    radius: float = 0.0
+    angular_speed: float = 0.0
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    id: str
+    shape: str
+    position: np.ndarray  # centre at t = 0 (mesh: origin of the mesh frame)
+    rotation: np.ndarray  # 3x3 matrix, R = Rz(yaw) Ry(pitch) Rx(roll)
+    rotation_deg: tuple[float, float, float]
+    radius: float = 0.0
+    size: np.ndarray | None = None  # box full extents
+    height: float = 0.0  # cylinder full height; capsule straight section
+    vertices: np.ndarray | None = None  # mesh vertices in the local frame, scale applied
+    faces: np.ndarray | None = None
+    motion: Motion | None = None
+
+    @property
+    def moving(self) -> bool:
+        return self.motion is not None
+
+    @property
+    def bounding_radius(self) -> float:
+        """Radius of a sphere about ``position`` containing the whole shape."""
+        if self.shape == "sphere":
+            return self.radius
+        if self.shape == "box":
+            return float(np.linalg.norm(self.size) / 2)
+        if self.shape == "cylinder":
+            return math.hypot(self.radius, self.height / 2)
+        if self.shape == "capsule":
+            return self.radius + self.height / 2
+        return float(np.max(np.linalg.norm(self.vertices, axis=1)))
+
+
+@dataclass(frozen=True)
+class Peak:
+    center: np.ndarray  # (2,)
+    height: float
+    spread: np.ndarray  # (2,)
+
+
+@dataclass(frozen=True)
+class Threat:
+    kind: str
+    position: np.ndarray
+    r_min: float
+    r_max: float
+    weight: float
+
+
+@dataclass(frozen=True)
+class AgentSpec:
+    id: str
+    start: np.ndarray
+    goal: np.ndarray
+    model: str
+    radius: float
+    speed_min: float
+    speed_max: float
+    speed_cruise: float
+    max_accel: float
+    min_turn_radius: float
+    max_climb_angle: float  # radians
+    min_altitude: float
+    separation: np.ndarray  # (3,)
+
+
+@dataclass(frozen=True)
+class World:
+    name: str
+    seed: int
+    bounds_min: np.ndarray
+    bounds_max: np.ndarray
+    dt: float
+    max_time: float
+    goal_tolerance: float
+    peaks: tuple[Peak, ...]
+    terrain_clearance: float
+    obstacles: tuple[Obstacle, ...]
+    threats: tuple[Threat, ...]
+    agents: tuple[AgentSpec, ...]
+    planner: dict[str, Any]
+    log_path: str
+    resolved: dict[str, Any] = field(repr=False)  # the /world message (before seed/version)
+    source: Path | None = None
+
+    @functools.cached_property
+    def planner_config(self) -> PlannerConfig:
+        """``planner`` as typed, frozen settings (read from the validated mapping)."""
+        return planner_config(self.planner)
+
+    @property
+    def static_obstacles(self) -> tuple[Obstacle, ...]:
+        return tuple(o for o in self.obstacles if not o.moving)
+
+    @property
+    def moving_obstacles(self) -> tuple[Obstacle, ...]:
+        return tuple(o for o in self.obstacles if o.moving)
+
+    def terrain_height(self, xy: np.ndarray) -> np.ndarray:
+        """Terrain height z(x, y) (sum of Gaussian peaks); 0 without terrain."""
+        return terrain.height(self.peaks, xy)
+
+    def terrain_gradient(self, xy: np.ndarray) -> np.ndarray:
+        """(dz/dx, dz/dy) of the terrain at ``xy`` (..., 2)."""
+        return terrain.gradient(self.peaks, xy)
+
+    def to_message(self, seed: int) -> dict[str, Any]:
+        """The ``/world`` message of a run with ``seed``: the resolved world, seed and version."""
+        msg = dict(self.resolved)
+        msg["seed"] = seed
+        msg["swarmplan_version"] = __version__
+        return msg
+
+    def with_overrides(self, **changes: Any) -> World:
+        """A copy with ``max_time``, ``planner`` or ``seed`` replaced; ``resolved`` (the ``/world``
+        message) follows. Other fields are refused: they would leave ``resolved`` out of step."""
+        unknown = sorted(set(changes) - {"max_time", "planner", "seed"})
+        if unknown:
+            raise ValueError(
+                f"with_overrides: cannot override {', '.join(unknown)} (max_time, planner, seed)"
+            )
+        resolved = copy.deepcopy(self.resolved)
+        if "max_time" in changes:
+            resolved["sim"]["max_time"] = changes["max_time"]
+        if "planner" in changes:
+            resolved["planner"] = copy.deepcopy(changes["planner"])
+        if "seed" in changes:
+            resolved["seed"] = changes["seed"]
+        return dataclasses.replace(self, resolved=resolved, **changes)
