@@ -55,6 +55,19 @@ from swarmplan.optimizers.registry import register
 # --------------------------------------------------------------------------------------
 # shared helpers
 
+#: Smallest loudness of ``ba`` / ``iba_abc``: ``None`` means ``A0``. Paper 000 section III
+#: rule (3): "the bat loudness varies from the smallest constant value A_min to A_0", with no
+#: value printed. Without a floor eq 10 drives the mean loudness to ~0.09 within ~500
+#: generations and the walks of eqs 9 and 13 stop moving. Measured on Table 10 (d = 50,
+#: 3e5 evaluations, seed 0, see docs/benchmarks.md): A_min = 0.1 / 0.5 / 0.8 reproduce
+#: iba_abc's Rastrigin 0.0017 as 3.05 / 12.0 / 1.02, A_min = A0 = 0.95 as 0.0011, and only
+#: A_min = A0 lands 9/10 cells of both ``ba`` and ``iba_abc`` within an order of magnitude.
+A_MIN = None
+#: Random-walk unit as a fraction of the box width: eq 9 prints ``X* + eps A^t`` for the
+#: paper's ``[-100, 100]`` boxes, i.e. a step of ``A^t`` per 200 box units. Scaling by the
+#: box width keeps exactly the paper's step there and the same relative step on any other box.
+WALK_SCALE = 1.0 / 200.0
+
 
 def _check_bat_params(opt: Optimizer) -> None:
     p = opt.params
@@ -64,6 +77,10 @@ def _check_bat_params(opt: Optimizer) -> None:
         )
     if not 0.0 < p["A0"]:
         raise ValueError(f"{opt.name}: A0 (initial loudness) must be > 0, got {p['A0']}")
+    if p["A_min"] is not None and not (np.isfinite(p["A_min"]) and 0.0 <= p["A_min"] <= p["A0"]):
+        raise ValueError(f"{opt.name}: A_min must be None (= A0) or in [0, A0], got {p['A_min']}")
+    if not (np.isfinite(p["walk_scale"]) and p["walk_scale"] > 0.0):
+        raise ValueError(f"{opt.name}: walk_scale must be > 0, got {p['walk_scale']}")
     if not 0.0 < p["alpha"] <= 1.0:
         raise ValueError(f"{opt.name}: alpha must be in (0, 1], got {p['alpha']}")
     if not 0.0 <= p["r0"] <= 1.0:
@@ -87,7 +104,9 @@ def _bat_acceptance(
     if accept.any():
         state.X[accept] = cand[accept]
         state.fit[accept] = fc[accept]
-        state.A[accept] *= params["alpha"]
+        # eq 10 with rule (3) of section III: loudness decays but never below A_min
+        floor = params["A0"] if params["A_min"] is None else params["A_min"]
+        state.A[accept] = np.maximum(state.A[accept] * params["alpha"], floor)
         state.r[accept] = params["r0"] * (1.0 - np.exp(-params["gamma"] * iteration))
     return accept
 
@@ -147,6 +166,8 @@ class BatAlgorithm(Optimizer):
         "f_max": 100.0,
         "A0": 0.95,
         "alpha": 0.9,
+        "A_min": A_MIN,
+        "walk_scale": WALK_SCALE,
         "r0": 0.6,
         "gamma": 0.5,
         "acceptance": "best",
@@ -177,7 +198,9 @@ class BatAlgorithm(Optimizer):
         state.V += (state.best_x - state.X) * freq[:, None]
         cand = state.X + state.V
         local = rng.random(n) > state.r
-        walk = state.best_x + rng.uniform(-1.0, 1.0, (n, d)) * state.A.mean()
+        walk = state.best_x + rng.uniform(-1.0, 1.0, (n, d)) * (
+            state.A.mean() * p["walk_scale"] * problem.span
+        )
         cand[local] = walk[local]
         cand = problem.clip(cand)
         fc = problem.evaluate(cand)
@@ -294,6 +317,8 @@ class IbaAbc(Optimizer):
         "f_max": 100.0,
         "A0": 0.95,
         "alpha": 0.9,
+        "A_min": A_MIN,
+        "walk_scale": WALK_SCALE,
         "r0": 0.6,
         "gamma": 0.5,
         "acceptance": "best",
@@ -346,7 +371,9 @@ class IbaAbc(Optimizer):
         state.V += (state.best_x - state.X) * freq[:, None]
         cand = state.X + state.V
         local = rng.random(ne) > state.r
-        walk = state.best_x + rng.uniform(-1.0, 1.0, (ne, d)) * state.A.mean()
+        walk = state.best_x + rng.uniform(-1.0, 1.0, (ne, d)) * (
+            state.A.mean() * p["walk_scale"] * problem.span
+        )
         cand[local] = walk[local]
         cand = problem.clip(cand)
         fc = problem.evaluate(cand)
@@ -364,7 +391,9 @@ class IbaAbc(Optimizer):
         )
         near_best = rng.random(m) > state.r[src]
         eps = rng.uniform(-1.0, 1.0, m)
-        val = np.where(near_best, state.best_x[dims] + eps * state.A.mean(), val)
+        val = np.where(
+            near_best, state.best_x[dims] + eps * state.A.mean() * p["walk_scale"] * problem.span[dims], val
+        )
         val = np.clip(val, problem.lower[dims], problem.upper[dims])
         on = state.X[src].copy()
         on[rows, dims] = val
@@ -488,6 +517,8 @@ class IbaGauss(Optimizer):
         "f_max": 5.0,
         "A0": 0.95,
         "alpha": 0.99,
+        "A_min": 0.0,
+        "walk_scale": WALK_SCALE,
         "r0": 0.9,
         "gamma": 0.9,
         "acceptance": "best",
@@ -538,7 +569,7 @@ class IbaGauss(Optimizer):
         # 2. position (eq 4) or Gaussian walk around the best (eq 15)
         cand = state.X + state.V
         local = rng.random(n) > state.r
-        walk = state.best_x + two_gaussian(rng, (n, d)) * state.A.mean()
+        walk = state.best_x + two_gaussian(rng, (n, d)) * (state.A.mean() * p["walk_scale"] * problem.span)
         cand[local] = walk[local]
         cand = problem.clip(cand)
 

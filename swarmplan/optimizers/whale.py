@@ -15,6 +15,7 @@ Where the paper is ambiguous the reading chosen is stated in the class docstring
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -265,6 +266,19 @@ class RSCDWOA(Optimizer):
         "lam": 1e-4,
     }
 
+    #: names the world-format contract uses (shared/spec/world-format.md) -> our parameter
+    aliases = {"tent_beta": "beta"}
+
+    def __init__(self, **params: Any):
+        for alias, key in self.aliases.items():
+            if alias in params:
+                if key in params:
+                    raise ValueError(
+                        f"rscdwoa: give {alias} or {key}, not both ({alias} is an alias of {key})"
+                    )
+                params[key] = params.pop(alias)
+        super().__init__(**params)
+
     def validate(self) -> None:
         p = self.params
         if p["chaos"] not in ("tent", "logistic"):
@@ -272,7 +286,7 @@ class RSCDWOA(Optimizer):
         if not np.isfinite(p["b"]):
             raise ValueError(f"rscdwoa: b must be finite, got {p['b']!r}")
         if not 0.0 < p["beta"] < 1.0:
-            raise ValueError(f"rscdwoa: beta must be in (0, 1), got {p['beta']!r}")
+            raise ValueError(f"rscdwoa: beta (tent_beta) must be in (0, 1), got {p['beta']!r}")
         if not 0.0 < p["mu"] <= 4.0:
             raise ValueError(f"rscdwoa: mu must be in (0, 4], got {p['mu']!r}")
         if int(p["lifespan"]) != p["lifespan"] or p["lifespan"] < 0:
