@@ -18,12 +18,28 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+DESCRIPTION = (
+    "Benchmarks of swarmplan: optimizers against their papers and peers, overhead, simulation speed."
+)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python -m swarmplan.bench", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m swarmplan.bench",
+        description=DESCRIPTION,
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
     for name, (module_path, help_text) in SUBCOMMANDS.items():
         module = importlib.import_module(module_path)
-        p = sub.add_parser(name, help=help_text, description=(module.__doc__ or help_text).strip())
+        # help shows plain text: reStructuredText literals (``x``) become x
+        description = (module.__doc__ or help_text).strip().replace("``", "")
+        p = sub.add_parser(
+            name,
+            help=help_text,
+            description=description,
+            formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        )
         module.add_arguments(p)
         p.set_defaults(_main=module.main)
     return parser
