@@ -34,10 +34,17 @@ Readings shared by the three algorithms (the papers are silent, garbled or unwor
   instead, as Yang's reference code does. ``X*`` itself is the best point ever evaluated
   ("the optimal solution from time step 1 to time step t-1", paper 000), also when the
   candidate that found it was not accepted.
-* Random-walk scale. Eqs 9, 13 (paper 000) and 15 (paper 003) add ``eps * A^t`` to ``X*``
-  with ``A^t`` the mean loudness; the step is in the problem's own units, as printed (the
-  papers' benchmarks use ``[-100, 100]``), so these algorithms are not scale invariant.
-  ``eps`` is drawn independently per dimension.
+* Random-walk scale (parameter ``walk_scale``). Eqs 9, 13 (paper 000) and 15 (paper 003) add
+  ``eps * A^t`` to ``X*`` with ``A^t`` the mean loudness, in the units of the papers'
+  benchmark boxes, ``[-100, 100]``. We add ``eps * A^t * walk_scale * (upper - lower)`` with
+  ``walk_scale = 1/200``: exactly the printed step on ``[-100, 100]``, and the same step
+  relative to the box on any other box (before, a ``+-220 m`` planning box got walks of at
+  most ``+-0.95 m``). ``eps`` is drawn independently per dimension.
+* Loudness floor (parameter ``A_min``). Paper 000 section III rule (3): "the bat loudness
+  varies from the smallest constant value A_min to A_0"; eq 10 ``A <- alpha A`` is applied as
+  ``max(alpha A, A_min)``. 000 prints no value of ``A_min``; ``None`` (the default of ``ba``
+  and ``iba_abc``) means ``A_min = A0``, the only value of our sweep that reproduces 000's
+  Table 10 (see :data:`A_MIN`). Paper 003 has no floor: ``iba_gauss`` defaults to 0.
 * The pulse rate update ``r = r0 (1 - exp(-gamma t))`` (eq 10) uses the iteration number
   ``t``; it is not a ``t / T_max`` schedule. Pulse rates start at ``r0`` and loudness at
   ``A0``; velocities start at zero; ``f_i`` is redrawn every generation.
@@ -150,9 +157,11 @@ class BatAlgorithm(Optimizer):
     ``r_i <- r0 (1 - exp(-gamma t))`` (eq 10).
 
     Defaults: ``A0 = 0.95, alpha = 0.9, r0 = 0.6, gamma = 0.5`` (the settings of the
-    paper's Tables 5-8), frequencies in ``[0, 100]`` ("each bat was randomly assigned a
-    frequency f_i in [0, 100]", section III), population 30 (inside the 20-50 range the
-    paper recommends). With ``f`` up to 100 the velocity move overshoots far beyond the box
+    paper's Tables 5-8), ``A_min = A0`` (rule (3), value ours, see the module docstring: with
+    it the loudness stays at ``A0``, so ``alpha`` has no effect unless ``A_min`` is lowered),
+    walk in box-width units (``walk_scale = 1/200``), frequencies in ``[0, 100]`` ("each bat
+    was randomly assigned a frequency f_i in [0, 100]", section III), population 30 (inside the 20-50 range
+    the paper recommends). With ``f`` up to 100 the velocity move overshoots far beyond the box
     whichever sign is used, so in practice this BA searches through the random walk of
     eq 9; that matches the paper's own poor BA results (Table 10). ``f_max = 2`` (Yang's
     usual setting) does a little better. See the module docstring for the readings shared
@@ -304,7 +313,8 @@ class IbaAbc(Optimizer):
 
     Defaults from section V / Tables 3-8: ``T_limit = 10, A0 = 0.95, alpha = 0.9, F = 0.5,
     r0 = 0.6, gamma = 0.5``, ratio 1:4, population 30 (the recommended range is 20-50);
-    frequencies ``[0, 100]`` as for ``ba``.
+    frequencies ``[0, 100]``, ``A_min = A0`` and ``walk_scale = 1/200`` as for ``ba``. (Table 10
+    draws ``F`` in ``[-1, 1]``; we keep section V's fixed ``F = 0.5``.)
     """
 
     name = "iba_abc"
@@ -507,7 +517,8 @@ class IbaGauss(Optimizer):
     ``c <- 4 c (1 - c)``, one value per bat, advanced once per generation.
 
     Defaults from Table 3: population 100, frequencies ``[0, 5]``, ``A0 = 0.95``,
-    ``r0 = 0.9``, ``alpha = 0.99``, ``gamma = 0.9``.
+    ``r0 = 0.9``, ``alpha = 0.99``, ``gamma = 0.9``; no loudness floor (``A_min = 0``, 003 has
+    none); walk in box-width units (``walk_scale = 1/200``, 003's box is ``[-100, 100]``).
     """
 
     name = "iba_gauss"
