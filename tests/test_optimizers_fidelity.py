@@ -179,3 +179,25 @@ def test_unit_helpers_round_trip():
     problem = Problem(_sphere, np.array([-2.0, 0.0]), np.array([2.0, 10.0]), max_evals=1)
     X = np.array([[1.0, 5.0], [-2.0, 10.0]])
     np.testing.assert_allclose(_to_box(problem, _to_unit(problem, X)), X)
+
+
+def test_rscdwoa_chaotic_initialization_follows_the_tent_map():
+    seen: list[np.ndarray] = []
+
+    def cost(X):
+        seen.append(X.copy())
+        return _sphere(X)
+
+    d = 5
+    lo, hi = np.full(d, -10.0), np.full(d, 30.0)
+    make("rscdwoa", population=12).minimize(cost, lo, hi, max_evals=12, seed=4)
+    W = (seen[0] - lo) / (hi - lo)
+    beta = make("rscdwoa").params["beta"]
+    nxt = np.where(W[:-1] < beta, W[:-1] / beta, (1.0 - W[:-1]) / (1.0 - beta))
+    np.testing.assert_allclose(W[1:], nxt, rtol=1e-9, atol=1e-12)
+    # the uniform start stays available and is not a tent-map orbit
+    seen.clear()
+    make("rscdwoa", population=12, init="uniform").minimize(cost, lo, hi, max_evals=12, seed=4)
+    W = (seen[0] - lo) / (hi - lo)
+    nxt = np.where(W[:-1] < beta, W[:-1] / beta, (1.0 - W[:-1]) / (1.0 - beta))
+    assert not np.allclose(W[1:], nxt, atol=1e-3)
