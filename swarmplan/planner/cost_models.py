@@ -232,9 +232,10 @@ class ThreatCost(CostModel):
 
     name = "iba"
     # path: δ_O; threat_unit: metres per paper unit (km); max_altitude: 0 = the bounds' top;
-    # max_climb_angle: degrees for P_B (0 = the agent's).
+    # max_climb_angle: degrees for P_B (0 = the agent's); max_length: l_max of eq 5 in metres
+    # (0 = no limit; 000 prints no value).
     defaults = {"path": 0.1, "threat_unit": 1000.0, "max_altitude": 0.0, "max_climb_angle": 0.0,
-                "penalty": 1000.0}  # fmt: skip
+                "max_length": 0.0, "penalty": 1000.0}  # fmt: skip
 
     def __init__(self, ctx: PathContext, **weights: float):
         super().__init__(ctx, **weights)
@@ -255,6 +256,12 @@ class ThreatCost(CostModel):
         c = c + (pts[..., 2] < ground).astype(float)  # P_T
         c = c + (pts[..., 2] > self.z_max).astype(float)  # P_H
         return c
+
+    def extra_violation(self, nodes: np.ndarray) -> np.ndarray:
+        """Eq 5, ``sum l_i <= l_max``: the excess length in metres (0 when ``max_length`` is 0)."""
+        if self.w["max_length"] <= 0:
+            return np.zeros(len(nodes))
+        return np.maximum(0.0, polyline_length(nodes) - self.w["max_length"])
 
     def segment_costs(self, nodes: np.ndarray) -> np.ndarray:
         """(n, K-1) mean of w_k over the 5 points k/5, k = 1..5 of each segment (eq 7)."""
