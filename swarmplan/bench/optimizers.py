@@ -53,7 +53,13 @@ BA_003: dict[str, object] = {
     "A_min": 0.0,
 }
 #: named parameter sets: ``name@set`` runs registry entry ``name`` with these parameters.
-PARAM_SETS: dict[str, tuple[str, dict[str, object]]] = {"ba@003": ("ba", BA_003)}
+#: ``mcfo@ours`` / ``iafsa@ours``: the paper algorithms with our additions switched on (eq 29
+#: enforced and unit-box mutation; eq 28 with absolute value and V0 decay), to report both.
+PARAM_SETS: dict[str, tuple[str, dict[str, object]]] = {
+    "ba@003": ("ba", BA_003),
+    "mcfo@ours": ("mcfo", {"stability": "eq29", "mutation_units": "unit"}),
+    "iafsa@ours": ("iafsa", {"visual_abs": True, "v0_decay": True}),
+}
 
 #: improved algorithm -> its base, as the papers compare them (each pair at its paper's settings).
 PAIRS: dict[str, str] = {
