@@ -1,6 +1,7 @@
 """Run a paper's benchmark suite over the registered optimizers and compare with the paper.
 
-Suites (the papers are listed in the README's references):
+Suites (papers: 000 Zhou et al., IBA; 001 Zhang et al., RSCDWOA; 003 Huang & Ma, IBA
+with Gaussian distribution; see docs/benchmarks.md):
 
 * ``iba-table10``: 000 (Zhou et al., IBA = BA + ABC) Table 10: ten functions (eqs 16-19 and
   Table 9), d = 50, every box [-100, 100], 3e5 evaluations, 20 runs in the paper.
