@@ -201,3 +201,18 @@ def test_rscdwoa_chaotic_initialization_follows_the_tent_map():
     W = (seen[0] - lo) / (hi - lo)
     nxt = np.where(W[:-1] < beta, W[:-1] / beta, (1.0 - W[:-1]) / (1.0 - beta))
     assert not np.allclose(W[1:], nxt, atol=1e-3)
+
+
+def test_world_format_example_params_are_accepted():
+    """shared/spec/world-format.md shows ``params: {tent_beta: 0.74}`` for the optimizer."""
+    from swarmplan.world import parse_world
+
+    w = parse_world(
+        {
+            "name": "t",
+            "bounds": {"min": [0, 0, 0], "max": [100, 100, 50]},
+            "agents": [{"id": "a", "start": [10, 10, 10], "goal": [90, 90, 10]}],
+            "planner": {"optimizer": {"name": "rscdwoa", "population": 30, "params": {"tent_beta": 0.74}}},
+        }
+    )
+    assert w.planner["optimizer"]["params"] == {"tent_beta": 0.74}
