@@ -105,9 +105,16 @@ def _fast(name: str, fn_name: str, params: dict | None = None, box: float | None
     return np.array([opt.minimize(cost, lower, upper, max_evals=FAST_BUDGET, seed=s).f for s in FAST_SEEDS])
 
 
+# measured 2026-11-23 (commit 2e6c387), as in the slow study: literal MCFO does not beat CFO on
+# shifted Rastrigin (medians of 5: 38.39 vs 36.32); it does on shifted Ackley (8.39 vs 8.97)
+FAST_KNOWN = {("mcfo", "cfo"): "MCFO does not beat CFO on shifted Rastrigin: medians 38.39 vs 36.32"}
+
+
 @pytest.mark.parametrize(("improved", "base"), PAIRS, ids=[f"{a}-vs-{b}" for a, b in PAIRS])
-def test_improved_beats_base_fast(improved, base):
-    """Median over 5 seeds on shifted Rastrigin + Ackley (d = 10, 3000 evaluations), summed ranks."""
+def test_improved_beats_base_fast(improved, base, request):
+    """Median over 5 seeds on shifted Rastrigin + Ackley (d = 10, 3000 evaluations), both lower."""
+    if (improved, base) in FAST_KNOWN:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=FAST_KNOWN[improved, base]))
     wins = 0
     for fn_name in FUNCTIONS:
         a = _fast(improved, fn_name)
