@@ -7,9 +7,9 @@ Newton's law with zero velocity (eq 15); a probe leaving the box is put back bet
 old position and the violated bound with the accommodation coefficient ``frep`` (eq 16).
 MCFO (section 4) adds a PSO memory pull towards the personal and global bests (eq 18),
 summed with the gravity step as the paper's eq 23 writes the whole update, and a mutation of
-probes whose new cost is worse (eq 19); per probe, its random memory weights (and where
-that cannot suffice its gravity step) are fitted to the stability condition of section 5
-(eq 29).
+probes whose new cost is worse (eq 19). Optionally (``stability="eq29"``, ours) each
+probe's random memory weights (and where that cannot suffice its gravity step) are fitted
+to the stability condition of section 5 (eq 29).
 
 Readings chosen where the paper is silent, garbled or scale-dependent (see the class
 docstrings for the per-algorithm ones):
