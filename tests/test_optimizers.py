@@ -247,9 +247,22 @@ def _finals(name: str, fn_name: str) -> list[float]:
     return [make(name).minimize(cost, lower, upper, max_evals=BUDGET, seed=s).f for s in SEEDS]
 
 
+# Measured, kept visible as strict xfails (they fail the day the algorithm passes).
+BEATS_RANDOM_KNOWN = {
+    ("afsa", "rastrigin"): (
+        "AFSA with 002's CEC settings (Step = 0.03 box widths) and the sequential prey rule of eqs "
+        "16-17 samples little more than random search: medians 82.0 vs 79.0 (2026-11-23). It passed "
+        "(narrowly) only while every prey try was evaluated, i.e. while it sampled 2-3x more points "
+        "around each fish than the paper's loop does."
+    ),
+}
+
+
 @pytest.mark.parametrize("fn_name", ["sphere", "rastrigin"])
 @pytest.mark.parametrize("name", NON_RANDOM)
-def test_beats_random_search(name, fn_name):
+def test_beats_random_search(name, fn_name, request):
+    if (name, fn_name) in BEATS_RANDOM_KNOWN:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=BEATS_RANDOM_KNOWN[name, fn_name]))
     if fn_name not in _random_cache:
         _random_cache[fn_name] = _finals("random", fn_name)
     rnd = _random_cache[fn_name]
@@ -298,3 +311,50 @@ def test_bench_cli(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "opfunu", None)  # import opfunu -> ImportError
     assert main(["optimizers", "--suite", "cec2013", "--runs", "1"]) == 2
     assert "pip install opfunu" in capsys.readouterr().err
+
+
+def test_bench_help_and_output_defaults(tmp_path, capsys, monkeypatch):
+    """Issue 14 item 12: plain help text with defaults, no empty paper column, CSV into logs/."""
+    from swarmplan.bench import peers
+    from swarmplan.bench.__main__ import build_parser, main
+
+    parser = build_parser()
+    texts = [parser.format_help()]
+    sub = next(a for a in parser._actions if a.dest == "command")
+    texts += [p.format_help() for p in sub.choices.values()]
+    for text in texts:
+        assert "``" not in text and "/work/" not in text and "our copy" not in text, text[:200]
+    assert "runs per algorithm x function (default: 10)" in " ".join(
+        sub.choices["optimizers"].format_help().split()
+    )
+
+    monkeypatch.chdir(tmp_path)
+    argv = ["optimizers", "--suite", "rscdwoa-table4", "--runs", "2", "--algorithms", "random"]
+    argv += ["--functions", "sphere", "--evals", "60", "--jobs", "1", "--no-shifted"]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "paper mean" not in text  # 001 prints no numbers: no (empty) paper column
+    assert (tmp_path / "logs" / "bench-rscdwoa-table4.csv").exists()
+    argv = ["optimizers", "--suite", "iba-table10", "--runs", "1", "--algorithms", "ba"]
+    argv += ["--functions", "sphere", "--evals", "60", "--jobs", "1", "--no-shifted"]
+    assert main(argv) == 0
+    assert "paper mean" in capsys.readouterr().out
+
+    # --peers without mealpy/niapy: one line naming the extra, exit 2
+    monkeypatch.setattr(peers, "check_installed", lambda: peers.INSTALL_HINT)
+    argv = ["optimizers", "--suite", "shifted", "--peers", "--runs", "1", "--algorithms", "woa"]
+    assert main(argv) == 2
+    assert "swarmplan[peers]" in capsys.readouterr().err
+
+
+def test_bench_shifted_suite_runs_bases_and_param_sets(tmp_path, capsys):
+    from swarmplan.bench.__main__ import main
+
+    out = tmp_path / "s.csv"
+    argv = ["optimizers", "--suite", "shifted", "--runs", "2", "--algorithms", "iba_gauss,mcfo@ours"]
+    argv += ["--functions", "sphere", "--evals", "200", "--jobs", "1", "--out", str(out)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    # iba_gauss is judged against BA at paper 003's settings, added automatically
+    assert "| ba@003 |" in text and "vs ba@003" in text and "| mcfo@ours |" in text
+    assert "(plain)" not in text  # the shifted suite has no plain variant

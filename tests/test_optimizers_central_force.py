@@ -86,7 +86,7 @@ def test_eq29_limits_bring_every_probe_into_the_stability_condition(c, j):
 @pytest.mark.parametrize("dt", [0.2, 1.0])
 def test_mcfo_gravity_step_is_limited_by_eq29(dt):
     """Two probes, no memory, no mutation: the worse probe moves g = dt^2 theta/2 of the way to
-    the better one, but at most 1 + rho = 5/3 of it in the first generation (eq 29)."""
+    the better one, but at most 1 + rho = 5/3 of it in the first generation (eq 29, our option)."""
     seen = []
 
     def cost(X):
@@ -94,7 +94,7 @@ def test_mcfo_gravity_step_is_limited_by_eq29(dt):
         return np.sum((X - 0.5) ** 2, axis=1)
 
     x0 = np.array([[0.4, 0.5], [0.1, 0.5]])  # probe 0 is better
-    opt = make("mcfo", population=2, c1=0.0, c2=0.0, c3=0.0, dt=dt)
+    opt = make("mcfo", population=2, c1=0.0, c2=0.0, c3=0.0, dt=dt, stability="eq29")
     opt.minimize(cost, np.zeros(2), np.ones(2), max_evals=4, seed=0, x0=x0)
     moved = seen[1]
     # mass normaliser = initial cost range = f_1 - f_0, so theta_1 = G * 1**alpha / 0.3**beta

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from scipy.stats import ranksums
 
-from swarmplan.bench.functions import get
+from swarmplan.bench.functions import get, with_box
+from swarmplan.bench.optimizers import BA_003
 from swarmplan.optimizers import available, make
 
 PAIRS = [
@@ -29,24 +30,36 @@ BUDGET = 20_000  # 2000 d
 SEEDS = range(12)
 ALPHA = 0.05
 
+#: each pair compares at its own paper's settings: 003 compares IBA with BA at its Table 3
+#: settings, not 000's (issue 11 item 3); the others use the registry defaults.
+BASE_PARAMS: dict[tuple[str, str], dict] = {("iba_gauss", "ba"): BA_003}
+
 # Measured, reported and kept visible: a strict xfail turns into a failure the day it passes.
 KNOWN_FAILURES = {
     ("mcfo", "rastrigin"): (
-        "MCFO written to 004's eqs 19, 23 and 29 does not beat CFO on shifted Rastrigin "
-        "(p = 0.43, medians 23.85 vs 23.12 on 2026-11-22); it does on shifted Ackley. See docs/benchmarks.md."
+        "MCFO (004 eqs 19, 23 literal, masses per generation) does not beat CFO on shifted Rastrigin: "
+        "p = 0.997, medians 33.38 vs 25.31 (2026-11-23). See docs/benchmarks.md."
+    ),
+    ("mcfo", "ackley"): (
+        "MCFO (004 eqs 19, 23 literal, masses per generation) does not beat CFO on shifted Ackley: "
+        "p = 0.23, medians 7.14 vs 7.62 (2026-11-23). See docs/benchmarks.md."
+    ),
+    ("iba_gauss", "rastrigin"): (
+        "IBA-Gauss does not beat BA at 003's own Table 3 settings on shifted Rastrigin: p = 0.43, "
+        "medians 44.48 vs 54.92 (2026-11-23); it does on shifted Ackley. See docs/benchmarks.md."
     ),
 }
 
 _cache: dict[tuple[str, str], np.ndarray] = {}
 
 
-def finals(name: str, fn_name: str) -> np.ndarray:
-    key = (name, fn_name)
+def finals(name: str, fn_name: str, params: dict | None = None) -> np.ndarray:
+    key = (name, fn_name, repr(sorted((params or {}).items())))
     if key not in _cache:
         bench = get(fn_name)
         lower, upper = bench.bounds(DIM)
         cost = bench.cost(DIM, shifted=True)
-        opt = make(name)
+        opt = make(name, **(params or {}))
         _cache[key] = np.array(
             [opt.minimize(cost, lower, upper, max_evals=BUDGET, seed=1000 + s).f for s in SEEDS]
         )
@@ -63,7 +76,7 @@ def test_improved_beats_base(improved, base, fn_name, request):
     if missing:
         # the product requires every paper algorithm: a missing one is a failure, not a skip
         pytest.fail(f"{', '.join(missing)} not registered; available: {', '.join(available())}")
-    a, b = finals(improved, fn_name), finals(base, fn_name)
+    a, b = finals(improved, fn_name), finals(base, fn_name, BASE_PARAMS.get((improved, base)))
     p = ranksums(a, b, alternative="less").pvalue
     msg = (
         f"{improved} vs {base} on shifted {fn_name} d={DIM}, {BUDGET} evals: p={p:.3g}; "
@@ -72,3 +85,55 @@ def test_improved_beats_base(improved, base, fn_name, request):
     )
     print(msg)
     assert p < ALPHA, msg
+
+
+# ---------------------------------------------------------------------------------------------
+# fast versions for the default suite: fewer seeds, smaller budget, medians compared
+
+
+FAST_SEEDS = range(5)
+FAST_BUDGET = 3000
+
+
+def _fast(name: str, fn_name: str, params: dict | None = None, box: float | None = None) -> np.ndarray:
+    bench = get(fn_name)
+    if box is not None:
+        bench = with_box(bench, -box, box)
+    lower, upper = bench.bounds(DIM)
+    cost = bench.cost(DIM, shifted=True)
+    opt = make(name, **(params or {}))
+    return np.array([opt.minimize(cost, lower, upper, max_evals=FAST_BUDGET, seed=s).f for s in FAST_SEEDS])
+
+
+# measured 2026-11-23 (commit 2e6c387), as in the slow study: literal MCFO does not beat CFO on
+# shifted Rastrigin (medians of 5: 38.39 vs 36.32); it does on shifted Ackley (8.39 vs 8.97)
+FAST_KNOWN = {("mcfo", "cfo"): "MCFO does not beat CFO on shifted Rastrigin: medians 38.39 vs 36.32"}
+
+
+@pytest.mark.parametrize(("improved", "base"), PAIRS, ids=[f"{a}-vs-{b}" for a, b in PAIRS])
+def test_improved_beats_base_fast(improved, base, request):
+    """Median over 5 seeds on shifted Rastrigin + Ackley (d = 10, 3000 evaluations), both lower."""
+    if (improved, base) in FAST_KNOWN:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=FAST_KNOWN[improved, base]))
+    wins = 0
+    for fn_name in FUNCTIONS:
+        a = _fast(improved, fn_name)
+        b = _fast(base, fn_name, BASE_PARAMS.get((improved, base)))
+        wins += int(np.median(a) < np.median(b))
+    assert wins == len(FUNCTIONS), f"{improved} beat {base} on {wins}/{len(FUNCTIONS)} shifted functions"
+
+
+# AFSA at 3000 evaluations spends most of its budget on prey tries around 30 fish and does
+# not get below the best of 3000 uniform samples (measured 2026-11-23, see docs/benchmarks.md).
+BEATS_RANDOM_KNOWN = {"afsa": "AFSA (002 CEC settings) loses to random search at 3000 evaluations"}
+
+
+@pytest.mark.parametrize("name", [a for a in available() if a != "random"])
+def test_beats_random_on_shifted_sphere_and_rastrigin(name, request):
+    """Issue 11: every registry algorithm beats random search (medians of 5 seeds, d = 10, 3000 evals)."""
+    if name in BEATS_RANDOM_KNOWN:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=BEATS_RANDOM_KNOWN[name]))
+    for fn_name in ("sphere", "rastrigin"):
+        ours = np.median(_fast(name, fn_name, {"population": 30}))
+        rand = np.median(_fast("random", fn_name, {"population": 30}))
+        assert ours < rand, f"{name} median {ours:.4g} vs random {rand:.4g} on shifted {fn_name}"

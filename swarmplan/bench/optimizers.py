@@ -1,22 +1,29 @@
 """Run a paper's benchmark suite over the registered optimizers and compare with the paper.
 
-Suites (papers in /work/shared/seeds, see its README):
+Suites (papers: 000 Zhou et al., IBA; 001 Zhang et al., RSCDWOA; 003 Huang & Ma, IBA
+with Gaussian distribution; see docs/benchmarks.md):
 
 * ``iba-table10``: 000 (Zhou et al., IBA = BA + ABC) Table 10: ten functions (eqs 16-19 and
   Table 9), d = 50, every box [-100, 100], 3e5 evaluations, 20 runs in the paper.
 * ``rscdwoa-table4``: 001 (Zhang et al., RSCDWOA) Table 4: nine functions, d = 30, 100
   iterations (population 30 assumed, so 3000 evaluations); 001 prints no boxes, we use the
-  standard ones of the WOA paper (Mirjalili & Lewis 2016).
+  standard ones of the WOA paper (Mirjalili & Lewis 2016). 001 prints no numeric results, so
+  the table has no paper column.
 * ``cec2013``: 003 (Huang & Ma, IBA-Gauss) Table 4: CEC2013 F1-F28 via ``opfunu``, d = 30,
   population 100 x 3000 iterations = 3e5 evaluations, 51 runs; values are errors f - f*.
+  ``ba`` runs with 003's Table 3 settings here (population 100, f in [0, 5], alpha 0.99...).
+* ``shifted``: sphere, Rastrigin, Ackley, d = 10, their usual boxes (+-100, +-5.12, +-32) with
+  the optimum moved off centre, 3000 evaluations, population 30 for every algorithm. With ``--peers`` the
+  same-named algorithms of mealpy and niapy run beside ours (optional extra ``[peers]``).
 
-Every suite also runs a *shifted* variant (optimum moved away from the origin and box
-centre, see :mod:`swarmplan.bench.functions`); CEC2013 functions are shifted by definition.
+Every paper suite also runs a *shifted* variant (optimum moved away from the origin and box
+centre, see swarmplan.bench.functions); CEC2013 functions are shifted by definition.
 
-For each algorithm x function it prints mean, std, best over the runs, the paper's mean
-where it reports one, evaluations used, wall time per run, and for each improved algorithm
-a Wilcoxon rank-sum verdict against its base: ``+`` better (p < 0.05), ``-`` worse, ``~`` no
-significant difference.
+For each algorithm x function it prints mean, median, std, best over the runs, the paper's
+mean where it reports one, evaluations used, wall time per run, and for each improved
+algorithm a Wilcoxon rank-sum verdict against its base: + better (p < 0.05), - worse,
+~ no significant difference. The 003 pair iba_gauss vs ba compares with ``ba`` at 003's
+settings (``ba@003``), the others with the base's registry defaults.
 """
 
 from __future__ import annotations
@@ -28,16 +35,38 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from swarmplan.bench import functions as bf
 
-#: improved algorithm -> its base, as the papers compare them.
+#: ``ba`` with paper 003's Table 3 settings (population 100, frequencies [0, 5], A0 0.95,
+#: r0 0.9, alpha 0.99, gamma 0.9; 003 has no loudness floor).
+BA_003: dict[str, object] = {
+    "population": 100,
+    "f_min": 0.0,
+    "f_max": 5.0,
+    "A0": 0.95,
+    "r0": 0.9,
+    "alpha": 0.99,
+    "gamma": 0.9,
+    "A_min": 0.0,
+}
+#: named parameter sets: ``name@set`` runs registry entry ``name`` with these parameters.
+#: ``mcfo@ours`` / ``iafsa@ours``: the paper algorithms with our additions switched on (eq 29
+#: enforced and unit-box mutation; eq 28 with absolute value and V0 decay), to report both.
+PARAM_SETS: dict[str, tuple[str, dict[str, object]]] = {
+    "ba@003": ("ba", BA_003),
+    "mcfo@ours": ("mcfo", {"stability": "eq29", "mutation_units": "unit"}),
+    "iafsa@ours": ("iafsa", {"visual_abs": True, "v0_decay": True}),
+}
+
+#: improved algorithm -> its base, as the papers compare them (each pair at its paper's settings).
 PAIRS: dict[str, str] = {
     "rscdwoa": "woa",
     "iba_abc": "ba",
-    "iba_gauss": "ba",
+    "iba_gauss": "ba@003",
     "mcfo": "cfo",
     "iafsa": "afsa",
 }
@@ -114,6 +143,8 @@ class Suite:
     default_algorithms: tuple[str, ...] | None = None  # None: every registered algorithm
     shiftable: bool = True
     note: str = ""
+    only_shifted: bool = False  # the suite is defined on shifted functions only
+    common: dict[str, object] = field(default_factory=dict)  # parameters for every algorithm
 
 
 def _t10_paper() -> dict[str, dict[str, tuple[float, float]]]:
@@ -161,7 +192,7 @@ SUITES: dict[str, Suite] = {
             "ackley",
         ],
         note="001 Table 4: d=30, 100 iterations (x population 30 = 3000 evaluations); 001 gives no boxes "
-        "(standard WOA-paper boxes used) and its numeric results table is not in our copy of the paper.",
+        "(standard WOA-paper boxes used) and prints no numeric results, so there is no paper column.",
     ),
     "cec2013": Suite(
         "cec2013",
@@ -174,9 +205,23 @@ SUITES: dict[str, Suite] = {
         default_algorithms=("ba", "iba_gauss"),
         shiftable=False,
         note="003 Table 4: CEC2013 via opfunu, d=30, 3e5 evaluations, values are errors f - f*; "
-        "CEC2013 functions are already shifted (and mostly rotated).",
+        "CEC2013 functions are already shifted (and mostly rotated); ba runs with 003's Table 3 settings.",
+    ),
+    "shifted": Suite(
+        "shifted",
+        dim=10,
+        evals=3_000,
+        runs=10,
+        functions=["sphere", "rastrigin", "ackley"],
+        only_shifted=True,
+        common={"population": 30},
+        note="shifted sphere/Rastrigin/Ackley, d=10, usual boxes (+-100, +-5.12, +-32), optimum off centre, "
+        "3000 evaluations, "
+        "population 30 for every algorithm (ours and peers).",
     ),
 }
+# ba in the cec2013 suite is 003's BA
+SUITE_ALIASES: dict[str, dict[str, str]] = {"cec2013": {"ba": "ba@003"}}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -206,6 +251,13 @@ def problem(suite: Suite, fn_name: str, *, shifted: bool, seed: int | None = Non
     return b.cost(d, shifted=shifted, seed=seed), lo, hi, 0.0
 
 
+def resolve(suite: Suite, algorithm: str) -> tuple[str, dict[str, object]]:
+    """Registry name and parameters of ``algorithm`` (a registry name or ``name@set``) in ``suite``."""
+    algorithm = SUITE_ALIASES.get(suite.name, {}).get(algorithm, algorithm)
+    name, params = PARAM_SETS.get(algorithm, (algorithm, {}))
+    return name, {**suite.common, **params}
+
+
 def _run_one(job: tuple) -> dict:
     suite_name, fn_name, algorithm, shifted, seed, evals = job
     from swarmplan.optimizers import make
@@ -213,15 +265,31 @@ def _run_one(job: tuple) -> dict:
     suite = SUITES[suite_name]
     cost, lo, hi, offset = problem(suite, fn_name, shifted=shifted, seed=seed + 7919)
     t0 = time.perf_counter()
-    res = make(algorithm).minimize(cost, lo, hi, max_evals=evals, seed=seed)
+    if algorithm.startswith("peer:"):
+        from swarmplan.bench.peers import run_peer
+
+        out = run_peer(
+            algorithm[5:],
+            cost,
+            lo,
+            hi,
+            max_evals=evals,
+            seed=seed,
+            population=int(suite.common.get("population", 30)),
+        )
+        value, n_evals = out["value"], out["evaluations"]
+    else:
+        name, params = resolve(suite, algorithm)
+        res = make(name, **params).minimize(cost, lo, hi, max_evals=evals, seed=seed)
+        value, n_evals = res.f, res.evaluations
     wall = time.perf_counter() - t0
     return {
         "variant": "shifted" if shifted else "plain",
         "function": fn_name,
         "algorithm": algorithm,
         "seed": seed,
-        "value": res.f - offset if suite.error else res.f,
-        "evaluations": res.evaluations,
+        "value": value - offset if suite.error else value,
+        "evaluations": n_evals,
         "wall": wall,
     }
 
@@ -268,7 +336,19 @@ def summarize(suite: Suite, records: list[dict]) -> list[dict]:
             "verdict": "",
             "p_value": float("nan"),
         }
+        if alg.startswith("peer:"):
+            ours = next((k for k, v in _peer_table().items() if any(lab == alg[5:] for lab, _, _ in v)), "")
+            if (variant, fn, ours) in groups:
+                vo = np.array(
+                    [r["value"] for r in sorted(groups[(variant, fn, ours)], key=lambda r: r["seed"])]
+                )
+                row["base"] = ours
+                # orientation: "+" means ours is better than this peer
+                row["verdict"], row["p_value"] = verdict(vo, v)
+            rows.append(row)
+            continue
         base = PAIRS.get(alg)
+        base = {v: k for k, v in SUITE_ALIASES.get(suite.name, {}).items()}.get(base, base)
         if base and (variant, fn, base) in groups:
             vb = np.array([r["value"] for r in sorted(groups[(variant, fn, base)], key=lambda r: r["seed"])])
             row["base"] = base
@@ -277,6 +357,12 @@ def summarize(suite: Suite, records: list[dict]) -> list[dict]:
     order = {f: i for i, f in enumerate(suite.functions)}
     rows.sort(key=lambda r: (r["variant"] != "plain", order.get(r["function"], 0), r["algorithm"]))
     return rows
+
+
+def _peer_table() -> dict[str, list[tuple[str, str, str]]]:
+    from swarmplan.bench.peers import PEERS
+
+    return PEERS
 
 
 def _fmt(x: float) -> str:
@@ -293,25 +379,55 @@ def format_tables(suite: Suite, rows: list[dict]) -> str:
     """Markdown tables, one per variant x function."""
     out = []
     key = None
+    has_paper = bool(suite.paper)  # a paper without numbers gets no (empty) paper column
     for r in rows:
+        if r["algorithm"].startswith("peer:"):
+            continue
         if (r["variant"], r["function"]) != key:
             key = (r["variant"], r["function"])
             out.append(f"\n#### {r['function']} ({r['variant']})\n")
-            out.append("| algorithm | mean | std | best | paper mean | evals | wall s/run | vs base |")
-            out.append("|---|---|---|---|---|---|---|---|")
+            paper = " paper mean |" if has_paper else ""
+            out.append(f"| algorithm | mean | median | std | best |{paper} evals | wall s/run | vs base |")
+            out.append("|---|---|---|---|---|" + ("---|" if has_paper else "") + "---|---|---|")
         vs = f"{r['verdict']} vs {r['base']} (p={r['p_value']:.2g})" if r["base"] else ""
+        paper = f" {_fmt(r['paper_mean'])} |" if has_paper else ""
         out.append(
-            f"| {r['algorithm']} | {_fmt(r['mean'])} | {_fmt(r['std'])} | {_fmt(r['best'])} | "
-            f"{_fmt(r['paper_mean'])} | {r['evaluations']:.0f} | {r['wall_s']:.2f} | {vs} |"
+            f"| {r['algorithm']} | {_fmt(r['mean'])} | {_fmt(r['median'])} | {_fmt(r['std'])} | "
+            f"{_fmt(r['best'])} |{paper} {r['evaluations']:.0f} | {r['wall_s']:.2f} | {vs} |"
         )
     return "\n".join(out)
+
+
+def format_peers(rows: list[dict]) -> str:
+    """Per function: our algorithm's median beside each same-named peer's, with the verdict."""
+    ours = {
+        (r["variant"], r["function"], r["algorithm"]): r
+        for r in rows
+        if not r["algorithm"].startswith("peer:")
+    }
+    lines = []
+    for r in rows:
+        if not r["algorithm"].startswith("peer:") or not r["base"]:
+            continue
+        o = ours[(r["variant"], r["function"], r["base"])]
+        lines.append(
+            f"| {r['function']} | {r['base']} | {_fmt(o['median'])} | {r['algorithm'][5:]} | "
+            f"{_fmt(r['median'])} | {r['verdict']} (p={r['p_value']:.2g}) |"
+        )
+    if not lines:
+        return ""
+    head = [
+        "| function | ours | median | peer | median | ours vs peer |",
+        "|---|---|---|---|---|---|",
+    ]
+    return "\n".join(head + lines)
 
 
 def format_verdicts(rows: list[dict]) -> str:
     """Summary: per improved algorithm and variant, counts of + / ~ / - against its base."""
     counts: dict[tuple[str, str, str], list[int]] = {}
     for r in rows:
-        if r["base"]:
+        if r["base"] and not r["algorithm"].startswith("peer:"):
             c = counts.setdefault((r["algorithm"], r["base"], r["variant"]), [0, 0, 0])
             c["+~-".index(r["verdict"])] += 1
     if not counts:
@@ -366,11 +482,19 @@ def run_suite(
 
 
 # ------------------------------------------------------------------------------------------------
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    pass
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.formatter_class = _HelpFormatter
     p.add_argument("--suite", required=True, choices=sorted(SUITES))
-    p.add_argument("--runs", type=int, default=10, help="independent runs per algorithm x function (10)")
-    p.add_argument("--out", help="write the summary rows to this CSV file")
+    p.add_argument("--runs", type=int, default=10, help="independent runs per algorithm x function")
+    p.add_argument(
+        "--out",
+        default="logs/bench-{suite}.csv",
+        help="write the summary rows to this CSV file ({suite} is filled in; its folder is created)",
+    )
     p.add_argument("--algorithms", help="comma-separated registry names (default: all registered)")
     p.add_argument("--functions", help="comma-separated subset of the suite's functions")
     p.add_argument("--evals", type=int, help="evaluation budget per run (default: the paper's)")
@@ -380,7 +504,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="only the shifted variant (--shifted) or only the plain one (--no-shifted); default both",
     )
-    p.add_argument("--jobs", type=int, default=2, help="worker processes (2)")
+    p.add_argument(
+        "--peers",
+        action="store_true",
+        help="also run the same-named algorithms of mealpy and niapy (pip install 'swarmplan[peers]')",
+    )
+    p.add_argument("--jobs", type=int, default=2, help="worker processes")
     p.add_argument("--seed", type=int, default=0, help="seed of run 0; run r uses seed + r")
     p.add_argument("--raw", help="also write every single run to this CSV file")
 
@@ -395,7 +524,14 @@ def main(args: argparse.Namespace) -> int:
         except ImportError:
             print("the cec2013 suite needs opfunu: pip install opfunu", file=sys.stderr)
             return 2
-    known = available()
+    known = available() + sorted(PARAM_SETS)
+    if args.peers:
+        from swarmplan.bench.peers import check_installed
+
+        hint = check_installed()
+        if hint:
+            print(hint, file=sys.stderr)
+            return 2
     if args.algorithms:
         algorithms = [a.strip() for a in args.algorithms.split(",") if a.strip()]
         unknown = [a for a in algorithms if a not in known]
@@ -405,7 +541,17 @@ def main(args: argparse.Namespace) -> int:
     elif suite.default_algorithms is not None:
         algorithms = [a for a in suite.default_algorithms if a in known]
     else:
-        algorithms = known
+        algorithms = available()
+    # each improved algorithm is judged against its base at the pair's settings
+    for a in list(algorithms):
+        base = PAIRS.get(a, "")
+        base = {v: k for k, v in SUITE_ALIASES.get(suite.name, {}).items()}.get(base, base)
+        if base and base not in algorithms:
+            algorithms.append(base)
+    if args.peers:
+        from swarmplan.bench.peers import PEERS
+
+        algorithms += [f"peer:{lab}" for a in list(algorithms) for lab, _, _ in PEERS.get(a, [])]
     functions = None
     if args.functions:
         functions = [f.strip() for f in args.functions.split(",") if f.strip()]
@@ -414,7 +560,9 @@ def main(args: argparse.Namespace) -> int:
             msg = f"unknown function(s) {', '.join(bad)}; suite has: {', '.join(suite.functions)}"
             print(msg, file=sys.stderr)
             return 2
-    if args.shifted is None:
+    if suite.only_shifted:
+        variants = [True]
+    elif args.shifted is None:
         variants = [False, True] if suite.shiftable else [False]
     elif not suite.shiftable:
         variants = [False]
@@ -454,10 +602,19 @@ def main(args: argparse.Namespace) -> int:
     if summary:
         print("\nWilcoxon rank-sum (p < 0.05), improved algorithm vs its base, counts over functions:\n")
         print(summary)
+    peers = format_peers(rows)
+    if peers:
+        print(
+            "\nOurs vs same-named peers at equal budget and seeds "
+            "(Wilcoxon rank-sum, p < 0.05; + ours better):\n"
+        )
+        print(peers)
     print(f"\ntotal wall time {time.perf_counter() - t0:.0f} s")
     if args.out:
-        write_csv(args.out, rows)
-        print(f"wrote {args.out}")
+        out = Path(args.out.replace("{suite}", suite.name))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        write_csv(str(out), rows)
+        print(f"wrote {out}")
     if args.raw:
         keys = ("variant", "function", "algorithm", "seed")
         write_csv(args.raw, sorted(records, key=lambda r: tuple(r[k] for k in keys)))

@@ -63,10 +63,12 @@ def measure(name: str, *, dim: int = 50, evals: int = 30_000, repeats: int = 3, 
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.add_argument("--dim", type=int, default=50, help="dimension (50)")
-    p.add_argument("--evals", type=int, default=30_000, help="evaluations per run (30000)")
-    p.add_argument("--repeats", type=int, default=3, help="runs per algorithm; the minimum is reported (3)")
+    p.formatter_class = type(
+        "_Fmt", (argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter), {}
+    )
+    p.add_argument("--dim", type=int, default=50, help="dimension")
+    p.add_argument("--evals", type=int, default=30_000, help="evaluations per run")
+    p.add_argument("--repeats", type=int, default=3, help="runs per algorithm; the minimum is reported")
     p.add_argument("--algorithms", help="comma-separated registry names (default: all registered)")
 
 

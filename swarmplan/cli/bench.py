@@ -25,7 +25,7 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m swarmplan.bench",
-        description="Benchmarks: optimizers on paper suites, the library's overhead, simulation speed.",
+        description="Benchmarks of swarmplan: optimizers against their papers and peers, overhead, simulation speed.",
         formatter_class=_Formatter,
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
@@ -34,7 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(
             name,
             help=help_text,
-            description=(module.__doc__ or help_text).strip(),
+            # help shows plain text: reStructuredText literals (``x``) become x
+            description=(module.__doc__ or help_text).strip().replace("``", ""),
             formatter_class=_Formatter,
         )
         module.add_arguments(p)

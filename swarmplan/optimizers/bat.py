@@ -34,10 +34,17 @@ Readings shared by the three algorithms (the papers are silent, garbled or unwor
   instead, as Yang's reference code does. ``X*`` itself is the best point ever evaluated
   ("the optimal solution from time step 1 to time step t-1", paper 000), also when the
   candidate that found it was not accepted.
-* Random-walk scale. Eqs 9, 13 (paper 000) and 15 (paper 003) add ``eps * A^t`` to ``X*``
-  with ``A^t`` the mean loudness; the step is in the problem's own units, as printed (the
-  papers' benchmarks use ``[-100, 100]``), so these algorithms are not scale invariant.
-  ``eps`` is drawn independently per dimension.
+* Random-walk scale (parameter ``walk_scale``). Eqs 9, 13 (paper 000) and 15 (paper 003) add
+  ``eps * A^t`` to ``X*`` with ``A^t`` the mean loudness, in the units of the papers'
+  benchmark boxes, ``[-100, 100]``. We add ``eps * A^t * walk_scale * (upper - lower)`` with
+  ``walk_scale = 1/200``: exactly the printed step on ``[-100, 100]``, and the same step
+  relative to the box on any other box (before, a ``+-220 m`` planning box got walks of at
+  most ``+-0.95 m``). ``eps`` is drawn independently per dimension.
+* Loudness floor (parameter ``A_min``). Paper 000 section III rule (3): "the bat loudness
+  varies from the smallest constant value A_min to A_0"; eq 10 ``A <- alpha A`` is applied as
+  ``max(alpha A, A_min)``. 000 prints no value of ``A_min``; ``None`` (the default of ``ba``
+  and ``iba_abc``) means ``A_min = A0``, the only value of our sweep that reproduces 000's
+  Table 10 (see :data:`A_MIN`). Paper 003 has no floor: ``iba_gauss`` defaults to 0.
 * The pulse rate update ``r = r0 (1 - exp(-gamma t))`` (eq 10) uses the iteration number
   ``t``; it is not a ``t / T_max`` schedule. Pulse rates start at ``r0`` and loudness at
   ``A0``; velocities start at zero; ``f_i`` is redrawn every generation.
@@ -55,6 +62,19 @@ from swarmplan.optimizers.registry import register
 # --------------------------------------------------------------------------------------
 # shared helpers
 
+#: Smallest loudness of ``ba`` / ``iba_abc``: ``None`` means ``A0``. Paper 000 section III
+#: rule (3): "the bat loudness varies from the smallest constant value A_min to A_0", with no
+#: value printed. Without a floor eq 10 drives the mean loudness to ~0.09 within ~500
+#: generations and the walks of eqs 9 and 13 stop moving. Measured on Table 10 (d = 50,
+#: 3e5 evaluations, seed 0, see docs/benchmarks.md): A_min = 0.1 / 0.5 / 0.8 reproduce
+#: iba_abc's Rastrigin 0.0017 as 3.05 / 12.0 / 1.02, A_min = A0 = 0.95 as 0.0011, and only
+#: A_min = A0 lands 9/10 cells of both ``ba`` and ``iba_abc`` within an order of magnitude.
+A_MIN = None
+#: Random-walk unit as a fraction of the box width: eq 9 prints ``X* + eps A^t`` for the
+#: paper's ``[-100, 100]`` boxes, i.e. a step of ``A^t`` per 200 box units. Scaling by the
+#: box width keeps exactly the paper's step there and the same relative step on any other box.
+WALK_SCALE = 1.0 / 200.0
+
 
 def _check_bat_params(opt: Optimizer) -> None:
     p = opt.params
@@ -64,6 +84,10 @@ def _check_bat_params(opt: Optimizer) -> None:
         )
     if not 0.0 < p["A0"]:
         raise ValueError(f"{opt.name}: A0 (initial loudness) must be > 0, got {p['A0']}")
+    if p["A_min"] is not None and not (np.isfinite(p["A_min"]) and 0.0 <= p["A_min"] <= p["A0"]):
+        raise ValueError(f"{opt.name}: A_min must be None (= A0) or in [0, A0], got {p['A_min']}")
+    if not (np.isfinite(p["walk_scale"]) and p["walk_scale"] > 0.0):
+        raise ValueError(f"{opt.name}: walk_scale must be > 0, got {p['walk_scale']}")
     if not 0.0 < p["alpha"] <= 1.0:
         raise ValueError(f"{opt.name}: alpha must be in (0, 1], got {p['alpha']}")
     if not 0.0 <= p["r0"] <= 1.0:
@@ -87,7 +111,9 @@ def _bat_acceptance(
     if accept.any():
         state.X[accept] = cand[accept]
         state.fit[accept] = fc[accept]
-        state.A[accept] *= params["alpha"]
+        # eq 10 with rule (3) of section III: loudness decays but never below A_min
+        floor = params["A0"] if params["A_min"] is None else params["A_min"]
+        state.A[accept] = np.maximum(state.A[accept] * params["alpha"], floor)
         state.r[accept] = params["r0"] * (1.0 - np.exp(-params["gamma"] * iteration))
     return accept
 
@@ -131,9 +157,11 @@ class BatAlgorithm(Optimizer):
     ``r_i <- r0 (1 - exp(-gamma t))`` (eq 10).
 
     Defaults: ``A0 = 0.95, alpha = 0.9, r0 = 0.6, gamma = 0.5`` (the settings of the
-    paper's Tables 5-8), frequencies in ``[0, 100]`` ("each bat was randomly assigned a
-    frequency f_i in [0, 100]", section III), population 30 (inside the 20-50 range the
-    paper recommends). With ``f`` up to 100 the velocity move overshoots far beyond the box
+    paper's Tables 5-8), ``A_min = A0`` (rule (3), value ours, see the module docstring: with
+    it the loudness stays at ``A0``, so ``alpha`` has no effect unless ``A_min`` is lowered),
+    walk in box-width units (``walk_scale = 1/200``), frequencies in ``[0, 100]`` ("each bat
+    was randomly assigned a frequency f_i in [0, 100]", section III), population 30 (inside the 20-50 range
+    the paper recommends). With ``f`` up to 100 the velocity move overshoots far beyond the box
     whichever sign is used, so in practice this BA searches through the random walk of
     eq 9; that matches the paper's own poor BA results (Table 10). ``f_max = 2`` (Yang's
     usual setting) does a little better. See the module docstring for the readings shared
@@ -147,6 +175,8 @@ class BatAlgorithm(Optimizer):
         "f_max": 100.0,
         "A0": 0.95,
         "alpha": 0.9,
+        "A_min": A_MIN,
+        "walk_scale": WALK_SCALE,
         "r0": 0.6,
         "gamma": 0.5,
         "acceptance": "best",
@@ -177,7 +207,9 @@ class BatAlgorithm(Optimizer):
         state.V += (state.best_x - state.X) * freq[:, None]
         cand = state.X + state.V
         local = rng.random(n) > state.r
-        walk = state.best_x + rng.uniform(-1.0, 1.0, (n, d)) * state.A.mean()
+        walk = state.best_x + rng.uniform(-1.0, 1.0, (n, d)) * (
+            state.A.mean() * p["walk_scale"] * problem.span
+        )
         cand[local] = walk[local]
         cand = problem.clip(cand)
         fc = problem.evaluate(cand)
@@ -281,7 +313,8 @@ class IbaAbc(Optimizer):
 
     Defaults from section V / Tables 3-8: ``T_limit = 10, A0 = 0.95, alpha = 0.9, F = 0.5,
     r0 = 0.6, gamma = 0.5``, ratio 1:4, population 30 (the recommended range is 20-50);
-    frequencies ``[0, 100]`` as for ``ba``.
+    frequencies ``[0, 100]``, ``A_min = A0`` and ``walk_scale = 1/200`` as for ``ba``. (Table 10
+    draws ``F`` in ``[-1, 1]``; we keep section V's fixed ``F = 0.5``.)
     """
 
     name = "iba_abc"
@@ -294,6 +327,8 @@ class IbaAbc(Optimizer):
         "f_max": 100.0,
         "A0": 0.95,
         "alpha": 0.9,
+        "A_min": A_MIN,
+        "walk_scale": WALK_SCALE,
         "r0": 0.6,
         "gamma": 0.5,
         "acceptance": "best",
@@ -346,7 +381,9 @@ class IbaAbc(Optimizer):
         state.V += (state.best_x - state.X) * freq[:, None]
         cand = state.X + state.V
         local = rng.random(ne) > state.r
-        walk = state.best_x + rng.uniform(-1.0, 1.0, (ne, d)) * state.A.mean()
+        walk = state.best_x + rng.uniform(-1.0, 1.0, (ne, d)) * (
+            state.A.mean() * p["walk_scale"] * problem.span
+        )
         cand[local] = walk[local]
         cand = problem.clip(cand)
         fc = problem.evaluate(cand)
@@ -364,7 +401,9 @@ class IbaAbc(Optimizer):
         )
         near_best = rng.random(m) > state.r[src]
         eps = rng.uniform(-1.0, 1.0, m)
-        val = np.where(near_best, state.best_x[dims] + eps * state.A.mean(), val)
+        val = np.where(
+            near_best, state.best_x[dims] + eps * state.A.mean() * p["walk_scale"] * problem.span[dims], val
+        )
         val = np.clip(val, problem.lower[dims], problem.upper[dims])
         on = state.X[src].copy()
         on[rows, dims] = val
@@ -478,7 +517,8 @@ class IbaGauss(Optimizer):
     ``c <- 4 c (1 - c)``, one value per bat, advanced once per generation.
 
     Defaults from Table 3: population 100, frequencies ``[0, 5]``, ``A0 = 0.95``,
-    ``r0 = 0.9``, ``alpha = 0.99``, ``gamma = 0.9``.
+    ``r0 = 0.9``, ``alpha = 0.99``, ``gamma = 0.9``; no loudness floor (``A_min = 0``, 003 has
+    none); walk in box-width units (``walk_scale = 1/200``, 003's box is ``[-100, 100]``).
     """
 
     name = "iba_gauss"
@@ -488,6 +528,8 @@ class IbaGauss(Optimizer):
         "f_max": 5.0,
         "A0": 0.95,
         "alpha": 0.99,
+        "A_min": 0.0,
+        "walk_scale": WALK_SCALE,
         "r0": 0.9,
         "gamma": 0.9,
         "acceptance": "best",
@@ -538,7 +580,7 @@ class IbaGauss(Optimizer):
         # 2. position (eq 4) or Gaussian walk around the best (eq 15)
         cand = state.X + state.V
         local = rng.random(n) > state.r
-        walk = state.best_x + two_gaussian(rng, (n, d)) * state.A.mean()
+        walk = state.best_x + two_gaussian(rng, (n, d)) * (state.A.mean() * p["walk_scale"] * problem.span)
         cand[local] = walk[local]
         cand = problem.clip(cand)
 

@@ -15,6 +15,7 @@ Where the paper is ambiguous the reading chosen is stated in the class docstring
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -65,6 +66,22 @@ def chaos_sequence(
         w = chaos_step(w, kind, beta, mu, rng)
         out[t] = w[0]
     return out
+
+
+def chaotic_population(
+    problem: Problem, rng: np.random.Generator, n: int, kind: str, beta: float, mu: float
+) -> np.ndarray:
+    """Chaotic initialization (001 abstract and section 3): whale ``i`` sits at ``lower + w_i span``.
+
+    One chaotic orbit per dimension, started from a uniform draw and advanced once per whale
+    with the map of eq 13/14, so the whales follow the map's orbit in every coordinate.
+    """
+    w = rng.uniform(_CHAOS_EPS, 1.0 - _CHAOS_EPS, problem.dim)
+    W = np.empty((n, problem.dim))
+    for i in range(n):  # a chaotic orbit is intrinsically sequential (n steps, d-vectorized)
+        w = chaos_step(w, kind, beta, mu, rng)
+        W[i] = w
+    return problem.lower + W * problem.span
 
 
 # --------------------------------------------------------------------------- reverse search
@@ -241,6 +258,10 @@ class RSCDWOA(Optimizer):
     * Eq (16), Property 3: see :func:`secondary_reflection` (normal between x and the box
       centre). The reverse search is applied to the DE whales only, after their selection, as
       Algorithm 1 places it (line 22-23); it costs a second, smaller evaluation batch.
+    * Initialization (``init``): chaotic, as the abstract lists "the chaotic initialization"
+      among RSCDWOA's parts (the text gives no formula): :func:`chaotic_population` with the
+      same map as the search (tent, ``beta`` = ``tent_beta`` = 0.74). ``init="uniform"`` is
+      plain WOA's random start.
     * F = 0.5, omega = 0.5, ring radius k = 1 (the Fig. 4 example): not given in the paper.
     * All whales move synchronously from the same X_* (Algorithm 1 updates X_* inside the
       per-whale loop); this is what allows one evaluation batch per generation.
@@ -263,16 +284,32 @@ class RSCDWOA(Optimizer):
         "alpha": 0.01,
         "k": 1,
         "lam": 1e-4,
+        "init": "chaotic",
     }
+
+    #: names the world-format contract uses (shared/spec/world-format.md) -> our parameter
+    aliases = {"tent_beta": "beta"}
+
+    def __init__(self, **params: Any):
+        for alias, key in self.aliases.items():
+            if alias in params:
+                if key in params:
+                    raise ValueError(
+                        f"rscdwoa: give {alias} or {key}, not both ({alias} is an alias of {key})"
+                    )
+                params[key] = params.pop(alias)
+        super().__init__(**params)
 
     def validate(self) -> None:
         p = self.params
         if p["chaos"] not in ("tent", "logistic"):
             raise ValueError(f"rscdwoa: chaos must be 'tent' or 'logistic', got {p['chaos']!r}")
+        if p["init"] not in ("chaotic", "uniform"):
+            raise ValueError(f"rscdwoa: init must be 'chaotic' or 'uniform', got {p['init']!r}")
         if not np.isfinite(p["b"]):
             raise ValueError(f"rscdwoa: b must be finite, got {p['b']!r}")
         if not 0.0 < p["beta"] < 1.0:
-            raise ValueError(f"rscdwoa: beta must be in (0, 1), got {p['beta']!r}")
+            raise ValueError(f"rscdwoa: beta (tent_beta) must be in (0, 1), got {p['beta']!r}")
         if not 0.0 < p["mu"] <= 4.0:
             raise ValueError(f"rscdwoa: mu must be in (0, 4], got {p['mu']!r}")
         if int(p["lifespan"]) != p["lifespan"] or p["lifespan"] < 0:
@@ -293,7 +330,13 @@ class RSCDWOA(Optimizer):
 
     def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _RSCDWOAState:
         n = self.population
-        X = initial_population(problem, rng, n, x0)
+        p = self.params
+        if p["init"] == "chaotic":
+            X = chaotic_population(problem, rng, n, p["chaos"], p["beta"], p["mu"])
+            if x0 is not None:
+                X[: min(len(x0), n)] = x0[:n]
+        else:
+            X = initial_population(problem, rng, n, x0)
         w = rng.uniform(_CHAOS_EPS, 1.0 - _CHAOS_EPS, (3, n))
         F = problem.evaluate(X)
         i = int(np.argmin(F))

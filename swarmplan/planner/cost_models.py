@@ -232,6 +232,12 @@ class ThreatCost(CostModel):
         c = c + (pts[..., 2] > self.z_max).astype(float)  # P_H
         return c
 
+    def extra_violation(self, nodes: np.ndarray) -> np.ndarray:
+        """Eq 5, ``sum l_i <= l_max``: the excess length in metres (0 when ``max_length`` is 0)."""
+        if self.w["max_length"] <= 0:
+            return np.zeros(len(nodes))
+        return np.maximum(0.0, polyline_length(nodes) - self.w["max_length"])
+
     def segment_costs(self, nodes: np.ndarray) -> np.ndarray:
         """(n, K-1) mean of w_k over the 5 points k/5, k = 1..5 of each segment (eq 7)."""
         k = np.arange(1, 6) / 5.0

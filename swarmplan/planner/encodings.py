@@ -16,7 +16,7 @@ Two encodings, both built on the frame of paper 000's eq (1): ``x'`` along start
   work for any start/goal (004's scenario runs diagonally), so both papers share it.
   The path is the broken line S → waypoints → E.
 - :class:`SplineEncoding` (paper 002): the same plane offsets are *control points* of a
-  cubic spline (scipy ``CubicSpline``, not-a-knot) through S, the control points and E, on
+  cubic spline (scipy ``CubicSpline``, natural: 002 eq 15) through S, the control points and E, on
   the uniform parameter ``K = {0, k_1, .., k_M, 1}`` of 002's interpolation steps. Paper 002
   lets its fish move the control points freely in the box; keeping them on planes across
   S→E keeps the spline from folding back on itself, which free points make likely.
@@ -147,6 +147,7 @@ class SplineEncoding(PlaneEncoding):
     def decode(self, X: np.ndarray) -> np.ndarray:
         """(n, samples, 3): the spline sampled at ``samples`` uniform parameter values."""
         ctrl = super().decode(X)  # (n, D+2, 3)
-        pts = self._clip(CubicSpline(self.knots, ctrl, axis=1)(self.t))
+        # 002 eq 15: natural end conditions, S''(x_0) = S''(x_n) = 0
+        pts = self._clip(CubicSpline(self.knots, ctrl, axis=1, bc_type="natural")(self.t))
         pts[:, 0], pts[:, -1] = self.start, self.goal
         return pts

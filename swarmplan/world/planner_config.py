@@ -24,6 +24,8 @@ COST_WEIGHTS: dict[str, dict[str, float]] = {
         "threat_unit": 1000.0,
         "max_altitude": 0.0,
         "max_climb_angle": 0.0,
+        # l_max of 000 eq 5 in metres (0 = no limit; 000 prints no value).
+        "max_length": 0.0,
         "penalty": 1000.0,
     },
     # Paper 002. max_turn_angle / max_climb_angle in degrees (0 = no turn limit / the agent's
