@@ -316,7 +316,7 @@ def test_bench_cli(tmp_path, capsys, monkeypatch):
 def test_bench_help_and_output_defaults(tmp_path, capsys, monkeypatch):
     """Issue 14 item 12: plain help text with defaults, no empty paper column, CSV into logs/."""
     from swarmplan.bench import peers
-    from swarmplan.bench.__main__ import build_parser, main
+    from swarmplan.cli.bench import build_parser, main
 
     parser = build_parser()
     texts = [parser.format_help()]

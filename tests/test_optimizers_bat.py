@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from swarmplan.optimizers import make
-from swarmplan.optimizers.bat import IbaAbc, _IbaAbcState, roulette_probabilities, sine_weight, two_gaussian
+from swarmplan.optimizers.bat import IbaAbc, _IbaAbcState, roulette_probabilities
+from swarmplan.optimizers.bat_gauss import sine_weight, two_gaussian
 from swarmplan.optimizers.core import Problem
 
 D = 10

@@ -9,7 +9,7 @@ import pytest
 from conftest_replay import base_world, rich_log, states_from_arrays, write_log
 from matplotlib.colors import to_rgb
 
-from swarmplan.replay import load, plots
+from swarmplan.replay import analysis_plots, load, plots
 from swarmplan.replay.animate import animation_figure
 
 
@@ -93,7 +93,7 @@ def test_legend_is_outside_the_axes_and_lists_start_and_goal(rich, kind):
 
 def test_curvature_cusp_is_clipped_and_marked(tmp_path):
     rec = _zigzag_log(tmp_path / "cusp.mcap")
-    fig = plots.plot_curvature(rec)
+    fig = analysis_plots.plot_curvature(rec)
     ax = fig.axes[0]
     line = next(ln for ln in ax.lines if ln.get_gid() == "path:a1")
     cusp = next(ln for ln in ax.lines if ln.get_gid() == "cusp:a1")
@@ -111,7 +111,7 @@ def test_curvature_without_cusp_is_not_clipped(tmp_path):
     pos = np.stack([30 * np.cos(ang), 30 * np.sin(ang), np.full_like(ang, 10.0)], axis=1)[None]
     world = base_world([{"id": "c", "start": pos[0, 0].tolist(), "goal": pos[0, -1].tolist()}])
     rec = load(write_log(tmp_path / "c.mcap", world, states_from_arrays(times, ["c"], pos)))
-    ax = plots.plot_curvature(rec).axes[0]
+    ax = analysis_plots.plot_curvature(rec).axes[0]
     assert not any((ln.get_gid() or "").startswith("cusp:") for ln in ax.lines)
     assert not any(lbl.startswith("cusp") for lbl in _labels(ax))
 
@@ -123,7 +123,7 @@ def _run(t, purpose, conv):
 
 def test_convergence_legend_and_run_count(tmp_path):
     one = _zigzag_log(tmp_path / "one.mcap", optimizer=[_run(0.0, "global", [5.0, 4.0, 3.9])])
-    ax = plots.plot_convergence(one).axes[0]
+    ax = analysis_plots.plot_convergence(one).axes[0]
     assert ax.get_title() == "optimizer convergence: 1 run (iba_abc)"
     assert _labels(ax) == ["global plan", "a1"]
     runs = [
@@ -132,7 +132,7 @@ def test_convergence_legend_and_run_count(tmp_path):
         _run(3.0, "smoothing", [2.0, 1.5]),
     ]
     three = _zigzag_log(tmp_path / "three.mcap", optimizer=runs)
-    ax = plots.plot_convergence(three).axes[0]
+    ax = analysis_plots.plot_convergence(three).axes[0]
     assert ax.get_title() == "optimizer convergence: 3 runs (iba_abc)"
     assert _labels(ax) == ["escape", "smoothing", "global plan", "a1"]
 

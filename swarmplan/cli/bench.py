@@ -25,7 +25,7 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescription
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m swarmplan.bench",
-        description="Benchmarks of swarmplan: optimizers against their papers and peers, overhead, simulation speed.",
+        description="Benchmarks: optimizers against their papers and peers, overhead, simulation speed.",
         formatter_class=_Formatter,
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")

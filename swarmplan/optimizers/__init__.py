@@ -6,7 +6,7 @@ Each family lives in its own module; importing this package registers them all.
 """
 
 # Importing the family modules registers their algorithms.
-from swarmplan.optimizers import baselines, bat, bee_colony, central_force, fish_swarm, whale  # noqa: F401
+from swarmplan.optimizers import baselines, bat, bat_gauss, bee_colony, central_force, fish_swarm, whale  # noqa: F401
 from swarmplan.optimizers.core import Optimizer, Problem, Result
 from swarmplan.optimizers.registry import available, defaults, make, register
 

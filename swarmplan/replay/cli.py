@@ -229,16 +229,17 @@ def state_at(rec: Recording, t: float, agents: list[int]) -> list[str]:
 def _write_outputs(rec: Recording, args: argparse.Namespace, agent_ids: list[str] | None) -> list[str]:
     outputs: list[str] = []
     if args.plot or args.plot_2d or args.curvature or args.convergence:
-        from . import plots
+        from . import analysis_plots, plots
 
         if args.plot:
             outputs.append(plots.save(plots.plot_3d(rec, agents=agent_ids), _prepare(args.plot)))
         if args.plot_2d:
             outputs.append(plots.save(plots.plot_top(rec, agents=agent_ids), _prepare(args.plot_2d)))
         if args.curvature:
-            outputs.append(plots.save(plots.plot_curvature(rec, agents=agent_ids), _prepare(args.curvature)))
+            fig = analysis_plots.plot_curvature(rec, agents=agent_ids)
+            outputs.append(plots.save(fig, _prepare(args.curvature)))
         if args.convergence:
-            fig = plots.plot_convergence(rec, agents=agent_ids)
+            fig = analysis_plots.plot_convergence(rec, agents=agent_ids)
             outputs.append(plots.save(fig, _prepare(args.convergence)))
     if args.animate:
         from .animate import animate
