@@ -256,15 +256,16 @@ def rich(tmp_path_factory):
 
 @pytest.mark.parametrize("kind", ["plot_3d", "plot_top", "plot_curvature", "plot_convergence"])
 def test_plots_non_trivial(rich, tmp_path, kind):
-    from swarmplan.replay import plots
+    from swarmplan.replay import analysis_plots, plots
 
-    fig = getattr(plots, kind)(rich)
+    module = analysis_plots if kind in ("plot_curvature", "plot_convergence") else plots
+    fig = getattr(module, kind)(rich)
     out = plots.save(fig, str(tmp_path / f"{kind}.png"))
     std, non_bg = _image_stats(out)
     assert std > 20 and non_bg > 0.05, (std, non_bg)
     if kind != "plot_convergence":
         assert plots.agent_paths_in(fig) == rich.agent_ids
-        one = getattr(plots, kind)(rich, agents=["uav2"])
+        one = getattr(module, kind)(rich, agents=["uav2"])
         assert plots.agent_paths_in(one) == ["uav2"]
     else:
         runs = [line for line in fig.axes[0].lines if (line.get_gid() or "").startswith("run:")]

@@ -118,7 +118,7 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
         else:
             chosen.append(i)
     if rec.n_steps < 2:
-        raise ValueError(f"{rec.path}: the log has {rec.n_steps} step(s); tracking needs at least two")
+        raise ValueError(f"{rec.file}: the log has {rec.n_steps} step(s); tracking needs at least two")
     times = np.asarray(rec.times, float)
     pos = fill_gaps(times, rec.positions[chosen])
     vel = np.nan_to_num(rec.velocities[chosen][:, [0, -1]])

@@ -78,7 +78,7 @@ class _TrackingRecorder(McapRecorder):
     def write_reference_scene(self, paths: dict[str, np.ndarray]) -> None:
         from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-        from swarmplan.foxglove_scene import FRAME, file_descriptor_set
+        from swarmplan.io.foxglove_scene import FRAME, file_descriptor_set
 
         sid = self._writer.register_schema(
             name="foxglove.SceneUpdate",
@@ -135,7 +135,7 @@ def write_mcap(result: TrackResult, rec: Recording, path: str | Path, source: st
     world = dict(rec.world)
     world["tracker"] = result.cfg.to_dict()
     world["tracked_from"] = source
-    moving = [o for o in rec.moving_obstacles()]
+    moving = list(rec.moving_obstacles)
     with _TrackingRecorder(path) as out:
         out.write_world(world)
         out.write_reference_scene(
