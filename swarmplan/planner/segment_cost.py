@@ -191,7 +191,7 @@ class SegmentCost:
         self._static_center = np.array([o.position for o in self.static]).reshape(-1, 3)
         self._static_bound = np.array([o.bounding_radius for o in self.static])
         self._moving_bound = np.array([o.bounding_radius for o in self.moving])
-        self._intent_box = [(it.points.min(axis=0), it.points.max(axis=0)) for it in self.intents]
+        self._intents = _pack_intents(self.intents, self.r)
         self.required = self.r + self.margin
         # Near the start the agent may already be closer than required: ask only for what
         # it has plus the distance travelled (the path must not get worse, then must clear).
@@ -327,18 +327,34 @@ class SegmentCost:
         return cost
 
     def agent_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
-        n = len(pts)
-        cost = np.zeros(n)
+        """Other agents near their intended positions (compiled kernel, see ``_intent_kernel``);
+        equal to :meth:`agent_penalty_reference` up to the summation order."""
         if not self.intents:
-            return cost
+            return np.zeros(len(pts))
+        from swarmplan.planner._intent_kernel import agent_cost
+
         t = self.t0 + s / self.speed
-        lo, hi = pts.reshape(-1, 3).min(axis=0), pts.reshape(-1, 3).max(axis=0)
-        for it, (ilo, ihi) in zip(self.intents, self._intent_box, strict=True):
+        k = self._intents
+        return agent_cost(
+            np.ascontiguousarray(pts),
+            np.ascontiguousarray(ds),
+            np.ascontiguousarray(t),
+            k["times"],
+            k["points"],
+            k["nk"],
+            k["scale"],
+            k["contact"],
+            k["reach"],
+            float(self.w.agents),
+            float(self.w.collision),
+        )
+
+    def agent_penalty_reference(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """Brute force of :meth:`agent_penalty`: every intent interpolated at every sample (tests)."""
+        cost = np.zeros(len(pts))
+        t = self.t0 + s / self.speed
+        for it in self.intents:
             scale = it.separation + self.r + it.radius
-            # The intent stays inside its points' box: beyond reach of both terms it adds nothing.
-            gap = float(np.linalg.norm(np.maximum(np.maximum(ilo - hi, lo - ihi), 0.0)))
-            if gap >= max(1.2 * float(scale.max()), self.r + it.radius):
-                continue
             q = it.at(t)
             e = np.linalg.norm((pts - q) / scale, axis=-1)
             cost = cost + self.w.agents * (np.maximum(1.2 - e, 0) * ds).sum(1)
@@ -365,6 +381,34 @@ class SegmentCost:
     def __call__(self, P: np.ndarray) -> np.ndarray:
         """Total cost of polylines ``P`` (n, m, 3) → (n,)."""
         return sum(self.terms(P).values())
+
+
+def _pack_intents(intents: list[Intent], radius: float) -> dict[str, np.ndarray]:
+    """Per-escape constants of the other-agents term: the intents as padded arrays (knots
+    repeated past each one's end), their ellipsoid scales, contact and reach distances."""
+    m = max((len(it.times) for it in intents), default=1)
+    M = len(intents)
+    times = np.zeros((M, m))
+    points = np.zeros((M, m, 3))
+    for j, it in enumerate(intents):
+        k = len(it.times)
+        times[j, :k], times[j, k:] = it.times, it.times[-1]
+        points[j, :k], points[j, k:] = it.points, it.points[-1]
+    scale = np.array([np.asarray(it.separation, dtype=float) + radius + it.radius for it in intents]).reshape(
+        M, 3
+    )
+    contact = np.array([radius + it.radius for it in intents], dtype=float)
+    # Beyond this distance both terms vanish: the ellipsoid term needs |d / scale| < 1.2, the
+    # collision term |d| < contact.
+    reach = np.maximum(1.2 * scale.max(axis=1, initial=0.0), contact)
+    return {
+        "times": times,
+        "points": points,
+        "nk": np.array([len(it.times) for it in intents], dtype=np.int64),
+        "scale": scale,
+        "contact": contact,
+        "reach": reach,
+    }
 
 
 def agent_intents(

@@ -1,0 +1,118 @@
+"""The culled, compiled other-agents term of SegmentCost equals the brute-force one."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding
+from swarmplan.world import parse_world
+
+
+def _world():
+    return parse_world(
+        {
+            "name": "t",
+            "bounds": {"min": [0, 0, 0], "max": [200, 200, 60]},
+            "agent_defaults": {"radius": 1.0},
+            "agents": [{"id": "a", "start": [10, 10, 20], "goal": [190, 190, 20]}],
+        }
+    )
+
+
+def _random_intents(rng: np.random.Generator, count: int, t0: float) -> list[Intent]:
+    """Stationary agents, straight and multi-leg routes, all inside the 100 m box the candidates fly in."""
+    out = []
+    for _ in range(count):
+        m = int(rng.integers(1, 6))
+        pts = rng.uniform([40, 40, 10], [140, 140, 40], (m, 3))
+        times = t0 + np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 6.0, m - 1))])
+        out.append(Intent(times, pts, float(rng.uniform(0.5, 1.5)), rng.uniform(1, 6, 3)))
+    return out
+
+
+def _population(rng: np.random.Generator, n: int, k: int = 3):
+    enc = SegmentEncoding(np.array([50.0, 50, 20]), np.array([130.0, 120, 30]), k, width=40, height=20)
+    X = rng.uniform(enc.lower, enc.upper, (n, enc.dim))
+    return enc.decode(X)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_culled_agent_term_equals_brute_force_on_random_populations(seed):
+    rng = np.random.default_rng(seed)
+    t0 = float(rng.uniform(0, 50))
+    cost = SegmentCost(
+        _world(),
+        radius=1.0,
+        speed=float(rng.uniform(3, 12)),
+        turn_radius=5.0,
+        max_climb=0.8,
+        min_altitude=3.0,
+        t0=t0,
+        intents=_random_intents(rng, 40, t0 - float(rng.uniform(0, 3))),
+    )
+    P = _population(rng, 30)
+    pts, ds, s = cost.sample(P)
+    fast = cost.agent_penalty(pts, ds, s)
+    ref = cost.agent_penalty_reference(pts, ds, s)
+    # Random crowds: most candidates meet somebody, some not (both branches are exercised).
+    assert (ref > 0).sum() >= 10
+    np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=1e-9)
+    # And the whole cost uses this term.
+    terms = cost.terms(P)
+    np.testing.assert_allclose(terms["agents"], ref, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("inside", [True, False])
+def test_culling_keeps_an_agent_just_within_reach(inside):
+    """An agent that stays just inside (outside) the reach of one sample must (must not) cost:
+    a cull that drops intents a little too early fails the first case."""
+    sep = np.array([3.0, 3.0, 2.0])
+    r, radius = 1.0, 1.0
+    reach = 1.2 * float((sep + r + radius).max())  # 6 m, along x or y
+    start, end = np.array([0.0, 0.0, 20.0]), np.array([40.0, 0.0, 20.0])
+    P = np.stack([start, end])[None]
+    gap = reach - 1e-3 if inside else reach + 1e-3
+    # A stationary agent beside the midpoint of the straight leg and a moving one that meets
+    # the candidate's sample only at the time the candidate passes by.
+    # Samples at 0.5 m spacing sit at x = 0.25 + 0.5 k, so x = 20.25 and 30.25 are samples.
+    still = Intent(np.array([0.0]), np.array([[20.25, gap, 20.0]]), radius, sep)
+    speed = 8.0
+    t_pass = 30.25 / speed
+    mover = Intent(
+        np.array([t_pass - 2.0, t_pass, t_pass + 2.0]),
+        np.array([[30.25, -gap - 16.0, 20.0], [30.25, -gap, 20.0], [30.25, -gap - 16.0, 20.0]]),
+        radius,
+        sep,
+    )
+    for it in (still, mover):
+        cost = SegmentCost(
+            _world(), radius=r, speed=speed, turn_radius=5.0, max_climb=0.8, min_altitude=3.0, intents=[it]
+        )
+        cost.spacing = 0.5
+        pts, ds, s = cost.sample(P)
+        ref = cost.agent_penalty_reference(pts, ds, s)
+        fast = cost.agent_penalty(pts, ds, s)
+        assert (ref[0] > 0) == inside
+        np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=0)
+
+
+def test_culling_drops_only_far_agents():
+    """Agents far in space, or near the path only at other times, cost nothing; one crossing
+    the path when the candidate is there costs the collision weight."""
+    sep = np.array([3.0, 3.0, 2.0])
+    speed = 10.0
+    P = np.array([[[0.0, 0.0, 20.0], [100.0, 0.0, 20.0]]])
+    far = Intent(np.array([0.0]), np.array([[50.0, 80.0, 20.0]]), 1.0, sep)
+    # Cross the line at x = 50 at t = 0 (early) or t = 10 (late) while the candidate gets there at t = 5 s.
+    early = Intent(np.array([-5.0, 5.0]), np.array([[50.0, -50.0, 20.0], [50.0, 50.0, 20.0]]), 1.0, sep)
+    late = Intent(np.array([5.0, 15.0]), np.array([[50.0, -50.0, 20.0], [50.0, 50.0, 20.0]]), 1.0, sep)
+    crossing = Intent(np.array([0.0, 10.0]), np.array([[50.0, -50.0, 20.0], [50.0, 50.0, 20.0]]), 1.0, sep)
+    for it, positive in ((far, False), (early, False), (crossing, True), (late, False)):
+        cost = SegmentCost(
+            _world(), radius=1.0, speed=speed, turn_radius=5.0, max_climb=0.8, min_altitude=3.0, intents=[it]
+        )
+        pts, ds, s = cost.sample(P)
+        ref = cost.agent_penalty_reference(pts, ds, s)
+        np.testing.assert_allclose(cost.agent_penalty(pts, ds, s), ref, rtol=1e-12, atol=0)
+        assert (ref[0] > 0) == positive
