@@ -77,3 +77,12 @@ def test_batched_equals_per_shape_with_rotations_and_centers(seed):
     d, g = batch.query(pts, centers)
     np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-12)
     np.testing.assert_allclose(g, g_ref, rtol=0, atol=1e-12)
+
+
+def test_distance_to_a_subset_keeps_its_order():
+    obs = _obstacles(UNIT + [{"id": "s2", "shape": "sphere", "radius": 2.0, "position": [5, 0, 0]}])
+    batch = ShapeBatch(obs)
+    pts = np.random.default_rng(3).uniform(-6, 6, (50, 3))
+    full = batch.distance(pts)
+    for subset in ([4, 0], [2], [3, 1, 4]):
+        np.testing.assert_array_equal(batch.distance(pts, subset=np.array(subset)), full[:, subset])

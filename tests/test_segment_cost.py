@@ -116,3 +116,69 @@ def test_culling_drops_only_far_agents():
         ref = cost.agent_penalty_reference(pts, ds, s)
         np.testing.assert_allclose(cost.agent_penalty(pts, ds, s), ref, rtol=1e-12, atol=0)
         assert (ref[0] > 0) == positive
+
+
+def _cluttered_world(rng: np.random.Generator):
+    obstacles = []
+    for k in range(16):
+        shape = ("sphere", "box", "cylinder", "capsule")[k % 4]
+        o = {"id": f"o{k}", "shape": shape, "position": rng.uniform([40, 40, 5], [140, 140, 40]).tolist()}
+        if shape == "box":
+            o["size"] = rng.uniform(2, 12, 3).tolist()
+            o["rotation"] = [0, 0, float(rng.uniform(0, 90))]
+        else:
+            o["radius"] = float(rng.uniform(1, 6))
+        if shape in ("cylinder", "capsule"):
+            o["height"] = float(rng.uniform(4, 30))
+        if k >= 8:
+            o["motion"] = {"type": "linear", "velocity": rng.normal(0, 3, 3).tolist()}
+        obstacles.append(o)
+    return parse_world(
+        {
+            "name": "t",
+            "bounds": {"min": [0, 0, 0], "max": [200, 200, 60]},
+            "agent_defaults": {"radius": 1.0, "min_altitude": 3},
+            "obstacles": obstacles,
+            "agents": [{"id": "a", "start": [10, 10, 20], "goal": [190, 190, 20]}],
+        }
+    )
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_culled_obstacle_terms_equal_brute_force(seed):
+    """Static and moving terms (culled, batched by shape) equal every point against every body."""
+    from swarmplan.geometry.shapes import ObstacleField
+    from swarmplan.motion import poses_at
+
+    rng = np.random.default_rng(seed)
+    world = _cluttered_world(rng)
+    cost = SegmentCost(
+        world, radius=1.0, speed=6.0, turn_radius=5.0, max_climb=0.8, min_altitude=3.0, t0=2.0, margin=2.0
+    )
+    P = _population(rng, 30)
+    pts, ds, s = cost.sample(P)
+    flat = pts.reshape(-1, 3)
+    d = ObstacleField(cost.static).query(flat)[0].min(axis=1).reshape(pts.shape[:2])
+    req = cost._required(s)
+    static = cost.w.clearance * (np.maximum(req - d, 0) * ds).sum(1) + cost.w.collision * (
+        (d < cost.r) * ds
+    ).sum(1)
+    assert (static > 0).sum() >= 5
+    np.testing.assert_allclose(cost.static_penalty(pts, ds, s), static, rtol=1e-12, atol=1e-9)
+    # Moving bodies at their predicted centres on the 0.2 s grid, every point against every body.
+    k = np.round((s / cost.speed) / 0.2).astype(int).reshape(-1)
+    moving = np.zeros(len(P))
+    for j, o in enumerate(cost.moving):
+        dj = np.empty(len(flat))
+        for kk in np.unique(k):
+            at = k == kk
+            dj[at] = ObstacleField([o]).query(flat[at], poses_at([o], cost.t0 + kk * 0.2)[0])[0][:, 0]
+        dj = dj.reshape(pts.shape[:2])
+        moving += cost.w.moving * (np.maximum(cost.required - dj, 0) * ds).sum(1)
+        moving += cost.w.collision * ((dj < cost.r) * ds).sum(1)
+    assert (moving > 0).sum() >= 1
+    np.testing.assert_allclose(cost.moving_penalty(pts, ds, s), moving, rtol=1e-12, atol=1e-9)
+    vd = ObstacleField(cost.static).query(P[:, 1:-1].reshape(-1, 3))[0].min(axis=1).reshape(len(P), -1)
+    cost.vertex_clearance = 3.0
+    vertex = cost.w.vertex * np.maximum(3.0 - (vd - cost.r), 0).sum(1)
+    np.testing.assert_allclose(cost.vertex_penalty(P), vertex, rtol=1e-12, atol=1e-12)

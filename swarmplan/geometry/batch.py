@@ -88,24 +88,37 @@ class ShapeBatch:
             return rel
         return np.einsum("nmk,mkl->nml", rel, self.rotation[idx])
 
-    def distance(self, points: np.ndarray, centers: np.ndarray | None = None) -> np.ndarray:
-        """Signed distances (N, M) from ``points`` (N, 3) to every obstacle (at ``centers``)."""
+    def distance(
+        self, points: np.ndarray, centers: np.ndarray | None = None, subset: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Signed distances (N, M) from ``points`` (N, 3) to every obstacle (at ``centers``, (M, 3)),
+        or (N, len(subset)) to the obstacles ``subset`` (indices, in that order)."""
         points = np.asarray(points, dtype=float).reshape(-1, 3)
         c = self.position if centers is None else np.asarray(centers, dtype=float)
-        d = np.empty((len(points), len(self.obstacles)))
+        cols = np.arange(len(self.obstacles)) if subset is None else np.asarray(subset, dtype=int)
+        d = np.empty((len(points), len(cols)))
         for shape, idx in self.groups.items():
-            local = self._local(points, idx, c)
-            prm = self.params[shape]
+            pos = np.flatnonzero(np.isin(cols, idx)) if subset is not None else idx
+            if not len(pos):
+                continue
+            sel = cols[pos]
+            local = self._local(points, sel, c)
+            prm = (
+                self.params[shape]
+                if subset is None
+                else tuple(a[np.searchsorted(idx, sel)] for a in self.params[shape])
+            )
             if shape == "sphere":
-                d[:, idx] = _dist_sphere(local, prm[0])
+                d[:, pos] = _dist_sphere(local, prm[0])
             elif shape == "box":
-                d[:, idx] = _dist_box(local, prm[0])
+                d[:, pos] = _dist_box(local, prm[0])
             elif shape == "cylinder":
-                d[:, idx] = _dist_cylinder(local, *prm)
+                d[:, pos] = _dist_cylinder(local, *prm)
             else:
-                d[:, idx] = _dist_capsule(local, *prm)
+                d[:, pos] = _dist_capsule(local, *prm)
         for j in self.meshes:
-            d[:, j] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])[0]
+            for col in np.flatnonzero(cols == j):
+                d[:, col] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])[0]
         return d
 
     def query(self, points: np.ndarray, centers: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
