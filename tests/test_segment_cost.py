@@ -168,7 +168,7 @@ def test_culled_obstacle_terms_equal_brute_force(seed):
     # Moving bodies at their predicted centres on the 0.2 s grid, every point against every body.
     k = np.round((s / cost.speed) / 0.2).astype(int).reshape(-1)
     moving = np.zeros(len(P))
-    for j, o in enumerate(cost.moving):
+    for o in cost.moving:
         dj = np.empty(len(flat))
         for kk in np.unique(k):
             at = k == kk

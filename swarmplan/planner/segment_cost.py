@@ -262,32 +262,46 @@ class SegmentCost:
     def _required(self, s: np.ndarray) -> np.ndarray:
         return np.minimum(self.required, self.start_clearance + self.r + s)
 
+    def _blocks(self, pts: np.ndarray, legs: tuple | None) -> tuple[np.ndarray, np.ndarray, int]:
+        """Boxes (n, B, 3) of blocks of consecutive samples: each leg's (``legs``, from the
+        polylines' vertices) or each candidate's; and the samples per block."""
+        if legs is None:
+            lo, hi = pts.min(axis=1)[:, None], pts.max(axis=1)[:, None]
+        else:
+            lo, hi = legs
+        return lo, hi, pts.shape[1] // lo.shape[1]
+
+    @staticmethod
+    def _block_gap(lo: np.ndarray, hi: np.ndarray, blo: np.ndarray, bhi: np.ndarray) -> np.ndarray:
+        """Distance (n, B, M) from each block box to each body box ``blo``..``bhi`` (M, 3)."""
+        g = np.maximum(np.maximum(blo - hi[:, :, None, :], lo[:, :, None, :] - bhi), 0.0)
+        return np.sqrt(np.einsum("nbmk,nbmk->nbm", g, g))
+
     def static_penalty(
-        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, box: tuple | None = None
+        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, legs: tuple | None = None
     ) -> np.ndarray:
+        """Clearance and collision along the samples. Only blocks of samples (legs) that come
+        within ``required`` of a body's bounding sphere are measured, against those bodies:
+        every other sample has a distance >= required, where both terms are exactly zero."""
         n, S, _ = pts.shape
-        # Bodies whose bounding sphere stays ``required`` away from the points' box add nothing.
-        near = np.flatnonzero(
-            _box_gap(pts, self._static_center, box=box) - self._static_bound < self.required
-        )
-        if not len(near):
+        if not self.static:
             return np.zeros(n)
-        flat = pts.reshape(-1, 3)
-        # Only the points some near body's bounding sphere lets come within ``required`` of it:
-        # for the others any distance >= required gives the same cost as the true one.
-        rel = flat[:, None, :] - self._static_center[near][None]
-        reach = self.required + self._static_bound[near]
-        inside = np.einsum("ijk,ijk->ij", rel, rel) < reach * reach
-        m = np.flatnonzero(inside.any(axis=1))
-        d = np.full(len(flat), np.inf)
-        if len(m):
-            dj = self.batch.distance(flat[m], subset=near)
-            d[m] = np.where(inside[m], dj, np.inf).min(axis=1)
-        d = d.reshape(n, S)
-        req = self._required(s)
-        return self.w.clearance * (np.maximum(req - d, 0) * ds).sum(axis=1) + self.w.collision * (
-            (d < self.r) * ds
+        lo, hi, per = self._blocks(pts, legs)
+        B = lo.shape[1]
+        gap = self._block_gap(lo, hi, self._static_center, self._static_center) - self._static_bound
+        near = (gap < self.required).reshape(n * B, -1)
+        blocks = np.flatnonzero(near.any(axis=1))
+        if not len(blocks):
+            return np.zeros(n)
+        bodies = np.flatnonzero(near[blocks].any(axis=0))
+        q = pts.reshape(n * B, per, 3)[blocks].reshape(-1, 3)
+        d = self.batch.distance(q, subset=bodies).min(axis=1).reshape(len(blocks), per)
+        req = self._required(s.reshape(n * B, per)[blocks])
+        dsb = ds.reshape(n * B, per)[blocks]
+        f = self.w.clearance * (np.maximum(req - d, 0) * dsb).sum(axis=1) + self.w.collision * (
+            (d < self.r) * dsb
         ).sum(axis=1)
+        return np.bincount(blocks // B, weights=f, minlength=n)
 
     def vertex_penalty(self, P: np.ndarray) -> np.ndarray:
         """Free waypoints closer to a static surface than ``vertex_clearance`` (hard to reach)."""
@@ -334,7 +348,7 @@ class SegmentCost:
         return self._pose_grid[: kmax + 1]
 
     def moving_penalty(
-        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, box: tuple | None = None
+        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, legs: tuple | None = None
     ) -> np.ndarray:
         n, S, _ = pts.shape
         if not self.moving:
@@ -345,24 +359,23 @@ class SegmentCost:
         centers = self._centers(int(k.max()))  # (T, Mm, 3)
         cost = np.zeros(n)
         # A body whose centre track stays farther than its bounding radius + ``required`` from
-        # the points' box adds nothing.
-        track_gap = _box_gap(pts, centers.min(axis=0), centers.max(axis=0), box=box)
-        near = np.flatnonzero(track_gap - self._moving_bound < self.required)
-        if not len(near):
-            return cost
-        flat = pts.reshape(-1, 3)
-        kf = k.reshape(-1)
-        for j in near:
-            rel = flat - centers[kf, j]
-            reach = self.required + self._moving_bound[j]
-            m = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) < reach * reach)
-            if not len(m):
-                continue
-            d = np.full(len(flat), np.inf)  # beyond reach: as good as the true distance here
-            d[m] = self._moving_batch.distance(rel[m] + self.moving[j].position, subset=np.array([j]))[:, 0]
-            d = d.reshape(n, S)
-            cost = cost + self.w.moving * (np.maximum(self.required - d, 0) * ds).sum(1)
-            cost = cost + self.w.collision * ((d < self.r) * ds).sum(1)
+        # a block of samples adds nothing there.
+        lo, hi, per = self._blocks(pts, legs)
+        B = lo.shape[1]
+        gap = self._block_gap(lo, hi, centers.min(axis=0), centers.max(axis=0)) - self._moving_bound
+        near = (gap < self.required).reshape(n * B, -1)
+        for j in np.flatnonzero(near.any(axis=0)):
+            blocks = np.flatnonzero(near[:, j])
+            q = pts.reshape(n * B, per, 3)[blocks].reshape(-1, 3)
+            kb = k.reshape(n * B, per)[blocks].reshape(-1)
+            rel = q - centers[kb, j]
+            d = self._moving_batch.distance(rel + self.moving[j].position, subset=np.array([j]))[:, 0]
+            d = d.reshape(len(blocks), per)
+            dsb = ds.reshape(n * B, per)[blocks]
+            f = self.w.moving * (np.maximum(self.required - d, 0) * dsb).sum(1) + self.w.collision * (
+                (d < self.r) * dsb
+            ).sum(1)
+            cost = cost + np.bincount(blocks // B, weights=f, minlength=n)
         return cost
 
     def agent_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -406,17 +419,19 @@ class SegmentCost:
     def terms(self, P: np.ndarray) -> dict[str, np.ndarray]:
         P = np.asarray(P, dtype=float)
         pts, ds, s = self.sample(P)
-        # Every sample lies on a leg, so inside the box of the polylines' vertices: a box that
-        # contains the samples is all the culling needs (and is 100x cheaper than the samples').
+        # Every sample lies on a leg, so inside the box of the leg's end points: boxes that
+        # contain the samples are all the culling needs (and 100x cheaper than the samples').
+        a, b = P[:, :-1], P[:, 1:]
+        legs = (np.minimum(a, b), np.maximum(a, b))
         box = _points_box(P)
         return {
             "length": self.length(P),
             "turning": self.turning(P),
-            "static": self.static_penalty(pts, ds, s, box),
+            "static": self.static_penalty(pts, ds, s, legs),
             "vertices": self.vertex_penalty(P),
             "floor_bounds": self.floor_bounds_penalty(pts, ds, box),
             "threats": self.threat_penalty(pts, ds),
-            "moving": self.moving_penalty(pts, ds, s, box),
+            "moving": self.moving_penalty(pts, ds, s, legs),
             "agents": self.agent_penalty(pts, ds, s),
         }
 
