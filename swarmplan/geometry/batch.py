@@ -38,7 +38,8 @@ def _dist_box(p: np.ndarray, half: np.ndarray) -> np.ndarray:
 
 
 def _dist_cylinder(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) -> np.ndarray:
-    dr = np.linalg.norm(p[..., :2], axis=-1) - radius
+    x, y = p[..., 0], p[..., 1]
+    dr = np.sqrt(x * x + y * y) - radius
     dz = np.abs(p[..., 2]) - half_height
     return np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0)) + np.minimum(np.maximum(dr, dz), 0.0)
 
@@ -59,6 +60,10 @@ class ShapeBatch:
             idx = np.array([j for j, o in enumerate(self.obstacles) if o.shape == shape], dtype=int)
             if len(idx):
                 self.groups[shape] = idx
+        # Shape code of each obstacle (index into _SHAPES, -1 for meshes) for subset queries.
+        self.code = np.array(
+            [_SHAPES.index(o.shape) if o.shape in _SHAPES else -1 for o in self.obstacles], dtype=int
+        )
         self.meshes = [j for j, o in enumerate(self.obstacles) if o.shape not in _SHAPES]
         self.mesh_grids = {j: mesh_grid(self.obstacles[j]) for j in self.meshes}
         self.position = np.array([o.position for o in self.obstacles], dtype=float).reshape(-1, 3)
@@ -98,7 +103,7 @@ class ShapeBatch:
         cols = np.arange(len(self.obstacles)) if subset is None else np.asarray(subset, dtype=int)
         d = np.empty((len(points), len(cols)))
         for shape, idx in self.groups.items():
-            pos = np.flatnonzero(np.isin(cols, idx)) if subset is not None else idx
+            pos = np.flatnonzero(self.code[cols] == _SHAPES.index(shape)) if subset is not None else idx
             if not len(pos):
                 continue
             sel = cols[pos]

@@ -229,7 +229,7 @@ class SegmentCost:
         per_leg = int(np.clip(np.ceil(lens.max() / self.spacing), 4, max(4, self.max_samples // (m - 1))))
         u = (np.arange(per_leg) + 0.5) / per_leg  # midpoints: weights sum to each leg's length
         pts = P[:, :-1, None, :] + u[None, None, :, None] * legs[:, :, None, :]
-        ds = np.repeat(lens[:, :, None] / per_leg, per_leg, axis=2)
+        ds = np.broadcast_to(lens[:, :, None] / per_leg, (n, m - 1, per_leg))
         cum = np.concatenate([np.zeros((n, 1)), np.cumsum(lens, axis=1)[:, :-1]], axis=1)
         s = cum[:, :, None] + u[None, None, :] * lens[:, :, None]
         return pts.reshape(n, -1, 3), ds.reshape(n, -1), s.reshape(n, -1)
