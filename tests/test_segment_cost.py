@@ -55,6 +55,8 @@ def test_culled_agent_term_equals_brute_force_on_random_populations(seed):
     pts, ds, s = cost.sample(P)
     fast = cost.agent_penalty(pts, ds, s)
     ref = cost.agent_penalty_reference(pts, ds, s)
+    per_leg = cost.agent_penalty(pts, ds, s, pts.shape[1] // (P.shape[1] - 1))
+    np.testing.assert_allclose(per_leg, ref, rtol=1e-12, atol=1e-9)
     # Random crowds: most candidates meet somebody, some not (both branches are exercised).
     assert (ref > 0).sum() >= 10
     np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=1e-9)

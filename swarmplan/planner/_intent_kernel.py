@@ -52,13 +52,14 @@ def _interp1(times, points, nk, tt, a):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True)
-def agent_cost(pts, ds, t, times, points, nk, scale, contact, reach, w_agents, w_collision):  # noqa: ANN001, ANN201
+def agent_cost(pts, ds, t, times, points, nk, scale, contact, reach, w_agents, w_collision, per):  # noqa: ANN001, ANN201
     """Other-agents penalty of each candidate → (n,).
 
     pts (n, S, 3) samples, ds (n, S) their path-length weights, t (n, S) their times
-    (non-decreasing along S); per intent j: knots ``times[j, :nk[j]]`` / ``points[j, :nk[j]]``,
-    ellipsoid ``scale[j]`` (3,), contact distance ``contact[j]`` and ``reach[j]`` (beyond which
-    both terms are zero). Per sample and intent: ``w_agents * max(1.2 - |(p - q) / scale|, 0) * ds
+    (non-decreasing along S), in blocks of ``per`` consecutive samples (a leg each); per
+    intent j: knots ``times[j, :nk[j]]`` / ``points[j, :nk[j]]``, ellipsoid ``scale[j]`` (3,),
+    contact distance ``contact[j]`` and ``reach[j]`` (beyond which both terms are zero).
+    Per sample and intent: ``w_agents * max(1.2 - |(p - q) / scale|, 0) * ds
     + w_collision * (|p - q| < contact) * ds`` with q the intent's position at the sample's time.
     """
     n, S, _ = pts.shape
@@ -69,56 +70,58 @@ def agent_cost(pts, ds, t, times, points, nk, scale, contact, reach, w_agents, w
     ilo = np.empty(3)
     ihi = np.empty(3)
     for c in range(n):
-        for a in range(3):
-            clo[a] = np.inf
-            chi[a] = -np.inf
-        for s in range(S):
-            for a in range(3):
-                clo[a] = min(clo[a], pts[c, s, a])
-                chi[a] = max(chi[a], pts[c, s, a])
-        tlo = t[c, 0]
-        thi = t[c, S - 1]
         acc = 0.0
-        for j in range(M):
-            m = nk[j]
-            # Space-time cull: the candidate's box against the intent's box over the
-            # candidate's time window; out of reach, every sample adds exactly zero.
-            _interp_box(times[j], points[j], m, tlo, thi, ilo, ihi)
-            g2 = 0.0
+        for b0 in range(0, S, per):
+            b1 = min(b0 + per, S)
             for a in range(3):
-                g = max(ilo[a] - chi[a], clo[a] - ihi[a], 0.0)
-                g2 += g * g
-            if g2 >= reach[j] * reach[j]:
-                continue
-            k = 0
-            sub = 0.0
-            for s in range(S):
-                tt = t[c, s]
-                if m == 1 or tt <= times[j, 0]:
-                    qx, qy, qz = points[j, 0, 0], points[j, 0, 1], points[j, 0, 2]
-                elif tt >= times[j, m - 1]:
-                    qx, qy, qz = points[j, m - 1, 0], points[j, m - 1, 1], points[j, m - 1, 2]
-                else:
-                    if tt < times[j, k]:
-                        k = 0
-                    while times[j, k + 1] <= tt:
-                        k += 1
-                    h = tt - times[j, k]
-                    dt = times[j, k + 1] - times[j, k]
-                    qx = (points[j, k + 1, 0] - points[j, k, 0]) / dt * h + points[j, k, 0]
-                    qy = (points[j, k + 1, 1] - points[j, k, 1]) / dt * h + points[j, k, 1]
-                    qz = (points[j, k + 1, 2] - points[j, k, 2]) / dt * h + points[j, k, 2]
-                dx = pts[c, s, 0] - qx
-                dy = pts[c, s, 1] - qy
-                dz = pts[c, s, 2] - qz
-                ex = dx / scale[j, 0]
-                ey = dy / scale[j, 1]
-                ez = dz / scale[j, 2]
-                e = np.sqrt(ex * ex + ey * ey + ez * ez)
-                if e < 1.2:
-                    sub += w_agents * (1.2 - e) * ds[c, s]
-                if np.sqrt(dx * dx + dy * dy + dz * dz) < contact[j]:
-                    sub += w_collision * ds[c, s]
-            acc += sub
+                clo[a] = np.inf
+                chi[a] = -np.inf
+            for s in range(b0, b1):
+                for a in range(3):
+                    clo[a] = min(clo[a], pts[c, s, a])
+                    chi[a] = max(chi[a], pts[c, s, a])
+            tlo = t[c, b0]
+            thi = t[c, b1 - 1]
+            for j in range(M):
+                m = nk[j]
+                # Space-time cull: the block's box against the intent's box over the block's
+                # time window; out of reach, every sample adds exactly zero.
+                _interp_box(times[j], points[j], m, tlo, thi, ilo, ihi)
+                g2 = 0.0
+                for a in range(3):
+                    g = max(ilo[a] - chi[a], clo[a] - ihi[a], 0.0)
+                    g2 += g * g
+                if g2 >= reach[j] * reach[j]:
+                    continue
+                k = 0
+                sub = 0.0
+                for s in range(b0, b1):
+                    tt = t[c, s]
+                    if m == 1 or tt <= times[j, 0]:
+                        qx, qy, qz = points[j, 0, 0], points[j, 0, 1], points[j, 0, 2]
+                    elif tt >= times[j, m - 1]:
+                        qx, qy, qz = points[j, m - 1, 0], points[j, m - 1, 1], points[j, m - 1, 2]
+                    else:
+                        if tt < times[j, k]:
+                            k = 0
+                        while times[j, k + 1] <= tt:
+                            k += 1
+                        h = tt - times[j, k]
+                        dt = times[j, k + 1] - times[j, k]
+                        qx = (points[j, k + 1, 0] - points[j, k, 0]) / dt * h + points[j, k, 0]
+                        qy = (points[j, k + 1, 1] - points[j, k, 1]) / dt * h + points[j, k, 1]
+                        qz = (points[j, k + 1, 2] - points[j, k, 2]) / dt * h + points[j, k, 2]
+                    dx = pts[c, s, 0] - qx
+                    dy = pts[c, s, 1] - qy
+                    dz = pts[c, s, 2] - qz
+                    ex = dx / scale[j, 0]
+                    ey = dy / scale[j, 1]
+                    ez = dz / scale[j, 2]
+                    e = np.sqrt(ex * ex + ey * ey + ez * ez)
+                    if e < 1.2:
+                        sub += w_agents * (1.2 - e) * ds[c, s]
+                    if np.sqrt(dx * dx + dy * dy + dz * dz) < contact[j]:
+                        sub += w_collision * ds[c, s]
+                acc += sub
         out[c] = acc
     return out

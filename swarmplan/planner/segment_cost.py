@@ -378,9 +378,12 @@ class SegmentCost:
             cost = cost + np.bincount(blocks // B, weights=f, minlength=n)
         return cost
 
-    def agent_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """Other agents near their intended positions (compiled kernel, see ``_intent_kernel``);
-        equal to :meth:`agent_penalty_reference` up to the summation order."""
+    def agent_penalty(
+        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, per: int | None = None
+    ) -> np.ndarray:
+        """Other agents near their intended positions (compiled kernel, see ``_intent_kernel``),
+        culled per block of ``per`` samples (a leg; default the whole candidate); equal to
+        :meth:`agent_penalty_reference` up to the summation order."""
         if not self.intents:
             return np.zeros(len(pts))
         from swarmplan.planner._intent_kernel import agent_cost
@@ -399,6 +402,7 @@ class SegmentCost:
             k["reach"],
             float(self.w.agents),
             float(self.w.collision),
+            int(pts.shape[1] if per is None else per),
         )
 
     def agent_penalty_reference(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -432,7 +436,7 @@ class SegmentCost:
             "floor_bounds": self.floor_bounds_penalty(pts, ds, box),
             "threats": self.threat_penalty(pts, ds),
             "moving": self.moving_penalty(pts, ds, s, legs),
-            "agents": self.agent_penalty(pts, ds, s),
+            "agents": self.agent_penalty(pts, ds, s, pts.shape[1] // (P.shape[1] - 1)),
         }
 
     def __call__(self, P: np.ndarray) -> np.ndarray:
