@@ -86,3 +86,27 @@ def test_distance_to_a_subset_keeps_its_order():
     full = batch.distance(pts)
     for subset in ([4, 0], [2], [3, 1, 4]):
         np.testing.assert_array_equal(batch.distance(pts, subset=np.array(subset)), full[:, subset])
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_pair_distance_equals_the_matrix_entries(seed):
+    rng = np.random.default_rng(seed)
+    raw = []
+    for k in range(10):
+        shape = ("sphere", "box", "cylinder", "capsule")[k % 4]
+        o = {"id": f"o{k}", "shape": shape, "position": rng.uniform(-20, 20, 3).tolist()}
+        if shape == "box":
+            o["size"] = rng.uniform(1, 8, 3).tolist()
+            o["rotation"] = rng.uniform(-90, 90, 3).tolist()
+        else:
+            o["radius"] = float(rng.uniform(0.5, 4))
+        if shape in ("cylinder", "capsule"):
+            o["height"] = float(rng.uniform(1, 10))
+        raw.append(o)
+    batch = ShapeBatch(_obstacles(raw))
+    pts = rng.uniform(-30, 30, (300, 3))
+    bodies = rng.integers(0, len(raw), 300)
+    full = batch.distance(pts)
+    np.testing.assert_allclose(
+        batch.pair_distance(pts, bodies), full[np.arange(300), bodies], rtol=0, atol=1e-12
+    )

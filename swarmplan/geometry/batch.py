@@ -126,6 +126,37 @@ class ShapeBatch:
                 d[:, col] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])[0]
         return d
 
+    def pair_distance(
+        self, points: np.ndarray, bodies: np.ndarray, centers: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Signed distance (K,) from ``points[k]`` (K, 3) to obstacle ``bodies[k]``: work in
+        proportion to the pairs asked for, not points x obstacles."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        bodies = np.asarray(bodies, dtype=int)
+        c = self.position if centers is None else np.asarray(centers, dtype=float)
+        d = np.empty(len(points))
+        for shape, idx in self.groups.items():
+            sel = np.flatnonzero(self.code[bodies] == _SHAPES.index(shape))
+            if not len(sel):
+                continue
+            b = bodies[sel]
+            rel = points[sel] - c[b]
+            local = rel if self.identity[b].all() else np.einsum("nk,nkl->nl", rel, self.rotation[b])
+            prm = tuple(v[np.searchsorted(idx, b)] for v in self.params[shape])
+            if shape == "sphere":
+                d[sel] = _dist_sphere(local, prm[0])
+            elif shape == "box":
+                d[sel] = _dist_box(local, prm[0])
+            elif shape == "cylinder":
+                d[sel] = _dist_cylinder(local, *prm)
+            else:
+                d[sel] = _dist_capsule(local, *prm)
+        for j in self.meshes:
+            sel = np.flatnonzero(bodies == j)
+            if len(sel):
+                d[sel] = distance_and_gradient(self.obstacles[j], points[sel], c[j], self.mesh_grids[j])[0]
+        return d
+
     def query(self, points: np.ndarray, centers: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Distances (N, M) and world-frame gradients (N, M, 3), as ``ObstacleField.query``."""
         points = np.asarray(points, dtype=float).reshape(-1, 3)

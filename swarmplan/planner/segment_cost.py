@@ -295,7 +295,17 @@ class SegmentCost:
             return np.zeros(n)
         bodies = np.flatnonzero(near[blocks].any(axis=0))
         q = pts.reshape(n * B, per, 3)[blocks].reshape(-1, 3)
-        d = self.batch.distance(q, subset=bodies).min(axis=1).reshape(len(blocks), per)
+        # Then per point: only the bodies whose bounding sphere it comes within ``required`` of
+        # (the others are farther than that), as (point, body) pairs.
+        rel = q[:, None, :] - self._static_center[bodies][None]
+        reach = self.required + self._static_bound[bodies]
+        pi, bj = np.nonzero(np.einsum("ijk,ijk->ij", rel, rel) < reach * reach)
+        d = np.full(len(q), np.inf)
+        if len(pi):
+            dp = self.batch.pair_distance(q[pi], bodies[bj])
+            starts = np.flatnonzero(np.r_[True, pi[1:] != pi[:-1]])  # pi is sorted (row-major)
+            d[pi[starts]] = np.minimum.reduceat(dp, starts)
+        d = d.reshape(len(blocks), per)
         req = self._required(s.reshape(n * B, per)[blocks])
         dsb = ds.reshape(n * B, per)[blocks]
         f = self.w.clearance * (np.maximum(req - d, 0) * dsb).sum(axis=1) + self.w.collision * (
