@@ -83,6 +83,16 @@ class ShapeBatch:
                     np.array([o.height for o in obs]) / 2,
                 )
 
+        # The same parameters indexed by obstacle (pair queries gather them directly).
+        self.by_obstacle: dict[str, tuple[np.ndarray, ...]] = {}
+        for shape, idx in self.groups.items():
+            cols = []
+            for v in self.params[shape]:
+                full = np.zeros((len(self.obstacles),) + v.shape[1:])
+                full[idx] = v
+                cols.append(full)
+            self.by_obstacle[shape] = tuple(cols)
+
     def __len__(self) -> int:
         return len(self.obstacles)
 
@@ -135,14 +145,14 @@ class ShapeBatch:
         bodies = np.asarray(bodies, dtype=int)
         c = self.position if centers is None else np.asarray(centers, dtype=float)
         d = np.empty(len(points))
-        for shape, idx in self.groups.items():
+        for shape in self.groups:
             sel = np.flatnonzero(self.code[bodies] == _SHAPES.index(shape))
             if not len(sel):
                 continue
             b = bodies[sel]
             rel = points[sel] - c[b]
             local = rel if self.identity[b].all() else np.einsum("nk,nkl->nl", rel, self.rotation[b])
-            prm = tuple(v[np.searchsorted(idx, b)] for v in self.params[shape])
+            prm = tuple(v[b] for v in self.by_obstacle[shape])
             if shape == "sphere":
                 d[sel] = _dist_sphere(local, prm[0])
             elif shape == "box":

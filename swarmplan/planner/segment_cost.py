@@ -299,12 +299,20 @@ class SegmentCost:
         # (the others are farther than that), as (point, body) pairs.
         rel = q[:, None, :] - self._static_center[bodies][None]
         reach = self.required + self._static_bound[bodies]
-        pi, bj = np.nonzero(np.einsum("ijk,ijk->ij", rel, rel) < reach * reach)
+        inside = np.einsum("ijk,ijk->ij", rel, rel) < reach * reach
+        rows = np.flatnonzero(inside.any(axis=1))
         d = np.full(len(q), np.inf)
-        if len(pi):
+        n_pairs = int(np.count_nonzero(inside))
+        if n_pairs and 3 * n_pairs < len(rows) * len(bodies):
+            # Sparse: each point near few of many bodies (long legs among scattered bodies).
+            pi, bj = np.nonzero(inside)
             dp = self.batch.pair_distance(q[pi], bodies[bj])
             starts = np.flatnonzero(np.r_[True, pi[1:] != pi[:-1]])  # pi is sorted (row-major)
             d[pi[starts]] = np.minimum.reduceat(dp, starts)
+        elif n_pairs:
+            # Dense (e.g. one hub near everything): the matrix of the near rows is cheaper.
+            dm = self.batch.distance(q[rows], subset=bodies)
+            d[rows] = np.where(inside[rows], dm, np.inf).min(axis=1)
         d = d.reshape(len(blocks), per)
         req = self._required(s.reshape(n * B, per)[blocks])
         dsb = ds.reshape(n * B, per)[blocks]
