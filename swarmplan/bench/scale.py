@@ -162,8 +162,10 @@ def main(args: argparse.Namespace) -> int:
     _row(
         "step-time exponent 16-256 (log-log fit of CPU time)",
         f"{slope:.2f} (wall: {slope_w:.2f}; CPU 16-64: {local[0]:.2f}, 64-256: {local[1]:.2f})",
-        "<= 1.2",
-        _verdict(slope, 1.2, False),
+        "<= 1.2 (fit and each local)",
+        # A fit over 16-256 hides growth at the top when small swarms are dominated by fixed
+        # costs: the verdict takes the worst of the fit and the local exponents.
+        _verdict(max(slope, *local), 1.2, False),
     )
     rtf256 = 0.1 / wall_step[-1]
     _row(
