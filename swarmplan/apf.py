@@ -255,7 +255,9 @@ def agent_reach(params: AgentParams, gains: ApfGains, vel: np.ndarray, all_vel: 
     |dp| < e0 max(scale), maximised over the pairs of agent kinds (separation, radius); the
     predicted one the same at dp + tau dv with tau <= horizon, |dv| <= max|v_i| + max|v_j|.
     """
-    kinds = np.unique(np.column_stack([params.separation, params.radius]), axis=0)
+    rows = np.column_stack([params.separation, params.radius])
+    # Usually every agent is of one kind; np.unique over rows costs more than the rest.
+    kinds = rows[:1] if (rows == rows[0]).all() else np.unique(rows, axis=0)
     sep = np.maximum(kinds[:, None, :3], kinds[None, :, :3])
     scale = sep + (kinds[:, None, 3] + kinds[None, :, 3])[..., None]
     e0 = 1.0 + gains.influence / np.maximum(np.linalg.norm(scale, axis=-1), _EPS)
