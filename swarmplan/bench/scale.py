@@ -123,10 +123,14 @@ def startup_seconds() -> tuple[float, float]:
     return float(out.stdout.strip().splitlines()[-1]), time.perf_counter() - t
 
 
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults in the help, the description's layout kept."""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.formatter_class = argparse.ArgumentDefaultsHelpFormatter
+    parser.formatter_class = _Formatter
     parser.add_argument("--quick", action="store_true", help="short runs (a smoke test of the figures)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the generated worlds and of the runs")
     parser.add_argument("--skip-overhead", action="store_true", help="leave out the optimizer overhead")
 
 

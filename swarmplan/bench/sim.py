@@ -6,6 +6,9 @@ builds a 64-agent world with 16 moving and 24 static obstacles (seeded layout), 
 for ``--sim-time`` simulated seconds (with the MCAP recorder unless ``--no-log``) and
 prints sim-s per wall-s and the mean step time. ``--worlds`` instead runs every world in
 ``worlds/`` (and its sub-folders) to its end and prints each one's wall time.
+
+:func:`swarm_world` and :func:`swap_world` (an antipodal swap through a hub, full of escapes)
+also generate the worlds of ``python -m swarmplan.bench scale``.
 """
 
 from __future__ import annotations
