@@ -10,7 +10,7 @@ to the polyline; :class:`SegmentCost` scores ``(n, K+2, 3)`` polylines in one ca
   in half of each adjacent leg, including the turn from the current heading; climb
   angles above ``max_climb_angle``;
 - clearance to static obstacles on points sampled densely along each polyline
-  (``ObstacleField``), below the ground/terrain floor and outside ``bounds``;
+  (``geometry.batch.ShapeBatch``), below the ground/terrain floor and outside ``bounds``;
 - threats (soft, inside ``r_max``);
 - moving obstacles at their *predicted* positions (``motion.poses_at``) at the time the
   agent would reach each sample at cruise speed;
@@ -28,7 +28,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan.geometry.batch import ShapeBatch
-from swarmplan.geometry.shapes import ObstacleField
 from swarmplan.motion import poses_at
 
 _EPS = 1e-9
@@ -67,16 +66,6 @@ class Weights:
 def _points_box(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     flat = pts.reshape(-1, 3)
     return flat.min(axis=0), flat.max(axis=0)
-
-
-def _box_gap(
-    pts: np.ndarray, lo: np.ndarray, hi: np.ndarray | None = None, box: tuple | None = None
-) -> np.ndarray:
-    """Distance from the bounding box of ``pts`` (..., 3) (``box`` if already known) to each box
-    ``lo``..``hi`` (M, 3) (points when ``hi`` is None): a lower bound of every point's distance to it."""
-    plo, phi = _points_box(pts) if box is None else box
-    hi = lo if hi is None else hi
-    return np.linalg.norm(np.maximum(np.maximum(lo - phi, plo - hi), 0.0), axis=-1)
 
 
 @dataclass
@@ -196,7 +185,6 @@ class SegmentCost:
         self.vertex_clearance = float(vertex_clearance)
         self.static = [o for o in world.obstacles if not o.moving]
         self.moving = [o for o in world.obstacles if o.moving]
-        self.field = ObstacleField(self.static)
         self.batch = ShapeBatch(self.static)
         self._moving_batch = ShapeBatch(self.moving)
         # Predicted centres of the moving obstacles on a 0.2 s grid, extended as candidates
