@@ -167,8 +167,14 @@ def apf_forces(
             mag = np.where(rho_b < rb0, gains.k_rep * (1.0 / np.maximum(rho_b, 0.05) - 1.0 / rb0), 0.0)
             force[:, axis] += sign * mag * gfac
 
-    force = force + _agent_repulsion(params, gains, idx, pos, vel, all_pos, all_vel)
+    agents = _agent_repulsion_indexed if len(all_pos) > _INDEX_FROM else _agent_repulsion
+    force = force + agents(params, gains, idx, pos, vel, all_pos, all_vel)
     return force
+
+
+#: From this many agents on, agent-agent repulsion goes through a k-d tree (below it the
+#: all-pairs arrays are cheaper than building the tree).
+_INDEX_FROM = 48
 
 
 def _predicted_repulsion(
@@ -243,6 +249,80 @@ def _agent_repulsion(
     )
     direction = _unit(_unit(qs * scale) + 0.5 * _right_of(vel[:, None, :] - all_vel[None, :, :]))
     return force + np.einsum("nk,nkd->nd", mag_p, direction)
+
+
+def agent_reach(params: AgentParams, gains: ApfGains, vel: np.ndarray, all_vel: np.ndarray) -> float:
+    """Distance beyond which another agent adds exactly nothing to :func:`_agent_repulsion`.
+
+    The current term needs e = |dp / scale| < e0, and e >= |dp| / max(scale), so
+    |dp| < e0 max(scale), maximised over the pairs of agent kinds (separation, radius); the
+    predicted one the same at dp + tau dv with tau <= horizon, |dv| <= max|v_i| + max|v_j|.
+    """
+    rows = np.column_stack([params.separation, params.radius])
+    # Usually every agent is of one kind; np.unique over rows costs more than the rest.
+    kinds = rows[:1] if (rows == rows[0]).all() else np.unique(rows, axis=0)
+    sep = np.maximum(kinds[:, None, :3], kinds[None, :, :3])
+    scale = sep + (kinds[:, None, 3] + kinds[None, :, 3])[..., None]
+    e0 = 1.0 + gains.influence / np.maximum(np.linalg.norm(scale, axis=-1), _EPS)
+    current = float((e0 * scale.max(axis=-1)).max())
+    vmax = float(
+        np.linalg.norm(vel, axis=1).max(initial=0.0) + np.linalg.norm(all_vel, axis=1).max(initial=0.0)
+    )
+    # A relative margin covers the rounding of the tree's distances.
+    return (current + gains.horizon * vmax) * (1.0 + 1e-9) + 1e-9
+
+
+def _agent_repulsion_indexed(
+    params: AgentParams,
+    gains: ApfGains,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    all_pos: np.ndarray,
+    all_vel: np.ndarray,
+) -> np.ndarray:
+    """:func:`_agent_repulsion` over the pairs within :func:`agent_reach` only (k-d tree):
+    the same formula per pair; every other pair adds exactly zero (tests: equal to 1e-12)."""
+    from scipy.spatial import cKDTree
+
+    n = len(pos)
+    if len(all_pos) < 2 or n == 0:
+        return np.zeros_like(pos)
+    reach = agent_reach(params, gains, vel, all_vel)
+    pairs = cKDTree(pos).sparse_distance_matrix(cKDTree(all_pos), reach, output_type="ndarray")
+    a, b = pairs["i"].astype(np.intp), pairs["j"].astype(np.intp)
+    keep = b != idx[a]
+    a, b = a[keep], b[keep]
+    order = np.lexsort((b, a))  # row by row, others in index order (as the all-pairs sum)
+    a, b = a[order], b[order]
+    ia = idx[a]
+    scale = (
+        np.maximum(params.separation[ia], params.separation[b])
+        + (params.radius[ia] + params.radius[b])[:, None]
+    )
+    q = (pos[a] - all_pos[b]) / scale
+    e = np.linalg.norm(q, axis=-1)
+    grad = _unit(q / scale)
+    e0 = 1.0 + gains.influence / np.maximum(np.linalg.norm(scale, axis=-1), _EPS)
+    mag = np.where(e < e0, gains.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    dvw = vel[a] - all_vel[b]
+    dv = dvw / scale
+    aa = np.sum(dv * dv, axis=-1)
+    tau = np.clip(-np.sum(q * dv, axis=-1) / np.maximum(aa, _EPS), 0.0, gains.horizon)
+    qs = q + tau[..., None] * dv
+    es = np.linalg.norm(qs, axis=-1)
+    urgency = 1.0 - tau / (gains.horizon + _EPS)
+    mag_p = (
+        np.where(
+            (es < e0) & (tau > 0),
+            gains.k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)),
+            0.0,
+        )
+        * urgency
+    )
+    direction = _unit(_unit(qs * scale) + 0.5 * _right_of(dvw))
+    per_pair = mag[:, None] * grad + mag_p[:, None] * direction
+    return np.stack([np.bincount(a, weights=per_pair[:, k], minlength=n) for k in range(3)], axis=1)
 
 
 def commanded_velocity(

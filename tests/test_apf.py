@@ -178,3 +178,53 @@ def test_goal_beside_an_obstacle_is_reached(tmp_path, obstacle, goal):
     problems, _notes, stats = audit(log)
     assert problems == [], problems
     assert stats["arrived"] == 1
+
+
+def _swarm(seed, n=120, size=300.0):
+    from swarmplan.bench.sim import swarm_world
+
+    raw = swarm_world(n, 0, 0, seed)
+    raw["agents"] = raw["agents"][:n]
+    world = make_world(raw)
+    rng = np.random.default_rng(seed)
+    # Clusters so that many pairs are inside separation, near the reach, and far.
+    centers = rng.uniform(0, size, (6, 3))
+    pos = centers[rng.integers(0, 6, n)] + rng.normal(0, 8.0, (n, 3))
+    vel = rng.normal(0, 5.0, (n, 3))
+    return world, pos, vel
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_indexed_agent_repulsion_equals_all_pairs(seed):
+    from swarmplan.apf import _agent_repulsion, _agent_repulsion_indexed
+
+    world, pos, vel = _swarm(seed)
+    params, gains = AgentParams.from_world(world), ApfGains.from_world(world)
+    for idx in (np.arange(len(pos)), np.arange(0, len(pos), 3)):  # all active, or some
+        ref = _agent_repulsion(params, gains, idx, pos[idx], vel[idx], pos, vel)
+        fast = _agent_repulsion_indexed(params, gains, idx, pos[idx], vel[idx], pos, vel)
+        assert (np.linalg.norm(ref, axis=1) > 0).sum() > len(idx) // 2
+        np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_agent_reach_is_not_too_short():
+    """A pair just inside the current term's reach (e slightly below e0) must be found: the
+    reach is tight there, so a tree radius cut by 1e-6 would miss it."""
+    from swarmplan.apf import _agent_repulsion, _agent_repulsion_indexed, agent_reach
+
+    world, _, _ = _swarm(0, n=2)
+    params, gains = AgentParams.from_world(world), ApfGains.from_world(world)
+    scale = params.separation[0] + 2 * params.radius[0]
+    e0 = 1.0 + gains.influence / np.linalg.norm(scale)
+    # Along the axis of the largest semi-axis, standing still: only the current term acts.
+    k = int(np.argmax(scale))
+    pos = np.zeros((2, 3))
+    pos[1, k] = (e0 - 1e-6) * scale[k]
+    vel = np.zeros((2, 3))
+    idx = np.arange(2)
+    ref = _agent_repulsion(params, gains, idx, pos, vel, pos, vel)
+    assert np.linalg.norm(ref[0]) > 0
+    assert pos[1, k] > (1 - 1e-6) * agent_reach(params, gains, vel, vel)  # at the edge of the reach
+    np.testing.assert_allclose(
+        _agent_repulsion_indexed(params, gains, idx, pos, vel, pos, vel), ref, rtol=1e-12
+    )

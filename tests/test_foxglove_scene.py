@@ -167,16 +167,23 @@ def test_scene_decodes_with_one_entity_per_agent_and_obstacle(tmp_path):
     assert len(line.points) >= 2
     assert line.points[-1].x == pytest.approx(steps[-1][1][0]["position"][0])
 
-    # one FrameTransform per agent per step, parent "world", child = agent id
+    # one FrameTransforms message per step with a FrameTransform per agent, parent "world",
+    # child = agent id, at the agent's position
     tfs = msgs["/tf"]
-    assert all(name == "foxglove.FrameTransform" for _, name, _ in tfs)
+    assert all(name == "foxglove.FrameTransforms" for _, name, _ in tfs)
+    assert len(tfs) >= len(steps)
     per_agent: dict[str, int] = {}
-    for log_time, _, tf in tfs:
-        assert tf.parent_frame_id == "world"
-        per_agent[tf.child_frame_id] = per_agent.get(tf.child_frame_id, 0) + 1
-        assert tf.timestamp.seconds * 10**9 + tf.timestamp.nanos == log_time
-    assert set(per_agent) == {a["id"] for a in world["agents"]}
+    for log_time, _, msg in tfs:
+        assert [tf.child_frame_id for tf in msg.transforms] == [a["id"] for a in world["agents"]]
+        for tf in msg.transforms:
+            assert tf.parent_frame_id == "world"
+            per_agent[tf.child_frame_id] = per_agent.get(tf.child_frame_id, 0) + 1
+            assert tf.timestamp.seconds * 10**9 + tf.timestamp.nanos == log_time
     assert all(n >= len(steps) for n in per_agent.values())
+    last_t, _, last_tf = tfs[-1]
+    assert last_t == round(steps[-1][0] * 1e9)
+    for tf, a in zip(last_tf.transforms, steps[-1][1], strict=True):
+        assert (tf.translation.x, tf.translation.y, tf.translation.z) == tuple(a["position"])
 
 
 def test_file_descriptor_set_is_self_contained():

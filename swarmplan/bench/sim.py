@@ -6,6 +6,9 @@ builds a 64-agent world with 16 moving and 24 static obstacles (seeded layout), 
 for ``--sim-time`` simulated seconds (with the MCAP recorder unless ``--no-log``) and
 prints sim-s per wall-s and the mean step time. ``--worlds`` instead runs every world in
 ``worlds/`` (and its sub-folders) to its end and prints each one's wall time.
+
+:func:`swarm_world` and :func:`swap_world` (an antipodal swap through a hub, full of escapes)
+also generate the worlds of ``python -m swarmplan.bench scale``.
 """
 
 from __future__ import annotations
@@ -81,6 +84,57 @@ def swarm_world(agents: int, movers: int, statics: int, seed: int = 0) -> dict[s
         },
         "agents": agent_list,
         "planner": {"apf": {"influence": 20.0}},
+    }
+
+
+def swap_world(agents: int = 32, movers: int = 1, seed: int = 0, max_time: float = 120.0) -> dict[str, Any]:
+    """Antipodal swap: ``agents`` on a circle fly to the opposite point through a central hub
+    (a cylinder) while ``movers`` spheres cross the circle: a crowded world full of escapes."""
+    rng = np.random.default_rng(seed)
+    ring = max(40.0, 8.0 * agents / (2 * np.pi))  # about 8 m of arc per agent
+    size = 2 * ring + 40.0
+    c = np.array([size / 2, size / 2])
+    obstacles: list[dict[str, Any]] = [
+        {"id": "hub", "shape": "cylinder", "radius": 8.0, "height": 60.0, "position": [*c, 30.0]}
+    ]
+    for k in range(movers):
+        a = rng.uniform(0, 2 * np.pi)
+        p0 = c + 0.8 * ring * np.array([np.cos(a), np.sin(a)])
+        v = 3.0 * (c - p0) / np.linalg.norm(c - p0)
+        obstacles.append(
+            {
+                "id": f"m{k}",
+                "shape": "sphere",
+                "radius": 3.0,
+                "position": [*p0, 20.0],
+                "motion": {"type": "linear", "velocity": [*v, 0.0]},
+            }
+        )
+    agent_list = []
+    for i in range(agents):
+        a = 2 * np.pi * i / agents
+        u = np.array([np.cos(a), np.sin(a)])
+        z = 20.0 + 2.0 * (i % 3)
+        agent_list.append({"id": f"a{i}", "start": [*(c + ring * u), z], "goal": [*(c - ring * u), z]})
+    return {
+        "name": f"swap-{agents}a-{movers}m",
+        "seed": seed,
+        "bounds": {"min": [0, 0, 0], "max": [size, size, 40]},
+        "sim": {"dt": 0.1, "max_time": max_time, "goal_tolerance": 2.0},
+        "obstacles": obstacles,
+        "agent_defaults": {
+            "radius": 1.0,
+            "speed": {"min": 0, "max": 10, "cruise": 7},
+            "max_accel": 4,
+            "min_altitude": 3,
+            "separation": [3, 3, 2],
+        },
+        "agents": agent_list,
+        "planner": {
+            "apf": {"k_att": 1.0, "k_rep": 50.0, "influence": 8.0, "k_agent": 20.0},
+            "stuck": {"window": 2.0, "min_progress": 0.5},
+            "optimizer": {"name": "rscdwoa", "population": 30, "iterations": 100},
+        },
     }
 
 

@@ -14,6 +14,7 @@ import sys
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "optimizers": ("swarmplan.bench.optimizers", "run a paper benchmark suite over the optimizers"),
     "overhead": ("swarmplan.bench.overhead", "measure the library's own overhead per evaluation"),
+    "scale": ("swarmplan.bench.scale", "issue 10's speed figures at swarm scale, each beside its target"),
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
 }
 

@@ -16,7 +16,8 @@ topic              schema                  content
                                            obstacles; every ``scene_period`` s of sim time
 ``/scene/paths``   ``foxglove.SceneUpdate``  flown path of each agent (line strip, decimated
                                            to ``path_max_points``); every ``path_period`` s
-``/tf``            ``foxglove.FrameTransform`` one per agent per step: parent ``world``,
+``/tf``            ``foxglove.FrameTransforms`` one message per step holding a
+                                           ``FrameTransform`` per agent: parent ``world``,
                                            child = agent id
 =================  ======================  ==============================================
 
@@ -35,6 +36,7 @@ from typing import Any
 
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
@@ -60,6 +62,7 @@ MODE_COLORS = {
 OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
 MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
+_TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
 
 
 def file_descriptor_set(message_class) -> FileDescriptorSet:
@@ -137,7 +140,9 @@ class FoxgloveScene:
             (WORLD_TOPIC, SceneUpdate),
             (SCENE_TOPIC, SceneUpdate),
             (PATHS_TOPIC, SceneUpdate),
-            (TF_TOPIC, FrameTransform),
+            # One message per step for all agents (one per agent made /tf ~95 % of the
+            # messages of a 64-agent log and ~30 % of a pure-APF step's time).
+            (TF_TOPIC, FrameTransforms),
         ):
             name = cls.DESCRIPTOR.full_name
             if name not in schema_ids:
@@ -331,6 +336,7 @@ class FoxgloveScene:
             self._last = None
 
     def _write_tf(self, t, agents):
+        parts = []
         for a in agents:
             aid = str(a["id"])
             tf = self._tfs.get(aid)
@@ -344,7 +350,9 @@ class FoxgloveScene:
             if v is not None and (v[0] or v[1]):  # yaw along the horizontal velocity
                 yaw = math.atan2(v[1], v[0]) / 2.0
                 tf.rotation.z, tf.rotation.w = math.sin(yaw), math.cos(yaw)
-            self._write(TF_TOPIC, tf.SerializeToString(), t)
+            b = tf.SerializeToString()
+            parts.append(_TRANSFORMS_TAG + _varint(len(b)) + b)
+        self._write(TF_TOPIC, b"".join(parts), t)
 
     def _write_scene(self, t, agents, obstacles):
         entities = []

@@ -10,7 +10,7 @@ to the polyline; :class:`SegmentCost` scores ``(n, K+2, 3)`` polylines in one ca
   in half of each adjacent leg, including the turn from the current heading; climb
   angles above ``max_climb_angle``;
 - clearance to static obstacles on points sampled densely along each polyline
-  (``ObstacleField``), below the ground/terrain floor and outside ``bounds``;
+  (``geometry.batch.ShapeBatch``), below the ground/terrain floor and outside ``bounds``;
 - threats (soft, inside ``r_max``);
 - moving obstacles at their *predicted* positions (``motion.poses_at``) at the time the
   agent would reach each sample at cruise speed;
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
+from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.motion import poses_at
 
 _EPS = 1e-9
@@ -39,7 +39,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle between unit vectors (exactly 0 for parallel ones, unlike arccos of a rounded dot)."""
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+    # The cross product written out: np.cross costs ~20 µs of axis juggling on these small arrays.
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), np.sum(a * b, axis=-1))
 
 
 @dataclass(frozen=True)
@@ -59,13 +63,9 @@ class Weights:
     vertex: float = 20.0  # per metre a free waypoint lacks of ``vertex_clearance``
 
 
-def _box_gap(pts: np.ndarray, lo: np.ndarray, hi: np.ndarray | None = None) -> np.ndarray:
-    """Distance from the bounding box of ``pts`` (..., 3) to each box ``lo``..``hi`` (M, 3)
-    (points when ``hi`` is None): a lower bound of every point's distance to it."""
+def _points_box(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     flat = pts.reshape(-1, 3)
-    plo, phi = flat.min(axis=0), flat.max(axis=0)
-    hi = lo if hi is None else hi
-    return np.linalg.norm(np.maximum(np.maximum(lo - phi, plo - hi), 0.0), axis=-1)
+    return flat.min(axis=0), flat.max(axis=0)
 
 
 @dataclass
@@ -185,13 +185,18 @@ class SegmentCost:
         self.vertex_clearance = float(vertex_clearance)
         self.static = [o for o in world.obstacles if not o.moving]
         self.moving = [o for o in world.obstacles if o.moving]
-        self.field = ObstacleField(self.static)
+        self.batch = ShapeBatch(self.static)
+        self._moving_batch = ShapeBatch(self.moving)
+        # Predicted centres of the moving obstacles on a 0.2 s grid, extended as candidates
+        # need (a per-escape constant: the same for every call).
+        self._pose_step = 0.2
+        self._pose_grid = np.zeros((0, len(self.moving), 3))
         # Culling data: a body can only add to the cost where it comes within reach of the
         # sampled points, so the terms skip those that cannot (the values are unchanged).
         self._static_center = np.array([o.position for o in self.static]).reshape(-1, 3)
         self._static_bound = np.array([o.bounding_radius for o in self.static])
         self._moving_bound = np.array([o.bounding_radius for o in self.moving])
-        self._intent_box = [(it.points.min(axis=0), it.points.max(axis=0)) for it in self.intents]
+        self._intents = _pack_intents(self.intents, self.r)
         self.required = self.r + self.margin
         # Near the start the agent may already be closer than required: ask only for what
         # it has plus the distance travelled (the path must not get worse, then must clear).
@@ -212,7 +217,7 @@ class SegmentCost:
         per_leg = int(np.clip(np.ceil(lens.max() / self.spacing), 4, max(4, self.max_samples // (m - 1))))
         u = (np.arange(per_leg) + 0.5) / per_leg  # midpoints: weights sum to each leg's length
         pts = P[:, :-1, None, :] + u[None, None, :, None] * legs[:, :, None, :]
-        ds = np.repeat(lens[:, :, None] / per_leg, per_leg, axis=2)
+        ds = np.broadcast_to(lens[:, :, None] / per_leg, (n, m - 1, per_leg))
         cum = np.concatenate([np.zeros((n, 1)), np.cumsum(lens, axis=1)[:, :-1]], axis=1)
         s = cum[:, :, None] + u[None, None, :] * lens[:, :, None]
         return pts.reshape(n, -1, 3), ds.reshape(n, -1), s.reshape(n, -1)
@@ -245,42 +250,86 @@ class SegmentCost:
     def _required(self, s: np.ndarray) -> np.ndarray:
         return np.minimum(self.required, self.start_clearance + self.r + s)
 
-    def static_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
+    def _blocks(self, pts: np.ndarray, legs: tuple | None) -> tuple[np.ndarray, np.ndarray, int]:
+        """Boxes (n, B, 3) of blocks of consecutive samples: each leg's (``legs``, from the
+        polylines' vertices) or each candidate's; and the samples per block."""
+        if legs is None:
+            lo, hi = pts.min(axis=1)[:, None], pts.max(axis=1)[:, None]
+        else:
+            lo, hi = legs
+        return lo, hi, pts.shape[1] // lo.shape[1]
+
+    @staticmethod
+    def _block_gap(lo: np.ndarray, hi: np.ndarray, blo: np.ndarray, bhi: np.ndarray) -> np.ndarray:
+        """Distance (n, B, M) from each block box to each body box ``blo``..``bhi`` (M, 3)."""
+        g = np.maximum(np.maximum(blo - hi[:, :, None, :], lo[:, :, None, :] - bhi), 0.0)
+        return np.sqrt(np.einsum("nbmk,nbmk->nbm", g, g))
+
+    def static_penalty(
+        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, legs: tuple | None = None
+    ) -> np.ndarray:
+        """Clearance and collision along the samples. Only blocks of samples (legs) that come
+        within ``required`` of a body's bounding sphere are measured, against those bodies:
+        every other sample has a distance >= required, where both terms are exactly zero."""
         n, S, _ = pts.shape
-        # Bodies whose bounding sphere stays ``required`` away from the points' box add nothing.
-        near = np.flatnonzero(_box_gap(pts, self._static_center) - self._static_bound < self.required)
-        if not len(near):
+        if not self.static:
             return np.zeros(n)
-        flat = pts.reshape(-1, 3)
-        d = np.full(len(flat), np.inf)
-        for j in near:
-            # Only the points its bounding sphere lets come within ``required`` of it: for the
-            # others any distance >= required gives the same cost as the true one.
-            rel = flat - self._static_center[j]
-            reach = self.required + self._static_bound[j]
-            m = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) < reach * reach)
-            if len(m):
-                dj = distance_and_gradient(self.static[j], flat[m], None, self.field.mesh_grids.get(j))[0]
-                d[m] = np.minimum(d[m], dj)
-        d = d.reshape(n, S)
-        req = self._required(s)
-        return self.w.clearance * (np.maximum(req - d, 0) * ds).sum(axis=1) + self.w.collision * (
-            (d < self.r) * ds
+        lo, hi, per = self._blocks(pts, legs)
+        B = lo.shape[1]
+        gap = self._block_gap(lo, hi, self._static_center, self._static_center) - self._static_bound
+        near = (gap < self.required).reshape(n * B, -1)
+        blocks = np.flatnonzero(near.any(axis=1))
+        if not len(blocks):
+            return np.zeros(n)
+        bodies = np.flatnonzero(near[blocks].any(axis=0))
+        q = pts.reshape(n * B, per, 3)[blocks].reshape(-1, 3)
+        # Then per point: only the bodies whose bounding sphere it comes within ``required`` of
+        # (the others are farther than that), as (point, body) pairs.
+        rel = q[:, None, :] - self._static_center[bodies][None]
+        reach = self.required + self._static_bound[bodies]
+        inside = np.einsum("ijk,ijk->ij", rel, rel) < reach * reach
+        rows = np.flatnonzero(inside.any(axis=1))
+        d = np.full(len(q), np.inf)
+        n_pairs = int(np.count_nonzero(inside))
+        if n_pairs and 3 * n_pairs < len(rows) * len(bodies):
+            # Sparse: each point near few of many bodies (long legs among scattered bodies).
+            pi, bj = np.nonzero(inside)
+            dp = self.batch.pair_distance(q[pi], bodies[bj])
+            starts = np.flatnonzero(np.r_[True, pi[1:] != pi[:-1]])  # pi is sorted (row-major)
+            d[pi[starts]] = np.minimum.reduceat(dp, starts)
+        elif n_pairs:
+            # Dense (e.g. one hub near everything): the matrix of the near rows is cheaper.
+            dm = self.batch.distance(q[rows], subset=bodies)
+            d[rows] = np.where(inside[rows], dm, np.inf).min(axis=1)
+        d = d.reshape(len(blocks), per)
+        req = self._required(s.reshape(n * B, per)[blocks])
+        dsb = ds.reshape(n * B, per)[blocks]
+        f = self.w.clearance * (np.maximum(req - d, 0) * dsb).sum(axis=1) + self.w.collision * (
+            (d < self.r) * dsb
         ).sum(axis=1)
+        return np.bincount(blocks // B, weights=f, minlength=n)
 
     def vertex_penalty(self, P: np.ndarray) -> np.ndarray:
         """Free waypoints closer to a static surface than ``vertex_clearance`` (hard to reach)."""
         n, m, _ = P.shape
         if not self.static or self.vertex_clearance <= 0 or m <= 2:
             return np.zeros(n)
-        d, _ = self.field.query(P[:, 1:-1].reshape(-1, 3))
+        d = self.batch.distance(P[:, 1:-1].reshape(-1, 3))
         c = d.min(axis=1).reshape(n, m - 2) - self.r
         return self.w.vertex * np.maximum(self.vertex_clearance - c, 0).sum(axis=1)
 
-    def floor_bounds_penalty(self, pts: np.ndarray, ds: np.ndarray) -> np.ndarray:
+    def floor_bounds_penalty(self, pts: np.ndarray, ds: np.ndarray, box: tuple | None = None) -> np.ndarray:
         w = self.world
-        h = w.terrain_height(pts[..., :2])
         floor = max(self.min_alt, w.terrain_clearance if w.peaks else 0.0)
+        lo, hi = _points_box(pts) if box is None else box
+        if (
+            not w.peaks
+            and lo[2] >= floor
+            and np.all(lo >= w.bounds_min + self.r)
+            and np.all(hi <= w.bounds_max - self.r)
+        ):
+            return np.zeros(len(pts))  # every point above the floor and inside: both terms are 0
+        h = w.terrain_height(pts[..., :2])
         below = np.maximum(h + floor - pts[..., 2], 0)
         out = np.maximum(w.bounds_min + self.r - pts, 0).sum(-1) + np.maximum(
             pts - w.bounds_max + self.r, 0
@@ -295,50 +344,79 @@ class SegmentCost:
             cost = cost + self.w.threat * th.weight * (depth * ds).sum(1)
         return cost
 
-    def moving_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
+    def _centers(self, kmax: int) -> np.ndarray:
+        """Predicted centres (kmax + 1, Mm, 3) of the moving obstacles at t0 + k * 0.2 s."""
+        have = len(self._pose_grid)
+        if have <= kmax:
+            grid = np.arange(have, kmax + 1) * self._pose_step + self.t0
+            more = np.stack([poses_at(self.moving, tt)[0] for tt in grid]).reshape(-1, len(self.moving), 3)
+            self._pose_grid = np.concatenate([self._pose_grid, more])
+        return self._pose_grid[: kmax + 1]
+
+    def moving_penalty(
+        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, legs: tuple | None = None
+    ) -> np.ndarray:
         n, S, _ = pts.shape
         if not self.moving:
             return np.zeros(n)
         t = self.t0 + s / self.speed
         # Predicted poses on a 0.2 s grid (translations only, so shifting the points is exact).
-        step = 0.2
-        k = np.round((t - self.t0) / step).astype(int)
-        grid = np.arange(k.max() + 1) * step + self.t0
-        centers = np.stack([poses_at(self.moving, tt)[0] for tt in grid])  # (T, Mm, 3)
+        k = np.round((t - self.t0) / self._pose_step).astype(int)
+        centers = self._centers(int(k.max()))  # (T, Mm, 3)
         cost = np.zeros(n)
-        flat = pts.reshape(-1, 3)
-        kf = k.reshape(-1)
         # A body whose centre track stays farther than its bounding radius + ``required`` from
-        # the points' box adds nothing.
-        track_gap = _box_gap(pts, centers.min(axis=0), centers.max(axis=0))
-        for j, o in enumerate(self.moving):
-            if track_gap[j] - self._moving_bound[j] >= self.required:
-                continue
-            rel = flat - centers[kf, j]
-            reach = self.required + self._moving_bound[j]
-            m = np.flatnonzero(np.einsum("ij,ij->i", rel, rel) < reach * reach)
-            if not len(m):
-                continue
-            d = np.full(len(flat), np.inf)  # beyond reach: as good as the true distance here
-            d[m] = distance_and_gradient(o, rel[m] + o.position)[0]
-            d = d.reshape(n, S)
-            cost = cost + self.w.moving * (np.maximum(self.required - d, 0) * ds).sum(1)
-            cost = cost + self.w.collision * ((d < self.r) * ds).sum(1)
+        # a block of samples adds nothing there.
+        lo, hi, per = self._blocks(pts, legs)
+        B = lo.shape[1]
+        gap = self._block_gap(lo, hi, centers.min(axis=0), centers.max(axis=0)) - self._moving_bound
+        near = (gap < self.required).reshape(n * B, -1)
+        for j in np.flatnonzero(near.any(axis=0)):
+            blocks = np.flatnonzero(near[:, j])
+            q = pts.reshape(n * B, per, 3)[blocks].reshape(-1, 3)
+            kb = k.reshape(n * B, per)[blocks].reshape(-1)
+            rel = q - centers[kb, j]
+            d = self._moving_batch.distance(rel + self.moving[j].position, subset=np.array([j]))[:, 0]
+            d = d.reshape(len(blocks), per)
+            dsb = ds.reshape(n * B, per)[blocks]
+            f = self.w.moving * (np.maximum(self.required - d, 0) * dsb).sum(1) + self.w.collision * (
+                (d < self.r) * dsb
+            ).sum(1)
+            cost = cost + np.bincount(blocks // B, weights=f, minlength=n)
         return cost
 
-    def agent_penalty(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
-        n = len(pts)
-        cost = np.zeros(n)
+    def agent_penalty(
+        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, per: int | None = None
+    ) -> np.ndarray:
+        """Other agents near their intended positions (compiled kernel, see ``_intent_kernel``),
+        culled per block of ``per`` samples (a leg; default the whole candidate); equal to
+        :meth:`agent_penalty_reference` up to the summation order."""
         if not self.intents:
-            return cost
+            return np.zeros(len(pts))
+        from swarmplan.planner._intent_kernel import agent_cost
+
         t = self.t0 + s / self.speed
-        lo, hi = pts.reshape(-1, 3).min(axis=0), pts.reshape(-1, 3).max(axis=0)
-        for it, (ilo, ihi) in zip(self.intents, self._intent_box, strict=True):
+        k = self._intents
+        return agent_cost(
+            np.ascontiguousarray(pts),
+            np.ascontiguousarray(ds),
+            np.ascontiguousarray(t),
+            k["times"],
+            k["points"],
+            k["nk"],
+            k["scale"],
+            k["contact"],
+            k["reach"],
+            float(self.w.agents),
+            float(self.w.collision),
+            int(pts.shape[1] if per is None else per),
+        )
+
+    def agent_penalty_reference(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """Brute force of :meth:`agent_penalty`: every intent interpolated at every sample (tests)."""
+        cost = np.zeros(len(pts))
+        t = self.t0 + s / self.speed
+        for it in self.intents:
             scale = it.separation + self.r + it.radius
-            # The intent stays inside its points' box: beyond reach of both terms it adds nothing.
-            gap = float(np.linalg.norm(np.maximum(np.maximum(ilo - hi, lo - ihi), 0.0)))
-            if gap >= max(1.2 * float(scale.max()), self.r + it.radius):
-                continue
             q = it.at(t)
             e = np.linalg.norm((pts - q) / scale, axis=-1)
             cost = cost + self.w.agents * (np.maximum(1.2 - e, 0) * ds).sum(1)
@@ -351,20 +429,53 @@ class SegmentCost:
     def terms(self, P: np.ndarray) -> dict[str, np.ndarray]:
         P = np.asarray(P, dtype=float)
         pts, ds, s = self.sample(P)
+        # Every sample lies on a leg, so inside the box of the leg's end points: boxes that
+        # contain the samples are all the culling needs (and 100x cheaper than the samples').
+        a, b = P[:, :-1], P[:, 1:]
+        legs = (np.minimum(a, b), np.maximum(a, b))
+        box = _points_box(P)
         return {
             "length": self.length(P),
             "turning": self.turning(P),
-            "static": self.static_penalty(pts, ds, s),
+            "static": self.static_penalty(pts, ds, s, legs),
             "vertices": self.vertex_penalty(P),
-            "floor_bounds": self.floor_bounds_penalty(pts, ds),
+            "floor_bounds": self.floor_bounds_penalty(pts, ds, box),
             "threats": self.threat_penalty(pts, ds),
-            "moving": self.moving_penalty(pts, ds, s),
-            "agents": self.agent_penalty(pts, ds, s),
+            "moving": self.moving_penalty(pts, ds, s, legs),
+            "agents": self.agent_penalty(pts, ds, s, pts.shape[1] // (P.shape[1] - 1)),
         }
 
     def __call__(self, P: np.ndarray) -> np.ndarray:
         """Total cost of polylines ``P`` (n, m, 3) → (n,)."""
         return sum(self.terms(P).values())
+
+
+def _pack_intents(intents: list[Intent], radius: float) -> dict[str, np.ndarray]:
+    """Per-escape constants of the other-agents term: the intents as padded arrays (knots
+    repeated past each one's end), their ellipsoid scales, contact and reach distances."""
+    m = max((len(it.times) for it in intents), default=1)
+    M = len(intents)
+    times = np.zeros((M, m))
+    points = np.zeros((M, m, 3))
+    for j, it in enumerate(intents):
+        k = len(it.times)
+        times[j, :k], times[j, k:] = it.times, it.times[-1]
+        points[j, :k], points[j, k:] = it.points, it.points[-1]
+    scale = np.array([np.asarray(it.separation, dtype=float) + radius + it.radius for it in intents]).reshape(
+        M, 3
+    )
+    contact = np.array([radius + it.radius for it in intents], dtype=float)
+    # Beyond this distance both terms vanish: the ellipsoid term needs |d / scale| < 1.2, the
+    # collision term |d| < contact.
+    reach = np.maximum(1.2 * scale.max(axis=1, initial=0.0), contact)
+    return {
+        "times": times,
+        "points": points,
+        "nk": np.array([len(it.times) for it in intents], dtype=np.int64),
+        "scale": scale,
+        "contact": contact,
+        "reach": reach,
+    }
 
 
 def agent_intents(

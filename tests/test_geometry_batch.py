@@ -1,0 +1,112 @@
+"""Distances batched by shape type equal the per-shape path; exact values on unit shapes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmplan.geometry.batch import ShapeBatch
+from swarmplan.geometry.shapes import ObstacleField
+from swarmplan.world import parse_world
+
+
+def _obstacles(raw):
+    return parse_world(
+        {
+            "name": "t",
+            "bounds": {"min": [-50, -50, -50], "max": [50, 50, 50]},
+            "obstacles": raw,
+            "agents": [{"id": "a", "start": [-40, -40, 40], "goal": [40, 40, 40]}],
+        }
+    ).obstacles
+
+
+UNIT = [
+    {"id": "s", "shape": "sphere", "radius": 1.0, "position": [0, 0, 0]},
+    {"id": "b", "shape": "box", "size": [2, 2, 2], "position": [0, 0, 0]},
+    {"id": "c", "shape": "cylinder", "radius": 1.0, "height": 2.0, "position": [0, 0, 0]},
+    {"id": "k", "shape": "capsule", "radius": 1.0, "height": 2.0, "position": [0, 0, 0]},
+]
+
+
+def test_exact_distances_on_unit_shapes():
+    batch = ShapeBatch(_obstacles(UNIT))
+    pts = np.array([[3.0, 0, 0], [0, 0, 3.0], [2.0, 2.0, 0], [0.5, 0, 0], [2.0, 0, 2.0]])
+    d = batch.distance(pts)
+    r2 = np.sqrt(2.0)
+    expected = np.array(
+        [
+            [2.0, 2.0, 2.0, 2.0],  # on the x axis
+            [2.0, 2.0, 2.0, 1.0],  # above: the capsule's cap reaches z = 2
+            [2 * r2 - 1, r2, 2 * r2 - 1, 2 * r2 - 1],
+            [-0.5, -0.5, -0.5, -0.5],  # inside all four
+            [2 * r2 - 1, r2, r2, np.sqrt(5.0) - 1],  # beside the top edge (capsule: segment end z = 1)
+        ]
+    )
+    np.testing.assert_allclose(d, expected, atol=1e-15)
+    dq, _ = batch.query(pts)
+    np.testing.assert_array_equal(dq, d)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_batched_equals_per_shape_with_rotations_and_centers(seed):
+    rng = np.random.default_rng(seed)
+    raw = []
+    for k in range(12):
+        shape = ("sphere", "box", "cylinder", "capsule")[k % 4]
+        o = {"id": f"o{k}", "shape": shape, "position": rng.uniform(-20, 20, 3).tolist()}
+        if shape == "box":
+            o["size"] = rng.uniform(1, 8, 3).tolist()
+        else:
+            o["radius"] = float(rng.uniform(0.5, 4))
+        if shape in ("cylinder", "capsule"):
+            o["height"] = float(rng.uniform(1, 10))
+        if k % 3:
+            o["rotation"] = rng.uniform(-90, 90, 3).tolist()
+        raw.append(o)
+    obs = _obstacles(raw)
+    pts = rng.uniform(-30, 30, (500, 3))
+    field, batch = ObstacleField(obs), ShapeBatch(obs)
+    d_ref, g_ref = field.query(pts)
+    d, g = batch.query(pts)
+    np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(g, g_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(batch.distance(pts), d_ref, rtol=0, atol=1e-12)
+    centers = np.array([o.position for o in obs]) + rng.normal(size=(len(obs), 3))
+    d_ref, g_ref = field.query(pts, centers)
+    d, g = batch.query(pts, centers)
+    np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(g, g_ref, rtol=0, atol=1e-12)
+
+
+def test_distance_to_a_subset_keeps_its_order():
+    obs = _obstacles(UNIT + [{"id": "s2", "shape": "sphere", "radius": 2.0, "position": [5, 0, 0]}])
+    batch = ShapeBatch(obs)
+    pts = np.random.default_rng(3).uniform(-6, 6, (50, 3))
+    full = batch.distance(pts)
+    for subset in ([4, 0], [2], [3, 1, 4]):
+        np.testing.assert_array_equal(batch.distance(pts, subset=np.array(subset)), full[:, subset])
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_pair_distance_equals_the_matrix_entries(seed):
+    rng = np.random.default_rng(seed)
+    raw = []
+    for k in range(10):
+        shape = ("sphere", "box", "cylinder", "capsule")[k % 4]
+        o = {"id": f"o{k}", "shape": shape, "position": rng.uniform(-20, 20, 3).tolist()}
+        if shape == "box":
+            o["size"] = rng.uniform(1, 8, 3).tolist()
+            o["rotation"] = rng.uniform(-90, 90, 3).tolist()
+        else:
+            o["radius"] = float(rng.uniform(0.5, 4))
+        if shape in ("cylinder", "capsule"):
+            o["height"] = float(rng.uniform(1, 10))
+        raw.append(o)
+    batch = ShapeBatch(_obstacles(raw))
+    pts = rng.uniform(-30, 30, (300, 3))
+    bodies = rng.integers(0, len(raw), 300)
+    full = batch.distance(pts)
+    np.testing.assert_allclose(
+        batch.pair_distance(pts, bodies), full[np.arange(300), bodies], rtol=0, atol=1e-12
+    )

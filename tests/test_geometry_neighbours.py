@@ -1,0 +1,57 @@
+"""Tree-based agent queries return exactly what the all-pairs versions return."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmplan.geometry.collision import agent_contacts
+from swarmplan.geometry.neighbours import (
+    agent_clearance_indexed,
+    agent_contacts_indexed,
+    separation_violations,
+)
+
+
+def _swarm(seed, n=200):
+    rng = np.random.default_rng(seed)
+    centers = rng.uniform(0, 200, (8, 3))
+    p0 = centers[rng.integers(0, 8, n)] + rng.normal(0, 4.0, (n, 3))
+    p1 = p0 + rng.normal(0, 1.0, (n, 3))
+    radii = rng.choice([0.5, 1.0, 1.5], n)
+    sep = rng.choice([2.0, 3.0, 5.0], (n, 3))
+    active = rng.random(n) < 0.8
+    return p0, p1, radii, sep, active
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_indexed_agent_queries_equal_all_pairs(seed):
+    p0, p1, radii, sep, active = _swarm(seed)
+    for margin in (0.0, 0.5):
+        ref = agent_contacts(p0, p1, radii, active, margin)
+        assert len(ref) > 5
+        assert agent_contacts_indexed(p0, p1, radii, active, margin) == ref
+    d = np.linalg.norm(p0[:, None] - p0[None], axis=-1) - (radii[:, None] + radii[None])
+    np.fill_diagonal(d, np.inf)
+    np.testing.assert_array_equal(agent_clearance_indexed(p0, radii), d.min(axis=1))
+    s = np.maximum(sep[:, None], sep[None])
+    rr = radii[:, None] + radii[None]
+    inside = np.linalg.norm((p0[:, None] - p0[None]) / (s + rr[..., None]), axis=-1) < 1.0
+    np.fill_diagonal(inside, False)
+    inside &= active[:, None] | active[None]
+    ri, rj = np.nonzero(np.triu(inside))
+    i, j = separation_violations(p0, sep, radii, active)
+    assert len(ri) > 5
+    np.testing.assert_array_equal(i, ri)
+    np.testing.assert_array_equal(j, rj)
+
+
+def test_contact_at_the_edge_of_the_reach_is_found():
+    """Two agents whose steps cross at their far ends: the midpoints are as far apart as the
+    reach allows and the contact is still reported."""
+    p0 = np.array([[0.0, 0, 0], [10.0, 0, 0]])
+    p1 = np.array([[4.0, 0, 0], [6.0, 0, 0]])  # 2 m apart at the end of the step, midpoints 6 m
+    radii = np.array([1.0, 1.01])
+    active = np.array([True, True])
+    assert agent_contacts(p0, p1, radii, active) == [(0, 1)]
+    assert agent_contacts_indexed(p0, p1, radii, active) == [(0, 1)]
