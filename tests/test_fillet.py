@@ -189,5 +189,11 @@ def test_paper_004_world_flies_filleted_routes_within_its_curvature_limit(tmp_pa
     cross = np.linalg.norm(a[None] + t[..., None] * ab[None] - pts[:, None], axis=2).min(axis=1)
     assert cross.max() < 1.0
     rec = load_recording(log)
-    problems, _ = compare_with_summary(rec, compute_metrics(rec))
+    metrics = compute_metrics(rec)
+    problems, _ = compare_with_summary(rec, metrics)
     assert problems == []
+    # The audit compares the new fields: a summary that hides a cusp or misstates the limit fails.
+    rec.summary["agents"][0]["cusps"] = 1
+    rec.summary["agents"][0]["curvature_limit"] = 0.1
+    problems, _ = compare_with_summary(rec, metrics)
+    assert any("cusps" in p for p in problems) and any("curvature_limit" in p for p in problems)
