@@ -1,5 +1,11 @@
 """Per-agent run metrics (path length, clearance, curvature, arrival, event counts) and the
-summary report built from them."""
+summary report built from them.
+
+Curvature is honest at cusps: a stop-and-reverse point (the flown direction turns by more
+than 150° between consecutive steps, after dropping steps under 1 mm) is counted in
+``cusps`` and left out of ``max_curvature`` / ``mean_curvature`` (its discrete "curvature"
+is only 1/step length). ``curvature_limit`` is the model's (see :func:`curvature_limit`).
+"""
 
 from __future__ import annotations
 
@@ -9,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
-from swarmplan.geometry.polyline import path_curvature
+from swarmplan.geometry.polyline import curvature_with_cusps
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -58,9 +64,18 @@ class RunMetrics:
         )
         self.positions.append(pos1.copy())
 
-    def curvature(self, i: int, until: int | None = None) -> np.ndarray:
+    def curvature(self, i: int, until: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(curvature, cusp mask) of agent ``i``'s flown path (see ``curvature_with_cusps``)."""
         pts = np.array([p[i] for p in self.positions[:until]])
-        return path_curvature(pts)
+        return curvature_with_cusps(pts)
+
+
+def curvature_limit(agent) -> float:
+    """The model's curvature limit (1/m): 1/ρ with ρ = v²/a at cruise for a multirotor (paper 004
+    eq 34; at speed v the limit is a/v², larger when slower), 1/min_turn_radius for a fixed wing."""
+    if agent.model == "fixed_wing":
+        return 1.0 / max(float(agent.min_turn_radius), 1e-9)
+    return float(agent.max_accel) / max(float(agent.speed_cruise), 1e-9) ** 2
 
 
 def summary_report(
@@ -78,7 +93,8 @@ def summary_report(
     n = len(m.ids)
     agents = []
     for i, aid in enumerate(m.ids):
-        curv = m.curvature(i)
+        curv, cusp = m.curvature(i)
+        curv = curv[~cusp]  # a cusp has no finite curvature: counted apart
         start = world.agents[i].start
         straight = float(np.linalg.norm(world.agents[i].goal - start))
         agents.append(
@@ -96,6 +112,8 @@ def summary_report(
                 "min_terrain_clearance": _finite(m.min_terrain_clearance[i]),
                 "max_curvature": round(float(curv.max()), 6) if len(curv) else 0.0,
                 "mean_curvature": round(float(curv.mean()), 6) if len(curv) else 0.0,
+                "cusps": int(cusp.sum()),
+                "curvature_limit": round(curvature_limit(world.agents[i]), 6),
                 "collisions": int(m.collisions[i]),
                 "collided_with": m.collided_with[i],
                 "escapes": int(m.escapes[i]),

@@ -13,7 +13,7 @@ def test_right_angle_gets_an_arc_of_radius_v2_over_a_tangent_to_both_legs():
     P = np.array([[0.0, 0.0, 10.0], [50.0, 0.0, 10.0], [50.0, 50.0, 10.0]])
     speed, accel = 7.0, 4.9
     rho = speed**2 / accel  # 10 m
-    out = fillet_path(P, speed, accel, n_arc=16)
+    out = fillet_path(P, rho, max_step_deg=90 / 16).points
     np.testing.assert_allclose(out[0], P[0])
     np.testing.assert_allclose(out[-1], P[-1])
     arc = out[1:-1]
@@ -39,22 +39,22 @@ def test_fillet_in_3d_stays_in_the_plane_of_the_corner():
 
 def test_colliding_fillet_is_skipped_and_the_corner_kept():
     P = np.array([[0.0, 0, 10], [50.0, 0, 10], [50.0, 50, 10]])
-    out = fillet_path(P, 7.0, 4.9, collision_check=lambda pts: True)
+    out = fillet_path(P, 10.0, collision_check=lambda pts: True).points
     np.testing.assert_allclose(out, P)
     calls = []
-    out = fillet_path(P, 7.0, 4.9, collision_check=lambda pts: calls.append(len(pts)) or False)
+    out = fillet_path(P, 10.0, collision_check=lambda pts: calls.append(len(pts)) or False).points
     assert calls and len(out) > 3
 
 
 def test_corner_with_legs_too_short_for_the_radius_is_kept():
     P = np.array([[0.0, 0, 10], [5.0, 0, 10], [5.0, 5, 10]])
-    out = fillet_path(P, 10.0, 2.0)  # rho = 50 m
+    out = fillet_path(P, 10.0**2 / 2.0).points  # rho = v^2/a = 50 m
     np.testing.assert_allclose(out, P)
 
 
 def test_straight_polyline_is_unchanged():
     P = np.array([[0.0, 0, 0], [1.0, 1, 1], [2.0, 2, 2], [3.0, 3, 3]])
-    np.testing.assert_allclose(fillet_path(P, 5.0, 1.0), P)
+    np.testing.assert_allclose(fillet_path(P, 25.0).points, P)
 
 
 def test_smoother_flags_a_target_inside_the_turning_circle():

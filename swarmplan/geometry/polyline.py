@@ -1,9 +1,15 @@
-"""Polylines: lengths, turn and climb angles, curvature, resampling. Batched functions take
+"""Polylines: lengths, turn and climb angles, curvature, resampling, arc fillets. Batched functions take
 ``(n, K, 3)`` arrays (n polylines of K points); the others one ``(K, 3)`` polyline."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
+
+_EPS = 1e-9
 
 
 def polyline_length(P: np.ndarray) -> np.ndarray:
@@ -79,3 +85,131 @@ def path_curvature(points: np.ndarray, min_step: float = 1e-3) -> np.ndarray:
     u = d / n[:, None]
     cosang = np.clip(np.sum(u[1:] * u[:-1], axis=1), -1.0, 1.0)
     return np.arccos(cosang) / (0.5 * (n[1:] + n[:-1]))
+
+
+def fillet_corner(
+    a: np.ndarray, v: np.ndarray, b: np.ndarray, rho: float, max_step_deg: float = 10.0
+) -> np.ndarray | None:
+    """Arc of radius ``rho`` replacing corner ``v`` of a → v → b (paper 004 §6), tangent to both legs.
+
+    Returns the arc's points from the tangent point on a–v to the one on v–b, spaced at most
+    ``max_step_deg`` apart (dense enough for a waypoint follower to fly the arc, not its chord),
+    or None when the legs are straight or reversed (a cusp has no arc), or when the tangent
+    length ``rho·tan(θ/2)`` exceeds half of either leg (the neighbouring corner needs the other
+    half): 004's "special broken point", where the vehicle stops and turns.
+    """
+    d1 = v - a
+    d2 = b - v
+    l1, l2 = float(np.linalg.norm(d1)), float(np.linalg.norm(d2))
+    if l1 < _EPS or l2 < _EPS or rho <= 0.0:
+        return None
+    d1, d2 = d1 / l1, d2 / l2
+    theta = math.acos(float(np.clip(np.dot(d1, d2), -1.0, 1.0)))  # deflection angle
+    if theta < 1e-6 or theta > math.pi - 1e-6:
+        return None
+    tangent = rho * math.tan(theta / 2)
+    if tangent > min(l1, l2) / 2 + 1e-12:
+        return None
+    p1 = v - d1 * tangent
+    p2 = v + d2 * tangent
+    bis = d2 - d1
+    center = v + bis / np.linalg.norm(bis) * (rho / math.cos(theta / 2))
+    u1 = (p1 - center) / rho
+    u2 = (p2 - center) / rho
+    # Slerp from u1 to u2 (the arc subtends theta, the deflection angle).
+    n = max(1, math.ceil(math.degrees(theta) / max_step_deg - 1e-9))
+    s = np.linspace(0.0, 1.0, n + 1)[:, None]
+    arc = (np.sin((1 - s) * theta) * u1 + np.sin(s * theta) * u2) / math.sin(theta)
+    return center + rho * arc
+
+
+@dataclass(frozen=True)
+class Fillet:
+    """A filleted polyline: its points, and how many corners got an arc or stayed broken."""
+
+    points: np.ndarray
+    arcs: int
+    broken: int
+
+
+def fillet_path(
+    waypoints: np.ndarray,
+    rho: float,
+    collision_check: Callable[[np.ndarray], bool] | None = None,
+    max_step_deg: float = 10.0,
+) -> Fillet:
+    """Polyline with every corner replaced by an arc of radius ``rho`` (paper 004 §6, eq 34:
+    ρ = v²/a for a multirotor; a fixed wing's minimum turn radius).
+
+    ``collision_check(points)`` returns True when the polyline ``points`` (the corner's
+    tangent point, the arc, the other tangent point) collides; such corners, and those whose
+    arc does not fit (:func:`fillet_corner`), keep the sharp corner (004's "special broken
+    points"). Straight (collinear) vertices are kept as they are and not counted. Endpoints
+    are kept exactly.
+    """
+    P = np.asarray(waypoints, dtype=float)
+    if len(P) < 3:
+        return Fillet(P.copy(), 0, 0)
+    out = [P[:1]]
+    arcs = broken = 0
+    for k in range(1, len(P) - 1):
+        d1, d2 = P[k] - P[k - 1], P[k + 1] - P[k]
+        n1, n2 = float(np.linalg.norm(d1)), float(np.linalg.norm(d2))
+        straight = n1 < _EPS or n2 < _EPS or float(np.dot(d1, d2)) >= n1 * n2 * (1.0 - 1e-12)
+        arc = None if straight else fillet_corner(P[k - 1], P[k], P[k + 1], rho, max_step_deg)
+        if arc is not None and collision_check is not None and collision_check(arc):
+            arc = None
+        if arc is None:
+            out.append(P[k : k + 1])
+            broken += not straight
+        else:
+            out.append(arc)
+            arcs += 1
+    out.append(P[-1:])
+    return Fillet(np.concatenate(out), arcs, broken)
+
+
+def densify(path: np.ndarray, spacing: float) -> np.ndarray:
+    """``path`` (K, 3) with every leg longer than ``spacing`` split evenly; all vertices kept
+    (unlike :func:`resample_route`, arcs and broken corners stay exactly where they are)."""
+    P = np.asarray(path, dtype=float)
+    if len(P) < 2:
+        return P.copy()
+    out = [P[:1]]
+    for a, b in zip(P[:-1], P[1:], strict=True):
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / max(spacing, 1e-9) - 1e-9))
+        s = np.arange(1, n + 1)[:, None] / n
+        out.append(a + s * (b - a))
+    return np.concatenate(out)
+
+
+CUSP_ANGLE_DEG = 150.0
+
+
+def curvature_with_cusps(
+    points: np.ndarray, min_step: float = 1e-3, cusp_angle_deg: float = CUSP_ANGLE_DEG
+) -> tuple[np.ndarray, np.ndarray]:
+    """(curvature, cusp mask) at the interior vertices of a flown path.
+
+    Points closer than ``min_step`` to the last kept one are dropped first (hovering, a stop),
+    so a stop-and-reverse shows as two consecutive steps in opposite directions. Curvature is
+    the turning angle over the mean length of the two steps; a vertex turning by more than
+    ``cusp_angle_deg`` is a **cusp** (stop and reverse: no circle of any radius passes there,
+    its "curvature" is only 1/step length). Report cusps as a count and the max curvature
+    over the other vertices (``curv[~cusp]``).
+    """
+    pts = np.asarray(points, dtype=float)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if len(pts) < 3:
+        return np.zeros(0), np.zeros(0, dtype=bool)
+    keep = [0]
+    for k in range(1, len(pts)):
+        if np.linalg.norm(pts[k] - pts[keep[-1]]) >= min_step:
+            keep.append(k)
+    p = pts[keep]
+    if len(p) < 3:
+        return np.zeros(0), np.zeros(0, dtype=bool)
+    a, b = p[1:-1] - p[:-2], p[2:] - p[1:-1]
+    la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    angle = np.arccos(np.clip(np.einsum("ij,ij->i", a, b) / (la * lb), -1.0, 1.0))
+    return angle / (0.5 * (la + lb)), angle > math.radians(cusp_angle_deg)

@@ -13,7 +13,10 @@ When the simulation reports an agent stuck (``Planner.on_stuck``):
 3. the best segment is **validated with FCL**: every leg swept with the agent radius plus
    a margin against the static obstacles, terrain and bounds; if it touches something
    the search is retried with a larger horizon and budget (``retries`` times) before
-   giving up (``"failed"``).
+   giving up (``"failed"``);
+4. the valid segment is shortcut (FCL) and its corners are turned into paper 004's arcs
+   (§6, radius v²/a at cruise or the fixed wing's minimum turn radius); a corner whose arc
+   does not fit or touches something keeps its corner (004's "special broken point").
 
 Deadlocks between agents (two stuck agents close together, e.g. at a narrow gap) are
 resolved by priority: the agent with the higher index steps aside (a yield segment to a
@@ -45,6 +48,7 @@ from swarmplan.core import (
     PlanningContext,
     StuckOutcome,
 )
+from swarmplan.geometry.polyline import fillet_path
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 
 
@@ -171,6 +175,21 @@ class EscapePlanner:
             j = nxt
         return poly[kept]
 
+    def fillet(self, sim: PlanningContext, i: int, poly: np.ndarray) -> np.ndarray:
+        """``poly`` (from the agent) with its corners turned into arcs of the agent's turn radius
+        (paper 004 §6, :func:`~swarmplan.geometry.polyline.fillet_path`). An arc that FCL finds
+        within radius + ``fcl_margin`` of something, or that does not fit, keeps its corner."""
+        col = sim.collision
+        rr = float(sim.params.radius[i]) + float(self.cfg["fcl_margin"])
+
+        def hits(arc: np.ndarray) -> bool:
+            return any(
+                col.sweep_bounds(b) or col.sweep_terrain(a, b, rr) or col.sweep_static(a, b, rr)
+                for a, b in zip(arc[:-1], arc[1:], strict=True)
+            )
+
+        return fillet_path(poly, model_turn_radius(sim, i), collision_check=hits).points
+
     # ------------------------------------------------------------------ planning
 
     def make_cost(
@@ -282,7 +301,7 @@ class EscapePlanner:
             poly, f, _ = self.optimize_segment(sim, i, end, purpose, width, grow, extra, ignore)
             costs.append(f)
             if self.segment_hit(sim, i, poly, start_clear) is None:
-                poly = self.shortcut(sim, i, poly, start_clear)
+                poly = self.fillet(sim, i, self.shortcut(sim, i, poly, start_clear))
                 return EscapeOutcome(poly[1:], attempt + 1, costs)
         return EscapeOutcome(None, int(cfg["retries"]) + 1, costs)
 

@@ -20,11 +20,14 @@
 :func:`plan_global_routes` optimizes every agent's path with the named optimizer (budget
 ``population × iterations`` evaluations, vectorized over the population), logs each run
 on ``/optimizer`` with purpose ``global``, checks the best path with FCL against the static
-obstacles, the terrain and the bounds, and returns the valid ones as routes (resampled so
-the APF pursuit follows the planned polyline closely). An invalid best path is planned
+obstacles, the terrain and the bounds, and returns the valid ones as routes: corners turned
+into paper 004's arcs (§6, :func:`fillet_route`; a corner whose arc does not fit or touches
+something stays a "broken point") and legs split so the APF pursuit follows the planned
+polyline closely. An invalid best path is planned
 again (``retries`` times, the budget × 1.5 each time); if none is valid the agent has no
 route (it flies reactively: APF with escapes), said in a ``global_plan_invalid`` event;
-valid ones get a ``global_plan`` event with their length, cost and attempts.
+valid ones get a ``global_plan`` event with their length, cost, attempts and ``fillet``
+(radius, arcs, broken points).
 
 ``warm_start`` (default on) hands every optimizer the same few structured paths as ``x0``
 (:meth:`PlaneEncoding.warm_start`: the straight line, half-sine detours to both sides and
@@ -45,10 +48,10 @@ import numpy as np
 
 from swarmplan import optimizers
 from swarmplan.core import PlanningContext
-from swarmplan.geometry.polyline import resample_route
+from swarmplan.geometry.polyline import Fillet, densify, fillet_path
 from swarmplan.planner.cost_models import PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding
-from swarmplan.planner.escape import static_clearance
+from swarmplan.planner.escape import model_turn_radius, static_clearance
 from swarmplan.world.model import AgentSpec, World
 from swarmplan.world.planner_config import GlobalConfig
 
@@ -151,6 +154,24 @@ def shortcut_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float
     return path[kept]
 
 
+def fillet_route(sim: PlanningContext, i: int, path: np.ndarray, inflate: float) -> Fillet:
+    """``path`` with its corners turned into arcs of the agent's turn radius (paper 004 §6:
+    ρ = v²/a at cruise for a multirotor, eq 34; the minimum turn radius for a fixed wing).
+    An arc that FCL finds touching something (the same sweep as :func:`validate_path`) keeps
+    its corner, as does one that does not fit between the neighbouring corners."""
+    r = float(sim.params.radius[i]) + inflate
+
+    def hits(arc: np.ndarray) -> bool:
+        for a, b in zip(arc[:-1], arc[1:], strict=True):
+            if sim.collision.sweep_bounds(b):
+                return True
+            if sim.collision.sweep_terrain(a, b, r) or sim.collision.sweep_static(a, b, r):
+                return True
+        return False
+
+    return fillet_path(path, model_turn_radius(sim, i), collision_check=hits)
+
+
 def route_spacing(world: World, agent: AgentSpec) -> float:
     """Spacing of the route's points: the APF's quadratic radius (so the next point is far enough for
     the full, conic attraction) but at least the sim's waypoint reach (3 steps at cruise speed)."""
@@ -190,7 +211,10 @@ def plan_global_routes(sim: PlanningContext, optimizer_name: str) -> dict[int, n
         valid = violation == 0 and hit is None
         if valid and cfg.shortcut:
             path = shortcut_path(sim, i, path, 0.5 * prob.margin)
-        route = resample_route(path, route_spacing(world, agent))
+        fillet = fillet_route(sim, i, path, 0.5 * prob.margin) if valid else None
+        if fillet is not None:
+            path = fillet.points
+        route = densify(path, route_spacing(world, agent))
         detail = {
             "algorithm": optimizer_name,
             "cost_model": cfg.cost,
@@ -211,6 +235,11 @@ def plan_global_routes(sim: PlanningContext, optimizer_name: str) -> dict[int, n
             sim.note_event(i, "global_plan_invalid", detail)
             continue
         detail["waypoints"] = np.round(path, 3).tolist()
+        detail["fillet"] = {
+            "radius": round(model_turn_radius(sim, i), 6),
+            "arcs": fillet.arcs,
+            "broken_points": fillet.broken,
+        }
         detail["planned_waypoints"] = np.round(nodes[0], 3).tolist()
         sim.note_event(i, "global_plan", detail)
         routes[i] = route[1:]

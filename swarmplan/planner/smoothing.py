@@ -1,10 +1,11 @@
 """Curvature smoothing: arc fillets (paper 004 §6) and optimized smoothing segments.
 
-``fillet_path`` replaces each corner of a polyline by a circular arc of radius
-ρ = v²/a (paper 004 eq 34: a = v²/ρ with the rated speed v and acceleration a), tangent to
-both legs; a corner whose arc would not fit in half of each adjacent leg, or whose arc
-collides (``collision_check``), keeps its sharp corner (the paper's "special broken
-points", where the UAV stops instead).
+``fillet_path`` (in :mod:`swarmplan.geometry.polyline`, re-exported here) replaces each
+corner of a polyline by a circular arc of radius ρ = v²/a (paper 004 eq 34: a = v²/ρ with
+the rated speed v and acceleration a), tangent to both legs; a corner whose arc would not
+fit in half of each adjacent leg, or whose arc collides (``collision_check``), keeps its
+sharp corner (the paper's "special broken points", where the UAV stops instead). Global
+routes, escapes and smoothing segments are all filleted before they are flown.
 
 :class:`CurvatureSmoother` watches agents flying APF: when the point they are attracted to
 (the next route waypoint, or the goal) lies inside one of their minimum turning circles,
@@ -16,73 +17,14 @@ plans a ``smoothing`` segment with the optimizer (same cost as escapes, purpose
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
 from swarmplan.core import Mode, PlannedSegment, PlanningContext
+from swarmplan.geometry.polyline import fillet_corner, fillet_path
 from swarmplan.planner.escape import model_turn_radius, static_clearance
 
-_EPS = 1e-9
-
-
-def fillet_corner(
-    a: np.ndarray, v: np.ndarray, b: np.ndarray, rho: float, n_arc: int = 8
-) -> np.ndarray | None:
-    """Arc points (tangent point on va, …, tangent point on vb) replacing corner ``v`` of
-    a → v → b with radius ``rho``; None when the legs are straight or too short."""
-    d1 = v - a
-    d2 = b - v
-    l1, l2 = float(np.linalg.norm(d1)), float(np.linalg.norm(d2))
-    if l1 < _EPS or l2 < _EPS:
-        return None
-    d1, d2 = d1 / l1, d2 / l2
-    c = float(np.clip(np.dot(d1, d2), -1.0, 1.0))
-    theta = math.acos(c)  # deflection angle
-    if theta < 1e-6 or theta > math.pi - 1e-6:
-        return None
-    tangent = rho * math.tan(theta / 2)
-    if tangent > min(l1, l2) / 2 + 1e-12:
-        return None
-    p1 = v - d1 * tangent
-    p2 = v + d2 * tangent
-    bis = d2 - d1
-    center = v + bis / np.linalg.norm(bis) * (rho / math.cos(theta / 2))
-    u1 = (p1 - center) / rho
-    u2 = (p2 - center) / rho
-    # Slerp from u1 to u2 (angle theta between them).
-    s = np.linspace(0.0, 1.0, max(2, n_arc + 1))[:, None]
-    arc = (np.sin((1 - s) * theta) * u1 + np.sin(s * theta) * u2) / math.sin(theta)
-    return center + rho * arc
-
-
-def fillet_path(
-    waypoints: np.ndarray,
-    speed: float,
-    accel: float,
-    collision_check: Callable[[np.ndarray], bool] | None = None,
-    n_arc: int = 8,
-) -> np.ndarray:
-    """Polyline with every corner replaced by an arc of radius ρ = speed²/accel (paper 004 eq 34).
-
-    ``collision_check(points)`` returns True when the polyline ``points`` collides; such
-    fillets are skipped (the corner stays). Endpoints are kept exactly.
-    """
-    P = np.asarray(waypoints, dtype=float)
-    if len(P) < 3:
-        return P.copy()
-    rho = float(speed) ** 2 / float(accel)
-    out = [P[0]]
-    for k in range(1, len(P) - 1):
-        arc = fillet_corner(P[k - 1], P[k], P[k + 1], rho, n_arc)
-        if arc is not None and collision_check is not None and collision_check(arc):
-            arc = None
-        if arc is None:
-            out.append(P[k])
-        else:
-            out.extend(arc)
-    out.append(P[-1])
-    return np.array(out)
+__all__ = ["CurvatureSmoother", "fillet_corner", "fillet_path"]
 
 
 class CurvatureSmoother:
@@ -160,6 +102,7 @@ class CurvatureSmoother:
             c0 = float(static_clearance(sim, s.position[i], r)[0])
             if self.ep.segment_hit(sim, i, poly, c0) is not None:
                 continue
+            poly = self.ep.fillet(sim, i, poly)
             route_index = None
             if k >= 0 and s.route[i] is not None and not np.allclose(end, s.route[i][k]):
                 route_index = k + 1  # the segment rounds this corner: the route goes on after it

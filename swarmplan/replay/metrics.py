@@ -16,7 +16,10 @@ Conventions
   trimesh proximity on the inlined vertices/faces) minus the agent radius. To another
   agent: centre distance minus both radii. ``min_clearance`` is the minimum of both.
 * Curvature: turning angle between consecutive steps divided by the mean length of the
-  two steps, after dropping steps shorter than 1 mm.
+  two steps, after dropping steps shorter than 1 mm. A vertex turning by more than 150°
+  is a *cusp* (stop and reverse): counted in ``cusps`` and left out of ``max_curvature``.
+  ``curvature_limit`` is the model's, from ``/world``: max_accel / cruise² (multirotor,
+  paper 004 eq 34 at cruise) or 1 / min_turn_radius (fixed wing).
 * Collisions: number of contact episodes (maximal runs of consecutive active steps with
   penetration deeper than ``contact_tol``) per agent and body (obstacle, other agent,
   terrain), plus episodes of mode ``collided`` that start without a geometric contact.
@@ -34,6 +37,7 @@ from .geometry import MeshDistance, euler_deg_to_matrix, primitive_distance, qua
 from .recording import Recording
 
 MIN_STEP = 1e-3  # m: steps shorter than this are ignored for curvature
+CUSP_DEG = 150.0  # a turn sharper than this between consecutive steps is a cusp
 CONTACT_TOL = 1e-3  # m: penetration deeper than this is a contact
 
 
@@ -50,6 +54,8 @@ class AgentMetrics:
     min_terrain_clearance: float | None
     max_curvature: float
     collisions: int
+    cusps: int = 0
+    curvature_limit: float | None = None
     collision_bodies: list[str] = field(default_factory=list)
     escapes: int = 0
     stuck_events: int = 0
@@ -111,26 +117,37 @@ def path_length(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
 
 
-def curvature_series(points: np.ndarray, times: np.ndarray, min_step: float = MIN_STEP):
-    """(times, curvature) at the interior points of the path, sub-``min_step`` steps dropped."""
+def curvature_series(
+    points: np.ndarray, times: np.ndarray, min_step: float = MIN_STEP, cusps: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """(times, curvature) at the interior points of the path, sub-``min_step`` steps dropped;
+    cusps (turns over ``CUSP_DEG``) are left out unless ``cusps`` is True."""
+    t, curv, cusp = curvature_cusps(points, times, min_step)
+    return (t, curv) if cusps else (t[~cusp], curv[~cusp])
+
+
+def curvature_cusps(
+    points: np.ndarray, times: np.ndarray, min_step: float = MIN_STEP
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times, curvature, cusp mask) at the interior points of the path, sub-``min_step`` steps dropped."""
     ok = np.isfinite(points[:, 0])
     p, t = points[ok], times[ok]
     if len(p) < 3:
-        return np.zeros(0), np.zeros(0)
+        return np.zeros(0), np.zeros(0), np.zeros(0, bool)
     keep = [0]
     for k in range(1, len(p)):
         if np.linalg.norm(p[k] - p[keep[-1]]) >= min_step:
             keep.append(k)
     p, t = p[keep], t[keep]
     if len(p) < 3:
-        return np.zeros(0), np.zeros(0)
+        return np.zeros(0), np.zeros(0), np.zeros(0, bool)
     a = p[1:-1] - p[:-2]
     b = p[2:] - p[1:-1]
     la = np.linalg.norm(a, axis=1)
     lb = np.linalg.norm(b, axis=1)
     cos = np.einsum("ij,ij->i", a, b) / (la * lb)
     angle = np.arccos(np.clip(cos, -1.0, 1.0))
-    return t[1:-1], angle / ((la + lb) / 2.0)
+    return t[1:-1], angle / ((la + lb) / 2.0), angle > math.radians(CUSP_DEG)
 
 
 def obstacle_distances(rec: Recording, mesh_cache: dict | None = None) -> dict[str, np.ndarray]:
@@ -262,7 +279,7 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
                     bodies.append("(mode collided)")
 
         pts = np.where(act[:, None], rec.positions[i], np.nan)
-        _, curv = curvature_series(pts, rec.times)
+        _, curv, cusp = curvature_cusps(pts, rec.times)
         clear_vals = [v for v in (best_obst, ac) if math.isfinite(v)]
         min_clear = min(clear_vals) if clear_vals else None
         closest = None
@@ -284,8 +301,10 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
                 min_agent_clearance=ac if math.isfinite(ac) else None,
                 closest_body=closest,
                 min_terrain_clearance=min_terr,
-                max_curvature=float(curv.max()) if len(curv) else 0.0,
+                max_curvature=float(curv[~cusp].max()) if (~cusp).any() else 0.0,
                 collisions=int(n_coll),
+                cusps=int(cusp.sum()),
+                curvature_limit=_curvature_limit(rec, i),
                 collision_bodies=bodies,
                 escapes=int(escapes),
                 stuck_events=int(event_counts.get((aid, "stuck"), 0)),
@@ -293,6 +312,18 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
             )
         )
     return result
+
+
+def _curvature_limit(rec: Recording, i: int) -> float | None:
+    """The model's curvature limit from the ``/world`` agent entry (None when it lacks the fields)."""
+    by_id = {str(a.get("id")): a for a in rec.world.get("agents") or [] if isinstance(a, dict)}
+    a = by_id.get(rec.agent_ids[i], {})
+    try:
+        if a.get("model") == "fixed_wing":
+            return 1.0 / float(a["min_turn_radius"])
+        return float(a["max_accel"]) / float(a["speed"]["cruise"]) ** 2
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
 
 
 # ---------------------------------------------------------------------- comparison
@@ -355,6 +386,13 @@ def compare_with_summary(
                 m.max_curvature,
                 row.get("max_curvature"),
                 (tol.curvature_abs, tol.curvature_rel),
+            ),
+            ("cusps", m.cusps, row.get("cusps"), None),
+            (
+                "curvature_limit",
+                m.curvature_limit,
+                row.get("curvature_limit"),
+                (1e-6, 1e-6),
             ),
             ("collisions", m.collisions, row.get("collisions"), None),
             ("escapes", m.escapes, row.get("escapes"), None),
