@@ -208,6 +208,24 @@ def test_feasible_log_is_reported_feasible(tmp_path):
     assert m.max_error_away_from_infeasible_m == pytest.approx(m.max_error_m)
 
 
+def test_a_log_cut_in_flight_brakes_at_the_agents_max_accel_after_its_end(tmp_path):
+    # A timed-out run ends with the agent still flying (mode apf): the log never asked it to
+    # stop there, so the reference goes on and brakes at its max_accel (5 m/s^2) instead.
+    t = DT * np.arange(60)
+    speed = 8.0 * smooth_step(t, 0.5, 4.5)
+    pos = np.zeros((1, 60, 3))
+    pos[0, 1:, 0] = np.cumsum(speed[1:] * DT)
+    pos[0, :, 2] = 10.0
+    rec = load(make_log(tmp_path / "timeout.mcap", pos, arrive=False))
+    res = track(rec, TrackerConfig())
+    m = res.agents["u0"]
+    assert m.reference_feasible and m.max_error_m < 0.5
+    assert res.ref.times[-1] == pytest.approx(t[-1] + 8.0 / 5.0 + 2.0, abs=DT)
+    end = res.ref.pos[0, -1, 0]
+    assert end == pytest.approx(pos[0, -1, 0] + 8.0**2 / (2 * 5.0), abs=0.5)  # its braking distance
+    assert np.abs(np.diff(res.ref.vel[0, :, 0])).max() / TrackerConfig().dt <= 5.0 + 1e-6
+
+
 def test_stop_at_the_end_of_the_log_is_flown_out_in_the_settle_hover(tmp_path):
     # The log ends while the agent still flies at 8 m/s: the settle hover shows its stop.
     t = DT * np.arange(60)
