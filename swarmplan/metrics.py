@@ -40,6 +40,7 @@ class RunMetrics:
         self.stuck_events = np.zeros(n, dtype=int)
         self.near_misses = np.zeros(n, dtype=int)
         self.emergency_stops = np.zeros(n, dtype=int)
+        self.hard_stops = np.zeros(n, dtype=int)  # stops within one step beyond max_accel (sim/safety.py)
         self.guard_steps = np.zeros(n, dtype=int)  # fixed-wing steps flown by the turn-ahead guard
         self.positions: list[np.ndarray] = []  # per step (N, 3), for curvature
 
@@ -121,6 +122,7 @@ def summary_report(
                 "stuck_events": int(m.stuck_events[i]),
                 "near_misses": int(m.near_misses[i]),
                 "emergency_stops": int(m.emergency_stops[i]),
+                "hard_stops": int(m.hard_stops[i]),
                 "guard_steps": int(m.guard_steps[i]),
             }
         )

@@ -208,6 +208,24 @@ def test_feasible_log_is_reported_feasible(tmp_path):
     assert m.max_error_away_from_infeasible_m == pytest.approx(m.max_error_m)
 
 
+def test_a_log_cut_in_flight_brakes_at_the_agents_max_accel_after_its_end(tmp_path):
+    # A timed-out run ends with the agent still flying (mode apf): the log never asked it to
+    # stop there, so the reference goes on and brakes at its max_accel (5 m/s^2) instead.
+    t = DT * np.arange(60)
+    speed = 8.0 * smooth_step(t, 0.5, 4.5)
+    pos = np.zeros((1, 60, 3))
+    pos[0, 1:, 0] = np.cumsum(speed[1:] * DT)
+    pos[0, :, 2] = 10.0
+    rec = load(make_log(tmp_path / "timeout.mcap", pos, arrive=False))
+    res = track(rec, TrackerConfig())
+    m = res.agents["u0"]
+    assert m.reference_feasible and m.max_error_m < 0.5
+    assert res.ref.times[-1] == pytest.approx(t[-1] + 8.0 / 5.0 + 2.0, abs=DT)
+    end = res.ref.pos[0, -1, 0]
+    assert end == pytest.approx(pos[0, -1, 0] + 8.0**2 / (2 * 5.0), abs=0.5)  # its braking distance
+    assert np.abs(np.diff(res.ref.vel[0, :, 0])).max() / TrackerConfig().dt <= 5.0 + 1e-6
+
+
 def test_stop_at_the_end_of_the_log_is_flown_out_in_the_settle_hover(tmp_path):
     # The log ends while the agent still flies at 8 m/s: the settle hover shows its stop.
     t = DT * np.arange(60)
@@ -468,3 +486,43 @@ def test_python_dash_m_missing_file_exits_2_without_traceback():
     r = run_cli("no/such/run.mcap", "--json")
     assert r.returncode == 2 and r.stdout == ""
     assert r.stderr.strip() == "track: no/such/run.mcap: no such file"
+
+
+# ------------------------------------------------------------------------- simulator logs
+
+
+def _simulated_log(tmp_path: Path, **top) -> str:
+    """A short run of a small world (two multirotors crossing around a sphere), logged."""
+    from helpers import base_world as sim_world
+    from helpers import make_world, run_to_end
+
+    raw = sim_world(
+        obstacles=[{"id": "s", "shape": "sphere", "radius": 6, "position": [50, 52, 20]}],
+        agents=[
+            {"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]},
+            {"id": "b", "start": [50, 10, 20], "goal": [50, 90, 25]},
+        ],
+        **top,
+    )
+    log = tmp_path / "run.mcap"
+    _, summary, _ = run_to_end(make_world(raw), seed=0, log_path=log)
+    assert summary["success"] and all(a["hard_stops"] == 0 for a in summary["agents"])
+    return str(log)
+
+
+def test_a_simulated_run_is_tracked_within_1_2_m(tmp_path):
+    # Arrival and braking within max_accel (swarmplan.sim) leave nothing infeasible to fly.
+    result = track(load(_simulated_log(tmp_path)), TrackerConfig())
+    assert sorted(result.agents) == ["a", "b"]
+    for m in result.agents.values():
+        assert m.reference_feasible
+        assert 0 < m.max_error_m <= 1.2
+
+
+def test_the_world_files_tracker_section_reaches_the_tracker(tmp_path, capsys):
+    log = _simulated_log(tmp_path, tracker={"max_tilt_deg": 12.0})
+    assert load(log).world["tracker"]["max_tilt_deg"] == 12.0
+    out = json.loads(run_main(capsys, log, "--json").stdout)["agents"]
+    default = track(load(log), TrackerConfig())
+    for aid, m in out.items():
+        assert m["max_tilt_deg"] <= 12.5 < default.agents[aid].max_tilt_deg

@@ -412,3 +412,48 @@ def test_typed_planner_config_reads_the_validated_mapping_and_is_frozen():
         cfg.escape["retries"] = 5  # type: ignore[index]
     # An override is seen by the typed view of the new world.
     assert w.with_overrides(planner={**w.planner, "mode": "reactive"}).planner_config.mode == "reactive"
+
+
+# ----------------------------------------------------------------------------- tracker:
+
+
+def test_tracker_section_problems_are_collected_with_the_others():
+    raw = base_world(tracker={"dragg": 0.1, "mass": -1, "position": {"kq": 2}})
+    raw["sim"]["dt"] = -1
+    probs = problems_of(raw)
+    assert_has(probs, "tracker.dragg", "unknown key", "(did you mean 'drag'?)")
+    assert_has(probs, "tracker.mass", "must be > 0, got -1")
+    assert_has(probs, "tracker.position.kq", "unknown key", "(did you mean 'kp'?)")
+    assert_has(probs, "sim.dt", "> 0")
+
+
+def test_tracker_is_a_known_top_level_key_and_is_resolved_into_the_world_message():
+    w = make_world(base_world(tracker={"mass": 2.0, "position": {"kp": 5.0}}))
+    tr = w.to_message(seed=0)["tracker"]
+    assert tr["mass"] == 2.0 and tr["position"] == {"kp": 5.0, "ki": 0.5, "kd": 4.5}
+    assert tr["max_tilt_deg"] == 55.0  # defaults filled in
+    # Without the section, /world carries the defaults the tracker will use.
+    from swarmplan.track import TrackerConfig
+
+    assert make_world(base_world()).resolved["tracker"] == TrackerConfig().to_dict()
+    probs = problems_of(base_world(trackr={}))
+    assert any(p.startswith("trackr: unknown key") and "'tracker'" in p for p in probs), probs
+
+
+def test_bad_tracker_key_in_a_world_file_exits_2_naming_it(tmp_path):
+    import subprocess
+    import sys
+
+    world = tmp_path / "w.yaml"
+    world.write_text(yaml.safe_dump(base_world(tracker={"max_tilt": 30})))
+    r = subprocess.run(
+        [sys.executable, "-m", "swarmplan.run", str(world), "--out", str(tmp_path / "out.mcap")],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr + r.stdout
+    assert "tracker.max_tilt: unknown key (did you mean 'max_tilt_deg'?)" in r.stderr
+    assert not (tmp_path / "out.mcap").exists()

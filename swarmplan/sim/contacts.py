@@ -78,12 +78,26 @@ def arrivals(
     tolerance: float,
     events: list[Event],
     t1: float,
+    stop_speed: np.ndarray,
 ) -> None:
-    """Agents whose step passed within ``tolerance`` of their goal have arrived (and stop)."""
+    """Agents whose step passed within ``tolerance`` of their goal, slowly enough to stop there,
+    have arrived (and stop).
+
+    An arrived agent is frozen: its next step is zero. A multirotor may only change its velocity
+    by ``max_accel * dt`` per step, so it counts as arrived only once its speed is at most that
+    (``stop_speed``, per agent; ``inf`` for fixed wings, which never hover and keep the plain
+    tolerance rule). The goal braking of ``SafetyFilter.braking_margin`` makes multirotors enter
+    the tolerance at that speed, so they arrive where they first enter it (the replay's audit
+    convention); should one enter faster, it keeps flying under the goal attraction, whose
+    speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.apf.commanded_velocity``)
+    brings it to rest at the goal, and arrives once slow enough.
+    """
     flying = np.flatnonzero(s.active)
     dmins = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
-    for i, dmin in zip(flying, dmins.tolist(), strict=True):
-        if dmin <= tolerance:
+    speeds = np.linalg.norm(vel1[flying], axis=1)
+    slow = speeds <= stop_speed[flying] * (1.0 + 1e-9)
+    for i, dmin, ok in zip(flying, dmins.tolist(), slow.tolist(), strict=True):
+        if dmin <= tolerance and ok:
             s.mode[i] = Mode.ARRIVED
             vel1[i] = 0.0
             s.segment[i] = None

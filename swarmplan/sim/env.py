@@ -223,6 +223,7 @@ class Simulation:
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0, self.metrics)
+            v_cmd = self.safety.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
             vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             validated = self.safety.filter(
@@ -245,7 +246,9 @@ class Simulation:
                 if s.mode[a] not in (Mode.ARRIVED, Mode.COLLIDED):
                     collide(s, self.metrics, self.ids, a, self.ids[b], events, t1)
 
-        arrivals(s, self.metrics, self.ids, pos0, pos1, vel1, w.goal_tolerance, events, t1)
+        # Arrival (and its stop) only at a speed a one-step stop can take within max_accel.
+        stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * dt)
+        arrivals(s, self.metrics, self.ids, pos0, pos1, vel1, w.goal_tolerance, events, t1, stop_speed)
 
         # Clearances at the committed positions (also the next step's distances).
         self._field_cache = self.field.query(pos1, q1)

@@ -1,6 +1,12 @@
-"""Keeping each step safe: the fixed-wing turn-ahead guard, the swept FCL check of every
-commanded step with feasible alternatives when it would touch something, and agent
-deconfliction (conflicting pairs stop their multirotors)."""
+"""Keeping each step safe: the multirotors' braking margin, the fixed-wing turn-ahead guard,
+the swept FCL check of every commanded step with feasible alternatives when it would touch
+something, and agent deconfliction (conflicting pairs stop their multirotors).
+
+The last resort of the check (no feasible alternative is safe) and of deconfliction is a stop
+within one step, beyond ``max_accel`` when the agent was faster than ``max_accel * dt``: such
+*hard stops* are counted per agent (``/summary`` ``hard_stops``). The braking margin keeps
+them rare: commands are slowed so that a stop within ``max_accel`` always fits before the
+nearest surface along the motion."""
 
 from __future__ import annotations
 
@@ -96,6 +102,89 @@ class SafetyFilter:
             metrics.guard_steps[i] += 1
         return out
 
+    def braking_margin(
+        self,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        v_cmd: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        goal: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Multirotor commands slowed so that the agent can always still brake within ``max_accel``.
+
+        Goal (``goal``, per agent of ``idx``): the speed is capped at ``max(a dt, v_safe(d - tol))``
+        with ``d`` the distance to the goal, ``tol`` the goal tolerance and ``v_safe(D)`` the
+        largest ``v`` with ``v^2/(2a) + v dt <= D``: the agent reaches the tolerance sphere at
+        no more than ``a dt``, the speed one step can stop, so arrival (which freezes the agent,
+        ``swarmplan.sim.contacts.arrivals``) happens where it first enters the tolerance and
+        within the acceleration limit.
+
+        Obstacles: the velocity the command leads to is followed, as a straight swept sphere (radius plus
+        the filter's margin), for the distance a stop from it takes: ``v^2 / (2 a) + v dt``
+        (one step at ``v``, then braking at ``a``; the discrete stop needs ``v^2/(2a) + v dt/2``).
+        Where that sweep touches something (obstacle, terrain, ground, bounds) at a distance
+        ``D``, the command's speed is capped at the largest ``v`` with ``v^2/(2a) + v dt <= D``.
+        Kept every step, this leaves the filter a feasible braking step, so the one-step stop it
+        falls back to is rarely needed. Moving obstacles enter with their motion over this step
+        only (their own future motion is the field's relative-velocity term's job).
+        """
+        p = self.params
+        mr = ~p.fixed_wing[idx]
+        if not mr.any():
+            return v_cmd
+        dt = self.world.dt
+        k = np.flatnonzero(mr)
+        rows = idx[k]
+        amax = p.max_accel[rows]
+        cap = np.full(len(k), np.inf)
+        if goal is not None:
+            room = np.maximum(np.linalg.norm(goal[k] - pos0[rows], axis=1) - self.world.goal_tolerance, 0.0)
+            cap = np.maximum(amax * dt, _stoppable_speed(room, amax, dt))
+        s_cmd = np.linalg.norm(v_cmd[k], axis=1)
+        v1 = limit_velocity(p, vel0[rows], v_cmd[k] * _shrink(s_cmd, cap), dt, rows)
+        speed = np.linalg.norm(v1, axis=1)
+        # Slower than a dt, a single step can stop the agent.
+        probe = np.flatnonzero(speed > amax * dt)
+        if len(probe):
+            u = v1[probe] / speed[probe, None]
+            reach = speed[probe] ** 2 / (2.0 * amax[probe]) + speed[probe] * dt
+            radii = p.radius[rows[probe]] + self.margin(rows[probe])
+            mv = self.scene.moving_mask
+            start = pos0[rows[probe]]
+
+            def touches(length: np.ndarray, sel: np.ndarray) -> np.ndarray:
+                ends = start[sel] + u[sel] * length[:, None]
+                hits = first_hits(self.scene.collision, start[sel], ends, radii[sel], q0[mv], q1[mv])
+                return np.array([h is not None for h in hits], dtype=bool)
+
+            hit = np.flatnonzero(touches(reach, np.arange(len(probe))))
+            if len(hit):
+                # Bisection on the free distance along the motion (the swept check is monotone
+                # in length): 6 halvings, free distance under-estimated by at most reach / 64.
+                lo, hi = np.zeros(len(hit)), reach[hit].copy()
+                for _ in range(6):
+                    mid = 0.5 * (lo + hi)
+                    h = touches(mid, hit)
+                    hi, lo = np.where(h, mid, hi), np.where(h, lo, mid)
+                at = probe[hit]
+                cap[at] = np.minimum(cap[at], _stoppable_speed(lo, amax[at], dt))
+        limited = np.isfinite(cap)
+        if not limited.any():
+            return v_cmd
+        out = v_cmd.copy()
+        capped = v_cmd[k] * _shrink(s_cmd, cap)
+        # The acceleration budget is shared by braking and turning: when the capped command still
+        # leaves the agent above the cap (it asks for a turn), brake straight instead, which is
+        # what keeps the margin from one step to the next.
+        v1c = limit_velocity(p, vel0[rows], capped, dt, rows)
+        too_fast = np.linalg.norm(v1c, axis=1) > cap + 1e-9
+        s0 = np.linalg.norm(vel0[rows], axis=1)
+        brake = vel0[rows] * _shrink(s0, cap)
+        out[k] = np.where(too_fast[:, None], brake, capped)
+        return out
+
     def margin(self, i: int | np.ndarray) -> np.ndarray:
         return np.minimum(0.25, 0.2 * self.params.radius[i])
 
@@ -149,6 +238,7 @@ class SafetyFilter:
                 # No feasible command avoids contact: stop (beyond the accel limit) and say so.
                 vel1[i] = 0.0
                 metrics.emergency_stops[i] += 1
+                self.count_hard_stop(i, vel0[i], metrics)
                 events.append(
                     Event(t1, ids[i], "emergency_stop", {"speed": round(float(np.linalg.norm(vel0[i])), 6)})
                 )
@@ -177,6 +267,7 @@ class SafetyFilter:
                         else:
                             vel1[i] = 0.0
                             metrics.emergency_stops[i] += 1
+                            self.count_hard_stop(i, vel0[i], metrics)
                             events.append(Event(t1, ids[i], "emergency_stop", {"other": ids[other]}))
                         pos1[i] = pos0[i] + vel1[i] * dt
                         stopped[i] = True
@@ -184,6 +275,13 @@ class SafetyFilter:
             if not changed:
                 break
         return validated & ~stopped[idx]
+
+    def count_hard_stop(self, i: int, v0: np.ndarray, metrics: RunMetrics) -> None:
+        """A stop to zero within one step is a *hard* stop when it needs more than ``max_accel``
+        (``/summary`` ``hard_stops``): the kinematic model's limit broken, unflyable for a real
+        multirotor (docs/tracking.md)."""
+        if float(np.linalg.norm(v0)) > self.params.max_accel[i] * self.world.dt * (1.0 + 1e-9):
+            metrics.hard_stops[i] += 1
 
     def brake(self, i: int, v0: np.ndarray) -> np.ndarray:
         sp = float(np.linalg.norm(v0))
@@ -215,3 +313,14 @@ class SafetyFilter:
         cmds = np.array(cmds)
         v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, np.full(len(cmds), i))
         return list(v)
+
+
+def _stoppable_speed(room: np.ndarray, amax: np.ndarray, dt: float) -> np.ndarray:
+    """The largest speed ``v`` with ``v^2 / (2 amax) + v dt <= room``: one more step at ``v``,
+    then braking at ``amax``, stays within ``room``."""
+    return amax * (np.sqrt(dt**2 + 2.0 * room / amax) - dt)
+
+
+def _shrink(speed: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """Per-row factor (n, 1) scaling vectors of norm ``speed`` down to at most ``cap``."""
+    return np.minimum(1.0, cap / np.maximum(speed, 1e-12))[:, None]

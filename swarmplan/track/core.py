@@ -80,6 +80,19 @@ class TrackResult:
         return {"agents": out}
 
 
+FLYING_MODES = ("apf", "escape", "smoothing")
+"""Modes in which a log can end with the agent still on its way (timeout, interruption)."""
+
+
+def agent_max_accel(world: dict[str, Any], agent_id: str) -> float:
+    """The agent's ``max_accel`` in the log's /world (5 m/s^2, the world format's default, if absent)."""
+    defaults = world.get("agent_defaults") or {}
+    for a in world.get("agents") or []:
+        if str(a.get("id")) == agent_id and a.get("max_accel"):
+            return float(a["max_accel"])
+    return float(defaults.get("max_accel") or 5.0)
+
+
 def agent_model(world: dict[str, Any], agent_id: str) -> str:
     defaults = world.get("agent_defaults") or {}
     for a in world.get("agents") or []:
@@ -122,12 +135,25 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
     times = np.asarray(rec.times, float)
     pos = fill_gaps(times, rec.positions[chosen])
     vel = np.nan_to_num(rec.velocities[chosen][:, [0, -1]])
-    # Settle hold: a vehicle still moving when the log ends has to stop somewhere; hovering at
-    # the last recorded position shows that stop (and its overshoot) instead of cutting it off.
-    n_hold = int(np.ceil(cfg.settle_time / max(rec.dt, 1e-9))) if cfg.settle_time > 0 else 0
-    if n_hold:
-        times = np.concatenate([times, times[-1] + rec.dt * np.arange(1, n_hold + 1)])
-        pos = np.concatenate([pos, np.repeat(pos[:, -1:], n_hold, axis=1)], axis=1)
+    # Settle hold: a vehicle still moving when the log ends has to stop somewhere. An agent the
+    # log ends as arrived (or collided, failed) stops at its last recorded position, so hovering
+    # there shows that stop (and its overshoot) instead of cutting it off. An agent still flying
+    # (the run timed out or was interrupted) was not asked to stop there: its reference goes on
+    # at its last velocity and brakes at its own max_accel, then hovers.
+    if cfg.settle_time > 0 and chosen:
+        h = rec.dt
+        v_end = (pos[:, -1] - pos[:, -2]) / max(float(times[-1] - times[-2]), 1e-9)
+        flying = np.array([str(rec.modes[i][-1]) in FLYING_MODES for i in chosen])
+        v_end[~flying] = 0.0
+        a_brake = np.array([agent_max_accel(rec.world, rec.agent_ids[i]) for i in chosen])
+        speed = np.linalg.norm(v_end, axis=1)
+        t_stop = speed / a_brake
+        n_hold = int(np.ceil((cfg.settle_time + t_stop.max()) / max(h, 1e-9)))
+        tau = np.minimum(h * np.arange(1, n_hold + 1)[None, :], t_stop[:, None])  # (A, n)
+        u = v_end / np.maximum(speed, 1e-12)[:, None]
+        along = speed[:, None] * tau - 0.5 * a_brake[:, None] * tau**2
+        times = np.concatenate([times, times[-1] + h * np.arange(1, n_hold + 1)])
+        pos = np.concatenate([pos, pos[:, -1:] + along[..., None] * u[:, None, :]], axis=1)
         vel[:, -1] = 0.0
     if chosen:
         ref = build_reference(times, pos, vel, cfg.dt, cfg.reference)

@@ -17,6 +17,7 @@ import numpy as np
 
 from swarmplan import optimizers
 from swarmplan.geometry.rotation import rotation_matrix
+from swarmplan.track.config import parse_tracker
 from swarmplan.world.checker import Checker, join, typename
 from swarmplan.world.checks import check_placements
 from swarmplan.world.meshes import load_mesh
@@ -317,6 +318,7 @@ def parse_world(
         "agents",
         "planner",
         "log",
+        "tracker",
     ]
     if not c.keys(raw, "", top_keys, required=("name", "bounds", "agents")):
         raise WorldError([p.lstrip(": ") or p for p in c.problems] or ["the file is empty"], label)
@@ -441,6 +443,12 @@ def parse_world(
         log["foxglove"] = c.boolean(raw["log"], "foxglove", "log", True)
         log["flush_interval"] = c.number(raw["log"], "flush_interval", "log", 1.0, positive=True)
 
+    # The quadrotor tracker's vehicle and gains (python -m swarmplan.track reads them from /world).
+    tracker_cfg, tracker_problems = parse_tracker(raw.get("tracker"), "tracker")
+    for problem in tracker_problems:
+        path, _, msg = problem.partition(": ")
+        c.add(path, msg)
+
     # Geometry checks need a valid frame; run them only when the parts they use are sound.
     check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
 
@@ -459,6 +467,7 @@ def parse_world(
         "agents": agents_out,
         "planner": planner,
         "log": log,
+        "tracker": tracker_cfg.to_dict(),
     }
     return World(
         name=name,
