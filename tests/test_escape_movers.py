@@ -122,6 +122,28 @@ def test_subgoal_goes_past_a_parked_mover():
     np.testing.assert_allclose(choose_subgoal(free, 0, 24.0, need), [44.0, 40.0, 15.0])
 
 
+def test_a_stretch_that_grazes_a_wall_does_not_hide_the_blocker_behind_it():
+    """parked_mover_corridor seed 1: stuck at (30.9, 53.4) beside the corridor's north wall
+    (y = 56..60 for x = 36..60), the ray to the goal passes the wall's corner 2.5 m clear
+    (less than ``need`` = 3, more than the 1 m margin), then runs into the parked plug."""
+    walls = [
+        {"id": "left", "shape": "box", "size": [24, 4, 40], "position": [48, 22, 15]},
+        {"id": "right", "shape": "box", "size": [24, 4, 40], "position": [48, 58, 15]},
+    ]
+    sim = corridor_sim(10.0, obstacles=[*walls, PLUG])
+    sim.state.position[0] = [30.9, 53.4, 15.0]
+    sub = choose_subgoal(sim, 0, 24.0, 3.0)
+    assert sub[0] > 64.0 + 1.0 + 3.0  # past the plug, not 24 m out in front of it
+    u = (sim.state.goal[0] - sim.state.position[0]) / np.linalg.norm(
+        sim.state.goal[0] - sim.state.position[0]
+    )
+    np.testing.assert_allclose(np.cross(sub - sim.state.position[0], u), 0.0, atol=1e-9)  # on the ray
+    # Only a stretch that comes closer than ``squeeze`` blocks: with squeeze = need the
+    # grazing stretch is the first blocker again and the sub-goal is the horizon.
+    near = choose_subgoal(sim, 0, 24.0, 3.0, squeeze=3.0)
+    assert float(np.linalg.norm(near - sim.state.position[0])) == pytest.approx(24.0)
+
+
 def test_subgoal_ignores_a_mover_that_is_gone_before_the_agent_gets_there():
     # The plug drives north out of the way (from y = 40 to y = 100 at 20 m/s: gone at 3 s).
     gone = dict(
