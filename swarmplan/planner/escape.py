@@ -49,6 +49,7 @@ from swarmplan.core import (
     StuckOutcome,
 )
 from swarmplan.geometry.polyline import fillet_path
+from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 
 
@@ -65,6 +66,11 @@ def model_turn_radius(sim: PlanningContext, i: int) -> float:
     return float(p.speed_cruise[i]) ** 2 / max(float(p.max_accel[i]), 1e-9)
 
 
+# An escape around a blocker is about this many times longer than the straight ray to the
+# sub-goal: movers are looked at until the agent would get there on such a detour.
+DETOUR = 2.0
+
+
 def static_clearance(sim: PlanningContext, pts: np.ndarray, radius: float) -> np.ndarray:
     """Clearance (surface distance minus ``radius``) of ``pts`` to static obstacles, floor and bounds."""
     w = sim.world
@@ -78,9 +84,26 @@ def static_clearance(sim: PlanningContext, pts: np.ndarray, radius: float) -> np
     return clear
 
 
-def choose_subgoal(sim: PlanningContext, i: int, horizon: float, need: float) -> np.ndarray:
-    """Point on the ray to the goal past whatever blocks it (clearance < ``need``), at least
-    ``horizon`` out, or the goal when that is nearer."""
+def predicted_clearance(
+    sim: PlanningContext, pts: np.ndarray, radius: float, t_lo: np.ndarray, t_hi: np.ndarray, cap: float
+) -> np.ndarray:
+    """:func:`static_clearance` of ``pts``, lowered by the moving obstacles wherever they are
+    predicted in each point's time window ``t_lo``..``t_hi`` (exact up to ``cap``)."""
+    clear = static_clearance(sim, pts, radius)
+    return np.minimum(clear, moving_clearance(sim, pts, radius, t_lo, t_hi, cap=cap))
+
+
+def choose_subgoal(
+    sim: PlanningContext, i: int, horizon: float, need: float, squeeze: float | None = None
+) -> np.ndarray:
+    """Point on the ray to the goal past whatever blocks it, at least ``horizon`` out, or the
+    goal when that is nearer. A blocker is a stretch of the ray with clearance below ``need``
+    that somewhere falls below ``squeeze`` (default: the escape ``margin``); the sub-goal is
+    the first point past the first blocker with ``need``.
+
+    Moving obstacles block the ray where they are predicted while the agent would get there
+    (:mod:`swarmplan.planner.movers`: from flying the ray straight to flying ``DETOUR`` times
+    as far, plus the timing slack): a parked mover is a blocker like a static one."""
     s = sim.state
     p, g = s.position[i], s.goal[i]
     d = g - p
@@ -90,22 +113,43 @@ def choose_subgoal(sim: PlanningContext, i: int, horizon: float, need: float) ->
     u = d / dist
     step = max(0.5, dist / 400)
     ts = np.arange(0.0, dist, step)
-    clear = static_clearance(sim, p + ts[:, None] * u, float(sim.params.radius[i]))
+    t_lo, t_hi = predicted_window(EscapeClock.of(sim, i), ts, DETOUR)
+    clear = predicted_clearance(sim, p + ts[:, None] * u, float(sim.params.radius[i]), t_lo, t_hi, need)
     blocked = np.flatnonzero(clear < need)
     blocked = blocked[ts[blocked] > 0.5]
     t_end = horizon
-    if len(blocked):
-        after = np.flatnonzero((np.arange(len(ts)) > blocked[-1]) & (clear >= need))
+    runs = np.split(blocked, np.flatnonzero(np.diff(blocked) > 1) + 1) if len(blocked) else []
+    # A stretch that keeps ``squeeze`` only grazes something (the ray runs along a corridor's
+    # wall): the agent can fly it, so it does not block. Treating it as the blocker put the
+    # sub-goal in front of the mover parked across the corridor (parked_mover_corridor).
+    squeeze = float(escape_settings(sim.world)["margin"]) if squeeze is None else squeeze
+    runs = [run for run in runs if clear[run].min() < squeeze]
+    if runs:
+        # Only the first blocking stretch matters; later ones are for later escapes.
+        after = np.flatnonzero((np.arange(len(ts)) > runs[0][-1]) & (clear >= need))
         first_free = ts[after[0]] + need if len(after) else dist
-        # Only the first blocked stretch matters; later ones are for later escapes.
-        runs = np.split(blocked, np.flatnonzero(np.diff(blocked) > 1) + 1)
-        last_of_first = runs[0][-1]
-        after1 = np.flatnonzero((np.arange(len(ts)) > last_of_first) & (clear >= need))
-        first_free = ts[after1[0]] + need if len(after1) else first_free
         t_end = max(horizon, first_free)
     if t_end >= dist - 1e-9:
         return g.copy()
     return p + t_end * u
+
+
+def mover_leg_hit(
+    sim: PlanningContext, i: int, a: np.ndarray, b: np.ndarray, s_a: float, margin: float
+) -> str | None:
+    """Id of a moving obstacle that agent ``i`` (radius + ``margin``) would touch on the escape leg
+    ``a`` → ``b`` starting ``s_a`` metres into the escape (FCL, at the movers' predicted poses
+    with the timing slack of :mod:`swarmplan.planner.movers`), else None.
+
+    On the first leg the margin is what the agent has from the movers now (it may be stuck
+    closer than ``margin`` to a parked one): the leg must not get closer, then must clear."""
+    if not sim.moving_mask.any():
+        return None
+    r = float(sim.params.radius[i])
+    if s_a <= 0.0:
+        now = float(moving_clearance(sim, sim.state.position[i], r, sim.state.t, sim.state.t)[0])
+        margin = min(margin, max(0.0, 0.5 * now))
+    return moving_leg_hit(sim, EscapeClock.of(sim, i), a, b, s_a, r + margin)
 
 
 @dataclass
@@ -145,11 +189,13 @@ class EscapePlanner:
         col = sim.collision
         r = float(sim.params.radius[i])
         m = float(self.cfg["fcl_margin"])
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(polyline, axis=0), axis=1))])
         for k in range(len(polyline) - 1):
             a, b = polyline[k], polyline[k + 1]
             rr = r + (min(m, max(0.0, 0.5 * start_clearance)) if k == 0 else m)
             hit = col.sweep_bounds(b) and "bounds"
             hit = hit or col.sweep_terrain(a, b, rr) or col.sweep_static(a, b, rr)
+            hit = hit or mover_leg_hit(sim, i, a, b, float(arc[k]), m)
             if hit:
                 return hit
         return None
@@ -163,15 +209,21 @@ class EscapePlanner:
         m = float(self.cfg["margin"])
         kept = [0]
         j = 0
+        arc = 0.0  # along the kept polyline, for the movers' predicted poses
         while j < len(poly) - 1:
             nxt = j + 1
             for k in range(len(poly) - 1, j + 1, -1):
                 rr = r + (min(m, max(0.0, 0.5 * start_clearance)) if j == 0 else m)
                 a, b = poly[j], poly[k]
-                if not (col.sweep_terrain(a, b, rr) or col.sweep_static(a, b, rr)):
+                if not (
+                    col.sweep_terrain(a, b, rr)
+                    or col.sweep_static(a, b, rr)
+                    or mover_leg_hit(sim, i, a, b, arc, m)
+                ):
                     nxt = k
                     break
             kept.append(nxt)
+            arc += float(np.linalg.norm(poly[nxt] - poly[j]))
             j = nxt
         return poly[kept]
 
@@ -180,12 +232,22 @@ class EscapePlanner:
         (paper 004 §6, :func:`~swarmplan.geometry.polyline.fillet_path`). An arc that FCL finds
         within radius + ``fcl_margin`` of something, or that does not fit, keeps its corner."""
         col = sim.collision
-        rr = float(sim.params.radius[i]) + float(self.cfg["fcl_margin"])
+        m = float(self.cfg["fcl_margin"])
+        rr = float(sim.params.radius[i]) + m
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(poly, axis=0), axis=1))])
 
         def hits(arc: np.ndarray) -> bool:
+            # Distance flown when the arc starts (for the movers' predicted poses): the arc
+            # replaces the corner nearest its middle, starting one tangent length before it.
+            k = int(np.argmin(np.linalg.norm(poly - arc[len(arc) // 2], axis=1)))
+            flown = max(0.0, float(cum[k]) - float(np.linalg.norm(poly[k] - arc[0])))
+            steps = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(arc, axis=0), axis=1))])
             return any(
-                col.sweep_bounds(b) or col.sweep_terrain(a, b, rr) or col.sweep_static(a, b, rr)
-                for a, b in zip(arc[:-1], arc[1:], strict=True)
+                col.sweep_bounds(b)
+                or col.sweep_terrain(a, b, rr)
+                or col.sweep_static(a, b, rr)
+                or mover_leg_hit(sim, i, a, b, flown + float(s0), m)
+                for a, b, s0 in zip(arc[:-1], arc[1:], steps[:-1], strict=True)
             )
 
         return fillet_path(poly, model_turn_radius(sim, i), collision_check=hits).points

@@ -4,13 +4,12 @@ corridor the agent is in) and ``closing_gap.yaml`` (two movers close the only ga
 in front of two agents). Pure APF stays trapped in both; the planner must detect the stuck
 agents and escape. Every run is audited from its log (replay, plus check_log where found).
 
-Found with these worlds: the escapes start but do not get the agents out. Escape planning
-places its subgoal past *static* blockers only (``swarmplan/planner/escape.py``:
-``choose_subgoal`` via ``static_clearance``), so a parked mover is not a blocker and the
-subgoal lands just behind it (closing_gap seed 2: east's first escape waypoint
-[65.8, 44.3, 15] sits right behind the closed doors at x = 62). With the same plug static
-the corridor world is solved by one escape. Arrival is therefore a strict xfail until the
-planner treats parked movers as blockers.
+These worlds found that escape planning ignored parked movers: it placed its sub-goal past
+*static* blockers only, so the sub-goal landed just behind the mover (closing_gap seed 2:
+east's first escape waypoint [65.8, 44.3, 15] right behind the closed doors at x = 62), and
+its FCL validation and shortcutting swept static bodies only; 0/1 and 0/2 agents arrived
+after 4 and 6 escapes. Escape planning now sees every mover at its predicted pose while the
+escape is flown (``swarmplan/planner/movers.py``), and one escape per agent gets them out.
 """
 
 from __future__ import annotations
@@ -82,11 +81,6 @@ def test_the_movers_make_the_planner_escape_without_collision(name, runs):
         assert row["stuck_events"] == len(stuck) and row["escapes"] >= 1
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="escape subgoals ignore parked movers (planner/escape.py choose_subgoal uses static "
-    "obstacles only): measured 0/1 and 0/2 arrived in 60 s after 4 and 6 escapes",
-)
 @pytest.mark.parametrize("name", NAMES)
 def test_the_planner_escapes_and_every_agent_arrives(name, runs):
     summary, log = runs(name)
@@ -97,7 +91,7 @@ def test_the_planner_escapes_and_every_agent_arrives(name, runs):
 
 
 def test_the_corridor_with_a_static_plug_is_solved_by_one_escape(tmp_path):
-    """Control for the xfail above: the same pocket with the plug static from the start."""
+    """Control: the same pocket with the plug static from the start."""
     raw = _raw("parked_mover_corridor")
     plug = next(o for o in raw["obstacles"] if o["id"] == "plug")
     plug["position"] = copy.deepcopy(plug["motion"]["waypoints"][-1])
