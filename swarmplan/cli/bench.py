@@ -15,6 +15,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "optimizers": ("swarmplan.bench.optimizers", "run a paper benchmark suite over the optimizers"),
     "overhead": ("swarmplan.bench.overhead", "measure the library's own overhead per evaluation"),
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
+    "docs": ("swarmplan.bench.docs", "re-run the commands behind the docs' tables and rewrite them"),
 }
 
 
