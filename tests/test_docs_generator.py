@@ -64,7 +64,8 @@ def test_rewrite_of_two_blocks_and_empty_contents() -> None:
         ("x\n<!-- end: a -->\n", "test.md:2: end of block 'a' without its opening marker"),
         ("<!-- generated: a -->\n<!-- generated: b -->\n", "test.md:2: block 'b' opens inside block 'a'"),
         ("<!-- generated: a -->\n<!-- end: b -->\n", "test.md:2: end of block 'b' but block 'a' is open"),
-        ("text <!-- generated: a --> text\n", "test.md:1: malformed marker"),
+        ("<!-- generated: a --> text\n", "test.md:1: malformed marker"),
+        ("<!--generated: a-->\n", "test.md:1: malformed marker"),
     ],
 )
 def test_malformed_markers_name_file_and_line(text: str, message: str) -> None:
@@ -186,3 +187,7 @@ def test_compare_help_shows_defaults(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("COLUMNS", "200")  # no line breaks inside the defaults
     text = compare_parser().format_help()
     assert "(default: 10)" in text and "(default: woa,rscdwoa,ba,iba_abc,cfo,mcfo)" in text
+
+
+def test_a_marker_mentioned_in_prose_is_not_a_block() -> None:
+    assert docs.find_blocks("the `<!-- generated: NAME -->` markers are rewritten\n", "t.md") == []

@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 _OPEN = re.compile(r"^<!-- generated: (?P<name>[A-Za-z0-9_.-]+) -->$")
 _END = re.compile(r"^<!-- end: (?P<name>[A-Za-z0-9_.-]+) -->$")
-_ANY = re.compile(r"<!-- (generated|end):")
+_ANY = re.compile(r"^<!--\s*(generated|end)\b")  # a marker attempt, not a mention in prose
 
 
 class DocsError(ValueError):
