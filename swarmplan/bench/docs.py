@@ -332,7 +332,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=int, default=2, help="worker processes for the sweeps")
     p.add_argument("--out-dir", default="logs/docs", help="where the runs' logs go")
     p.add_argument("--resume", action="store_true", help="reuse finished runs' logs in --out-dir")
-    p.add_argument("--root", default=str(ROOT), help="folder with README.md and docs/")
+    p.add_argument("--root", help="folder with README.md and docs/; none = this package's checkout")
     p.add_argument("--list", action="store_true", help="list the known blocks and exit")
 
 
@@ -342,7 +342,7 @@ def main(args: argparse.Namespace, generators: dict[str, Generator] | None = Non
         for g in gens.values():
             print(f"{g.name:28s} {g.help}")
         return 0
-    root = Path(args.root)
+    root = Path(args.root) if args.root else ROOT
     files = doc_files(root)
     found, problems = scan(files, gens)
     present = {s.name for spans in found.values() for s in spans}
