@@ -28,8 +28,8 @@ Between the blocks.
 Text after, no newline at the end"""
 
 
-def _gen(name: str, body: str) -> docs.Generator:
-    return docs.Generator(name, f"test block {name}", lambda opts: docs.Block(f"echo {name}", body))
+def _gen(name: str, body: str, uses: frozenset[str] = frozenset()) -> docs.Generator:
+    return docs.Generator(name, f"test block {name}", lambda opts: docs.Block(f"echo {name}", body), uses)
 
 
 def _args(root: Path, **kw: object) -> argparse.Namespace:
@@ -191,3 +191,12 @@ def test_compare_help_shows_defaults(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_a_marker_mentioned_in_prose_is_not_a_block() -> None:
     assert docs.find_blocks("the `<!-- generated: NAME -->` markers are rewritten\n", "t.md") == []
+
+
+def test_stamp_names_only_the_options_a_block_uses(tmp_path: Path) -> None:
+    page = _tree(tmp_path, DOC)
+    gens = {"alpha": _gen("alpha", "A", frozenset({"seeds"})), "beta": _gen("beta", "B")}
+    assert docs.main(_args(tmp_path, seeds=3, quick=True), gens) == 0
+    text = page.read_text(encoding="utf-8")
+    assert "by `python -m swarmplan.bench docs --only alpha --seeds 3`, which ran" in text
+    assert "by `python -m swarmplan.bench docs --only beta`, which ran" in text

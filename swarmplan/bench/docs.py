@@ -65,6 +65,8 @@ class Generator:
     name: str
     help: str
     run: Callable[[Options], Block]
+    #: the options of :class:`Options` it reads (the stamp names only those)
+    uses: frozenset[str] = frozenset()
 
 
 # ----------------------------------------------------------------------------- markers
@@ -283,14 +285,22 @@ def _swarm_bench(opts: Options) -> Block:
 GENERATORS: dict[str, Generator] = {
     **{
         f"comparison-{stem}": Generator(
-            f"comparison-{stem}", f"docs/comparison.md table of {stem}.yaml (sweep engine)", _comparison(stem)
+            f"comparison-{stem}",
+            f"docs/comparison.md table of {stem}.yaml (sweep engine)",
+            _comparison(stem),
+            frozenset({"quick", "seeds", "jobs", "out_dir", "resume"}),
         )
         for stem in COMPARISON
     },
     "paper-worlds": Generator("paper-worlds", "run and wall time of each paper world", _paper_worlds),
-    "overhead": Generator("overhead", "optimizer overhead per evaluation at d = 50", _overhead),
+    "overhead": Generator(
+        "overhead", "optimizer overhead per evaluation at d = 50", _overhead, frozenset({"quick"})
+    ),
     "escape-swarm-bench": Generator(
-        "escape-swarm-bench", "64 agents, 16 movers, rscdwoa escapes: wall time", _swarm_bench
+        "escape-swarm-bench",
+        "64 agents, 16 movers, rscdwoa escapes: wall time",
+        _swarm_bench,
+        frozenset({"quick"}),
     ),
 }
 
@@ -368,14 +378,19 @@ def main(args: argparse.Namespace, generators: dict[str, Generator] | None = Non
         return 2
     opts = Options(args.quick, args.seeds, args.jobs, Path(args.out_dir), args.resume)
     commit = git_commit(root)
-    flags = (
-        " --quick" * args.quick + (f" --seeds {args.seeds}" if args.seeds else "") + " --resume" * args.resume
-    )
+    given = {
+        "quick": " --quick" if args.quick else "",
+        "seeds": f" --seeds {args.seeds}" if args.seeds else "",
+        "jobs": f" --jobs {args.jobs}" if args.jobs != 2 else "",
+        "out_dir": f" --out-dir {args.out_dir}" if args.out_dir != "logs/docs" else "",
+        "resume": " --resume" if args.resume else "",
+    }
     for name in wanted:
         print(f"{name}: running ...", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         block = gens[name].run(opts)
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+        flags = "".join(v for k, v in given.items() if k in gens[name].uses)
         invocation = f"python -m swarmplan.bench docs --only {name}{flags}"
         # blank lines around the block: markdown ends the table before the end marker
         content = (
