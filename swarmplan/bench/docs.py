@@ -377,7 +377,7 @@ def main(args: argparse.Namespace, generators: dict[str, Generator] | None = Non
             print(f"error: {p}", file=sys.stderr)
         return 2
     opts = Options(args.quick, args.seeds, args.jobs, Path(args.out_dir), args.resume)
-    commit = git_commit(root)
+    commit = git_commit(ROOT)  # the code that makes the numbers, wherever the docs are
     given = {
         "quick": " --quick" if args.quick else "",
         "seeds": f" --seeds {args.seeds}" if args.seeds else "",
