@@ -7,7 +7,8 @@ table in the style of the papers: success rate, flown path length, mean curvatur
 time, planning time (and the best global-plan cost in ``mode: global``), each as mean ± std
 over the seeds, with a Wilcoxon rank-sum verdict (scipy ``ranksums``) against the first
 optimizer: ``+`` significantly better than it, ``-`` significantly worse, ``=`` no
-significant difference (p >= ``--alpha``).
+significant difference (p >= ``--alpha``). A cell without a value reads ``n/a`` and a note
+under the table says why (e.g. no plan cost in the reactive mode, which makes no global plan).
 
 Path length, curvature and arrival time are averaged over the agents that arrived (a run
 where none arrived contributes nothing to them); planning time is the wall time of the
@@ -24,7 +25,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from swarmplan.sweep.report import table, verdict  # noqa: F401 - verdict is part of this module's API
+from swarmplan.sweep.report import table, table_notes, verdict  # noqa: F401 - part of this module's API
 
 
 def format_table(rows: list[dict[str, Any]], names: list[str], alpha: float = 0.05) -> str:
@@ -107,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
             tmp.cleanup()
     print(f"world {args.world}, {args.seeds} seed(s) per optimizer (seeds 0..{args.seeds - 1})")
     print(format_table(rows, names, args.alpha))
+    for note in table_notes(rows, names):
+        print(f"note: {note}")
     if tmp is None:
         print(f"rows: {out_dir / 'results.csv'}, logs: {out_dir / 'runs'}", file=sys.stderr)
     return 0

@@ -45,9 +45,13 @@ def _vals(rows: list[dict[str, Any]], col: str) -> list[float]:
     return out
 
 
+#: What an empty cell reads (explained under the table by :func:`table_notes`).
+NO_VALUE = "n/a"
+
+
 def mean_std(xs: list[float], fmt: str = "{:.1f}") -> str:
     if not xs:
-        return "-"
+        return NO_VALUE
     return f"{fmt.format(np.mean(xs))} ± {fmt.format(np.std(xs))}"
 
 
@@ -96,6 +100,31 @@ def table(rows: list[dict[str, Any]], optimizers: list[str], alpha: float = 0.05
         return "| " + " | ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True)) + " |"
 
     return "\n".join([line(head), line(["-" * w for w in widths])] + [line(r) for r in out_rows])
+
+
+def table_notes(rows: list[dict[str, Any]], optimizers: list[str]) -> list[str]:
+    """One sentence per kind of ``n/a`` (or missing column) in :func:`table`, saying why."""
+    notes = []
+    if not _vals(rows, "plan_cost"):
+        notes.append(
+            "no plan cost column: no run made a global plan (the world plans reactively, "
+            "`planner.mode: reactive`; the cost is that of `mode: global`'s plans)"
+        )
+    by = {n: [r for r in rows if r["optimizer"] == n] for n in optimizers}
+    empty = [n for n, rs in by.items() if rs and not _vals(rs, "path_length_mean")]
+    if empty:
+        notes.append(
+            f"n/a in length, curvature and arrival for {', '.join(empty)}: no agent of any of its runs "
+            "arrived (these metrics average the agents that arrived)"
+        )
+    cols = [c for c, _ in VERDICTS] + (["plan_cost"] if _vals(rows, "plan_cost") else [])
+    few = [n for n, rs in by.items() if any(len(_vals(rs, c)) < 2 for c in cols)]
+    if len(optimizers) > 1 and few:
+        notes.append(
+            f"n/a in a verdict column: fewer than 2 values on a side ({', '.join(few)}); the rank-sum "
+            "test needs at least 2 runs per optimizer (more seeds)"
+        )
+    return notes
 
 
 def groups(rows: list[dict[str, Any]], override_keys: list[str]) -> list[tuple[str, tuple, list[dict]]]:
@@ -160,6 +189,7 @@ def write_report(
         if override_keys:
             lines += ["", f"### {_fmt_combo(override_keys, tuple(json.loads(v) for v in vals))}"]
         lines += ["", table(rs, optimizers, alpha)]
+        lines += [f"\n{n}" for n in table_notes(rs, optimizers)]
         errors = [r for r in rs if r.get("status") != "ok"]
         for r in errors:
             lines.append(f"\nerror: {r['optimizer']} seed {r['seed']}: {r.get('error', '')}")
