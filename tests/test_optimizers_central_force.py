@@ -158,3 +158,43 @@ def test_beats_random_search_on_sphere(name, limit):
         res = make(name).minimize(sphere, LOWER, UPPER, max_evals=5000, seed=seed)
         assert res.evaluations == 5000
         assert res.f < limit < rnd.f
+
+
+def test_rank_masses_keep_gravity_alive_beside_one_infeasible_probe():
+    """One infeasible probe makes the cost range a penalty: with masses from the costs divided
+    by the range the feasible probes barely move (the warm-start trap measured in the paper
+    worlds); with ranks they are pulled as strongly as without the outlier."""
+    from swarmplan.optimizers.central_force import masses
+
+    rng = np.random.default_rng(3)
+    U = rng.random((30, 5))
+    F = 7.0 + 3.0 * rng.random(30)
+    F[0] = 2.6e4  # the one infeasible probe left
+    steps = {}
+    for mode in ("range", "rank"):
+        M, scale = masses(F, mode)
+        A = cfo_acceleration(U, M, scale, G=2.0, alpha=2.0, beta=2.0)
+        steps[mode] = float(np.abs(0.5 * A[1:]).max())
+    assert steps["range"] < 1e-6
+    assert steps["rank"] > 1e-2
+    M, scale = masses(F, "rank")
+    assert scale == 1.0 and M.min() == 0.0 and M.max() == 1.0
+    assert np.array_equal(np.argsort(M, kind="stable"), np.argsort(F, kind="stable"))
+
+
+def test_cfo_converges_past_a_feasible_warm_start_on_a_penalty_landscape():
+    """A feasible warm start among mostly infeasible random probes. Measured medians over
+    seeds 0-4: 0.6 with rank masses, 38 with the range masses (a straggling infeasible probe
+    keeps the feasible ones nearly still)."""
+
+    def cost(X):
+        feasible = X[:, 0] > 20.0  # a constraint most random probes break
+        return ((X - 40.0) ** 2).sum(1) + np.where(feasible, 0.0, 1e6)
+
+    lo, hi = np.full(4, -100.0), np.full(4, 100.0)
+    x0 = np.array([[25.0, 0.0, 0.0, 0.0]])
+    fs = [
+        make("cfo", population=30).minimize(cost, lo, hi, max_evals=3000, seed=seed, x0=x0).f
+        for seed in range(5)
+    ]
+    assert np.median(fs) < 5.0

@@ -15,6 +15,7 @@ import copy
 
 import numpy as np
 import pytest
+from scipy.stats import rankdata
 
 from swarmplan.optimizers import make
 from swarmplan.optimizers.central_force import (
@@ -117,8 +118,8 @@ def test_mcfo_eq23_literal_by_default():
         pb, gb = state.pbest_U.copy(), state.gbest_U.copy()
         twin = copy.deepcopy(rng)
         r1, r2 = twin.random((8, 1)), twin.random((8, 1))
-        scale = float(np.ptp(F0)) or 1.0
-        W = cfo_weights(U0, F0, scale, p["G"], p["alpha"], p["beta"])
+        M = (rankdata(F0) - 1.0) / 7.0  # masses by rank (the default), scaled to [0, 1]
+        W = cfo_weights(U0, M, 1.0, p["G"], p["alpha"], p["beta"])
         expected = U0 + 0.5 * p["dt"] ** 2 * gravity_from_weights(U0, W) + r1 * (pb - U0) + r2 * (gb - U0)
         expected = accommodate(expected, U0, 0.0, 1.0, p["frep"])
         opt.iterate(state, problem, rng, it)
