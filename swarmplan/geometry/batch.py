@@ -190,3 +190,27 @@ class ShapeBatch:
         for j in self.meshes:
             d[:, j], g[:, j] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])
         return d, g
+
+    def min_distance(
+        self, points: np.ndarray, centers: np.ndarray | None = None, d: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Exact minimum signed distance from each of ``points`` (N, 3) to any obstacle, for
+        metrics: as ``ObstacleField.min_distance`` (same rule, same values). Mesh values in
+        ``query`` come from the distance grid (a lower bound beyond it), so a mesh is measured
+        exactly (trimesh) at the points where its bounding-box distance, a strict lower bound,
+        does not exceed the smallest distance known so far. ``d``: this batch's ``query`` at the
+        same points and centers, when at hand. ``inf`` per point when there are no obstacles."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        c = self.position if centers is None else np.asarray(centers, dtype=float)
+        if d is None:
+            d = self.distance(points, c)
+        best = np.full(len(points), np.inf)
+        if len(self.meshes) < len(self.obstacles):
+            best = d[:, self.code >= 0].min(axis=1)
+        for j in self.meshes:
+            grid = self.mesh_grids[j]
+            local = (points - c[j]) @ self.obstacles[j].rotation
+            rows = np.flatnonzero(grid.box_lower_bound(local) <= best)
+            if len(rows):
+                best[rows] = np.minimum(best[rows], grid.exact(local[rows], d[rows, j]))
+        return best

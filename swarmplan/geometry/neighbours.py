@@ -11,6 +11,8 @@ contains every pair the exact test can accept, and the exact test then runs on t
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 
 from swarmplan.geometry.collision import segment_segment_min_distance
@@ -61,12 +63,16 @@ def agent_clearance_indexed(pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
     tree = cKDTree(pos)
     dn, _ = tree.query(pos, k=2)
     spread = float(radius.max() - radius.min())
+    # Candidates of every agent in one flat list (row i repeated once per candidate), then one
+    # array operation for their distances and a minimum per row.
+    lists = tree.query_ball_point(pos, dn[:, 1] + spread + 1e-9 * (1.0 + dn[:, 1]), return_sorted=False)
+    counts = np.fromiter(map(len, lists), dtype=np.intp, count=n)
+    js = np.fromiter(chain.from_iterable(lists), dtype=np.intp, count=int(counts.sum()))
+    ii = np.repeat(np.arange(n), counts)
+    other = ii != js
+    ii, js = ii[other], js[other]
     out = np.full(n, np.inf)
-    lists = tree.query_ball_point(pos, dn[:, 1] + spread + 1e-9 * (1.0 + dn[:, 1]))
-    for i, js in enumerate(lists):
-        js = np.array([j for j in js if j != i], dtype=np.intp)
-        if len(js):
-            out[i] = (np.linalg.norm(pos[i] - pos[js], axis=-1) - (radius[i] + radius[js])).min()
+    np.minimum.at(out, ii, np.linalg.norm(pos[ii] - pos[js], axis=-1) - (radius[ii] + radius[js]))
     return out
 
 

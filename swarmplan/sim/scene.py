@@ -8,9 +8,10 @@ from typing import Any
 import numpy as np
 
 from swarmplan.dynamics import AgentParams
+from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import CollisionWorld
+from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
-from swarmplan.geometry.shapes import ObstacleField
 from swarmplan.motion import max_speed, poses_at
 from swarmplan.world.model import World
 
@@ -22,7 +23,9 @@ class Scene:
         self.world = world
         self.params = params
         self.collision = CollisionWorld(world)
-        self.field = ObstacleField(world.obstacles)
+        # Distances batched by shape type (one array operation per shape, meshes by their grid),
+        # equal to ObstacleField's; min_distance stays exact for meshes.
+        self.field = ShapeBatch(world.obstacles)
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
         self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
         self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
@@ -56,14 +59,8 @@ class Scene:
 
     def agent_clearance(self, pos: np.ndarray) -> np.ndarray:
         """Per agent: surface distance to the nearest other agent."""
-        n = len(pos)
-        if n < 2:
-            return np.full(n, np.inf)
-        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (
-            self.params.radius[:, None] + self.params.radius[None]
-        )
-        np.fill_diagonal(d, np.inf)
-        return d.min(axis=1)
+        # Through a k-d tree: equal to the all-pairs minimum (tests/test_geometry_neighbours.py).
+        return agent_clearance_indexed(pos, self.params.radius)
 
     def obstacle_dicts(self, t: float) -> list[dict[str, Any]] | None:
         """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
