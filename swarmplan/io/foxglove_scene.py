@@ -32,10 +32,10 @@ from serialized entities. See ``docs/replay.md`` for measured per-step cost.
 from __future__ import annotations
 
 import math
+import struct
 from typing import Any
 
 import numpy as np
-from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
@@ -63,6 +63,35 @@ OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
 MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
 _TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
+
+# FrameTransform written directly in protobuf's wire format (the bytes protobuf's own
+# serializer gives, tests/test_foxglove_tf_bytes.py): building and serializing 256 messages
+# per step through the protobuf API was the largest recording cost of a 256-agent step.
+# Fields: 1 timestamp, 2 parent_frame_id, 3 child_frame_id, 4 translation, 5 rotation;
+# proto3 leaves out a double equal to +0.0 (not -0.0); doubles are tags 0x09/0x11/0x19/0x21.
+_DOUBLE = struct.Struct("<d").pack
+_XYZ = struct.Struct("<BBBdBdBd").pack  # translation with x, y, z all non-zero: the usual case
+_ZW = struct.Struct("<BBBdBd").pack  # rotation with only z and w set (a yaw), both non-zero
+_DOUBLE_TAGS = (b"\x09", b"\x11", b"\x19", b"\x21")
+
+
+def _present(v: float) -> bool:
+    return v != 0.0 or math.copysign(1.0, v) < 0.0  # -0.0 and NaN are written
+
+
+def _vector_bytes(field_tag: bytes, values: tuple[float, ...], tags: tuple[bytes, ...]) -> bytes:
+    inner = b"".join(tag + _DOUBLE(v) for tag, v in zip(tags, values, strict=True) if _present(v))
+    return field_tag + _varint(len(inner)) + inner
+
+
+_IDENTITY_ROTATION = b"\x2a\x09\x21" + _DOUBLE(1.0)
+
+
+def _timestamp_bytes(t: float) -> bytes:
+    ns = int(round(t * 1e9))
+    sec, nanos = divmod(ns, 1_000_000_000)
+    inner = (b"\x08" + _varint(sec) if sec else b"") + (b"\x10" + _varint(nanos) if nanos else b"")
+    return b"\x0a" + _varint(len(inner)) + inner
 
 
 def file_descriptor_set(message_class) -> FileDescriptorSet:
@@ -162,7 +191,8 @@ class FoxgloveScene:
         self._obstacle_entities: dict[str, SceneEntity] = {}
         self._path_entities: dict[str, SceneEntity] = {}
         self._paths: dict[str, list[tuple[float, float, float]]] = {}
-        self._tfs: dict[str, FrameTransform] = {}
+        self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
+        self._tf_yaw: dict[str, bytes] = {}  # per agent: its last rotation field
         self._next_scene = -math.inf
         self._next_path = -math.inf
         self._next_tf = -math.inf
@@ -336,21 +366,38 @@ class FoxgloveScene:
             self._last = None
 
     def _write_tf(self, t, agents):
+        stamp = _timestamp_bytes(t)
+        prefix, yaw = self._tf_prefix, self._tf_yaw
         parts = []
         for a in agents:
             aid = str(a["id"])
-            tf = self._tfs.get(aid)
-            if tf is None:
-                tf = self._tfs[aid] = FrameTransform(parent_frame_id=FRAME, child_frame_id=aid)
-                tf.rotation.w = 1.0
-            _set_time(tf.timestamp, t)
+            head = prefix.get(aid)
+            if head is None:
+                child = aid.encode()
+                head = prefix[aid] = (
+                    b"\x12"
+                    + _varint(len(FRAME))
+                    + FRAME.encode()
+                    + (b"\x1a" + _varint(len(child)) + child if child else b"")
+                )
             p = a["position"]
-            tf.translation.x, tf.translation.y, tf.translation.z = float(p[0]), float(p[1]), float(p[2])
+            x, y, z = float(p[0]), float(p[1]), float(p[2])
+            if x and y and z:
+                trans = _XYZ(0x22, 27, 0x09, x, 0x11, y, 0x19, z)
+            else:
+                trans = _vector_bytes(b"\x22", (x, y, z), _DOUBLE_TAGS[:3])
             v = a.get("velocity")
             if v is not None and (v[0] or v[1]):  # yaw along the horizontal velocity
-                yaw = math.atan2(v[1], v[0]) / 2.0
-                tf.rotation.z, tf.rotation.w = math.sin(yaw), math.cos(yaw)
-            b = tf.SerializeToString()
+                half = math.atan2(v[1], v[0]) / 2.0
+                qz, qw = math.sin(half), math.cos(half)
+                rot = yaw[aid] = (
+                    _ZW(0x2A, 18, 0x19, qz, 0x21, qw)
+                    if qz and qw
+                    else _vector_bytes(b"\x2a", (0.0, 0.0, qz, qw), _DOUBLE_TAGS)
+                )
+            else:  # no horizontal motion: the last heading (none yet: identity)
+                rot = yaw.get(aid, _IDENTITY_ROTATION)
+            b = stamp + head + trans + rot
             parts.append(_TRANSFORMS_TAG + _varint(len(b)) + b)
         self._write(TF_TOPIC, b"".join(parts), t)
 

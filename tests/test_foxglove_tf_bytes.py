@@ -1,0 +1,78 @@
+"""/tf is written in protobuf's wire format directly: the bytes equal what protobuf's own
+serializer makes of the same FrameTransforms (zeros, -0.0, standing agents included)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+
+from swarmplan.io.foxglove_scene import TF_TOPIC, FoxgloveScene
+
+
+class _Capture:
+    """The slice of mcap's Writer that FoxgloveScene uses, keeping the messages."""
+
+    def __init__(self):
+        self.messages: list[tuple[int, int, bytes]] = []
+
+    def register_schema(self, **_):
+        return 1
+
+    def register_channel(self, topic, **_):
+        return {"/tf": 10}.get(topic, 11)
+
+    def add_message(self, channel_id, log_time, publish_time, data):
+        self.messages.append((channel_id, log_time, data))
+
+
+def _reference(t: float, agents: list[dict], last: dict[str, FrameTransform]) -> bytes:
+    """The /tf message built through the protobuf API (the previous implementation's rules)."""
+    out = FrameTransforms()
+    for a in agents:
+        aid = a["id"]
+        tf = last.get(aid)
+        if tf is None:
+            tf = last[aid] = FrameTransform(parent_frame_id="world", child_frame_id=aid)
+            tf.rotation.w = 1.0
+        ns = int(round(t * 1e9))
+        tf.timestamp.seconds, tf.timestamp.nanos = divmod(ns, 1_000_000_000)
+        tf.translation.x, tf.translation.y, tf.translation.z = (float(c) for c in a["position"])
+        v = a["velocity"]
+        if v[0] or v[1]:
+            yaw = math.atan2(v[1], v[0]) / 2.0
+            tf.rotation.z, tf.rotation.w = math.sin(yaw), math.cos(yaw)
+        out.transforms.append(tf)
+    return out.SerializeToString()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_tf_bytes_equal_protobuf_serializer(seed):
+    rng = np.random.default_rng(seed)
+    ids = ["a0", "uav-1", "x" * 200, "ü"]  # a child id longer than 127 bytes: two-byte length
+    world = {"agents": [{"id": i} for i in ids]}
+    cap = _Capture()
+    scene = FoxgloveScene(cap, world, scene_period=1e9, path_period=1e9)
+    last: dict[str, FrameTransform] = {}
+    special = [0.0, -0.0, 1.0, -2.5]
+    for step in range(40):
+        t = step * 0.1 if step else 0.0
+        agents = []
+        for i in ids:
+            p = rng.normal(0, 50, 3)
+            v = rng.normal(0, 3, 3)
+            if rng.random() < 0.4:
+                p[rng.integers(3)] = special[rng.integers(4)]
+            if rng.random() < 0.3:
+                v[:2] = special[rng.integers(4)], special[rng.integers(4)]
+            if rng.random() < 0.1:
+                v[:2] = 1.0, 0.0  # yaw exactly zero: rotation.z = 0.0 is left out
+            agents.append({"id": i, "position": p.tolist(), "velocity": v.tolist()})
+        scene.write_step(t, agents, [])
+        tf = [m for m in cap.messages if m[0] == 10]
+        assert tf[-1][2] == _reference(t, agents, last)
+        assert FrameTransforms.FromString(tf[-1][2]).transforms[0].child_frame_id == "a0"
+    assert TF_TOPIC == "/tf"
