@@ -1,5 +1,6 @@
-"""/tf is written in protobuf's wire format directly: the bytes equal what protobuf's own
-serializer makes of the same FrameTransforms (zeros, -0.0, standing agents included)."""
+"""/tf and the agents of /scene are written in protobuf's wire format directly: the bytes equal
+what protobuf's own serializer makes of the same messages (zeros, -0.0, standing agents,
+every mode's colour included)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,11 @@ import numpy as np
 import pytest
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-from swarmplan.io.foxglove_scene import TF_TOPIC, FoxgloveScene
+from swarmplan.core import Mode
+from swarmplan.io.foxglove_scene import MODE_COLORS, TF_TOPIC, FoxgloveScene
 
 
 class _Capture:
@@ -23,7 +27,7 @@ class _Capture:
         return 1
 
     def register_channel(self, topic, **_):
-        return {"/tf": 10}.get(topic, 11)
+        return {"/tf": 10, "/scene": 12}.get(topic, 11)
 
     def add_message(self, channel_id, log_time, publish_time, data):
         self.messages.append((channel_id, log_time, data))
@@ -76,3 +80,42 @@ def test_tf_bytes_equal_protobuf_serializer(seed):
         assert tf[-1][2] == _reference(t, agents, last)
         assert FrameTransforms.FromString(tf[-1][2]).transforms[0].child_frame_id == "a0"
     assert TF_TOPIC == "/tf"
+
+
+def _reference_scene(t: float, agents: list[dict], radius: dict[str, float]) -> bytes:
+    """The agents' /scene entities built through the protobuf API (the previous rules)."""
+    out = SceneUpdate()
+    ns = int(round(t * 1e9))
+    for a in agents:
+        e = SceneEntity(frame_id="world", id=f"agent/{a['id']}")
+        e.timestamp.seconds, e.timestamp.nanos = divmod(ns, 1_000_000_000)
+        s = e.spheres.add()
+        s.size.x = s.size.y = s.size.z = 2.0 * radius[a["id"]]
+        s.pose.orientation.w = 1.0
+        s.pose.position.x, s.pose.position.y, s.pose.position.z = (float(c) for c in a["position"])
+        s.color.r, s.color.g, s.color.b, s.color.a = MODE_COLORS.get(a["mode"], (0.8, 0.2, 0.8, 1.0))
+        out.entities.append(e)
+    return out.SerializeToString()
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_scene_agent_bytes_equal_protobuf_serializer(seed):
+    rng = np.random.default_rng(seed)
+    radius = {"a0": 0.5, "uav-1": 1.25, "x" * 150: 0.3}
+    world = {"agents": [{"id": i, "radius": r} for i, r in radius.items()]}
+    cap = _Capture()
+    scene = FoxgloveScene(cap, world, scene_period=0.0, path_period=1e9)
+    modes = [str(m) for m in Mode] + ["unknown"]
+    for step in range(30):
+        t = step * 0.1
+        agents = []
+        for i in radius:
+            p = rng.normal(0, 50, 3)
+            if rng.random() < 0.4:
+                p[rng.integers(3)] = [0.0, -0.0][rng.integers(2)]
+            mode = modes[rng.integers(len(modes))]
+            agents.append({"id": i, "position": p.tolist(), "velocity": [1.0, 0.0, 0.0], "mode": mode})
+        scene.write_step(t, agents, [])
+        msg = [m for m in cap.messages if m[0] == 12][-1][2]
+        assert msg == _reference_scene(t, agents, radius)
+    assert len(SceneUpdate.FromString(msg).entities) == 3

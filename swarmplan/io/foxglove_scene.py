@@ -36,10 +36,13 @@ import struct
 from typing import Any
 
 import numpy as np
+from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
 
 from swarmplan.core import Mode
@@ -187,7 +190,8 @@ class FoxgloveScene:
             for a in world.get("agents") or []
         }
         self._obstacles = {str(o["id"]): o for o in world.get("obstacles") or [] if "id" in o}
-        self._agent_entities: dict[str, SceneEntity] = {}
+        self._agent_heads: dict[str, tuple[bytes, bytes, bytes]] = {}
+        self._colors: dict[tuple[float, float, float, float], bytes] = {}
         self._obstacle_entities: dict[str, SceneEntity] = {}
         self._path_entities: dict[str, SceneEntity] = {}
         self._paths: dict[str, list[tuple[float, float, float]]] = {}
@@ -401,23 +405,55 @@ class FoxgloveScene:
             parts.append(_TRANSFORMS_TAG + _varint(len(b)) + b)
         self._write(TF_TOPIC, b"".join(parts), t)
 
+    def _agent_head(self, aid: str) -> tuple[bytes, bytes]:
+        """An agent entity's fixed fields: frame and entity ids, and the sphere's orientation
+        and size fields (the latter serialized by protobuf itself, once)."""
+        head = self._agent_heads.get(aid)
+        if head is None:
+            eid = f"agent/{aid}".encode()
+            d = 2.0 * self._radius.get(aid, 0.5)
+            orientation = Quaternion(w=1.0).SerializeToString()
+            size = Vector3(x=d, y=d, z=d).SerializeToString()
+            head = self._agent_heads[aid] = (
+                b"\x12" + _varint(len(FRAME)) + FRAME.encode() + b"\x1a" + _varint(len(eid)) + eid,
+                b"\x12" + _varint(len(orientation)) + orientation,
+                b"\x12" + _varint(len(size)) + size,
+            )
+        return head
+
+    def _color_bytes(self, rgba: tuple[float, float, float, float]) -> bytes:
+        b = self._colors.get(rgba)
+        if b is None:
+            c = Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]).SerializeToString()
+            b = self._colors[rgba] = b"\x1a" + _varint(len(c)) + c
+        return b
+
     def _write_scene(self, t, agents, obstacles):
-        entities = []
+        # Agent entities are assembled in protobuf's wire format (a SceneEntity with one
+        # sphere: timestamp, frame and entity ids, pose, size, colour), the bytes protobuf's
+        # serializer gives (tests/test_foxglove_tf_bytes.py); obstacles go through the API.
+        stamp = _timestamp_bytes(t)
+        parts = []
         for a in agents:
             aid = str(a["id"])
-            e = self._agent_entities.get(aid)
-            if e is None:
-                e = self._agent_entities[aid] = self._entity(f"agent/{aid}", t)
-                s = e.spheres.add()
-                d = 2.0 * self._radius.get(aid, 0.5)
-                s.size.x = s.size.y = s.size.z = d
-                s.pose.orientation.w = 1.0
-            _set_time(e.timestamp, t)
-            s = e.spheres[0]
+            ids, orientation, size = self._agent_head(aid)
             p = a["position"]
-            s.pose.position.x, s.pose.position.y, s.pose.position.z = float(p[0]), float(p[1]), float(p[2])
-            _set_color(s.color, MODE_COLORS.get(a.get("mode"), (0.8, 0.2, 0.8, 1.0)))
-            entities.append(e)
+            x, y, z = float(p[0]), float(p[1]), float(p[2])
+            if x and y and z:
+                position = _XYZ(0x0A, 27, 0x09, x, 0x11, y, 0x19, z)
+            else:
+                position = _vector_bytes(b"\x0a", (x, y, z), _DOUBLE_TAGS[:3])
+            pose = position + orientation
+            sphere = (
+                b"\x0a"
+                + _varint(len(pose))
+                + pose
+                + size
+                + self._color_bytes(MODE_COLORS.get(a.get("mode"), (0.8, 0.2, 0.8, 1.0)))
+            )
+            b = stamp + ids + b"\x4a" + _varint(len(sphere)) + sphere
+            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+        entities = []
         for o in obstacles or []:
             oid = str(o["id"])
             obst = self._obstacles.get(oid)
@@ -426,7 +462,7 @@ class FoxgloveScene:
             e = self._entity(f"obstacle/{oid}", t)
             self._fill_obstacle(e, obst, o["position"], o.get("orientation"), MOVING_RGBA)
             entities.append(e)
-        self._write(SCENE_TOPIC, self._scene_bytes(entities), t)
+        self._write(SCENE_TOPIC, b"".join(parts) + self._scene_bytes(entities), t)
 
     def _path_line(self, aid: str, t: float):
         e = self._path_entities.get(aid)
