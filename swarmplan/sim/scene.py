@@ -29,13 +29,31 @@ class Scene:
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
         self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
         self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
+        self._moving = world.moving_obstacles
+        self._moving_idx = np.flatnonzero(self.moving_mask)
+        self._static_pos = np.array([o.position for o in world.obstacles], dtype=float).reshape(-1, 3)
+        self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.moving_quat = [
             matrix_to_quaternion(o.rotation).round(9).tolist() for o in world.moving_obstacles
         ]
 
     def poses(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Every obstacle's position and velocity at ``t``."""
-        return poses_at(self.world.obstacles, t)
+        """Every obstacle's position and velocity at ``t`` (read-only arrays).
+
+        A step asks for its start and end time and the log for the end time again, and the
+        next step starts there: the last two answers are kept (exact, a function of ``t``), and
+        only the moving obstacles are evaluated (one Python call each)."""
+        hit = self._poses.get(t)
+        if hit is not None:
+            return hit
+        pos, vel = self._static_pos.copy(), np.zeros_like(self._static_pos)
+        if self._moving_idx.size:
+            pos[self._moving_idx], vel[self._moving_idx] = poses_at(self._moving, t)
+        pos.flags.writeable = vel.flags.writeable = False
+        if len(self._poses) >= 2:
+            del self._poses[next(iter(self._poses))]
+        self._poses[t] = (pos, vel)
+        return pos, vel
 
     def nearest_surface(
         self, idx: np.ndarray, pos: np.ndarray, d: np.ndarray, g: np.ndarray
@@ -67,7 +85,8 @@ class Scene:
         moving = self.world.moving_obstacles
         if not moving:
             return None
-        pos, vel = poses_at(moving, t)
+        pos, vel = self.poses(t)
+        pos, vel = pos[self._moving_idx], vel[self._moving_idx]
         pos = np.round(pos, 6).tolist()
         vel = np.round(vel, 6).tolist()
         return [
