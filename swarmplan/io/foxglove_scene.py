@@ -114,7 +114,7 @@ def file_descriptor_set(message_class) -> FileDescriptorSet:
     return fds
 
 
-def _varint(n: int) -> bytes:
+def _varint_slow(n: int) -> bytes:
     out = bytearray()
     while True:
         b = n & 0x7F
@@ -124,6 +124,19 @@ def _varint(n: int) -> bytes:
         else:
             out.append(b)
             return bytes(out)
+
+
+# Lengths of entities and transforms are almost always below 2**14 (one or two bytes): no
+# loop for those (tens of thousands of calls per second of a 256-agent log).
+_ONE_BYTE = [bytes((n,)) for n in range(128)]
+
+
+def _varint(n: int) -> bytes:
+    if n < 128:
+        return _ONE_BYTE[n]
+    if n < 16384:
+        return bytes((n & 0x7F | 0x80, n >> 7))
+    return _varint_slow(n)
 
 
 def _set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)):
