@@ -27,7 +27,7 @@ class _Capture:
         return 1
 
     def register_channel(self, topic, **_):
-        return {"/tf": 10, "/scene": 12}.get(topic, 11)
+        return {"/tf": 10, "/scene": 12, "/scene/paths": 13}.get(topic, 11)
 
     def add_message(self, channel_id, log_time, publish_time, data):
         self.messages.append((channel_id, log_time, data))
@@ -128,3 +128,73 @@ def test_varint_table_equals_the_encoding():
 
     for n in [0, 1, 127, 128, 300, 16383, 16384, 2**21 - 1, 2**21, 2**35 + 7]:
         assert _varint(n) == _VarintBytes(n)
+
+
+class _ReferencePaths:
+    """The /scene/paths rules through the protobuf API (the previous implementation)."""
+
+    def __init__(self, max_points: int):
+        from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+
+        self.max_points, self.paths, self.entities, self.kind = max_points, {}, {}, LinePrimitive
+
+    def sample(self, agents):
+        for a in agents:
+            aid = a["id"]
+            pts = self.paths.setdefault(aid, [])
+            pt = tuple(float(c) for c in a["position"])
+            if pts and pts[-1] == pt:
+                continue
+            pts.append(pt)
+            e = self.entities.get(aid)
+            if e is None:
+                e = self.entities[aid] = SceneEntity(frame_id="world", id=f"path/{aid}")
+                line = e.lines.add(type=self.kind.LINE_STRIP, thickness=2.0, scale_invariant=True)
+                line.pose.position.x = line.pose.position.y = line.pose.position.z = 0.0
+                o = line.pose.orientation
+                o.x, o.y, o.z, o.w = 0.0, 0.0, 0.0, 1.0
+                line.color.r, line.color.g, line.color.b, line.color.a = (0.12, 0.47, 0.71, 0.9)
+            line = e.lines[0]
+            if len(pts) > self.max_points:
+                pts = self.paths[aid] = pts[:-1:2] + [pts[-1]]
+                del line.points[:]
+                for x, y, z in pts:
+                    line.points.add(x=x, y=y, z=z)
+            else:
+                line.points.add(x=pt[0], y=pt[1], z=pt[2])
+
+    def message(self, t: float) -> bytes:
+        out = SceneUpdate()
+        ns = int(round(t * 1e9))
+        for aid in self.paths:
+            e = self.entities[aid]
+            e.timestamp.seconds, e.timestamp.nanos = divmod(ns, 1_000_000_000)
+            out.entities.append(e)
+        return out.SerializeToString()
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_path_bytes_equal_protobuf_serializer(seed):
+    """Paths sampled every step, written every step, decimated past 6 points; repeated
+    positions (a standing agent), zero and -0.0 coordinates."""
+    rng = np.random.default_rng(seed)
+    ids = ["a0", "b1", "y" * 140]
+    cap = _Capture()
+    scene = FoxgloveScene(cap, {"agents": [{"id": i} for i in ids]}, scene_period=0.0, path_period=0.0)
+    scene.path_max_points = 6
+    ref = _ReferencePaths(6)
+    last = {i: rng.normal(0, 30, 3) for i in ids}
+    for step in range(40):
+        t = step * 0.1
+        agents = []
+        for i in ids:
+            if rng.random() < 0.7:  # otherwise it stands still: no new point
+                last[i] = rng.normal(0, 30, 3)
+                if rng.random() < 0.3:
+                    last[i][rng.integers(3)] = [0.0, -0.0][rng.integers(2)]
+            agents.append({"id": i, "position": last[i].tolist(), "velocity": [0.0, 0.0, 0.0], "mode": "apf"})
+        scene.write_step(t, agents, [])
+        ref.sample(agents)
+        msg = [m for m in cap.messages if m[0] == 13][-1][2]
+        assert msg == ref.message(t)
+    assert max(len(e.lines[0].points) for e in SceneUpdate.FromString(msg).entities) <= 6

@@ -206,7 +206,8 @@ class FoxgloveScene:
         self._agent_heads: dict[str, tuple[bytes, bytes, bytes]] = {}
         self._colors: dict[tuple[float, float, float, float], bytes] = {}
         self._obstacle_entities: dict[str, SceneEntity] = {}
-        self._path_entities: dict[str, SceneEntity] = {}
+        self._path_heads: dict[str, bytes] = {}
+        self._path_bytes: dict[str, bytearray] = {}  # per agent: its path's encoded points
         self._paths: dict[str, list[tuple[float, float, float]]] = {}
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
         self._tf_yaw: dict[str, bytes] = {}  # per agent: its last rotation field
@@ -477,18 +478,19 @@ class FoxgloveScene:
             entities.append(e)
         self._write(SCENE_TOPIC, b"".join(parts) + self._scene_bytes(entities), t)
 
-    def _path_line(self, aid: str, t: float):
-        e = self._path_entities.get(aid)
-        if e is None:
-            e = self._path_entities[aid] = self._entity(f"path/{aid}", t)
-            line = e.lines.add(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
-            _set_pose(line.pose, (0.0, 0.0, 0.0))
-            _set_color(line.color, (0.12, 0.47, 0.71, 0.9))
-        return e, e.lines[0]
+    def _path_head(self, aid: str) -> bytes:
+        """A path entity's fixed fields (frame and entity ids)."""
+        head = self._path_heads.get(aid)
+        if head is None:
+            eid = f"path/{aid}".encode()
+            head = self._path_heads[aid] = (
+                b"\x12" + _varint(len(FRAME)) + FRAME.encode() + b"\x1a" + _varint(len(eid)) + eid
+            )
+        return head
 
     def _sample_paths(self, t, agents):
-        """Append the agents' current positions to their path lines (kept as protobuf
-        messages and extended in place: only new points are converted)."""
+        """Append the agents' current positions to their path lines, kept encoded (the
+        ``points`` fields of a LinePrimitive): only new points are converted."""
         for a in agents:
             aid = str(a["id"])
             pts = self._paths.setdefault(aid, [])
@@ -497,23 +499,49 @@ class FoxgloveScene:
             if pts and pts[-1] == pt:
                 continue
             pts.append(pt)
-            _, line = self._path_line(aid, t)
             if len(pts) > self.path_max_points:
                 # halve the resolution of the older part, keep the newest point; rebuild
                 pts = self._paths[aid] = pts[:-1:2] + [pts[-1]]
-                del line.points[:]
-                for x, y, z in pts:
-                    line.points.add(x=x, y=y, z=z)
+                self._path_bytes[aid] = bytearray(b"".join(_point_bytes(q) for q in pts))
             else:
-                line.points.add(x=pt[0], y=pt[1], z=pt[2])
+                self._path_bytes.setdefault(aid, bytearray()).extend(_point_bytes(pt))
 
     def _write_paths(self, t):
-        entities = []
+        # Each path is a SceneEntity with one LINE_STRIP, assembled from its encoded points
+        # between the line's fixed fields (1-4: type, pose, thickness, scale_invariant) and its
+        # colour (6), in field order as protobuf writes them (tests/test_foxglove_tf_bytes.py).
+        stamp = _timestamp_bytes(t)
+        parts = []
         for aid in self._paths:
-            e, _ = self._path_line(aid, t)
-            _set_time(e.timestamp, t)
-            entities.append(e)
-        self._write(PATHS_TOPIC, self._scene_bytes(entities), t)
+            pts = self._path_bytes[aid]
+            line_len = len(_LINE_HEAD) + len(pts) + len(_LINE_COLOR)
+            b = b"".join(
+                (stamp, self._path_head(aid), b"\x5a", _varint(line_len), _LINE_HEAD, pts, _LINE_COLOR)
+            )
+            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+        self._write(PATHS_TOPIC, b"".join(parts), t)
+
+
+def _point_bytes(pt: tuple[float, float, float]) -> bytes:
+    """One ``LinePrimitive.points`` field (5) holding the Point3 ``pt``."""
+    x, y, z = pt
+    if x and y and z:
+        return _XYZ(0x2A, 27, 0x09, x, 0x11, y, 0x19, z)
+    return _vector_bytes(b"\x2a", pt, _DOUBLE_TAGS[:3])
+
+
+def _line_fixed_fields() -> tuple[bytes, bytes]:
+    """The path line's fields before and after its points, serialized by protobuf itself."""
+    line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
+    _set_pose(line.pose, (0.0, 0.0, 0.0))
+    color = Color()
+    _set_color(color, PATH_RGBA)
+    c = color.SerializeToString()
+    return line.SerializeToString(), b"\x32" + _varint(len(c)) + c
+
+
+PATH_RGBA = (0.12, 0.47, 0.71, 0.9)
+_LINE_HEAD, _LINE_COLOR = _line_fixed_fields()
 
 
 __all__ = [
