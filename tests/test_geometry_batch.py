@@ -69,14 +69,16 @@ def test_batched_equals_per_shape_with_rotations_and_centers(seed):
     field, batch = ObstacleField(obs), ShapeBatch(obs)
     d_ref, g_ref = field.query(pts)
     d, g = batch.query(pts)
-    np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(g, g_ref, rtol=0, atol=1e-12)
+    # query feeds the simulator's field: bit for bit (signs of zeros too), or runs diverge.
+    np.testing.assert_array_equal(d, d_ref)
+    np.testing.assert_array_equal(g, g_ref)
+    assert not np.any(np.signbit(g) != np.signbit(g_ref))
     np.testing.assert_allclose(batch.distance(pts), d_ref, rtol=0, atol=1e-12)
     centers = np.array([o.position for o in obs]) + rng.normal(size=(len(obs), 3))
     d_ref, g_ref = field.query(pts, centers)
     d, g = batch.query(pts, centers)
-    np.testing.assert_allclose(d, d_ref, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(g, g_ref, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(d, d_ref)
+    np.testing.assert_array_equal(g, g_ref)
 
 
 def test_distance_to_a_subset_keeps_its_order():
@@ -110,3 +112,29 @@ def test_pair_distance_equals_the_matrix_entries(seed):
     np.testing.assert_allclose(
         batch.pair_distance(pts, bodies), full[np.arange(300), bodies], rtol=0, atol=1e-12
     )
+
+
+def test_mesh_world_query_and_exact_min_distance_equal_obstacle_field():
+    """The simulator's distances come from ShapeBatch: on the hangar world (a mesh among
+    primitives, moved centers too) ``query`` and the exact ``min_distance`` of the clearance
+    metric equal ObstacleField's, including above the roof where the mesh grid is a loose bound."""
+    from pathlib import Path
+
+    from swarmplan.world import load_world
+
+    world = load_world(Path(__file__).resolve().parents[1] / "worlds" / "mesh_hangar.yaml")
+    obs = world.obstacles
+    assert any(o.shape == "mesh" for o in obs) and any(o.shape != "mesh" for o in obs)
+    field, batch = ObstacleField(obs), ShapeBatch(obs)
+    rng = np.random.default_rng(4)
+    pts = rng.uniform([0, 0, 0], [240, 200, 90], (300, 3))
+    centers = np.array([o.position for o in obs]) + rng.normal(size=(len(obs), 3))
+    for c in (None, centers):
+        d_ref, g_ref = field.query(pts, c)
+        d, g = batch.query(pts, c)
+        np.testing.assert_array_equal(d, d_ref)
+        np.testing.assert_array_equal(g, g_ref)
+        want = field.min_distance(pts, c, d_ref)
+        np.testing.assert_allclose(batch.min_distance(pts, c, d), want, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(batch.min_distance(pts, c), want, rtol=0, atol=1e-12)
+    assert np.all(np.isinf(ShapeBatch([]).min_distance(pts)))

@@ -55,3 +55,23 @@ def test_contact_at_the_edge_of_the_reach_is_found():
     active = np.array([True, True])
     assert agent_contacts(p0, p1, radii, active) == [(0, 1)]
     assert agent_contacts_indexed(p0, p1, radii, active) == [(0, 1)]
+
+
+@pytest.mark.parametrize("n", [2, 5, 32, 33, 60])
+def test_small_and_large_swarms_take_the_same_answers(n):
+    """Around the size where the tree takes over from all pairs, the answers stay exact."""
+    p0, p1, radii, sep, active = _swarm(n, n)
+    p0, p1 = p0 / 10.0, p0 / 10.0 + (p1 - p0)  # dense enough for contacts among few agents
+    assert agent_contacts_indexed(p0, p1, radii, active, 0.3) == agent_contacts(p0, p1, radii, active, 0.3)
+    d = np.linalg.norm(p0[:, None] - p0[None], axis=-1) - (radii[:, None] + radii[None])
+    np.fill_diagonal(d, np.inf)
+    np.testing.assert_array_equal(agent_clearance_indexed(p0, radii), d.min(axis=1))
+    s = np.maximum(sep[:, None], sep[None])
+    rr = radii[:, None] + radii[None]
+    inside = np.linalg.norm((p0[:, None] - p0[None]) / (s + rr[..., None]), axis=-1) < 1.0
+    np.fill_diagonal(inside, False)
+    inside &= active[:, None] | active[None]
+    ri, rj = np.nonzero(np.triu(inside))
+    i, j = separation_violations(p0, sep, radii, active)
+    np.testing.assert_array_equal(i, ri)
+    np.testing.assert_array_equal(j, rj)

@@ -16,8 +16,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TextIO
 
-from tqdm import tqdm
-
 from swarmplan import optimizers
 from swarmplan.core import StepResult
 from swarmplan.io.recording import McapRecorder
@@ -94,6 +92,8 @@ def simulate(
         else None
     )
     sim = Simulation(world, planner=make_planner(world), recorder=recorder)
+    from tqdm import tqdm  # here, not at import: start-up (importlib.metadata, ~0.1 s)
+
     bar = tqdm(
         total=world.max_time,
         unit="sim-s",

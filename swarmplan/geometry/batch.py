@@ -103,6 +103,13 @@ class ShapeBatch:
             return rel
         return np.einsum("nmk,mkl->nml", rel, self.rotation[idx])
 
+    def _local_exact(self, points: np.ndarray, idx: np.ndarray, centers: np.ndarray) -> np.ndarray:
+        """Points in each obstacle's frame, (len(idx), N, 3), computed as
+        ``distance_and_gradient`` does it (one (N, 3) @ (3, 3) product per obstacle, the same
+        BLAS call, stacked), so the simulator's field is ObstacleField's bit for bit."""
+        rel = np.ascontiguousarray(points[None, :, :] - centers[idx][:, None, :])
+        return rel @ self.rotation[idx]
+
     def distance(
         self, points: np.ndarray, centers: np.ndarray | None = None, subset: np.ndarray | None = None
     ) -> np.ndarray:
@@ -175,8 +182,8 @@ class ShapeBatch:
         d = np.empty((n, m))
         g = np.empty((n, m, 3))
         for shape, idx in self.groups.items():
-            local = self._local(points, idx, c)
-            prm = self.params[shape]
+            local = self._local_exact(points, idx, c)  # (m, N, 3)
+            prm = tuple(v[:, None] for v in self.params[shape])
             if shape == "sphere":
                 dj, gj = sdf_sphere(local, prm[0])
             elif shape == "box":
@@ -185,8 +192,32 @@ class ShapeBatch:
                 dj, gj = sdf_cylinder(local, *prm)
             else:
                 dj, gj = sdf_capsule(local, *prm)
-            d[:, idx] = dj
-            g[:, idx] = gj if self.identity[idx].all() else np.einsum("nml,mkl->nmk", gj, self.rotation[idx])
+            d[:, idx] = dj.T
+            g[:, idx] = (np.ascontiguousarray(gj) @ self.rotation[idx].transpose(0, 2, 1)).transpose(1, 0, 2)
         for j in self.meshes:
             d[:, j], g[:, j] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])
         return d, g
+
+    def min_distance(
+        self, points: np.ndarray, centers: np.ndarray | None = None, d: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Exact minimum signed distance from each of ``points`` (N, 3) to any obstacle, for
+        metrics: as ``ObstacleField.min_distance`` (same rule, same values). Mesh values in
+        ``query`` come from the distance grid (a lower bound beyond it), so a mesh is measured
+        exactly (trimesh) at the points where its bounding-box distance, a strict lower bound,
+        does not exceed the smallest distance known so far. ``d``: this batch's ``query`` at the
+        same points and centers, when at hand. ``inf`` per point when there are no obstacles."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        c = self.position if centers is None else np.asarray(centers, dtype=float)
+        if d is None:
+            d = self.distance(points, c)
+        best = np.full(len(points), np.inf)
+        if len(self.meshes) < len(self.obstacles):
+            best = d[:, self.code >= 0].min(axis=1)
+        for j in self.meshes:
+            grid = self.mesh_grids[j]
+            local = (points - c[j]) @ self.obstacles[j].rotation
+            rows = np.flatnonzero(grid.box_lower_bound(local) <= best)
+            if len(rows):
+                best[rows] = np.minimum(best[rows], grid.exact(local[rows], d[rows, j]))
+        return best

@@ -11,18 +11,25 @@ contains every pair the exact test can accept, and the exact test then runs on t
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 
 from swarmplan.geometry.collision import segment_segment_min_distance
 
+SMALL = 32
+"""Up to this many agents every pair is a candidate (cheaper than building a tree, and no
+scipy.spatial import at start-up); the exact tests that follow give the same answers."""
+
 
 def _pairs(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs (i, j), i < j, closer than ``radius``, sorted as ``np.triu_indices`` lists them."""
-    from scipy.spatial import cKDTree
-
-    if len(points) < 2 or not np.isfinite(radius):
+    """Pairs (i, j), i < j, sorted as ``np.triu_indices`` lists them: every pair closer than
+    ``radius`` (and, for small or unbounded queries, the others too)."""
+    if len(points) <= SMALL or not np.isfinite(radius):
         i, j = np.triu_indices(len(points), 1)
         return i, j
+    from scipy.spatial import cKDTree
+
     p = cKDTree(points).query_pairs(radius, output_type="ndarray")
     if not len(p):
         return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
@@ -53,20 +60,28 @@ def agent_contacts_indexed(
 def agent_clearance_indexed(pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Per agent: min over the others of |p_i - p_j| - r_i - r_j (inf alone). The nearest
     centre is found first; a farther one can only win by the spread of the radii."""
-    from scipy.spatial import cKDTree
-
     n = len(pos)
     if n < 2:
         return np.full(n, np.inf)
+    if n <= SMALL:
+        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (radius[:, None] + radius[None])
+        np.fill_diagonal(d, np.inf)
+        return d.min(axis=1)
+    from scipy.spatial import cKDTree
+
     tree = cKDTree(pos)
     dn, _ = tree.query(pos, k=2)
     spread = float(radius.max() - radius.min())
+    # Candidates of every agent in one flat list (row i repeated once per candidate), then one
+    # array operation for their distances and a minimum per row.
+    lists = tree.query_ball_point(pos, dn[:, 1] + spread + 1e-9 * (1.0 + dn[:, 1]), return_sorted=False)
+    counts = np.fromiter(map(len, lists), dtype=np.intp, count=n)
+    js = np.fromiter(chain.from_iterable(lists), dtype=np.intp, count=int(counts.sum()))
+    ii = np.repeat(np.arange(n), counts)
+    other = ii != js
+    ii, js = ii[other], js[other]
     out = np.full(n, np.inf)
-    lists = tree.query_ball_point(pos, dn[:, 1] + spread + 1e-9 * (1.0 + dn[:, 1]))
-    for i, js in enumerate(lists):
-        js = np.array([j for j in js if j != i], dtype=np.intp)
-        if len(js):
-            out[i] = (np.linalg.norm(pos[i] - pos[js], axis=-1) - (radius[i] + radius[js])).min()
+    np.minimum.at(out, ii, np.linalg.norm(pos[ii] - pos[js], axis=-1) - (radius[ii] + radius[js]))
     return out
 
 

@@ -32,14 +32,17 @@ from serialized entities. See ``docs/replay.md`` for measured per-step cost.
 from __future__ import annotations
 
 import math
+import struct
 from typing import Any
 
 import numpy as np
-from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
 
 from swarmplan.core import Mode
@@ -64,6 +67,35 @@ MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
 _TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
 
+# FrameTransform written directly in protobuf's wire format (the bytes protobuf's own
+# serializer gives, tests/test_foxglove_tf_bytes.py): building and serializing 256 messages
+# per step through the protobuf API was the largest recording cost of a 256-agent step.
+# Fields: 1 timestamp, 2 parent_frame_id, 3 child_frame_id, 4 translation, 5 rotation;
+# proto3 leaves out a double equal to +0.0 (not -0.0); doubles are tags 0x09/0x11/0x19/0x21.
+_DOUBLE = struct.Struct("<d").pack
+_XYZ = struct.Struct("<BBBdBdBd").pack  # translation with x, y, z all non-zero: the usual case
+_ZW = struct.Struct("<BBBdBd").pack  # rotation with only z and w set (a yaw), both non-zero
+_DOUBLE_TAGS = (b"\x09", b"\x11", b"\x19", b"\x21")
+
+
+def _present(v: float) -> bool:
+    return v != 0.0 or math.copysign(1.0, v) < 0.0  # -0.0 and NaN are written
+
+
+def _vector_bytes(field_tag: bytes, values: tuple[float, ...], tags: tuple[bytes, ...]) -> bytes:
+    inner = b"".join(tag + _DOUBLE(v) for tag, v in zip(tags, values, strict=True) if _present(v))
+    return field_tag + _varint(len(inner)) + inner
+
+
+_IDENTITY_ROTATION = b"\x2a\x09\x21" + _DOUBLE(1.0)
+
+
+def _timestamp_bytes(t: float) -> bytes:
+    ns = int(round(t * 1e9))
+    sec, nanos = divmod(ns, 1_000_000_000)
+    inner = (b"\x08" + _varint(sec) if sec else b"") + (b"\x10" + _varint(nanos) if nanos else b"")
+    return b"\x0a" + _varint(len(inner)) + inner
+
 
 def file_descriptor_set(message_class) -> FileDescriptorSet:
     """FileDescriptorSet of a message's .proto file and all its dependencies (deps first)."""
@@ -82,7 +114,7 @@ def file_descriptor_set(message_class) -> FileDescriptorSet:
     return fds
 
 
-def _varint(n: int) -> bytes:
+def _varint_slow(n: int) -> bytes:
     out = bytearray()
     while True:
         b = n & 0x7F
@@ -92,6 +124,19 @@ def _varint(n: int) -> bytes:
         else:
             out.append(b)
             return bytes(out)
+
+
+# Lengths of entities and transforms are almost always below 2**14 (one or two bytes): no
+# loop for those (tens of thousands of calls per second of a 256-agent log).
+_ONE_BYTE = [bytes((n,)) for n in range(128)]
+
+
+def _varint(n: int) -> bytes:
+    if n < 128:
+        return _ONE_BYTE[n]
+    if n < 16384:
+        return bytes((n & 0x7F | 0x80, n >> 7))
+    return _varint_slow(n)
 
 
 def _set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)):
@@ -158,11 +203,14 @@ class FoxgloveScene:
             for a in world.get("agents") or []
         }
         self._obstacles = {str(o["id"]): o for o in world.get("obstacles") or [] if "id" in o}
-        self._agent_entities: dict[str, SceneEntity] = {}
+        self._agent_heads: dict[str, tuple[bytes, bytes, bytes]] = {}
+        self._colors: dict[tuple[float, float, float, float], bytes] = {}
         self._obstacle_entities: dict[str, SceneEntity] = {}
-        self._path_entities: dict[str, SceneEntity] = {}
+        self._path_heads: dict[str, bytes] = {}
+        self._path_bytes: dict[str, bytearray] = {}  # per agent: its path's encoded points
         self._paths: dict[str, list[tuple[float, float, float]]] = {}
-        self._tfs: dict[str, FrameTransform] = {}
+        self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
+        self._tf_yaw: dict[str, bytes] = {}  # per agent: its last rotation field
         self._next_scene = -math.inf
         self._next_path = -math.inf
         self._next_tf = -math.inf
@@ -336,41 +384,90 @@ class FoxgloveScene:
             self._last = None
 
     def _write_tf(self, t, agents):
+        stamp = _timestamp_bytes(t)
+        prefix, yaw = self._tf_prefix, self._tf_yaw
         parts = []
         for a in agents:
             aid = str(a["id"])
-            tf = self._tfs.get(aid)
-            if tf is None:
-                tf = self._tfs[aid] = FrameTransform(parent_frame_id=FRAME, child_frame_id=aid)
-                tf.rotation.w = 1.0
-            _set_time(tf.timestamp, t)
+            head = prefix.get(aid)
+            if head is None:
+                child = aid.encode()
+                head = prefix[aid] = (
+                    b"\x12"
+                    + _varint(len(FRAME))
+                    + FRAME.encode()
+                    + (b"\x1a" + _varint(len(child)) + child if child else b"")
+                )
             p = a["position"]
-            tf.translation.x, tf.translation.y, tf.translation.z = float(p[0]), float(p[1]), float(p[2])
+            x, y, z = float(p[0]), float(p[1]), float(p[2])
+            if x and y and z:
+                trans = _XYZ(0x22, 27, 0x09, x, 0x11, y, 0x19, z)
+            else:
+                trans = _vector_bytes(b"\x22", (x, y, z), _DOUBLE_TAGS[:3])
             v = a.get("velocity")
             if v is not None and (v[0] or v[1]):  # yaw along the horizontal velocity
-                yaw = math.atan2(v[1], v[0]) / 2.0
-                tf.rotation.z, tf.rotation.w = math.sin(yaw), math.cos(yaw)
-            b = tf.SerializeToString()
+                half = math.atan2(v[1], v[0]) / 2.0
+                qz, qw = math.sin(half), math.cos(half)
+                rot = yaw[aid] = (
+                    _ZW(0x2A, 18, 0x19, qz, 0x21, qw)
+                    if qz and qw
+                    else _vector_bytes(b"\x2a", (0.0, 0.0, qz, qw), _DOUBLE_TAGS)
+                )
+            else:  # no horizontal motion: the last heading (none yet: identity)
+                rot = yaw.get(aid, _IDENTITY_ROTATION)
+            b = stamp + head + trans + rot
             parts.append(_TRANSFORMS_TAG + _varint(len(b)) + b)
         self._write(TF_TOPIC, b"".join(parts), t)
 
+    def _agent_head(self, aid: str) -> tuple[bytes, bytes]:
+        """An agent entity's fixed fields: frame and entity ids, and the sphere's orientation
+        and size fields (the latter serialized by protobuf itself, once)."""
+        head = self._agent_heads.get(aid)
+        if head is None:
+            eid = f"agent/{aid}".encode()
+            d = 2.0 * self._radius.get(aid, 0.5)
+            orientation = Quaternion(w=1.0).SerializeToString()
+            size = Vector3(x=d, y=d, z=d).SerializeToString()
+            head = self._agent_heads[aid] = (
+                b"\x12" + _varint(len(FRAME)) + FRAME.encode() + b"\x1a" + _varint(len(eid)) + eid,
+                b"\x12" + _varint(len(orientation)) + orientation,
+                b"\x12" + _varint(len(size)) + size,
+            )
+        return head
+
+    def _color_bytes(self, rgba: tuple[float, float, float, float]) -> bytes:
+        b = self._colors.get(rgba)
+        if b is None:
+            c = Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]).SerializeToString()
+            b = self._colors[rgba] = b"\x1a" + _varint(len(c)) + c
+        return b
+
     def _write_scene(self, t, agents, obstacles):
-        entities = []
+        # Agent entities are assembled in protobuf's wire format (a SceneEntity with one
+        # sphere: timestamp, frame and entity ids, pose, size, colour), the bytes protobuf's
+        # serializer gives (tests/test_foxglove_tf_bytes.py); obstacles go through the API.
+        stamp = _timestamp_bytes(t)
+        parts = []
         for a in agents:
             aid = str(a["id"])
-            e = self._agent_entities.get(aid)
-            if e is None:
-                e = self._agent_entities[aid] = self._entity(f"agent/{aid}", t)
-                s = e.spheres.add()
-                d = 2.0 * self._radius.get(aid, 0.5)
-                s.size.x = s.size.y = s.size.z = d
-                s.pose.orientation.w = 1.0
-            _set_time(e.timestamp, t)
-            s = e.spheres[0]
+            ids, orientation, size = self._agent_head(aid)
             p = a["position"]
-            s.pose.position.x, s.pose.position.y, s.pose.position.z = float(p[0]), float(p[1]), float(p[2])
-            _set_color(s.color, MODE_COLORS.get(a.get("mode"), (0.8, 0.2, 0.8, 1.0)))
-            entities.append(e)
+            x, y, z = float(p[0]), float(p[1]), float(p[2])
+            if x and y and z:
+                position = _XYZ(0x0A, 27, 0x09, x, 0x11, y, 0x19, z)
+            else:
+                position = _vector_bytes(b"\x0a", (x, y, z), _DOUBLE_TAGS[:3])
+            pose = position + orientation
+            sphere = (
+                b"\x0a"
+                + _varint(len(pose))
+                + pose
+                + size
+                + self._color_bytes(MODE_COLORS.get(a.get("mode"), (0.8, 0.2, 0.8, 1.0)))
+            )
+            b = stamp + ids + b"\x4a" + _varint(len(sphere)) + sphere
+            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+        entities = []
         for o in obstacles or []:
             oid = str(o["id"])
             obst = self._obstacles.get(oid)
@@ -379,20 +476,21 @@ class FoxgloveScene:
             e = self._entity(f"obstacle/{oid}", t)
             self._fill_obstacle(e, obst, o["position"], o.get("orientation"), MOVING_RGBA)
             entities.append(e)
-        self._write(SCENE_TOPIC, self._scene_bytes(entities), t)
+        self._write(SCENE_TOPIC, b"".join(parts) + self._scene_bytes(entities), t)
 
-    def _path_line(self, aid: str, t: float):
-        e = self._path_entities.get(aid)
-        if e is None:
-            e = self._path_entities[aid] = self._entity(f"path/{aid}", t)
-            line = e.lines.add(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
-            _set_pose(line.pose, (0.0, 0.0, 0.0))
-            _set_color(line.color, (0.12, 0.47, 0.71, 0.9))
-        return e, e.lines[0]
+    def _path_head(self, aid: str) -> bytes:
+        """A path entity's fixed fields (frame and entity ids)."""
+        head = self._path_heads.get(aid)
+        if head is None:
+            eid = f"path/{aid}".encode()
+            head = self._path_heads[aid] = (
+                b"\x12" + _varint(len(FRAME)) + FRAME.encode() + b"\x1a" + _varint(len(eid)) + eid
+            )
+        return head
 
     def _sample_paths(self, t, agents):
-        """Append the agents' current positions to their path lines (kept as protobuf
-        messages and extended in place: only new points are converted)."""
+        """Append the agents' current positions to their path lines, kept encoded (the
+        ``points`` fields of a LinePrimitive): only new points are converted."""
         for a in agents:
             aid = str(a["id"])
             pts = self._paths.setdefault(aid, [])
@@ -401,23 +499,49 @@ class FoxgloveScene:
             if pts and pts[-1] == pt:
                 continue
             pts.append(pt)
-            _, line = self._path_line(aid, t)
             if len(pts) > self.path_max_points:
                 # halve the resolution of the older part, keep the newest point; rebuild
                 pts = self._paths[aid] = pts[:-1:2] + [pts[-1]]
-                del line.points[:]
-                for x, y, z in pts:
-                    line.points.add(x=x, y=y, z=z)
+                self._path_bytes[aid] = bytearray(b"".join(_point_bytes(q) for q in pts))
             else:
-                line.points.add(x=pt[0], y=pt[1], z=pt[2])
+                self._path_bytes.setdefault(aid, bytearray()).extend(_point_bytes(pt))
 
     def _write_paths(self, t):
-        entities = []
+        # Each path is a SceneEntity with one LINE_STRIP, assembled from its encoded points
+        # between the line's fixed fields (1-4: type, pose, thickness, scale_invariant) and its
+        # colour (6), in field order as protobuf writes them (tests/test_foxglove_tf_bytes.py).
+        stamp = _timestamp_bytes(t)
+        parts = []
         for aid in self._paths:
-            e, _ = self._path_line(aid, t)
-            _set_time(e.timestamp, t)
-            entities.append(e)
-        self._write(PATHS_TOPIC, self._scene_bytes(entities), t)
+            pts = self._path_bytes[aid]
+            line_len = len(_LINE_HEAD) + len(pts) + len(_LINE_COLOR)
+            b = b"".join(
+                (stamp, self._path_head(aid), b"\x5a", _varint(line_len), _LINE_HEAD, pts, _LINE_COLOR)
+            )
+            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+        self._write(PATHS_TOPIC, b"".join(parts), t)
+
+
+def _point_bytes(pt: tuple[float, float, float]) -> bytes:
+    """One ``LinePrimitive.points`` field (5) holding the Point3 ``pt``."""
+    x, y, z = pt
+    if x and y and z:
+        return _XYZ(0x2A, 27, 0x09, x, 0x11, y, 0x19, z)
+    return _vector_bytes(b"\x2a", pt, _DOUBLE_TAGS[:3])
+
+
+def _line_fixed_fields() -> tuple[bytes, bytes]:
+    """The path line's fields before and after its points, serialized by protobuf itself."""
+    line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
+    _set_pose(line.pose, (0.0, 0.0, 0.0))
+    color = Color()
+    _set_color(color, PATH_RGBA)
+    c = color.SerializeToString()
+    return line.SerializeToString(), b"\x32" + _varint(len(c)) + c
+
+
+PATH_RGBA = (0.12, 0.47, 0.71, 0.9)
+_LINE_HEAD, _LINE_COLOR = _line_fixed_fields()
 
 
 __all__ = [

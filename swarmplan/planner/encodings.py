@@ -34,7 +34,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from swarmplan.geometry.polyline import resample_uniform
 
@@ -148,6 +147,8 @@ class SplineEncoding(PlaneEncoding):
         """(n, samples, 3): the spline sampled at ``samples`` uniform parameter values."""
         ctrl = super().decode(X)  # (n, D+2, 3)
         # 002 eq 15: natural end conditions, S''(x_0) = S''(x_n) = 0
+        from scipy.interpolate import CubicSpline  # here: scipy.interpolate is slow to import
+
         pts = self._clip(CubicSpline(self.knots, ctrl, axis=1, bc_type="natural")(self.t))
         pts[:, 0], pts[:, -1] = self.start, self.goal
         return pts

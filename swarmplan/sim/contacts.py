@@ -8,6 +8,7 @@ import numpy as np
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.dynamics import AgentParams
 from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.metrics import RunMetrics
 from swarmplan.motion import poses_at
 from swarmplan.sim.scene import Scene
@@ -110,8 +111,9 @@ class NearMisses:
 
     def __init__(self, params: AgentParams):
         self.params = params
-        n = len(params.ids)
-        self._near = np.zeros((n, n), dtype=bool)
+        self._n = len(params.ids)
+        # The pairs inside at the last update, as sorted keys i * n + j (i < j).
+        self._near = np.zeros(0, dtype=np.int64)
 
     def update(
         self, pos: np.ndarray, active: np.ndarray, metrics: RunMetrics, events: list[Event], t1: float
@@ -119,15 +121,12 @@ class NearMisses:
         """A pair entering each other's separation ellipsoid is a near miss (reported once per entry)."""
         if len(pos) < 2:
             return
-        sep = np.maximum(self.params.separation[:, None], self.params.separation[None])
-        rr = self.params.radius[:, None] + self.params.radius[None]
-        q = (pos[:, None] - pos[None]) / (sep + rr[..., None])
-        inside = np.linalg.norm(q, axis=-1) < 1.0
-        np.fill_diagonal(inside, False)
-        inside &= active[:, None] | active[None]
-        new = inside & ~self._near
-        self._near = inside
-        for i, j in zip(*np.nonzero(np.triu(new)), strict=True):
+        # Pairs from a k-d tree, in the all-pairs (row-major, i < j) order: same events, same order.
+        pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
+        keys = pi.astype(np.int64) * self._n + pj
+        new = ~np.isin(keys, self._near, assume_unique=True)
+        self._near = keys
+        for i, j in zip(pi[new].tolist(), pj[new].tolist(), strict=True):
             dist = float(np.linalg.norm(pos[i] - pos[j]))
             metrics.near_misses[[i, j]] += 1
             events.append(

@@ -24,7 +24,8 @@ import numpy as np
 from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
 from swarmplan.core import Event, Mode, Planner, Recorder, StepResult, SwarmState
 from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
-from swarmplan.geometry.collision import agent_contacts, first_hits
+from swarmplan.geometry.collision import first_hits
+from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.metrics import RunMetrics, summary_report
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
@@ -241,7 +242,7 @@ class Simulation:
                         collide(s, self.metrics, self.ids, i, hit, events, t1)
                         pos1[i] = crash_point(self.scene, self.params.radius[i], pos0[i], pos1[i], t0, dt)
                         vel1[i] = 0.0
-        for i, j in agent_contacts(pos0, pos1, self.params.radius, active):
+        for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] not in (Mode.ARRIVED, Mode.COLLIDED):
                     collide(s, self.metrics, self.ids, a, self.ids[b], events, t1)

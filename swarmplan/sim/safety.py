@@ -16,7 +16,8 @@ import numpy as np
 
 from swarmplan.core import Event, Mode
 from swarmplan.dynamics import AgentParams, limit_velocity
-from swarmplan.geometry.collision import agent_contacts, first_hits, segment_segment_min_distance
+from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.lookahead import guard_commands, horizon_steps
 from swarmplan.metrics import RunMetrics
@@ -249,7 +250,7 @@ class SafetyFilter:
         active[idx] = True
         stopped = np.zeros(n, dtype=bool)
         for _ in range(n):
-            pairs = agent_contacts(
+            pairs = agent_contacts_indexed(
                 pos0, pos1, self.params.radius, active | (mode == Mode.ARRIVED), AGENT_MARGIN
             )
             changed = False

@@ -8,9 +8,10 @@ from typing import Any
 import numpy as np
 
 from swarmplan.dynamics import AgentParams
+from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import CollisionWorld
+from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
-from swarmplan.geometry.shapes import ObstacleField
 from swarmplan.motion import max_speed, poses_at
 from swarmplan.world.model import World
 
@@ -22,17 +23,37 @@ class Scene:
         self.world = world
         self.params = params
         self.collision = CollisionWorld(world)
-        self.field = ObstacleField(world.obstacles)
+        # Distances batched by shape type (one array operation per shape, meshes by their grid),
+        # equal to ObstacleField's; min_distance stays exact for meshes.
+        self.field = ShapeBatch(world.obstacles)
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
         self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
         self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
+        self._moving = world.moving_obstacles
+        self._moving_idx = np.flatnonzero(self.moving_mask)
+        self._static_pos = np.array([o.position for o in world.obstacles], dtype=float).reshape(-1, 3)
+        self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.moving_quat = [
             matrix_to_quaternion(o.rotation).round(9).tolist() for o in world.moving_obstacles
         ]
 
     def poses(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Every obstacle's position and velocity at ``t``."""
-        return poses_at(self.world.obstacles, t)
+        """Every obstacle's position and velocity at ``t`` (read-only arrays).
+
+        A step asks for its start and end time and the log for the end time again, and the
+        next step starts there: the last two answers are kept (exact, a function of ``t``), and
+        only the moving obstacles are evaluated (one Python call each)."""
+        hit = self._poses.get(t)
+        if hit is not None:
+            return hit
+        pos, vel = self._static_pos.copy(), np.zeros_like(self._static_pos)
+        if self._moving_idx.size:
+            pos[self._moving_idx], vel[self._moving_idx] = poses_at(self._moving, t)
+        pos.flags.writeable = vel.flags.writeable = False
+        if len(self._poses) >= 2:
+            del self._poses[next(iter(self._poses))]
+        self._poses[t] = (pos, vel)
+        return pos, vel
 
     def nearest_surface(
         self, idx: np.ndarray, pos: np.ndarray, d: np.ndarray, g: np.ndarray
@@ -56,21 +77,16 @@ class Scene:
 
     def agent_clearance(self, pos: np.ndarray) -> np.ndarray:
         """Per agent: surface distance to the nearest other agent."""
-        n = len(pos)
-        if n < 2:
-            return np.full(n, np.inf)
-        d = np.linalg.norm(pos[:, None] - pos[None], axis=-1) - (
-            self.params.radius[:, None] + self.params.radius[None]
-        )
-        np.fill_diagonal(d, np.inf)
-        return d.min(axis=1)
+        # Through a k-d tree: equal to the all-pairs minimum (tests/test_geometry_neighbours.py).
+        return agent_clearance_indexed(pos, self.params.radius)
 
     def obstacle_dicts(self, t: float) -> list[dict[str, Any]] | None:
         """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
         moving = self.world.moving_obstacles
         if not moving:
             return None
-        pos, vel = poses_at(moving, t)
+        pos, vel = self.poses(t)
+        pos, vel = pos[self._moving_idx], vel[self._moving_idx]
         pos = np.round(pos, 6).tolist()
         vel = np.round(vel, 6).tolist()
         return [

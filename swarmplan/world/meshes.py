@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
 from swarmplan.world.checker import Checker
 
@@ -15,6 +14,8 @@ def load_mesh(c: Checker, path: str, file: str, base_dir: Path, scale: np.ndarra
     if not fp.is_file():
         c.add(f"{path}.file", f"mesh file not found: {fp}")
         return None
+    import trimesh  # here, not at import: ~0.5 s of start-up that worlds without meshes never need
+
     try:
         mesh = trimesh.load(str(fp), force="mesh")
     except Exception as exc:  # trimesh raises many kinds; all mean "cannot read"

@@ -1,0 +1,200 @@
+"""/tf and the agents of /scene are written in protobuf's wire format directly: the bytes equal
+what protobuf's own serializer makes of the same messages (zeros, -0.0, standing agents,
+every mode's colour included)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+from swarmplan.core import Mode
+from swarmplan.io.foxglove_scene import MODE_COLORS, TF_TOPIC, FoxgloveScene
+
+
+class _Capture:
+    """The slice of mcap's Writer that FoxgloveScene uses, keeping the messages."""
+
+    def __init__(self):
+        self.messages: list[tuple[int, int, bytes]] = []
+
+    def register_schema(self, **_):
+        return 1
+
+    def register_channel(self, topic, **_):
+        return {"/tf": 10, "/scene": 12, "/scene/paths": 13}.get(topic, 11)
+
+    def add_message(self, channel_id, log_time, publish_time, data):
+        self.messages.append((channel_id, log_time, data))
+
+
+def _reference(t: float, agents: list[dict], last: dict[str, FrameTransform]) -> bytes:
+    """The /tf message built through the protobuf API (the previous implementation's rules)."""
+    out = FrameTransforms()
+    for a in agents:
+        aid = a["id"]
+        tf = last.get(aid)
+        if tf is None:
+            tf = last[aid] = FrameTransform(parent_frame_id="world", child_frame_id=aid)
+            tf.rotation.w = 1.0
+        ns = int(round(t * 1e9))
+        tf.timestamp.seconds, tf.timestamp.nanos = divmod(ns, 1_000_000_000)
+        tf.translation.x, tf.translation.y, tf.translation.z = (float(c) for c in a["position"])
+        v = a["velocity"]
+        if v[0] or v[1]:
+            yaw = math.atan2(v[1], v[0]) / 2.0
+            tf.rotation.z, tf.rotation.w = math.sin(yaw), math.cos(yaw)
+        out.transforms.append(tf)
+    return out.SerializeToString()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_tf_bytes_equal_protobuf_serializer(seed):
+    rng = np.random.default_rng(seed)
+    ids = ["a0", "uav-1", "x" * 200, "ü"]  # a child id longer than 127 bytes: two-byte length
+    world = {"agents": [{"id": i} for i in ids]}
+    cap = _Capture()
+    scene = FoxgloveScene(cap, world, scene_period=1e9, path_period=1e9)
+    last: dict[str, FrameTransform] = {}
+    special = [0.0, -0.0, 1.0, -2.5]
+    for step in range(40):
+        t = step * 0.1 if step else 0.0
+        agents = []
+        for i in ids:
+            p = rng.normal(0, 50, 3)
+            v = rng.normal(0, 3, 3)
+            if rng.random() < 0.4:
+                p[rng.integers(3)] = special[rng.integers(4)]
+            if rng.random() < 0.3:
+                v[:2] = special[rng.integers(4)], special[rng.integers(4)]
+            if rng.random() < 0.1:
+                v[:2] = 1.0, 0.0  # yaw exactly zero: rotation.z = 0.0 is left out
+            agents.append({"id": i, "position": p.tolist(), "velocity": v.tolist()})
+        scene.write_step(t, agents, [])
+        tf = [m for m in cap.messages if m[0] == 10]
+        assert tf[-1][2] == _reference(t, agents, last)
+        assert FrameTransforms.FromString(tf[-1][2]).transforms[0].child_frame_id == "a0"
+    assert TF_TOPIC == "/tf"
+
+
+def _reference_scene(t: float, agents: list[dict], radius: dict[str, float]) -> bytes:
+    """The agents' /scene entities built through the protobuf API (the previous rules)."""
+    out = SceneUpdate()
+    ns = int(round(t * 1e9))
+    for a in agents:
+        e = SceneEntity(frame_id="world", id=f"agent/{a['id']}")
+        e.timestamp.seconds, e.timestamp.nanos = divmod(ns, 1_000_000_000)
+        s = e.spheres.add()
+        s.size.x = s.size.y = s.size.z = 2.0 * radius[a["id"]]
+        s.pose.orientation.w = 1.0
+        s.pose.position.x, s.pose.position.y, s.pose.position.z = (float(c) for c in a["position"])
+        s.color.r, s.color.g, s.color.b, s.color.a = MODE_COLORS.get(a["mode"], (0.8, 0.2, 0.8, 1.0))
+        out.entities.append(e)
+    return out.SerializeToString()
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_scene_agent_bytes_equal_protobuf_serializer(seed):
+    rng = np.random.default_rng(seed)
+    radius = {"a0": 0.5, "uav-1": 1.25, "x" * 150: 0.3}
+    world = {"agents": [{"id": i, "radius": r} for i, r in radius.items()]}
+    cap = _Capture()
+    scene = FoxgloveScene(cap, world, scene_period=0.0, path_period=1e9)
+    modes = [str(m) for m in Mode] + ["unknown"]
+    for step in range(30):
+        t = step * 0.1
+        agents = []
+        for i in radius:
+            p = rng.normal(0, 50, 3)
+            if rng.random() < 0.4:
+                p[rng.integers(3)] = [0.0, -0.0][rng.integers(2)]
+            mode = modes[rng.integers(len(modes))]
+            agents.append({"id": i, "position": p.tolist(), "velocity": [1.0, 0.0, 0.0], "mode": mode})
+        scene.write_step(t, agents, [])
+        msg = [m for m in cap.messages if m[0] == 12][-1][2]
+        assert msg == _reference_scene(t, agents, radius)
+    assert len(SceneUpdate.FromString(msg).entities) == 3
+
+
+def test_varint_table_equals_the_encoding():
+    from google.protobuf.internal.encoder import _VarintBytes
+
+    from swarmplan.io.foxglove_scene import _varint
+
+    for n in [0, 1, 127, 128, 300, 16383, 16384, 2**21 - 1, 2**21, 2**35 + 7]:
+        assert _varint(n) == _VarintBytes(n)
+
+
+class _ReferencePaths:
+    """The /scene/paths rules through the protobuf API (the previous implementation)."""
+
+    def __init__(self, max_points: int):
+        from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+
+        self.max_points, self.paths, self.entities, self.kind = max_points, {}, {}, LinePrimitive
+
+    def sample(self, agents):
+        for a in agents:
+            aid = a["id"]
+            pts = self.paths.setdefault(aid, [])
+            pt = tuple(float(c) for c in a["position"])
+            if pts and pts[-1] == pt:
+                continue
+            pts.append(pt)
+            e = self.entities.get(aid)
+            if e is None:
+                e = self.entities[aid] = SceneEntity(frame_id="world", id=f"path/{aid}")
+                line = e.lines.add(type=self.kind.LINE_STRIP, thickness=2.0, scale_invariant=True)
+                line.pose.position.x = line.pose.position.y = line.pose.position.z = 0.0
+                o = line.pose.orientation
+                o.x, o.y, o.z, o.w = 0.0, 0.0, 0.0, 1.0
+                line.color.r, line.color.g, line.color.b, line.color.a = (0.12, 0.47, 0.71, 0.9)
+            line = e.lines[0]
+            if len(pts) > self.max_points:
+                pts = self.paths[aid] = pts[:-1:2] + [pts[-1]]
+                del line.points[:]
+                for x, y, z in pts:
+                    line.points.add(x=x, y=y, z=z)
+            else:
+                line.points.add(x=pt[0], y=pt[1], z=pt[2])
+
+    def message(self, t: float) -> bytes:
+        out = SceneUpdate()
+        ns = int(round(t * 1e9))
+        for aid in self.paths:
+            e = self.entities[aid]
+            e.timestamp.seconds, e.timestamp.nanos = divmod(ns, 1_000_000_000)
+            out.entities.append(e)
+        return out.SerializeToString()
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_path_bytes_equal_protobuf_serializer(seed):
+    """Paths sampled every step, written every step, decimated past 6 points; repeated
+    positions (a standing agent), zero and -0.0 coordinates."""
+    rng = np.random.default_rng(seed)
+    ids = ["a0", "b1", "y" * 140]
+    cap = _Capture()
+    scene = FoxgloveScene(cap, {"agents": [{"id": i} for i in ids]}, scene_period=0.0, path_period=0.0)
+    scene.path_max_points = 6
+    ref = _ReferencePaths(6)
+    last = {i: rng.normal(0, 30, 3) for i in ids}
+    for step in range(40):
+        t = step * 0.1
+        agents = []
+        for i in ids:
+            if rng.random() < 0.7:  # otherwise it stands still: no new point
+                last[i] = rng.normal(0, 30, 3)
+                if rng.random() < 0.3:
+                    last[i][rng.integers(3)] = [0.0, -0.0][rng.integers(2)]
+            agents.append({"id": i, "position": last[i].tolist(), "velocity": [0.0, 0.0, 0.0], "mode": "apf"})
+        scene.write_step(t, agents, [])
+        ref.sample(agents)
+        msg = [m for m in cap.messages if m[0] == 13][-1][2]
+        assert msg == ref.message(t)
+    assert max(len(e.lines[0].points) for e in SceneUpdate.FromString(msg).entities) <= 6
