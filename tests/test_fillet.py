@@ -151,7 +151,11 @@ def test_paper_004_world_flies_filleted_routes_within_its_curvature_limit(tmp_pa
     against 1/rho = 0.046875 (rho = 8²/3 m): +0.75 %, because the follower's acceleration
     limit holds the turn at a/v² at the speed it flies, 7.97 m/s on the arcs rather than 8.
     Tolerance: 3 %. The flown path stays within 0.61 m of the filleted route (1.44 m
-    without fillets)."""
+    without fillets) with CFO's range masses; with rank masses (the default since) the plan
+    differs and the follower, entering an arc at its full 8 m/s where the acceleration limit
+    equals exactly what the arc needs, lags by up to 1.36 m. A skipped arc would put the path
+    several metres off (the arcs' middle lies rho*(sqrt(2)-1) = 8.8 m inside a right-angle
+    corner), so 1.5 m still tells following from skipping."""
     from helpers import REPO, run_to_end
 
     from swarmplan.replay import compare_with_summary, compute_metrics
@@ -187,7 +191,7 @@ def test_paper_004_world_flies_filleted_routes_within_its_curvature_limit(tmp_pa
     ab = b - a
     t = np.clip(np.einsum("pkj,kj->pk", pts[:, None] - a[None], ab) / np.sum(ab * ab, axis=1), 0, 1)
     cross = np.linalg.norm(a[None] + t[..., None] * ab[None] - pts[:, None], axis=2).min(axis=1)
-    assert cross.max() < 1.0
+    assert cross.max() < 1.5
     rec = load_recording(log)
     metrics = compute_metrics(rec)
     problems, _ = compare_with_summary(rec, metrics)
