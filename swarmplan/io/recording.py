@@ -160,12 +160,7 @@ class McapRecorder:
         self._writer.start(profile="", library="swarmplan")
         self._channels: dict[str, int] = {}
         for topic, schema in SCHEMAS.items():
-            sid = self._writer.register_schema(
-                name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
-            )
-            self._channels[topic] = self._writer.register_channel(
-                topic=topic, message_encoding="json", schema_id=sid
-            )
+            self.add_json_channel(topic, schema)
         self._flush_interval = flush_interval
         self._last_flush = 0.0
         self._foxglove_enabled = foxglove
@@ -174,14 +169,38 @@ class McapRecorder:
         self._sequence = 0
         self.closed = False
 
-    def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
-        # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
-        data = json.dumps(_clean(msg) if clean else msg, separators=(",", ":"), allow_nan=False).encode()
+    def add_json_channel(self, topic: str, schema: dict[str, Any]) -> None:
+        """Register a JSON channel (``schema["title"]`` names its JSON schema) beside the contract's."""
+        sid = self._writer.register_schema(
+            name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
+        )
+        self._channels[topic] = self._writer.register_channel(
+            topic=topic, message_encoding="json", schema_id=sid
+        )
+
+    def add_protobuf_channel(self, topic: str, schema_name: str, descriptor_set: bytes) -> None:
+        """Register a protobuf channel whose schema is the serialized ``FileDescriptorSet``."""
+        sid = self._writer.register_schema(name=schema_name, encoding="protobuf", data=descriptor_set)
+        self._channels[topic] = self._writer.register_channel(
+            topic=topic, message_encoding="protobuf", schema_id=sid
+        )
+
+    def write_json(self, topic: str, t: float, msg: dict[str, Any]) -> None:
+        """One message on a channel added with :meth:`add_json_channel` (``msg`` must be finite)."""
+        self._write(topic, t, msg, clean=False)
+
+    def write_bytes(self, topic: str, t: float, data: bytes) -> None:
+        """One already-serialized message (e.g. protobuf) on a registered channel."""
         ns = _ns(t)
         self._sequence += 1
         self._writer.add_message(
             self._channels[topic], log_time=ns, data=data, publish_time=ns, sequence=self._sequence
         )
+
+    def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
+        # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
+        data = json.dumps(_clean(msg) if clean else msg, separators=(",", ":"), allow_nan=False).encode()
+        self.write_bytes(topic, t, data)
 
     def write_world(self, world: dict[str, Any]) -> None:
         self._write("/world", 0.0, world)

@@ -17,7 +17,6 @@ Fixed-wing (skipped) agents keep their recorded states.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 from typing import Any
@@ -64,29 +63,18 @@ class _TrackingRecorder(McapRecorder):
 
     def __init__(self, path: str | Path) -> None:
         super().__init__(path, foxglove=True)
-        # McapRecorder registers the contract's channels only; ours go on the same writer.
-        sid = self._writer.register_schema(
-            name=TRACKING_SCHEMA["title"], encoding="jsonschema", data=json.dumps(TRACKING_SCHEMA).encode()
-        )
-        self._channels[TRACKING_TOPIC] = self._writer.register_channel(
-            topic=TRACKING_TOPIC, message_encoding="json", schema_id=sid
-        )
+        self.add_json_channel(TRACKING_TOPIC, TRACKING_SCHEMA)
 
     def write_tracking(self, t: float, agents: list[dict[str, Any]]) -> None:
-        self._write(TRACKING_TOPIC, t, {"t": round(t, 9), "agents": agents}, clean=False)
+        self.write_json(TRACKING_TOPIC, t, {"t": round(t, 9), "agents": agents})
 
     def write_reference_scene(self, paths: dict[str, np.ndarray]) -> None:
         from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
         from swarmplan.io.foxglove_scene import FRAME, file_descriptor_set
 
-        sid = self._writer.register_schema(
-            name="foxglove.SceneUpdate",
-            encoding="protobuf",
-            data=file_descriptor_set(SceneUpdate).SerializeToString(),
-        )
-        cid = self._writer.register_channel(
-            topic=TRACKING_SCENE_TOPIC, message_encoding="protobuf", schema_id=sid
+        self.add_protobuf_channel(
+            TRACKING_SCENE_TOPIC, "foxglove.SceneUpdate", file_descriptor_set(SceneUpdate).SerializeToString()
         )
         msg = SceneUpdate()
         for aid, pts in paths.items():
@@ -103,10 +91,7 @@ class _TrackingRecorder(McapRecorder):
             for p in pts:
                 q = line.points.add()
                 q.x, q.y, q.z = (float(c) for c in p)
-        self._sequence += 1
-        self._writer.add_message(
-            cid, log_time=0, publish_time=0, data=msg.SerializeToString(), sequence=self._sequence
-        )
+        self.write_bytes(TRACKING_SCENE_TOPIC, 0.0, msg.SerializeToString())
 
 
 def _interp(grid: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
