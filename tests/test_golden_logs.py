@@ -1,5 +1,5 @@
-"""Behaviour is frozen: the logs of ``tests/golden/golden.py``'s worlds are byte-identical
-to the stored digests (wall clock frozen). Re-store only for a deliberate change."""
+"""Behaviour is frozen: the logs of ``tests/golden/golden.py``'s worlds hold exactly the content
+of the stored digests (wall clock frozen). Re-store only for a deliberate change."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ STORED = json.loads(golden.DIGESTS.read_text())
 
 
 @pytest.mark.parametrize("name", sorted(golden.CASES))
-def test_log_is_byte_identical(name: str, tmp_path: Path) -> None:
+def test_log_content_is_identical(name: str, tmp_path: Path) -> None:
     got = golden.describe(golden.make_log(name, tmp_path))
     want = STORED[name]
     # Facts first: a mismatch there says where the logs part; the digest says whether they do.
