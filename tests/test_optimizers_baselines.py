@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 
 from swarmplan.optimizers import available, make
-from swarmplan.optimizers._baseline_kernels import _skip, abc_greedy, abc_moves, de_trials, ga_offspring
+from swarmplan.optimizers._baseline_kernels import (
+    _skip,
+    abc_greedy,
+    abc_moves,
+    de_trials,
+    ga_draws,
+    ga_mutate,
+    ga_offspring,
+)
 
 D = 10
 LOWER = -100.0 * np.ones(D)
@@ -97,7 +105,8 @@ def test_de_partners_distinct_not_self_and_uniform():
     rng = np.random.default_rng(4)
     counts = np.zeros((n, n, n, n), dtype=int)
     for _ in range(trials // n):
-        U = de_trials(X, rng.random((n, n + 4)), 0.5, 1.0, lower, upper)
+        U = np.empty((n, n))
+        de_trials(X, rng.random((n, n + 4)), 0.5, 1.0, lower, upper, U)
         for i, u in enumerate(U):
             r1, r2, r3 = int(np.argmax(u == 1.0)), int(np.argmax(u == 0.5)), int(np.argmax(u == -0.5))
             assert np.count_nonzero(u) == 3 and len({i, r1, r2, r3}) == 4, (i, u)
@@ -117,7 +126,8 @@ def test_de_bound_repair_is_the_midpoint_to_the_violated_bound():
     X = np.array([[0.0, 0.0], [9.0, -9.0], [0.0, 0.0], [-9.0, 9.0]])
     lower, upper = np.array([-10.0, -10.0]), np.array([10.0, 10.0])
     R = np.zeros((4, 6))  # every partner index 0 -> the first allowed ones; CR = 1
-    U = de_trials(X, R, 2.0, 1.0, lower, upper)
+    U = np.empty_like(X)
+    de_trials(X, R, 2.0, 1.0, lower, upper, U)
     assert np.all(U >= lower) and np.all(U <= upper)
     # row 0: partners 1, 2, 3 -> v = x1 + 2 (x2 - x3) = (27, -27): both repaired
     np.testing.assert_allclose(U[0], [0.5 * (10.0 + 0.0), 0.5 * (-10.0 + 0.0)])
@@ -126,12 +136,13 @@ def test_de_bound_repair_is_the_midpoint_to_the_violated_bound():
 def _ga(X, F, R, pc, pm, k=1, lower=-100.0, upper=100.0):
     d = X.shape[1]
     lo, hi = np.full(d, lower), np.full(d, upper)
-    return ga_offspring(X, F, len(X), k, R, pc, 15.0, pm, 20.0, lo, hi)
+    children = np.empty_like(X)
+    ga_offspring(X, F, k, R, pc, 15.0, pm, 20.0, lo, hi, children)
+    return children
 
 
-def _ga_draws(rng, n, d, k=1):
-    pairs = (n + 1) // 2
-    return rng.random(2 * pairs * k + pairs + pairs * d + n * d)
+def _ga_draws(rng, n, d, k=1, pm=0.5):
+    return rng.random(ga_draws(n, d, k, pm)[0])
 
 
 def test_sbx_children_are_symmetric_about_parents_mean():
@@ -161,22 +172,49 @@ def test_tournament_winner_is_the_lower_cost_entrant():
     np.testing.assert_allclose(C[:, 0], best)
 
 
-def test_polynomial_mutation_stays_in_bounds_and_mutates_at_rate():
+@pytest.mark.parametrize("pm", [0.5, 0.02, 1.0])
+def test_polynomial_mutation_stays_in_bounds_and_mutates_at_rate(pm):
     rng = np.random.default_rng(1)
     n, d = 2000, 3
     X = rng.uniform(-1.0, 1.0, (n, d))
     X[:10] = -1.0  # points on the bounds
     X[10:20] = 1.0
-    F = np.zeros(n)
-    R = _ga_draws(rng, n, d)
-    plain = _ga(X, F, R, pc=0.0, pm=0.0, lower=-1.0, upper=1.0)
-    Y = _ga(X, F, R, pc=0.0, pm=0.5, lower=-1.0, upper=1.0)
+    lower, upper = np.full(d, -1.0), np.full(d, 1.0)
+    Y = X.copy()
+    pos = ga_mutate(Y, rng.random(ga_draws(n, d, 1, pm)[1]), 0, pm, 20.0, lower, upper)
+    assert pos == n * d  # the batch sufficed
     assert np.all(Y >= -1.0) and np.all(Y <= 1.0)
-    changed = np.mean(Y != plain)
-    assert 0.45 < changed < 0.55
+    # (a coordinate on a bound pushed towards it stays put: count the interior rows only)
+    changed = Y[20:] != X[20:]
+    assert abs(np.mean(changed) - pm) < 4 * np.sqrt(pm * (1 - pm) / changed.size) + 1e-3
+    # per-coordinate trials are independent: no column is favoured
+    per_col = np.mean(changed, axis=0)
+    assert np.all(np.abs(per_col - pm) < 4 * np.sqrt(pm * (1 - pm) / len(changed)) + 1e-3)
     # the mutation is local (eta_m = 20): most moves are a small fraction of the box
-    moved = np.abs(Y - plain)[Y != plain]
+    moved = np.abs(Y - X)[Y != X]
     assert np.median(moved) < 0.1
+
+
+def test_mutation_continues_from_a_fresh_batch():
+    """A batch that runs short resumes where it stopped: the same mutations as one long batch
+    read in the same order."""
+    rng = np.random.default_rng(5)
+    n, d, pm = 200, 5, 0.3
+    X = rng.uniform(-1.0, 1.0, (n, d))
+    lower, upper = np.full(d, -1.0), np.full(d, 1.0)
+    R = rng.random(4001)
+    whole = X.copy()
+    assert ga_mutate(whole, R, 0, pm, 20.0, lower, upper) == n * d
+    parts, pos, at = X.copy(), 0, 0
+    while pos < n * d:  # batches of 7 uniforms: 3 events each, the 7th is read again next time
+        pos = ga_mutate(parts, R[at : at + 7], pos, pm, 20.0, lower, upper)
+        at += 6
+    np.testing.assert_array_equal(parts, whole)
+    assert 0.25 < np.mean(whole != X) < 0.35
+    # pm = 0: nothing mutates
+    none = X.copy()
+    assert ga_mutate(none, R, 0, 0.0, 20.0, lower, upper) == n * d
+    np.testing.assert_array_equal(none, X)
 
 
 def test_abc_onlookers_follow_the_roulette():
@@ -185,7 +223,8 @@ def test_abc_onlookers_follow_the_roulette():
     fit = np.array([0.0, 1.0, 3.0, 9.0])  # fitness 1, 1/2, 1/4, 1/10 -> p = 1/1.85, ...
     m = 20000
     R = rng.random((4, m))
-    V, src = abc_moves(X, fit, R, True, np.zeros(2), np.ones(2))
+    V, src = np.empty((m, 2)), np.empty(m, dtype=np.int64)
+    abc_moves(X, fit, R, True, np.zeros(2), np.ones(2), V, src)
     p = np.array([1.0, 0.5, 0.25, 0.1]) / 1.85
     freq = np.bincount(src, minlength=4) / m
     assert np.all(np.abs(freq - p) < 4 * np.sqrt(p * (1 - p) / m)), (freq, p)
@@ -193,7 +232,7 @@ def test_abc_onlookers_follow_the_roulette():
     assert np.all(np.count_nonzero(V != X[src], axis=1) <= 1)
     assert np.all((V >= 0.0) & (V <= 1.0))
     # all-infeasible sources: a uniform choice
-    _, src = abc_moves(X, np.full(4, -np.inf), R, True, np.zeros(2), np.ones(2))
+    abc_moves(X, np.full(4, -np.inf), R, True, np.zeros(2), np.ones(2), V, src)
     assert np.all(np.abs(np.bincount(src, minlength=4) / m - 0.25) < 0.02)
 
 

@@ -145,6 +145,9 @@ class PSO(Optimizer):
 class _DEState:
     X: np.ndarray
     F: np.ndarray
+    U: np.ndarray  # trial vectors (a buffer, rewritten every generation)
+    F_scale: float  # the parameters as floats (one type for the compiled kernel)
+    CR: float
 
 
 @register
@@ -173,16 +176,17 @@ class DE(Optimizer):
 
     def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _DEState:
         X = initial_population(problem, rng, self.population, x0)
-        return _DEState(X=X, F=problem.evaluate(X))
+        F = problem.evaluate(X)
+        p = self.params
+        return _DEState(X=X, F=F, U=np.empty_like(X), F_scale=float(p["F"]), CR=float(p["CR"]))
 
     def iterate(self, state: _DEState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
         K = baseline_kernels()
         n, d = state.X.shape
         # per row: 3 partner draws, the forced coordinate, d crossover tests (one batch)
         R = rng.random((n, d + 4))
-        U = K.de_trials(
-            state.X, R, float(self.params["F"]), float(self.params["CR"]), problem.lower, problem.upper
-        )
+        U = state.U
+        K.de_trials(state.X, R, state.F_scale, state.CR, problem.lower, problem.upper, U)
         K.de_select(state.X, state.F, U, problem.evaluate(U))
 
 
@@ -193,6 +197,9 @@ class DE(Optimizer):
 class _GAState:
     X: np.ndarray
     F: np.ndarray
+    children: np.ndarray  # (population - elite, d) buffer, rewritten every generation
+    draws: tuple[int, int]  # uniforms per generation, of which for the mutation
+    pm: float  # per-coordinate mutation probability
 
 
 @register
@@ -237,31 +244,32 @@ class GA(Optimizer):
 
     def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _GAState:
         X = initial_population(problem, rng, self.population, x0)
-        return _GAState(X=X, F=problem.evaluate(X))
+        F = problem.evaluate(X)
+        p = self.params
+        n_off, d = self.population - int(p["elite"]), problem.dim
+        pm = 1.0 / d if p["mutation_rate"] is None else float(p["mutation_rate"])
+        draws = baseline_kernels().ga_draws(n_off, d, int(p["tournament"]), pm)
+        return _GAState(X=X, F=F, children=np.empty((n_off, d)), draws=draws, pm=pm)
 
     def iterate(self, state: _GAState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
         p = self.params
         K = baseline_kernels()
-        n, d = state.X.shape
-        elite = int(p["elite"])
-        n_off = n - elite
-        n_pairs = (n_off + 1) // 2
-        k = int(p["tournament"])
-        pm = 1.0 / d if p["mutation_rate"] is None else float(p["mutation_rate"])
-        # one batch: tournaments, crossover tests, per-coordinate SBX and mutation draws
-        R = rng.random(2 * n_pairs * k + n_pairs + n_pairs * d + n_off * d)
-        children = K.ga_offspring(
+        children = state.children
+        # one batch: tournaments, crossover tests, per-coordinate SBX draws, mutation draws
+        pos = K.ga_offspring(
             state.X,
             state.F,
-            n_off,
-            k,
-            R,
+            int(p["tournament"]),
+            rng.random(state.draws[0]),
             float(p["crossover_rate"]),
             float(p["eta_c"]),
-            pm,
+            state.pm,
             float(p["eta_m"]),
             problem.lower,
             problem.upper,
+            children,
         )
-        Fc = problem.evaluate(children)
-        state.X, state.F = K.ga_survivors(state.X, state.F, children, Fc, elite)
+        while pos < children.size:  # the mutation draws ran short (~1e-15 per generation)
+            R = rng.random(state.draws[1])
+            pos = K.ga_mutate(children, R, pos, state.pm, float(p["eta_m"]), problem.lower, problem.upper)
+        K.ga_survivors(state.X, state.F, children, problem.evaluate(children))

@@ -21,6 +21,8 @@ class _AbcState:
     X: np.ndarray  # (SN, d) food sources
     fit: np.ndarray  # (SN,) their costs
     trial: np.ndarray  # (SN,) cycles without improvement
+    V: np.ndarray  # (SN, d) candidates of the current phase (a buffer)
+    src: np.ndarray  # (SN,) their sources
 
 
 @register
@@ -69,7 +71,8 @@ class ArtificialBeeColony(Optimizer):
         sn = self.population // 2
         X = initial_population(problem, rng, sn, x0)
         fit = problem.evaluate(X)
-        return _AbcState(X=X, fit=fit, trial=np.zeros(sn, dtype=int))
+        trial = np.zeros(sn, dtype=np.int64)
+        return _AbcState(X=X, fit=fit, trial=trial, V=np.empty_like(X), src=np.empty(sn, dtype=np.int64))
 
     def iterate(self, state: _AbcState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
         K = baseline_kernels()
@@ -78,10 +81,11 @@ class ArtificialBeeColony(Optimizer):
         # one batch per phase: partner, dimension, phi (and the onlookers' roulette spin)
         R = rng.random((2, 4, sn))
         # 1. employed bees
-        V, src = K.abc_moves(state.X, state.fit, R[0], False, problem.lower, problem.upper)
+        V, src = state.V, state.src
+        K.abc_moves(state.X, state.fit, R[0], False, problem.lower, problem.upper, V, src)
         K.abc_greedy(state.X, state.fit, state.trial, src, V, problem.evaluate(V))
         # 2. onlookers
-        V, src = K.abc_moves(state.X, state.fit, R[1], True, problem.lower, problem.upper)
+        K.abc_moves(state.X, state.fit, R[1], True, problem.lower, problem.upper, V, src)
         i = K.abc_greedy(state.X, state.fit, state.trial, src, V, problem.evaluate(V))
         # 3. one scout: the source with the most trials (the first on ties)
         if state.trial[i] > limit:

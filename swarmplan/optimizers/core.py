@@ -50,8 +50,8 @@ _kernels: Any = None
 def kernels() -> Any:
     """The compiled helpers (:mod:`swarmplan.optimizers._kernels`), imported at first use.
 
-    numba's import costs ~0.5 s, so nothing imports it before the first evaluation; the
-    planner's start-up (which imports the registry) stays free of it.
+    numba's import costs ~0.5 s, so nothing imports it before the first ``Problem`` is
+    built; the planner's start-up (which imports the registry) stays free of it.
     """
     global _kernels
     if _kernels is None:
@@ -95,6 +95,7 @@ class Problem:
         self.evaluations = 0
         self.best_x: np.ndarray | None = None
         self.best_f = np.inf
+        kernels()  # numba is imported here, at the first Problem (evaluate reads _kernels)
 
     @property
     def remaining(self) -> int:
@@ -106,7 +107,7 @@ class Problem:
 
     def uniform(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """``n`` points drawn uniformly in the box: ``lower + U * span``, ``U ~ U[0, 1)^(n, d)``."""
-        return kernels().scale_into_box(rng.random((n, self.dim)), self.lower, self.span)
+        return _kernels.scale_into_box(rng.random((n, self.dim)), self.lower, self.span)
 
     def evaluate(self, X: np.ndarray) -> np.ndarray:
         if type(X) is not np.ndarray or X.dtype is not _F64 or X.ndim != 2:
@@ -124,17 +125,20 @@ class Problem:
                 if f.shape != (0,):
                     raise ValueError(f"cost returned shape {f.shape} for 0 candidates; expected (0,)")
                 return f.copy()
-        K = kernels()
+        K = _kernels
         # a fresh copy: the cost may keep or modify its argument, the algorithm's array stays
-        Xe = K.clip_rows(X, k, self.lower, self.upper)
+        Xe = np.empty((k, d))
+        K.clip_into(X, Xe, self.lower, self.upper)
         f = self.cost(Xe)
         if type(f) is not np.ndarray or f.dtype is not _F64 or f.ndim != 1:
             f = np.asarray(f, dtype=float).reshape(-1)
         if f.shape[0] != k:
             raise ValueError(f"cost returned shape {f.shape} for {k} candidates; expected ({k},)")
-        # a copy with NaN -> inf (algorithms keep and update it), its argmin and minimum
-        fe, i, fi = K.finish_costs(f)
+        # a copy with NaN -> inf (algorithms keep and update it) and its argmin
+        fe = np.empty(k)
+        i = K.finish_costs(f, fe)
         self.evaluations += k
+        fi = float(fe[i])
         if fi < self.best_f or self.best_x is None:
             self.best_f = fi
             self.best_x = Xe[i].copy()
