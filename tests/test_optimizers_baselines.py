@@ -7,13 +7,13 @@ import pytest
 
 from swarmplan.optimizers import available, make
 from swarmplan.optimizers._baseline_kernels import (
-    _skip,
     abc_greedy,
     abc_moves,
     de_trials,
     ga_draws,
     ga_mutate,
     ga_offspring,
+    partners,
 )
 
 D = 10
@@ -86,15 +86,22 @@ def test_ga_keeps_its_elite():
         assert state.X.shape == (20, D) and state.F.shape == (20,)
 
 
-def test_skip_maps_onto_the_complement_exactly():
-    m = 7
-    for a in range(m):
-        assert [_skip(r, a, -1, -1) for r in range(m - 1)] == [x for x in range(m) if x != a]
-        for b in set(range(m)) - {a}:
-            assert [_skip(r, a, b, -1) for r in range(m - 2)] == [x for x in range(m) if x not in (a, b)]
-            for c in set(range(m)) - {a, b}:
-                want = [x for x in range(m) if x not in (a, b, c)]
-                assert [_skip(r, a, b, c) for r in range(m - 3)] == want
+def test_partners_map_the_uniform_grid_onto_every_ordered_triple_once():
+    # u at the centres of the floor(u m) cells: each cell combination must give a different
+    # ordered triple of distinct indices other than i, i.e. all (n-1)(n-2)(n-3) of them
+    n = 7
+    for i in range(n):
+        seen = set()
+        for a in range(n - 1):
+            for b in range(n - 2):
+                for c in range(n - 3):
+                    t = partners((a + 0.5) / (n - 1), (b + 0.5) / (n - 2), (c + 0.5) / (n - 3), i, n)
+                    assert len({i, *t}) == 4 and all(0 <= x < n for x in t), (i, t)
+                    seen.add(t)
+        assert len(seen) == (n - 1) * (n - 2) * (n - 3)
+    # the smallest population DE accepts (4): the partners are the other three
+    assert sorted(partners(0.0, 0.0, 0.0, 2, 4)) == [0, 1, 3]
+    assert sorted(partners(0.999, 0.999, 0.999, 0, 4)) == [1, 2, 3]
 
 
 def test_de_partners_distinct_not_self_and_uniform():

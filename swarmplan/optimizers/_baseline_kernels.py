@@ -67,24 +67,33 @@ def pso_personal_best(X, F, P, Pf):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True)
-def _skip(r, a, b, c):  # noqa: ANN001, ANN202
-    """Map ``r`` in ``[0, m - x)`` to the ``r``-th integer of ``[0, m)`` not among the ``x``
-    distinct excluded ones ``a, b, c`` (pass ``-1`` to exclude fewer). A uniform ``r`` then
-    gives a uniform draw without replacement."""
-    if b > a:
-        a, b = b, a
-    if c > a:
-        a, c = c, a
-    if c > b:
+def partners(u1, u2, u3, i, n):  # noqa: ANN001, ANN201
+    """Three distinct indices of ``[0, n)``, none equal to ``i``, drawn uniformly without
+    replacement from three uniforms: ``floor(u1 (n-1))``, ``floor(u2 (n-2))``,
+    ``floor(u3 (n-3))``, each mapped onto the indices not taken yet (stepping over the
+    excluded ones in increasing order)."""
+    r1 = _index(u1, n - 1)
+    if r1 >= i:
+        r1 += 1
+    lo, hi = min(i, r1), max(i, r1)
+    r2 = _index(u2, n - 2)
+    if r2 >= lo:
+        r2 += 1
+    if r2 >= hi:
+        r2 += 1
+    a, b, c = lo, hi, r2  # sort the three excluded ones: a < b < c
+    if c < b:
         b, c = c, b
-    # now a > b > c (the -1s last): step over them in increasing order
-    if c >= 0 and r >= c:
-        r += 1
-    if b >= 0 and r >= b:
-        r += 1
-    if r >= a:
-        r += 1
-    return r
+        if b < a:
+            a, b = b, a
+    r3 = _index(u3, n - 3)
+    if r3 >= a:
+        r3 += 1
+    if r3 >= b:
+        r3 += 1
+    if r3 >= c:
+        r3 += 1
+    return r1, r2, r3
 
 
 @njit(cache=True)
@@ -115,9 +124,7 @@ def de_trials(X, R, F, CR, lower, upper, U):  # noqa: ANN001, ANN201
     """
     n, d = X.shape
     for i in range(n):
-        r1 = _skip(_index(R[i, 0], n - 1), i, -1, -1)
-        r2 = _skip(_index(R[i, 1], n - 2), i, r1, -1)
-        r3 = _skip(_index(R[i, 2], n - 3), i, r1, r2)
+        r1, r2, r3 = partners(R[i, 0], R[i, 1], R[i, 2], i, n)
         jr = _index(R[i, 3], d)
         for j in range(d):
             x = X[i, j]
@@ -262,19 +269,27 @@ def ga_survivors(X, F, children, Fc):  # noqa: ANN001, ANN201
     elite = n - children.shape[0]
     keep = np.empty((elite, d))
     keep_f = np.empty(elite)
-    taken = np.zeros(n, dtype=np.bool_)
+    taken = np.empty(n, dtype=np.bool_)  # (np.empty + a loop: np.zeros/np.full compile slower)
+    for i in range(n):
+        taken[i] = False
     for e in range(elite):
         best = -1
         for i in range(n):
             if not taken[i] and (best < 0 or F[i] < F[best]):
                 best = i
         taken[best] = True
-        keep[e] = X[best]
         keep_f[e] = F[best]
-    X[:elite] = keep
-    F[:elite] = keep_f
-    X[elite:] = children
-    F[elite:] = Fc
+        for j in range(d):
+            keep[e, j] = X[best, j]
+    # plain loops: numba's array slice assignment takes seconds to compile
+    for e in range(elite):
+        F[e] = keep_f[e]
+        for j in range(d):
+            X[e, j] = keep[e, j]
+    for i in range(children.shape[0]):
+        F[elite + i] = Fc[i]
+        for j in range(d):
+            X[elite + i, j] = children[i, j]
 
 
 # --------------------------------------------------------------------------- ABC
@@ -316,7 +331,8 @@ def abc_moves(X, fit, R, onlookers, lower, upper, V, src):  # noqa: ANN001, ANN2
             src[b] = b
     for b in range(m):
         s = src[b]
-        k = _skip(_index(R[0, b], sn - 1), s, -1, -1)
+        k = _index(R[0, b], sn - 1)
+        k += k >= s  # a partner other than the source itself
         j = _index(R[1, b], d)
         phi = -1.0 + 2.0 * R[2, b]
         for c in range(d):
@@ -331,7 +347,9 @@ def abc_greedy(X, fit, trial, src, V, fv):  # noqa: ANN001, ANN201
     first on ties) if that beats it (trial counter reset), else its counter grows by one;
     sources no bee tried are left alone. Returns the index of the largest trial counter."""
     sn, d = X.shape
-    best = np.full(sn, -1, dtype=np.int64)
+    best = np.empty(sn, dtype=np.int64)
+    for s in range(sn):
+        best[s] = -1
     for b in range(src.shape[0]):
         s = src[b]
         if best[s] < 0 or fv[b] < fv[best[s]]:
