@@ -79,6 +79,7 @@ class _PSOState:
     Pf: np.ndarray  # personal best costs (n,)
     g: int  # index of the swarm's best personal best
     vmax: np.ndarray  # per-dimension velocity clamp (d,)
+    coef: tuple[float, float, float]  # w, c1, c2 as floats (one type for the compiled kernel)
 
 
 @register
@@ -114,28 +115,16 @@ class PSO(Optimizer):
         vmax = float(self.params["vmax_fraction"]) * problem.span
         V = (2.0 * rng.random((n, problem.dim)) - 1.0) * vmax
         F = problem.evaluate(X)
-        return _PSOState(X=X, V=V, P=X.copy(), Pf=F.copy(), g=int(np.argmin(F)), vmax=vmax)
+        coef = (float(self.params["w"]), float(self.params["c1"]), float(self.params["c2"]))
+        return _PSOState(X=X, V=V, P=X.copy(), Pf=F.copy(), g=int(np.argmin(F)), vmax=vmax, coef=coef)
 
     def iterate(self, state: _PSOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        p = self.params
         K = baseline_kernels()
-        n, d = state.X.shape
-        R = rng.random((2, n, d))  # r1 = R[0], r2 = R[1]: the same stream as two (n, d) draws
-        K.pso_move(
-            state.X,
-            state.V,
-            state.P,
-            state.g,
-            R,
-            float(p["w"]),
-            float(p["c1"]),
-            float(p["c2"]),
-            state.vmax,
-            problem.lower,
-            problem.upper,
-        )
-        F = problem.evaluate(state.X)
-        state.g = K.pso_personal_best(state.X, F, state.P, state.Pf)
+        X = state.X
+        R = rng.random((2, *X.shape))  # r1 = R[0], r2 = R[1]: the same stream as two (n, d) draws
+        w, c1, c2 = state.coef
+        K.pso_move(X, state.V, state.P, state.g, R, w, c1, c2, state.vmax, problem.lower, problem.upper)
+        state.g = K.pso_personal_best(X, problem.evaluate(X), state.P, state.Pf)
 
 
 # --------------------------------------------------------------------------- DE
@@ -200,6 +189,8 @@ class _GAState:
     children: np.ndarray  # (population - elite, d) buffer, rewritten every generation
     draws: tuple[int, int]  # uniforms per generation, of which for the mutation
     pm: float  # per-coordinate mutation probability
+    args: tuple[int, float, float]  # tournament size, crossover rate, eta_c (typed for the kernel)
+    eta_m: float
 
 
 @register
@@ -249,27 +240,18 @@ class GA(Optimizer):
         n_off, d = self.population - int(p["elite"]), problem.dim
         pm = 1.0 / d if p["mutation_rate"] is None else float(p["mutation_rate"])
         draws = baseline_kernels().ga_draws(n_off, d, int(p["tournament"]), pm)
-        return _GAState(X=X, F=F, children=np.empty((n_off, d)), draws=draws, pm=pm)
+        args = (int(p["tournament"]), float(p["crossover_rate"]), float(p["eta_c"]))
+        children = np.empty((n_off, d))
+        return _GAState(X=X, F=F, children=children, draws=draws, pm=pm, args=args, eta_m=float(p["eta_m"]))
 
     def iterate(self, state: _GAState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        p = self.params
         K = baseline_kernels()
         children = state.children
+        k, pc, eta_c = state.args
+        lower, upper = problem.lower, problem.upper
         # one batch: tournaments, crossover tests, per-coordinate SBX draws, mutation draws
-        pos = K.ga_offspring(
-            state.X,
-            state.F,
-            int(p["tournament"]),
-            rng.random(state.draws[0]),
-            float(p["crossover_rate"]),
-            float(p["eta_c"]),
-            state.pm,
-            float(p["eta_m"]),
-            problem.lower,
-            problem.upper,
-            children,
-        )
+        R = rng.random(state.draws[0])
+        pos = K.ga_offspring(state.X, state.F, k, R, pc, eta_c, state.pm, state.eta_m, lower, upper, children)
         while pos < children.size:  # the mutation draws ran short (~1e-15 per generation)
-            R = rng.random(state.draws[1])
-            pos = K.ga_mutate(children, R, pos, state.pm, float(p["eta_m"]), problem.lower, problem.upper)
+            pos = K.ga_mutate(children, rng.random(state.draws[1]), pos, state.pm, state.eta_m, lower, upper)
         K.ga_survivors(state.X, state.F, children, problem.evaluate(children))
