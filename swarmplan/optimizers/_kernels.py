@@ -12,8 +12,9 @@ Rules the kernels follow (so that they stay cheap to compile and to call):
   (more than a whole generation's budget), so algorithms draw their random numbers in one
   batched numpy call and pass the array;
 * typed by usage (no explicit signatures), ``cache=True`` (compiled once per machine);
-* this module is imported lazily (numba's import takes ~0.5 s), at the first
-  ``Problem.evaluate`` (see :func:`swarmplan.optimizers.core.kernels`).
+* this module is imported lazily (numba's import takes ~0.5 s), when the first ``Problem``
+  is built (see :func:`swarmplan.optimizers.core.kernels`); other algorithms may call these
+  kernels too (``core.kernels().clip_into(...)``).
 """
 
 from __future__ import annotations
