@@ -7,8 +7,8 @@ microsecond before any arithmetic. Each algorithm now runs a generation as: one 
 uniform draw in numpy (a Generator argument costs ~20 µs to unbox per numba call, so the
 kernels never take one), one kernel that builds the candidates, ``Problem.evaluate``, one
 kernel for the selection. The equations are the algorithms' own; see each class's
-docstring for the citation. The module is imported at the first generation (numba's import
-costs ~0.5 s), ``cache=True`` keeps the compiled code on disk.
+docstring for the citation. The module is imported when an algorithm first needs it
+(numba's import costs ~0.5 s), ``cache=True`` keeps the compiled code on disk.
 """
 
 from __future__ import annotations
