@@ -7,6 +7,7 @@ settings tuned to beat or lose to the paper algorithms.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -25,16 +26,18 @@ def _check_unit(name: str, algo: str, value: float) -> None:
         raise ValueError(f"{algo}: {name} must be in [0, 1], got {value!r}")
 
 
-def distinct_indices(rng: np.random.Generator, n: int, k: int) -> np.ndarray:
-    """``(n, k)`` indices: row ``i`` holds ``k`` distinct indices in ``range(n)``, none equal to ``i``.
+_baseline_kernels: Any = None
 
-    Vectorized: random keys per row with the diagonal masked out, the ``k`` smallest kept.
-    """
-    if k > n - 1:
-        raise ValueError(f"need population >= {k + 1} to draw {k} distinct partners, got {n}")
-    keys = rng.random((n, n))
-    np.fill_diagonal(keys, np.inf)
-    return np.argpartition(keys, k - 1, axis=1)[:, :k]
+
+def baseline_kernels() -> Any:
+    """The compiled generation steps (:mod:`swarmplan.optimizers._baseline_kernels`),
+    imported at first use so that importing the registry does not import numba."""
+    global _baseline_kernels
+    if _baseline_kernels is None:
+        from swarmplan.optimizers import _baseline_kernels as k
+
+        _baseline_kernels = k
+    return _baseline_kernels
 
 
 # --------------------------------------------------------------------------- random search
@@ -76,6 +79,7 @@ class _PSOState:
     Pf: np.ndarray  # personal best costs (n,)
     g: int  # index of the swarm's best personal best
     vmax: np.ndarray  # per-dimension velocity clamp (d,)
+    coef: tuple[float, float, float]  # w, c1, c2 as floats (one type for the compiled kernel)
 
 
 @register
@@ -111,27 +115,16 @@ class PSO(Optimizer):
         vmax = float(self.params["vmax_fraction"]) * problem.span
         V = (2.0 * rng.random((n, problem.dim)) - 1.0) * vmax
         F = problem.evaluate(X)
-        return _PSOState(X=X, V=V, P=X.copy(), Pf=F.copy(), g=int(np.argmin(F)), vmax=vmax)
+        coef = (float(self.params["w"]), float(self.params["c1"]), float(self.params["c2"]))
+        return _PSOState(X=X, V=V, P=X.copy(), Pf=F.copy(), g=int(np.argmin(F)), vmax=vmax, coef=coef)
 
     def iterate(self, state: _PSOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        p = self.params
-        X, V = state.X, state.V
-        n, d = X.shape
-        r1 = rng.random((n, d))
-        r2 = rng.random((n, d))
-        V *= p["w"]
-        V += p["c1"] * r1 * (state.P - X) + p["c2"] * r2 * (state.P[state.g] - X)
-        np.clip(V, -state.vmax, state.vmax, out=V)
-        X += V
-        out = (X < problem.lower) | (X > problem.upper)
-        if out.any():
-            np.clip(X, problem.lower, problem.upper, out=X)
-            V[out] = 0.0
-        F = problem.evaluate(X)
-        better = F < state.Pf
-        state.P[better] = X[better]
-        state.Pf[better] = F[better]
-        state.g = int(np.argmin(state.Pf))
+        K = baseline_kernels()
+        X = state.X
+        R = rng.random((2, *X.shape))  # r1 = R[0], r2 = R[1]: the same stream as two (n, d) draws
+        w, c1, c2 = state.coef
+        K.pso_move(X, state.V, state.P, state.g, R, w, c1, c2, state.vmax, problem.lower, problem.upper)
+        state.g = K.pso_personal_best(X, problem.evaluate(X), state.P, state.Pf)
 
 
 # --------------------------------------------------------------------------- DE
@@ -141,6 +134,9 @@ class PSO(Optimizer):
 class _DEState:
     X: np.ndarray
     F: np.ndarray
+    U: np.ndarray  # trial vectors (a buffer, rewritten every generation)
+    F_scale: float  # the parameters as floats (one type for the compiled kernel)
+    CR: float
 
 
 @register
@@ -154,6 +150,8 @@ class DE(Optimizer):
     midpoint between the parent's coordinate and the violated bound (the repair of
     JADE, Zhang & Sanderson 2009), which keeps the search inside without piling points on
     the bound. Population 50 (Storn & Price suggest 5d-10d; 50 is a budget-friendly default).
+    r1, r2, r3 are drawn uniformly without replacement from the other members, from one
+    uniform batch per generation (``_baseline_kernels.de_trials``).
     """
 
     name = "de"
@@ -167,23 +165,18 @@ class DE(Optimizer):
 
     def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _DEState:
         X = initial_population(problem, rng, self.population, x0)
-        return _DEState(X=X, F=problem.evaluate(X))
+        F = problem.evaluate(X)
+        p = self.params
+        return _DEState(X=X, F=F, U=np.empty_like(X), F_scale=float(p["F"]), CR=float(p["CR"]))
 
     def iterate(self, state: _DEState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        X = state.X
-        n, d = X.shape
-        r = distinct_indices(rng, n, 3)
-        V = X[r[:, 0]] + self.params["F"] * (X[r[:, 1]] - X[r[:, 2]])
-        # Bound repair: midpoint between parent and the violated bound.
-        V = np.where(V < problem.lower, 0.5 * (problem.lower + X), V)
-        V = np.where(V > problem.upper, 0.5 * (problem.upper + X), V)
-        cross = rng.random((n, d)) <= self.params["CR"]
-        cross[np.arange(n), rng.integers(0, d, n)] = True
-        U = np.where(cross, V, X)
-        Fu = problem.evaluate(U)
-        better = Fu <= state.F
-        X[better] = U[better]
-        state.F[better] = Fu[better]
+        K = baseline_kernels()
+        n, d = state.X.shape
+        # per row: 3 partner draws, the forced coordinate, d crossover tests (one batch)
+        R = rng.random((n, d + 4))
+        U = state.U
+        K.de_trials(state.X, R, state.F_scale, state.CR, problem.lower, problem.upper, U)
+        K.de_select(state.X, state.F, U, problem.evaluate(U))
 
 
 # --------------------------------------------------------------------------- GA
@@ -193,63 +186,28 @@ class DE(Optimizer):
 class _GAState:
     X: np.ndarray
     F: np.ndarray
-
-
-def sbx_crossover(
-    rng: np.random.Generator, P1: np.ndarray, P2: np.ndarray, eta: float, pc: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Simulated binary crossover (Deb & Agrawal 1995), vectorized over pairs of parents.
-
-    Each pair crosses with probability ``pc``; within a crossing pair each coordinate is
-    recombined with probability 1/2 (Deb's usual per-variable rule). Children may leave the
-    box: the caller repairs.
-    """
-    n, d = P1.shape
-    mask = (rng.random((n, 1)) < pc) & (rng.random((n, d)) < 0.5)
-    u = rng.random(int(np.count_nonzero(mask)))
-    beta = np.where(u <= 0.5, 2.0 * u, 0.5 / (1.0 - u)) ** (1.0 / (eta + 1.0))
-    mean = 0.5 * (P1 + P2)
-    half = 0.5 * (P1 - P2)
-    half[mask] *= beta
-    return mean + half, mean - half
-
-
-def polynomial_mutation(
-    rng: np.random.Generator, X: np.ndarray, lower: np.ndarray, upper: np.ndarray, eta: float, pm: float
-) -> np.ndarray:
-    """Bounded polynomial mutation (Deb & Goyal 1996; bounded form of Deb & Deb 2014).
-
-    Each coordinate mutates with probability ``pm``; results stay inside ``[lower, upper]``.
-    Only the mutated coordinates are computed (with pm = 1/d that is about one per row).
-    """
-    rows, cols = np.nonzero(rng.random(X.shape) < pm)
-    if rows.size == 0:
-        return X
-    lo, hi = lower[cols], upper[cols]
-    span = np.where(hi > lo, hi - lo, 1.0)
-    x = X[rows, cols]
-    u = rng.random(rows.size)
-    left = u < 0.5
-    # Deb's two branches folded into one: v = min(u, 1 - u), dist = delta1 (left) or delta2.
-    v = np.where(left, u, 1.0 - u)
-    dist = np.where(left, x - lo, hi - x) / span
-    val = 2.0 * v + (1.0 - 2.0 * v) * (1.0 - dist) ** (eta + 1.0)
-    mag = 1.0 - val ** (1.0 / (eta + 1.0))
-    Y = X.copy()
-    Y[rows, cols] = np.clip(x + np.where(left, -mag, mag) * span, lo, hi)
-    return Y
+    children: np.ndarray  # (population - elite, d) buffer, rewritten every generation
+    draws: tuple[int, int]  # uniforms per generation, of which for the mutation
+    pm: float  # per-coordinate mutation probability
+    args: tuple[int, float, float]  # tournament size, crossover rate, eta_c (typed for the kernel)
+    eta_m: float
 
 
 @register
 class GA(Optimizer):
     """Real-coded generational genetic algorithm with elitism.
 
-    Binary tournament selection (size ``tournament``), simulated binary crossover SBX with
-    rate ``crossover_rate`` = 0.9 and index ``eta_c`` = 15, bounded polynomial mutation with
-    index ``eta_m`` = 20 and per-coordinate rate ``mutation_rate`` (``None`` = 1/d): the
-    settings of Deb's NSGA-II/real-coded GA literature. The best ``elite`` = 2 individuals
-    survive unchanged; the other ``population - elite`` are offspring, evaluated in one batch.
-    SBX children outside the box are clipped onto it.
+    Binary tournament selection (size ``tournament``), simulated binary crossover SBX
+    (Deb & Agrawal 1995) with rate ``crossover_rate`` = 0.9 and index ``eta_c`` = 15, bounded
+    polynomial mutation (Deb & Goyal 1996; bounded form of Deb & Deb 2014) with index
+    ``eta_m`` = 20 and per-coordinate rate ``mutation_rate`` (``None`` = 1/d): the settings of
+    Deb's NSGA-II/real-coded GA literature. Each pair crosses with probability
+    ``crossover_rate``; within a crossing pair each coordinate is recombined with probability
+    1/2 (Deb's usual per-variable rule). The best ``elite`` = 2 individuals survive unchanged;
+    the other ``population - elite`` are offspring, evaluated in one batch. SBX children
+    outside the box are clipped onto it; mutation keeps them inside. One generation is one
+    uniform batch and two compiled calls (``_baseline_kernels.ga_offspring`` / ``ga_survivors``,
+    whose docstring gives how each uniform is used).
     """
 
     name = "ga"
@@ -277,24 +235,23 @@ class GA(Optimizer):
 
     def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _GAState:
         X = initial_population(problem, rng, self.population, x0)
-        return _GAState(X=X, F=problem.evaluate(X))
+        F = problem.evaluate(X)
+        p = self.params
+        n_off, d = self.population - int(p["elite"]), problem.dim
+        pm = 1.0 / d if p["mutation_rate"] is None else float(p["mutation_rate"])
+        draws = baseline_kernels().ga_draws(n_off, d, int(p["tournament"]), pm)
+        args = (int(p["tournament"]), float(p["crossover_rate"]), float(p["eta_c"]))
+        children = np.empty((n_off, d))
+        return _GAState(X=X, F=F, children=children, draws=draws, pm=pm, args=args, eta_m=float(p["eta_m"]))
 
     def iterate(self, state: _GAState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        p = self.params
-        n, d = state.X.shape
-        elite = int(p["elite"])
-        n_off = n - elite
-        n_pairs = (n_off + 1) // 2
-        k = int(p["tournament"])
-        # Tournament selection: 2 * n_pairs tournaments of size k, winners = lowest cost.
-        entrants = rng.integers(0, n, (2 * n_pairs, k))
-        winners = entrants[np.arange(2 * n_pairs), np.argmin(state.F[entrants], axis=1)]
-        P1, P2 = state.X[winners[:n_pairs]], state.X[winners[n_pairs:]]
-        C1, C2 = sbx_crossover(rng, P1, P2, float(p["eta_c"]), float(p["crossover_rate"]))
-        children = np.clip(np.vstack((C1, C2))[:n_off], problem.lower, problem.upper)
-        pm = 1.0 / d if p["mutation_rate"] is None else float(p["mutation_rate"])
-        children = polynomial_mutation(rng, children, problem.lower, problem.upper, float(p["eta_m"]), pm)
-        Fc = problem.evaluate(children)
-        order = np.argsort(state.F, kind="stable")[:elite]
-        state.X = np.vstack((state.X[order], children))
-        state.F = np.concatenate((state.F[order], Fc))
+        K = baseline_kernels()
+        children = state.children
+        k, pc, eta_c = state.args
+        lower, upper = problem.lower, problem.upper
+        # one batch: tournaments, crossover tests, per-coordinate SBX draws, mutation draws
+        R = rng.random(state.draws[0])
+        pos = K.ga_offspring(state.X, state.F, k, R, pc, eta_c, state.pm, state.eta_m, lower, upper, children)
+        while pos < children.size:  # the mutation draws ran short (~1e-15 per generation)
+            pos = K.ga_mutate(children, rng.random(state.draws[1]), pos, state.pm, state.eta_m, lower, upper)
+        K.ga_survivors(state.X, state.F, children, problem.evaluate(children))

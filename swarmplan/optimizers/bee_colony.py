@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.optimizers.bat import roulette_probabilities
+from swarmplan.optimizers.baselines import baseline_kernels
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
 from swarmplan.optimizers.registry import register
 
@@ -21,43 +21,8 @@ class _AbcState:
     X: np.ndarray  # (SN, d) food sources
     fit: np.ndarray  # (SN,) their costs
     trial: np.ndarray  # (SN,) cycles without improvement
-
-
-def _neighbour_moves(
-    rng: np.random.Generator, X: np.ndarray, src: np.ndarray, problem: Problem
-) -> np.ndarray:
-    """``v_ij = x_ij + phi (x_ij - x_kj)`` for one random ``j`` and partner ``k != i`` per row.
-
-    ``src`` holds the source index ``i`` of each candidate; ``phi ~ U(-1, 1)``; the changed
-    coordinate is clipped into the box (Karaboga's code resets it to the bound).
-    """
-    m, (sn, d) = len(src), X.shape
-    k = rng.integers(0, sn - 1, size=m)
-    k = k + (k >= src)  # a partner different from the source itself
-    j = rng.integers(0, d, size=m)
-    phi = rng.uniform(-1.0, 1.0, m)
-    rows = np.arange(m)
-    V = X[src].copy()
-    val = X[src, j] + phi * (X[src, j] - X[k, j])
-    V[rows, j] = np.clip(val, problem.lower[j], problem.upper[j])
-    return V
-
-
-def _greedy(state: _AbcState, src: np.ndarray, V: np.ndarray, fv: np.ndarray) -> None:
-    """Per source, keep the best candidate built from it if it beats the source (greedy selection)."""
-    order = np.lexsort((fv, src))  # grouped by source, best first
-    first = np.ones(len(src), dtype=bool)
-    first[1:] = src[order][1:] != src[order][:-1]
-    winners = order[first]
-    k = src[winners]
-    better = fv[winners] < state.fit[k]
-    improved = np.zeros(len(state.fit), dtype=bool)
-    improved[k[better]] = True
-    state.X[k[better]] = V[winners[better]]
-    state.fit[k[better]] = fv[winners[better]]
-    touched = np.zeros(len(state.fit), dtype=bool)
-    touched[k] = True
-    state.trial = np.where(improved, 0, np.where(touched, state.trial + 1, state.trial))
+    V: np.ndarray  # (SN, d) candidates of the current phase (a buffer)
+    src: np.ndarray  # (SN,) their sources
 
 
 @register
@@ -80,7 +45,9 @@ class ArtificialBeeColony(Optimizer):
     all start from the sources as they stand after the employed phase and each source keeps
     the best of the candidates built from it (the sequential original would let a later
     onlooker start from an earlier onlooker's improvement). Trial counters count *phases*
-    without improvement for the sources that were tried, as in the original.
+    without improvement for the sources that were tried, as in the original. Per phase: one
+    uniform batch, one compiled call to build the candidates and one for the greedy selection
+    (``_baseline_kernels.abc_moves`` / ``abc_greedy``, which say how each uniform is used).
 
     Defaults: colony 40 (SN = 20), ``limit = None`` meaning ``SN * d`` (Karaboga & Basturk's
     recommendation).
@@ -104,21 +71,23 @@ class ArtificialBeeColony(Optimizer):
         sn = self.population // 2
         X = initial_population(problem, rng, sn, x0)
         fit = problem.evaluate(X)
-        return _AbcState(X=X, fit=fit, trial=np.zeros(sn, dtype=int))
+        trial = np.zeros(sn, dtype=np.int64)
+        return _AbcState(X=X, fit=fit, trial=trial, V=np.empty_like(X), src=np.empty(sn, dtype=np.int64))
 
     def iterate(self, state: _AbcState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
+        K = baseline_kernels()
         sn, d = state.X.shape
         limit = sn * d if self.params["limit"] is None else int(self.params["limit"])
+        # one batch per phase: partner, dimension, phi (and the onlookers' roulette spin)
+        R = rng.random((2, 4, sn))
         # 1. employed bees
-        src = np.arange(sn)
-        V = _neighbour_moves(rng, state.X, src, problem)
-        _greedy(state, src, V, problem.evaluate(V))
+        V, src = state.V, state.src
+        K.abc_moves(state.X, state.fit, R[0], False, problem.lower, problem.upper, V, src)
+        K.abc_greedy(state.X, state.fit, state.trial, src, V, problem.evaluate(V))
         # 2. onlookers
-        src = rng.choice(sn, size=sn, p=roulette_probabilities(state.fit))
-        V = _neighbour_moves(rng, state.X, src, problem)
-        _greedy(state, src, V, problem.evaluate(V))
-        # 3. one scout
-        i = int(np.argmax(state.trial))
+        K.abc_moves(state.X, state.fit, R[1], True, problem.lower, problem.upper, V, src)
+        i = K.abc_greedy(state.X, state.fit, state.trial, src, V, problem.evaluate(V))
+        # 3. one scout: the source with the most trials (the first on ties)
         if state.trial[i] > limit:
             state.X[i] = problem.uniform(rng, 1)[0]
             state.fit[i] = problem.evaluate(state.X[i : i + 1])[0]

@@ -43,6 +43,24 @@ class Result:
     algorithm: str = ""
 
 
+_F64 = np.dtype(np.float64)
+_kernels: Any = None
+
+
+def kernels() -> Any:
+    """The compiled helpers (:mod:`swarmplan.optimizers._kernels`), imported at first use.
+
+    numba's import costs ~0.5 s, so nothing imports it before the first ``Problem`` is
+    built; the planner's start-up (which imports the registry) stays free of it.
+    """
+    global _kernels
+    if _kernels is None:
+        from swarmplan.optimizers import _kernels as k
+
+        _kernels = k
+    return _kernels
+
+
 class Problem:
     """A cost function with box bounds and an evaluation budget.
 
@@ -50,12 +68,23 @@ class Problem:
     way first), evaluates at most the remaining budget of rows, and remembers the best point.
     When the budget runs out mid-batch the rows that could not be evaluated get ``inf`` and
     :class:`BudgetExhausted` is raised *after* the best point has been updated.
+
+    Fast path (issue 10, optimizer overhead): ``evaluate`` costs two compiled calls besides
+    the user's cost when it gets a float64 ``(n, d)`` ndarray and the cost returns a float64
+    ``(k,)`` ndarray; anything else (lists, other dtypes, ``(k, 1)`` costs) takes the general
+    path with the same results. ``uniform`` is one batched draw plus one compiled call. The
+    array passed to the cost is always a fresh C-ordered copy (the cost may keep or modify
+    it), the returned costs are a fresh array the caller may keep and update; so an
+    algorithm may pass its own work buffers (no copy needed on its side). For the rest of a
+    generation the same recipe pays off: one ``rng.random`` batch per generation and one
+    compiled kernel over the whole population (see ``_baseline_kernels.py``); never pass the
+    ``Generator`` into a numba kernel (~20 µs to unbox per call).
     """
 
     def __init__(self, cost: CostFn, lower: np.ndarray, upper: np.ndarray, max_evals: int):
         self.cost = cost
-        self.lower = np.asarray(lower, dtype=float).reshape(-1)
-        self.upper = np.asarray(upper, dtype=float).reshape(-1)
+        self.lower = np.ascontiguousarray(lower, dtype=float).reshape(-1)
+        self.upper = np.ascontiguousarray(upper, dtype=float).reshape(-1)
         if self.lower.shape != self.upper.shape:
             raise ValueError(f"lower and upper differ in shape: {self.lower.shape} vs {self.upper.shape}")
         if not np.all(np.isfinite(self.lower)) or not np.all(np.isfinite(self.upper)):
@@ -70,6 +99,7 @@ class Problem:
         self.evaluations = 0
         self.best_x: np.ndarray | None = None
         self.best_f = np.inf
+        kernels()  # numba is imported here, at the first Problem (evaluate reads _kernels)
 
     @property
     def remaining(self) -> int:
@@ -80,33 +110,44 @@ class Problem:
         return np.minimum(np.maximum(X, self.lower), self.upper)
 
     def uniform(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """``n`` points drawn uniformly in the box."""
-        return self.lower + rng.random((n, self.dim)) * self.span
+        """``n`` points drawn uniformly in the box: ``lower + U * span``, ``U ~ U[0, 1)^(n, d)``."""
+        return _kernels.scale_into_box(rng.random((n, self.dim)), self.lower, self.span)
 
     def evaluate(self, X: np.ndarray) -> np.ndarray:
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        if X.shape[1] != self.dim:
-            raise ValueError(f"candidates have {X.shape[1]} columns, problem has {self.dim}")
-        n = len(X)
-        if self.remaining <= 0:
+        if type(X) is not np.ndarray or X.dtype is not _F64 or X.ndim != 2:
+            X = np.atleast_2d(np.asarray(X, dtype=float))
+        n, d = X.shape
+        if d != self.dim:
+            raise ValueError(f"candidates have {d} columns, problem has {self.dim}")
+        k = self.max_evals - self.evaluations
+        if k <= 0:
             raise BudgetExhausted
-        k = min(n, self.remaining)
-        Xe = self.clip(X[:k])
-        # a copy: algorithms keep and update the returned costs, the caller's array stays untouched
-        fe = np.array(self.cost(Xe), dtype=float).reshape(-1)
-        if fe.shape != (k,):
-            raise ValueError(f"cost returned shape {fe.shape} for {k} candidates; expected ({k},)")
-        fe[np.isnan(fe)] = np.inf
+        if n < k:
+            k = n
+            if n == 0:  # nothing to evaluate (the cost still sees the empty batch, as before)
+                f = np.asarray(self.cost(X[:0].copy()), dtype=float).reshape(-1)
+                if f.shape != (0,):
+                    raise ValueError(f"cost returned shape {f.shape} for 0 candidates; expected (0,)")
+                return f.copy()
+        K = _kernels
+        # a fresh copy: the cost may keep or modify its argument, the algorithm's array stays
+        Xe = np.empty((k, d))
+        K.clip_into(X, Xe, self.lower, self.upper)
+        f = self.cost(Xe)
+        if type(f) is not np.ndarray or f.dtype is not _F64 or f.ndim != 1:
+            f = np.asarray(f, dtype=float).reshape(-1)
+        if f.shape[0] != k:
+            raise ValueError(f"cost returned shape {f.shape} for {k} candidates; expected ({k},)")
+        # a copy with NaN -> inf (algorithms keep and update it) and its argmin
+        fe = np.empty(k)
+        i = K.finish_costs(f, fe)
         self.evaluations += k
-        if k:
-            i = int(fe.argmin())
-            if fe[i] < self.best_f or self.best_x is None:
-                self.best_f = float(fe[i])
-                self.best_x = Xe[i].copy()
+        fi = float(fe[i])
+        if fi < self.best_f or self.best_x is None:
+            self.best_f = fi
+            self.best_x = Xe[i].copy()
         if k == n:
             return fe
-        F = np.full(n, np.inf)
-        F[:k] = fe
         raise BudgetExhausted
 
 
@@ -176,9 +217,10 @@ class Optimizer(ABC):
         try:
             state = self.setup(problem, rng, x0)
             history.append(problem.best_f)
-            while problem.remaining > 0:
+            iterate = self.iterate
+            while problem.evaluations < problem.max_evals:
                 iteration += 1
-                self.iterate(state, problem, rng, iteration)
+                iterate(state, problem, rng, iteration)
                 history.append(problem.best_f)
                 if callback is not None and callback(iteration, problem.best_x.copy(), problem.best_f):
                     break
