@@ -220,3 +220,19 @@ def test_mcfo_without_its_additions_is_cfo(masses):
     np.testing.assert_array_equal(a.history, b.history)
     np.testing.assert_array_equal(a.x, b.x)
     assert make("mcfo").params["masses"] == make("cfo").params["masses"] == "rank"
+
+
+def test_average_ranks_match_scipy():
+    from scipy.stats import rankdata
+
+    from swarmplan.optimizers.central_force import average_ranks
+
+    rng = np.random.default_rng(2)
+    for F in (
+        rng.random(50),
+        np.round(rng.random(60), 1),  # many ties
+        np.array([3.0, 3.0, 3.0]),
+        np.array([1.0]),
+        np.array([5.0, -np.inf, 2.0, 2.0, 1e300]),
+    ):
+        np.testing.assert_array_equal(average_ranks(F), rankdata(F, method="average"))
