@@ -248,14 +248,9 @@ def _finals(name: str, fn_name: str) -> list[float]:
 
 
 # Measured, kept visible as strict xfails (they fail the day the algorithm passes).
-BEATS_RANDOM_KNOWN = {
-    ("afsa", "rastrigin"): (
-        "AFSA with 002's CEC settings (Step = 0.03 box widths) and the sequential prey rule of eqs "
-        "16-17 samples little more than random search: medians 82.0 vs 79.0 (2026-11-23). It passed "
-        "(narrowly) only while every prey try was evaluated, i.e. while it sampled 2-3x more points "
-        "around each fish than the paper's loop does."
-    ),
-}
+BEATS_RANDOM_KNOWN: dict[tuple[str, str], str] = {}
+# (AFSA on Rastrigin was here until its prey tries were put inside the visual field, 002 eq 16:
+# medians 82.0 -> 70.9 against random search's 79.0.)
 
 
 @pytest.mark.parametrize("fn_name", ["sphere", "rastrigin"])

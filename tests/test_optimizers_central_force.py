@@ -198,3 +198,41 @@ def test_cfo_converges_past_a_feasible_warm_start_on_a_penalty_landscape():
         for seed in range(5)
     ]
     assert np.median(fs) < 5.0
+
+
+@pytest.mark.parametrize("masses", ["rank", "range"])
+def test_mcfo_without_its_additions_is_cfo(masses):
+    """Like for like (004: MCFO = CFO + eq 18 memory + eq 19 mutation): with ``c1 = c2 = 0`` and
+    mutation probability ``c3 = 0`` MCFO makes CFO's moves exactly, with the same masses, so
+    an MCFO-vs-CFO comparison measures the two additions and nothing else."""
+    d = 6
+    o = np.linspace(-2.0, 3.0, d)
+
+    def cost(X):
+        Y = X - o
+        return np.sum(Y * Y - 10.0 * np.cos(2.0 * np.pi * Y), axis=1)
+
+    lower, upper = np.full(d, -5.12), np.full(d, 5.12)
+    a = make("cfo", masses=masses).minimize(cost, lower, upper, max_evals=3000, seed=11)
+    b = make("mcfo", masses=masses, c1=0.0, c2=0.0, c3=0.0).minimize(
+        cost, lower, upper, max_evals=3000, seed=11
+    )
+    np.testing.assert_array_equal(a.history, b.history)
+    np.testing.assert_array_equal(a.x, b.x)
+    assert make("mcfo").params["masses"] == make("cfo").params["masses"] == "rank"
+
+
+def test_average_ranks_match_scipy():
+    from scipy.stats import rankdata
+
+    from swarmplan.optimizers.central_force import average_ranks
+
+    rng = np.random.default_rng(2)
+    for F in (
+        rng.random(50),
+        np.round(rng.random(60), 1),  # many ties
+        np.array([3.0, 3.0, 3.0]),
+        np.array([1.0]),
+        np.array([5.0, -np.inf, 2.0, 2.0, 1e300]),
+    ):
+        np.testing.assert_array_equal(average_ranks(F), rankdata(F, method="average"))

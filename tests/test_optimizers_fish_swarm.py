@@ -163,3 +163,64 @@ def test_iafsa_beats_random_search_on_sphere():
         res = make("iafsa").minimize(sphere, LOWER, UPPER, max_evals=20000, seed=seed)
         assert res.evaluations == 20000
         assert res.f < 0.01 < rnd.f
+
+
+@pytest.mark.parametrize("name", ["afsa", "iafsa"])
+def test_prey_tries_and_random_moves_stay_in_the_visual_field(name):
+    """Paper 002: a prey try is "within the visual range (d_ij <= Visual)" (eq 16) and the
+    random behaviour (eq 21) moves at most ``Step``. Two fish far apart (nobody in view), a
+    cost that makes every try fail: the batches after the initial one are the ``try_number``
+    rounds of tries and then the random moves. (The earlier per-coordinate cube put tries up to
+    ``sqrt(d) * Visual`` away.)"""
+    d, visual, step = 10, 0.2, 0.05
+    params = {"population": 2, "try_number": 3}
+    if name == "afsa":
+        params.update(visual=visual, step=step)
+    else:  # IAFSA: Visual = spiral + V0 per fish; far from the bulletin-board fish it can be large
+        params.update(v0=visual)
+    batches = []
+
+    def cost(X):
+        batches.append(X.copy())
+        return np.zeros(len(X)) if len(batches) == 1 else np.ones(len(X))
+
+    lower, upper = np.zeros(d), np.ones(d)
+    x0 = np.array([np.full(d, 0.3), np.full(d, 0.7)])
+    opt = make(name, **params)
+    problem = Problem(cost, lower, upper, 10_000)
+    rng = np.random.default_rng(5)
+    state = opt.setup(problem, rng, x0 if name == "afsa" else None)
+    U0 = state.U.copy()
+    vis, stp = opt._visual_step(state, problem, np.random.default_rng(6))
+    vis = np.broadcast_to(np.abs(vis), (2,))
+    stp = np.broadcast_to(np.abs(stp), (2,))
+    rng_gen = np.random.default_rng(6)  # the same draws _visual_step makes inside the generation
+    n_before = len(batches)
+    opt._generation(state, problem, rng_gen)
+    new = batches[n_before:]
+    assert len(new) == 3 + 1  # three rounds of tries (all fail), then the two random moves
+    for tries in new[:3]:
+        assert tries.shape == (2, d)
+        assert np.all(np.linalg.norm(tries - U0, axis=1) <= vis + 1e-9)
+    assert np.all(np.linalg.norm(new[3] - U0, axis=1) <= stp + 1e-9)
+
+
+def test_prey_region_cube_is_the_earlier_reading():
+    """``prey_region="cube"`` keeps the per-coordinate reading, whose tries leave the ball."""
+    d = 10
+    batches = []
+
+    def cost(X):
+        batches.append(X.copy())
+        return np.zeros(len(X)) if len(batches) == 1 else np.ones(len(X))
+
+    x0 = np.array([np.full(d, 0.3), np.full(d, 0.7)])
+    opt = make("afsa", population=2, try_number=3, visual=0.2, step=0.05, prey_region="cube")
+    problem = Problem(cost, np.zeros(d), np.ones(d), 10_000)
+    state = opt.setup(problem, np.random.default_rng(5), x0)
+    U0 = state.U.copy()
+    opt._generation(state, problem, np.random.default_rng(6))
+    tries = np.concatenate([b - U0 for b in batches[1:4]])
+    assert np.abs(tries).max() <= 0.2 + 1e-12 and np.linalg.norm(tries, axis=1).max() > 0.2
+    with pytest.raises(ValueError, match="prey_region"):
+        make("afsa", prey_region="sphere")

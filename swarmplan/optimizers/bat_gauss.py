@@ -78,12 +78,19 @@ class IbaGauss(Optimizer):
        standard deviation 2, as the paper states, see :func:`two_gaussian`).
     3. One batch evaluation, acceptance and ``A``/``r`` updates as in the standard BA
        (eqs 6-7).
-    4. ILSA (eq 16, Algorithm 2 lines 25-32): ``X1 = rand_1 X*``, ``X2 = rand_2 X*`` with
-       scalar ``rand_1 < rand_2`` in ``[0, 1]`` ("we assume X1* < X2*"); ``X1`` replaces
-       ``X*`` if better, otherwise ``X2`` if better. Both are evaluated in one batch of two
-       (the sequential version would sometimes save one evaluation; the outcome is the
-       same). Note that ``rand * X*`` contracts towards the origin: it helps on problems
-       whose optimum is at 0 and is nearly inert elsewhere; benchmark on shifted functions.
+    4. ILSA (eq 16, Algorithm 2 lines 25-32): ``X1 = c + rand_1 (X* - c)``,
+       ``X2 = c + rand_2 (X* - c)`` with scalar ``rand_1 < rand_2`` in ``[0, 1]`` ("we assume
+       X1* < X2*") and ``c`` the centre of the box; ``X1`` replaces ``X*`` if better,
+       otherwise ``X2`` if better. Both are evaluated in one batch of two (the sequential
+       version would sometimes save one evaluation; the outcome is the same). Reading: eq 16
+       prints ``rand * X*``, a contraction towards the origin, which on 003's boxes
+       (``[-100, 100]^D``) is the box centre, so the two readings are identical there. On a
+       box that does not contain the origin at its centre (a planning volume ``[0, 600]``,
+       a shifted box) ``rand * X*`` contracts towards a corner or leaves the box and is
+       clipped onto a bound: the same absolute-coordinate mistake as the bat walk's absolute
+       steps. ``ilsa_centre="origin"`` keeps the printed form. Either way the contraction
+       helps on problems whose optimum is at the centre and is nearly inert elsewhere;
+       benchmark on shifted functions.
     5. Operator selection (integration strategy). Reading: the printed rule ("if ILSA jumps
        out of the local optimum select another operator at random, else keep the current
        one") is garbled -- switching away from an operator exactly when the search improves
@@ -98,7 +105,8 @@ class IbaGauss(Optimizer):
 
     Defaults from Table 3: population 100, frequencies ``[0, 5]``, ``A0 = 0.95``,
     ``r0 = 0.9``, ``alpha = 0.99``, ``gamma = 0.9``; no loudness floor (``A_min = 0``, 003 has
-    none); walk in box-width units (``walk_scale = 1/200``, 003's box is ``[-100, 100]``).
+    none); walk in box-width units (``walk_scale = 1/200``, 003's box is ``[-100, 100]``);
+    ILSA towards the box centre (``ilsa_centre = "box"``, step 4).
     """
 
     name = "iba_gauss"
@@ -113,10 +121,15 @@ class IbaGauss(Optimizer):
         "r0": 0.9,
         "gamma": 0.9,
         "acceptance": "best",
+        "ilsa_centre": "box",
     }
 
     def validate(self) -> None:
         _check_bat_params(self)
+        if self.params["ilsa_centre"] not in ("box", "origin"):
+            raise ValueError(
+                f"{self.name}: ilsa_centre must be 'box' or 'origin', got {self.params['ilsa_centre']!r}"
+            )
 
     def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _IbaGaussState:
         n = self.population
@@ -171,7 +184,9 @@ class IbaGauss(Optimizer):
 
         # 4. ILSA (eq 16)
         rs = np.sort(rng.random(2))
-        pair = problem.clip(rs[:, None] * state.best_x)
+        # eq 16 contracts X* towards the box centre (003's boxes: the origin), see the docstring
+        c = 0.5 * (problem.lower + problem.upper) if p["ilsa_centre"] == "box" else 0.0
+        pair = problem.clip(c + rs[:, None] * (state.best_x - c))
         fp = problem.evaluate(pair)
         for j in range(2):  # X1 has priority over X2 (two points, not a population loop)
             if fp[j] < state.best_f:

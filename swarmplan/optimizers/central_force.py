@@ -81,22 +81,16 @@ def cfo_weights(
     ``W[i, k] = G * U(f_i - f_k) * ((f_i - f_k)/mass_scale)**alpha / |u_k - u_i|**beta``, so
     that ``a_i = sum_k W[i, k] * (u_k - u_i)`` (eq 14) and ``theta_i = sum_k W[i, k]`` (eq 24).
     """
-    F = _finite_costs(F)
-    diff = (F[:, None] - F[None, :]) * (1.0 / mass_scale)  # [i, k] = f_i - f_k, > 0 when k is better
-    # unit step U(.): only better probes attract; negligible differences are flushed to 0
-    # (they would only produce subnormal, and very slow, arithmetic)
-    attract = diff > 1e-100
+    from swarmplan.optimizers._central_force_kernel import gravity_weights
+
+    F = np.ascontiguousarray(_finite_costs(F), dtype=float)
     sq = np.einsum("ij,ij->i", U, U)
     # BLAS matmul: 100 x 50 x 100 takes 24 us against 146 us for einsum on a quiet machine
     # (under heavy load BLAS's threads can make it slower; benchmarks run quiet)
     gram = U @ U.T
-    dist2 = np.maximum(sq[:, None] + sq[None, :] - 2.0 * gram, 0.0)
-    attract &= dist2 > 1e-24  # coincident probes exert no force
-    # the exponents of Formato's defaults (alpha = beta = 2) without pow and sqrt
-    num = diff * diff if alpha == 2.0 else np.where(attract, diff, 0.0) ** alpha
-    den = dist2 if beta == 2.0 else np.sqrt(dist2) ** beta
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(attract, (G * num) / den, 0.0)
+    # the elementwise part in one compiled pass (numpy's operations and order: same weights)
+    W = np.empty((len(F), len(F)))
+    return gravity_weights(F, sq, gram, 1.0 / mass_scale, float(G), float(alpha), float(beta), W)
 
 
 def gravity_from_weights(U: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -177,11 +171,28 @@ def masses(F: np.ndarray, mode: str) -> tuple[np.ndarray, float]:
     """The "masses" eq 14 uses for costs ``F`` and their normaliser (see the module docstring):
     ranks scaled to [0, 1] for ``"rank"``, the costs and their current range for ``"range"``."""
     if mode == "rank":
-        from scipy.stats import rankdata
-
         n = len(F)
-        return (rankdata(_finite_costs(F), method="average") - 1.0) / max(n - 1, 1), 1.0
+        return (average_ranks(_finite_costs(F)) - 1.0) / max(n - 1, 1), 1.0
     return F, _mass_scale(F)
+
+
+def average_ranks(F: np.ndarray) -> np.ndarray:
+    """1-based ranks of ``F``, ties averaged: ``scipy.stats.rankdata(F, method="average")``.
+
+    The same arithmetic as scipy's (so the same floats) without its per-call dispatch, which
+    cost ~200 µs per generation (2 µs per evaluation at 100 probes) against ~15 µs here.
+    """
+    n = len(F)
+    order = np.argsort(F, kind="mergesort")
+    s = F[order]
+    obs = np.empty(n, dtype=bool)
+    obs[:1] = True
+    np.not_equal(s[1:], s[:-1], out=obs[1:])
+    dense = np.cumsum(obs)
+    count = np.append(np.flatnonzero(obs), n)
+    out = np.empty(n)
+    out[order] = 0.5 * (count[dense] + count[dense - 1] + 1)
+    return out
 
 
 def _mass_scale(F: np.ndarray) -> float:

@@ -15,10 +15,22 @@ Readings chosen where paper 002 is ambiguous:
 * All fish geometry is done in unit-box coordinates ``u = (x - lower) / (upper - lower)``, and
   ``visual`` / ``step`` / ``V0`` are fractions of the box width. The paper's CEC2020 settings
   (box ``[-100, 100]``, ``Visual = V0 = 50``, ``Step = 6``) become ``0.25`` and ``0.03``.
-* ``rand(0, 1)`` in eqs 16 and 21 is read as a per-coordinate uniform in ``[-1, 1]`` (the
-  classic AFSA; with ``[0, 1]`` fish could only ever move towards larger coordinates). In eqs
-  17, 18 and 20 ``rand(0, 1)`` is one uniform in ``[0, 1]`` per fish (it scales the step
-  length along the unit direction).
+* Prey tries and random moves stay inside the visual field, as the text defines them
+  (parameter ``prey_region``, default ``"ball"``). Eq 16 ``X_j = X_i + Visual * rand(0, 1)``
+  is "a position within the visual range (``d_ij <= Visual``)": a uniformly random direction
+  and the length ``Visual * rand(0, 1)``, one ``rand`` per try. Eq 21, the random behaviour
+  ("randomly selecting a position within its visual field and then swimming toward the chosen
+  location"), is a move of length ``Step * rand(0, 1)`` (as in eqs 17, 18, 20) in a uniformly
+  random direction. In eqs 17, 18 and 20 ``rand(0, 1)`` is one uniform in ``[0, 1]`` per fish
+  (it scales the step length along the unit direction). ``prey_region="cube"`` is the
+  earlier reading, kept as an option (it is what many AFSA implementations do): a
+  per-coordinate uniform in ``[-Visual, Visual]`` (resp. ``[-Step, Step]``), i.e. tries up to
+  ``sqrt(d) * Visual`` away (typically ``sqrt(d/3) * Visual``, 1.8x at ``d = 10``) and random
+  steps longer than the ``Step`` of every other move. That is a scale mistake of the kind the
+  bat walk had: in a path-planning world every try moved each coordinate by up to 25 % of
+  the box, so a good warm-start path was almost never improved (AFSA kept the warm start on
+  5 of 10 seeds of ``iafsa_mountains``' cost with ``"cube"``, on 0 of 10 with ``"ball"``,
+  see docs/benchmarks.md).
 * Prey tries follow the paper's sequential rule: a fish stops at its *first* better try and
   moves towards it. The tries are drawn at once and evaluated in rounds (round ``r``: try ``r``
   of every fish still searching), so only the tries a fish makes count against the budget.
@@ -65,6 +77,24 @@ def _unit_rows(V: np.ndarray) -> np.ndarray:
     """Rows of ``V`` scaled to length 1 (zero rows stay zero)."""
     norm = np.linalg.norm(V, axis=1, keepdims=True)
     return np.divide(V, norm, out=np.zeros_like(V), where=norm > 1e-300)
+
+
+def in_view(
+    rng: np.random.Generator, shape: tuple[int, ...], radius: np.ndarray | float, region: str
+) -> np.ndarray:
+    """Random offsets for eq 16 (``radius = Visual``) and eq 21 (``radius = Step``), shape ``shape``.
+
+    ``region="ball"`` (paper 002's text): a uniformly random direction times
+    ``radius * rand(0, 1)``, so ``|offset| <= radius``. ``region="cube"``: a per-coordinate
+    uniform in ``[-radius, radius]``. ``radius`` broadcasts against ``shape[:-1]``.
+    """
+    r = np.asarray(radius, dtype=float)[..., None] if np.ndim(radius) else float(radius)
+    if region == "cube":
+        return r * rng.uniform(-1.0, 1.0, shape)
+    g = rng.standard_normal(shape)
+    norm = np.linalg.norm(g, axis=-1, keepdims=True)
+    g /= np.where(norm > 0, norm, 1.0)
+    return g * (r * rng.random(shape[:-1] + (1,)))
 
 
 def neighbours(U: np.ndarray, visual: np.ndarray | float) -> np.ndarray:
@@ -122,6 +152,8 @@ class _FishBase(Optimizer):
             raise ValueError(f"{self.name}: delta must be in (0, 1], got {p['delta']}")
         if int(p["try_number"]) != p["try_number"] or p["try_number"] < 1:
             raise ValueError(f"{self.name}: try_number must be an integer >= 1, got {p['try_number']}")
+        if p["prey_region"] not in ("ball", "cube"):
+            raise ValueError(f"{self.name}: prey_region must be 'ball' or 'cube', got {p['prey_region']!r}")
 
     def _visual_step(self, state: _FishState, problem: Problem, rng: np.random.Generator):
         raise NotImplementedError
@@ -154,7 +186,8 @@ class _FishBase(Optimizer):
             tries = int(p["try_number"])
             k = prey_idx.size
             vis = np.broadcast_to(np.asarray(visual, dtype=float), (n,))[prey_idx]
-            T = U[prey_idx][:, None, :] + vis[:, None, None] * rng.uniform(-1.0, 1.0, (k, tries, d))
+            # eq 16: tries within the visual range (|X_j - X_i| <= Visual), see prey_region
+            T = U[prey_idx][:, None, :] + in_view(rng, (k, tries, d), vis[:, None], p["prey_region"])
             T = np.clip(T, 0.0, 1.0)
             # Sequential rule of eqs 16-17, one batch per round: round r evaluates try r of the
             # fish that have not yet found a better point, so a fish stops at its first success
@@ -182,7 +215,8 @@ class _FishBase(Optimizer):
         ]
         if prey_idx.size:
             pm = toward(U[prey_idx], prey_target, step_all[prey_idx], rng)
-            rnd = U[prey_idx] + step_all[prey_idx, None] * rng.uniform(-1.0, 1.0, (prey_idx.size, d))
+            # eq 21: a random move of at most Step (see prey_region)
+            rnd = U[prey_idx] + in_view(rng, (prey_idx.size, d), step_all[prey_idx], p["prey_region"])
             moves.append(np.where(prey_found[:, None], pm, rnd))
         else:
             moves.append(np.empty((0, d)))
@@ -228,7 +262,14 @@ class ArtificialFishSwarm(_FishBase):
     """
 
     name = "afsa"
-    defaults = {"population": 50, "visual": 0.25, "step": 0.03, "try_number": 5, "delta": 0.618}
+    defaults = {
+        "population": 50,
+        "visual": 0.25,
+        "step": 0.03,
+        "try_number": 5,
+        "delta": 0.618,
+        "prey_region": "ball",
+    }
 
     def validate(self) -> None:
         super().validate()
@@ -301,6 +342,7 @@ class ImprovedFishSwarm(_FishBase):
         "r0": 4.0,
         "visual_abs": False,
         "v0_decay": False,
+        "prey_region": "ball",
     }
 
     def validate(self) -> None:
