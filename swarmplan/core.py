@@ -43,7 +43,7 @@ class Mode(StrEnum):
 
 SEGMENT_MODES = (Mode.ESCAPE, Mode.SMOOTHING)
 DONE_MODES = (Mode.ARRIVED, Mode.COLLIDED, Mode.FAILED)
-_DONE = frozenset(DONE_MODES)
+_FLYING = {m: m not in DONE_MODES for m in Mode}
 
 
 @dataclass
@@ -64,9 +64,9 @@ class SwarmState:
     @property
     def active(self) -> np.ndarray:
         """Agents still flying (not arrived, collided or failed)."""
-        # One set lookup per agent: np.isin on an object array sorts and compares Python
-        # objects (several calls per step, ~0.2 ms each at 256 agents).
-        return np.fromiter((m not in _DONE for m in self.mode.tolist()), dtype=bool, count=len(self.mode))
+        # One dict lookup per agent (np.isin on an object array sorts and compares Python
+        # objects: ~4x the time, several calls per step).
+        return np.fromiter(map(_FLYING.__getitem__, self.mode.tolist()), dtype=bool, count=len(self.mode))
 
 
 class AgentStates(Sequence):
