@@ -289,7 +289,10 @@ def _agent_repulsion_indexed(
     if len(all_pos) < 2 or n == 0:
         return np.zeros_like(pos)
     reach = agent_reach(params, gains, vel, all_vel)
-    pairs = cKDTree(pos).sparse_distance_matrix(cKDTree(all_pos), reach, output_type="ndarray")
+    others = cKDTree(all_pos)
+    # Usually every agent flies: the same points, one tree for both sides.
+    mine = others if n == len(all_pos) and np.array_equal(pos, all_pos) else cKDTree(pos)
+    pairs = mine.sparse_distance_matrix(others, reach, output_type="ndarray")
     a, b = pairs["i"].astype(np.intp), pairs["j"].astype(np.intp)
     keep = b != idx[a]
     a, b = a[keep], b[keep]

@@ -97,13 +97,13 @@ def arrivals(
     dmins = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
     speeds = np.linalg.norm(vel1[flying], axis=1)
     slow = speeds <= stop_speed[flying] * (1.0 + 1e-9)
-    for i, dmin, ok in zip(flying, dmins.tolist(), slow.tolist(), strict=True):
-        if dmin <= tolerance and ok:
-            s.mode[i] = Mode.ARRIVED
-            vel1[i] = 0.0
-            s.segment[i] = None
-            metrics.arrival_time[i] = t1
-            events.append(Event(t1, ids[i], "arrived", {"distance": round(dmin, 6)}))
+    arrive = (dmins <= tolerance) & slow
+    for i, dmin in zip(flying[arrive].tolist(), dmins[arrive].tolist(), strict=True):
+        s.mode[i] = Mode.ARRIVED
+        vel1[i] = 0.0
+        s.segment[i] = None
+        metrics.arrival_time[i] = t1
+        events.append(Event(t1, ids[i], "arrived", {"distance": round(dmin, 6)}))
 
 
 class NearMisses:
