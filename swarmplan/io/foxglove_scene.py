@@ -43,11 +43,11 @@ from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
-from google.protobuf.descriptor_pb2 import FileDescriptorSet
 
 from swarmplan.core import AgentStates, Mode
 from swarmplan.geometry.rotation import euler_to_quaternion, rotate
 from swarmplan.io.wire import (
+    file_descriptor_set,
     join_records,
     length_prefixes,
     point_bytes,
@@ -75,23 +75,6 @@ OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
 MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
 _TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
-
-
-def file_descriptor_set(message_class) -> FileDescriptorSet:
-    """FileDescriptorSet of a message's .proto file and all its dependencies (deps first)."""
-    fds = FileDescriptorSet()
-    seen: set[str] = set()
-
-    def add(fd):
-        if fd.name in seen:
-            return
-        seen.add(fd.name)
-        for dep in fd.dependencies:
-            add(dep)
-        fd.CopyToProto(fds.file.add())
-
-    add(message_class.DESCRIPTOR.file)
-    return fds
 
 
 def _set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)):
@@ -484,10 +467,27 @@ class FoxgloveScene:
             obst = self._obstacles.get(oid)
             if obst is None:
                 continue
-            e = self._entity(f"obstacle/{oid}", t)
-            self._fill_obstacle(e, obst, o["position"], o.get("orientation"), MOVING_RGBA)
-            entities.append(e)
+            entities.append(self._mover_entity(oid, obst, t, o["position"], o.get("orientation")))
         self._write(SCENE_TOPIC, agents + self._scene_bytes(entities), t)
+
+    def _mover_entity(self, oid: str, obst: dict[str, Any], t: float, position, quat) -> SceneEntity:
+        """A moving obstacle's entity at ``t``. One-primitive shapes keep their entity and only
+        get a new time and pose (every other field is the same each time); others are rebuilt."""
+        e = self._obstacle_entities.get(oid)
+        if e is None:
+            e = self._entity(f"obstacle/{oid}", t)
+            self._fill_obstacle(e, obst, position, quat, MOVING_RGBA)
+            if obst.get("shape") in ("sphere", "box", "cylinder"):
+                self._obstacle_entities[oid] = e
+            return e
+        _set_time(e.timestamp, t)
+        q = (
+            tuple(quat)
+            if quat is not None
+            else tuple(euler_to_quaternion((list(obst.get("rotation") or []) + [0, 0, 0])[:3]))
+        )
+        _set_pose((e.spheres or e.cubes or e.cylinders)[0].pose, np.asarray(position, float), q)
+        return e
 
     def _path_head(self, aid: str) -> bytes:
         """A path entity's fixed fields (frame and entity ids)."""

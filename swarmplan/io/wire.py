@@ -14,6 +14,7 @@ import math
 import struct
 
 import numpy as np
+from google.protobuf.descriptor_pb2 import FileDescriptorSet
 
 # FrameTransform written directly in protobuf's wire format (the bytes protobuf's own
 # serializer gives, tests/test_foxglove_tf_bytes.py): building and serializing 256 messages
@@ -159,3 +160,20 @@ def point_bytes(pt: tuple[float, float, float]) -> bytes:
     if x and y and z:
         return XYZ(0x2A, 27, 0x09, x, 0x11, y, 0x19, z)
     return vector_bytes(b"\x2a", pt, DOUBLE_TAGS[:3])
+
+
+def file_descriptor_set(message_class) -> FileDescriptorSet:
+    """FileDescriptorSet of a message's .proto file and all its dependencies (deps first)."""
+    fds = FileDescriptorSet()
+    seen: set[str] = set()
+
+    def add(fd):
+        if fd.name in seen:
+            return
+        seen.add(fd.name)
+        for dep in fd.dependencies:
+            add(dep)
+        fd.CopyToProto(fds.file.add())
+
+    add(message_class.DESCRIPTOR.file)
+    return fds
