@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING
 import fcl
 import numpy as np
 
+from swarmplan.geometry.vec3 import dot3, norm3
+
 if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle, World
 
@@ -93,7 +95,7 @@ def point_segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.nd
     ac = c[None, :, :] - a[:, None, :]
     den = np.maximum(np.einsum("nd,nd->n", ab, ab), 1e-18)
     s = np.clip(np.einsum("nmd,nd->nm", ac, ab) / den[:, None], 0.0, 1.0)
-    return np.linalg.norm(ac - s[..., None] * ab[:, None, :], axis=-1)
+    return norm3(ac - s[..., None] * ab[:, None, :])
 
 
 def segment_segment_min_distance(
@@ -106,9 +108,9 @@ def segment_segment_min_distance(
     """
     w0 = p0 - q0
     dw = (p1 - p0) - (q1 - q0)
-    a = np.sum(dw * dw, axis=-1)
-    s = np.where(a > 1e-18, np.clip(-np.sum(w0 * dw, axis=-1) / np.maximum(a, 1e-18), 0.0, 1.0), 0.0)
-    return np.linalg.norm(w0 + s[..., None] * dw, axis=-1)
+    a = dot3(dw, dw)
+    s = np.where(a > 1e-18, np.clip(-dot3(w0, dw) / np.maximum(a, 1e-18), 0.0, 1.0), 0.0)
+    return norm3(w0 + s[..., None] * dw)
 
 
 class CollisionWorld:
@@ -281,7 +283,7 @@ def first_hits(
         # The capsules of the agents the narrow phase sees, for all of them at once (the same
         # arithmetic as CollisionWorld._swept_object row by row).
         d = p1[todo] - p0[todo]
-        length = np.linalg.norm(d, axis=1)
+        length = norm3(d)
         mid = (p0[todo] + p1[todo]) / 2
         with np.errstate(divide="ignore", invalid="ignore"):
             rotation = _align_z_rows(d / length[:, None])
