@@ -146,7 +146,7 @@ class FoxgloveScene:
         self._obstacle_entities: dict[str, SceneEntity] = {}
         self._path_heads: dict[str, bytes] = {}
         self._path_bytes: dict[str, bytearray] = {}  # per agent: its path's encoded points
-        self._paths: dict[str, list[tuple[float, float, float]]] = {}
+        self._paths: dict[str, int] = {}  # agents with a path (message order) -> slot
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
         # Per agent slot (_rows): last heading as a quaternion's z and w, last path point.
         self._slot: dict[str, int] = {}
@@ -156,9 +156,11 @@ class FoxgloveScene:
         self._qw = np.zeros(0)
         self._path_last = np.zeros((0, 3))
         self._path_has = np.zeros(0, dtype=bool)
-        # The same path lists and encoded points as _paths / _path_bytes, by slot.
-        self._path_points: dict[int, list[tuple[float, float, float]]] = {}
-        self._path_slot_bytes: dict[int, bytearray] = {}
+        # Per slot: the path's points (a row each, path_max_points + 1 rows), their count,
+        # and the same encoded points as _path_bytes.
+        self._path_points = np.zeros((0, self.path_max_points + 1, 3))
+        self._path_count = np.zeros(0, dtype=np.intp)
+        self._path_slot_bytes: list[bytearray | None] = []
         self._sphere_cache: dict[tuple[str, Any, int], tuple[bytes, bytes, int]] = {}
         self._tf_ids: tuple[str, ...] | None = None
         self._tf_heads: list[bytes] = []
@@ -364,6 +366,11 @@ class FoxgloveScene:
                 self._qw = np.concatenate([self._qw, np.ones(grow)])
                 self._path_last = np.concatenate([self._path_last, np.full((grow, 3), np.nan)])
                 self._path_has = np.concatenate([self._path_has, np.zeros(grow, dtype=bool)])
+                self._path_points = np.concatenate(
+                    [self._path_points, np.zeros((grow,) + self._path_points.shape[1:])]
+                )
+                self._path_count = np.concatenate([self._path_count, np.zeros(grow, dtype=np.intp)])
+                self._path_slot_bytes += [None] * grow
             self._slot_ids = ids
             self._slots = np.array([self._slot[aid] for aid in ids], dtype=np.intp)
         return _Rows(ids, pos, vel, modes, self._slots)
@@ -511,27 +518,33 @@ class FoxgloveScene:
         slots = rows.slots[new]
         self._path_last[slots] = rows.pos[new]
         self._path_has[slots] = True
-        points, encoded = self._path_points, self._path_slot_bytes
-        for i, k, pt, b in zip(
-            new.tolist(),
-            slots.tolist(),
-            rows.pos[new].tolist(),
-            vector_fields(0x2A, rows.pos[new]),
-            strict=True,
-        ):
-            pts = points.get(k)
-            if pts is None:
-                aid = rows.ids[i]
-                pts = points[k] = self._paths[aid] = []
-                encoded[k] = self._path_bytes[aid] = bytearray()
-            pts.append(tuple(pt))
-            if len(pts) > self.path_max_points:
-                # halve the resolution of the older part, keep the newest point; rebuild
-                aid = rows.ids[i]
-                pts = points[k] = self._paths[aid] = pts[:-1:2] + [pts[-1]]
-                encoded[k] = self._path_bytes[aid] = bytearray(b"".join(point_bytes(q) for q in pts))
-            else:
+        encoded = self._path_slot_bytes
+        room = self.path_max_points + 1 - self._path_points.shape[1]
+        if room > 0:  # path_max_points was raised after construction
+            self._path_points = np.pad(self._path_points, ((0, 0), (0, room), (0, 0)))
+        counts = self._path_count[slots]
+        for i in np.flatnonzero(counts == 0).tolist():  # first points: paths start (message order)
+            aid = rows.ids[new[i]]
+            self._paths[aid] = int(slots[i])
+            encoded[slots[i]] = self._path_bytes[aid] = bytearray()
+        self._path_points[slots, counts] = rows.pos[new]
+        counts += 1
+        self._path_count[slots] = counts
+        fields = vector_fields(0x2A, rows.pos[new])
+        full = counts > self.path_max_points
+        if not full.any():
+            list(map(bytearray.extend, [encoded[k] for k in slots.tolist()], fields))
+            return
+        for k, b, decimate in zip(slots.tolist(), fields, full.tolist(), strict=True):
+            if not decimate:
                 encoded[k].extend(b)
+                continue
+            # halve the resolution of the older part, keep the newest point; rebuild
+            pts = self._path_points[k, : self.path_max_points + 1]
+            kept = np.concatenate([pts[:-1:2], pts[-1:]])
+            self._path_points[k, : len(kept)] = kept
+            self._path_count[k] = len(kept)
+            encoded[k][:] = b"".join(point_bytes(tuple(q)) for q in kept.tolist())
 
     def _write_paths(self, t):
         # Each path is a SceneEntity with one LINE_STRIP, assembled from its encoded points
