@@ -25,8 +25,10 @@ Static, dynamic and path entities are on separate topics because Foxglove, after
 restores each topic from its latest message only: every topic is self-contained.
 ``log_time``/``publish_time`` are simulation time in ns, like every channel of the log.
 
-Cost: entity messages are built once and mutated in place; scene messages are assembled
-from serialized entities. See ``docs/replay.md`` for measured per-step cost.
+Cost: the per-agent fields (/tf, agents of /scene, path points) are written in protobuf's
+wire format with the numbers of all agents packed at once (``swarmplan.io.wire``); other
+entities are built through the protobuf API (movers' kept and updated in place). See
+``docs/performance.md`` for measured per-step cost.
 """
 
 from __future__ import annotations
