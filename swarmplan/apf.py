@@ -202,7 +202,8 @@ def _predicted_repulsion(
     mag = _rep_magnitude(rho, rho0, k) * urgency * (tau > 0)
     direction = _unit(sep)
     head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
-    direction = np.where(head_on[..., None], _right_of(dv), _unit(direction + 0.3 * _right_of(dv)))
+    right = _right_of(dv)
+    direction = np.where(head_on[..., None], right, _unit(direction + 0.3 * right))
     return np.einsum("nk,nkd->nd", mag, direction)
 
 
