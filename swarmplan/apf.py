@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.dynamics import AgentParams
+from swarmplan.geometry.vec3 import dot3, norm3
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -59,7 +60,7 @@ class FieldInputs:
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _EPS)
+    return v / np.maximum(norm3(v, keepdims=True), _EPS)
 
 
 def _right_of(v: np.ndarray) -> np.ndarray:
@@ -97,9 +98,9 @@ def apf_forces(
     r = params.radius[idx]
     rho0 = gains.influence
     e = goal - pos
-    dg = np.linalg.norm(e, axis=1)
+    dg = norm3(e)
     et = e if target is None else target - pos
-    dt_ = np.linalg.norm(et, axis=1)
+    dt_ = norm3(et)
     # Attraction: quadratic near, conic far (continuous at quadratic_radius). Only the goal
     # itself gets the quadratic well: an intermediate waypoint (route, segment) keeps the full
     # conic pull up to it, or a close waypoint's weak pull would be swamped by the repulsion of
@@ -190,10 +191,10 @@ def _predicted_repulsion(
     """Repulsion at the predicted closest approach to bodies moving at constant velocity."""
     dp = pos[:, None, :] - centers[None, :, :]  # (n, K, 3)
     dv = vel[:, None, :] - velocities[None, :, :]
-    a = np.sum(dv * dv, axis=-1)
-    tau = np.clip(-np.sum(dp * dv, axis=-1) / np.maximum(a, _EPS), 0.0, gains.horizon)
+    a = dot3(dv, dv)
+    tau = np.clip(-dot3(dp, dv) / np.maximum(a, _EPS), 0.0, gains.horizon)
     sep = dp + tau[..., None] * dv
-    dist = np.linalg.norm(sep, axis=-1)
+    dist = norm3(sep)
     rho = dist - radii[None, :] - r[:, None]
     rho0 = gains.influence
     # Closer in time matters more; a collision course gets a sideways (right-hand) push.
@@ -201,7 +202,8 @@ def _predicted_repulsion(
     mag = _rep_magnitude(rho, rho0, k) * urgency * (tau > 0)
     direction = _unit(sep)
     head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
-    direction = np.where(head_on[..., None], _right_of(dv), _unit(direction + 0.3 * _right_of(dv)))
+    right = _right_of(dv)
+    direction = np.where(head_on[..., None], right, _unit(direction + 0.3 * right))
     return np.einsum("nk,nkd->nd", mag, direction)
 
 
@@ -289,7 +291,10 @@ def _agent_repulsion_indexed(
     if len(all_pos) < 2 or n == 0:
         return np.zeros_like(pos)
     reach = agent_reach(params, gains, vel, all_vel)
-    pairs = cKDTree(pos).sparse_distance_matrix(cKDTree(all_pos), reach, output_type="ndarray")
+    others = cKDTree(all_pos)
+    # Usually every agent flies: the same points, one tree for both sides.
+    mine = others if n == len(all_pos) and np.array_equal(pos, all_pos) else cKDTree(pos)
+    pairs = mine.sparse_distance_matrix(others, reach, output_type="ndarray")
     a, b = pairs["i"].astype(np.intp), pairs["j"].astype(np.intp)
     keep = b != idx[a]
     a, b = a[keep], b[keep]
@@ -301,14 +306,14 @@ def _agent_repulsion_indexed(
         + (params.radius[ia] + params.radius[b])[:, None]
     )
     q = (pos[a] - all_pos[b]) / scale
-    e = np.linalg.norm(q, axis=-1)
-    e0 = 1.0 + gains.influence / np.maximum(np.linalg.norm(scale, axis=-1), _EPS)
+    e = norm3(q)
+    e0 = 1.0 + gains.influence / np.maximum(norm3(scale), _EPS)
     dvw = vel[a] - all_vel[b]
     dv = dvw / scale
-    aa = np.sum(dv * dv, axis=-1)
-    tau = np.clip(-np.sum(q * dv, axis=-1) / np.maximum(aa, _EPS), 0.0, gains.horizon)
+    aa = dot3(dv, dv)
+    tau = np.clip(-dot3(q, dv) / np.maximum(aa, _EPS), 0.0, gains.horizon)
     qs = q + tau[..., None] * dv
-    es = np.linalg.norm(qs, axis=-1)
+    es = norm3(qs)
     # Most pairs within the reach add exactly zero (both magnitudes 0): the unit vectors are
     # computed for the others only. Leaving a zero out of the per-agent sums changes nothing
     # (they start at +0.0 and x + 0.0 == x).
@@ -343,11 +348,11 @@ def commanded_velocity(
     and before the nearest surface ahead (``clearance`` (n,), outward normal ``clearance_dir``)."""
     amax = params.max_accel[idx]
     speed = params.speed_cruise[idx].copy()
-    dg = np.linalg.norm(goal - pos, axis=1)
+    dg = norm3(goal - pos)
     speed = np.minimum(speed, np.sqrt(2.0 * 0.8 * amax * dg))
     v = _unit(force) * speed[:, None]
     # Component towards the nearest surface may not exceed what can still be braked.
-    toward = -np.sum(v * clearance_dir, axis=1)
+    toward = -dot3(v, clearance_dir)
     allowed = np.sqrt(2.0 * 0.8 * amax * np.maximum(clearance - 0.5, 0.0))
     excess = np.maximum(toward - allowed, 0.0)
     return v + excess[:, None] * clearance_dir

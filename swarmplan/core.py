@@ -8,9 +8,10 @@ step reports (:class:`StepResult`, :class:`Event`), what a planner gives back
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any, Literal, Protocol
+from typing import Any, Literal, Protocol, overload
 
 import numpy as np
 
@@ -42,6 +43,7 @@ class Mode(StrEnum):
 
 SEGMENT_MODES = (Mode.ESCAPE, Mode.SMOOTHING)
 DONE_MODES = (Mode.ARRIVED, Mode.COLLIDED, Mode.FAILED)
+_FLYING = {m: m not in DONE_MODES for m in Mode}
 
 
 @dataclass
@@ -62,7 +64,65 @@ class SwarmState:
     @property
     def active(self) -> np.ndarray:
         """Agents still flying (not arrived, collided or failed)."""
-        return ~np.isin(self.mode, DONE_MODES)
+        # One dict lookup per agent (np.isin on an object array sorts and compares Python
+        # objects: ~4x the time, several calls per step).
+        return np.fromiter(map(_FLYING.__getitem__, self.mode.tolist()), dtype=bool, count=len(self.mode))
+
+
+class AgentStates(Sequence):
+    """The agents' entries of an ``/agents/state`` message, kept as arrays.
+
+    Reads as the list of dicts ``{"id", "position", "velocity", "mode", "goal"}`` any recorder
+    may iterate; recorders that know it (``swarmplan.io.recording.McapRecorder``) encode the
+    arrays directly instead of building one dict per agent per step. ``position`` and
+    ``velocity`` are already rounded as the log writes them.
+    """
+
+    __slots__ = ("ids", "position", "velocity", "mode", "goal")
+
+    def __init__(
+        self,
+        ids: tuple[str, ...],
+        position: np.ndarray,
+        velocity: np.ndarray,
+        mode: np.ndarray,
+        goal: np.ndarray,
+    ):
+        self.ids = ids
+        self.position = position
+        self.velocity = velocity
+        self.mode = mode
+        self.goal = goal
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @overload
+    def __getitem__(self, i: int) -> dict[str, Any]: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[dict[str, Any]]: ...
+
+    def __getitem__(self, i: int | slice) -> dict[str, Any] | list[dict[str, Any]]:
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self)))]
+        return {
+            "id": self.ids[i],
+            "position": self.position[i].tolist(),
+            "velocity": self.velocity[i].tolist(),
+            "mode": str(self.mode[i]),
+            "goal": self.goal[i].tolist(),
+        }
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        return iter(self.dicts())
+
+    def dicts(self) -> list[dict[str, Any]]:
+        """Every entry as a dict (one conversion of each array)."""
+        pos, vel, goal = self.position.tolist(), self.velocity.tolist(), self.goal.tolist()
+        return [
+            {"id": aid, "position": p, "velocity": v, "mode": str(m), "goal": g}
+            for aid, p, v, m, g in zip(self.ids, pos, vel, self.mode.tolist(), goal, strict=True)
+        ]
 
 
 @dataclass(frozen=True)
@@ -150,7 +210,9 @@ class Recorder(Protocol):
     """Where a run's messages go (``swarmplan.recording.McapRecorder`` writes MCAP)."""
 
     def write_world(self, world: dict[str, Any]) -> None: ...
-    def write_state(self, t: float, agents: list[dict], obstacles: list[dict] | None) -> None: ...
+    def write_state(self, t: float, agents: Sequence[dict], obstacles: list[dict] | None) -> None:
+        """``agents``: a list of dicts or an :class:`AgentStates` (which reads as one)."""
+
     def write_event(self, event: dict[str, Any]) -> None: ...
     def write_optimizer(self, msg: dict[str, Any]) -> None: ...
     def write_summary(self, summary: dict[str, Any]) -> None: ...

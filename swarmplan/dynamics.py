@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from swarmplan.geometry.vec3 import norm3
+
 if TYPE_CHECKING:
     from swarmplan.world.model import World
 
@@ -69,10 +71,10 @@ def limit_multirotor(
     v0: np.ndarray, v_cmd: np.ndarray, vmax: np.ndarray, amax: np.ndarray, dt: float
 ) -> np.ndarray:
     """New velocity: the command clipped to vmax, reached with at most amax*dt of change."""
-    s = np.linalg.norm(v_cmd, axis=1)
+    s = norm3(v_cmd)
     v_cmd = v_cmd * np.minimum(1.0, vmax / np.maximum(s, 1e-12))[:, None]
     dv = v_cmd - v0
-    n = np.linalg.norm(dv, axis=1)
+    n = norm3(dv)
     return v0 + dv * np.minimum(1.0, amax * dt / np.maximum(n, 1e-12))[:, None]
 
 

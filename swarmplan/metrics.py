@@ -16,6 +16,7 @@ import numpy as np
 
 from swarmplan.core import Mode, SwarmState
 from swarmplan.geometry.polyline import curvature_with_cusps
+from swarmplan.geometry.vec3 import norm3
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -53,7 +54,7 @@ class RunMetrics:
         agent_clearance: np.ndarray,
         terrain_clearance: np.ndarray,
     ) -> None:
-        self.path_length += np.where(active, np.linalg.norm(pos1 - pos0, axis=1), 0.0)
+        self.path_length += np.where(active, norm3(pos1 - pos0), 0.0)
         self.min_clearance = np.where(
             active, np.minimum(self.min_clearance, obstacle_clearance), self.min_clearance
         )

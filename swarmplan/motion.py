@@ -22,7 +22,26 @@ if TYPE_CHECKING:
     from swarmplan.world.model import Motion, Obstacle
 
 
+_CACHE_SIZE = 256
+"""Entries of each per-object cache below (the object is kept with its entry, so its id
+cannot be reused while cached)."""
+_PATHS: dict[int, tuple[Obstacle, np.ndarray, np.ndarray]] = {}
+
+
 def _waypoint_path(o: Obstacle) -> tuple[np.ndarray, np.ndarray]:
+    """The path's vertices and cumulative lengths (built once per obstacle: every pose asked for)."""
+    hit = _PATHS.get(id(o))
+    if hit is not None and hit[0] is o:
+        return hit[1], hit[2]
+    pts, cum = _build_waypoint_path(o)
+    pts.flags.writeable = cum.flags.writeable = False
+    if len(_PATHS) >= _CACHE_SIZE:  # obstacles of worlds long gone: start over
+        _PATHS.clear()
+    _PATHS[id(o)] = (o, pts, cum)
+    return pts, cum
+
+
+def _build_waypoint_path(o: Obstacle) -> tuple[np.ndarray, np.ndarray]:
     m = o.motion
     pts = [o.position] + [w for w in m.waypoints]
     if m.loop:
@@ -84,5 +103,36 @@ def poses_at(obstacles: tuple[Obstacle, ...] | list[Obstacle], t: float) -> tupl
     """Positions (M, 3) and velocities (M, 3) of ``obstacles`` at time ``t``."""
     if not obstacles:
         return np.zeros((0, 3)), np.zeros((0, 3))
-    pv = [pose_at(o, t) for o in obstacles]
-    return np.array([p for p, _ in pv]), np.array([v for _, v in pv])
+    linear = _linear_rows(obstacles)
+    if linear is None:
+        pv = [pose_at(o, t) for o in obstacles]
+        return np.array([p for p, _ in pv]), np.array([v for _, v in pv])
+    # Every obstacle moves linearly: position + velocity * t for all at once (the same
+    # arithmetic per element as pose_at).
+    start, velocity = linear
+    return start + velocity * t, velocity.copy()
+
+
+_LINEAR: dict[int, tuple[object, tuple[np.ndarray, np.ndarray] | None]] = {}
+
+
+def _linear_rows(obstacles: tuple[Obstacle, ...] | list[Obstacle]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Stacked start positions and velocities when every obstacle of ``obstacles`` moves
+    linearly (cached per sequence object), else None."""
+    hit = _LINEAR.get(id(obstacles))
+    if hit is not None and hit[0] is obstacles:
+        return hit[1]
+    rows = None
+    if isinstance(obstacles, tuple) and all(
+        o.motion is not None and o.motion.type == "linear" for o in obstacles
+    ):
+        rows = (
+            np.array([o.position for o in obstacles], dtype=float),
+            np.array([o.motion.velocity for o in obstacles], dtype=float),
+        )
+        rows[0].flags.writeable = rows[1].flags.writeable = False
+    if isinstance(obstacles, tuple):  # a list may change under us: not cached
+        if len(_LINEAR) >= _CACHE_SIZE:
+            _LINEAR.clear()
+        _LINEAR[id(obstacles)] = (obstacles, rows)
+    return rows

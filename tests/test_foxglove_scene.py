@@ -203,7 +203,7 @@ def test_path_decimation_keeps_bounded_points(tmp_path):
     world = _world(2)
     steps = _steps(world, n_steps=400)
     scene = _write(tmp_path / "long.mcap", world, steps, path_max_points=50)
-    assert all(len(p) <= 50 for p in scene._paths.values())
+    assert all(scene._path_count[k] <= 50 for k in scene._paths.values())
     msgs = _decode(tmp_path / "long.mcap")
     _, _, paths = msgs["/scene/paths"][-1]
     assert all(2 <= len(e.lines[0].points) <= 50 for e in paths.entities)

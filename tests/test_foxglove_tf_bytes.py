@@ -124,7 +124,7 @@ def test_scene_agent_bytes_equal_protobuf_serializer(seed):
 def test_varint_table_equals_the_encoding():
     from google.protobuf.internal.encoder import _VarintBytes
 
-    from swarmplan.io.foxglove_scene import _varint
+    from swarmplan.io.wire import varint as _varint
 
     for n in [0, 1, 127, 128, 300, 16383, 16384, 2**21 - 1, 2**21, 2**35 + 7]:
         assert _varint(n) == _VarintBytes(n)

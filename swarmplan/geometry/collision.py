@@ -19,11 +19,17 @@ from typing import TYPE_CHECKING
 import fcl
 import numpy as np
 
+from swarmplan.geometry.vec3 import dot3, norm3
+
 if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle, World
 
 
 _Z = np.array([0.0, 0.0, 1.0])
+
+_SLACK = 1e-3
+"""Metres added to a body's bounding radius when choosing the candidates of the narrow phase
+(only costs narrow-phase calls; covers FCL's own tolerance on contact)."""
 
 
 def fcl_geometry(o: Obstacle) -> fcl.CollisionGeometry:
@@ -63,13 +69,33 @@ def _align_z(d: np.ndarray) -> np.ndarray:
     )
 
 
+def _align_z_rows(u: np.ndarray) -> np.ndarray:
+    """:func:`_align_z` of each row of ``u`` (n, 3), the same arithmetic elementwise (equal bits)."""
+    x, y, z = u[:, 0], u[:, 1], u[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = 1.0 / (1.0 + z)
+        out = np.empty((len(u), 3, 3))
+        out[:, 0, 0] = 1.0 - x * x * k
+        out[:, 0, 1] = -x * y * k
+        out[:, 0, 2] = x
+        out[:, 1, 0] = -x * y * k
+        out[:, 1, 1] = 1.0 - y * y * k
+        out[:, 1, 2] = y
+        out[:, 2, 0] = -x
+        out[:, 2, 1] = -y
+        out[:, 2, 2] = 1.0 - (x * x + y * y) * k
+    out[z > 1 - 1e-12] = np.eye(3)
+    out[z < -1 + 1e-12] = np.diag([1.0, -1.0, -1.0])
+    return out
+
+
 def point_segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distance from points ``c`` (M, 3) to each segment ``a``→``b`` (N, 3): shape (N, M)."""
     ab = b - a
     ac = c[None, :, :] - a[:, None, :]
     den = np.maximum(np.einsum("nd,nd->n", ab, ab), 1e-18)
     s = np.clip(np.einsum("nmd,nd->nm", ac, ab) / den[:, None], 0.0, 1.0)
-    return np.linalg.norm(ac - s[..., None] * ab[:, None, :], axis=-1)
+    return norm3(ac - s[..., None] * ab[:, None, :])
 
 
 def segment_segment_min_distance(
@@ -82,9 +108,9 @@ def segment_segment_min_distance(
     """
     w0 = p0 - q0
     dw = (p1 - p0) - (q1 - q0)
-    a = np.sum(dw * dw, axis=-1)
-    s = np.where(a > 1e-18, np.clip(-np.sum(w0 * dw, axis=-1) / np.maximum(a, 1e-18), 0.0, 1.0), 0.0)
-    return np.linalg.norm(w0 + s[..., None] * dw, axis=-1)
+    a = dot3(dw, dw)
+    s = np.where(a > 1e-18, np.clip(-dot3(w0, dw) / np.maximum(a, 1e-18), 0.0, 1.0), 0.0)
+    return norm3(w0 + s[..., None] * dw)
 
 
 class CollisionWorld:
@@ -120,6 +146,13 @@ class CollisionWorld:
         d = b - a
         length = float(np.linalg.norm(d))
         mid = (a + b) / 2
+        return self._capsule_object(mid, length, None if length < 1e-9 else _align_z(d / length), radius)
+
+    def _capsule_object(
+        self, mid: np.ndarray, length: float, rotation: np.ndarray | None, radius: float
+    ) -> fcl.CollisionObject:
+        """The swept sphere as an fcl object: a capsule of ``length`` along ``rotation``'s z axis
+        centred at ``mid`` (a sphere when the step is shorter than 1e-9)."""
         if length < 1e-9:
             if radius not in self._spheres:
                 g = fcl.Sphere(radius)
@@ -132,9 +165,7 @@ class CollisionWorld:
         # A changed geometry keeps its old local AABB (the broadphase then misses long
         # sweeps): recompute it, then set a fresh transform so the world AABB follows.
         self._capsule.computeLocalAABB()
-        self._capsule_obj.setTransform(
-            fcl.Transform(_align_z(d / length), np.ascontiguousarray(mid, dtype=float))
-        )
+        self._capsule_obj.setTransform(fcl.Transform(rotation, np.ascontiguousarray(mid, dtype=float)))
         return self._capsule_obj
 
     def _collides(self, a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
@@ -146,18 +177,20 @@ class CollisionWorld:
         """Id of a static obstacle the sphere touches moving from ``p0`` to ``p1``, else None."""
         if not self.static:
             return None
-        obj = self._swept_object(p0, p1, radius)
-        data = fcl.CollisionData(request=self._request)
-        self._manager.collide(obj, data, fcl.defaultCollisionCallback)
-        if not data.result.is_collision:
-            return None
-        # Name the body: narrow-phase the candidates whose bounding sphere the sweep reaches.
-        reach = np.linalg.norm(self._static_centers - (p0 + p1) / 2, axis=1) - self._static_radii
-        half = np.linalg.norm(p1 - p0) / 2 + radius + 1e-6
-        for k in np.flatnonzero(reach <= half):
+        near = point_segment_distance(self._static_centers, p0[None], p1[None])[0] - self._static_radii
+        return self._sweep_static_near(self._swept_object(p0, p1, radius), near <= radius + _SLACK)
+
+    def _sweep_static_near(self, obj: fcl.CollisionObject, near: np.ndarray) -> str | None:
+        """The first static obstacle (world order) among ``near`` (mask) that ``obj`` touches.
+
+        Narrow phase on the candidates directly: a body the sweep touches has its centre within
+        its bounding radius + the sweep's radius of the segment, so it is among them, and the
+        first hit in world order is the body the broadphase manager's check named (its
+        Python callback per candidate pair cost more than the narrow phase itself)."""
+        for k in np.flatnonzero(near).tolist():
             if self._collides(obj, self._static_objs[k]):
                 return self.static[k].id
-        return self.static[int(np.argmin(reach))].id
+        return None
 
     def sweep_moving(
         self, p0: np.ndarray, p1: np.ndarray, radius: float, q0: np.ndarray, q1: np.ndarray
@@ -165,11 +198,16 @@ class CollisionWorld:
         """Id of a moving obstacle (at ``q0`` → ``q1`` during the step) the sphere touches, else None."""
         if not self.moving:
             return None
-        # Relative motion in each obstacle's frame: the obstacle stays at q0, the agent sweeps.
-        rel1 = p1[None, :] - (q1 - q0)
         gap = segment_segment_min_distance(p0[None, :], p1[None, :], q0, q1) - self._moving_radii - radius
-        for k in np.flatnonzero(gap <= 1e-6):
-            obj = self._swept_object(p0, rel1[k], radius)
+        return self._sweep_moving_near(p0, p1, radius, q0, q1, np.flatnonzero(gap <= 1e-6))
+
+    def _sweep_moving_near(
+        self, p0: np.ndarray, p1: np.ndarray, radius: float, q0: np.ndarray, q1: np.ndarray, near: np.ndarray
+    ) -> str | None:
+        """:meth:`sweep_moving` over the moving bodies ``near`` (indices, in order) only."""
+        for k in near.tolist():
+            # Relative motion in the obstacle's frame: the obstacle stays at q0, the agent sweeps.
+            obj = self._swept_object(p0, p1 - (q1[k] - q0[k]), radius)
             mo = self._moving_objs[k]
             mo.setTransform(fcl.Transform(self.moving[k].rotation, np.ascontiguousarray(q0[k], dtype=float)))
             if self._collides(obj, mo):
@@ -231,23 +269,37 @@ def first_hits(
     if cw.static:
         reach = point_segment_distance(cw._static_centers, p0, p1) - cw._static_radii[None, :]
         near_static = np.any(reach <= radii[:, None] + 1e-6, axis=1)
+        candidates = reach <= radii[:, None] + _SLACK
     else:
         near_static = np.zeros(n, dtype=bool)
     if cw.moving:
         gap = segment_segment_min_distance(p0[:, None, :], p1[:, None, :], q0[None], q1[None])
-        near_moving = np.any(gap - cw._moving_radii[None, :] - radii[:, None] <= 1e-6, axis=1)
+        close = gap - cw._moving_radii[None, :] - radii[:, None] <= 1e-6
+        near_moving = np.any(close, axis=1)
     else:
         near_moving = np.zeros(n, dtype=bool)
+    todo = np.flatnonzero(~oob & ~low & (near_static | near_moving))
+    if len(todo):
+        # The capsules of the agents the narrow phase sees, for all of them at once (the same
+        # arithmetic as CollisionWorld._swept_object row by row).
+        d = p1[todo] - p0[todo]
+        length = norm3(d)
+        mid = (p0[todo] + p1[todo]) / 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rotation = _align_z_rows(d / length[:, None])
     for i in range(n):
         if oob[i]:
             out[i] = "bounds"
         elif low[i]:
             out[i] = ground_name
-        else:
-            hit = cw.sweep_static(p0[i], p1[i], radii[i]) if near_static[i] else None
-            if hit is None and near_moving[i]:
-                hit = cw.sweep_moving(p0[i], p1[i], radii[i], q0, q1)
-            out[i] = hit
+    for row, i in enumerate(todo.tolist()):
+        hit = None
+        if near_static[i]:
+            obj = cw._capsule_object(mid[row], float(length[row]), rotation[row], radii[i])
+            hit = cw._sweep_static_near(obj, candidates[i])
+        if hit is None and near_moving[i]:
+            hit = cw._sweep_moving_near(p0[i], p1[i], radii[i], q0, q1, np.flatnonzero(close[i]))
+        out[i] = hit
     return out
 
 

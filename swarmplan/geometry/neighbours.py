@@ -16,6 +16,7 @@ from itertools import chain
 import numpy as np
 
 from swarmplan.geometry.collision import segment_segment_min_distance
+from swarmplan.geometry.vec3 import norm3
 
 SMALL = 32
 """Up to this many agents every pair is a candidate (cheaper than building a tree, and no
@@ -47,7 +48,7 @@ def agent_contacts_indexed(
     n = len(p0)
     if n < 2:
         return []
-    half = 0.5 * np.linalg.norm(p1 - p0, axis=1)
+    half = 0.5 * norm3(p1 - p0)
     reach = 2.0 * float(half.max()) + 2.0 * float(radii.max()) + margin
     i, j = _pairs(0.5 * (p0 + p1), reach * (1.0 + 1e-9) + 1e-9)
     keep = active[i] | active[j]
@@ -81,7 +82,7 @@ def agent_clearance_indexed(pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
     other = ii != js
     ii, js = ii[other], js[other]
     out = np.full(n, np.inf)
-    np.minimum.at(out, ii, np.linalg.norm(pos[ii] - pos[js], axis=-1) - (radius[ii] + radius[js]))
+    np.minimum.at(out, ii, norm3(pos[ii] - pos[js]) - (radius[ii] + radius[js]))
     return out
 
 
@@ -96,6 +97,6 @@ def separation_violations(
     reach = float(separation.max()) + 2.0 * float(radius.max())
     i, j = _pairs(pos, reach * (1.0 + 1e-9) + 1e-9)
     scale = np.maximum(separation[i], separation[j]) + (radius[i] + radius[j])[:, None]
-    inside = np.linalg.norm((pos[i] - pos[j]) / scale, axis=-1) < 1.0
+    inside = norm3((pos[i] - pos[j]) / scale) < 1.0
     inside &= active[i] | active[j]
     return i[inside], j[inside]

@@ -25,15 +25,17 @@ Static, dynamic and path entities are on separate topics because Foxglove, after
 restores each topic from its latest message only: every topic is self-contained.
 ``log_time``/``publish_time`` are simulation time in ns, like every channel of the log.
 
-Cost: entity messages are built once and mutated in place; scene messages are assembled
-from serialized entities. See ``docs/replay.md`` for measured per-step cost.
+Cost: the per-agent fields (/tf, agents of /scene, path points) are written in protobuf's
+wire format with the numbers of all agents packed at once (``swarmplan.io.wire``); other
+entities are built through the protobuf API (movers' kept and updated in place). See
+``docs/performance.md`` for measured per-step cost.
 """
 
 from __future__ import annotations
 
 import math
-import struct
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
@@ -43,10 +45,19 @@ from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
-from google.protobuf.descriptor_pb2 import FileDescriptorSet
 
-from swarmplan.core import Mode
+from swarmplan.core import AgentStates, Mode
 from swarmplan.geometry.rotation import euler_to_quaternion, rotate
+from swarmplan.io.wire import (
+    file_descriptor_set,
+    join_records,
+    length_prefixes,
+    point_bytes,
+    pose_fields,
+    timestamp_bytes,
+    varint,
+    vector_fields,
+)
 
 FRAME = "world"
 SCENE_TOPIC = "/scene"
@@ -66,77 +77,6 @@ OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
 MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
 _TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
-
-# FrameTransform written directly in protobuf's wire format (the bytes protobuf's own
-# serializer gives, tests/test_foxglove_tf_bytes.py): building and serializing 256 messages
-# per step through the protobuf API was the largest recording cost of a 256-agent step.
-# Fields: 1 timestamp, 2 parent_frame_id, 3 child_frame_id, 4 translation, 5 rotation;
-# proto3 leaves out a double equal to +0.0 (not -0.0); doubles are tags 0x09/0x11/0x19/0x21.
-_DOUBLE = struct.Struct("<d").pack
-_XYZ = struct.Struct("<BBBdBdBd").pack  # translation with x, y, z all non-zero: the usual case
-_ZW = struct.Struct("<BBBdBd").pack  # rotation with only z and w set (a yaw), both non-zero
-_DOUBLE_TAGS = (b"\x09", b"\x11", b"\x19", b"\x21")
-
-
-def _present(v: float) -> bool:
-    return v != 0.0 or math.copysign(1.0, v) < 0.0  # -0.0 and NaN are written
-
-
-def _vector_bytes(field_tag: bytes, values: tuple[float, ...], tags: tuple[bytes, ...]) -> bytes:
-    inner = b"".join(tag + _DOUBLE(v) for tag, v in zip(tags, values, strict=True) if _present(v))
-    return field_tag + _varint(len(inner)) + inner
-
-
-_IDENTITY_ROTATION = b"\x2a\x09\x21" + _DOUBLE(1.0)
-
-
-def _timestamp_bytes(t: float) -> bytes:
-    ns = int(round(t * 1e9))
-    sec, nanos = divmod(ns, 1_000_000_000)
-    inner = (b"\x08" + _varint(sec) if sec else b"") + (b"\x10" + _varint(nanos) if nanos else b"")
-    return b"\x0a" + _varint(len(inner)) + inner
-
-
-def file_descriptor_set(message_class) -> FileDescriptorSet:
-    """FileDescriptorSet of a message's .proto file and all its dependencies (deps first)."""
-    fds = FileDescriptorSet()
-    seen: set[str] = set()
-
-    def add(fd):
-        if fd.name in seen:
-            return
-        seen.add(fd.name)
-        for dep in fd.dependencies:
-            add(dep)
-        fd.CopyToProto(fds.file.add())
-
-    add(message_class.DESCRIPTOR.file)
-    return fds
-
-
-def _varint_slow(n: int) -> bytes:
-    out = bytearray()
-    while True:
-        b = n & 0x7F
-        n >>= 7
-        if n:
-            out.append(b | 0x80)
-        else:
-            out.append(b)
-            return bytes(out)
-
-
-# Lengths of entities and transforms are almost always below 2**14 (one or two bytes): no
-# loop for those (tens of thousands of calls per second of a 256-agent log).
-_ONE_BYTE = [bytes((n,)) for n in range(128)]
-
-
-def _varint(n: int) -> bytes:
-    if n < 128:
-        return _ONE_BYTE[n]
-    if n < 16384:
-        return bytes((n & 0x7F | 0x80, n >> 7))
-    return _varint_slow(n)
 
 
 def _set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)):
@@ -208,13 +148,29 @@ class FoxgloveScene:
         self._obstacle_entities: dict[str, SceneEntity] = {}
         self._path_heads: dict[str, bytes] = {}
         self._path_bytes: dict[str, bytearray] = {}  # per agent: its path's encoded points
-        self._paths: dict[str, list[tuple[float, float, float]]] = {}
+        self._paths: dict[str, int] = {}  # agents with a path (message order) -> slot
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
-        self._tf_yaw: dict[str, bytes] = {}  # per agent: its last rotation field
+        # Per agent slot (_rows): last heading as a quaternion's z and w, last path point.
+        self._slot: dict[str, int] = {}
+        self._slot_ids: tuple[str, ...] | None = None
+        self._slots = np.zeros(0, dtype=np.intp)
+        self._qz = np.zeros(0)
+        self._qw = np.zeros(0)
+        self._path_last = np.zeros((0, 3))
+        self._path_has = np.zeros(0, dtype=bool)
+        # Per slot: the path's points (a row each, path_max_points + 1 rows), their count,
+        # and the same encoded points as _path_bytes.
+        self._path_points = np.zeros((0, self.path_max_points + 1, 3))
+        self._path_count = np.zeros(0, dtype=np.intp)
+        self._path_slot_bytes: list[bytearray | None] = []
+        self._sphere_cache: dict[tuple[str, Any, int], tuple[bytes, bytes, int]] = {}
+        self._tf_ids: tuple[str, ...] | None = None
+        self._tf_heads: list[bytes] = []
+        self._tf_head_len: list[int] = []
+        self._tf_stamp_len = 0
         self._next_scene = -math.inf
         self._next_path = -math.inf
         self._next_tf = -math.inf
-        self._last_path_sample = -math.inf
         self._last: tuple[float, list, list] | None = None
         self.messages_written = 0
 
@@ -229,7 +185,7 @@ class FoxgloveScene:
         parts = []
         for e in entities:
             b = e.SerializeToString()
-            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+            parts.append(_ENTITIES_TAG + varint(len(b)) + b)
         return b"".join(parts)
 
     @staticmethod
@@ -356,23 +312,27 @@ class FoxgloveScene:
 
     # ------------------------------------------------------------------ steps
     def write_step(
-        self, t: float, agents: list[dict[str, Any]], obstacles: list[dict[str, Any]], force: bool = False
+        self, t: float, agents: Sequence[dict[str, Any]], obstacles: list[dict[str, Any]], force: bool = False
     ) -> None:
-        """Record one simulation step (``agents``/``obstacles``: the JSON state entries)."""
+        """Record one simulation step (``agents``/``obstacles``: the JSON state entries; ``agents``
+        may be a :class:`~swarmplan.core.AgentStates`, whose arrays are used directly)."""
         t = float(t)
         eps = 1e-9
         self._last = (t, agents, obstacles)
+        rows = None
         if force or t >= self._next_tf - eps:
-            self._write_tf(t, agents)
+            rows = self._rows(agents)
+            self._write_tf(t, rows)
             self._next_tf = t + self.tf_period if self.tf_period > 0 else -math.inf
         scene_due = force or t >= self._next_scene - eps
         if scene_due:
-            self._sample_paths(t, agents)
-            self._write_scene(t, agents, obstacles)
+            rows = rows or self._rows(agents)
+            self._sample_paths(t, rows)
+            self._write_scene(t, rows, obstacles)
             self._next_scene = t + self.scene_period
         if force or t >= self._next_path - eps:
             if not scene_due:
-                self._sample_paths(t, agents)
+                self._sample_paths(t, rows or self._rows(agents))
             self._write_paths(t)
             self._next_path = t + self.path_period
 
@@ -383,43 +343,77 @@ class FoxgloveScene:
             self.write_step(t, agents, obstacles, force=True)
             self._last = None
 
-    def _write_tf(self, t, agents):
-        stamp = _timestamp_bytes(t)
-        prefix, yaw = self._tf_prefix, self._tf_yaw
-        parts = []
-        for a in agents:
-            aid = str(a["id"])
-            head = prefix.get(aid)
-            if head is None:
-                child = aid.encode()
-                head = prefix[aid] = (
-                    b"\x12"
-                    + _varint(len(FRAME))
-                    + FRAME.encode()
-                    + (b"\x1a" + _varint(len(child)) + child if child else b"")
+    def _rows(self, agents: Sequence[dict[str, Any]]) -> _Rows:
+        """The agents as arrays: ids, positions, velocities, modes and their per-agent slots
+        (the index of the state kept between steps: last heading, last path point)."""
+        if isinstance(agents, AgentStates):
+            ids, pos, vel, modes = agents.ids, agents.position, agents.velocity, agents.mode.tolist()
+        else:
+            ids = tuple(str(a["id"]) for a in agents)
+            pos = np.array([[float(c) for c in a["position"][:3]] for a in agents], dtype=float).reshape(
+                -1, 3
+            )
+            vel = np.array(
+                [[float(c) for c in (a.get("velocity") or (0.0, 0.0, 0.0))[:3]] for a in agents], dtype=float
+            ).reshape(-1, 3)
+            modes = [a.get("mode") for a in agents]
+        if ids != self._slot_ids:
+            for aid in ids:
+                if aid not in self._slot:
+                    self._slot[aid] = len(self._slot)
+            grow = len(self._slot) - len(self._qz)
+            if grow > 0:
+                # No heading yet: the identity rotation (z = 0, w = 1); no path point yet.
+                self._qz = np.concatenate([self._qz, np.zeros(grow)])
+                self._qw = np.concatenate([self._qw, np.ones(grow)])
+                self._path_last = np.concatenate([self._path_last, np.full((grow, 3), np.nan)])
+                self._path_has = np.concatenate([self._path_has, np.zeros(grow, dtype=bool)])
+                self._path_points = np.concatenate(
+                    [self._path_points, np.zeros((grow,) + self._path_points.shape[1:])]
                 )
-            p = a["position"]
-            x, y, z = float(p[0]), float(p[1]), float(p[2])
-            if x and y and z:
-                trans = _XYZ(0x22, 27, 0x09, x, 0x11, y, 0x19, z)
-            else:
-                trans = _vector_bytes(b"\x22", (x, y, z), _DOUBLE_TAGS[:3])
-            v = a.get("velocity")
-            if v is not None and (v[0] or v[1]):  # yaw along the horizontal velocity
-                half = math.atan2(v[1], v[0]) / 2.0
-                qz, qw = math.sin(half), math.cos(half)
-                rot = yaw[aid] = (
-                    _ZW(0x2A, 18, 0x19, qz, 0x21, qw)
-                    if qz and qw
-                    else _vector_bytes(b"\x2a", (0.0, 0.0, qz, qw), _DOUBLE_TAGS)
-                )
-            else:  # no horizontal motion: the last heading (none yet: identity)
-                rot = yaw.get(aid, _IDENTITY_ROTATION)
-            b = stamp + head + trans + rot
-            parts.append(_TRANSFORMS_TAG + _varint(len(b)) + b)
-        self._write(TF_TOPIC, b"".join(parts), t)
+                self._path_count = np.concatenate([self._path_count, np.zeros(grow, dtype=np.intp)])
+                self._path_slot_bytes += [None] * grow
+            self._slot_ids = ids
+            self._slots = np.array([self._slot[aid] for aid in ids], dtype=np.intp)
+        return _Rows(ids, pos, vel, modes, self._slots)
 
-    def _agent_head(self, aid: str) -> tuple[bytes, bytes]:
+    def _tf_head(self, aid: str) -> bytes:
+        """A transform's parent and child frame fields."""
+        head = self._tf_prefix.get(aid)
+        if head is None:
+            child = aid.encode()
+            head = self._tf_prefix[aid] = (
+                b"\x12"
+                + varint(len(FRAME))
+                + FRAME.encode()
+                + (b"\x1a" + varint(len(child)) + child if child else b"")
+            )
+        return head
+
+    def _write_tf(self, t: float, rows: _Rows) -> None:
+        # Per agent: timestamp, frame ids, translation, rotation (a yaw along the horizontal
+        # velocity; without horizontal motion the last heading, none yet: identity). The
+        # numbers are packed for all agents at once (pose_fields) and the message is one join.
+        stamp = timestamp_bytes(t)
+        vx, vy = rows.vel[:, 0], rows.vel[:, 1]
+        turning = np.flatnonzero((vx != 0.0) | (vy != 0.0))
+        if len(turning):
+            # math's functions, as the per-agent encoder used them (numpy's may round otherwise).
+            half = np.array(list(map(math.atan2, vy[turning].tolist(), vx[turning].tolist()))) / 2.0
+            slots = rows.slots[turning]
+            self._qz[slots] = list(map(math.sin, half.tolist()))
+            self._qw[slots] = list(map(math.cos, half.tolist()))
+        fields = pose_fields(rows.pos, self._qz[rows.slots], self._qw[rows.slots])
+        if rows.ids != self._tf_ids:
+            self._tf_ids = rows.ids
+            self._tf_heads = [self._tf_head(aid) for aid in rows.ids]
+            self._tf_head_len = [len(h) + len(stamp) for h in self._tf_heads]
+            self._tf_stamp_len = len(stamp)
+        shift = len(stamp) - self._tf_stamp_len
+        lengths = [n + f + shift for n, f in zip(self._tf_head_len, map(len, fields), strict=True)]
+        self._write(TF_TOPIC, join_records(_TRANSFORMS_TAG, lengths, stamp, self._tf_heads, fields), t)
+
+    def _agent_head(self, aid: str) -> tuple[bytes, bytes, bytes]:
         """An agent entity's fixed fields: frame and entity ids, and the sphere's orientation
         and size fields (the latter serialized by protobuf itself, once)."""
         head = self._agent_heads.get(aid)
@@ -429,9 +423,9 @@ class FoxgloveScene:
             orientation = Quaternion(w=1.0).SerializeToString()
             size = Vector3(x=d, y=d, z=d).SerializeToString()
             head = self._agent_heads[aid] = (
-                b"\x12" + _varint(len(FRAME)) + FRAME.encode() + b"\x1a" + _varint(len(eid)) + eid,
-                b"\x12" + _varint(len(orientation)) + orientation,
-                b"\x12" + _varint(len(size)) + size,
+                b"\x12" + varint(len(FRAME)) + FRAME.encode() + b"\x1a" + varint(len(eid)) + eid,
+                b"\x12" + varint(len(orientation)) + orientation,
+                b"\x12" + varint(len(size)) + size,
             )
         return head
 
@@ -439,44 +433,70 @@ class FoxgloveScene:
         b = self._colors.get(rgba)
         if b is None:
             c = Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3]).SerializeToString()
-            b = self._colors[rgba] = b"\x1a" + _varint(len(c)) + c
+            b = self._colors[rgba] = b"\x1a" + varint(len(c)) + c
         return b
 
-    def _write_scene(self, t, agents, obstacles):
+    def _sphere_parts(self, key: tuple[str, Any, int]) -> tuple[bytes, bytes, int]:
+        """An agent entity's bytes around its position field, for (agent id, mode, length of
+        the position field): frame and entity ids with the sphere's and the pose's length
+        fields before it; orientation, size and colour after it; and the fixed length."""
+        aid, mode, position_len = key
+        ids, orientation, size = self._agent_head(aid)
+        color = self._color_bytes(MODE_COLORS.get(mode, (0.8, 0.2, 0.8, 1.0)))
+        pose_len = position_len + len(orientation)
+        sphere_len = 1 + len(varint(pose_len)) + pose_len + len(size) + len(color)
+        before = ids + b"\x4a" + varint(sphere_len) + b"\x0a" + varint(pose_len)
+        after = orientation + size + color
+        parts = self._sphere_cache[key] = (before, after, len(before) + len(after))
+        return parts
+
+    def _write_scene(self, t: float, rows: _Rows, obstacles: list[dict[str, Any]]) -> None:
         # Agent entities are assembled in protobuf's wire format (a SceneEntity with one
         # sphere: timestamp, frame and entity ids, pose, size, colour), the bytes protobuf's
         # serializer gives (tests/test_foxglove_tf_bytes.py); obstacles go through the API.
-        stamp = _timestamp_bytes(t)
-        parts = []
-        for a in agents:
-            aid = str(a["id"])
-            ids, orientation, size = self._agent_head(aid)
-            p = a["position"]
-            x, y, z = float(p[0]), float(p[1]), float(p[2])
-            if x and y and z:
-                position = _XYZ(0x0A, 27, 0x09, x, 0x11, y, 0x19, z)
-            else:
-                position = _vector_bytes(b"\x0a", (x, y, z), _DOUBLE_TAGS[:3])
-            pose = position + orientation
-            sphere = (
-                b"\x0a"
-                + _varint(len(pose))
-                + pose
-                + size
-                + self._color_bytes(MODE_COLORS.get(a.get("mode"), (0.8, 0.2, 0.8, 1.0)))
-            )
-            b = stamp + ids + b"\x4a" + _varint(len(sphere)) + sphere
-            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+        stamp = timestamp_bytes(t)
+        positions = vector_fields(0x0A, rows.pos)
+        cache = self._sphere_cache
+        parts = [
+            cache.get(key) or self._sphere_parts(key)
+            for key in zip(rows.ids, rows.modes, map(len, positions), strict=True)
+        ]
+        n = len(parts)
+        lengths = [len(stamp) + len(p) + fixed for p, (_, _, fixed) in zip(positions, parts, strict=True)]
+        flat: list[bytes] = [b""] * (5 * n)
+        flat[0::5] = length_prefixes(_ENTITIES_TAG, lengths)
+        flat[1::5] = [stamp] * n
+        flat[2::5] = [p[0] for p in parts]
+        flat[3::5] = positions
+        flat[4::5] = [p[1] for p in parts]
+        agents = b"".join(flat)
         entities = []
         for o in obstacles or []:
             oid = str(o["id"])
             obst = self._obstacles.get(oid)
             if obst is None:
                 continue
+            entities.append(self._mover_entity(oid, obst, t, o["position"], o.get("orientation")))
+        self._write(SCENE_TOPIC, agents + self._scene_bytes(entities), t)
+
+    def _mover_entity(self, oid: str, obst: dict[str, Any], t: float, position, quat) -> SceneEntity:
+        """A moving obstacle's entity at ``t``. One-primitive shapes keep their entity and only
+        get a new time and pose (every other field is the same each time); others are rebuilt."""
+        e = self._obstacle_entities.get(oid)
+        if e is None:
             e = self._entity(f"obstacle/{oid}", t)
-            self._fill_obstacle(e, obst, o["position"], o.get("orientation"), MOVING_RGBA)
-            entities.append(e)
-        self._write(SCENE_TOPIC, b"".join(parts) + self._scene_bytes(entities), t)
+            self._fill_obstacle(e, obst, position, quat, MOVING_RGBA)
+            if obst.get("shape") in ("sphere", "box", "cylinder"):
+                self._obstacle_entities[oid] = e
+            return e
+        _set_time(e.timestamp, t)
+        q = (
+            tuple(quat)
+            if quat is not None
+            else tuple(euler_to_quaternion((list(obst.get("rotation") or []) + [0, 0, 0])[:3]))
+        )
+        _set_pose((e.spheres or e.cubes or e.cylinders)[0].pose, np.asarray(position, float), q)
+        return e
 
     def _path_head(self, aid: str) -> bytes:
         """A path entity's fixed fields (frame and entity ids)."""
@@ -484,50 +504,74 @@ class FoxgloveScene:
         if head is None:
             eid = f"path/{aid}".encode()
             head = self._path_heads[aid] = (
-                b"\x12" + _varint(len(FRAME)) + FRAME.encode() + b"\x1a" + _varint(len(eid)) + eid
+                b"\x12" + varint(len(FRAME)) + FRAME.encode() + b"\x1a" + varint(len(eid)) + eid
             )
         return head
 
-    def _sample_paths(self, t, agents):
+    def _sample_paths(self, t: float, rows: _Rows) -> None:
         """Append the agents' current positions to their path lines, kept encoded (the
-        ``points`` fields of a LinePrimitive): only new points are converted."""
-        for a in agents:
-            aid = str(a["id"])
-            pts = self._paths.setdefault(aid, [])
-            p = a["position"]
-            pt = (float(p[0]), float(p[1]), float(p[2]))
-            if pts and pts[-1] == pt:
+        ``points`` fields of a LinePrimitive): only new points are converted. An agent whose
+        position equals its last point (standing) adds none."""
+        last = self._path_last[rows.slots]
+        same = self._path_has[rows.slots] & (last == rows.pos).all(axis=1)
+        new = np.flatnonzero(~same)
+        if not len(new):
+            return
+        slots = rows.slots[new]
+        self._path_last[slots] = rows.pos[new]
+        self._path_has[slots] = True
+        encoded = self._path_slot_bytes
+        room = self.path_max_points + 1 - self._path_points.shape[1]
+        if room > 0:  # path_max_points was raised after construction
+            self._path_points = np.pad(self._path_points, ((0, 0), (0, room), (0, 0)))
+        counts = self._path_count[slots]
+        for i in np.flatnonzero(counts == 0).tolist():  # first points: paths start (message order)
+            aid = rows.ids[new[i]]
+            self._paths[aid] = int(slots[i])
+            encoded[slots[i]] = self._path_bytes[aid] = bytearray()
+        self._path_points[slots, counts] = rows.pos[new]
+        counts += 1
+        self._path_count[slots] = counts
+        fields = vector_fields(0x2A, rows.pos[new])
+        full = counts > self.path_max_points
+        if not full.any():
+            list(map(bytearray.extend, [encoded[k] for k in slots.tolist()], fields))
+            return
+        for k, b, decimate in zip(slots.tolist(), fields, full.tolist(), strict=True):
+            if not decimate:
+                encoded[k].extend(b)
                 continue
-            pts.append(pt)
-            if len(pts) > self.path_max_points:
-                # halve the resolution of the older part, keep the newest point; rebuild
-                pts = self._paths[aid] = pts[:-1:2] + [pts[-1]]
-                self._path_bytes[aid] = bytearray(b"".join(_point_bytes(q) for q in pts))
-            else:
-                self._path_bytes.setdefault(aid, bytearray()).extend(_point_bytes(pt))
+            # halve the resolution of the older part, keep the newest point; rebuild
+            pts = self._path_points[k, : self.path_max_points + 1]
+            kept = np.concatenate([pts[:-1:2], pts[-1:]])
+            self._path_points[k, : len(kept)] = kept
+            self._path_count[k] = len(kept)
+            encoded[k][:] = b"".join(point_bytes(tuple(q)) for q in kept.tolist())
 
     def _write_paths(self, t):
         # Each path is a SceneEntity with one LINE_STRIP, assembled from its encoded points
         # between the line's fixed fields (1-4: type, pose, thickness, scale_invariant) and its
         # colour (6), in field order as protobuf writes them (tests/test_foxglove_tf_bytes.py).
-        stamp = _timestamp_bytes(t)
+        stamp = timestamp_bytes(t)
         parts = []
         for aid in self._paths:
             pts = self._path_bytes[aid]
             line_len = len(_LINE_HEAD) + len(pts) + len(_LINE_COLOR)
             b = b"".join(
-                (stamp, self._path_head(aid), b"\x5a", _varint(line_len), _LINE_HEAD, pts, _LINE_COLOR)
+                (stamp, self._path_head(aid), b"\x5a", varint(line_len), _LINE_HEAD, pts, _LINE_COLOR)
             )
-            parts.append(_ENTITIES_TAG + _varint(len(b)) + b)
+            parts.append(_ENTITIES_TAG + varint(len(b)) + b)
         self._write(PATHS_TOPIC, b"".join(parts), t)
 
 
-def _point_bytes(pt: tuple[float, float, float]) -> bytes:
-    """One ``LinePrimitive.points`` field (5) holding the Point3 ``pt``."""
-    x, y, z = pt
-    if x and y and z:
-        return _XYZ(0x2A, 27, 0x09, x, 0x11, y, 0x19, z)
-    return _vector_bytes(b"\x2a", pt, _DOUBLE_TAGS[:3])
+class _Rows(NamedTuple):
+    """One step's agents as arrays (FoxgloveScene._rows)."""
+
+    ids: tuple[str, ...]
+    pos: np.ndarray  # (n, 3)
+    vel: np.ndarray  # (n, 3)
+    modes: list  # per agent: its mode (a Mode, a string or None)
+    slots: np.ndarray  # (n,) per-agent state index
 
 
 def _line_fixed_fields() -> tuple[bytes, bytes]:
@@ -537,7 +581,7 @@ def _line_fixed_fields() -> tuple[bytes, bytes]:
     color = Color()
     _set_color(color, PATH_RGBA)
     c = color.SerializeToString()
-    return line.SerializeToString(), b"\x32" + _varint(len(c)) + c
+    return line.SerializeToString(), b"\x32" + varint(len(c)) + c
 
 
 PATH_RGBA = (0.12, 0.47, 0.71, 0.9)

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from swarmplan.core import Mode
+from swarmplan.core import AgentStates, Mode
 from swarmplan.io.foxglove_scene import FoxgloveScene
 
 _NUM3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
@@ -134,6 +136,47 @@ SCHEMAS: dict[str, dict[str, Any]] = {
 }
 
 
+_MODE_JSON = {m: json.dumps(str(m)) for m in Mode}
+
+
+class _StateEncoder:
+    """``/agents/state`` from :class:`AgentStates` with one ``%`` format for the whole message.
+
+    The bytes are ``json.dumps(..., separators=(",", ":"))``'s: floats through ``repr`` as the
+    JSON encoder writes them, ids and goals (fixed over a run) encoded by ``json`` itself once
+    into the format. Building a dict and a list per agent and walking them in the encoder was
+    ~60 % of the recorder's JSON time at 256 agents."""
+
+    def __init__(self) -> None:
+        self._key: tuple[tuple[str, ...], bytes] | None = None
+        self._format = ""
+
+    def encode(self, t: float, agents: AgentStates) -> bytes | None:
+        """The message's bytes, or None when a value is not finite (the caller then goes
+        through ``json``, which refuses it as before)."""
+        pos, vel = agents.position, agents.velocity
+        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            return None
+        goal = np.ascontiguousarray(agents.goal, dtype=float)
+        key = (agents.ids, goal.tobytes())
+        if key != self._key:
+            entries = []
+            for aid, g in zip(agents.ids, goal.tolist(), strict=True):
+                head = json.dumps(aid).replace("%", "%%")
+                tail = json.dumps(g, separators=(",", ":"), allow_nan=False)
+                entries.append(
+                    f'{{"id":{head},"position":[%r,%r,%r],"velocity":[%r,%r,%r],"mode":%s,"goal":{tail}}}'
+                )
+            self._format = '{"t":%r,"agents":[' + ",".join(entries) + "]}"
+            self._key = key
+        n = len(agents.ids)
+        cells = np.empty((n, 7), dtype=object)
+        cells[:, 0:3] = pos
+        cells[:, 3:6] = vel
+        cells[:, 6] = [_MODE_JSON.get(m) or json.dumps(str(m)) for m in agents.mode.tolist()]
+        return (self._format % (round(t, 9), *cells.ravel().tolist())).encode()
+
+
 def _ns(t: float) -> int:
     return int(round(t * 1e9))
 
@@ -166,6 +209,7 @@ class McapRecorder:
         self._foxglove_enabled = foxglove
         self._scene = None
         self._last_t = 0.0
+        self._states = _StateEncoder()
         self._sequence = 0
         self.closed = False
 
@@ -208,9 +252,15 @@ class McapRecorder:
             self._scene = FoxgloveScene(self._writer, world)
             self._scene.write_world()
 
-    def write_state(self, t: float, agents: list[dict], obstacles: list[dict] | None) -> None:
+    def write_state(self, t: float, agents: Sequence[dict], obstacles: list[dict] | None) -> None:
         self._last_t = t
-        self._write("/agents/state", t, {"t": round(t, 9), "agents": agents}, clean=False)
+        data = self._states.encode(t, agents) if isinstance(agents, AgentStates) else None
+        if data is not None:
+            self.write_bytes("/agents/state", t, data)
+        else:
+            if isinstance(agents, AgentStates):
+                agents = agents.dicts()
+            self._write("/agents/state", t, {"t": round(t, 9), "agents": agents}, clean=False)
         if obstacles is not None:
             self._write("/obstacles/state", t, {"t": round(t, 9), "obstacles": obstacles}, clean=False)
         if self._scene is not None:

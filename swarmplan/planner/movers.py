@@ -99,6 +99,10 @@ def timing_slack(elapsed: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
     return np.full_like(late, EARLY), late
 
 
+_POSE_PAIRS = 200_000
+"""(point, pose) pairs measured per array pass in :func:`moving_clearance`."""
+
+
 def _mover_indices(sim) -> np.ndarray:  # noqa: ANN001
     return np.flatnonzero(sim.moving_mask)
 
@@ -137,6 +141,29 @@ def moving_clearance(
         poses, which = np.unique(centers[:, m].round(9), axis=0, return_inverse=True)
         which = which.reshape(-1)
         reach = cap + radius + o.bounding_radius
+        if o.shape == "sphere" and np.array_equal(o.rotation, np.eye(3)):
+            # Every (point, pose) pair at once: the distance is |p - c| - r, as
+            # distance_and_gradient gives it (its product with the identity is exact).
+            # Only points within reach of the poses' box can be within reach of a pose (a margin
+            # covers the rounding of the norms).
+            slack = reach * (1.0 + 1e-9) + 1e-9
+            rows = np.flatnonzero(
+                ((pts >= poses.min(axis=0) - slack) & (pts <= poses.max(axis=0) + slack)).all(axis=1)
+            )
+            if not len(rows):
+                continue
+            chunk = max(1, _POSE_PAIRS // len(rows))  # poses per pass: small temporaries
+            # sees[:, u]: the point's window holds a grid time at pose u (columns grouped by pose).
+            order = np.argsort(which, kind="stable")
+            starts = np.flatnonzero(np.r_[True, np.diff(which[order]) != 0])
+            sees_all = np.logical_or.reduceat(inside[rows][:, order], starts, axis=1)
+            for u0 in range(0, len(poses), chunk):
+                part = poses[u0 : u0 + chunk]
+                sees = sees_all[:, u0 : u0 + len(part)]
+                dist = np.linalg.norm(pts[rows, None, :] - part[None, :, :], axis=-1)
+                d = np.where(sees & (dist <= reach), dist - o.radius - radius, np.inf).min(axis=1)
+                out[rows] = np.minimum(out[rows], d)
+            continue
         for u, c in enumerate(poses):
             sel = np.flatnonzero(inside[:, which == u].any(axis=1))
             sel = sel[np.linalg.norm(pts[sel] - c, axis=1) <= reach]

@@ -9,6 +9,7 @@ from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.dynamics import AgentParams
 from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
 from swarmplan.geometry.neighbours import separation_violations
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.metrics import RunMetrics
 from swarmplan.motion import poses_at
 from swarmplan.sim.scene import Scene
@@ -95,15 +96,15 @@ def arrivals(
     """
     flying = np.flatnonzero(s.active)
     dmins = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
-    speeds = np.linalg.norm(vel1[flying], axis=1)
+    speeds = norm3(vel1[flying])
     slow = speeds <= stop_speed[flying] * (1.0 + 1e-9)
-    for i, dmin, ok in zip(flying, dmins.tolist(), slow.tolist(), strict=True):
-        if dmin <= tolerance and ok:
-            s.mode[i] = Mode.ARRIVED
-            vel1[i] = 0.0
-            s.segment[i] = None
-            metrics.arrival_time[i] = t1
-            events.append(Event(t1, ids[i], "arrived", {"distance": round(dmin, 6)}))
+    arrive = (dmins <= tolerance) & slow
+    for i, dmin in zip(flying[arrive].tolist(), dmins[arrive].tolist(), strict=True):
+        s.mode[i] = Mode.ARRIVED
+        vel1[i] = 0.0
+        s.segment[i] = None
+        metrics.arrival_time[i] = t1
+        events.append(Event(t1, ids[i], "arrived", {"distance": round(dmin, 6)}))
 
 
 class NearMisses:

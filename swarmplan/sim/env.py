@@ -22,7 +22,7 @@ from typing import Any, Literal
 import numpy as np
 
 from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
-from swarmplan.core import Event, Mode, Planner, Recorder, StepResult, SwarmState
+from swarmplan.core import AgentStates, Event, Mode, Planner, Recorder, StepResult, SwarmState
 from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -116,7 +116,7 @@ class Simulation:
                 self.state.route[i] = np.asarray(route, dtype=float)
             self.navigator.reset(self.state)
         if self.recorder is not None:
-            self.recorder.write_state(0.0, self._agent_dicts(), self.scene.obstacle_dicts(0.0))
+            self.recorder.write_state(0.0, self._agent_states(), self.scene.obstacle_dicts(0.0))
         return self.state
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
@@ -273,7 +273,7 @@ class Simulation:
                 events.append(Event(t1, self.ids[i], "timeout", {"distance_to_goal": distance}))
         self._events = []
         if self.recorder is not None:
-            self.recorder.write_state(t1, self._agent_dicts(), self.scene.obstacle_dicts(t1))
+            self.recorder.write_state(t1, self._agent_states(), self.scene.obstacle_dicts(t1))
             for e in events:
                 self.recorder.write_event(e.to_json())
         return StepResult(s, events, terminated, truncated)
@@ -284,21 +284,10 @@ class Simulation:
         """Per agent: straight to the goal, or along the rest of its global route."""
         return distance_to_go(self.state)
 
-    def _agent_dicts(self) -> list[dict[str, Any]]:
+    def _agent_states(self) -> AgentStates:
+        """The ``/agents/state`` entries, as arrays (no dict per agent: the recorder encodes them)."""
         s = self.state
-        pos = np.round(s.position, 6).tolist()
-        vel = np.round(s.velocity, 6).tolist()
-        goal = s.goal.tolist()
-        return [
-            {
-                "id": self.ids[i],
-                "position": pos[i],
-                "velocity": vel[i],
-                "mode": str(s.mode[i]),
-                "goal": goal[i],
-            }
-            for i in range(self.n)
-        ]
+        return AgentStates(self.ids, np.round(s.position, 6), np.round(s.velocity, 6), s.mode.copy(), s.goal)
 
     def summary(self, interrupted: bool = False) -> dict[str, Any]:
         """Per-agent and overall metrics for ``/summary`` and the CLI table."""

@@ -48,7 +48,11 @@ class Navigator:
         of its static repulsion (reduced along a segment that FCL already validated)."""
         target = s.goal[idx].copy()
         scale = np.ones(len(idx))
-        for k, i in enumerate(idx):
+        # Agents with neither a segment nor a route fly at their goal: nothing to do for them.
+        seg, route = s.segment, s.route
+        planned = [k for k, i in enumerate(idx.tolist()) if seg[i] is not None or route[i] is not None]
+        for k in planned:
+            i = idx[k]
             if s.mode[i] in SEGMENT_MODES and s.segment[i] is not None:
                 wp = self.advance(s, s.segment[i], i, "segment")
                 if wp is None:
@@ -119,7 +123,10 @@ class Navigator:
         window = self.world.planner_config.stuck.window
         min_progress = self.world.planner_config.stuck.min_progress
         dg = distance_to_go(s)
-        for i in np.flatnonzero(s.active):
+        # Only agents following a segment or whose window has run out need work this step.
+        apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
+        due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
+        for i in np.flatnonzero(due):
             if s.mode[i] != Mode.APF:
                 self.progress_ref[i], self.progress_t[i] = dg[i], s.t
                 self.segment_watchdog(s, int(i), window, min_progress, events)

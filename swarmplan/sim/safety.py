@@ -19,6 +19,7 @@ from swarmplan.dynamics import AgentParams, limit_velocity
 from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.lookahead import guard_commands, horizon_steps
 from swarmplan.metrics import RunMetrics
 from swarmplan.motion import poses_at
@@ -141,11 +142,11 @@ class SafetyFilter:
         amax = p.max_accel[rows]
         cap = np.full(len(k), np.inf)
         if goal is not None:
-            room = np.maximum(np.linalg.norm(goal[k] - pos0[rows], axis=1) - self.world.goal_tolerance, 0.0)
+            room = np.maximum(norm3(goal[k] - pos0[rows]) - self.world.goal_tolerance, 0.0)
             cap = np.maximum(amax * dt, _stoppable_speed(room, amax, dt))
-        s_cmd = np.linalg.norm(v_cmd[k], axis=1)
+        s_cmd = norm3(v_cmd[k])
         v1 = limit_velocity(p, vel0[rows], v_cmd[k] * _shrink(s_cmd, cap), dt, rows)
-        speed = np.linalg.norm(v1, axis=1)
+        speed = norm3(v1)
         # Slower than a dt, a single step can stop the agent.
         probe = np.flatnonzero(speed > amax * dt)
         if len(probe):
@@ -180,8 +181,8 @@ class SafetyFilter:
         # leaves the agent above the cap (it asks for a turn), brake straight instead, which is
         # what keeps the margin from one step to the next.
         v1c = limit_velocity(p, vel0[rows], capped, dt, rows)
-        too_fast = np.linalg.norm(v1c, axis=1) > cap + 1e-9
-        s0 = np.linalg.norm(vel0[rows], axis=1)
+        too_fast = norm3(v1c) > cap + 1e-9
+        s0 = norm3(vel0[rows])
         brake = vel0[rows] * _shrink(s0, cap)
         out[k] = np.where(too_fast[:, None], brake, capped)
         return out

@@ -82,7 +82,7 @@ class Scene:
 
     def obstacle_dicts(self, t: float) -> list[dict[str, Any]] | None:
         """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
-        moving = self.world.moving_obstacles
+        moving = self._moving
         if not moving:
             return None
         pos, vel = self.poses(t)

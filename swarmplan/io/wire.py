@@ -1,0 +1,179 @@
+"""Protobuf wire format, written directly for the Foxglove channels' per-agent fields.
+
+The bytes are the ones protobuf's own serializer gives for the same messages
+(tests/test_foxglove_tf_bytes.py): proto3 leaves out a double equal to +0.0 (not -0.0),
+length-delimited fields carry a varint length. Building and serializing one protobuf message
+per agent per step was the largest recording cost of a large swarm; here the numbers of all
+agents are packed in one numpy operation (:func:`vector_fields`, :func:`pose_fields`) and a
+message is one join of cached per-agent pieces (:func:`join_records`).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+from google.protobuf.descriptor_pb2 import FileDescriptorSet
+
+# FrameTransform written directly in protobuf's wire format (the bytes protobuf's own
+# serializer gives, tests/test_foxglove_tf_bytes.py): building and serializing 256 messages
+# per step through the protobuf API was the largest recording cost of a 256-agent step.
+# Fields: 1 timestamp, 2 parent_frame_id, 3 child_frame_id, 4 translation, 5 rotation;
+# proto3 leaves out a double equal to +0.0 (not -0.0); doubles are tags 0x09/0x11/0x19/0x21.
+DOUBLE = struct.Struct("<d").pack
+XYZ = struct.Struct("<BBBdBdBd").pack  # translation with x, y, z all non-zero: the usual case
+DOUBLE_TAGS = (b"\x09", b"\x11", b"\x19", b"\x21")
+
+
+def present(v: float) -> bool:
+    return v != 0.0 or math.copysign(1.0, v) < 0.0  # -0.0 and NaN are written
+
+
+def vector_bytes(field_tag: bytes, values: tuple[float, ...], tags: tuple[bytes, ...]) -> bytes:
+    inner = b"".join(tag + DOUBLE(v) for tag, v in zip(tags, values, strict=True) if present(v))
+    return field_tag + varint(len(inner)) + inner
+
+
+def timestamp_bytes(t: float) -> bytes:
+    ns = int(round(t * 1e9))
+    sec, nanos = divmod(ns, 1_000_000_000)
+    inner = (b"\x08" + varint(sec) if sec else b"") + (b"\x10" + varint(nanos) if nanos else b"")
+    return b"\x0a" + varint(len(inner)) + inner
+
+
+def _varint_slow(n: int) -> bytes:
+    out = bytearray()
+    while True:
+        b = n & 0x7F
+        n >>= 7
+        if n:
+            out.append(b | 0x80)
+        else:
+            out.append(b)
+            return bytes(out)
+
+
+# Lengths of entities and transforms are almost always below 2**14 (one or two bytes): no
+# loop for those (tens of thousands of calls per second of a 256-agent log).
+_ONE_BYTE = [bytes((n,)) for n in range(128)]
+
+
+def varint(n: int) -> bytes:
+    if n < 128:
+        return _ONE_BYTE[n]
+    if n < 16384:
+        return bytes((n & 0x7F | 0x80, n >> 7))
+    return _varint_slow(n)
+
+
+_PREFIX_TABLES: dict[bytes, list[bytes]] = {}
+
+
+def length_prefixes(tag: bytes, lengths: list[int]) -> list[bytes]:
+    """The tag and varint length of each length-delimited field of ``lengths``."""
+    table = _PREFIX_TABLES.get(tag)
+    if table is None:
+        # Every length below 2**14 once per tag (a few ms, ~1 MB): one list lookup per field.
+        table = _PREFIX_TABLES[tag] = [tag + varint(n) for n in range(16384)]
+    if max(lengths, default=0) < len(table):
+        return list(map(table.__getitem__, lengths))
+    return [tag + varint(n) for n in lengths]
+
+
+def join_records(
+    tag: bytes, lengths: list[int], stamp: bytes, heads: list[bytes], bodies: list[bytes]
+) -> bytes:
+    """Records ``tag, len, stamp, head, body`` of every agent as one bytes (one join)."""
+    n = len(bodies)
+    flat: list[bytes] = [b""] * (4 * n)
+    flat[0::4] = length_prefixes(tag, lengths)
+    flat[1::4] = [stamp] * n
+    flat[2::4] = heads
+    flat[3::4] = bodies
+    return b"".join(flat)
+
+
+# Packed records of the usual case, written for all agents in one numpy operation: a Vector3
+# or Point3 field (tag, length 27, then x, y, z with their tags) and a rotation with only z and
+# w set. Rows with a zero (or -0.0) value, which proto3 writes differently, are encoded one by one.
+_XYZ_DTYPE = np.dtype(
+    [
+        ("tag", "u1"),
+        ("len", "u1"),
+        ("tx", "u1"),
+        ("x", "<f8"),
+        ("ty", "u1"),
+        ("y", "<f8"),
+        ("tz", "u1"),
+        ("z", "<f8"),
+    ]
+)
+_ZW_DTYPE = np.dtype([("tag", "u1"), ("len", "u1"), ("tz", "u1"), ("z", "<f8"), ("tw", "u1"), ("w", "<f8")])
+
+
+def vector_fields(tag: int, xyz: np.ndarray) -> list[bytes]:
+    """Per row of ``xyz`` (n, 3): the field ``tag`` holding a Vector3/Point3 of it, as
+    protobuf writes it (``XYZ`` when x, y and z are all non-zero, else ``vector_bytes``)."""
+    n = len(xyz)
+    rec = np.empty(n, dtype=_XYZ_DTYPE)
+    rec["tag"], rec["len"], rec["tx"], rec["ty"], rec["tz"] = tag, 27, 0x09, 0x11, 0x19
+    rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    blob = rec.tobytes()
+    size = _XYZ_DTYPE.itemsize
+    out = [blob[k : k + size] for k in range(0, n * size, size)]
+    odd = np.flatnonzero(~(xyz != 0.0).all(axis=1))
+    if len(odd):
+        field = bytes((tag,))
+        for i in odd.tolist():
+            out[i] = vector_bytes(field, tuple(xyz[i].tolist()), DOUBLE_TAGS[:3])
+    return out
+
+
+_POSE_DTYPE = np.dtype(_XYZ_DTYPE.descr + [(f"r{name}", kind) for name, kind in _ZW_DTYPE.descr])
+
+
+def pose_fields(xyz: np.ndarray, qz: np.ndarray, qw: np.ndarray) -> list[bytes]:
+    """Per agent: a FrameTransform's translation (4) and rotation (5, the quaternion
+    (0, 0, qz, qw)) fields, as protobuf writes them."""
+    n = len(xyz)
+    rec = np.empty(n, dtype=_POSE_DTYPE)
+    rec["tag"], rec["len"], rec["tx"], rec["ty"], rec["tz"] = 0x22, 27, 0x09, 0x11, 0x19
+    rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    rec["rtag"], rec["rlen"], rec["rtz"], rec["rtw"] = 0x2A, 18, 0x19, 0x21
+    rec["rz"], rec["rw"] = qz, qw
+    blob = rec.tobytes()
+    size = _POSE_DTYPE.itemsize
+    out = [blob[k : k + size] for k in range(0, n * size, size)]
+    odd = np.flatnonzero(~((xyz != 0.0).all(axis=1) & (qz != 0.0) & (qw != 0.0)))
+    for i in odd.tolist():
+        x, y, z = xyz[i].tolist()
+        trans = XYZ(0x22, 27, 0x09, x, 0x11, y, 0x19, z) if x and y and z else None
+        trans = trans or vector_bytes(b"\x22", (x, y, z), DOUBLE_TAGS[:3])
+        out[i] = trans + vector_bytes(b"\x2a", (0.0, 0.0, float(qz[i]), float(qw[i])), DOUBLE_TAGS)
+    return out
+
+
+def point_bytes(pt: tuple[float, float, float]) -> bytes:
+    """One ``LinePrimitive.points`` field (5) holding the Point3 ``pt``."""
+    x, y, z = pt
+    if x and y and z:
+        return XYZ(0x2A, 27, 0x09, x, 0x11, y, 0x19, z)
+    return vector_bytes(b"\x2a", pt, DOUBLE_TAGS[:3])
+
+
+def file_descriptor_set(message_class) -> FileDescriptorSet:
+    """FileDescriptorSet of a message's .proto file and all its dependencies (deps first)."""
+    fds = FileDescriptorSet()
+    seen: set[str] = set()
+
+    def add(fd):
+        if fd.name in seen:
+            return
+        seen.add(fd.name)
+        for dep in fd.dependencies:
+            add(dep)
+        fd.CopyToProto(fds.file.add())
+
+    add(message_class.DESCRIPTOR.file)
+    return fds
