@@ -42,14 +42,17 @@ def test_bat_loudness_never_below_floor(name, A_min):
     state = opt.setup(problem, rng, None)
     floor = opt.params["A0"] if A_min is None else A_min
     accepted = 0
+    lowest = np.inf
     for it in range(1, 400):
         before = state.A.copy()
         opt.iterate(state, problem, rng, it)
         accepted += int(np.sum(state.A != before))
         assert state.A.min() >= floor - 1e-15
+        lowest = min(lowest, state.A.min())
     if A_min is not None:
-        # the floor was actually reached (alpha = 0.9 from 0.95 to 0.5 takes 7 acceptances)
-        assert accepted > 0 and np.isclose(state.A.min(), floor)
+        # the floor was actually reached (alpha = 0.9 from 0.95 to 0.5 takes 7 acceptances);
+        # iba_abc's scouts reset a source's loudness to A0, so look over the whole run
+        assert accepted > 0 and np.isclose(lowest, floor)
 
 
 def test_iba_gauss_has_no_floor_by_default():
