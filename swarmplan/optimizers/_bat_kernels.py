@@ -8,8 +8,8 @@ one batched ``rng.random`` draw made in numpy (passing the Generator into numba 
 per call to unbox it, and numpy's batched draw is faster than numba's per-scalar one), the
 cost call(s), and two or three kernel calls. The equations, their order of floating-point
 operations and (for ``ba``) the random stream are those of the numpy code they replace, so
-``ba`` is bit-identical to it; the docstrings of :mod:`swarmplan.optimizers.bat` say which
-equation each step is.
+``ba`` is bit-identical to it (for populations up to 128, see :func:`_mean`); the
+docstrings of :mod:`swarmplan.optimizers.bat` say which equation each step is.
 """
 
 from __future__ import annotations
@@ -48,63 +48,16 @@ def _block_sum(a, lo, n):  # noqa: ANN001, ANN202
 
 @njit(cache=True, nogil=True)
 def _mean(a):  # noqa: ANN001, ANN202
-    """``a.mean()`` bit for bit: numpy's summation order, then the division.
-
-    numpy (1.26) sums a reduction in buffers of 8192 terms, each by :func:`_pairwise_sum`.
-    """
+    """``a.mean()``, bit for bit for up to 128 values (numpy's summation order, see
+    :func:`_block_sum`). numpy splits longer sums in halves recursively; here they are summed
+    in blocks of 128 from the left, which differs from numpy in the last bits only (a
+    recursive numba function would not survive the ``cache=True`` reload, and an explicit
+    stack costs more compile time than populations of over 128 bats are worth)."""
     n = a.size
-    if n <= 128:
-        return _block_sum(a, 0, n) / n
     res = 0.0
-    for lo in range(0, n, 8192):
-        res += _pairwise_sum(a, lo, min(8192, n - lo))
+    for lo in range(0, n, 128):
+        res += _block_sum(a, lo, min(128, n - lo))
     return res / n
-
-
-@njit(cache=True, nogil=True)
-def _pairwise_sum(a, lo0, n):  # noqa: ANN001, ANN202
-    """numpy's pairwise sum of ``a[lo0:lo0+n]``.
-
-    numpy splits a sum of more than 128 terms in two halves (rounded to multiples of 8) and
-    adds the halves' sums; that recursion is unrolled here on an explicit stack because a
-    recursive numba function crashes when it is loaded back from the ``cache=True`` cache.
-    """
-    if n <= 128:
-        return _block_sum(a, lo0, n)
-    los = np.empty(64, dtype=np.int64)
-    lens = np.empty(64, dtype=np.int64)
-    stage = np.empty(64, dtype=np.int64)  # 0: fresh, 1: left half pending, 2: right half pending
-    left = np.empty(64)
-    sp = 0
-    los[0], lens[0], stage[0] = lo0, n, 0
-    ret = 0.0
-    returning = False
-    while True:
-        if returning:
-            if sp < 0:
-                return ret
-            if stage[sp] == 1:  # left half done: remember it, sum the right half
-                left[sp] = ret
-                stage[sp] = 2
-                h = lens[sp] // 2
-                h -= h % 8
-                los[sp + 1], lens[sp + 1], stage[sp + 1] = los[sp] + h, lens[sp] - h, 0
-                sp += 1
-                returning = False
-            else:  # both halves done
-                ret = left[sp] + ret
-                sp -= 1
-            continue
-        if lens[sp] <= 128:
-            ret = _block_sum(a, los[sp], lens[sp])
-            sp -= 1
-            returning = True
-            continue
-        stage[sp] = 1
-        h = lens[sp] // 2
-        h -= h % 8
-        los[sp + 1], lens[sp + 1], stage[sp + 1] = los[sp], h, 0
-        sp += 1
 
 
 @njit(cache=True, nogil=True)
