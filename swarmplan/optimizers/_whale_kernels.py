@@ -3,10 +3,13 @@
 Why numba here: with 30 whales every numpy call costs more than the arithmetic it does; one
 WOA generation was ~25 numpy calls, an RSCDWOA generation with its differential-evolution
 stage ~80: 6-9 µs of overhead per evaluation at d = 50 against the 1 µs target of issue 10.
-The random numbers are still drawn by numpy, in the same calls and order as before (passing
-the Generator into numba costs ~10 µs per call to unbox it), and the kernels repeat the
-numpy code's floating-point operations in the same order, so both algorithms give the same
-results bit for bit as the numpy code they replace. Which equation each step is: see the
+The random numbers are drawn by numpy (passing the Generator into numba costs ~10 µs per
+call to unbox it) and the kernels repeat the numpy code's floating-point operations in the
+same order. RSCDWOA makes the same draws in the same order as before, so it gives the same
+results bit for bit as the numpy code it replaces (it is the planner's default optimizer:
+escapes and golden logs are unchanged). WOA draws its partner from a uniform instead of
+``rng.integers`` (one ``integers`` call costs as much as ~8 ``random`` calls of its size):
+same distribution, another stream. Which equation each step is: see the
 docstrings of :mod:`swarmplan.optimizers.whale`.
 """
 
@@ -37,15 +40,23 @@ def _clip(x, lo, hi):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True)
-def woa_move(X, best, coef, q, off, a, c, box, Xn, de_on, idx):  # noqa: ANN001, ANN201
+def _unit_index(x, k):  # noqa: ANN001, ANN202
+    # floor(x k) for x in [0, 1): a uniform index in range(k)
+    return min(int(x * k), k - 1)
+
+
+@njit(cache=True, nogil=True)
+def woa_move(X, best, coef, q, pu, off, a, c, box, Xn, de_on, idx):  # noqa: ANN001, ANN201
     """WOA position update (eqs 2-10, RSCDWOA's 11, 12 and 15) of every whale into ``Xn``, clipped.
 
     ``coef`` rows 0-2 drive ``A = 2 a coef_0 - a``, ``C = 2 coef_1`` and the spiral parameter
     ``l = ell_lo + ell_span coef_2`` (uniform draws for WOA, chaotic values for RSCDWOA);
     ``q`` picks encircling (``q < 0.5``, or ``<= 0.5`` when ``c[C_Q_INCL]``) or the spiral;
-    whale ``i``'s random partner is ``(i + off_i) % n``. With ``de_on`` the encircling whales
-    are instead listed in ``idx`` for the DE stage (their rows are left for it to fill) and
-    their number is returned.
+    whale ``i``'s random partner is ``(i + o_i) % n`` with ``o_i`` uniform in ``1..n-1``:
+    ``off_i`` when ``off`` is given (RSCDWOA: numpy's ``integers``, as before the kernels),
+    else ``1 + floor(pu_i (n - 1))`` (WOA: one ``rng.random`` call is ~8x cheaper than one
+    ``integers`` call). With ``de_on`` the encircling whales are instead listed in ``idx``
+    for the DE stage (their rows are left for it to fill) and their number is returned.
     """
     n, d = X.shape
     b, ell_lo, ell_span = c[C_B], c[C_ELL_LO], c[C_ELL_SPAN]
@@ -61,7 +72,10 @@ def woa_move(X, best, coef, q, off, a, c, box, Xn, de_on, idx):  # noqa: ANN001,
         if enc:
             A = two_a * coef[0, i] - a
             C = 2.0 * coef[1, i]
-            p = (i + off[i]) % n if abs(A) >= 1.0 else -1  # search for prey (|A| >= 1) or encircle
+            p = -1  # encircle X_* (|A| < 1) or search for prey around a random other whale
+            if abs(A) >= 1.0:
+                o = off[i] if off.size else 1 + _unit_index(pu[i], n - 1)
+                p = (i + o) % n
             for j in range(d):
                 ref = X[p, j] if p >= 0 else best[j]
                 x = ref - A * abs(C * ref - X[i, j])

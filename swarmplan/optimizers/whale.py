@@ -123,6 +123,7 @@ class _Kit:
     idx: np.ndarray  # (n,) int: the DE whales of the generation (first m entries)
     dead: np.ndarray  # (3, n) bool: chaotic values to restart
     none: np.ndarray  # (0, d): stands for the reverse-search arrays of a generation without DE
+    no_off: np.ndarray  # (0,) int: no integer partner offsets (WOA draws them as uniforms)
 
 
 def _kit(problem: Problem, n: int, **consts: float) -> _Kit:
@@ -137,6 +138,7 @@ def _kit(problem: Problem, n: int, **consts: float) -> _Kit:
         idx=np.zeros(n, dtype=np.int64),
         dead=np.zeros((3, n), dtype=bool),
         none=np.empty((0, problem.dim)),
+        no_off=np.empty(0, dtype=np.int64),
     )
 
 
@@ -197,12 +199,12 @@ class WOA(Optimizer):
             state.kit = _kit(problem, n, b=self.params["b"], ell_lo=-1.0, ell_span=2.0)
         kit = state.kit
         a = 2.0 - 2.0 * min(problem.evaluations / problem.max_evals, 1.0)  # eq (6)
-        # rows: r1 for A = 2 a r1 - a (eq 4), r2 for C = 2 r2 (eq 5), the spiral parameter
-        # l ~ U(-1, 1) of eq (7) (as U[0, 1), see ell_lo/ell_span), q of eq (8)
-        r = rng.random((4, n))
-        partner = rng.integers(1, n, n)  # X_rand of eqs (9)-(10): whale (i + partner_i) % n != i
+        # one draw, rows: r1 for A = 2 a r1 - a (eq 4), r2 for C = 2 r2 (eq 5), the spiral
+        # parameter l ~ U(-1, 1) of eq (7) (as U[0, 1), see ell_lo/ell_span), q of eq (8),
+        # the partner X_rand of eqs (9)-(10) (whale i + 1 + floor(u (n-1)) mod n, never i)
+        r = rng.random((5, n))
         Xn = np.empty((n, d))
-        k.woa_move(state.X, state.best_x, r, r[3], partner, a, kit.c, kit.box, Xn, False, kit.idx)
+        k.woa_move(state.X, state.best_x, r, r[3], r[4], kit.no_off, a, kit.c, kit.box, Xn, False, kit.idx)
         F = problem.evaluate(Xn)
         state.best_f = k.settle(
             state.X, F, Xn, F, kit.idx, 0, kit.none, kit.box, kit.none, state.best_x, state.best_f
@@ -396,7 +398,7 @@ class RSCDWOA(Optimizer):
         # eqs (3), (9)-(10) and the chaotic spiral (15), A = 2 a w - a (11), C = 2 w (12); the
         # encircling whales go to DE instead once the lifespan is used up (line 16)
         de_on = state.s >= int(p["lifespan"])
-        m = k.woa_move(state.X, state.best_x, state.w, q, partner, a, kit.c, kit.box, Xn, de_on, kit.idx)
+        m = k.woa_move(state.X, state.best_x, state.w, q, q, partner, a, kit.c, kit.box, Xn, de_on, kit.idx)
         z = Xr = kit.none
         if m:  # DE stage, eqs (17)-(22)
             k.de_trials(state.X, state.F, kit.idx, *self._de_draws(rng, n, m, d), kit.c, kit.box, Xn)
