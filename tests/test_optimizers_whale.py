@@ -175,3 +175,48 @@ def test_rscdwoa_bad_parameters(params, name):
 def test_rscdwoa_defaults():
     p = make("rscdwoa").params
     assert p["chaos"] == "tent" and p["beta"] == 0.74 and p["b"] == 1.0 and p["lam"] == 1e-4
+
+
+# --------------------------------------------------------------------------- compiled kernels
+
+
+def test_woa_generation_is_eqs_2_to_10_on_the_same_draws():
+    # one generation of the kernel against the equations written out in numpy
+    from swarmplan.optimizers.core import Problem
+
+    opt = make("woa", population=40)
+    problem = Problem(shifted_sphere, LOWER, UPPER, 10**6)
+    state = opt.setup(problem, np.random.default_rng(1), None)
+    problem.evaluations = problem.max_evals // 4  # a = 1.5: both |A| < 1 and |A| >= 1 occur
+    X, best = state.X.copy(), state.best_x.copy()
+    n = len(X)
+    a = 2.0 - 2.0 * problem.evaluations / problem.max_evals
+    opt.iterate(state, problem, np.random.default_rng(7), 1)
+
+    r = np.random.default_rng(7).random((5, n))
+    A, C, ell, q = 2.0 * a * r[0] - a, 2.0 * r[1], -1.0 + 2.0 * r[2], r[3]
+    partner = (np.arange(n) + 1 + np.floor(r[4] * (n - 1)).astype(int)) % n
+    explore = np.abs(A) >= 1.0
+    ref = np.where(explore[:, None], X[partner], best)
+    encircle = ref - A[:, None] * np.abs(C[:, None] * ref - X)  # eqs 2-3 and 9-10
+    spiral = np.abs(best - X) * (np.exp(ell) * np.cos(2.0 * np.pi * ell))[:, None] + best  # eq 7
+    expected = np.clip(np.where((q < 0.5)[:, None], encircle, spiral), LOWER, UPPER)
+    assert np.all(partner != np.arange(n))
+    assert explore[q < 0.5].any() and not explore[q < 0.5].all() and (q >= 0.5).any()
+    assert np.array_equal(state.X, expected)
+
+
+@pytest.mark.parametrize("kind", ["tent", "logistic"])
+def test_rscdwoa_revives_degenerate_chaos_in_a_run(kind):
+    from swarmplan.optimizers.core import Problem
+
+    opt = make("rscdwoa", chaos=kind, population=5)
+    problem = Problem(sphere, LOWER, UPPER, 10**6)
+    rng = np.random.default_rng(0)
+    state = opt.setup(problem, rng, None)
+    # 0.5 -> 1 -> 0 (logistic), the tent map's fixed point, ~0 and ~1: all would stay dead
+    state.w[0] = [0.5, 1.0 / (2.0 - 0.74), 0.75, 1e-12, 1.0 - 1e-12]
+    for it in range(1, 30):
+        opt.iterate(state, problem, rng, it)
+        assert np.all((state.w > 0.0) & (state.w < 1.0))
+    assert len(np.unique(state.w)) == state.w.size

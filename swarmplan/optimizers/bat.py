@@ -53,6 +53,8 @@ Readings shared by the three algorithms (the papers are silent, garbled or unwor
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -129,6 +131,51 @@ def _update_best(state, X: np.ndarray, f: np.ndarray) -> bool:
     return False
 
 
+@functools.cache
+def _k():  # noqa: ANN202
+    """The compiled kernels; numba is imported at the first run, not with the package."""
+    from swarmplan.optimizers import _bat_kernels
+
+    return _bat_kernels
+
+
+@dataclass
+class _Kit:
+    """Per-run constants and scratch arrays the kernels take (built once, see ``_kit``)."""
+
+    c: np.ndarray  # the parameters, laid out as _bat_kernels.C_*
+    box: np.ndarray  # (3, d): lower, upper, upper - lower
+    changed: np.ndarray  # (n,) bool: accepted / changed this generation
+    src: np.ndarray  # (m,) int: the source each onlooker chose (iba_abc)
+    scouts: np.ndarray  # (n,) bool: sources to scout (iba_abc)
+
+
+def _kit(params, problem: Problem, n: int, m: int = 0) -> _Kit:
+    p = params
+    c = np.zeros(8)
+    c[:6] = (
+        p["f_min"],
+        p["f_max"] - p["f_min"],
+        p["walk_scale"],
+        p["acceptance"] == "best",
+        p["alpha"],
+        p["A0"] if p["A_min"] is None else p["A_min"],
+    )
+    c[6:] = (p.get("F", 0.0), p.get("T_limit", 0))
+    return _Kit(
+        c=c,
+        box=np.stack([problem.lower, problem.upper, problem.span]),
+        changed=np.zeros(n, dtype=bool),
+        src=np.zeros(m, dtype=np.int64),
+        scouts=np.zeros(n, dtype=bool),
+    )
+
+
+def _pulse(p, iteration: int) -> float:
+    """Eq 10's new pulse rate ``r0 (1 - exp(-gamma t))``."""
+    return p["r0"] * (1.0 - math.exp(-p["gamma"] * iteration))
+
+
 # --------------------------------------------------------------------------------------
 # BA
 
@@ -142,6 +189,7 @@ class _BatState:
     r: np.ndarray  # (n,) pulse rate
     best_x: np.ndarray
     best_f: float
+    kit: _Kit | None = None  # kernel constants and scratch, built at the first generation
 
 
 @register
@@ -202,20 +250,20 @@ class BatAlgorithm(Optimizer):
         )
 
     def iterate(self, state: _BatState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        p = self.params
+        k = _k()
         n, d = state.X.shape
-        freq = p["f_min"] + (p["f_max"] - p["f_min"]) * rng.random(n)
-        state.V += (state.best_x - state.X) * freq[:, None]
-        cand = state.X + state.V
-        local = rng.random(n) > state.r
-        walk = state.best_x + rng.uniform(-1.0, 1.0, (n, d)) * (
-            state.A.mean() * p["walk_scale"] * problem.span
-        )
-        cand[local] = walk[local]
-        cand = problem.clip(cand)
+        if state.kit is None:
+            state.kit = _kit(self.params, problem, n)
+        # one draw for the generation, in the order the equations use them: frequencies,
+        # rand_1, the walk's eps (eqs 8-9), rand_2 (eq 10); the kernels read it by offset
+        u = rng.random(n * (d + 3))
+        cand = np.empty((n, d))  # new every generation: the cost function may keep it
+        k.bat_move(state.X, state.V, state.best_x, state.A, state.r, u, state.kit.c, state.kit.box, cand)
         fc = problem.evaluate(cand)
-        _bat_acceptance(state, cand, fc, rng, iteration, p)
-        _update_best(state, cand, fc)
+        state.best_f = k.bat_accept(
+            state.X, state.fit, state.A, state.r, cand, fc, u, state.best_x, state.best_f,
+            _pulse(self.params, iteration), state.kit.c, state.kit.changed,
+        )  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------
@@ -233,6 +281,7 @@ class _IbaAbcState:
     n_onlookers: int
     best_x: np.ndarray
     best_f: float
+    kit: _Kit | None = None  # kernel constants and scratch, built at the first generation
 
 
 def abc_fitness(cost: np.ndarray) -> np.ndarray:
@@ -256,21 +305,6 @@ def roulette_probabilities(cost: np.ndarray) -> np.ndarray:
     if not total > 0:
         return np.full(len(fit), 1.0 / len(fit))
     return fit / total
-
-
-def _distinct_donors(rng: np.random.Generator, chosen: np.ndarray, ne: int) -> np.ndarray:
-    """Three employed-bee indices per onlooker, distinct from each other and from ``chosen``.
-
-    Vectorized: rank random keys with the chosen source's key set to +inf. With fewer than
-    four employed bees the donors cannot all be distinct; they are then drawn with
-    replacement (a fallback the paper, whose populations are 10-70, never needs).
-    """
-    m = len(chosen)
-    if ne < 4:
-        return rng.integers(0, ne, size=(m, 3))
-    keys = rng.random((m, ne))
-    keys[np.arange(m), chosen] = np.inf
-    return np.argpartition(keys, 3, axis=1)[:, :3]
 
 
 @register
@@ -308,6 +342,10 @@ class IbaAbc(Optimizer):
       source, the best candidate. This only differs from the sequential loop when two
       onlookers pick the same source in one generation.
     * ``rand_3 > r_i`` uses the pulse rate of the chosen source (onlookers have none).
+    * ``r1, r2, r3`` are drawn one after the other, each uniformly among the employed bees
+      not yet taken (nor ``k``); with fewer than four employed bees they cannot all be
+      distinct and are drawn with replacement (a fallback the paper, whose populations are
+      10-70, never needs).
     * ``T_limit`` counts generations ("does not change after a certain period of time"):
       a source's counter is reset whenever the employed move or an onlooker changes it and
       incremented otherwise; a scout is sent when it reaches ``T_limit``.
@@ -373,62 +411,38 @@ class IbaAbc(Optimizer):
     def iterate(
         self, state: _IbaAbcState, problem: Problem, rng: np.random.Generator, iteration: int
     ) -> None:
+        k = _k()
         p = self.params
         ne, d = state.X.shape
-        changed = np.zeros(ne, dtype=bool)
+        m = state.n_onlookers
+        if state.kit is None:
+            state.kit = _kit(p, problem, ne, m)
+        kit = state.kit
+        # one draw for the generation: the employed bees' BA step as in ``ba``, then per
+        # onlooker roulette, dimension, 3 donors, rand_3, eps (_bat_kernels.iba_onlookers)
+        u = rng.random(ne * (d + 3) + 7 * m)
 
         # 1. employed bees: one BA step (eqs 8-10)
-        freq = p["f_min"] + (p["f_max"] - p["f_min"]) * rng.random(ne)
-        state.V += (state.best_x - state.X) * freq[:, None]
-        cand = state.X + state.V
-        local = rng.random(ne) > state.r
-        walk = state.best_x + rng.uniform(-1.0, 1.0, (ne, d)) * (
-            state.A.mean() * p["walk_scale"] * problem.span
-        )
-        cand[local] = walk[local]
-        cand = problem.clip(cand)
+        cand = np.empty((ne, d))  # new every generation: the cost function may keep it
+        k.bat_move(state.X, state.V, state.best_x, state.A, state.r, u, kit.c, kit.box, cand)
         fc = problem.evaluate(cand)
-        changed |= _bat_acceptance(state, cand, fc, rng, iteration, p)
-        _update_best(state, cand, fc)
 
         # 2. onlookers: roulette (eq 11), one-dimension mutation (eq 12), local search (eq 13)
-        m = state.n_onlookers
-        src = rng.choice(ne, size=m, p=roulette_probabilities(state.fit))
-        dims = rng.integers(0, d, size=m)
-        donors = _distinct_donors(rng, src, ne)
-        rows = np.arange(m)
-        val = state.X[donors[:, 0], dims] + p["F"] * (
-            state.X[donors[:, 1], dims] - state.X[donors[:, 2], dims]
-        )
-        near_best = rng.random(m) > state.r[src]
-        eps = rng.uniform(-1.0, 1.0, m)
-        val = np.where(
-            near_best, state.best_x[dims] + eps * state.A.mean() * p["walk_scale"] * problem.span[dims], val
-        )
-        val = np.clip(val, problem.lower[dims], problem.upper[dims])
-        on = state.X[src].copy()
-        on[rows, dims] = val
+        on = np.empty((m, d))
+        state.best_f = k.iba_onlookers(
+            state.X, state.fit, state.A, state.r, cand, fc, u, state.best_x, state.best_f,
+            _pulse(p, iteration), kit.c, kit.box, on, kit.src, kit.changed,
+        )  # fmt: skip
         fo = problem.evaluate(on)
-        _update_best(state, on, fo)
-        # per source, the best onlooker candidate built from it (greedy, step 11)
-        order = np.lexsort((fo, src))  # grouped by source, best first within a group
-        first = np.ones(m, dtype=bool)
-        first[1:] = src[order][1:] != src[order][:-1]
-        winners = order[first]
-        k = src[winners]
-        better = fo[winners] < state.fit[k]
-        k, winners = k[better], winners[better]
-        state.X[k] = on[winners]
-        state.fit[k] = fo[winners]
-        changed[k] = True
+        # per source the best onlooker candidate built from it (greedy, step 11), trial counters
+        state.best_f, n_scouts = k.iba_settle(
+            state.X, state.fit, state.trial, on, fo, kit.src, kit.changed, state.best_x, state.best_f,
+            kit.c, kit.scouts,
+        )  # fmt: skip
 
         # 3. scouts after T_limit generations without change (step 14)
-        state.trial = np.where(changed, 0, state.trial + 1)
-        best_idx = int(np.argmin(state.fit))
-        exhausted = state.trial >= int(p["T_limit"])
-        exhausted[best_idx] = False
-        if exhausted.any():
-            idx = np.flatnonzero(exhausted)
+        if n_scouts:
+            idx = np.flatnonzero(kit.scouts)
             state.X[idx] = problem.uniform(rng, len(idx))
             state.V[idx] = 0.0
             state.A[idx] = p["A0"]

@@ -14,6 +14,7 @@ Where the paper is ambiguous the reading chosen is stated in the class docstring
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -102,6 +103,45 @@ def secondary_reflection(rng: np.random.Generator, X: np.ndarray, lower: np.ndar
     return np.clip(Y, mid - half, mid + half)
 
 
+# --------------------------------------------------------------------------- kernels
+
+
+@functools.cache
+def _k():  # noqa: ANN202
+    """The compiled kernels; numba is imported at the first run, not with the package."""
+    from swarmplan.optimizers import _whale_kernels
+
+    return _whale_kernels
+
+
+@dataclass
+class _Kit:
+    """Per-run constants and scratch arrays the kernels take (built at the first generation)."""
+
+    c: np.ndarray  # parameters, laid out as _whale_kernels.C_*
+    box: np.ndarray  # (3, d): lower, upper, upper - lower
+    idx: np.ndarray  # (n,) int: the DE whales of the generation (first m entries)
+    dead: np.ndarray  # (3, n) bool: chaotic values to restart
+    none: np.ndarray  # (0, d): stands for the reverse-search arrays of a generation without DE
+    no_off: np.ndarray  # (0,) int: no integer partner offsets (WOA draws them as uniforms)
+
+
+def _kit(problem: Problem, n: int, **consts: float) -> _Kit:
+    from swarmplan.optimizers import _whale_kernels as wk
+
+    c = np.zeros(wk.N_C)
+    for key, value in consts.items():
+        c[getattr(wk, "C_" + key.upper())] = value
+    return _Kit(
+        c=c,
+        box=np.stack([problem.lower, problem.upper, problem.span]),
+        idx=np.zeros(n, dtype=np.int64),
+        dead=np.zeros((3, n), dtype=bool),
+        none=np.empty((0, problem.dim)),
+        no_off=np.empty(0, dtype=np.int64),
+    )
+
+
 # --------------------------------------------------------------------------- WOA
 
 
@@ -111,36 +151,7 @@ class _WOAState:
     F: np.ndarray  # their costs (n,)
     best_x: np.ndarray  # X_*: best position found so far (the prey)
     best_f: float
-
-
-def _other_index(rng: np.random.Generator, n: int) -> np.ndarray:
-    """For each i a uniformly random index in range(n) different from i."""
-    return (np.arange(n) + rng.integers(1, n, n)) % n
-
-
-def _woa_moves(
-    X: np.ndarray,
-    best: np.ndarray,
-    A: np.ndarray,
-    C: np.ndarray,
-    ell: np.ndarray,
-    encircling: np.ndarray,
-    b: float,
-    partner: np.ndarray,
-) -> np.ndarray:
-    """WOA position update for every whale at once, eqs (2)-(10).
-
-    Whales with ``encircling`` (q < 0.5 in eq 8) encircle (eqs 2-3) towards ``best`` when
-    |A| < 1, search for prey (eqs 9-10) towards the random whale ``partner`` when |A| >= 1;
-    the others take the bubble-net spiral (eq 7) ``D' e^{b ell} cos(2 pi ell) + X_*`` with
-    ``D' = |X_* - X_i|``.
-    """
-    explore = np.abs(A) >= 1.0
-    ref = np.where(explore[:, None], X[partner], best)
-    D = np.abs(C[:, None] * ref - X)
-    encircle = ref - A[:, None] * D
-    spiral = np.abs(best - X) * (np.exp(b * ell) * np.cos(_TWO_PI * ell))[:, None] + best
-    return np.where(encircling[:, None], encircle, spiral)
+    kit: _Kit | None = None  # kernel constants and scratch, built at the first generation
 
 
 @register
@@ -182,23 +193,23 @@ class WOA(Optimizer):
         return _WOAState(X=X, F=F, best_x=X[i].copy(), best_f=float(F[i]))
 
     def iterate(self, state: _WOAState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        n = len(state.X)
+        k = _k()
+        n, d = state.X.shape
+        if state.kit is None:
+            state.kit = _kit(problem, n, b=self.params["b"], ell_lo=-1.0, ell_span=2.0)
+        kit = state.kit
         a = 2.0 - 2.0 * min(problem.evaluations / problem.max_evals, 1.0)  # eq (6)
-        r = rng.random((2, n))
-        A = 2.0 * a * r[0] - a  # eq (4)
-        C = 2.0 * r[1]  # eq (5)
-        ell = rng.uniform(-1.0, 1.0, n)  # spiral parameter l of eq (7)
-        q = rng.random(n)
-        Xn = _woa_moves(
-            state.X, state.best_x, A, C, ell, q < 0.5, float(self.params["b"]), _other_index(rng, n)
-        )
-        np.clip(Xn, problem.lower, problem.upper, out=Xn)
+        # one draw, rows: r1 for A = 2 a r1 - a (eq 4), r2 for C = 2 r2 (eq 5), the spiral
+        # parameter l ~ U(-1, 1) of eq (7) (as U[0, 1), see ell_lo/ell_span), q of eq (8),
+        # the partner X_rand of eqs (9)-(10) (whale i + 1 + floor(u (n-1)) mod n, never i)
+        r = rng.random((5, n))
+        Xn = np.empty((n, d))
+        k.woa_move(state.X, state.best_x, r, r[3], r[4], kit.no_off, a, kit.c, kit.box, Xn, False, kit.idx)
         F = problem.evaluate(Xn)
+        state.best_f = k.settle(
+            state.X, F, Xn, F, kit.idx, 0, kit.none, kit.box, kit.none, state.best_x, state.best_f
+        )
         state.X, state.F = Xn, F
-        i = int(np.argmin(F))
-        if F[i] < state.best_f:
-            state.best_f = float(F[i])
-            state.best_x = Xn[i].copy()
 
 
 # --------------------------------------------------------------------------- RSCDWOA
@@ -212,6 +223,7 @@ class _RSCDWOAState:
     best_f: float
     w: np.ndarray  # (3, n) chaotic sequences driving A, C and the spiral parameter, per whale
     s: int  # generations since X_* last improved (Algorithm 1, lines 3 and 32)
+    kit: _Kit | None = None  # kernel constants and scratch, built at the first generation
 
 
 @register
@@ -342,85 +354,64 @@ class RSCDWOA(Optimizer):
         i = int(np.argmin(F))
         return _RSCDWOAState(X=X, F=F, best_x=X[i].copy(), best_f=float(F[i]), w=w, s=0)
 
-    def _de_trials(
-        self, state: _RSCDWOAState, idx: np.ndarray, problem: Problem, rng: np.random.Generator
-    ) -> np.ndarray:
-        """Trial vectors W (eqs 17-22) for the whales ``idx``."""
+    def _de_draws(self, rng: np.random.Generator, n: int, m: int, d: int) -> tuple:
+        """The random numbers of eqs (17)-(22) for ``m`` DE whales, drawn as numpy always drew them.
+
+        Neighbourhood keys ``(m, 2k+1)`` for ``p1 != p2`` and ``g1``, ``g2`` of eq (17) (one
+        call); offsets of ``r1 != r2 (!= i)``; crossover draws and the forced coordinate
+        ``chi`` of eq (21); per-coordinate perturbation draws of eq (22) and, only when one
+        of them perturbs, a uniform point of the box per whale.
+        """
         p = self.params
-        X, F = state.X, state.F
-        n, d = X.shape
-        m = len(idx)
-        Xi = X[idx]
-        k = int(p["k"])
-        # Ring neighbourhood [i-k, i+k] (Fig. 4) and its best member X_{i,best,l}.
-        nb = (idx[:, None] + np.arange(-k, k + 1)) % n
-        lbest = nb[np.arange(m), np.argmin(F[nb], axis=1)]
-        # p1 != p2 drawn from the neighbourhood.
-        pick = np.argsort(rng.random((m, 2 * k + 1)), axis=1)[:, :2]
-        p1 = nb[np.arange(m), pick[:, 0]]
-        p2 = nb[np.arange(m), pick[:, 1]]
-        g1 = p["lam"] * rng.random((m, d))  # eq (17)
-        g2 = p["lam"] * rng.random((m, d))
-        L = Xi + g1 * (X[lbest] - Xi) + g2 * (X[p1] - X[p2])  # eq (18)
-        # r1 != r2, both != i, from the whole population.
+        ua = rng.random(m * (2 * int(p["k"]) + 1) + 2 * m * d)
         o1 = rng.integers(1, n, m)
         o2 = rng.integers(1, n - 1, m)
-        o2 += o2 >= o1
-        r1, r2 = (idx + o1) % n, (idx + o2) % n
-        gbest = X[int(np.argmin(F))]
-        Fs = p["F"]
-        G = gbest + Fs * (gbest - Xi) + Fs * (X[r1] - X[r2])  # eq (19)
-        V = p["omega"] * G + (1.0 - p["omega"]) * L  # eq (20)
-        cross = rng.random((m, d)) <= p["C_rate"]  # eq (21), standard DE sense
-        cross[np.arange(m), rng.integers(0, d, m)] = True
-        U = np.where(cross, V, Xi)
-        alpha = p["alpha"]
-        if alpha > 0:  # eq (22): perturbation vector, a uniform point of the box
-            perturb = rng.random((m, d)) <= alpha
-            if perturb.any():
-                U = np.where(perturb, problem.uniform(rng, m), U)
-        return U
+        uc = rng.random(m * d)
+        chi = rng.integers(0, d, m)
+        up = uu = np.empty(0)
+        if p["alpha"] > 0:
+            up = rng.random(m * d)
+            if up.min() <= p["alpha"]:
+                uu = rng.random(m * d)
+        return ua, o1, o2, uc, chi, up, uu
 
     def iterate(
         self, state: _RSCDWOAState, problem: Problem, rng: np.random.Generator, iteration: int
     ) -> None:
+        k = _k()
         p = self.params
-        n = len(state.X)
+        n, d = state.X.shape
+        if state.kit is None:
+            consts = {key: p[key] for key in ("b", "beta", "mu", "k", "lam", "F", "omega", "alpha")}
+            state.kit = _kit(
+                problem, n, ell_lo=0.0, ell_span=1.0, q_incl=1.0, tent=p["chaos"] == "tent",
+                crate=p["C_rate"], **consts,
+            )  # fmt: skip
+        kit = state.kit
         a = 2.0 - 2.0 * min(problem.evaluations / problem.max_evals, 1.0)  # eq (6)
-        state.w = chaos_step(state.w, p["chaos"], p["beta"], p["mu"], rng)  # eq (13) / (14)
-        wA, wC, wl = state.w
-        A = 2.0 * a * wA - a  # eq (11)
-        C = 2.0 * wC  # eq (12)
-        q = rng.random(n)
-        enc = q <= 0.5  # Algorithm 1 line 10
-        # eqs (3), (9)-(10) and the chaotic spiral (15)
-        Xn = _woa_moves(state.X, state.best_x, A, C, wl, enc, float(p["b"]), _other_index(rng, n))
-        de = enc & (state.s >= int(p["lifespan"]))
-        idx = np.flatnonzero(de)
-        if idx.size:
-            Xn[idx] = self._de_trials(state, idx, problem, rng)
-        np.clip(Xn, problem.lower, problem.upper, out=Xn)  # line 28
+        if k.chaos_advance(state.w, kit.c, kit.dead):  # eq (13) / (14); rare: see chaos_step
+            fresh = rng.uniform(_CHAOS_EPS, 1.0 - _CHAOS_EPS, state.w.shape)
+            state.w[kit.dead] = fresh[kit.dead]
+        q = rng.random(n)  # Algorithm 1 line 10: encircling / DE when q <= 0.5
+        partner = rng.integers(1, n, n)
+        Xn = np.empty((n, d))
+        # eqs (3), (9)-(10) and the chaotic spiral (15), A = 2 a w - a (11), C = 2 w (12); the
+        # encircling whales go to DE instead once the lifespan is used up (line 16)
+        de_on = state.s >= int(p["lifespan"])
+        m = k.woa_move(state.X, state.best_x, state.w, q, q, partner, a, kit.c, kit.box, Xn, de_on, kit.idx)
+        z = Xr = kit.none
+        if m:  # DE stage, eqs (17)-(22)
+            k.de_trials(state.X, state.F, kit.idx, *self._de_draws(rng, n, m, d), kit.c, kit.box, Xn)
         Fn = problem.evaluate(Xn)  # line 29
-        if idx.size:
-            keep = Fn[idx] > state.F[idx]  # eq (23): the trial wins ties
-            Xn[idx[keep]] = state.X[idx[keep]]
-            Fn[idx[keep]] = state.F[idx[keep]]
-        state.X, state.F = Xn, Fn
-        improved = self._update_best(state)
-        if idx.size:  # reverse search, eq (16), on the DE whales' selected positions
-            Xr = secondary_reflection(rng, Xn[idx], problem.lower, problem.upper)
+        if m:  # reverse search of eq (16) on the DE whales after their selection (eq 23)
+            z = rng.standard_normal((m, d))
+            Xr = np.empty((m, d))
+        best_f = k.settle(state.X, state.F, Xn, Fn, kit.idx, m, z, kit.box, Xr, state.best_x, state.best_f)
+        improved = best_f < state.best_f
+        state.X, state.F, state.best_f = Xn, Fn, best_f
+        if m:
             Fr = problem.evaluate(Xr)
-            better = Fr < Fn[idx]
-            Xn[idx[better]] = Xr[better]
-            Fn[idx[better]] = Fr[better]
-            improved |= self._update_best(state)
+            best_f = k.reverse_accept(Xn, Fn, kit.idx, Xr, Fr, state.best_x, state.best_f)
+            improved |= best_f < state.best_f
+            state.best_f = best_f
         state.s = 0 if improved else state.s + 1  # line 32
-
-    @staticmethod
-    def _update_best(state: _RSCDWOAState) -> bool:
-        i = int(np.argmin(state.F))
-        if state.F[i] < state.best_f:
-            state.best_f = float(state.F[i])
-            state.best_x = state.X[i].copy()
-            return True
-        return False
