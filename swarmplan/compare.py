@@ -25,6 +25,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from swarmplan.blas import limit_blas_threads
 from swarmplan.sweep.report import table, table_notes, verdict  # noqa: F401 - part of this module's API
 
 
@@ -64,6 +65,7 @@ def _line(r: dict[str, Any]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    limit_blas_threads()
     from swarmplan.sweep.engine import make_client, run_tasks
     from swarmplan.sweep.spec import SpecError, parse_spec
 

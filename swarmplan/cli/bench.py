@@ -10,6 +10,8 @@ import argparse
 import importlib
 import sys
 
+from swarmplan.blas import limit_blas_threads
+
 #: subcommand name -> (module path, one-line help). Modules are imported lazily.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "optimizers": ("swarmplan.bench.optimizers", "run a paper benchmark suite over the optimizers"),
@@ -47,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    limit_blas_threads()
     return int(args._main(args) or 0)
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from swarmplan import optimizers
+from swarmplan.blas import limit_blas_threads
 from swarmplan.core import StepResult
 from swarmplan.io.recording import McapRecorder
 from swarmplan.io.runner import run_episode
@@ -217,6 +218,7 @@ def check_planner_settings(world: World, source: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    limit_blas_threads()
     try:
         names = optimizers.available()
         if args.optimizer is not None and args.optimizer != "none" and args.optimizer not in names:

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from swarmplan.blas import limit_blas_threads
 from swarmplan.sweep.adapter import build_world, read_log, run_world
 from swarmplan.sweep.spec import Task
 
@@ -117,6 +118,7 @@ def log_name(task: Task) -> str:
 def run_task(task: Task, out_dir: str) -> dict[str, Any]:
     """Worker side: build the world, run it, return its row. Never raises for a failing run:
     the exception becomes an ``error`` row (with the log so far, when the run had started)."""
+    limit_blas_threads()  # workers share the cores: small matrices on one BLAS thread
     final = Path(out_dir) / log_name(task)
     final.parent.mkdir(parents=True, exist_ok=True)
     # A unique name per attempt: a retried task (its worker died) never shares a file with the

@@ -20,6 +20,8 @@ import sys
 import time
 from pathlib import Path
 
+from swarmplan.blas import limit_blas_threads
+
 from .config import TrackerConfig, parse_tracker
 from .output import PLOT_FORMATS
 
@@ -125,6 +127,7 @@ def _fmt_table(result, wall: float) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    limit_blas_threads()
     from swarmplan.replay import RecordingError, load
 
     try:
