@@ -1,0 +1,78 @@
+"""Per-escape constants of :class:`~swarmplan.planner.segment_cost.SegmentCost` as flat arrays
+for the compiled kernel (``_segment_kernel``): bodies by shape code, intents padded."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+# Shape codes of the kernel's signed distances; meshes have none (numpy computes them).
+SHAPE_CODES = {"sphere": 0, "box": 1, "cylinder": 2, "capsule": 3}
+
+
+def analytic(obstacles: Sequence) -> bool:
+    """Whether every obstacle has a shape the kernel measures exactly (no mesh)."""
+    return all(o.shape in SHAPE_CODES for o in obstacles)
+
+
+def pack_bodies(obstacles: Sequence) -> dict[str, np.ndarray]:
+    """Shape code, centre, rotation (local = (p - centre) @ rotation, as ``ShapeBatch``),
+    identity flag, parameters (sphere: radius; box: half sizes; cylinder and capsule: radius,
+    half height) and bounding radius of each obstacle (all of them analytic)."""
+    M = len(obstacles)
+    prm = np.zeros((M, 3))
+    for j, o in enumerate(obstacles):
+        if o.shape == "sphere":
+            prm[j, 0] = o.radius
+        elif o.shape == "box":
+            prm[j] = np.asarray(o.size, dtype=float) / 2
+        else:
+            prm[j, :2] = o.radius, o.height / 2
+    rot = np.array([o.rotation for o in obstacles], dtype=float).reshape(M, 3, 3)
+    return {
+        "code": np.array([SHAPE_CODES[o.shape] for o in obstacles], dtype=np.int64),
+        "pos": np.array([o.position for o in obstacles], dtype=float).reshape(M, 3),
+        "rot": rot,
+        "ident": np.array([np.array_equal(R, np.eye(3)) for R in rot], dtype=np.bool_),
+        "prm": prm,
+        "bound": np.array([o.bounding_radius for o in obstacles], dtype=float),
+    }
+
+
+def pack_intents(intents: Sequence, radius: float) -> dict[str, np.ndarray]:
+    """Per-escape constants of the other-agents term: the intents as padded arrays (knots
+    repeated past each one's end), their ellipsoid scales, contact and reach distances and
+    largest speeds (``inf`` where two knots share a time)."""
+    m = max((len(it.times) for it in intents), default=1)
+    M = len(intents)
+    times = np.zeros((M, m))
+    points = np.zeros((M, m, 3))
+    vmax = np.zeros(M)
+    for j, it in enumerate(intents):
+        k = len(it.times)
+        times[j, :k], times[j, k:] = it.times, it.times[-1]
+        points[j, :k], points[j, k:] = it.points, it.points[-1]
+        if k > 1:
+            dt = np.diff(np.asarray(it.times, dtype=float))
+            dp = np.linalg.norm(np.diff(np.asarray(it.points, dtype=float), axis=0), axis=1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                v = np.where(dt > 0, dp / np.where(dt > 0, dt, 1.0), np.inf)
+            # A little above the largest speed: it bounds how far the agent moves in a time.
+            vmax[j] = float(v.max()) * (1 + 1e-9)
+    scale = np.array([np.asarray(it.separation, dtype=float) + radius + it.radius for it in intents]).reshape(
+        M, 3
+    )
+    contact = np.array([radius + it.radius for it in intents], dtype=float)
+    # Beyond this distance both terms vanish: the ellipsoid term needs |d / scale| < 1.2, the
+    # collision term |d| < contact.
+    reach = np.maximum(1.2 * scale.max(axis=1, initial=0.0), contact)
+    return {
+        "times": times,
+        "points": points,
+        "nk": np.array([len(it.times) for it in intents], dtype=np.int64),
+        "scale": scale,
+        "contact": contact,
+        "reach": reach,
+        "vmax": vmax,
+    }
