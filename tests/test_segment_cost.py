@@ -31,6 +31,9 @@ def _random_intents(rng: np.random.Generator, count: int, t0: float) -> list[Int
         pts = rng.uniform([40, 40, 10], [140, 140, 40], (m, 3))
         times = t0 + np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 6.0, m - 1))])
         out.append(Intent(times, pts, float(rng.uniform(0.5, 1.5)), rng.uniform(1, 6, 3)))
+    # A jump: two knots at one time (no speed bound, so no tracing past it).
+    pts = rng.uniform([40, 40, 10], [140, 140, 40], (3, 3))
+    out.append(Intent(t0 + np.array([0.0, 2.0, 2.0]), pts, 1.0, np.array([3.0, 3.0, 2.0])))
     return out
 
 

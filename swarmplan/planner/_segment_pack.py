@@ -48,18 +48,17 @@ def pack_intents(intents: Sequence, radius: float) -> dict[str, np.ndarray]:
     M = len(intents)
     times = np.zeros((M, m))
     points = np.zeros((M, m, 3))
-    vmax = np.zeros(M)
     for j, it in enumerate(intents):
         k = len(it.times)
         times[j, :k], times[j, k:] = it.times, it.times[-1]
         points[j, :k], points[j, k:] = it.points, it.points[-1]
-        if k > 1:
-            dt = np.diff(np.asarray(it.times, dtype=float))
-            dp = np.linalg.norm(np.diff(np.asarray(it.points, dtype=float), axis=0), axis=1)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                v = np.where(dt > 0, dp / np.where(dt > 0, dt, 1.0), np.inf)
-            # A little above the largest speed: it bounds how far the agent moves in a time.
-            vmax[j] = float(v.max()) * (1 + 1e-9)
+    # Largest speed of each: the padding adds zero moves in zero time; a move in zero time
+    # (two knots at one time) has no speed bound. A little above: it bounds moves in a time.
+    dt = np.diff(times, axis=1)
+    dp = np.sqrt((np.diff(points, axis=1) ** 2).sum(-1))
+    moving = dt > 0
+    v = np.where(moving, dp / np.where(moving, dt, 1.0), np.where(dp > 0, np.inf, 0.0))
+    vmax = v.max(axis=1, initial=0.0) * (1 + 1e-9)
     scale = np.array([np.asarray(it.separation, dtype=float) + radius + it.radius for it in intents]).reshape(
         M, 3
     )
