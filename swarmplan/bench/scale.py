@@ -80,8 +80,8 @@ def _run(
 def _time_escapes(planner: Any) -> list[tuple[float, float]]:
     """(CPU ms of each escape optimisation of ``planner``, CPU ms of its cost calls in it),
     filled as the run goes: the wall_ms of ``/optimizer`` counts the time other processes
-    hold the cores, CPU time does not; the cost's share tells the cost function (decoding
-    and scoring candidates) from the optimizer's own work and the set-up."""
+    hold the cores, CPU time does not; the cost's share tells the cost function (scoring
+    candidates; decoding them is not counted) from the optimizer's own work and the set-up."""
     out: list[tuple[float, float]] = []
     esc = getattr(planner, "escape", None)
     if esc is None or not hasattr(esc, "optimize_segment"):
