@@ -19,6 +19,11 @@ to the polyline; :class:`SegmentCost` scores ``(n, K+2, 3)`` polylines in one ca
 
 Every penalty is zero for a path with the required clearance everywhere, so such a path
 costs its length plus its turning term (zero for a straight segment).
+
+A call is one compiled kernel (``_segment_kernel``: samples computed on the fly, bodies and
+intents culled per leg, samples skipped only where a distance proves they add zero); the
+numpy methods below (``sample``, ``static_penalty``, ...) are its reference
+(``terms_reference``) and its fallback for meshes, terrain peaks and threats.
 """
 
 from __future__ import annotations
@@ -221,6 +226,8 @@ class SegmentCost:
     def _kernel_args(self) -> tuple:
         """The kernel's per-escape arguments (rebuilt if a setting was changed since)."""
         key = (self.spacing, self.vertex_clearance, self.max_samples, self.w, self.start_clearance, self.t0)
+        key += (self.r, self.required, self.speed, self.turn_radius, self.max_climb, self.min_alt)
+        key += (self.fixed_wing, None if self.heading is None else tuple(self.heading))
         if self._args_key == key:
             return self._args
         w, world = self.w, self.world
@@ -429,7 +436,7 @@ class SegmentCost:
         return cost
 
     def agent_penalty_reference(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """Brute force of :meth:`agent_penalty`: every intent interpolated at every sample (tests)."""
+        """The agents' term by brute force: every intent interpolated at every sample (tests)."""
         cost = np.zeros(len(pts))
         t = self.t0 + s / self.speed
         for it in self.intents:
