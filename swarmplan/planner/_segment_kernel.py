@@ -1,28 +1,17 @@
 """Compiled cost of a population of candidate segments (``segment_cost.SegmentCost``).
 
-Why numba: a call scores ~30 candidates of ~500 samples each, 100 calls per escape. In numpy
-every term is a dozen array operations over (n, S, 3) temporaries (sampling, the static and
-moving bodies, floor and bounds, the other agents' intents, turning): ~2 ms per call, most of
-it numpy's per-operation overhead and temporaries, with the samples themselves cheap. Here
-one loop per candidate and leg computes the samples on the fly and every term beside them.
-
-The values are the brute-force ones (every sample against every body and intent), and the
-work is cut without approximating:
-
-- **per leg, culled bodies and intents**: a body whose bounding sphere stays beyond reach of
-  the leg's box (an intent: whose positions over the leg's time window do) adds exactly zero
-  on the leg;
-- **sphere tracing along a leg**: every distance here is 1-Lipschitz in the sample's
-  position (exact signed distances of spheres, boxes, cylinders, capsules; for a moving body
-  or another agent the relative position also moves with the other one, bounded by its
-  largest speed), so a sample at distance ``D`` from everything proves the next
-  ``(D - reach) / spacing`` samples beyond reach as well: they add exactly zero and are
-  skipped. Near something every sample is measured as before. A small margin (``_SLACK``)
-  keeps the proof valid under rounding.
-
-Meshes (distance grids, not Lipschitz-exact), terrain peaks and threats are left to the
-numpy terms (``SegmentCost``'s fallbacks); the kernel's flags say which terms it computed.
-numba is imported with this module, i.e. at the first escape (``cache=True``).
+Why numba: in numpy every term was a dozen operations on (n, S, 3) temporaries, ~2 ms per
+call of 30 candidates x ~450 samples, mostly per-operation overhead; here one loop per
+candidate and leg computes the samples on the fly and every term beside them. The values
+are the brute-force ones (every sample against every body and intent); work is cut only
+where it provably adds zero: bodies and intents culled per candidate, then per leg
+(space-time boxes), and **sphere tracing** along a leg: the distances are 1-Lipschitz in
+the sample's position (exact signed distances; a mover or another agent also moves, at most
+``vstep`` per grid step or ``v_max``), so a sample at distance D proves the next
+(D - reach) / spacing samples out of reach; they are skipped (``_SLACK`` covers rounding).
+Meshes, terrain peaks and threats are left to numpy (``SegmentCost``'s fallbacks).
+Every compiled function is in this file: numba's cache does not see changes of callees in
+other files. docs/performance.md ("Escape planning") has the measurements.
 """
 
 from __future__ import annotations
@@ -87,9 +76,13 @@ def _box_gap2(lo, hi, blo0, blo1, blo2, bhi0, bhi1, bhi2):  # noqa: ANN001, ANN2
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _agents(
-    P, c, lens, per, t0, speed, w_agents, w_coll, times_, points_, nk_, scale, contact_, reach_, vmax, ibox
-):  # noqa: ANN001, ANN202, PLR0913
+def _point_gap(lo, hi, p):  # noqa: ANN001, ANN202
+    """Distance between the box lo..hi and the point ``p`` (3,)."""
+    return math.sqrt(_box_gap2(lo, hi, p[0], p[1], p[2], p[0], p[1], p[2]))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _agents(P, c, lens, per, f, w, times_, points_, nk_, scale, contact_, reach_, vmax, ibox):  # noqa: ANN001, ANN202
     """Other-agents term of candidate ``c``: per sample and intent j,
     ``w_agents * max(1.2 - |(p - q) / scale_j|, 0) * ds + w_coll * (|p - q| < contact_j) * ds``
     with q the intent's position at the sample's time (``np.interp`` of its knots, clamped).
@@ -98,6 +91,7 @@ def _agents(
     on; a leg whose samples' box stays beyond ``reach_j`` of the intent's box over the
     samples' time window adds exactly zero, and so do samples skipped by tracing."""
     m = P.shape[1]
+    t0, speed, w_agents, w_coll = f[4], f[3], w[8], w[1]
     acc = 0.0
     clo0, clo1, clo2 = np.inf, np.inf, np.inf
     chi0, chi1, chi2 = -np.inf, -np.inf, -np.inf
@@ -357,7 +351,7 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
     r, required, start_clear, speed, t0 = f[0], f[1], f[2], f[3], f[4]
     spacing, vertex_clear, floor, max_samples, pose_step = f[5], f[10], f[11], f[12], f[13]
     w_clear, w_coll, w_floor, w_bounds = w[0], w[1], w[2], w[3]
-    w_moving, w_agents, w_vertex = w[7], w[8], w[9]
+    w_moving, w_vertex = w[7], w[9]
     do_static, do_vertex, do_floor = flags[0] > 0, flags[1] > 0 and m > 2, flags[2] > 0
     Ms = len(s_code)
     Mm = len(m_code)
@@ -406,6 +400,18 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
     if Mi:
         for j in range(Mi):
             _intent_box(i_times[j], i_points[j], i_nk[j], t0, t0 + longest_total / speed, ibox[j])
+    # Each mover's box over the grid (every sample's grid time is in it).
+    mbox = np.empty((Mm, 6))
+    for j in range(Mm):
+        for a in range(3):
+            mbox[j, a] = np.inf
+            mbox[j, a + 3] = -np.inf
+        for kk in range(T):
+            for a in range(3):
+                mbox[j, a] = min(mbox[j, a], centers[kk, j, a])
+                mbox[j, a + 3] = max(mbox[j, a + 3], centers[kk, j, a])
+    s_near = np.empty(max(Ms, 1), dtype=np.int64)
+    m_near = np.empty(max(Mm, 1), dtype=np.int64)
     lo = np.empty(3)
     hi = np.empty(3)
     for c in range(n):
@@ -414,6 +420,25 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
             total += lens[c, v]
         out[c, LENGTH] = total
         out[c, TURNING] = _turning(P, c, lens[c], f, w, heading)
+        # First cull per candidate (the box of its vertices), then per leg among those left.
+        for a in range(3):
+            lo[a] = np.inf
+            hi[a] = -np.inf
+            for v in range(m):
+                lo[a] = min(lo[a], P[c, v, a])
+                hi[a] = max(hi[a], P[c, v, a])
+        ns = 0
+        if do_static:
+            for j in range(Ms):
+                if _point_gap(lo, hi, s_pos[j]) - s_bound[j] < required:
+                    s_near[ns] = j
+                    ns += 1
+        nm = 0
+        for j in range(Mm):
+            g2 = _box_gap2(lo, hi, mbox[j, 0], mbox[j, 1], mbox[j, 2], mbox[j, 3], mbox[j, 4], mbox[j, 5])
+            if math.sqrt(g2) - m_bound[j] < required:
+                m_near[nm] = j
+                nm += 1
 
         cum = 0.0
         for leg in range(m - 1):
@@ -428,22 +453,11 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
                 hi[a] = max(P[c, leg, a], P[c, leg + 1, a])
 
             # ---------------------------------------------------------------- static bodies
-            if do_static:
+            if ns:
                 nn = 0
-                for j in range(Ms):
-                    g = math.sqrt(
-                        _box_gap2(
-                            lo,
-                            hi,
-                            s_pos[j, 0],
-                            s_pos[j, 1],
-                            s_pos[j, 2],
-                            s_pos[j, 0],
-                            s_pos[j, 1],
-                            s_pos[j, 2],
-                        )
-                    )
-                    if g - s_bound[j] < required:
+                for q in range(ns):
+                    j = s_near[q]
+                    if _point_gap(lo, hi, s_pos[j]) - s_bound[j] < required:
                         near[nn] = j
                         nn += 1
                 if nn:
@@ -501,14 +515,19 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
                     out[c, FLOOR_BOUNDS] += w_floor * acc_f + w_bounds * acc_b
 
             # ---------------------------------------------------------------- moving bodies
-            if Mm:
+            if nm:
                 u0 = 0.5 / per
                 u1 = (per - 0.5) / per
                 k0 = int(np.rint(((t0 + (cum + u0 * L) / speed) - t0) / pose_step))
                 k1 = int(np.rint(((t0 + (cum + u1 * L) / speed) - t0) / pose_step))
                 k0 = min(max(k0, 0), T - 1)
                 k1 = min(max(k1, 0), T - 1)
-                for j in range(Mm):
+                for q in range(nm):
+                    j = m_near[q]
+                    # Cheap first: every centre of the leg's times is within (k1 - k0) vstep of
+                    # the first one.
+                    if _point_gap(lo, hi, centers[k0, j]) - (k1 - k0) * vstep[j] - m_bound[j] >= required:
+                        continue
                     # The leg's box against the box of the centre's track over the leg's times.
                     b0, b1, b2 = np.inf, np.inf, np.inf
                     e0, e1, e2 = -np.inf, -np.inf, -np.inf
@@ -547,22 +566,7 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
         # -------------------------------------------------------------------- other agents
         if Mi:
             out[c, AGENTS] = _agents(
-                P,
-                c,
-                lens[c],
-                per,
-                t0,
-                speed,
-                w_agents,
-                w_coll,
-                i_times,
-                i_points,
-                i_nk,
-                i_scale,
-                i_contact,
-                i_reach,
-                i_vmax,
-                ibox,
+                P, c, lens[c], per, f, w, i_times, i_points, i_nk, i_scale, i_contact, i_reach, i_vmax, ibox
             )
 
         # -------------------------------------------------------------------- free waypoints
