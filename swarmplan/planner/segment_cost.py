@@ -396,7 +396,13 @@ class SegmentCost:
         have = len(self._pose_grid)
         if have <= kmax:
             grid = np.arange(have, kmax + 1) * self._pose_step + self.t0
-            more = np.stack([poses_at(self.moving, tt)[0] for tt in grid]).reshape(-1, len(self.moving), 3)
+            more = np.empty((len(grid), len(self.moving), 3))
+            for j, o in enumerate(self.moving):
+                if o.motion.type == "linear":
+                    # motion.pose_at's formula for all the times at once (the same values).
+                    more[:, j] = o.position + o.motion.velocity * grid[:, None]
+                else:
+                    more[:, j] = [poses_at([o], tt)[0][0] for tt in grid]
             self._pose_grid = np.concatenate([self._pose_grid, more])
             # Largest move of each centre between grid times (the kernel's tracing bound).
             if len(self._pose_grid) > 1:
