@@ -19,6 +19,11 @@ to the polyline; :class:`SegmentCost` scores ``(n, K+2, 3)`` polylines in one ca
 
 Every penalty is zero for a path with the required clearance everywhere, so such a path
 costs its length plus its turning term (zero for a straight segment).
+
+A call is one compiled kernel (``_segment_kernel``: samples computed on the fly, bodies and
+intents culled per leg, samples skipped only where a distance proves they add zero); the
+numpy methods below (``sample``, ``static_penalty``, ...) are its reference
+(``terms_reference``) and its fallback for meshes, terrain peaks and threats.
 """
 
 from __future__ import annotations
@@ -29,8 +34,13 @@ import numpy as np
 
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.motion import poses_at
+from swarmplan.planner._segment_pack import analytic, pack_bodies, pack_intents
 
 _EPS = 1e-9
+_ZERO3 = np.zeros(3)
+# Names of the terms, in the order of the kernel's columns (swarmplan.planner._segment_kernel).
+TERMS = ("length", "turning", "static", "vertices", "floor_bounds", "threats", "moving", "agents")
+_STATIC, _VERTICES, _FLOOR, _THREATS, _MOVING = 2, 3, 4, 5, 6
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -130,16 +140,15 @@ class SegmentEncoding:
         return 3 * self.k
 
     def decode(self, X: np.ndarray) -> np.ndarray:
-        """(n, 3K) → polylines (n, K+2, 3)."""
-        X = np.atleast_2d(X)
-        off = X.reshape(len(X), self.k, 3) @ self.frame
-        wp = self.base[None] + off
-        if self.lo is not None:
-            wp = np.clip(wp, self.lo, self.hi)
-        n = len(X)
-        return np.concatenate(
-            [np.broadcast_to(self.start, (n, 1, 3)), wp, np.broadcast_to(self.end, (n, 1, 3))], axis=1
-        )
+        """(n, 3K) → polylines (n, K+2, 3) (compiled: numpy's dozen small operations cost as
+        much as scoring the population)."""
+        from swarmplan.planner._decode_kernel import decode_segments
+
+        X = np.ascontiguousarray(np.atleast_2d(X), dtype=float)
+        clip = self.lo is not None
+        lo = np.asarray(self.lo, dtype=float) if clip else _ZERO3
+        hi = np.asarray(self.hi, dtype=float) if clip else _ZERO3
+        return decode_segments(X, self.frame, self.base, self.start, self.end, lo, hi, clip)
 
     def encode(self, waypoints: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`decode` for K free waypoints (no clipping) → (3K,)."""
@@ -196,7 +205,15 @@ class SegmentCost:
         self._static_center = np.array([o.position for o in self.static]).reshape(-1, 3)
         self._static_bound = np.array([o.bounding_radius for o in self.static])
         self._moving_bound = np.array([o.bounding_radius for o in self.moving])
-        self._intents = _pack_intents(self.intents, self.r)
+        # The compiled kernel's constants; meshes leave their terms to numpy (see terms()).
+        self._kernel_static = analytic(self.static)
+        self._kernel_moving = analytic(self.moving)
+        self._static_pack = pack_bodies(self.static if self._kernel_static else [])
+        self._moving_pack = pack_bodies(self.moving if self._kernel_moving else [])
+        self._vstep = np.zeros(len(self.moving))
+        self._intents = pack_intents(self.intents, self.r)
+        self._args_key: tuple | None = None
+        self._args: tuple = ()
         self.required = self.r + self.margin
         # Near the start the agent may already be closer than required: ask only for what
         # it has plus the distance travelled (the path must not get worse, then must clear).
@@ -205,6 +222,36 @@ class SegmentCost:
         # on kilometre-long segments a few metres' spacing is enough; 4000 samples made one
         # fixed-wing escape in the 2 km world of paper 001 cost over a minute.
         self.max_samples = 800
+
+    def _kernel_args(self) -> tuple:
+        """The kernel's per-escape arguments (rebuilt if a setting was changed since)."""
+        key = (self.spacing, self.vertex_clearance, self.max_samples, self.w, self.start_clearance, self.t0)
+        key += (self.r, self.required, self.speed, self.turn_radius, self.max_climb, self.min_alt)
+        key += (self.fixed_wing, None if self.heading is None else tuple(self.heading))
+        if self._args_key == key:
+            return self._args
+        w, world = self.w, self.world
+        floor = max(self.min_alt, world.terrain_clearance if world.peaks else 0.0)
+        f = [self.r, self.required, self.start_clearance, self.speed, self.t0, self.spacing, self.turn_radius]
+        f += [self.max_climb, self.heading is not None, self.fixed_wing, self.vertex_clearance, floor]
+        f += [self.max_samples, self._pose_step]
+        wv = [w.clearance, w.collision, w.floor, w.bounds, w.turn, w.turn_radius, w.climb, w.moving, w.agents]
+        static_k = bool(self.static) and self._kernel_static
+        flags = [static_k, static_k and self.vertex_clearance > 0, not world.peaks]
+        sp, mp, ip = self._static_pack, self._moving_pack, self._intents
+        self._args = (
+            np.array(f, dtype=float),
+            np.array(wv + [w.vertex], dtype=float),
+            _ZERO3 if self.heading is None else np.ascontiguousarray(self.heading, dtype=float),
+            np.asarray(world.bounds_min, dtype=float),
+            np.asarray(world.bounds_max, dtype=float),
+            np.array(flags, dtype=np.int64),
+            *(sp[k] for k in ("code", "pos", "rot", "ident", "prm", "bound")),
+            *(mp[k] for k in ("code", "rot", "ident", "prm", "bound")),
+            *(ip[k] for k in ("times", "points", "nk", "scale", "contact", "reach", "vmax")),
+        )
+        self._args_key = key
+        return self._args
 
     # ------------------------------------------------------------------ sampling
 
@@ -349,8 +396,18 @@ class SegmentCost:
         have = len(self._pose_grid)
         if have <= kmax:
             grid = np.arange(have, kmax + 1) * self._pose_step + self.t0
-            more = np.stack([poses_at(self.moving, tt)[0] for tt in grid]).reshape(-1, len(self.moving), 3)
+            more = np.empty((len(grid), len(self.moving), 3))
+            for j, o in enumerate(self.moving):
+                if o.motion.type == "linear":
+                    # motion.pose_at's formula for all the times at once (the same values).
+                    more[:, j] = o.position + o.motion.velocity * grid[:, None]
+                else:
+                    more[:, j] = [poses_at([o], tt)[0][0] for tt in grid]
             self._pose_grid = np.concatenate([self._pose_grid, more])
+            # Largest move of each centre between grid times (the kernel's tracing bound).
+            if len(self._pose_grid) > 1:
+                steps = np.linalg.norm(np.diff(self._pose_grid, axis=0), axis=-1).max(axis=0)
+                self._vstep = steps * (1 + 1e-9)
         return self._pose_grid[: kmax + 1]
 
     def moving_penalty(
@@ -384,35 +441,8 @@ class SegmentCost:
             cost = cost + np.bincount(blocks // B, weights=f, minlength=n)
         return cost
 
-    def agent_penalty(
-        self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray, per: int | None = None
-    ) -> np.ndarray:
-        """Other agents near their intended positions (compiled kernel, see ``_intent_kernel``),
-        culled per block of ``per`` samples (a leg; default the whole candidate); equal to
-        :meth:`agent_penalty_reference` up to the summation order."""
-        if not self.intents:
-            return np.zeros(len(pts))
-        from swarmplan.planner._intent_kernel import agent_cost
-
-        t = self.t0 + s / self.speed
-        k = self._intents
-        return agent_cost(
-            np.ascontiguousarray(pts),
-            np.ascontiguousarray(ds),
-            np.ascontiguousarray(t),
-            k["times"],
-            k["points"],
-            k["nk"],
-            k["scale"],
-            k["contact"],
-            k["reach"],
-            float(self.w.agents),
-            float(self.w.collision),
-            int(pts.shape[1] if per is None else per),
-        )
-
     def agent_penalty_reference(self, pts: np.ndarray, ds: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """Brute force of :meth:`agent_penalty`: every intent interpolated at every sample (tests)."""
+        """The agents' term by brute force: every intent interpolated at every sample (tests)."""
         cost = np.zeros(len(pts))
         t = self.t0 + s / self.speed
         for it in self.intents:
@@ -427,55 +457,66 @@ class SegmentCost:
     # ------------------------------------------------------------------ total
 
     def terms(self, P: np.ndarray) -> dict[str, np.ndarray]:
+        """Every term of polylines ``P`` (n, m, 3) → {name: (n,)} (the compiled kernel, with
+        numpy for meshes, terrain peaks and threats)."""
+        out = self._kernel(P)
+        return {name: out[:, k] for k, name in enumerate(TERMS)}
+
+    def terms_reference(self, P: np.ndarray) -> dict[str, np.ndarray]:
+        """The terms in numpy on materialised samples (the culled numpy terms and the
+        brute-force agents' term): what the kernel must equal (tests)."""
         P = np.asarray(P, dtype=float)
         pts, ds, s = self.sample(P)
-        # Every sample lies on a leg, so inside the box of the leg's end points: boxes that
-        # contain the samples are all the culling needs (and 100x cheaper than the samples').
         a, b = P[:, :-1], P[:, 1:]
         legs = (np.minimum(a, b), np.maximum(a, b))
-        box = _points_box(P)
         return {
             "length": self.length(P),
             "turning": self.turning(P),
             "static": self.static_penalty(pts, ds, s, legs),
             "vertices": self.vertex_penalty(P),
-            "floor_bounds": self.floor_bounds_penalty(pts, ds, box),
+            "floor_bounds": self.floor_bounds_penalty(pts, ds),
             "threats": self.threat_penalty(pts, ds),
             "moving": self.moving_penalty(pts, ds, s, legs),
-            "agents": self.agent_penalty(pts, ds, s, pts.shape[1] // (P.shape[1] - 1)),
+            "agents": self.agent_penalty_reference(pts, ds, s),
         }
 
     def __call__(self, P: np.ndarray) -> np.ndarray:
         """Total cost of polylines ``P`` (n, m, 3) → (n,)."""
-        return sum(self.terms(P).values())
+        return self._kernel(P)[:, len(TERMS)]
 
+    def _kernel(self, P: np.ndarray) -> np.ndarray:
+        """(n, 9): the terms in ``TERMS`` order and their total (summed in that order)."""
+        from swarmplan.planner._segment_kernel import segment_terms
 
-def _pack_intents(intents: list[Intent], radius: float) -> dict[str, np.ndarray]:
-    """Per-escape constants of the other-agents term: the intents as padded arrays (knots
-    repeated past each one's end), their ellipsoid scales, contact and reach distances."""
-    m = max((len(it.times) for it in intents), default=1)
-    M = len(intents)
-    times = np.zeros((M, m))
-    points = np.zeros((M, m, 3))
-    for j, it in enumerate(intents):
-        k = len(it.times)
-        times[j, :k], times[j, k:] = it.times, it.times[-1]
-        points[j, :k], points[j, k:] = it.points, it.points[-1]
-    scale = np.array([np.asarray(it.separation, dtype=float) + radius + it.radius for it in intents]).reshape(
-        M, 3
-    )
-    contact = np.array([radius + it.radius for it in intents], dtype=float)
-    # Beyond this distance both terms vanish: the ellipsoid term needs |d / scale| < 1.2, the
-    # collision term |d| < contact.
-    reach = np.maximum(1.2 * scale.max(axis=1, initial=0.0), contact)
-    return {
-        "times": times,
-        "points": points,
-        "nk": np.array([len(it.times) for it in intents], dtype=np.int64),
-        "scale": scale,
-        "contact": contact,
-        "reach": reach,
-    }
+        P = np.ascontiguousarray(P, dtype=float)
+        n = len(P)
+        world = self.world
+        args = self._kernel_args()
+        out, need = segment_terms(P, *args, self._pose_grid, self._vstep)
+        if need > len(self._pose_grid):
+            # Movers' centres up to the longest candidate's end, then the same call again.
+            self._centers(need - 1)
+            out, need = segment_terms(P, *args, self._pose_grid, self._vstep)
+        numpy_static = bool(self.static) and not self._kernel_static
+        numpy_moving = bool(self.moving) and not self._kernel_moving
+        if numpy_static or numpy_moving or world.peaks or world.threats:
+            # Meshes (distance grids), terrain and threats: numpy on materialised samples.
+            pts, ds, s = self.sample(P)
+            a, b = P[:, :-1], P[:, 1:]
+            legs = (np.minimum(a, b), np.maximum(a, b))
+            if numpy_static:
+                out[:, _STATIC] = self.static_penalty(pts, ds, s, legs)
+                out[:, _VERTICES] = self.vertex_penalty(P)
+            if numpy_moving:
+                out[:, _MOVING] = self.moving_penalty(pts, ds, s, legs)
+            if world.peaks:
+                out[:, _FLOOR] = self.floor_bounds_penalty(pts, ds, _points_box(P))
+            out[:, _THREATS] = self.threat_penalty(pts, ds)
+            total = np.zeros(n)
+            for k in range(len(TERMS)):
+                total = total + out[:, k]
+            out[:, len(TERMS)] = total
+        return out
 
 
 def agent_intents(
