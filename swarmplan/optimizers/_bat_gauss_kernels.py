@@ -19,7 +19,8 @@ def move_bats(X, V, best, cm, fit, op, w, f_lo, f_span, u, N, r, scale, lower, u
 
     ``cm <- (4 cm)(1 - cm)``; ``V <- w V + mix`` with operator ``op`` (0: eq 18, 1: eqs 19-20,
     2: eq 21 with the worst bat); ``cand = X + V``, or where ``u[-1, i] > r_i`` the walk
-    ``best + 0.5 (N[0] + 2 N[1]) * scale`` (eq 15); then clipped into the box. ``u[0]`` is the
+    ``best + 0.5 (N[0, k] + 2 N[1, k]) * scale`` (eq 15), ``k`` counting the walking bats in
+    order (``N`` has one row per walking bat); then clipped into the box. ``u[0]`` is the
     frequency draw ``beta`` of eqs 18 and 21 (unused by the chaotic operator)."""
     n, d = X.shape
     last = u.shape[0] - 1
@@ -28,6 +29,7 @@ def move_bats(X, V, best, cm, fit, op, w, f_lo, f_span, u, N, r, scale, lower, u
         for i in range(n):
             if fit[i] > fit[worst]:
                 worst = i
+    k = 0
     for i in range(n):
         c = cm[i]
         c = (4.0 * c) * (1.0 - c)
@@ -46,12 +48,14 @@ def move_bats(X, V, best, cm, fit, op, w, f_lo, f_span, u, N, r, scale, lower, u
             V[i, j] = v
             x = X[i, j] + v
             if local:
-                x = best[j] + (0.5 * (N[0, i, j] + 2.0 * N[1, i, j])) * scale[j]
+                x = best[j] + (0.5 * (N[0, k, j] + 2.0 * N[1, k, j])) * scale[j]
             if x < lower[j]:
                 x = lower[j]
             if x > upper[j]:
                 x = upper[j]
             cand[i, j] = x
+        if local:
+            k += 1
 
 
 @njit(cache=True, nogil=True)

@@ -176,11 +176,13 @@ class IbaGauss(Optimizer):
         # 1. velocity: sine weight (eqs 13-14) and the operator in use (eqs 17-21);
         # 2. position (eq 4) or Gaussian walk around the best (eq 15, see two_gaussian);
         # one compiled pass over the bats. Random numbers in the order the steps use them:
-        # beta (eqs 18, 21; the chaotic operator uses CM instead), the walk test, N(0,1), N(0,2).
+        # beta (eqs 18, 21; the chaotic operator uses CM instead), the walk test, then N(0,1)
+        # and N(0,2) only for the bats that walk (about 1 - r0 = 10 %; drawing them for every
+        # bat was most of the generation's cost)
         K = _kernel()
         w = sine_weight(problem.evaluations / problem.max_evals)
         u = rng.random((1 if state.operator == 1 else 2, n))
-        N = rng.standard_normal((2, n, d))
+        N = rng.standard_normal((2, int(np.count_nonzero(u[-1] > state.r)), d))
         scale = state.A.mean() * p["walk_scale"] * problem.span
         cand = np.empty((n, d))
         K.move_bats(
