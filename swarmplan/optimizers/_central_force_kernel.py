@@ -123,3 +123,32 @@ def update_pbest(U, F, pbest_U, pbest_F):  # noqa: ANN001, ANN201
         if pbest_F[i] < pbest_F[best]:
             best = i
     return best
+
+
+@njit(cache=True, nogil=True)
+def mutate_probes(new, idx, xi, factor, span_div, frep, lower, span, upper, X):  # noqa: ANN001, ANN201
+    """Eq 19 for the probes ``idx`` (in place on ``new``), in numpy's operation order:
+    ``m = (xi * factor)`` (``/ span_div`` when ``span_div`` is not empty: ``xi`` in the problem's
+    units), eq 16 repair of ``new + m`` with old position ``new``, box positions in ``X``."""
+    d = new.shape[1]
+    raw = span_div.shape[0] > 0
+    for a in range(idx.shape[0]):
+        i = idx[a]
+        for j in range(d):
+            m = xi[a, j] * factor
+            if raw:
+                m = m / span_div[j]
+            u = new[i, j]
+            x = u + m
+            out = x
+            if x < 0.0:
+                out = 0.0 + frep * (u - 0.0)
+            if x > 1.0:
+                out = 1.0 - frep * (1.0 - u)
+            new[i, j] = out
+            y = lower[j] + out * span[j]
+            if y < lower[j]:
+                y = lower[j]
+            if y > upper[j]:
+                y = upper[j]
+            X[a, j] = y

@@ -443,11 +443,18 @@ class ModifiedCentralForce(CentralForce):
         if mut.any():
             k = int(mut.sum())
             tau = problem.evaluations / problem.max_evals
-            m = rng.uniform(-0.5, 0.5, (k, d)) * np.exp(-p["c"] * tau)
-            if p["mutation_units"] == "raw":  # eq 19: xi in the problem's own units
-                m = m / np.where(problem.span > 0, problem.span, 1.0)
-            new[mut] = accommodate(new[mut] + m, new[mut], 0.0, 1.0, p["frep"])
-            F[mut] = problem.evaluate(_to_box(problem, new[mut]))
+            xi = rng.uniform(-0.5, 0.5, (k, d))
+            # eq 19: xi in the problem's own units ("raw") or the unit box; eq 16 repair
+            span_div = (
+                np.where(problem.span > 0, problem.span, 1.0) if p["mutation_units"] == "raw" else _EMPTY
+            )
+            idx = np.flatnonzero(mut)
+            X = np.empty((k, d))
+            _kernel().mutate_probes(
+                new, idx, xi, float(np.exp(-p["c"] * tau)), span_div, float(p["frep"]),
+                problem.lower, problem.span, problem.upper, X,
+            )  # fmt: skip
+            F[idx] = problem.evaluate(X)
         state.U, state.F = new, F
         g = int(_kernel().update_pbest(new, F, state.pbest_U, state.pbest_F))
         if state.pbest_F[g] < state.gbest_F:
