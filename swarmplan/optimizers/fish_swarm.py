@@ -181,8 +181,10 @@ class _FishBase(Optimizer):
         U, F = state.U, state.F
         n, d = U.shape
         visual, step = self._visual_step(state, problem, rng)
-        vis = np.ascontiguousarray(np.broadcast_to(np.asarray(visual, dtype=float), (n,)))
-        stp = np.ascontiguousarray(np.broadcast_to(np.asarray(step, dtype=float), (n,)))
+        if isinstance(visual, float):  # AFSA: one visual field and step for every fish
+            vis, stp = np.full(n, visual), np.full(n, step)
+        else:  # IAFSA: per fish (eq 28)
+            vis, stp = np.asarray(visual, dtype=float), np.asarray(step, dtype=float)
         cube = p["prey_region"] == "cube"
         lower, span = problem.lower, problem.span
 
