@@ -63,16 +63,19 @@ def rank_masses(F, out):  # noqa: ANN001, ANN201
             G[i] = F[i]
         else:
             G[i] = worst
-    order = np.argsort(G, kind="mergesort")
-    start = 0
-    while start < n:
-        stop = start + 1
-        while stop < n and G[order[stop]] == G[order[start]]:
-            stop += 1
-        rank = 0.5 * (start + stop + 1)  # mean of the 1-based ranks start+1 .. stop
-        for m in range(start, stop):
-            out[order[m]] = (rank - 1.0) / max(n - 1, 1)
-        start = stop
+    # counting instead of sorting: n**2 comparisons (~10 µs at 100 probes) compile in a
+    # fraction of a second, numba's argsort takes ~3 s
+    for i in range(n):
+        less = 0
+        equal = 0
+        for k in range(n):
+            if G[k] < G[i]:
+                less += 1
+            elif G[k] == G[i]:
+                equal += 1
+        # ties at sorted positions less+1 .. less+equal get their mean rank
+        rank = 0.5 * (less + (less + equal) + 1)
+        out[i] = (rank - 1.0) / max(n - 1, 1)
     return out
 
 

@@ -95,7 +95,8 @@ def prey_hits(FT, F, fish, searching, T, target, found):  # noqa: ANN001, ANN201
         p = searching[a]
         if FT[a] < F[fish[a]]:
             found[p] = True
-            target[p, :] = T[a, :]
+            for j in range(T.shape[1]):  # an explicit loop: slice assignment costs ~3 s to compile
+                target[p, j] = T[a, j]
         else:
             searching[keep] = p
             keep += 1
@@ -103,16 +104,17 @@ def prey_hits(FT, F, fish, searching, T, target, found):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def _toward(U, i, tgt, scale, M, row):  # noqa: ANN001, ANN202
-    # eqs 17, 18, 20: u + unit(t - u) * scale (zero direction when t == u)
+def _toward(U, i, tgt, k, scale, M, row):  # noqa: ANN001, ANN202
+    # eqs 17, 18, 20: u_i + unit(tgt_k - u_i) * scale (zero direction when they coincide);
+    # rows by index, not as slices (array views cost compile time)
     d = U.shape[1]
     s = 0.0
     for j in range(d):
-        v = tgt[j] - U[i, j]
+        v = tgt[k, j] - U[i, j]
         s += v * v
     s = np.sqrt(s)
     for j in range(d):
-        v = tgt[j] - U[i, j]
+        v = tgt[k, j] - U[i, j]
         M[row, j] = U[i, j] + ((v / s) if s > 1e-300 else 0.0) * scale
 
 
@@ -149,7 +151,7 @@ def fish_moves(
     g = 0
     for i in range(n):
         if flags[0, i]:
-            _toward(U, i, centres[i], step[i] * u[row], M, row)
+            _toward(U, i, centres, i, step[i] * u[row], M, row)
             rows[0, i] = row
             row += 1
         if flags[1, i]:
@@ -168,13 +170,13 @@ def fish_moves(
                     e2 = (best_U[j] - U[i, j]) / s2 if s2 > 1e-300 else 0.0
                     M[row, j] = U[i, j] + step[i] * (R * e1 + (1.0 - R) * e2)
             else:
-                _toward(U, i, U[b], step[i] * u[row], M, row)
+                _toward(U, i, U, b, step[i] * u[row], M, row)
             rows[1, i] = row
             row += 1
         p = prey_pos[i]
         if p >= 0:
             if found[p]:
-                _toward(U, i, target[p], step[i] * u[row], M, row)
+                _toward(U, i, target, p, step[i] * u[row], M, row)
             else:
                 norm = 1.0 if cube else _row_norm(G, g)
                 for j in range(d):
