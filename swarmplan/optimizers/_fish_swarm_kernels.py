@@ -80,7 +80,10 @@ def prey_tries(U, fish, vis, G, lens, cube, T, X, lower, span):  # noqa: ANN001,
         norm = 1.0 if cube else _row_norm(G, a)
         for j in range(d):
             t = U[i, j] + _offset(G, a, vis[i], lens[a], cube, j, norm)
-            t = min(max(t, 0.0), 1.0)
+            if t < 0.0:
+                t = 0.0
+            if t > 1.0:
+                t = 1.0
             T[a, j] = t
             X[a, j] = lower[j] + t * span[j]
 
@@ -161,8 +164,10 @@ def fish_moves(
                 s1 = 0.0
                 s2 = 0.0
                 for j in range(d):
-                    s1 += (U[b, j] - U[i, j]) ** 2
-                    s2 += (best_U[j] - U[i, j]) ** 2
+                    v1 = U[b, j] - U[i, j]
+                    v2 = best_U[j] - U[i, j]
+                    s1 += v1 * v1
+                    s2 += v2 * v2
                 s1 = np.sqrt(s1)
                 s2 = np.sqrt(s2)
                 for j in range(d):
@@ -189,7 +194,11 @@ def fish_moves(
             row += 1
     for r in range(row):
         for j in range(d):
-            t = min(max(M[r, j], 0.0), 1.0)
+            t = M[r, j]
+            if t < 0.0:
+                t = 0.0
+            if t > 1.0:
+                t = 1.0
             M[r, j] = t
             X[r, j] = lower[j] + t * span[j]
 
