@@ -236,3 +236,46 @@ def test_average_ranks_match_scipy():
         np.array([5.0, -np.inf, 2.0, 2.0, 1e300]),
     ):
         np.testing.assert_array_equal(average_ranks(F), rankdata(F, method="average"))
+
+
+def test_compiled_masses_and_move_match_the_numpy_operators():
+    """The kernels CFO/MCFO run on give the same floats as the numpy definitions."""
+    from swarmplan.optimizers import _central_force_kernel as K
+    from swarmplan.optimizers.central_force import gravity_from_weights, masses
+
+    rng = np.random.default_rng(5)
+    for F in (
+        rng.random(40),
+        np.round(rng.random(40), 1),
+        np.array([2.0, np.inf, 1.0, np.inf, 1.0]),
+        np.array([np.inf, np.inf]),
+    ):
+        np.testing.assert_array_equal(K.rank_masses(F, np.empty(len(F))), masses(F, "rank")[0])
+    n, d = 30, 7
+    lower, upper = -np.arange(1.0, d + 1), np.full(d, 3.0)
+    span = upper - lower
+    U, pb = rng.random((n, d)), rng.random((n, d))
+    gb = rng.random(d)
+    W = rng.random((n, n)) * 3.0
+    r = rng.random((2, n))
+    s = rng.random(n)
+    dt, frep, c1, c2 = 1.3, 0.4, 0.8, 1.1
+    for mcfo in (False, True):
+        if mcfo:
+            new = (
+                U
+                + s[:, None] * 0.5 * dt**2 * gravity_from_weights(U, W)
+                + c1 * r[0][:, None] * (pb - U)
+                + c2 * r[1][:, None] * (gb - U)
+            )
+        else:
+            new = U + 0.5 * gravity_from_weights(U, W) * dt**2
+        expected = accommodate(new, U, 0.0, 1.0, frep)
+        assert ((new < 0) | (new > 1)).any()  # the repair is exercised
+        Unew, X = np.empty_like(U), np.empty_like(U)
+        K.move_probes(
+            U, W @ U, W.sum(axis=1), s if mcfo else np.empty(0), dt**2, pb, gb, r, c1, c2, frep,
+            lower, span, upper, Unew, X,
+        )  # fmt: skip
+        np.testing.assert_array_equal(Unew, expected)
+        np.testing.assert_array_equal(X, np.clip(lower + expected * span, lower, upper))

@@ -224,3 +224,50 @@ def test_prey_region_cube_is_the_earlier_reading():
     assert np.abs(tries).max() <= 0.2 + 1e-12 and np.linalg.norm(tries, axis=1).max() > 0.2
     with pytest.raises(ValueError, match="prey_region"):
         make("afsa", prey_region="sphere")
+
+
+def test_compiled_view_matches_the_numpy_definitions():
+    """``fish_view`` (one compiled pass) = ``neighbours`` + ``swarm_centres`` + ``best_in_view``."""
+    from swarmplan.optimizers._fish_swarm_kernels import fish_view
+
+    rng = np.random.default_rng(3)
+    for n, d, vis in ((30, 3, 0.3), (20, 4, rng.random(20) * 0.5), (12, 2, 2.0)):
+        U, F = rng.random((n, d)), rng.random(n)
+        F[3] = F[5]  # a tie in view
+        visual = np.broadcast_to(np.asarray(vis, dtype=float), (n,)).copy()
+        centres, best = np.empty((n, d)), np.empty(n, dtype=np.int64)
+        flags = np.empty((2, n), dtype=bool)
+        fish_view(U, F, np.einsum("ij,ij->i", U, U), U @ U.T, visual, 0.618, centres, best, flags)
+        mask = neighbours(U, visual)
+        c, sw = swarm_centres(U, mask, 0.618)
+        j, fo = best_in_view(F, mask, 0.618)
+        np.testing.assert_array_equal(flags[0], sw)
+        np.testing.assert_array_equal(flags[1], fo)
+        np.testing.assert_array_equal(best[fo], j[fo])
+        np.testing.assert_allclose(centres[sw], c[sw], rtol=1e-12)
+        assert sw.any() or n == 12  # the view is exercised (n = 12: everyone sees everyone, crowded)
+
+
+@pytest.mark.parametrize("name", ["afsa", "iafsa"])
+def test_every_fish_ends_at_an_evaluated_move_with_its_cost(name):
+    """The compiled move/selection path: after a generation every fish is at one of the
+    points evaluated in its last batch, with that point's cost, and the swarm's costs are what
+    the cost function returned."""
+    batches = []
+
+    def cost(X):
+        batches.append(X.copy())
+        return sphere(X)
+
+    opt = make(name, population=20)
+    problem = Problem(cost, LOWER, UPPER, 100_000)
+    rng = np.random.default_rng(7)
+    state = opt.setup(problem, rng, None)
+    for _ in range(5):
+        opt._generation(state, problem, rng)
+        last = batches[-1]
+        X = LOWER + state.U * (UPPER - LOWER)
+        for i in range(len(X)):
+            hit = np.flatnonzero(np.all(np.isclose(last, X[i], atol=1e-9), axis=1))
+            assert hit.size, f"fish {i} is not at a point of its last batch"
+            assert np.isclose(state.F[i], sphere(last[hit[:1]])[0])

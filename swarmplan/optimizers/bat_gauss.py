@@ -13,9 +13,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.optimizers.bat import WALK_SCALE, _bat_acceptance, _check_bat_params, _update_best
+from swarmplan.optimizers.bat import WALK_SCALE, _check_bat_params
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
 from swarmplan.optimizers.registry import register
+
+_kernel_module = None
+
+
+def _kernel():  # noqa: ANN202
+    """:mod:`swarmplan.optimizers._bat_gauss_kernels`, imported at the first generation."""
+    global _kernel_module
+    if _kernel_module is None:
+        from swarmplan.optimizers import _bat_gauss_kernels as k
+
+        _kernel_module = k
+    return _kernel_module
+
 
 # --------------------------------------------------------------------------------------
 # IBA: integration strategy + Gaussian perturbation (paper 003)
@@ -29,7 +42,10 @@ def sine_weight(frac: np.ndarray | float) -> np.ndarray | float:
     subtracts an infinitesimal ``eps``; here ``frac`` is clipped just below 1 so ``w``
     stays in ``[0, 1]``).
     """
-    frac = np.clip(frac, 0.0, 1.0 - 1e-12)
+    if isinstance(frac, float):  # the per-generation scalar: same value as np.clip, fewer calls
+        frac = min(max(frac, 0.0), 1.0 - 1e-12)
+    else:
+        frac = np.clip(frac, 0.0, 1.0 - 1e-12)
     return 1.0 - np.sin(np.pi - np.pi * frac / 2.0)
 
 
@@ -157,33 +173,39 @@ class IbaGauss(Optimizer):
         f_lo, f_span = p["f_min"], p["f_max"] - p["f_min"]
         best_before = state.best_f
 
-        # 1. velocity: sine weight (eqs 13-14) and the operator in use (eqs 17-21)
+        # 1. velocity: sine weight (eqs 13-14) and the operator in use (eqs 17-21);
+        # 2. position (eq 4) or Gaussian walk around the best (eq 15, see two_gaussian);
+        # one compiled pass over the bats. Random numbers in the order the steps use them:
+        # beta (eqs 18, 21; the chaotic operator uses CM instead), the walk test, then N(0,1)
+        # and N(0,2) only for the bats that walk (about 1 - r0 = 10 %; drawing them for every
+        # bat was most of the generation's cost)
+        K = _kernel()
         w = sine_weight(problem.evaluations / problem.max_evals)
-        state.cm = 4.0 * state.cm * (1.0 - state.cm)
-        op = _OPERATORS[state.operator]
-        if op == "standard":  # eq 18
-            mix = (state.best_x - state.X) * (f_lo + f_span * rng.random(n))[:, None]
-        elif op == "chaotic":  # eqs 19-20
-            mix = (state.best_x - state.X) * (state.cm * (f_lo + f_span * state.cm))[:, None]
-        else:  # eq 21
-            worst = state.X[int(np.argmax(state.fit))]
-            mix = (state.X - worst) * (f_lo + f_span * rng.random(n))[:, None]
-        state.V = w * state.V + mix
+        u = rng.random((1 if state.operator == 1 else 2, n))
+        N = rng.standard_normal((2, int(np.count_nonzero(u[-1] > state.r)), d))
+        scale = state.A.mean() * p["walk_scale"] * problem.span
+        cand = np.empty((n, d))
+        K.move_bats(
+            state.X, state.V, state.best_x, state.cm, state.fit, state.operator, float(w),
+            float(f_lo), float(f_span), u, N, state.r, scale, problem.lower, problem.upper, cand,
+        )  # fmt: skip
 
-        # 2. position (eq 4) or Gaussian walk around the best (eq 15)
-        cand = state.X + state.V
-        local = rng.random(n) > state.r
-        walk = state.best_x + two_gaussian(rng, (n, d)) * (state.A.mean() * p["walk_scale"] * problem.span)
-        cand[local] = walk[local]
-        cand = problem.clip(cand)
-
-        # 3. evaluate, accept (eqs 6-7)
+        # 3. evaluate, accept (eqs 6-7; bat._bat_acceptance and _update_best, compiled)
         fc = problem.evaluate(cand)
-        _bat_acceptance(state, cand, fc, rng, iteration, p)
-        _update_best(state, cand, fc)
+        u = rng.random(n + 2)  # acceptance draws, then ILSA's pair (no evaluation in between)
+        floor = p["A0"] if p["A_min"] is None else p["A_min"]
+        r_new = p["r0"] * (1.0 - np.exp(-p["gamma"] * iteration))
+        own = p["acceptance"] == "own"
+        i = K.accept_bats(
+            state.X, state.fit, state.A, state.r, cand, fc, u, own, float(state.best_f),
+            float(p["alpha"]), float(floor), float(r_new),
+        )  # fmt: skip
+        if fc[i] < state.best_f:
+            state.best_f = float(fc[i])
+            state.best_x = cand[i].copy()
 
         # 4. ILSA (eq 16)
-        rs = np.sort(rng.random(2))
+        rs = np.sort(u[n:])
         # eq 16 contracts X* towards the box centre (003's boxes: the origin), see the docstring
         c = 0.5 * (problem.lower + problem.upper) if p["ilsa_centre"] == "box" else 0.0
         pair = problem.clip(c + rs[:, None] * (state.best_x - c))

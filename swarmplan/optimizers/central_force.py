@@ -49,6 +49,19 @@ import numpy as np
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
 from swarmplan.optimizers.registry import register
 
+_EMPTY = np.empty(0)
+_kernel_module = None
+
+
+def _kernel():  # noqa: ANN202
+    """:mod:`swarmplan.optimizers._central_force_kernel`, imported at the first generation."""
+    global _kernel_module
+    if _kernel_module is None:
+        from swarmplan.optimizers import _central_force_kernel as k
+
+        _kernel_module = k
+    return _kernel_module
+
 
 def accommodate(
     new: np.ndarray, old: np.ndarray, lower: np.ndarray, upper: np.ndarray, frep: float
@@ -244,21 +257,45 @@ class CentralForce(Optimizer):
         F = problem.evaluate(X)
         return _CFOState(U=_to_unit(problem, X), F=F, mass_scale=_mass_scale(F))
 
-    def _cfo_step(self, state: _CFOState) -> np.ndarray:
-        """Eqs 14-15 with ``v = 0``: the probes' unit-box displacements ``a * dt**2 / 2``."""
+    def _weights(self, state: _CFOState) -> np.ndarray:
+        """Eq 14's pairwise weights over the current probes (masses recomputed per generation)."""
         p = self.params
-        M, state.mass_scale = masses(state.F, p["masses"])  # per generation, over the current probes
-        A = cfo_acceleration(state.U, M, state.mass_scale, p["G"], p["alpha"], p["beta"])
-        return 0.5 * A * p["dt"] ** 2
+        if p["masses"] == "rank":  # ranks in one compiled call (same values as masses())
+            K = _kernel()
+            U = state.U
+            M = K.rank_masses(state.F, np.empty(len(state.F)))
+            state.mass_scale = 1.0
+            W = np.empty((len(M), len(M)))
+            sq = np.einsum("ij,ij->i", U, U)
+            return K.gravity_weights(
+                M, sq, U @ U.T, 1.0, float(p["G"]), float(p["alpha"]), float(p["beta"]), W
+            )
+        M, state.mass_scale = masses(state.F, p["masses"])
+        return cfo_weights(state.U, M, state.mass_scale, p["G"], p["alpha"], p["beta"])
 
-    def _cfo_move(self, state: _CFOState) -> np.ndarray:
-        """Eqs 14-16: the probes' new unit-box positions (not yet evaluated)."""
-        return accommodate(state.U + self._cfo_step(state), state.U, 0.0, 1.0, self.params["frep"])
+    def _move(
+        self, state: _CFOState, problem: Problem, W: np.ndarray, s: np.ndarray, r: np.ndarray, pbest, gbest
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Eqs 14-16 (and eq 23's memory terms for MCFO, ``s`` non-empty) in one compiled pass:
+        the probes' new unit-box positions and their box positions (not yet evaluated). Same
+        floats as :func:`gravity_from_weights` + :func:`accommodate` + ``_to_box``."""
+        p = self.params
+        U = state.U
+        Unew, X = np.empty_like(U), np.empty_like(U)
+        c1, c2 = float(p.get("c1", 0.0)), float(p.get("c2", 0.0))
+        _kernel().move_probes(
+            U, W @ U, W.sum(axis=1), s, float(p["dt"]) ** 2, pbest, gbest, r, c1, c2,
+            float(p["frep"]), problem.lower, problem.span, problem.upper, Unew, X,
+        )  # fmt: skip
+        return Unew, X
 
     def iterate(self, state: _CFOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
-        U = self._cfo_move(state)
-        F = problem.evaluate(_to_box(problem, U))
-        state.U, state.F = U, F
+        # eqs 14-15 with v = 0 (displacement a * dt**2 / 2), eq 16 repair; one evaluation batch
+        U, X = self._move(
+            state, problem, self._weights(state), _EMPTY, _EMPTY.reshape(0, 0), state.U, state.U[0]
+        )
+        state.F = problem.evaluate(X)
+        state.U = U
 
 
 @register
@@ -386,42 +423,40 @@ class ModifiedCentralForce(CentralForce):
     def iterate(self, state: _MCFOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
         p = self.params
         n, d = state.U.shape
-        U = state.U
         # eq 23: gravity (eqs 14-15) and memory (eq 18) displacements, both from p_i^j,
-        # with r1, r2 (and where unavoidable the gravity step) fitted to eq 29 per probe
-        r1 = rng.random((n, 1))
-        r2 = rng.random((n, 1))
-        M, state.mass_scale = masses(state.F, p["masses"])  # per generation, over the current probes
-        W = cfo_weights(U, M, state.mass_scale, p["G"], p["alpha"], p["beta"])
+        # with r1, r2 (and where unavoidable the gravity step) fitted to eq 29 per probe;
+        # r1 = r[0], r2 = r[1] (one draw: the same numbers as two (n, 1) draws in a row)
+        r = rng.random((2, n))
+        W = self._weights(state)  # per generation, over the current probes
         if p["stability"] == "eq29":  # our option: enforce eq 29 per probe and generation
             theta = W.sum(axis=1)[:, None]
-            r1, r2, s = eq29_limits(theta, r1, r2, p["c1"], p["c2"], p["dt"], iteration)
+            r1, r2, s = eq29_limits(theta, r[0][:, None], r[1][:, None], p["c1"], p["c2"], p["dt"], iteration)
+            r = np.stack([r1[:, 0], r2[:, 0]])
+            s = np.ascontiguousarray(np.broadcast_to(s, (n, 1))[:, 0])
         else:  # paper-literal: eq 29 is a sufficient condition of the analysis, not a step
-            s = 1.0
-        new = (
-            U
-            + s * 0.5 * p["dt"] ** 2 * gravity_from_weights(U, W)
-            + p["c1"] * r1 * (state.pbest_U - U)
-            + p["c2"] * r2 * (state.gbest_U - U)
-        )
-        new = accommodate(new, U, 0.0, 1.0, p["frep"])
-        F = problem.evaluate(_to_box(problem, new))
+            s = np.ones(n)
+        new, X = self._move(state, problem, W, s, r, state.pbest_U, state.gbest_U)
+        F = problem.evaluate(X)
         # eq 19: one judge variable per probe; mutate probes that got worse, when zeta <= c3
         zeta = rng.random(n)
         mut = (zeta <= p["c3"]) & (F > state.F)
         if mut.any():
             k = int(mut.sum())
             tau = problem.evaluations / problem.max_evals
-            m = rng.uniform(-0.5, 0.5, (k, d)) * np.exp(-p["c"] * tau)
-            if p["mutation_units"] == "raw":  # eq 19: xi in the problem's own units
-                m = m / np.where(problem.span > 0, problem.span, 1.0)
-            new[mut] = accommodate(new[mut] + m, new[mut], 0.0, 1.0, p["frep"])
-            F[mut] = problem.evaluate(_to_box(problem, new[mut]))
+            xi = rng.uniform(-0.5, 0.5, (k, d))
+            # eq 19: xi in the problem's own units ("raw") or the unit box; eq 16 repair
+            span_div = (
+                np.where(problem.span > 0, problem.span, 1.0) if p["mutation_units"] == "raw" else _EMPTY
+            )
+            idx = np.flatnonzero(mut)
+            X = np.empty((k, d))
+            _kernel().mutate_probes(
+                new, idx, xi, float(np.exp(-p["c"] * tau)), span_div, float(p["frep"]),
+                problem.lower, problem.span, problem.upper, X,
+            )  # fmt: skip
+            F[idx] = problem.evaluate(X)
         state.U, state.F = new, F
-        better = F < state.pbest_F
-        state.pbest_U[better] = new[better]
-        state.pbest_F[better] = F[better]
-        g = int(np.argmin(state.pbest_F))
+        g = int(_kernel().update_pbest(new, F, state.pbest_U, state.pbest_F))
         if state.pbest_F[g] < state.gbest_F:
             state.gbest_F = float(state.pbest_F[g])
             state.gbest_U = state.pbest_U[g].copy()

@@ -32,8 +32,10 @@ Readings chosen where paper 002 is ambiguous:
   5 of 10 seeds of ``iafsa_mountains``' cost with ``"cube"``, on 0 of 10 with ``"ball"``,
   see docs/benchmarks.md).
 * Prey tries follow the paper's sequential rule: a fish stops at its *first* better try and
-  moves towards it. The tries are drawn at once and evaluated in rounds (round ``r``: try ``r``
-  of every fish still searching), so only the tries a fish makes count against the budget.
+  moves towards it. The tries are drawn and evaluated in rounds (round ``r``: try ``r`` of
+  every fish still searching), so only the tries a fish makes are drawn and count against the
+  budget. (Until issue 10's overhead work all ``try_number`` tries were drawn up front, about
+  2x the random numbers used; the random stream, not the algorithm, changed with that.)
   (Before, all ``try_number`` tries of every fish were evaluated in one batch; on a smooth
   function about half of the first tries already succeed, so that spent 2-3x the evaluations
   the paper's loop makes.)
@@ -51,8 +53,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.core import Optimizer, Problem, initial_population, kernels
 from swarmplan.optimizers.registry import register
+
+_kernel_module = None
+
+
+def _kernel():  # noqa: ANN202
+    """:mod:`swarmplan.optimizers._fish_swarm_kernels`, imported at the first generation."""
+    global _kernel_module
+    if _kernel_module is None:
+        from swarmplan.optimizers import _fish_swarm_kernels as k
+
+        _kernel_module = k
+    return _kernel_module
 
 
 @dataclass
@@ -158,82 +172,71 @@ class _FishBase(Optimizer):
     def _visual_step(self, state: _FishState, problem: Problem, rng: np.random.Generator):
         raise NotImplementedError
 
-    def _follow_move(self, state, idx, targets, step, rng) -> np.ndarray:
-        return toward(state.U[idx], state.U[targets], step, rng)
+    #: IAFSA's enhanced following (eqs 29-30) instead of eq 18
+    enhanced_following = False
 
     def _generation(self, state: _FishState, problem: Problem, rng: np.random.Generator) -> None:
         p = self.params
+        K = _kernel()
         U, F = state.U, state.F
         n, d = U.shape
         visual, step = self._visual_step(state, problem, rng)
-        mask = neighbours(U, visual)
+        if isinstance(visual, float):  # AFSA: one visual field and step for every fish
+            vis, stp = np.full(n, visual), np.full(n, step)
+        else:  # IAFSA: per fish (eq 28)
+            vis, stp = np.asarray(visual, dtype=float), np.asarray(step, dtype=float)
+        cube = p["prey_region"] == "cube"
+        lower, span = problem.lower, problem.span
 
-        # swarming: evaluate the centres of the uncrowded views
-        centres, sw_try = swarm_centres(U, mask, p["delta"])
-        sw_idx = np.flatnonzero(sw_try)
-        sw_ok = np.zeros(n, dtype=bool)
-        if sw_idx.size:
-            Fc = problem.evaluate(_to_box(problem, centres[sw_idx]))
-            sw_ok[sw_idx] = Fc < F[sw_idx]
-        # following: the best fish in view, if better and uncrowded
-        j, fo_ok = best_in_view(F, mask, p["delta"])
+        # who sees whom: swarm centres (eq 19), best in view (eq 18), crowding (one pass)
+        centres, best = np.empty((n, d)), np.empty(n, dtype=np.int64)
+        flags = np.empty((2, n), dtype=np.bool_)  # [0]: swarming may be tried, [1]: following
+        K.fish_view(U, F, np.einsum("ij,ij->i", U, U), U @ U.T, vis, float(p["delta"]), centres, best, flags)
+        sw_idx = np.flatnonzero(flags[0])
+        if sw_idx.size:  # swarming moves only towards a better centre
+            Fc = problem.evaluate(kernels().scale_into_box(centres[sw_idx], lower, span))
+            flags[0, sw_idx] = Fc < F[sw_idx]
 
-        # preying, shared by the behaviours that fell back: all tries in one batch
-        prey_idx = np.flatnonzero(~sw_ok | ~fo_ok)
-        prey_target = np.empty((prey_idx.size, d))
-        prey_found = np.zeros(prey_idx.size, dtype=bool)
-        if prey_idx.size:
-            tries = int(p["try_number"])
-            k = prey_idx.size
-            vis = np.broadcast_to(np.asarray(visual, dtype=float), (n,))[prey_idx]
-            # eq 16: tries within the visual range (|X_j - X_i| <= Visual), see prey_region
-            T = U[prey_idx][:, None, :] + in_view(rng, (k, tries, d), vis[:, None], p["prey_region"])
-            T = np.clip(T, 0.0, 1.0)
-            # Sequential rule of eqs 16-17, one batch per round: round r evaluates try r of the
-            # fish that have not yet found a better point, so a fish stops at its first success
-            # and only the tries it makes count against the budget.
-            Fi = F[prey_idx]
-            first = np.zeros(k, dtype=int)
-            searching = np.arange(k)
-            for r in range(tries):
-                FT = problem.evaluate(_to_box(problem, T[searching, r]))
-                hit = FT < Fi[searching]
-                first[searching[hit]] = r
-                prey_found[searching[hit]] = True
-                searching = searching[~hit]
-                if searching.size == 0:
-                    break
-            prey_target = T[np.arange(k), first]
+        # preying, shared by the behaviours that fell back. Sequential rule of eqs 16-17, one
+        # batch per round: round r evaluates try r of the fish that have not yet found a better
+        # point (drawn only for them), so a fish stops at its first success and only the tries
+        # it makes are drawn and count against the budget.
+        prey_idx = np.flatnonzero(~(flags[0] & flags[1]))
+        k = prey_idx.size
+        prey_pos = np.full(n, -1, dtype=np.int64)
+        prey_pos[prey_idx] = np.arange(k)
+        target = np.empty((k, d))
+        found = np.zeros(k, dtype=np.bool_)
+        searching = np.arange(k)
+        for _ in range(int(p["try_number"])):
+            m = searching.size
+            if m == 0:
+                break
+            fish = prey_idx[searching]
+            if cube:  # eq 16, prey_region="cube": per-coordinate uniforms in [-Visual, Visual]
+                G, lens = rng.uniform(-1.0, 1.0, (m, d)), np.zeros(m)
+            else:  # eq 16: a uniformly random direction, length Visual * rand(0, 1)
+                G, lens = rng.standard_normal((m, d)), rng.random(m)
+            T, X = np.empty((m, d)), np.empty((m, d))
+            K.prey_tries(U, fish, vis, G, lens, cube, T, X, lower, span)
+            FT = problem.evaluate(X)
+            searching = searching[: K.prey_hits(FT, F, fish, searching, T, target, found)]
 
-        # all moves in one batch: swarm moves, follow moves, prey moves / random steps
-        step_all = np.broadcast_to(np.asarray(step, dtype=float), (n,))
-        sw_move = np.flatnonzero(sw_ok)
-        fo_move = np.flatnonzero(fo_ok)
-        moves = [
-            toward(U[sw_move], centres[sw_move], step_all[sw_move], rng),
-            self._follow_move(state, fo_move, j[fo_move], step_all[fo_move], rng),
-        ]
-        if prey_idx.size:
-            pm = toward(U[prey_idx], prey_target, step_all[prey_idx], rng)
-            # eq 21: a random move of at most Step (see prey_region)
-            rnd = U[prey_idx] + in_view(rng, (prey_idx.size, d), step_all[prey_idx], p["prey_region"])
-            moves.append(np.where(prey_found[:, None], pm, rnd))
-        else:
-            moves.append(np.empty((0, d)))
-        M = np.clip(np.concatenate(moves), 0.0, 1.0)
-        FM = problem.evaluate(_to_box(problem, M))
-        a, b = sw_move.size, sw_move.size + fo_move.size
+        # all moves in one batch: swarm moves, follow moves, prey moves / random steps (eq 21)
+        rows_n = int(np.count_nonzero(flags[0])) + int(np.count_nonzero(flags[1])) + k
+        u = rng.random(rows_n)
+        g_n = k - int(np.count_nonzero(found))
+        G = rng.uniform(-1.0, 1.0, (g_n, d)) if cube else rng.standard_normal((g_n, d))
+        M, X = np.empty((rows_n, d)), np.empty((rows_n, d))
+        rows = np.empty((2, n), dtype=np.int64)
+        K.fish_moves(
+            U, centres, best, flags, prey_pos, target, found, state.best_U, stp, u, G, cube,
+            self.enhanced_following, M, X, lower, span, rows,
+        )  # fmt: skip
+        FM = problem.evaluate(X)
         # per fish: outcome of swarming (or its prey fallback) vs following (or its fallback)
-        S_U, S_F = np.empty_like(U), np.empty(n)
-        L_U, L_F = np.empty_like(U), np.empty(n)
-        if prey_idx.size:
-            S_U[prey_idx], S_F[prey_idx] = M[b:], FM[b:]
-            L_U[prey_idx], L_F[prey_idx] = M[b:], FM[b:]
-        S_U[sw_move], S_F[sw_move] = M[:a], FM[:a]
-        L_U[fo_move], L_F[fo_move] = M[a:b], FM[a:b]
-        take_follow = L_F < S_F
-        state.U = np.where(take_follow[:, None], L_U, S_U)
-        state.F = np.where(take_follow, L_F, S_F)
+        state.U, state.F = np.empty((n, d)), np.empty(n)
+        K.fish_select(M, FM, rows, state.U, state.F)
         self._update_best(state)
 
     @staticmethod
@@ -328,6 +331,7 @@ class ImprovedFishSwarm(_FishBase):
     """
 
     name = "iafsa"
+    enhanced_following = True
     defaults = {
         "population": 50,
         "chi": 0.95,
@@ -386,12 +390,6 @@ class ImprovedFishSwarm(_FishBase):
         v0 = p["v0"] * (1.0 - tau) if p["v0_decay"] else p["v0"]  # our option; eq 28: constant V0
         visual = spiral + v0
         return visual, visual / p["hbar"]
-
-    def _follow_move(self, state, idx, targets, step, rng) -> np.ndarray:
-        U = state.U[idx]
-        R = rng.random((len(idx), 1))
-        direction = R * _unit_rows(state.U[targets] - U) + (1.0 - R) * _unit_rows(state.best_U - U)
-        return U + np.asarray(step).reshape(-1, 1) * direction
 
     def regenerate(
         self, state: _FishState, problem: Problem, rng: np.random.Generator, iteration: int
