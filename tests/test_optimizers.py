@@ -359,3 +359,22 @@ def test_bench_shifted_suite_runs_bases_and_param_sets(tmp_path, capsys):
     # iba_gauss is judged against BA at paper 003's settings, added automatically
     assert "| ba@003 |" in text and "vs ba@003" in text and "| mcfo@ours |" in text
     assert "(plain)" not in text  # the shifted suite has no plain variant
+
+
+@pytest.mark.parametrize("name", ALGORITHMS)
+def test_warm_up_loads_once_and_leaves_runs_unchanged(name):
+    """Planners call ``warm_up`` before timing a plan: it must not change any run."""
+    from swarmplan.optimizers import core
+
+    def cost(X):
+        return sphere(X - 0.3)
+
+    lower, upper = np.full(6, -2.0), np.full(6, 2.0)
+    before = make(name).minimize(cost, lower, upper, max_evals=600, seed=np.random.default_rng(5))
+    opt = make(name)
+    rng = np.random.default_rng(5)
+    opt.warm_up()
+    assert (name, repr(sorted(opt.params.items()))) in core._WARMED
+    after = opt.minimize(cost, lower, upper, max_evals=600, seed=rng)
+    assert np.array_equal(before.x, after.x) and np.array_equal(before.history, after.history)
+    assert before.evaluations == after.evaluations

@@ -189,6 +189,7 @@ def plan_global_routes(sim: PlanningContext, optimizer_name: str) -> dict[int, n
     iterations = cfg.iterations or opt_cfg.iterations
     params = dict(opt_cfg.params) if opt_cfg.name == optimizer_name else {}
     opt = optimizers.make(optimizer_name, population=population, **params)
+    opt.warm_up()  # compiled code loads here, not inside planning_ms
     routes: dict[int, np.ndarray] = {}
     for i, agent in enumerate(world.agents):
         rng = sim.rng_for("global", i)
