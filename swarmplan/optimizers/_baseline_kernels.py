@@ -18,6 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
+from swarmplan.optimizers._kernels import fitness_cumsum
+
 # --------------------------------------------------------------------------- PSO
 
 
@@ -310,14 +312,7 @@ def abc_moves(X, fit, R, onlookers, lower, upper, V, src):  # noqa: ANN001, ANN2
     m = R.shape[1]
     if onlookers:
         cdf = np.empty(sn)
-        total = 0.0
-        for i in range(sn):
-            f = fit[i]
-            w = 1.0 / (1.0 + f) if f > 0 else 1.0 + abs(f)
-            if not np.isfinite(w):
-                w = 0.0
-            total += w
-            cdf[i] = total
+        total = fitness_cumsum(fit, cdf)
         for i in range(sn):
             cdf[i] = cdf[i] / total if total > 0 else (i + 1.0) / sn
         for b in range(m):

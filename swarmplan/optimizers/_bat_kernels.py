@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from swarmplan.optimizers._kernels import fitness_cumsum
+
 
 @njit(cache=True, nogil=True)
 def _block_sum(a, lo, n):  # noqa: ANN001, ANN202
@@ -172,14 +174,7 @@ def iba_onlookers(X, fit, A, r, cand, fc, u, best_x, best_f, r_new, c, box, on, 
     best_f = bat_accept(X, fit, A, r, cand, fc, u, best_x, best_f, r_new, c, changed)
     # eq 11 with the fitness of eq 20 (bat.roulette_probabilities): cumulative weights
     cdf = np.empty(ne)
-    total = 0.0
-    for i in range(ne):
-        f = fit[i]
-        w = 1.0 / (1.0 + f) if f > 0 else 1.0 + abs(f)
-        if not np.isfinite(w):
-            w = 0.0
-        total += w
-        cdf[i] = total
+    total = fitness_cumsum(fit, cdf)
     if not total > 0:  # no usable fitness: every source equally likely
         for i in range(ne):
             cdf[i] = i + 1.0

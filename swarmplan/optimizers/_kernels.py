@@ -67,3 +67,21 @@ def scale_into_box(U, lower, span):  # noqa: ANN001, ANN201
         for j in range(d):
             U[i, j] = lower[j] + U[i, j] * span[j]
     return U
+
+
+@njit(cache=True)
+def fitness_cumsum(fit, cdf):  # noqa: ANN001, ANN201
+    """The bee colonies' roulette (000 eq 11, fitness of eq 20): cumulative weights into ``cdf``.
+
+    Weight ``1/(1+f)`` for ``f > 0``, ``1+|f|`` otherwise, 0 when not finite; returns the
+    total. Shared by ``abc`` and ``iba_abc`` (same arithmetic, same order).
+    """
+    total = 0.0
+    for i in range(fit.shape[0]):
+        f = fit[i]
+        w = 1.0 / (1.0 + f) if f > 0 else 1.0 + abs(f)
+        if not np.isfinite(w):
+            w = 0.0
+        total += w
+        cdf[i] = total
+    return total
