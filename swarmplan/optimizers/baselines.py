@@ -6,6 +6,7 @@ settings tuned to beat or lose to the paper algorithms.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,17 +27,12 @@ def _check_unit(name: str, algo: str, value: float) -> None:
         raise ValueError(f"{algo}: {name} must be in [0, 1], got {value!r}")
 
 
-_baseline_kernels: Any = None
-
-
+@functools.cache
 def baseline_kernels() -> Any:
     """The compiled generation steps (:mod:`swarmplan.optimizers._baseline_kernels`),
     imported at first use so that importing the registry does not import numba."""
-    global _baseline_kernels
-    if _baseline_kernels is None:
-        from swarmplan.optimizers import _baseline_kernels as k
+    from swarmplan.optimizers import _baseline_kernels
 
-        _baseline_kernels = k
     return _baseline_kernels
 
 

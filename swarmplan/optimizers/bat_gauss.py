@@ -9,6 +9,7 @@ documented in :mod:`swarmplan.optimizers.bat`.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,17 +18,13 @@ from swarmplan.optimizers.bat import WALK_SCALE, _check_bat_params
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
 from swarmplan.optimizers.registry import register
 
-_kernel_module = None
 
-
+@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._bat_gauss_kernels`, imported at the first generation."""
-    global _kernel_module
-    if _kernel_module is None:
-        from swarmplan.optimizers import _bat_gauss_kernels as k
+    from swarmplan.optimizers import _bat_gauss_kernels
 
-        _kernel_module = k
-    return _kernel_module
+    return _bat_gauss_kernels
 
 
 # --------------------------------------------------------------------------------------

@@ -42,6 +42,7 @@ docstrings for the per-algorithm ones):
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,17 +51,14 @@ from swarmplan.optimizers.core import Optimizer, Problem, initial_population
 from swarmplan.optimizers.registry import register
 
 _EMPTY = np.empty(0)
-_kernel_module = None
 
 
+@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._central_force_kernel`, imported at the first generation."""
-    global _kernel_module
-    if _kernel_module is None:
-        from swarmplan.optimizers import _central_force_kernel as k
+    from swarmplan.optimizers import _central_force_kernel
 
-        _kernel_module = k
-    return _kernel_module
+    return _central_force_kernel
 
 
 def accommodate(

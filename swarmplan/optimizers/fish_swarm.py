@@ -49,6 +49,7 @@ Readings chosen where paper 002 is ambiguous:
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,17 +57,13 @@ import numpy as np
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population, kernels
 from swarmplan.optimizers.registry import register
 
-_kernel_module = None
 
-
+@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._fish_swarm_kernels`, imported at the first generation."""
-    global _kernel_module
-    if _kernel_module is None:
-        from swarmplan.optimizers import _fish_swarm_kernels as k
+    from swarmplan.optimizers import _fish_swarm_kernels
 
-        _kernel_module = k
-    return _kernel_module
+    return _fish_swarm_kernels
 
 
 @dataclass
