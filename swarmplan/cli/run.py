@@ -19,7 +19,6 @@ from typing import Any, TextIO
 from swarmplan import optimizers
 from swarmplan.blas import limit_blas_threads
 from swarmplan.core import StepResult
-from swarmplan.io.recording import McapRecorder
 from swarmplan.io.runner import run_episode
 from swarmplan.planner import make_planner, validate_planner_settings
 from swarmplan.sim import Simulation
@@ -83,6 +82,8 @@ def simulate(
     command line), Ctrl-C and SIGTERM end the run at the next step boundary instead, and the
     summary says ``interrupted``; a second signal stops at once.
     """
+    from swarmplan.io.recording import McapRecorder  # here: mcap and protobuf cost ~0.1 s of start-up
+
     recorder = (
         McapRecorder(
             log_path,

@@ -2,12 +2,12 @@
 
 ``make(name, **params).minimize(cost, lower, upper, max_evals=...)`` minimizes a vectorized cost.
 
-Each family lives in its own module; importing this package registers them all.
+Each family lives in its own module (``baselines``, ``bat``, ``bat_gauss``, ``bee_colony``,
+``central_force``, ``fish_swarm``, ``whale``); ``make`` imports the one it needs
+(``registry.BUILTIN_MODULES``).
 """
 
-# Importing the family modules registers their algorithms.
-from swarmplan.optimizers import baselines, bat, bat_gauss, bee_colony, central_force, fish_swarm, whale  # noqa: F401
 from swarmplan.optimizers.core import Optimizer, Problem, Result
-from swarmplan.optimizers.registry import available, defaults, make, register
+from swarmplan.optimizers.registry import available, defaults, make, optimizer_class, register
 
-__all__ = ["Optimizer", "Problem", "Result", "available", "defaults", "make", "register"]
+__all__ = ["Optimizer", "Problem", "Result", "available", "defaults", "make", "optimizer_class", "register"]

@@ -14,7 +14,6 @@ import numpy as np
 
 from swarmplan.core import PlannedSegment, PlanningContext, StuckOutcome
 from swarmplan.planner.escape import EscapePlanner
-from swarmplan.planner.global_path import plan_global_routes
 from swarmplan.planner.smoothing import CurvatureSmoother, fillet_path
 from swarmplan.world.model import World, WorldError
 from swarmplan.world.planner_config import check_escape, check_global
@@ -53,6 +52,9 @@ class RefinementPlanner:
         self.smoother.next_check.clear()
         if self.world.planner_config.mode != "global":
             return {}
+        # here, not at import: the cost models and encodings are only needed for global plans
+        from swarmplan.planner.global_path import plan_global_routes
+
         return plan_global_routes(sim, self.optimizer_name)
 
     def on_stuck(self, sim: PlanningContext, agent: int) -> StuckOutcome:
