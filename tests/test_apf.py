@@ -228,3 +228,75 @@ def test_agent_reach_is_not_too_short():
     np.testing.assert_allclose(
         _agent_repulsion_indexed(params, gains, idx, pos, vel, pos, vel), ref, rtol=1e-12
     )
+
+
+# Two agents parked at their goals either side of a third agent's goal, where bench.sim.swap_world
+# put them (its a1 and a31 around a0's goal, seed 0): there 5 of 32 agents stalled 2.0-2.3 m
+# from their goals behind their arrived neighbours until their escapes ran out.
+_PARKED_GOALS = [[51.6, 43.8, 21.3], [51.6, 59.7, 22.6]]
+
+
+def _parked_world():
+    # the swap world's field: agents' influence 8 m (neighbouring goals 8.2 m apart are inside it)
+    return make_world(
+        base_world(
+            planner={"optimizer": {"name": "none"}, "apf": {"influence": 8.0, "k_agent": 20.0}},
+            agent_defaults={
+                "model": "multirotor",
+                "radius": 1.0,
+                "speed": {"min": 0, "max": 10, "cruise": 7},
+                "max_accel": 4,
+                "min_altitude": 3,
+                "separation": [3, 3, 2],
+            },
+            agents=[
+                {"id": "left", "start": [80, 43.8, 21.3], "goal": _PARKED_GOALS[0]},
+                {"id": "right", "start": [80, 59.7, 22.6], "goal": _PARKED_GOALS[1]},
+                {"id": "late", "start": [95, 50, 20], "goal": [50, 50, 20]},
+            ],
+        )
+    )
+
+
+def test_parked_agents_repel_like_static_obstacles_near_the_goal():
+    """An arrived (parked) agent's repulsion takes the goal-distance factor of static obstacles
+    (Ge & Cui): where swap_world's agent stalled, 2.2 m before its goal, the two neighbours'
+    repulsion cancelled the whole pull while they counted as flying; parked, they leave it."""
+    w = _parked_world()
+    params, gains = AgentParams.from_world(w), ApfGains.from_world(w)
+    goal = np.array([a.goal for a in w.agents], float)
+    stall = goal[2] - np.array([0.68, -1.64, 1.31])  # the stalled agent, relative to its goal
+    pos = np.array([*_PARKED_GOALS, stall])
+    vel = np.zeros_like(pos)
+    inputs = FieldInputs(
+        np.zeros((1, 0)),
+        np.zeros((1, 0, 3)),
+        np.zeros((0, 3)),
+        np.zeros(0, bool),
+        np.zeros(0),
+        np.zeros((0, 3)),
+    )
+    idx = np.array([2])
+    args = (w, params, gains, idx, pos[idx], vel[idx], goal[idx], inputs, pos, vel)
+    pull = np.linalg.norm(goal[2] - stall)  # the quadratic well's attraction, k_att = 1
+    to_goal = (goal[2] - stall) / pull
+    assert abs(float(apf_forces(*args)[0] @ to_goal)) < 0.15 * pull  # flying: stalled
+    parked = np.array([True, True, False])
+    assert float(apf_forces(*args, parked=parked)[0] @ to_goal) > 0.85 * pull
+    # At the goal itself parked agents add exactly nothing.
+    at_goal = np.array([*_PARKED_GOALS, goal[2]])
+    f = apf_forces(
+        w, params, gains, idx, at_goal[idx], vel[idx], goal[idx], inputs, at_goal, vel, parked=parked
+    )
+    np.testing.assert_allclose(f, 0.0, atol=1e-12)
+
+
+def test_goal_between_parked_agents_is_reached(tmp_path):
+    """The flight past parked agents also audits clean: replay counts an agent's clearance to
+    agents that have arrived, as the simulation's summary does."""
+    log = tmp_path / "run.mcap"
+    _sim, summary, _ = run_to_end(_parked_world(), seed=0, log_path=log)
+    assert summary["arrived"] == 3, describe_failure(summary, log)
+    problems, _notes, stats = audit(log)
+    assert problems == [], problems
+    assert summary["collisions"] == 0

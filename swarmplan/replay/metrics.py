@@ -209,7 +209,9 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
     radii = rec.radii
     obst_d = obstacle_distances(rec)
 
-    # agent-agent distances minus radii, only where both are active
+    # agent-agent distances minus radii while agent i flies, to every other agent: one that has
+    # arrived (or stopped) still hovers where it is, as in the simulation's own metrics
+    # (Simulation.step: Scene.agent_clearance over all agents, contacts if either one flies)
     agent_clear = np.full((A, T), np.inf)
     agent_closest = np.full((A, T), -1, int)
     contacts: dict[int, dict[str, np.ndarray]] = {i: {} for i in range(A)}
@@ -217,8 +219,7 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
         if A < 2:
             break
         diff = np.linalg.norm(rec.positions - rec.positions[i][None], axis=2) - radii[:, None] - radii[i]
-        both = active & active[i][None, :]
-        diff = np.where(both, diff, np.inf)
+        diff = np.where(active[i][None, :], diff, np.inf)
         diff[i] = np.inf
         agent_clear[i] = diff.min(axis=0)
         agent_closest[i] = diff.argmin(axis=0)

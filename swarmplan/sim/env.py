@@ -220,6 +220,7 @@ class Simulation:
                 vel0,
                 target=target,
                 static_scale=rep_scale,
+                parked=~s.active,
             )
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
