@@ -80,12 +80,16 @@ def rank_masses(F, out):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def move_probes(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lower, span, upper, Unew, Xnew):  # noqa: ANN001, ANN201, E501
+def move_probes(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lower, span, upper, Unew, Xnew, steps):  # noqa: ANN001, ANN201, E501
     """One CFO/MCFO move for every probe, in the arithmetic order of the numpy expressions
     it replaces (bit-identical): gravity ``a = WU - rowsum * U`` (eq 14); CFO (``s`` empty)
     ``U + (0.5 * a) * dt2``; MCFO (eq 23) ``U + ((s_i * 0.5) * dt2) * a + (c1 * r1_i) *
     (pbest - U) + (c2 * r2_i) * (gbest - U)`` with ``r1 = r[0], r2 = r[1]``; eq 16 repair in
-    the unit box (old position ``U``), then the box position ``clip(lower + u * span)``."""
+    the unit box (old position ``U``), then the box position ``clip(lower + u * span)``.
+    ``steps`` (MCFO only, 004 step 4 read as two moves): first the gravity move
+    ``y = U + ((s_i * 0.5) * dt2) * a`` repaired with eq 16 (old position ``U``), then eq 18
+    on it, ``y + (c1 * r1_i) * (pbest - y) + (c2 * r2_i) * (gbest - y)``, repaired with old
+    position ``y``."""
     n, d = U.shape
     mcfo = s.shape[0] > 0
     for i in range(n):
@@ -94,6 +98,12 @@ def move_probes(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lower, spa
             a = WU[i, j] - rowsum[i] * u
             if mcfo:
                 x = u + ((s[i] * 0.5) * dt2) * a
+                if steps:
+                    if x < 0.0:
+                        x = 0.0 + frep * (u - 0.0)
+                    if x > 1.0:
+                        x = 1.0 - frep * (1.0 - u)
+                    u = x
                 x = x + (c1 * r[0, i]) * (pbest[i, j] - u)
                 x = x + (c2 * r[1, i]) * (gbest[j] - u)
             else:
@@ -129,16 +139,30 @@ def update_pbest(U, F, pbest_U, pbest_F):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def mutate_probes(new, idx, xi, factor, span_div, frep, lower, span, upper, X):  # noqa: ANN001, ANN201
-    """Eq 19 for the probes ``idx`` (in place on ``new``), in numpy's operation order:
-    ``m = (xi * factor)`` (``/ span_div`` when ``span_div`` is not empty: ``xi`` in the problem's
-    units), eq 16 repair of ``new + m`` with old position ``new``, box positions in ``X``."""
+def mutation_candidates(F, F_old, zeta, c3, idx):  # noqa: ANN001, ANN201
+    """Eq 19's selection: the probes with ``zeta_i <= c3`` whose new cost is worse than their
+    old one (strict), in index order, into ``idx``; returns how many."""
+    k = 0
+    for i in range(F.shape[0]):
+        if zeta[i] <= c3 and F[i] > F_old[i]:
+            idx[k] = i
+            k += 1
+    return k
+
+
+@njit(cache=True, nogil=True)
+def mutate_probes(new, idx, v, factor, span_div, frep, lower, span, upper, X):  # noqa: ANN001, ANN201
+    """Eq 19 for the probes ``idx`` (in place on ``new``): ``xi = v - 0.5`` from ``v ~ U[0, 1)``
+    (the same floats as ``rng.uniform(-0.5, 0.5)``, which computes ``-0.5 + 1.0 * u``),
+    ``m = (xi * factor)`` (``/ span_div`` when ``span_div`` is not empty: ``xi`` in the
+    problem's units), eq 16 repair of ``new + m`` with old position ``new``, box positions in
+    ``X``."""
     d = new.shape[1]
     raw = span_div.shape[0] > 0
     for a in range(idx.shape[0]):
         i = idx[a]
         for j in range(d):
-            m = xi[a, j] * factor
+            m = (v[a, j] - 0.5) * factor
             if raw:
                 m = m / span_div[j]
             u = new[i, j]
