@@ -279,9 +279,10 @@ def test_compiled_masses_and_move_match_the_numpy_operators():
             expected = accommodate(new, U, 0.0, 1.0, frep)
         assert ((new < 0) | (new > 1)).any()  # the repair is exercised
         Unew, X = np.empty_like(U), np.empty_like(U)
-        K.move_probes(
+        move = K.move_probes_steps if steps else K.move_probes
+        move(
             U, W @ U, W.sum(axis=1), s if mcfo else np.empty(0), dt**2, pb, gb, r, c1, c2, frep,
-            lower, span, upper, Unew, X, steps,
+            lower, span, upper, Unew, X,
         )  # fmt: skip
         np.testing.assert_array_equal(Unew, expected)
         np.testing.assert_array_equal(X, np.clip(lower + expected * span, lower, upper))

@@ -101,8 +101,6 @@ def _weights_and_theta(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`cfo_weights` and eq 24's ``theta_i = sum_k W[i, k]`` (``F``: finite float64
     masses)."""
-    from swarmplan.optimizers._central_force_kernel import gravity_weights
-
     sq = np.einsum("ij,ij->i", U, U)
     # BLAS matmul: 100 x 50 x 100 takes 24 us against 146 us for einsum on a quiet machine
     # (under heavy load BLAS's threads can make it slower; benchmarks run quiet)
@@ -111,7 +109,7 @@ def _weights_and_theta(
     # theta in numpy's pairwise order: summing in the kernel instead (index order) saved
     # ~2 µs per generation and would change the floats
     W = np.empty((len(F), len(F)))
-    gravity_weights(F, sq, gram, 1.0 / mass_scale, float(G), float(alpha), float(beta), W)
+    _kernel().gravity_weights(F, sq, gram, 1.0 / mass_scale, float(G), float(alpha), float(beta), W)
     return W, W.sum(axis=1)
 
 
@@ -297,10 +295,11 @@ class CentralForce(Optimizer):
         W, theta = Wt
         Unew, X = np.empty_like(U), np.empty_like(U)
         c1, c2 = float(p.get("c1", 0.0)), float(p.get("c2", 0.0))
-        _kernel().move_probes(
+        K = _kernel()
+        move = K.move_probes_steps if p.get("update") == "steps" else K.move_probes
+        move(
             U, W @ U, theta, s, float(p["dt"]) ** 2, pbest, gbest, r, c1, c2,
             float(p["frep"]), problem.lower, problem.span, problem.upper, Unew, X,
-            p.get("update", "eq23") == "steps",
         )  # fmt: skip
         return Unew, X
 
@@ -397,17 +396,17 @@ class ModifiedCentralForce(CentralForce):
     initial parameters); eq 29 is met per probe (above), not by other defaults.
     :class:`CentralForce` has no such limit (004 gives CFO no stability analysis).
 
-    Measured (issue 11; shifted Rastrigin / Ackley, d = 10, 2e4 evaluations, 12 seeds, medians,
-    one-sided rank-sum against CFO's 17.56 / 1.45; docs/benchmarks.md): no reading of what 004
-    leaves open makes MCFO beat CFO on both. Eq 23 with ``c1 = c2`` = 0.5 / 1 / 2: Rastrigin
-    18.3 / 21.3 / 22.9, Ackley 1.97 / 2.16 / 2.45 (p >= 0.6); ``update="steps"`` with the same
-    ``c``: 13.6 (p = 0.11) / 27.0 / 22.0, Ackley 1.94 / 1.21 (p = 0.23) / 2.01; a judge ``zeta``
-    per coordinate instead of per probe: worse (30.2 / 2.99). 004's motivation for the memory
-    term (section 4.1: CFO slows down once the cost differences between probes shrink) does
-    not apply to rank masses, which keep the differences spread over [0, 1] in every
-    generation; with masses fixed to the initial population's cost range (gravity fading as
-    004 describes, the reading issue 11 removed for penalty landscapes) MCFO beats CFO on
-    Ackley (``steps``: 0.88 vs 9.35, p = 2e-5) but not on Rastrigin (35.0 vs 24.1).
+    Measured (issue 11; shifted Rastrigin / Ackley, d = 10, 2e4 evaluations, the slow test's 12
+    seeds, medians, one-sided rank-sum against CFO's 17.56 / 1.45; docs/benchmarks.md): no
+    reading of what 004 leaves open (``c1 = c2``, the order of step 4) makes MCFO beat CFO on
+    both functions. Eq 23 (default) with ``c1 = c2`` = 0.5 / 1 / 2: Rastrigin 16.2 / 17.1 /
+    12.1 (p = 0.24 / 0.28 / 0.04), Ackley 1.10 / 2.43 / 2.22 (p = 0.32 / 1 / 1);
+    ``update="steps"``: Rastrigin 17.7 / 32.2 / 18.7, Ackley 1.79 / 1.78 / 1.83 (p >= 0.2).
+    Without the mutation (``c3 = 0``) ``steps`` with ``c = 1`` beats CFO on Ackley (0.53,
+    p = 0.03) and loses on Rastrigin (28.9). 004's motivation for the memory term (section
+    4.1: CFO slows down once the cost differences between probes shrink) does not hold with
+    rank masses, which spread the masses over [0, 1] in every generation. We keep 004's
+    unspecified constants at ``c1 = c2 = 1`` rather than pick per-function winners.
     """
 
     name = "mcfo"
