@@ -127,6 +127,7 @@ def test_probes_stay_in_box(name):
         ("cfo", {"alpha": -1.0}, "alpha"),
         ("mcfo", {"c3": 2.0}, "c3"),
         ("mcfo", {"c1": -1.0}, "c1"),
+        ("mcfo", {"update": "both"}, "update"),
     ],
 )
 def test_invalid_parameters_name_the_parameter(name, params, bad):
@@ -260,22 +261,46 @@ def test_compiled_masses_and_move_match_the_numpy_operators():
     r = rng.random((2, n))
     s = rng.random(n)
     dt, frep, c1, c2 = 1.3, 0.4, 0.8, 1.1
-    for mcfo in (False, True):
-        if mcfo:
+    for mcfo, steps in ((False, False), (True, False), (True, True)):
+        if steps:  # update="steps": gravity move and repair, then eq 18 on the moved probe
+            y = accommodate(U + s[:, None] * 0.5 * dt**2 * gravity_from_weights(U, W), U, 0.0, 1.0, frep)
+            new = y + c1 * r[0][:, None] * (pb - y) + c2 * r[1][:, None] * (gb - y)
+            expected = accommodate(new, y, 0.0, 1.0, frep)
+        elif mcfo:
             new = (
                 U
                 + s[:, None] * 0.5 * dt**2 * gravity_from_weights(U, W)
                 + c1 * r[0][:, None] * (pb - U)
                 + c2 * r[1][:, None] * (gb - U)
             )
+            expected = accommodate(new, U, 0.0, 1.0, frep)
         else:
             new = U + 0.5 * gravity_from_weights(U, W) * dt**2
-        expected = accommodate(new, U, 0.0, 1.0, frep)
+            expected = accommodate(new, U, 0.0, 1.0, frep)
         assert ((new < 0) | (new > 1)).any()  # the repair is exercised
         Unew, X = np.empty_like(U), np.empty_like(U)
-        K.move_probes(
+        move = K.move_probes_steps if steps else K.move_probes
+        move(
             U, W @ U, W.sum(axis=1), s if mcfo else np.empty(0), dt**2, pb, gb, r, c1, c2, frep,
             lower, span, upper, Unew, X,
         )  # fmt: skip
         np.testing.assert_array_equal(Unew, expected)
         np.testing.assert_array_equal(X, np.clip(lower + expected * span, lower, upper))
+
+
+def test_mcfo_update_steps_reading():
+    """``update="steps"`` (004 step 4 as two moves) stays in the box, is reproducible, equals eq 23
+    when the memory pull is off, and differs from it when it is on."""
+    d = 4
+    lo, hi = np.full(d, -3.0), np.full(d, 5.0)
+
+    def run(**kw):
+        opt = make("mcfo", population=12, **kw)
+        return opt.minimize(lambda X: sphere(X - 1.3), lo, hi, max_evals=600, seed=3)
+
+    a, b = run(update="steps"), run(update="steps")
+    assert a.f == b.f and np.array_equal(a.x, b.x)
+    assert np.all(a.x >= lo) and np.all(a.x <= hi)
+    off = {"c1": 0.0, "c2": 0.0}
+    assert np.array_equal(run(update="steps", **off).history, run(update="eq23", **off).history)
+    assert not np.array_equal(run(update="steps").history, run(update="eq23").history)

@@ -92,16 +92,25 @@ def cfo_weights(
     ``W[i, k] = G * U(f_i - f_k) * ((f_i - f_k)/mass_scale)**alpha / |u_k - u_i|**beta``, so
     that ``a_i = sum_k W[i, k] * (u_k - u_i)`` (eq 14) and ``theta_i = sum_k W[i, k]`` (eq 24).
     """
-    from swarmplan.optimizers._central_force_kernel import gravity_weights
-
     F = np.ascontiguousarray(_finite_costs(F), dtype=float)
+    return _weights_and_theta(U, F, mass_scale, G, alpha, beta)[0]
+
+
+def _weights_and_theta(
+    U: np.ndarray, F: np.ndarray, mass_scale: float, G: float, alpha: float, beta: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cfo_weights` and eq 24's ``theta_i = sum_k W[i, k]`` (``F``: finite float64
+    masses)."""
     sq = np.einsum("ij,ij->i", U, U)
     # BLAS matmul: 100 x 50 x 100 takes 24 us against 146 us for einsum on a quiet machine
     # (under heavy load BLAS's threads can make it slower; benchmarks run quiet)
     gram = U @ U.T
-    # the elementwise part in one compiled pass (numpy's operations and order: same weights)
+    # the elementwise part in one compiled pass (numpy's operations and order: same weights).
+    # theta in numpy's pairwise order: summing in the kernel instead (index order) saved
+    # ~2 µs per generation and would change the floats
     W = np.empty((len(F), len(F)))
-    return gravity_weights(F, sq, gram, 1.0 / mass_scale, float(G), float(alpha), float(beta), W)
+    _kernel().gravity_weights(F, sq, gram, 1.0 / mass_scale, float(G), float(alpha), float(beta), W)
+    return W, W.sum(axis=1)
 
 
 def gravity_from_weights(U: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -167,6 +176,7 @@ class _MCFOState(_CFOState):
     pbest_F: np.ndarray
     gbest_U: np.ndarray  # global best (unit box)
     gbest_F: float
+    span_div: np.ndarray  # eq 19's xi -> unit box: the box widths ("raw"), empty ("unit")
 
 
 def _to_unit(problem: Problem, X: np.ndarray) -> np.ndarray:
@@ -255,34 +265,40 @@ class CentralForce(Optimizer):
         F = problem.evaluate(X)
         return _CFOState(U=_to_unit(problem, X), F=F, mass_scale=_mass_scale(F))
 
-    def _weights(self, state: _CFOState) -> np.ndarray:
-        """Eq 14's pairwise weights over the current probes (masses recomputed per generation)."""
+    def _weights(self, state: _CFOState) -> tuple[np.ndarray, np.ndarray]:
+        """Eq 14's pairwise weights over the current probes (masses recomputed per generation)
+        and eq 24's ``theta`` (their row sums)."""
         p = self.params
         if p["masses"] == "rank":  # ranks in one compiled call (same values as masses())
-            K = _kernel()
-            U = state.U
-            M = K.rank_masses(state.F, np.empty(len(state.F)))
+            M = _kernel().rank_masses(state.F, np.empty(len(state.F)))
             state.mass_scale = 1.0
-            W = np.empty((len(M), len(M)))
-            sq = np.einsum("ij,ij->i", U, U)
-            return K.gravity_weights(
-                M, sq, U @ U.T, 1.0, float(p["G"]), float(p["alpha"]), float(p["beta"]), W
-            )
-        M, state.mass_scale = masses(state.F, p["masses"])
-        return cfo_weights(state.U, M, state.mass_scale, p["G"], p["alpha"], p["beta"])
+        else:
+            M, state.mass_scale = masses(state.F, p["masses"])
+            M = np.ascontiguousarray(_finite_costs(M), dtype=float)
+        return _weights_and_theta(state.U, M, state.mass_scale, p["G"], p["alpha"], p["beta"])
 
     def _move(
-        self, state: _CFOState, problem: Problem, W: np.ndarray, s: np.ndarray, r: np.ndarray, pbest, gbest
+        self,
+        state: _CFOState,
+        problem: Problem,
+        Wt: tuple[np.ndarray, np.ndarray],
+        s: np.ndarray,
+        r: np.ndarray,
+        pbest,
+        gbest,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Eqs 14-16 (and eq 23's memory terms for MCFO, ``s`` non-empty) in one compiled pass:
         the probes' new unit-box positions and their box positions (not yet evaluated). Same
         floats as :func:`gravity_from_weights` + :func:`accommodate` + ``_to_box``."""
         p = self.params
         U = state.U
+        W, theta = Wt
         Unew, X = np.empty_like(U), np.empty_like(U)
         c1, c2 = float(p.get("c1", 0.0)), float(p.get("c2", 0.0))
-        _kernel().move_probes(
-            U, W @ U, W.sum(axis=1), s, float(p["dt"]) ** 2, pbest, gbest, r, c1, c2,
+        K = _kernel()
+        move = K.move_probes_steps if p.get("update") == "steps" else K.move_probes
+        move(
+            U, W @ U, theta, s, float(p["dt"]) ** 2, pbest, gbest, r, c1, c2,
             float(p["frep"]), problem.lower, problem.span, problem.upper, Unew, X,
         )  # fmt: skip
         return Unew, X
@@ -324,7 +340,9 @@ class ModifiedCentralForce(CentralForce):
        written on ``p_i^j`` (eq 15's *old* position), and eq 23 spells the whole update out
        as a sum; applying eq 18 to the already moved probe instead would multiply the
        gravity step by ``1 - c1*r1 - c2*r2`` (mean 0 for ``c1 = c2 = 1``), i.e. cancel CFO
-       on average. With ``stability="eq29"`` ``r1, r2`` and, where unavoidable, the gravity
+       on average. That other reading is the option ``update="steps"`` (gravity move, eq 16
+       repair, then eq 18 on the moved probe, eq 16 again); it is not better (see "Measured"
+       below). With ``stability="eq29"`` ``r1, r2`` and, where unavoidable, the gravity
        step are fitted to the stability condition (below); then the probe is repaired with eq 16 (old position
        ``p_i``); one evaluation batch.
 
@@ -377,6 +395,18 @@ class ModifiedCentralForce(CentralForce):
     CFO parameters are :class:`CentralForce`'s (section 8: all methods share the same
     initial parameters); eq 29 is met per probe (above), not by other defaults.
     :class:`CentralForce` has no such limit (004 gives CFO no stability analysis).
+
+    Measured (issue 11; shifted Rastrigin / Ackley, d = 10, 2e4 evaluations, the slow test's 12
+    seeds, medians, one-sided rank-sum against CFO's 17.56 / 1.45; docs/benchmarks.md): no
+    reading of what 004 leaves open (``c1 = c2``, the order of step 4) makes MCFO beat CFO on
+    both functions. Eq 23 (default) with ``c1 = c2`` = 0.5 / 1 / 2: Rastrigin 16.2 / 17.1 /
+    12.1 (p = 0.24 / 0.28 / 0.04), Ackley 1.10 / 2.43 / 2.22 (p = 0.32 / 1 / 1);
+    ``update="steps"``: Rastrigin 17.7 / 32.2 / 18.7, Ackley 1.79 / 1.78 / 1.83 (p >= 0.2).
+    Without the mutation (``c3 = 0``) ``steps`` with ``c = 1`` beats CFO on Ackley (0.53,
+    p = 0.03) and loses on Rastrigin (28.9). 004's motivation for the memory term (section
+    4.1: CFO slows down once the cost differences between probes shrink) does not hold with
+    rank masses, which spread the masses over [0, 1] in every generation. We keep 004's
+    unspecified constants at ``c1 = c2 = 1`` rather than pick per-function winners.
     """
 
     name = "mcfo"
@@ -388,6 +418,7 @@ class ModifiedCentralForce(CentralForce):
         "c": 3.0,
         "stability": "none",
         "mutation_units": "raw",
+        "update": "eq23",
     }
 
     def validate(self) -> None:
@@ -400,6 +431,8 @@ class ModifiedCentralForce(CentralForce):
             raise ValueError(f"{self.name}: c3 must be in [0, 1], got {p['c3']}")
         if p["stability"] not in ("none", "eq29"):
             raise ValueError(f"{self.name}: stability must be 'none' or 'eq29', got {p['stability']!r}")
+        if p["update"] not in ("eq23", "steps"):
+            raise ValueError(f"{self.name}: update must be 'eq23' or 'steps', got {p['update']!r}")
         if p["mutation_units"] not in ("raw", "unit"):
             raise ValueError(
                 f"{self.name}: mutation_units must be 'raw' or 'unit', got {p['mutation_units']!r}"
@@ -416,6 +449,11 @@ class ModifiedCentralForce(CentralForce):
             pbest_F=base.F.copy(),
             gbest_U=base.U[g].copy(),
             gbest_F=float(base.F[g]),
+            span_div=(
+                np.where(problem.span > 0, problem.span, 1.0)
+                if self.params["mutation_units"] == "raw"
+                else _EMPTY
+            ),
         )
 
     def iterate(self, state: _MCFOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:
@@ -423,11 +461,13 @@ class ModifiedCentralForce(CentralForce):
         n, d = state.U.shape
         # eq 23: gravity (eqs 14-15) and memory (eq 18) displacements, both from p_i^j,
         # with r1, r2 (and where unavoidable the gravity step) fitted to eq 29 per probe;
-        # r1 = r[0], r2 = r[1] (one draw: the same numbers as two (n, 1) draws in a row)
-        r = rng.random((2, n))
+        # r1 = u[0], r2 = u[1], eq 19's judge zeta = u[2] (one draw: the same numbers as
+        # drawing r1, r2 and, after the evaluation, zeta; evaluating draws nothing)
+        u = rng.random((3, n))
+        r = u[:2]
         W = self._weights(state)  # per generation, over the current probes
         if p["stability"] == "eq29":  # our option: enforce eq 29 per probe and generation
-            theta = W.sum(axis=1)[:, None]
+            theta = W[1][:, None]
             r1, r2, s = eq29_limits(theta, r[0][:, None], r[1][:, None], p["c1"], p["c2"], p["dt"], iteration)
             r = np.stack([r1[:, 0], r2[:, 0]])
             s = np.ascontiguousarray(np.broadcast_to(s, (n, 1))[:, 0])
@@ -436,20 +476,18 @@ class ModifiedCentralForce(CentralForce):
         new, X = self._move(state, problem, W, s, r, state.pbest_U, state.gbest_U)
         F = problem.evaluate(X)
         # eq 19: one judge variable per probe; mutate probes that got worse, when zeta <= c3
-        zeta = rng.random(n)
-        mut = (zeta <= p["c3"]) & (F > state.F)
-        if mut.any():
-            k = int(mut.sum())
+        K = _kernel()
+        idx = np.empty(n, dtype=np.intp)
+        k = K.mutation_candidates(F, state.F, u[2], float(p["c3"]), idx)
+        if k:
+            idx = idx[:k]
             tau = problem.evaluations / problem.max_evals
-            xi = rng.uniform(-0.5, 0.5, (k, d))
-            # eq 19: xi in the problem's own units ("raw") or the unit box; eq 16 repair
-            span_div = (
-                np.where(problem.span > 0, problem.span, 1.0) if p["mutation_units"] == "raw" else _EMPTY
-            )
-            idx = np.flatnonzero(mut)
+            # xi ~ U(-0.5, 0.5) per coordinate, in the problem's own units ("raw") or the unit
+            # box; eq 16 repair (the kernel shifts the U[0, 1) draws by -0.5)
+            xi = rng.random((k, d))
             X = np.empty((k, d))
-            _kernel().mutate_probes(
-                new, idx, xi, float(np.exp(-p["c"] * tau)), span_div, float(p["frep"]),
+            K.mutate_probes(
+                new, idx, xi, float(np.exp(-p["c"] * tau)), state.span_div, float(p["frep"]),
                 problem.lower, problem.span, problem.upper, X,
             )  # fmt: skip
             F[idx] = problem.evaluate(X)
