@@ -198,3 +198,122 @@ def test_path_bytes_equal_protobuf_serializer(seed):
         msg = [m for m in cap.messages if m[0] == 13][-1][2]
         assert msg == ref.message(t)
     assert max(len(e.lines[0].points) for e in SceneUpdate.FromString(msg).entities) <= 6
+
+
+def _times():
+    """Step times whose timestamps take every length: t = 0 (empty), whole seconds (no nanos),
+    nanos of 4 and 5 bytes, seconds of 1 and 2 bytes."""
+    return [0.0, 0.1, 0.2, 0.6, 1.0, 1.1, 2.0, 2.7, 127.9, 128.0, 128.3, 300.9, 301.0, 301.1]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_templated_steps_equal_protobuf_serializer(seed):
+    """Long runs of steps without zero coordinates (where /tf and the agents of /scene are
+    filled into a template), broken by zeros, mode changes and timestamps of every length."""
+    rng = np.random.default_rng(seed)
+    radius = {"a0": 0.5, "uav-1": 1.25, "x" * 150: 0.3, "b": 2.0}
+    cap = _Capture()
+    scene = FoxgloveScene(
+        cap,
+        {"agents": [{"id": i, "radius": r} for i, r in radius.items()]},
+        scene_period=0.0,
+        path_period=1e9,
+    )
+    last: dict[str, FrameTransform] = {}
+    modes = {i: "apf" for i in radius}
+    times = _times()
+    for step in range(120):
+        t = times[step % len(times)] + 1000.0 * (step // len(times))
+        agents = []
+        for i in radius:
+            p, v = rng.normal(0, 50, 3), rng.normal(0, 3, 3)
+            if rng.random() < 0.03:
+                p[rng.integers(3)] = [0.0, -0.0][rng.integers(2)]
+            if rng.random() < 0.03:
+                v[:2] = 1.0, 0.0  # heading exactly along x: rotation.z = 0.0 is left out
+            if rng.random() < 0.05:
+                modes[i] = ["apf", "escape", "arrived", "smoothing"][rng.integers(4)]
+            agents.append({"id": i, "position": p.tolist(), "velocity": v.tolist(), "mode": modes[i]})
+        scene.write_step(t, agents, [])
+        assert [m for m in cap.messages if m[0] == 10][-1][2] == _reference(t, agents, last)
+        assert [m for m in cap.messages if m[0] == 12][-1][2] == _reference_scene(t, agents, radius)
+    assert len(scene._tf_templates) >= 3 and len(scene._scene_templates) >= 1  # the filled path ran
+
+
+def _reference_movers(t: float, obstacles: list[dict], world_obstacles: dict[str, dict]) -> bytes:
+    """The movers' /scene entities through the protobuf API, built afresh each step."""
+    from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+
+    from swarmplan.geometry.rotation import euler_to_quaternion
+
+    out = SceneUpdate()
+    ns = int(round(t * 1e9))
+    for o in obstacles:
+        obst = world_obstacles[o["id"]]
+        e = SceneEntity(frame_id="world", id=f"obstacle/{o['id']}")
+        e.timestamp.seconds, e.timestamp.nanos = divmod(ns, 1_000_000_000)
+        q = o.get("orientation")
+        if q is None:
+            q = euler_to_quaternion((list(obst.get("rotation") or []) + [0, 0, 0])[:3])
+        shape = obst["shape"]
+        prim = {"sphere": e.spheres, "box": e.cubes, "cylinder": e.cylinders}[shape].add()
+        prim.pose.position.x, prim.pose.position.y, prim.pose.position.z = (float(c) for c in o["position"])
+        o_ = prim.pose.orientation
+        o_.x, o_.y, o_.z, o_.w = (float(c) for c in q)
+        if shape == "sphere":
+            prim.size.x = prim.size.y = prim.size.z = 2.0 * obst["radius"]
+        elif shape == "box":
+            prim.size.x, prim.size.y, prim.size.z = (float(v) for v in obst["size"])
+        else:
+            prim.size.x = prim.size.y = 2.0 * obst["radius"]
+            prim.size.z = float(obst["height"])
+            prim.bottom_scale = prim.top_scale = 1.0
+        prim.color.r, prim.color.g, prim.color.b, prim.color.a = (0.9, 0.45, 0.1, 0.85)
+        out.entities.append(e)
+    return out.SerializeToString()
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_mover_bytes_equal_protobuf_serializer(seed):
+    """Moving spheres, boxes and cylinders (filled into templates per layout): poses with
+    zero and -0.0 components, orientations given or from the world's rotation, timestamps of
+    every length, a mover missing from some steps."""
+    rng = np.random.default_rng(seed)
+    world_obstacles = {
+        "m0": {"id": "m0", "shape": "sphere", "radius": 4.0, "position": [0, 0, 0], "motion": {}},
+        "m1": {"id": "m1", "shape": "box", "size": [1.0, 2.0, 3.0], "position": [0, 0, 0], "motion": {}},
+        "m2": {
+            "id": "m2",
+            "shape": "cylinder",
+            "radius": 1.5,
+            "height": 7.0,
+            "position": [0, 0, 0],
+            "rotation": [0, 0, 30],
+            "motion": {},
+        },
+        "long-" + "z" * 130: {"id": "long-" + "z" * 130, "shape": "sphere", "radius": 1.0, "motion": {}},
+    }
+    cap = _Capture()
+    scene = FoxgloveScene(
+        cap, {"agents": [], "obstacles": list(world_obstacles.values())}, scene_period=0.0, path_period=1e9
+    )
+    times = _times()
+    for step in range(90):
+        t = times[step % len(times)] + 1000.0 * (step // len(times))
+        obstacles = []
+        for oid in world_obstacles:
+            if oid == "m1" and 30 <= step < 40:
+                continue  # the set of movers changes
+            p = rng.normal(0, 40, 3)
+            if rng.random() < 0.1:
+                p[rng.integers(3)] = [0.0, -0.0][rng.integers(2)]
+            entry = {"id": oid, "position": p.tolist()}
+            if oid != "m2":
+                q = [[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.38268343236508984, 0.9238795325112867]][step % 2]
+                entry["orientation"] = q if rng.random() < 0.9 else [-0.0, 0.5, 0.5, 0.7071067811865476]
+            obstacles.append(entry)
+        scene.write_step(t, [], obstacles)
+        assert [m for m in cap.messages if m[0] == 12][-1][2] == _reference_movers(
+            t, obstacles, world_obstacles
+        )
+    assert any(v is not False for v in scene._mover_templates.values())  # the filled path ran

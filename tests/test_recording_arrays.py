@@ -84,3 +84,37 @@ def test_non_finite_state_is_refused_as_json_refuses_it(tmp_path):
     with McapRecorder(tmp_path / "x.mcap") as rec:
         with pytest.raises(ValueError):
             rec.write_state(0.0, agents, None)
+
+
+def test_many_agents_array_path_writes_the_dict_path_bytes(tmp_path):
+    """Enough agents for the numbers to go through numpy (json_floats), modes changing."""
+    ids = tuple(f"uav{i}" for i in range(60)) + IDS
+    rng = np.random.default_rng(7)
+    n = len(ids)
+    goal = np.round(rng.normal(0, 40, (n, 3)), 3)
+    modes = np.array([Mode.APF] * n, dtype=object)
+    pos = rng.normal(0, 40, (n, 3))
+    states = []
+    for step in range(25):
+        vel = rng.normal(0, 3, (n, 3))
+        vel[rng.random(n) < 0.2] = 0.0
+        vel[rng.integers(n), 1] = 3e-05  # repr writes it with an exponent
+        pos = pos + vel * 0.1
+        pos[rng.integers(n), rng.integers(3)] = -0.0
+        if step % 4 == 0:
+            modes = modes.copy()
+            modes[rng.integers(n)] = list(Mode)[rng.integers(len(Mode))]
+        states.append(
+            (round(0.1 * step, 9), AgentStates(ids, np.round(pos, 6), np.round(vel, 6), modes, goal))
+        )
+    world = {"name": "w", "agents": [{"id": i, "goal": [0, 0, 0]} for i in ids], "obstacles": []}
+    out, recorders = [], []
+    for kind in ("arrays", "dicts"):
+        with McapRecorder(tmp_path / f"{kind}.mcap") as rec:
+            rec.write_world(world)
+            for t, agents in states:
+                rec.write_state(t, agents if kind == "arrays" else agents.dicts(), None)
+        out.append([m for m in _messages(tmp_path / f"{kind}.mcap") if m[0] == "/agents/state"])
+        recorders.append(rec)
+    assert out[0] == out[1] and len(out[0]) == 25
+    assert type(recorders[0]._states._text).__name__ == "Interleaved"  # the numpy path ran

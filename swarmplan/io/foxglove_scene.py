@@ -26,9 +26,12 @@ restores each topic from its latest message only: every topic is self-contained.
 ``log_time``/``publish_time`` are simulation time in ns, like every channel of the log.
 
 Cost: the per-agent fields (/tf, agents of /scene, path points) are written in protobuf's
-wire format with the numbers of all agents packed at once (``swarmplan.io.wire``); other
-entities are built through the protobuf API (movers' kept and updated in place). See
-``docs/performance.md`` for measured per-step cost.
+wire format with the numbers of all agents packed at once (``swarmplan.io.wire``). A step
+whose layout equals an earlier one (same agents, modes and movers, no pose component equal
+to +-0.0, same timestamp length: nearly every step) only writes its timestamp and numbers
+into that step's bytes (``wire.Patched``). Static and other entities are built through the
+protobuf API (``swarmplan.io.foxglove_shapes``). See ``docs/performance.md`` for measured
+per-step cost.
 """
 
 from __future__ import annotations
@@ -47,19 +50,30 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 
 from swarmplan.core import AgentStates, Mode
-from swarmplan.geometry.rotation import euler_to_quaternion, rotate
+from swarmplan.io.foxglove_shapes import (
+    FRAME,
+    MOVING_RGBA,
+    ONE_PRIMITIVE,
+    obstacle_entity,
+    rest_orientation,
+    set_color,
+    set_pose,
+    world_entities,
+)
 from swarmplan.io.wire import (
+    DOUBLE,
+    Patched,
     file_descriptor_set,
     join_records,
     length_prefixes,
     point_bytes,
     pose_fields,
+    record_starts,
     timestamp_bytes,
     varint,
     vector_fields,
 )
 
-FRAME = "world"
 SCENE_TOPIC = "/scene"
 WORLD_TOPIC = "/scene/world"
 PATHS_TOPIC = "/scene/paths"
@@ -73,25 +87,8 @@ MODE_COLORS = {
     Mode.COLLIDED: (0.1, 0.1, 0.1, 1.0),
     Mode.FAILED: (0.5, 0.5, 0.5, 1.0),
 }
-OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
-MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
 _TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
-
-
-def _set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)):
-    pose.position.x, pose.position.y, pose.position.z = (float(c) for c in position[:3])
-    o = pose.orientation
-    o.x, o.y, o.z, o.w = (float(c) for c in quat)
-
-
-def _set_color(color, rgba):
-    color.r, color.g, color.b, color.a = rgba
-
-
-def _set_time(ts, t: float):
-    ns = int(round(t * 1e9))
-    ts.seconds, ts.nanos = divmod(ns, 1_000_000_000)
 
 
 class FoxgloveScene:
@@ -145,7 +142,10 @@ class FoxgloveScene:
         self._obstacles = {str(o["id"]): o for o in world.get("obstacles") or [] if "id" in o}
         self._agent_heads: dict[str, tuple[bytes, bytes, bytes]] = {}
         self._colors: dict[tuple[float, float, float, float], bytes] = {}
-        self._obstacle_entities: dict[str, SceneEntity] = {}
+        self._mover_ids: tuple[str, ...] | None = None
+        self._mover_simple = True
+        self._mover_rest: list[tuple[float, ...]] = []
+        self._mover_templates: dict[tuple[int, bytes], Patched | bool] = {}
         self._path_heads: dict[str, bytes] = {}
         self._path_bytes: dict[str, bytearray] = {}  # per agent: its path's encoded points
         self._paths: dict[str, int] = {}  # agents with a path (message order) -> slot
@@ -168,6 +168,10 @@ class FoxgloveScene:
         self._tf_heads: list[bytes] = []
         self._tf_head_len: list[int] = []
         self._tf_stamp_len = 0
+        self._tf_templates: dict[int, Patched] = {}  # per timestamp length (_write_tf)
+        self._scene_ids: tuple[str, ...] | None = None
+        self._scene_modes: list = []
+        self._scene_templates: dict[int, Patched] = {}  # per timestamp length (_write_scene)
         self._next_scene = -math.inf
         self._next_path = -math.inf
         self._next_tf = -math.inf
@@ -179,136 +183,6 @@ class FoxgloveScene:
         ns = int(round(t * 1e9))
         self.writer.add_message(self._channels[topic], log_time=ns, publish_time=ns, data=data)
         self.messages_written += 1
-
-    @staticmethod
-    def _scene_bytes(entities) -> bytes:
-        parts = []
-        for e in entities:
-            b = e.SerializeToString()
-            parts.append(_ENTITIES_TAG + varint(len(b)) + b)
-        return b"".join(parts)
-
-    @staticmethod
-    def _entity(eid: str, t: float) -> SceneEntity:
-        e = SceneEntity(frame_id=FRAME, id=eid)
-        _set_time(e.timestamp, t)
-        return e
-
-    # ------------------------------------------------------------------ shapes
-    def _obstacle_entity(self, obst: dict[str, Any], t: float, position=None, quat=None, rgba=OBSTACLE_RGBA):
-        e = self._entity(f"obstacle/{obst['id']}", t)
-        self._fill_obstacle(e, obst, position, quat, rgba)
-        return e
-
-    def _fill_obstacle(self, e, obst, position=None, quat=None, rgba=OBSTACLE_RGBA):
-        shape = obst.get("shape")
-        pos = np.asarray(obst.get("position", [0, 0, 0]) if position is None else position, float)
-        q = (
-            tuple(quat)
-            if quat is not None
-            else tuple(euler_to_quaternion((list(obst.get("rotation") or []) + [0, 0, 0])[:3]))
-        )
-        if shape == "sphere":
-            s = e.spheres.add()
-            _set_pose(s.pose, pos, q)
-            d = 2.0 * float(obst["radius"])
-            s.size.x = s.size.y = s.size.z = d
-            _set_color(s.color, rgba)
-        elif shape == "box":
-            c = e.cubes.add()
-            _set_pose(c.pose, pos, q)
-            c.size.x, c.size.y, c.size.z = (float(v) for v in obst["size"])
-            _set_color(c.color, rgba)
-        elif shape in ("cylinder", "capsule"):
-            r = float(obst["radius"])
-            h = float(obst.get("height", obst.get("length", 0.0)))
-            c = e.cylinders.add()
-            _set_pose(c.pose, pos, q)
-            c.size.x = c.size.y = 2.0 * r
-            c.size.z = h
-            c.bottom_scale = c.top_scale = 1.0
-            _set_color(c.color, rgba)
-            if shape == "capsule":
-                for sign in (-1.0, 1.0):
-                    s = e.spheres.add()
-                    _set_pose(s.pose, pos + rotate(q, [0.0, 0.0, sign * h / 2.0]), q)
-                    s.size.x = s.size.y = s.size.z = 2.0 * r
-                    _set_color(s.color, rgba)
-        elif shape == "mesh" and "vertices" in obst:
-            tri = e.triangles.add()
-            v = np.asarray(obst["vertices"], float)
-            if position is not None:  # moving mesh: vertices are its pose at t = 0
-                v = v - np.asarray(obst.get("position", [0, 0, 0]), float)
-                _set_pose(tri.pose, pos, q if quat is not None else (0.0, 0.0, 0.0, 1.0))
-            else:
-                _set_pose(tri.pose, (0.0, 0.0, 0.0))
-            for x, y, z in v:
-                tri.points.add(x=float(x), y=float(y), z=float(z))
-            tri.indices.extend(int(i) for i in np.asarray(obst["faces"], int).ravel())
-            _set_color(tri.color, rgba)
-
-    # ------------------------------------------------------------------ world
-    def write_world(self, t: float = 0.0) -> None:
-        """Static obstacles, bounds, terrain and goals on ``/scene/world`` at time ``t``."""
-        entities = []
-        for obst in self._obstacles.values():
-            if not obst.get("motion"):
-                entities.append(self._obstacle_entity(obst, t))
-        b = self.world.get("bounds") or {}
-        if b.get("min") is not None and b.get("max") is not None:
-            lo, hi = np.asarray(b["min"], float), np.asarray(b["max"], float)
-            e = self._entity("bounds", t)
-            line = e.lines.add(type=LinePrimitive.LINE_LIST, thickness=2.0, scale_invariant=True)
-            _set_pose(line.pose, (0.0, 0.0, 0.0))
-            corners = [
-                np.array([x, y, z]) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])
-            ]
-            for i in range(8):
-                for j in range(i + 1, 8):
-                    if np.count_nonzero(corners[i] != corners[j]) == 1:
-                        for p in (corners[i], corners[j]):
-                            line.points.add(x=float(p[0]), y=float(p[1]), z=float(p[2]))
-            _set_color(line.color, (0.6, 0.6, 0.6, 1.0))
-            entities.append(e)
-            terrain = self._terrain_entity(lo, hi, t)
-            if terrain is not None:
-                entities.append(terrain)
-        for a in self.world.get("agents") or []:
-            if a.get("goal") is None:
-                continue
-            e = self._entity(f"goal/{a['id']}", t)
-            s = e.spheres.add()
-            _set_pose(s.pose, a["goal"])
-            tol = float((self.world.get("sim") or {}).get("goal_tolerance", 1.0) or 1.0)
-            s.size.x = s.size.y = s.size.z = 2.0 * tol
-            _set_color(s.color, (0.17, 0.63, 0.17, 0.35))
-            entities.append(e)
-        self._write(WORLD_TOPIC, self._scene_bytes(entities), t)
-
-    def _terrain_entity(self, lo, hi, t, n=32):
-        peaks = (self.world.get("terrain") or {}).get("peaks") or []
-        if not peaks:
-            return None
-        xs, ys = np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n)
-        X, Y = np.meshgrid(xs, ys)
-        Z = np.zeros_like(X)
-        for pk in peaks:
-            cx, cy = pk["center"][:2]
-            sx, sy = (pk.get("spread") or [1, 1])[:2]
-            Z += float(pk["height"]) * np.exp(-(((X - cx) / sx) ** 2) - ((Y - cy) / sy) ** 2)
-        e = self._entity("terrain", t)
-        tri = e.triangles.add()
-        _set_pose(tri.pose, (0.0, 0.0, 0.0))
-        for x, y, z in zip(X.ravel(), Y.ravel(), Z.ravel(), strict=True):
-            tri.points.add(x=float(x), y=float(y), z=float(z))
-        idx = []
-        for r in range(n - 1):
-            for c in range(n - 1):
-                a, b2, c2, d = r * n + c, r * n + c + 1, (r + 1) * n + c, (r + 1) * n + c + 1
-                idx += [a, b2, d, a, d, c2]
-        tri.indices.extend(idx)
-        _set_color(tri.color, (0.45, 0.6, 0.35, 0.5))
-        return e
 
     # ------------------------------------------------------------------ steps
     def write_step(
@@ -403,15 +277,33 @@ class FoxgloveScene:
             slots = rows.slots[turning]
             self._qz[slots] = list(map(math.sin, half.tolist()))
             self._qw[slots] = list(map(math.cos, half.tolist()))
-        fields = pose_fields(rows.pos, self._qz[rows.slots], self._qw[rows.slots])
+        qz, qw = self._qz[rows.slots], self._qw[rows.slots]
         if rows.ids != self._tf_ids:
             self._tf_ids = rows.ids
             self._tf_heads = [self._tf_head(aid) for aid in rows.ids]
             self._tf_head_len = [len(h) + len(stamp) for h in self._tf_heads]
             self._tf_stamp_len = len(stamp)
+            self._tf_templates = {}
+        # The usual step (no coordinate or rotation component equal to +-0.0, which proto3
+        # writes differently): every record has the same layout as the last such step with a
+        # timestamp of this length, so only the numbers and the timestamp are written into it.
+        usual = bool((rows.pos != 0.0).all() and (qz != 0.0).all() and (qw != 0.0).all())
+        template = self._tf_templates.get(len(stamp)) if usual else None
+        if template is not None:
+            self._write(TF_TOPIC, template.fill(stamp, np.column_stack((rows.pos, qz, qw))), t)
+            return
+        fields = pose_fields(rows.pos, qz, qw)
         shift = len(stamp) - self._tf_stamp_len
         lengths = [n + f + shift for n, f in zip(self._tf_head_len, map(len, fields), strict=True)]
-        self._write(TF_TOPIC, join_records(_TRANSFORMS_TAG, lengths, stamp, self._tf_heads, fields), t)
+        data = join_records(_TRANSFORMS_TAG, lengths, stamp, self._tf_heads, fields)
+        if usual and len(lengths):
+            # pose fields: translation x, y, z at 3, 12, 21; rotation z, w at 32, 41
+            stamp_at = record_starts(lengths)
+            body = stamp_at + np.asarray(self._tf_head_len) + shift  # after stamp and frame ids
+            self._tf_templates[len(stamp)] = Patched(
+                data, stamp_at, len(stamp), body[:, None] + np.array([3, 12, 21, 32, 41])
+            )
+        self._write(TF_TOPIC, data, t)
 
     def _agent_head(self, aid: str) -> tuple[bytes, bytes, bytes]:
         """An agent entity's fixed fields: frame and entity ids, and the sphere's orientation
@@ -455,6 +347,22 @@ class FoxgloveScene:
         # sphere: timestamp, frame and entity ids, pose, size, colour), the bytes protobuf's
         # serializer gives (tests/test_foxglove_tf_bytes.py); obstacles go through the API.
         stamp = timestamp_bytes(t)
+        if rows.ids != self._scene_ids or rows.modes != self._scene_modes:
+            self._scene_ids, self._scene_modes = rows.ids, list(rows.modes)
+            self._scene_templates = {}
+        # As in _write_tf: with no coordinate equal to +-0.0 the agents' records keep the
+        # layout of the last such step (same ids, modes and timestamp length).
+        usual = bool((rows.pos != 0.0).all())
+        template = self._scene_templates.get(len(stamp)) if usual else None
+        if template is not None:
+            agents = template.fill(stamp, rows.pos)
+        else:
+            agents = self._scene_agents(stamp, rows, usual)
+        self._write(SCENE_TOPIC, agents + self._movers_bytes(t, stamp, obstacles or []), t)
+
+    def _scene_agents(self, stamp: bytes, rows: _Rows, keep: bool) -> bytes:
+        """The agents' entities of a /scene message (``keep``: store them as the template
+        of this timestamp length)."""
         positions = vector_fields(0x0A, rows.pos)
         cache = self._sphere_cache
         parts = [
@@ -470,33 +378,57 @@ class FoxgloveScene:
         flat[3::5] = positions
         flat[4::5] = [p[1] for p in parts]
         agents = b"".join(flat)
-        entities = []
-        for o in obstacles or []:
-            oid = str(o["id"])
-            obst = self._obstacles.get(oid)
-            if obst is None:
-                continue
-            entities.append(self._mover_entity(oid, obst, t, o["position"], o.get("orientation")))
-        self._write(SCENE_TOPIC, agents + self._scene_bytes(entities), t)
+        if keep and n:
+            stamp_at = record_starts(lengths)
+            position_at = stamp_at + len(stamp) + np.array([len(p[0]) for p in parts])
+            self._scene_templates[len(stamp)] = Patched(
+                agents, stamp_at, len(stamp), position_at[:, None] + np.array([3, 12, 21])
+            )
+        return agents
 
-    def _mover_entity(self, oid: str, obst: dict[str, Any], t: float, position, quat) -> SceneEntity:
-        """A moving obstacle's entity at ``t``. One-primitive shapes keep their entity and only
-        get a new time and pose (every other field is the same each time); others are rebuilt."""
-        e = self._obstacle_entities.get(oid)
-        if e is None:
-            e = self._entity(f"obstacle/{oid}", t)
-            self._fill_obstacle(e, obst, position, quat, MOVING_RGBA)
-            if obst.get("shape") in ("sphere", "box", "cylinder"):
-                self._obstacle_entities[oid] = e
-            return e
-        _set_time(e.timestamp, t)
-        q = (
-            tuple(quat)
-            if quat is not None
-            else tuple(euler_to_quaternion((list(obst.get("rotation") or []) + [0, 0, 0])[:3]))
-        )
-        _set_pose((e.spheres or e.cubes or e.cylinders)[0].pose, np.asarray(position, float), q)
-        return e
+    def _movers_bytes(self, t: float, stamp: bytes, obstacles: list[dict[str, Any]]) -> bytes:
+        """The moving obstacles' entities of a /scene message. With one-primitive shapes only,
+        an entity changes between steps in its timestamp and pose alone: the numbers go into
+        a template per layout (Patched; which pose components are left out as +0.0 and the
+        timestamp's length); other shapes are built through the protobuf API."""
+        known = [(o, self._obstacles.get(str(o["id"]))) for o in obstacles]
+        known = [(o, obst) for o, obst in known if obst is not None]
+        ids = tuple(str(o["id"]) for o, _ in known)
+        if ids != self._mover_ids:
+            self._mover_ids = ids
+            self._mover_simple = all(obst.get("shape") in ONE_PRIMITIVE for _, obst in known)
+            self._mover_rest = [rest_orientation(obst) for _, obst in known]
+            self._mover_templates = {}
+        if not known:
+            return b""
+        values = None
+        if self._mover_simple:
+            rows = [
+                [*o["position"][:3], *(q if (q := o.get("orientation")) is not None else rest)]
+                for (o, _), rest in zip(known, self._mover_rest, strict=True)
+            ]
+            values = np.array(rows, dtype=float) if all(len(r) == 7 for r in rows) else None
+        if values is None:
+            return b"".join(
+                _entity_record(obstacle_entity(obst, t, o["position"], o.get("orientation"), MOVING_RGBA))
+                for o, obst in known
+            )
+        present = (values != 0.0) | np.signbit(values)  # proto3 leaves out +0.0 only
+        key = (len(stamp), present.tobytes())
+        template = self._mover_templates.get(key)
+        if template is None:
+            template = self._mover_templates[key] = _mover_template(known, stamp, present)
+        if template is False:  # a marker value was not unique: the protobuf API
+            return b"".join(
+                _entity_record(obstacle_entity(obst, t, list(v[:3]), list(v[3:]), MOVING_RGBA))
+                for (_, obst), v in zip(known, values.tolist(), strict=True)
+            )
+        return template.fill(stamp, values[present])
+
+    def write_world(self, t: float = 0.0) -> None:
+        """Static obstacles, bounds, terrain and goals on ``/scene/world`` at time ``t``."""
+        entities = world_entities(self.world, list(self._obstacles.values()), t)
+        self._write(WORLD_TOPIC, b"".join(map(_entity_record, entities)), t)
 
     def _path_head(self, aid: str) -> bytes:
         """A path entity's fixed fields (frame and entity ids)."""
@@ -564,6 +496,35 @@ class FoxgloveScene:
         self._write(PATHS_TOPIC, b"".join(parts), t)
 
 
+def _entity_record(e: SceneEntity) -> bytes:
+    """A serialized entity as a ``SceneUpdate.entities`` field."""
+    b = e.SerializeToString()
+    return _ENTITIES_TAG + varint(len(b)) + b
+
+
+def _mover_template(known: list[tuple[dict, dict]], stamp: bytes, present: np.ndarray) -> Patched | bool:
+    """The /scene records of one-primitive movers with the pose components ``present`` (m, 7)
+    (x, y, z, qx, qy, qz, qw) and a timestamp of ``len(stamp)`` bytes: each entity is serialized
+    once by protobuf (without its timestamp, field 1, which goes in front) with distinct marker
+    values in the pose, whose places the numbers then take. False when a marker is not unique."""
+    bodies, places = [], []
+    for (_, obst), mask in zip(known, present.tolist(), strict=True):
+        marks = [1.5e-300 * (k + 1) if m else 0.0 for k, m in enumerate(mask)]
+        body = obstacle_entity(obst, None, marks[:3], marks[3:], MOVING_RGBA).SerializeToString()
+        found = [body.find(DOUBLE(v)) for v, m in zip(marks, mask, strict=True) if m]
+        if any(body.count(DOUBLE(v)) != 1 for v, m in zip(marks, mask, strict=True) if m):
+            return False
+        bodies.append(body)
+        places.append(found)
+    lengths = [len(stamp) + len(b) for b in bodies]
+    data = join_records(_ENTITIES_TAG, lengths, stamp, [b""] * len(bodies), bodies)
+    stamp_at = record_starts(lengths)
+    at = np.concatenate(
+        [s + len(stamp) + np.asarray(p, dtype=np.intp) for s, p in zip(stamp_at, places, strict=True)]
+    )
+    return Patched(data, stamp_at, len(stamp), at)
+
+
 class _Rows(NamedTuple):
     """One step's agents as arrays (FoxgloveScene._rows)."""
 
@@ -577,9 +538,9 @@ class _Rows(NamedTuple):
 def _line_fixed_fields() -> tuple[bytes, bytes]:
     """The path line's fields before and after its points, serialized by protobuf itself."""
     line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
-    _set_pose(line.pose, (0.0, 0.0, 0.0))
+    set_pose(line.pose, (0.0, 0.0, 0.0))
     color = Color()
-    _set_color(color, PATH_RGBA)
+    set_color(color, PATH_RGBA)
     c = color.SerializeToString()
     return line.SerializeToString(), b"\x32" + varint(len(c)) + c
 

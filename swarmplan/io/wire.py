@@ -154,6 +154,39 @@ def pose_fields(xyz: np.ndarray, qz: np.ndarray, qw: np.ndarray) -> list[bytes]:
     return out
 
 
+class Patched:
+    """A message whose bytes change between steps only in a timestamp (of a given length) and in
+    doubles at fixed places: the bytes once (``message``, made by the general encoder), then
+    each step two numpy scatters into them (:meth:`fill`) instead of a join of per-agent pieces.
+
+    ``stamp_at`` (n,): where each record's timestamp starts; ``double_at``: where each double
+    starts, in the order of the values given to :meth:`fill` (e.g. (n, k) for k per record).
+    Every byte that can change is overwritten by ``fill``, so the template is filled in place."""
+
+    __slots__ = ("_buf", "_stamp_idx", "_value_idx")
+
+    def __init__(self, message: bytes, stamp_at: np.ndarray, stamp_len: int, double_at: np.ndarray):
+        self._buf = np.frombuffer(message, dtype=np.uint8).copy()
+        self._stamp_idx = np.asarray(stamp_at, dtype=np.intp)[:, None] + np.arange(stamp_len)
+        at = np.asarray(double_at, dtype=np.intp).ravel()
+        self._value_idx = (at[:, None] + np.arange(8)).ravel()
+
+    def fill(self, stamp: bytes, values: np.ndarray) -> bytes:
+        """The message with ``stamp`` and ``values`` (as little-endian doubles) in place."""
+        buf = self._buf
+        buf[self._stamp_idx] = np.frombuffer(stamp, dtype=np.uint8)
+        buf[self._value_idx] = np.ascontiguousarray(values, dtype="<f8").view(np.uint8).ravel()
+        return buf.tobytes()
+
+
+def record_starts(lengths: list[int]) -> np.ndarray:
+    """Where the content of each length-delimited record (a one-byte tag, the varint
+    ``lengths[i]``, then ``lengths[i]`` bytes) starts in their concatenation."""
+    n = np.asarray(lengths, dtype=np.intp)
+    prefix = 2 + (n >= 128) + (n >= 16384) + (n >= 2**21) + (n >= 2**28)
+    return np.cumsum(prefix + n) - n
+
+
 def point_bytes(pt: tuple[float, float, float]) -> bytes:
     """One ``LinePrimitive.points`` field (5) holding the Point3 ``pt``."""
     x, y, z = pt
