@@ -16,7 +16,7 @@ import numpy as np
 
 from swarmplan.core import Event, Mode
 from swarmplan.dynamics import AgentParams, limit_velocity
-from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.geometry.collision import SLACK, first_hits, kernels, segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
@@ -153,25 +153,11 @@ class SafetyFilter:
             u = v1[probe] / speed[probe, None]
             reach = speed[probe] ** 2 / (2.0 * amax[probe]) + speed[probe] * dt
             radii = p.radius[rows[probe]] + self.margin(rows[probe])
-            mv = self.scene.moving_mask
             start = pos0[rows[probe]]
-
-            def touches(length: np.ndarray, sel: np.ndarray) -> np.ndarray:
-                ends = start[sel] + u[sel] * length[:, None]
-                hits = first_hits(self.scene.collision, start[sel], ends, radii[sel], q0[mv], q1[mv])
-                return np.array([h is not None for h in hits], dtype=bool)
-
-            hit = np.flatnonzero(touches(reach, np.arange(len(probe))))
+            hit, free = self._free_distances(start, u, reach, radii, q0, q1)
             if len(hit):
-                # Bisection on the free distance along the motion (the swept check is monotone
-                # in length): 6 halvings, free distance under-estimated by at most reach / 64.
-                lo, hi = np.zeros(len(hit)), reach[hit].copy()
-                for _ in range(6):
-                    mid = 0.5 * (lo + hi)
-                    h = touches(mid, hit)
-                    hi, lo = np.where(h, mid, hi), np.where(h, lo, mid)
                 at = probe[hit]
-                cap[at] = np.minimum(cap[at], _stoppable_speed(lo, amax[at], dt))
+                cap[at] = np.minimum(cap[at], _stoppable_speed(free, amax[at], dt))
         limited = np.isfinite(cap)
         if not limited.any():
             return v_cmd
@@ -186,6 +172,50 @@ class SafetyFilter:
         brake = vel0[rows] * _shrink(s0, cap)
         out[k] = np.where(too_fast[:, None], brake, capped)
         return out
+
+    def _free_distances(
+        self, start: np.ndarray, u: np.ndarray, reach: np.ndarray, radii: np.ndarray, q0: np.ndarray, q1: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Rows whose sweep ``start -> start + u * reach`` touches something, and for them the
+        free distance along ``u``: a bisection on the swept check (monotone in length), 6
+        halvings, under-estimated by at most reach / 64.
+
+        Over flat ground the compiled kernel runs every row's bisection; rows where it cannot
+        decide a check (a body within ``BAND`` of contact, or a mesh), and terrain worlds, run
+        the same bisection through :func:`first_hits` (FCL decides)."""
+        mv = self.scene.moving_mask
+        cw = self.scene.collision
+        redo = np.arange(len(start))
+        hit_rows, free = [], []
+        if not self.world.peaks:
+            status, lo = kernels().free_distances(
+                np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
+                self.world.bounds_min.astype(float), self.world.bounds_max.astype(float),
+                *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
+            )  # fmt: skip
+            hit_rows.append(np.flatnonzero(status == 1))
+            free.append(lo[status == 1])
+            redo = np.flatnonzero(status == 2)
+        if len(redo):
+
+            def touches(length: np.ndarray, sel: np.ndarray) -> np.ndarray:
+                ends = start[sel] + u[sel] * length[:, None]
+                hits = first_hits(cw, start[sel], ends, radii[sel], q0[mv], q1[mv])
+                return np.array([h is not None for h in hits], dtype=bool)
+
+            hit = redo[touches(reach[redo], redo)]
+            lo, hi = np.zeros(len(hit)), reach[hit].copy()
+            for _ in range(6):
+                mid = 0.5 * (lo + hi)
+                h = touches(mid, hit)
+                hi, lo = np.where(h, mid, hi), np.where(h, lo, mid)
+            hit_rows.append(hit)
+            free.append(lo)
+        if not hit_rows:
+            return np.zeros(0, dtype=np.intp), np.zeros(0)
+        rows, lo = np.concatenate(hit_rows), np.concatenate(free)
+        order = np.argsort(rows, kind="stable")
+        return rows[order], lo[order]
 
     def margin(self, i: int | np.ndarray) -> np.ndarray:
         return np.minimum(0.25, 0.2 * self.params.radius[i])
