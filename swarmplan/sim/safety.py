@@ -174,7 +174,13 @@ class SafetyFilter:
         return out
 
     def _free_distances(
-        self, start: np.ndarray, u: np.ndarray, reach: np.ndarray, radii: np.ndarray, q0: np.ndarray, q1: np.ndarray
+        self,
+        start: np.ndarray,
+        u: np.ndarray,
+        reach: np.ndarray,
+        radii: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Rows whose sweep ``start -> start + u * reach`` touches something, and for them the
         free distance along ``u``: a bisection on the swept check (monotone in length), 6
