@@ -75,3 +75,29 @@ def test_small_and_large_swarms_take_the_same_answers(n):
     i, j = separation_violations(p0, sep, radii, active)
     np.testing.assert_array_equal(i, ri)
     np.testing.assert_array_equal(j, rj)
+
+
+def test_compiled_contacts_match_all_pairs_at_the_exact_threshold():
+    """The compiled pairs use ``segment_segment_min_distance``'s arithmetic term for term: with
+    the margin set so that a pair's sum of radii + margin lands on its computed distance (and
+    one ulp beyond), both decide that pair alike. Zero-length steps included."""
+    from swarmplan.geometry.collision import segment_segment_min_distance
+
+    rng = np.random.default_rng(7)
+    compared = 0
+    for _ in range(150):
+        n = int(rng.integers(2, 80))
+        p0 = rng.uniform(0, 30, (n, 3))
+        p1 = p0 + rng.normal(0, 2, (n, 3)) * (rng.random((n, 1)) < 0.8)
+        radii = rng.uniform(0.3, 1.5, n)
+        active = rng.random(n) < 0.7
+        i, j = np.triu_indices(n, 1)
+        d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
+        k = int(rng.integers(len(i)))
+        edge = float(d[k] - radii[i[k]] - radii[j[k]])
+        for margin in (edge, float(np.nextafter(edge, np.inf)), float(np.nextafter(edge, -np.inf)), 0.4):
+            assert agent_contacts_indexed(p0, p1, radii, active, margin) == agent_contacts(
+                p0, p1, radii, active, margin
+            )
+            compared += 1
+    assert compared == 600
