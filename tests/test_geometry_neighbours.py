@@ -101,3 +101,23 @@ def test_compiled_contacts_match_all_pairs_at_the_exact_threshold():
             )
             compared += 1
     assert compared == 600
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_near_miss_pairs_equal_separation_violations(seed):
+    """``NearMisses`` takes its pairs from ``sweep_kernels.separation_keys``: the same pairs, in
+    the same order, as ``separation_violations``, incl. pairs exactly on the ellipsoid."""
+    from swarmplan.geometry.collision import kernels
+
+    p0, _, radii, sep, active = _swarm(seed, 300)
+    # Two pairs placed on the ellipsoid along x: exactly on it (outside) and one ulp inside.
+    scale = max(sep[0, 0], sep[1, 0]) + radii[0] + radii[1]
+    p0[1] = p0[0] + [scale, 0, 0]
+    scale2 = max(sep[2, 0], sep[3, 0]) + radii[2] + radii[3]
+    p0[3] = p0[2] + [np.nextafter(scale2, 0.0), 0, 0]
+    active[:4] = True
+    i, j = separation_violations(p0, sep, radii, active)
+    keys = kernels().separation_keys(p0, sep, radii, active)
+    assert len(i) > 20
+    np.testing.assert_array_equal(keys // len(p0), i)
+    np.testing.assert_array_equal(keys % len(p0), j)

@@ -302,3 +302,28 @@ def test_braking_bisection_equals_the_fcl_bisection():
     assert len(hit) > 50
     np.testing.assert_array_equal(rows, hit)
     np.testing.assert_array_equal(free, lo)
+
+
+def test_compiled_arrivals_equal_the_numpy_test():
+    """``sweep_kernels.arrivals`` (used by ``sim.contacts.arrivals``) picks the agents and
+    closest approaches the numpy expression does, incl. distances and speeds on the limit."""
+    from swarmplan.geometry.collision import segment_segment_min_distance
+    from swarmplan.geometry.vec3 import norm3
+
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        n = 120
+        goal = rng.uniform(0, 50, (n, 3))
+        pos0 = goal + rng.normal(0, 3, (n, 3))
+        pos1 = pos0 + rng.normal(0, 1, (n, 3)) * (rng.random((n, 1)) < 0.9)
+        vel1 = rng.normal(0, 0.3, (n, 3))
+        active = rng.random(n) < 0.8
+        stop = np.where(rng.random(n) < 0.2, np.inf, 0.4)
+        d = segment_segment_min_distance(pos0, pos1, goal, goal)
+        tol = float(np.sort(d)[n // 3])  # one agent exactly on the tolerance
+        stop[:5] = norm3(vel1[:5]) / (1.0 + 1e-9)  # speeds on the limit
+        flying = np.flatnonzero(active)
+        keep = (d[flying] <= tol) & (norm3(vel1[flying]) <= stop[flying] * (1.0 + 1e-9))
+        rows, dist = K.arrivals(pos0, pos1, goal, vel1, active, stop, tol)
+        np.testing.assert_array_equal(rows, flying[keep])
+        np.testing.assert_array_equal(dist, d[flying][keep])

@@ -445,3 +445,82 @@ def agent_contacts(
     if len(found):
         keys = np.sort(np.array(found, np.int64))
     return keys // n, keys % n
+
+
+@njit(cache=True)
+def separation_keys(
+    pos: np.ndarray, separation: np.ndarray, radius: np.ndarray, active: np.ndarray
+) -> np.ndarray:
+    """Keys ``i * n + j`` (i < j, sorted) of the pairs inside each other's separation ellipsoid,
+    ``|dp / (max(sep_i, sep_j) + r_i + r_j)| < 1`` per axis, one of them active: the pairs of
+    ``neighbours.separation_violations``, with its arithmetic term for term.
+
+    Sweep and prune on x: a pair inside has ``|dx| < max(sep_x) + 2 max(r)``."""
+    n = len(pos)
+    reach = 0.0
+    r_max = 0.0
+    for i in range(n):
+        reach = max(reach, separation[i, 0])
+        r_max = max(r_max, radius[i])
+    reach = (reach + 2.0 * r_max) * (1.0 + 1e-9) + 1e-9
+    order = np.argsort(pos[:, 0])
+    found = []
+    for oi in range(n):
+        i = order[oi]
+        for oj in range(oi + 1, n):
+            j = order[oj]
+            if pos[j, 0] - pos[i, 0] > reach:
+                break
+            a, b = (i, j) if i < j else (j, i)
+            if not (active[a] or active[b]):
+                continue
+            rr = radius[a] + radius[b]
+            dx = (pos[a, 0] - pos[b, 0]) / (max(separation[a, 0], separation[b, 0]) + rr)
+            dy = (pos[a, 1] - pos[b, 1]) / (max(separation[a, 1], separation[b, 1]) + rr)
+            dz = (pos[a, 2] - pos[b, 2]) / (max(separation[a, 2], separation[b, 2]) + rr)
+            if math.sqrt(dx * dx + dy * dy + dz * dz) < 1.0:
+                found.append(a * n + b)
+    keys = np.empty(len(found), np.int64)
+    for k in range(len(found)):
+        keys[k] = found[k]
+    return np.sort(keys)
+
+
+@njit(cache=True)
+def arrivals(
+    pos0: np.ndarray,
+    pos1: np.ndarray,
+    goal: np.ndarray,
+    vel1: np.ndarray,
+    active: np.ndarray,
+    stop_speed: np.ndarray,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Active agents whose step ``pos0 -> pos1`` passes within ``tolerance`` of their goal at a
+    speed ``|vel1| <= stop_speed (1 + 1e-9)``, in index order, and their closest approach:
+    ``segment_segment_min_distance(pos0, pos1, goal, goal)`` term for term."""
+    rows = []
+    dist = []
+    for i in range(len(pos0)):
+        if not active[i]:
+            continue
+        w0x, w0y, w0z = pos0[i, 0] - goal[i, 0], pos0[i, 1] - goal[i, 1], pos0[i, 2] - goal[i, 2]
+        dwx = (pos1[i, 0] - pos0[i, 0]) - (goal[i, 0] - goal[i, 0])
+        dwy = (pos1[i, 1] - pos0[i, 1]) - (goal[i, 1] - goal[i, 1])
+        dwz = (pos1[i, 2] - pos0[i, 2]) - (goal[i, 2] - goal[i, 2])
+        aa = dwx * dwx + dwy * dwy + dwz * dwz
+        s = 0.0
+        if aa > 1e-18:
+            s = min(max(-(w0x * dwx + w0y * dwy + w0z * dwz) / max(aa, 1e-18), 0.0), 1.0)
+        ex, ey, ez = w0x + s * dwx, w0y + s * dwy, w0z + s * dwz
+        d = math.sqrt(ex * ex + ey * ey + ez * ez)
+        speed = math.sqrt(vel1[i, 0] * vel1[i, 0] + vel1[i, 1] * vel1[i, 1] + vel1[i, 2] * vel1[i, 2])
+        if d <= tolerance and speed <= stop_speed[i] * (1.0 + 1e-9):
+            rows.append(i)
+            dist.append(d)
+    out_rows = np.empty(len(rows), np.int64)
+    out_dist = np.empty(len(rows))
+    for k in range(len(rows)):
+        out_rows[k] = rows[k]
+        out_dist[k] = dist[k]
+    return out_rows, out_dist
