@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from swarmplan.core import Event, Mode
-from swarmplan.dynamics import AgentParams, limit_velocity
+from swarmplan.dynamics import AgentParams, limit_multirotor, limit_velocity
 from swarmplan.geometry.collision import SLACK, first_hits, kernels, segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
@@ -145,7 +145,9 @@ class SafetyFilter:
             room = np.maximum(norm3(goal[k] - pos0[rows]) - self.world.goal_tolerance, 0.0)
             cap = np.maximum(amax * dt, _stoppable_speed(room, amax, dt))
         s_cmd = norm3(v_cmd[k])
-        v1 = limit_velocity(p, vel0[rows], v_cmd[k] * _shrink(s_cmd, cap), dt, rows)
+        # Multirotors only: limit_velocity's own model, row by row.
+        vmax = p.speed_max[rows]
+        v1 = limit_multirotor(vel0[rows], v_cmd[k] * _shrink(s_cmd, cap), vmax, amax, dt)
         speed = norm3(v1)
         # Slower than a dt, a single step can stop the agent.
         probe = np.flatnonzero(speed > amax * dt)
@@ -155,18 +157,23 @@ class SafetyFilter:
             radii = p.radius[rows[probe]] + self.margin(rows[probe])
             start = pos0[rows[probe]]
             hit, free = self._free_distances(start, u, reach, radii, q0, q1)
-            if len(hit):
-                at = probe[hit]
-                cap[at] = np.minimum(cap[at], _stoppable_speed(free, amax[at], dt))
+            at = probe[hit]
+            cap[at] = np.minimum(cap[at], _stoppable_speed(free, amax[at], dt))
+        else:
+            at = probe
         limited = np.isfinite(cap)
         if not limited.any():
             return v_cmd
         out = v_cmd.copy()
         capped = v_cmd[k] * _shrink(s_cmd, cap)
+        # Only the rows whose cap the sweep lowered change their command: the others keep v1.
+        v1c = v1
+        if len(at):
+            v1c = v1.copy()
+            v1c[at] = limit_multirotor(vel0[rows[at]], capped[at], vmax[at], amax[at], dt)
         # The acceleration budget is shared by braking and turning: when the capped command still
         # leaves the agent above the cap (it asks for a turn), brake straight instead, which is
         # what keeps the margin from one step to the next.
-        v1c = limit_velocity(p, vel0[rows], capped, dt, rows)
         too_fast = norm3(v1c) > cap + 1e-9
         s0 = norm3(vel0[rows])
         brake = vel0[rows] * _shrink(s0, cap)
