@@ -318,7 +318,8 @@ def first_hits(
         SLACK,
     )
     fcl_rows = []
-    for i, (kd, k) in enumerate(zip(kind.tolist(), index.tolist(), strict=True)):
+    for i in np.flatnonzero(oob | low | (kind != 0)).tolist():
+        kd, k = int(kind[i]), int(index[i])
         if oob[i]:
             out[i] = "bounds"
         elif low[i]:

@@ -181,6 +181,31 @@ def _classify_body(
 
 
 @njit(cache=True)
+def _outside_box(
+    ax: float,
+    ay: float,
+    az: float,
+    bx: float,
+    by: float,
+    bz: float,
+    cx: float,
+    cy: float,
+    cz: float,
+    lim: float,
+) -> bool:
+    """The point c is farther than ``lim`` from the segment a -> b on some axis (then it is
+    farther than ``lim`` from the segment): a cheap reject before the exact prefilter."""
+    return (
+        cx < min(ax, bx) - lim
+        or cx > max(ax, bx) + lim
+        or cy < min(ay, by) - lim
+        or cy > max(ay, by) + lim
+        or cz < min(az, bz) - lim
+        or cz > max(az, bz) + lim
+    )
+
+
+@njit(cache=True)
 def _point_segment(cx: float, cy: float, cz: float, a: np.ndarray, b: np.ndarray) -> float:
     """Distance from a point to the segment a -> b."""
     ux, uy, uz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
@@ -233,6 +258,12 @@ def sweep_one(
     certainly touches is enough (a yes/no question)."""
     undecided = False
     for k in range(len(s_radius)):
+        # The cheap reject (twice the slack: it only saves work) before the previous prefilter.
+        lim = s_radius[k] + r + 2.0 * slack
+        if _outside_box(
+            a[0], a[1], a[2], b[0], b[1], b[2], s_center[k, 0], s_center[k, 1], s_center[k, 2], lim
+        ):
+            continue
         if _point_segment(s_center[k, 0], s_center[k, 1], s_center[k, 2], a, b) - s_radius[k] > r + slack:
             continue
         c = _classify_body(
@@ -246,6 +277,11 @@ def sweep_one(
         if c == UNDECIDED:
             undecided = True
     for k in range(len(m_radius)):
+        # Relative to the body the agent moves a - q0 -> b - q1 and the body sits at the origin.
+        lim = m_radius[k] + r + 2.0 * slack
+        bx, by, bz = b[0] - q1[k, 0], b[1] - q1[k, 1], b[2] - q1[k, 2]
+        if _outside_box(a[0] - q0[k, 0], a[1] - q0[k, 1], a[2] - q0[k, 2], bx, by, bz, 0.0, 0.0, 0.0, lim):
+            continue
         if _relative_min(a, b, q0[k], q1[k]) - m_radius[k] - r > slack:
             continue
         # Relative motion: the body stays at q0, the agent sweeps a -> b - (q1 - q0).
