@@ -13,6 +13,17 @@ from swarmplan.geometry.neighbours import (
 )
 
 
+@pytest.fixture(autouse=True, params=["compiled", "reference"])
+def _path(request, monkeypatch):
+    """Every test on both paths: the compiled kernels, and the reference path the checks take
+    until the kernels are loaded."""
+    import swarmplan.geometry.collision as collision
+
+    collision.kernels()
+    if request.param == "reference":
+        monkeypatch.setattr(collision, "_kernels", None)
+
+
 def _swarm(seed, n=200):
     rng = np.random.default_rng(seed)
     centers = rng.uniform(0, 200, (8, 3))
@@ -107,7 +118,7 @@ def test_compiled_contacts_match_all_pairs_at_the_exact_threshold():
 def test_compiled_near_miss_pairs_equal_separation_violations(seed):
     """``NearMisses`` takes its pairs from ``sweep_kernels.separation_keys``: the same pairs, in
     the same order, as ``separation_violations``, incl. pairs exactly on the ellipsoid."""
-    from swarmplan.geometry.collision import kernels
+    from swarmplan.geometry import sweep_kernels
 
     p0, _, radii, sep, active = _swarm(seed, 300)
     # Two pairs placed on the ellipsoid along x: exactly on it (outside) and one ulp inside.
@@ -117,7 +128,7 @@ def test_compiled_near_miss_pairs_equal_separation_violations(seed):
     p0[3] = p0[2] + [np.nextafter(scale2, 0.0), 0, 0]
     active[:4] = True
     i, j = separation_violations(p0, sep, radii, active)
-    keys = kernels().separation_keys(p0, sep, radii, active)
+    keys = sweep_kernels.separation_keys(p0, sep, radii, active)
     assert len(i) > 20
     np.testing.assert_array_equal(keys // len(p0), i)
     np.testing.assert_array_equal(keys % len(p0), j)

@@ -17,8 +17,15 @@ import pytest
 from helpers import base_world, make_world
 
 from swarmplan.geometry import sweep_kernels as K
-from swarmplan.geometry.collision import CollisionWorld, _align_z, first_hits, first_hits_fcl
+from swarmplan.geometry.collision import CollisionWorld, _align_z, first_hits, first_hits_fcl, kernels
 from swarmplan.motion import poses_at
+
+
+@pytest.fixture(autouse=True)
+def _compiled():
+    """The compiled path under test (checks take the reference path until it is loaded)."""
+    kernels()
+
 
 SHAPES = [
     (K.SPHERE, (2.0, 0.0, 0.0)),
@@ -327,3 +334,49 @@ def test_compiled_arrivals_equal_the_numpy_test():
         rows, dist = K.arrivals(pos0, pos1, goal, vel1, active, stop, tol)
         np.testing.assert_array_equal(rows, flying[keep])
         np.testing.assert_array_equal(dist, d[flying][keep])
+
+
+def test_the_first_step_stays_free_of_the_kernels_and_the_second_loads_them():
+    """Start-up: a fresh process's first step runs the reference paths (no numba load); the
+    second step loads the kernels."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from swarmplan.bench.sim import swarm_world\n"
+        "from swarmplan.sim import Simulation\n"
+        "from swarmplan.world import parse_world\n"
+        "s = Simulation(parse_world(swarm_world(16, 4, 8)))\n"
+        "s.reset(seed=0); s.step()\n"
+        "print('swarmplan.geometry.sweep_kernels' in sys.modules)\n"
+        "s.step()\n"
+        "print('swarmplan.geometry.sweep_kernels' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True"]
+
+
+def test_reference_and_compiled_runs_are_identical(monkeypatch):
+    """A whole run with the kernels never loaded (every check on its reference path) gives the
+    same states and events as the default (compiled from the second step)."""
+    import swarmplan.geometry.collision as collision
+    from swarmplan.bench.sim import swarm_world
+    from swarmplan.sim import Simulation
+    from swarmplan.world import parse_world
+
+    def run() -> tuple[list, np.ndarray]:
+        sim = Simulation(parse_world(swarm_world(24, 8, 12, 1)))
+        sim.reset(seed=1)
+        events = []
+        for _ in range(150):
+            events += [e.to_json() for e in sim.step().events]
+        return events, sim.state.position.copy()
+
+    compiled = run()
+    monkeypatch.setattr(collision, "_kernels", None)
+    monkeypatch.setattr(collision, "kernels", lambda: None)
+    monkeypatch.setattr("swarmplan.sim.safety.kernels", lambda: None)
+    reference = run()
+    assert compiled[0] == reference[0]
+    np.testing.assert_array_equal(compiled[1], reference[1])

@@ -14,7 +14,6 @@ obstacles and the query capsule are fcl objects created once and moved by transf
 
 from __future__ import annotations
 
-from functools import cache
 from types import ModuleType
 from typing import TYPE_CHECKING
 
@@ -34,12 +33,26 @@ SLACK = 1e-3
 (only costs narrow-phase calls; covers FCL's own tolerance on contact)."""
 
 
-@cache
-def kernels() -> ModuleType:
-    """The compiled swept checks (numba), imported at the first check: not at start-up."""
-    from swarmplan.geometry import sweep_kernels
+_kernels: ModuleType | None = None
 
-    return sweep_kernels
+
+def kernels() -> ModuleType:
+    """The compiled swept checks (numba), imported at the first call: not at start-up."""
+    global _kernels
+    if _kernels is None:
+        from swarmplan.geometry import sweep_kernels
+
+        _kernels = sweep_kernels
+    return _kernels
+
+
+def loaded_kernels() -> ModuleType | None:
+    """The compiled swept checks if :func:`kernels` has loaded them, else None.
+
+    Every compiled check has a reference path (numpy and FCL) with equal answers (tests); the
+    checks take the reference path until the kernels are loaded, so that a process's first
+    step does not pay numba's load (~1 s): ``SafetyFilter`` loads them from its second step."""
+    return _kernels
 
 
 def shape_table(obstacles: list[Obstacle]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -305,10 +318,11 @@ def first_hits(
     """
     n = len(p0)
     out: list[str | None] = [None] * n
-    if n == 0:
-        return out
+    compiled = loaded_kernels()
+    if n == 0 or compiled is None:
+        return first_hits_fcl(cw, p0, p1, radii, q0, q1) if n else out
     oob, low, ground_name = _bounds_and_ground(cw.world, p0, p1, radii)
-    kind, index = kernels().sweep_many(
+    kind, index = compiled.sweep_many(
         np.ascontiguousarray(p0, dtype=float),
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),

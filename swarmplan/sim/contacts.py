@@ -7,7 +7,9 @@ import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.dynamics import AgentParams
-from swarmplan.geometry.collision import first_hits, kernels
+from swarmplan.geometry.collision import first_hits, loaded_kernels, segment_segment_min_distance
+from swarmplan.geometry.neighbours import separation_violations
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.metrics import RunMetrics
 from swarmplan.motion import poses_at
 from swarmplan.sim.scene import Scene
@@ -92,16 +94,24 @@ def arrivals(
     speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.apf.commanded_velocity``)
     brings it to rest at the goal, and arrives once slow enough.
     """
-    # Compiled: segment_segment_min_distance to the goal and the speed test, term for term.
-    rows, dmins = kernels().arrivals(
-        np.ascontiguousarray(pos0, dtype=float),
-        np.ascontiguousarray(pos1, dtype=float),
-        np.ascontiguousarray(s.goal, dtype=float),
-        np.ascontiguousarray(vel1, dtype=float),
-        np.ascontiguousarray(s.active, dtype=bool),
-        np.ascontiguousarray(stop_speed, dtype=float),
-        float(tolerance),
-    )
+    compiled = loaded_kernels()
+    if compiled is None:
+        # The reference path, until the kernels are loaded (equal answers).
+        flying = np.flatnonzero(s.active)
+        d = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
+        arrive = (d <= tolerance) & (norm3(vel1[flying]) <= stop_speed[flying] * (1.0 + 1e-9))
+        rows, dmins = flying[arrive], d[arrive]
+    else:
+        # Compiled: segment_segment_min_distance to the goal and the speed test, term for term.
+        rows, dmins = compiled.arrivals(
+            np.ascontiguousarray(pos0, dtype=float),
+            np.ascontiguousarray(pos1, dtype=float),
+            np.ascontiguousarray(s.goal, dtype=float),
+            np.ascontiguousarray(vel1, dtype=float),
+            np.ascontiguousarray(s.active, dtype=bool),
+            np.ascontiguousarray(stop_speed, dtype=float),
+            float(tolerance),
+        )
     for i, dmin in zip(rows.tolist(), dmins.tolist(), strict=True):
         s.mode[i] = Mode.ARRIVED
         vel1[i] = 0.0
@@ -128,13 +138,19 @@ class NearMisses:
         if len(pos) < 2:
             return
         # The pairs of ``separation_violations`` (sorted keys i * n + j, i.e. the all-pairs
-        # row-major order: same events, same order), from a compiled sweep and prune.
-        keys = kernels().separation_keys(
-            np.ascontiguousarray(pos, dtype=float),
-            self._separation,
-            self._radius,
-            np.ascontiguousarray(active, dtype=bool),
-        )
+        # row-major order: same events, same order), from a compiled sweep and prune once the
+        # kernels are loaded.
+        compiled = loaded_kernels()
+        if compiled is None:
+            pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
+            keys = pi.astype(np.int64) * self._n + pj
+        else:
+            keys = compiled.separation_keys(
+                np.ascontiguousarray(pos, dtype=float),
+                self._separation,
+                self._radius,
+                np.ascontiguousarray(active, dtype=bool),
+            )
         new = ~np.isin(keys, self._near, assume_unique=True)
         self._near = keys
         pi, pj = keys // self._n, keys % self._n

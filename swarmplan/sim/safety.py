@@ -16,7 +16,13 @@ import numpy as np
 
 from swarmplan.core import Event, Mode
 from swarmplan.dynamics import AgentParams, limit_multirotor, limit_velocity
-from swarmplan.geometry.collision import SLACK, first_hits, kernels, segment_segment_min_distance
+from swarmplan.geometry.collision import (
+    SLACK,
+    first_hits,
+    kernels,
+    loaded_kernels,
+    segment_segment_min_distance,
+)
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
@@ -37,6 +43,7 @@ class SafetyFilter:
         self.world = world
         self.params = params
         self.scene = scene
+        self._filtered = 0
 
     def guard_fixed_wings(
         self,
@@ -200,8 +207,9 @@ class SafetyFilter:
         cw = self.scene.collision
         redo = np.arange(len(start))
         hit_rows, free = [], []
-        if not self.world.peaks:
-            status, lo = kernels().free_distances(
+        compiled = loaded_kernels()
+        if compiled is not None and not self.world.peaks:
+            status, lo = compiled.free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
                 self.world.bounds_min.astype(float), self.world.bounds_max.astype(float),
                 *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
@@ -259,6 +267,11 @@ class SafetyFilter:
 
         Returns, per agent of ``idx``, whether its final step was cleared with the safety margin.
         """
+        self._filtered += 1
+        if self._filtered == 2:
+            # The compiled checks from the second step on: the first step of a process stays
+            # free of numba's load (~1 s); until then the reference paths give the same answers.
+            kernels()
         dt = self.world.dt
         ids = self.params.ids
         mv = self.scene.moving_mask
