@@ -44,6 +44,10 @@ class SafetyFilter:
         self.params = params
         self.scene = scene
         self._filtered = 0
+        self._bounds = (
+            np.ascontiguousarray(world.bounds_min, dtype=float),
+            np.ascontiguousarray(world.bounds_max, dtype=float),
+        )
 
     def guard_fixed_wings(
         self,
@@ -211,7 +215,7 @@ class SafetyFilter:
         if compiled is not None and not self.world.peaks:
             status, lo = compiled.free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
-                self.world.bounds_min.astype(float), self.world.bounds_max.astype(float),
+                self._bounds[0], self._bounds[1],
                 *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
             )  # fmt: skip
             hit_rows.append(np.flatnonzero(status == 1))
