@@ -13,6 +13,17 @@ from swarmplan.geometry.neighbours import (
 )
 
 
+@pytest.fixture(autouse=True, params=["compiled", "reference"])
+def _path(request, monkeypatch):
+    """Every test on both paths: the compiled kernels, and the reference path the checks take
+    until the kernels are loaded."""
+    import swarmplan.geometry.collision as collision
+
+    collision.kernels()
+    if request.param == "reference":
+        monkeypatch.setattr(collision, "_kernels", None)
+
+
 def _swarm(seed, n=200):
     rng = np.random.default_rng(seed)
     centers = rng.uniform(0, 200, (8, 3))
@@ -75,3 +86,49 @@ def test_small_and_large_swarms_take_the_same_answers(n):
     i, j = separation_violations(p0, sep, radii, active)
     np.testing.assert_array_equal(i, ri)
     np.testing.assert_array_equal(j, rj)
+
+
+def test_compiled_contacts_match_all_pairs_at_the_exact_threshold():
+    """The compiled pairs use ``segment_segment_min_distance``'s arithmetic term for term: with
+    the margin set so that a pair's sum of radii + margin lands on its computed distance (and
+    one ulp beyond), both decide that pair alike. Zero-length steps included."""
+    from swarmplan.geometry.collision import segment_segment_min_distance
+
+    rng = np.random.default_rng(7)
+    compared = 0
+    for _ in range(150):
+        n = int(rng.integers(2, 80))
+        p0 = rng.uniform(0, 30, (n, 3))
+        p1 = p0 + rng.normal(0, 2, (n, 3)) * (rng.random((n, 1)) < 0.8)
+        radii = rng.uniform(0.3, 1.5, n)
+        active = rng.random(n) < 0.7
+        i, j = np.triu_indices(n, 1)
+        d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
+        k = int(rng.integers(len(i)))
+        edge = float(d[k] - radii[i[k]] - radii[j[k]])
+        for margin in (edge, float(np.nextafter(edge, np.inf)), float(np.nextafter(edge, -np.inf)), 0.4):
+            assert agent_contacts_indexed(p0, p1, radii, active, margin) == agent_contacts(
+                p0, p1, radii, active, margin
+            )
+            compared += 1
+    assert compared == 600
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_near_miss_pairs_equal_separation_violations(seed):
+    """``NearMisses`` takes its pairs from ``sweep_kernels.separation_keys``: the same pairs, in
+    the same order, as ``separation_violations``, incl. pairs exactly on the ellipsoid."""
+    from swarmplan.geometry import sweep_kernels
+
+    p0, _, radii, sep, active = _swarm(seed, 300)
+    # Two pairs placed on the ellipsoid along x: exactly on it (outside) and one ulp inside.
+    scale = max(sep[0, 0], sep[1, 0]) + radii[0] + radii[1]
+    p0[1] = p0[0] + [scale, 0, 0]
+    scale2 = max(sep[2, 0], sep[3, 0]) + radii[2] + radii[3]
+    p0[3] = p0[2] + [np.nextafter(scale2, 0.0), 0, 0]
+    active[:4] = True
+    i, j = separation_violations(p0, sep, radii, active)
+    keys = sweep_kernels.separation_keys(p0, sep, radii, active)
+    assert len(i) > 20
+    np.testing.assert_array_equal(keys // len(p0), i)
+    np.testing.assert_array_equal(keys % len(p0), j)

@@ -14,6 +14,7 @@ obstacles and the query capsule are fcl objects created once and moved by transf
 
 from __future__ import annotations
 
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 import fcl
@@ -27,9 +28,49 @@ if TYPE_CHECKING:
 
 _Z = np.array([0.0, 0.0, 1.0])
 
-_SLACK = 1e-3
+SLACK = 1e-3
 """Metres added to a body's bounding radius when choosing the candidates of the narrow phase
 (only costs narrow-phase calls; covers FCL's own tolerance on contact)."""
+
+
+_kernels: ModuleType | None = None
+
+
+def kernels() -> ModuleType:
+    """The compiled swept checks (numba), imported at the first call: not at start-up."""
+    global _kernels
+    if _kernels is None:
+        from swarmplan.geometry import sweep_kernels
+
+        _kernels = sweep_kernels
+    return _kernels
+
+
+def loaded_kernels() -> ModuleType | None:
+    """The compiled swept checks if :func:`kernels` has loaded them, else None.
+
+    Every compiled check has a reference path (numpy and FCL) with equal answers (tests); the
+    checks take the reference path until the kernels are loaded, so that a process's first
+    step does not pay numba's load (~1 s): ``SafetyFilter`` loads them from its second step."""
+    return _kernels
+
+
+def shape_table(obstacles: list[Obstacle]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per obstacle the kernels' shape code, rotation (k, 3, 3) and dimensions (k, 3): sphere
+    radius; box half-extents; cylinder radius and half-height; capsule radius and half-length
+    (FCL's shapes are centred on their local origin, axis along local z)."""
+    codes = {"sphere": 0, "box": 1, "cylinder": 2, "capsule": 3}
+    code = np.array([codes.get(o.shape, 4) for o in obstacles], dtype=np.int64)
+    rot = np.array([np.asarray(o.rotation, dtype=float) for o in obstacles]).reshape(-1, 3, 3)
+    dims = np.zeros((len(obstacles), 3))
+    for k, o in enumerate(obstacles):
+        if o.shape == "box":
+            dims[k] = np.asarray(o.size, dtype=float) / 2
+        elif o.shape in ("cylinder", "capsule"):
+            dims[k, :2] = o.radius, o.height / 2
+        elif o.shape == "sphere":
+            dims[k, 0] = o.radius
+    return code, np.ascontiguousarray(rot), dims
 
 
 def fcl_geometry(o: Obstacle) -> fcl.CollisionGeometry:
@@ -135,6 +176,14 @@ class CollisionWorld:
         self._static_centers = np.array([o.position for o in self.static]).reshape(-1, 3)
         self._static_radii = np.array([o.bounding_radius for o in self.static])
         self._moving_radii = np.array([o.bounding_radius for o in self.moving])
+        self._static_table = shape_table(self.static)
+        self._moving_table = shape_table(self.moving)
+        self._kernel_statics = (
+            np.ascontiguousarray(self._static_centers, dtype=float),
+            np.ascontiguousarray(self._static_radii, dtype=float),
+            *self._static_table,
+        )
+        self._kernel_moving_radii = np.ascontiguousarray(self._moving_radii, dtype=float)
         self._capsule = fcl.Capsule(1.0, 1.0)
         self._capsule_obj = fcl.CollisionObject(self._capsule, fcl.Transform())
         self._spheres: dict[float, tuple[fcl.Sphere, fcl.CollisionObject]] = {}
@@ -168,6 +217,19 @@ class CollisionWorld:
         self._capsule_obj.setTransform(fcl.Transform(rotation, np.ascontiguousarray(mid, dtype=float)))
         return self._capsule_obj
 
+    def kernel_statics(self) -> tuple[np.ndarray, ...]:
+        """The static bodies as the kernels take them: centres, bounding radii, shape table."""
+        return self._kernel_statics
+
+    def kernel_movers(self, q0: np.ndarray, q1: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The moving bodies at ``q0`` -> ``q1`` as the kernels take them."""
+        return (
+            np.ascontiguousarray(q0, dtype=float).reshape(-1, 3),
+            np.ascontiguousarray(q1, dtype=float).reshape(-1, 3),
+            self._kernel_moving_radii,
+            *self._moving_table,
+        )
+
     def _collides(self, a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
         return fcl.collide(a, b, self._request, fcl.CollisionResult()) > 0
 
@@ -178,7 +240,7 @@ class CollisionWorld:
         if not self.static:
             return None
         near = point_segment_distance(self._static_centers, p0[None], p1[None])[0] - self._static_radii
-        return self._sweep_static_near(self._swept_object(p0, p1, radius), near <= radius + _SLACK)
+        return self._sweep_static_near(self._swept_object(p0, p1, radius), near <= radius + SLACK)
 
     def _sweep_static_near(self, obj: fcl.CollisionObject, near: np.ndarray) -> str | None:
         """The first static obstacle (world order) among ``near`` (mask) that ``obj`` touches.
@@ -247,14 +309,53 @@ class CollisionWorld:
 def first_hits(
     cw: CollisionWorld, p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, q0: np.ndarray, q1: np.ndarray
 ) -> list[str | None]:
-    """:meth:`CollisionWorld.first_hit` for many agents at once, with vectorized prefilters.
+    """:meth:`CollisionWorld.first_hit` for many agents at once.
 
-    Bounds, ground and terrain are decided in numpy for all agents; FCL only sees the
-    (agent, body) pairs whose bounding spheres the swept sphere can reach.
+    Bounds, ground and terrain are decided in numpy; the bodies by the compiled kernels
+    (``sweep_kernels``: exact geometry, decided only away from contact), and the agents whose
+    answer the kernels leave undecided (a body within ``BAND`` of contact, or a mesh) by
+    :func:`first_hits_fcl`, FCL on every candidate as before.
     """
-    w = cw.world
     n = len(p0)
     out: list[str | None] = [None] * n
+    compiled = loaded_kernels()
+    if n == 0 or compiled is None:
+        return first_hits_fcl(cw, p0, p1, radii, q0, q1) if n else out
+    oob, low, ground_name = _bounds_and_ground(cw.world, p0, p1, radii)
+    kind, index = compiled.sweep_many(
+        np.ascontiguousarray(p0, dtype=float),
+        np.ascontiguousarray(p1, dtype=float),
+        np.ascontiguousarray(radii, dtype=float),
+        oob | low,
+        *cw.kernel_statics(),
+        *cw.kernel_movers(q0, q1),
+        SLACK,
+    )
+    fcl_rows = []
+    for i in np.flatnonzero(oob | low | (kind != 0)).tolist():
+        kd, k = int(kind[i]), int(index[i])
+        if oob[i]:
+            out[i] = "bounds"
+        elif low[i]:
+            out[i] = ground_name
+        elif kd == 1:
+            out[i] = cw.static[k].id
+        elif kd == 2:
+            out[i] = cw.moving[k].id
+        elif kd == 3:
+            fcl_rows.append(i)
+    if fcl_rows:
+        rows = np.array(fcl_rows)
+        for i, hit in zip(fcl_rows, first_hits_fcl(cw, p0[rows], p1[rows], radii[rows], q0, q1), strict=True):
+            out[i] = hit
+    return out
+
+
+def _bounds_and_ground(
+    w: World, p0: np.ndarray, p1: np.ndarray, radii: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Per step: its end leaves the flight volume; the swept sphere dips below ground or
+    terrain (terrain sampled at a quarter radius); and the name of that surface."""
     oob = np.any(p1 < w.bounds_min - 1e-9, axis=1) | np.any(p1 > w.bounds_max + 1e-9, axis=1)
     if w.peaks:
         step = np.linalg.norm(p1 - p0, axis=1)
@@ -262,14 +363,25 @@ def first_hits(
         s = np.linspace(0.0, 1.0, k)
         pts = p0[:, None, :] + s[None, :, None] * (p1 - p0)[:, None, :]
         low = np.any(pts[..., 2] - w.terrain_height(pts[..., :2]) < radii[:, None] - 1e-9, axis=1)
-        ground_name = "terrain"
-    else:
-        low = np.minimum(p0[:, 2], p1[:, 2]) < radii - 1e-9
-        ground_name = "ground"
+        return oob, low, "terrain"
+    return oob, np.minimum(p0[:, 2], p1[:, 2]) < radii - 1e-9, "ground"
+
+
+def first_hits_fcl(
+    cw: CollisionWorld, p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, q0: np.ndarray, q1: np.ndarray
+) -> list[str | None]:
+    """:meth:`CollisionWorld.first_hit` for many agents at once, with vectorized prefilters.
+
+    Bounds, ground and terrain are decided in numpy for all agents; FCL only sees the
+    (agent, body) pairs whose bounding spheres the swept sphere can reach.
+    """
+    n = len(p0)
+    out: list[str | None] = [None] * n
+    oob, low, ground_name = _bounds_and_ground(cw.world, p0, p1, radii)
     if cw.static:
         reach = point_segment_distance(cw._static_centers, p0, p1) - cw._static_radii[None, :]
         near_static = np.any(reach <= radii[:, None] + 1e-6, axis=1)
-        candidates = reach <= radii[:, None] + _SLACK
+        candidates = reach <= radii[:, None] + SLACK
     else:
         near_static = np.zeros(n, dtype=bool)
     if cw.moving:

@@ -15,7 +15,7 @@ from itertools import chain
 
 import numpy as np
 
-from swarmplan.geometry.collision import segment_segment_min_distance
+from swarmplan.geometry.collision import loaded_kernels, segment_segment_min_distance
 from swarmplan.geometry.vec3 import norm3
 
 SMALL = 32
@@ -42,20 +42,33 @@ def _pairs(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
 def agent_contacts_indexed(
     p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, active: np.ndarray, margin: float = 0.0
 ) -> list[tuple[int, int]]:
-    """``agent_contacts`` with candidates from a tree on the step's midpoints: two points moving
-    along their steps stay within half of each step of their midpoints, so a contact needs
-    the midpoints closer than both half-steps + both radii + ``margin``."""
+    """``agent_contacts`` with candidates from a sweep and prune on the step's midpoints (compiled,
+    ``sweep_kernels.agent_contacts``): two points moving along their steps stay within half of
+    each step of their midpoints, so a contact needs the midpoints closer than both half-steps
+    + both radii + ``margin``; the candidates' distances are ``segment_segment_min_distance``'s
+    arithmetic, term for term, and the pairs come in ``np.triu_indices`` order."""
     n = len(p0)
     if n < 2:
         return []
-    half = 0.5 * norm3(p1 - p0)
-    reach = 2.0 * float(half.max()) + 2.0 * float(radii.max()) + margin
-    i, j = _pairs(0.5 * (p0 + p1), reach * (1.0 + 1e-9) + 1e-9)
-    keep = active[i] | active[j]
-    i, j = i[keep], j[keep]
-    d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
-    hit = d < radii[i] + radii[j] + margin
-    return list(zip(i[hit].tolist(), j[hit].tolist(), strict=True))
+    compiled = loaded_kernels()
+    if compiled is None:
+        # The reference path (until the kernels are loaded): a tree's candidates, numpy's test.
+        half = 0.5 * norm3(p1 - p0)
+        reach = 2.0 * float(half.max()) + 2.0 * float(radii.max()) + margin
+        i, j = _pairs(0.5 * (p0 + p1), reach * (1.0 + 1e-9) + 1e-9)
+        keep = active[i] | active[j]
+        i, j = i[keep], j[keep]
+        d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
+        hit = d < radii[i] + radii[j] + margin
+        return list(zip(i[hit].tolist(), j[hit].tolist(), strict=True))
+    i, j = compiled.agent_contacts(
+        np.ascontiguousarray(p0, dtype=float),
+        np.ascontiguousarray(p1, dtype=float),
+        np.ascontiguousarray(radii, dtype=float),
+        np.ascontiguousarray(active, dtype=bool),
+        float(margin),
+    )
+    return list(zip(i.tolist(), j.tolist(), strict=True))
 
 
 def agent_clearance_indexed(pos: np.ndarray, radius: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.dynamics import AgentParams
-from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.geometry.collision import first_hits, loaded_kernels, segment_segment_min_distance
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.metrics import RunMetrics
@@ -94,12 +94,25 @@ def arrivals(
     speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.apf.commanded_velocity``)
     brings it to rest at the goal, and arrives once slow enough.
     """
-    flying = np.flatnonzero(s.active)
-    dmins = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
-    speeds = norm3(vel1[flying])
-    slow = speeds <= stop_speed[flying] * (1.0 + 1e-9)
-    arrive = (dmins <= tolerance) & slow
-    for i, dmin in zip(flying[arrive].tolist(), dmins[arrive].tolist(), strict=True):
+    compiled = loaded_kernels()
+    if compiled is None:
+        # The reference path, until the kernels are loaded (equal answers).
+        flying = np.flatnonzero(s.active)
+        d = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
+        arrive = (d <= tolerance) & (norm3(vel1[flying]) <= stop_speed[flying] * (1.0 + 1e-9))
+        rows, dmins = flying[arrive], d[arrive]
+    else:
+        # Compiled: segment_segment_min_distance to the goal and the speed test, term for term.
+        rows, dmins = compiled.arrivals(
+            np.ascontiguousarray(pos0, dtype=float),
+            np.ascontiguousarray(pos1, dtype=float),
+            np.ascontiguousarray(s.goal, dtype=float),
+            np.ascontiguousarray(vel1, dtype=float),
+            np.ascontiguousarray(s.active, dtype=bool),
+            np.ascontiguousarray(stop_speed, dtype=float),
+            float(tolerance),
+        )
+    for i, dmin in zip(rows.tolist(), dmins.tolist(), strict=True):
         s.mode[i] = Mode.ARRIVED
         vel1[i] = 0.0
         s.segment[i] = None
@@ -115,6 +128,8 @@ class NearMisses:
         self._n = len(params.ids)
         # The pairs inside at the last update, as sorted keys i * n + j (i < j).
         self._near = np.zeros(0, dtype=np.int64)
+        self._separation = np.ascontiguousarray(params.separation, dtype=float)
+        self._radius = np.ascontiguousarray(params.radius, dtype=float)
 
     def update(
         self, pos: np.ndarray, active: np.ndarray, metrics: RunMetrics, events: list[Event], t1: float
@@ -122,11 +137,23 @@ class NearMisses:
         """A pair entering each other's separation ellipsoid is a near miss (reported once per entry)."""
         if len(pos) < 2:
             return
-        # Pairs from a k-d tree, in the all-pairs (row-major, i < j) order: same events, same order.
-        pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
-        keys = pi.astype(np.int64) * self._n + pj
+        # The pairs of ``separation_violations`` (sorted keys i * n + j, i.e. the all-pairs
+        # row-major order: same events, same order), from a compiled sweep and prune once the
+        # kernels are loaded.
+        compiled = loaded_kernels()
+        if compiled is None:
+            pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
+            keys = pi.astype(np.int64) * self._n + pj
+        else:
+            keys = compiled.separation_keys(
+                np.ascontiguousarray(pos, dtype=float),
+                self._separation,
+                self._radius,
+                np.ascontiguousarray(active, dtype=bool),
+            )
         new = ~np.isin(keys, self._near, assume_unique=True)
         self._near = keys
+        pi, pj = keys // self._n, keys % self._n
         for i, j in zip(pi[new].tolist(), pj[new].tolist(), strict=True):
             dist = float(np.linalg.norm(pos[i] - pos[j]))
             metrics.near_misses[[i, j]] += 1

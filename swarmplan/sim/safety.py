@@ -15,8 +15,14 @@ import math
 import numpy as np
 
 from swarmplan.core import Event, Mode
-from swarmplan.dynamics import AgentParams, limit_velocity
-from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.dynamics import AgentParams, limit_multirotor, limit_velocity
+from swarmplan.geometry.collision import (
+    SLACK,
+    first_hits,
+    kernels,
+    loaded_kernels,
+    segment_segment_min_distance,
+)
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
@@ -37,6 +43,11 @@ class SafetyFilter:
         self.world = world
         self.params = params
         self.scene = scene
+        self._filtered = 0
+        self._bounds = (
+            np.ascontiguousarray(world.bounds_min, dtype=float),
+            np.ascontiguousarray(world.bounds_max, dtype=float),
+        )
 
     def guard_fixed_wings(
         self,
@@ -145,7 +156,9 @@ class SafetyFilter:
             room = np.maximum(norm3(goal[k] - pos0[rows]) - self.world.goal_tolerance, 0.0)
             cap = np.maximum(amax * dt, _stoppable_speed(room, amax, dt))
         s_cmd = norm3(v_cmd[k])
-        v1 = limit_velocity(p, vel0[rows], v_cmd[k] * _shrink(s_cmd, cap), dt, rows)
+        # Multirotors only: limit_velocity's own model, row by row.
+        vmax = p.speed_max[rows]
+        v1 = limit_multirotor(vel0[rows], v_cmd[k] * _shrink(s_cmd, cap), vmax, amax, dt)
         speed = norm3(v1)
         # Slower than a dt, a single step can stop the agent.
         probe = np.flatnonzero(speed > amax * dt)
@@ -153,39 +166,81 @@ class SafetyFilter:
             u = v1[probe] / speed[probe, None]
             reach = speed[probe] ** 2 / (2.0 * amax[probe]) + speed[probe] * dt
             radii = p.radius[rows[probe]] + self.margin(rows[probe])
-            mv = self.scene.moving_mask
             start = pos0[rows[probe]]
-
-            def touches(length: np.ndarray, sel: np.ndarray) -> np.ndarray:
-                ends = start[sel] + u[sel] * length[:, None]
-                hits = first_hits(self.scene.collision, start[sel], ends, radii[sel], q0[mv], q1[mv])
-                return np.array([h is not None for h in hits], dtype=bool)
-
-            hit = np.flatnonzero(touches(reach, np.arange(len(probe))))
-            if len(hit):
-                # Bisection on the free distance along the motion (the swept check is monotone
-                # in length): 6 halvings, free distance under-estimated by at most reach / 64.
-                lo, hi = np.zeros(len(hit)), reach[hit].copy()
-                for _ in range(6):
-                    mid = 0.5 * (lo + hi)
-                    h = touches(mid, hit)
-                    hi, lo = np.where(h, mid, hi), np.where(h, lo, mid)
-                at = probe[hit]
-                cap[at] = np.minimum(cap[at], _stoppable_speed(lo, amax[at], dt))
+            hit, free = self._free_distances(start, u, reach, radii, q0, q1)
+            at = probe[hit]
+            cap[at] = np.minimum(cap[at], _stoppable_speed(free, amax[at], dt))
+        else:
+            at = probe
         limited = np.isfinite(cap)
         if not limited.any():
             return v_cmd
         out = v_cmd.copy()
         capped = v_cmd[k] * _shrink(s_cmd, cap)
+        # Only the rows whose cap the sweep lowered change their command: the others keep v1.
+        v1c = v1
+        if len(at):
+            v1c = v1.copy()
+            v1c[at] = limit_multirotor(vel0[rows[at]], capped[at], vmax[at], amax[at], dt)
         # The acceleration budget is shared by braking and turning: when the capped command still
         # leaves the agent above the cap (it asks for a turn), brake straight instead, which is
         # what keeps the margin from one step to the next.
-        v1c = limit_velocity(p, vel0[rows], capped, dt, rows)
         too_fast = norm3(v1c) > cap + 1e-9
         s0 = norm3(vel0[rows])
         brake = vel0[rows] * _shrink(s0, cap)
         out[k] = np.where(too_fast[:, None], brake, capped)
         return out
+
+    def _free_distances(
+        self,
+        start: np.ndarray,
+        u: np.ndarray,
+        reach: np.ndarray,
+        radii: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Rows whose sweep ``start -> start + u * reach`` touches something, and for them the
+        free distance along ``u``: a bisection on the swept check (monotone in length), 6
+        halvings, under-estimated by at most reach / 64.
+
+        Over flat ground the compiled kernel runs every row's bisection; rows where it cannot
+        decide a check (a body within ``BAND`` of contact, or a mesh), and terrain worlds, run
+        the same bisection through :func:`first_hits` (FCL decides)."""
+        mv = self.scene.moving_mask
+        cw = self.scene.collision
+        redo = np.arange(len(start))
+        hit_rows, free = [], []
+        compiled = loaded_kernels()
+        if compiled is not None and not self.world.peaks:
+            status, lo = compiled.free_distances(
+                np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
+                self._bounds[0], self._bounds[1],
+                *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
+            )  # fmt: skip
+            hit_rows.append(np.flatnonzero(status == 1))
+            free.append(lo[status == 1])
+            redo = np.flatnonzero(status == 2)
+        if len(redo):
+
+            def touches(length: np.ndarray, sel: np.ndarray) -> np.ndarray:
+                ends = start[sel] + u[sel] * length[:, None]
+                hits = first_hits(cw, start[sel], ends, radii[sel], q0[mv], q1[mv])
+                return np.array([h is not None for h in hits], dtype=bool)
+
+            hit = redo[touches(reach[redo], redo)]
+            lo, hi = np.zeros(len(hit)), reach[hit].copy()
+            for _ in range(6):
+                mid = 0.5 * (lo + hi)
+                h = touches(mid, hit)
+                hi, lo = np.where(h, mid, hi), np.where(h, lo, mid)
+            hit_rows.append(hit)
+            free.append(lo)
+        if not hit_rows:
+            return np.zeros(0, dtype=np.intp), np.zeros(0)
+        rows, lo = np.concatenate(hit_rows), np.concatenate(free)
+        order = np.argsort(rows, kind="stable")
+        return rows[order], lo[order]
 
     def margin(self, i: int | np.ndarray) -> np.ndarray:
         return np.minimum(0.25, 0.2 * self.params.radius[i])
@@ -216,6 +271,11 @@ class SafetyFilter:
 
         Returns, per agent of ``idx``, whether its final step was cleared with the safety margin.
         """
+        self._filtered += 1
+        if self._filtered == 2:
+            # The compiled checks from the second step on: the first step of a process stays
+            # free of numba's load (~1 s); until then the reference paths give the same answers.
+            kernels()
         dt = self.world.dt
         ids = self.params.ids
         mv = self.scene.moving_mask
