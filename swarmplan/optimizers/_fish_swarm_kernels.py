@@ -242,3 +242,23 @@ def fish_select(M, FM, rows, U, F):  # noqa: ANN001, ANN201
         F[i] = FM[r]
         for j in range(d):
             U[i, j] = M[r, j]
+
+
+@njit(cache=True, nogil=True)
+def spiral_visual(U, best_U, u, b, v0, absolute, hbar, vis, stp):  # noqa: ANN001, ANN201
+    """IAFSA's eq 28 and eq 31 per fish: ``w = 2 u - 1`` (bit for bit ``rng.uniform(-1, 1)``
+    from the same draws), ``Dis_i = |u_i - X_gm|``, ``vis_i = Dis_i e^{b w} cos(2 pi w)``
+    (its absolute value with ``absolute``) ``+ v0``, ``stp_i = vis_i / hbar``. One pass instead
+    of ~10 numpy calls per generation (issue 10)."""
+    n, d = U.shape
+    for i in range(n):
+        w = -1.0 + 2.0 * u[i]
+        s = 0.0
+        for j in range(d):
+            v = U[i, j] - best_U[j]
+            s += v * v
+        spiral = np.sqrt(s) * np.exp(b * w) * np.cos(2.0 * np.pi * w)
+        if absolute:
+            spiral = abs(spiral)
+        vis[i] = spiral + v0
+        stp[i] = vis[i] / hbar

@@ -463,15 +463,16 @@ class ImprovedFishSwarm(_FishBase):
     def _visual_step(self, state, problem, rng):
         p = self.params
         n = len(state.U)
-        w = rng.uniform(-1.0, 1.0, n)
-        dis = np.linalg.norm(state.U - state.best_U, axis=1)
         tau = problem.evaluations / problem.max_evals
-        spiral = dis * np.exp(p["b"] * w) * np.cos(2.0 * np.pi * w)
-        if p["visual_abs"]:  # our option; eq 28 as printed can be negative
-            spiral = np.abs(spiral)
         v0 = p["v0"] * (1.0 - tau) if p["v0_decay"] else p["v0"]  # our option; eq 28: constant V0
-        visual = spiral + v0 * self._unit(state.U.shape[1])
-        return visual, visual / p["hbar"]
+        # eq 28 (w ~ U(-1, 1) drawn as rng.random: the kernel maps it, bit for bit) and eq 31;
+        # visual_abs is our option: eq 28 as printed can be negative
+        visual, step = np.empty(n), np.empty(n)
+        _kernel().spiral_visual(
+            state.U, state.best_U, rng.random(n), float(p["b"]), v0 * self._unit(state.U.shape[1]),
+            bool(p["visual_abs"]), float(p["hbar"]), visual, step,
+        )  # fmt: skip
+        return visual, step
 
     def regenerate(
         self, state: _FishState, problem: Problem, rng: np.random.Generator, iteration: int
