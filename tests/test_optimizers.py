@@ -247,16 +247,11 @@ def _finals(name: str, fn_name: str) -> list[float]:
     return [make(name).minimize(cost, lower, upper, max_evals=BUDGET, seed=s).f for s in SEEDS]
 
 
-# Measured, kept visible as strict xfails (they fail the day the algorithm passes).
-# AFSA on shifted Rastrigin is level with random search: over 30 seeds random's median is 76.4,
-# AFSA's 77.9 with prey tries drawn up front and 82.7 with them drawn per round (issue 10; the
-# two AFSA streams do not differ: medians 83.0 vs 81.5 over 90 seeds, rank-sum p = 0.96). On
-# the 7 seeds below the old stream happened to land under random (70.9 vs 79.0), the new one
-# does not (80.3 vs 79.0).
-BEATS_RANDOM_KNOWN: dict[tuple[str, str], str] = {
-    ("afsa", "rastrigin"): "AFSA is level with random search on shifted Rastrigin (30-seed medians "
-    "82.7 vs 76.4); 7-seed medians 80.3 vs 79.0"
-}
+# Measured, kept visible as strict xfails (they fail the day the algorithm passes). Empty since
+# issue 11: AFSA was level with random search on shifted Rastrigin with 002's CEC settings in
+# box widths (7-seed medians 80.3 vs 79.0); with Visual / Step as fractions of the box diagonal
+# and 002's path-planning Visual and Try_Num (fish_swarm.py) it is 65.7 (sphere 1583 vs 5305).
+BEATS_RANDOM_KNOWN: dict[tuple[str, str], str] = {}
 
 
 @pytest.mark.parametrize("fn_name", ["sphere", "rastrigin"])

@@ -149,7 +149,9 @@ def test_mcfo_mutation_in_raw_units():
 
 
 def test_iafsa_eq28_literal_by_default():
-    opt = make("iafsa", population=20)
+    # V0 in box widths, as eq 28 is written for one box (the default measures it along the
+    # box diagonal, sqrt(d) times longer: tests/test_optimizers_fish_swarm.py)
+    opt = make("iafsa", population=20, visual_unit="width")
     d = 4
     problem = Problem(_sphere, np.full(d, -100.0), np.full(d, 100.0), max_evals=10**5)
     rng = np.random.default_rng(2)
@@ -164,9 +166,9 @@ def test_iafsa_eq28_literal_by_default():
     np.testing.assert_allclose(visual, expected, rtol=1e-12)
     np.testing.assert_allclose(step, expected / p["hbar"], rtol=1e-12)
     # our additions stay available as options
-    visual2, _ = make("iafsa", population=20, visual_abs=True, v0_decay=True)._visual_step(
-        state, problem, copy.deepcopy(twin)
-    )
+    visual2, _ = make(
+        "iafsa", population=20, visual_abs=True, v0_decay=True, visual_unit="width"
+    )._visual_step(state, problem, copy.deepcopy(twin))
     assert np.all(visual2 >= 0.5 * p["v0"] - 1e-12)
 
 

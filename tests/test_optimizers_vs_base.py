@@ -131,18 +131,13 @@ def test_improved_beats_base_fast(improved, base, request):
     assert wins == len(FUNCTIONS), f"{improved} beat {base} on {wins}/{len(FUNCTIONS)} shifted functions"
 
 
-# AFSA at 3000 evaluations (population 30: about 25 generations) cannot get below the best of
-# 3000 uniform samples: a fish moves at most Step = 3 % of the box per generation and in d = 10
-# no fish ever sees another (Visual = 25 % of the box, mean distance between fish ~1.3 box
-# widths), so following and swarming never fire and AFSA is a local random search around 30
-# nearly stationary fish. Medians of 5 seeds (2026-11-23), prey tries in the visual field
-# (eq 16, default): sphere 1.42e4, Rastrigin 98.5 vs random 7.75e3, 95.0; with the earlier
-# per-coordinate cube: 8.32e3, 101.7. It does beat random search from ~1e4 evaluations (see
-# tests/test_optimizers.py and docs/benchmarks.md).
-BEATS_RANDOM_KNOWN = {
-    "afsa": "AFSA (002 CEC settings, Step = 3 % of the box) travels too little in 25 generations: "
-    "sphere 1.42e4 vs random 7.75e3, Rastrigin 98.5 vs 95.0 (medians of 5, 3000 evals)"
-}
+# Strict xfails (they fail the day the algorithm passes). Empty since issue 11: with 002's CEC
+# settings in box widths (Visual 25 %, Step 3 %) no fish ever saw another in d = 10 and AFSA
+# lost to random search (medians of 5: sphere 1.49e4 vs 7.75e3, Rastrigin 94.8 vs 95.0, with
+# 1.42e4 / 98.5 before the random stream changed); with Visual / Step as fractions of the box
+# diagonal and 002's path-planning Visual and Try_Num (the registry defaults, see
+# fish_swarm.py): 3032 and 84.6.
+BEATS_RANDOM_KNOWN: dict[str, str] = {}
 
 
 @pytest.mark.parametrize("name", [a for a in available() if a != "random"])
