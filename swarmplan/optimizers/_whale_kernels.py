@@ -166,8 +166,8 @@ def chaos_advance(w, c, dead):  # noqa: ANN001, ANN201
     return count
 
 
-#: Uniforms one DE whale takes (:func:`de_trials`) besides its ``3 d`` (``4 d`` when
-#: ``alpha > 0``) per-coordinate draws: ``p1``, ``p2``, ``r1``, ``r2``, ``chi``.
+#: Uniforms one DE whale takes (:func:`de_trials`) besides its ``3 d`` per-coordinate
+#: draws: ``p1``, ``p2``, ``r1``, ``r2``, ``chi``.
 DE_SCALARS = 5
 
 
@@ -175,22 +175,26 @@ DE_SCALARS = 5
 def de_trials(X, F, idx, m, u, c, box, Xn):  # noqa: ANN001, ANN201
     """DE trial vectors (eqs 17-22) of the ``m`` whales ``idx[:m]`` into their rows of ``Xn``, clipped.
 
-    ``u`` is the DE stage's one uniform batch, ``DE_SCALARS + 3 d`` values per whale (``+ d``
-    when ``alpha > 0``), whale after whale: the neighbours ``p1 != p2`` of eq (18) and the
-    random whales ``r1 != r2`` (both ``!= i``) of eq (19) as uniform indices, the forced
-    coordinate ``chi`` of eq (21); per coordinate ``gamma_1 / lambda``, ``gamma_2 / lambda``
-    (eq 17), the crossover draw (eq 21) and, with ``alpha > 0``, the perturbation draw ``v``
-    of eq (22): the coordinate is perturbed when ``v <= alpha``, to the box point
-    ``lower + (v / alpha) span`` (given ``v <= alpha``, ``v / alpha`` is uniform in [0, 1]:
-    the same draw serves as the test and the point, no second draw needed).
+    ``u`` is the DE stage's one uniform batch, ``DE_SCALARS + 3 d`` values per whale, whale
+    after whale: the neighbours ``p1 != p2`` of eq (18) and the random whales ``r1 != r2``
+    (both ``!= i``) of eq (19) as uniform indices, the forced coordinate ``chi`` of eq (21);
+    then per coordinate ``gamma_1 / lambda`` and ``gamma_2 / lambda`` (eq 17) and one draw
+    ``v`` for both the perturbation (eq 22) and the crossover (eq 21). The perturbation,
+    probability ``alpha``, overwrites whatever the crossover chose, so per coordinate the
+    outcomes are: perturbed (``alpha``), else ``V`` or ``X_i`` as the crossover decides. One
+    uniform gives exactly that: ``v < alpha`` perturbs, to the box point
+    ``lower + (v / alpha) span`` (``v / alpha`` is uniform in [0, 1) given ``v < alpha``);
+    otherwise ``w = (v - alpha) / (1 - alpha)`` is uniform in [0, 1) and independent of the
+    perturbation test, and is the crossover draw (take ``V`` when ``w <= C_rate`` or
+    ``j = chi``). Same distribution as two independent draws, half the uniforms.
     """
     n, d = X.shape
     k = int(c[C_K])
     width = 2 * k + 1
     lam, Fs, omega, c_rate, alpha = c[C_LAM], c[C_F], c[C_OMEGA], c[C_CRATE], c[C_ALPHA]
     one_m_omega = 1.0 - omega
-    perturbing = alpha > 0.0
-    per = DE_SCALARS + (4 if perturbing else 3) * d
+    per = DE_SCALARS + 3 * d
+    keep = 1.0 - alpha  # probability of no perturbation (alpha = 1: every v < alpha)
     g = 0  # population best (first index of the minimum)
     for i in range(n):
         if F[i] < F[g]:
@@ -225,9 +229,11 @@ def de_trials(X, F, idx, m, u, c, box, Xn):  # noqa: ANN001, ANN201
             L = xi + g1 * (X[lb, j] - xi) + g2 * (X[p1, j] - X[p2, j])  # eq (18)
             G = X[g, j] + Fs * (X[g, j] - xi) + Fs * (X[r1, j] - X[r2, j])  # eq (19)
             V = omega * G + one_m_omega * L  # eq (20)
-            x = V if (u[b + 2 * d + j] <= c_rate or j == chi) else xi  # eq (21)
-            if perturbing:
-                v = u[b + 3 * d + j]
-                if v <= alpha:  # eq (22)
-                    x = box[0, j] + (v / alpha) * box[2, j]
+            v = u[b + 2 * d + j]
+            if v < alpha:  # eq (22): perturbed to a uniform point of the box
+                x = box[0, j] + (v / alpha) * box[2, j]
+            elif (v - alpha) / keep <= c_rate or j == chi:  # eq (21): the donor's coordinate
+                x = V
+            else:
+                x = xi
             Xn[i, j] = _clip(x, box[0, j], box[1, j])

@@ -125,6 +125,11 @@ class _Kit:
     none: np.ndarray  # (0, d): stands for the reverse-search arrays of a generation without DE
     lifespan: int = 0  # RSCDWOA: S of Algorithm 1 line 16
     de_draws: int = 0  # RSCDWOA: uniforms per DE whale (see _whale_kernels.de_trials)
+    # RSCDWOA's work buffers (Problem.evaluate hands the cost a copy, so the cost may keep
+    # what it gets): the next generation's positions (the previous generation's array, swapped
+    # with state.X every generation) and the reverse points (first m rows)
+    spare: np.ndarray | None = None
+    xr: np.ndarray | None = None
 
 
 def _kit(problem: Problem, n: int, **consts: float) -> _Kit:
@@ -367,7 +372,8 @@ class RSCDWOA(Optimizer):
                 crate=p["C_rate"], **consts,
             )  # fmt: skip
             state.kit.lifespan = int(p["lifespan"])
-            state.kit.de_draws = k.DE_SCALARS + (4 if p["alpha"] > 0 else 3) * d
+            state.kit.de_draws = k.DE_SCALARS + 3 * d
+            state.kit.spare, state.kit.xr = np.empty((n, d)), np.empty((n, d))
         kit = state.kit
         a = 2.0 - 2.0 * min(problem.evaluations / problem.max_evals, 1.0)  # eq (6)
         if k.chaos_advance(state.w, kit.c, kit.dead):  # eq (13) / (14); rare: see chaos_step
@@ -376,7 +382,7 @@ class RSCDWOA(Optimizer):
         # one draw, rows: q of Algorithm 1 line 10 (encircling / DE when q <= 0.5), and the
         # random whale of eqs (9)-(10) as a uniform (see _whale_kernels.woa_move)
         qp = rng.random((2, n))
-        Xn = np.empty((n, d))
+        Xn = kit.spare
         # eqs (3), (9)-(10) and the chaotic spiral (15), A = 2 a w - a (11), C = 2 w (12); the
         # encircling whales go to DE instead once the lifespan is used up (line 16)
         m = k.woa_move(
@@ -388,9 +394,10 @@ class RSCDWOA(Optimizer):
         Fn = problem.evaluate(Xn)  # line 29
         if m:  # reverse search of eq (16) on the DE whales after their selection (eq 23)
             z = rng.standard_normal((m, d))
-            Xr = np.empty((m, d))
+            Xr = kit.xr[:m]
         best_f = k.settle(state.X, state.F, Xn, Fn, kit.idx, m, z, kit.box, Xr, state.best_x, state.best_f)
         improved = best_f < state.best_f
+        kit.spare = state.X
         state.X, state.F, state.best_f = Xn, Fn, best_f
         if m:
             Fr = problem.evaluate(Xr)
