@@ -220,3 +220,41 @@ def test_rscdwoa_revives_degenerate_chaos_in_a_run(kind):
         opt.iterate(state, problem, rng, it)
         assert np.all((state.w > 0.0) & (state.w < 1.0))
     assert len(np.unique(state.w)) == state.w.size
+
+
+def test_rscdwoa_de_crossover_and_perturbation_frequencies():
+    # eqs (21)-(22) share one uniform per coordinate (_whale_kernels.de_trials): perturbed with
+    # probability alpha, else the donor's coordinate with probability C_rate (always at chi),
+    # else the parent's; perturbed coordinates uniform in the box. With lambda = F = 0 and
+    # omega = 1 the donor is the population best's coordinate, so each outcome is recognizable.
+    from swarmplan.optimizers import _whale_kernels as wk
+    from swarmplan.optimizers.core import Problem
+    from swarmplan.optimizers.whale import _kit
+
+    n, d, alpha, c_rate = 20, 50, 0.2, 0.6
+    problem = Problem(sphere, LOWER[:1].repeat(d), UPPER[:1].repeat(d), 10)
+    kit = _kit(problem, n, k=1, lam=0.0, F=0.0, omega=1.0, alpha=alpha, crate=c_rate)
+    rng = np.random.default_rng(3)
+    counts = np.zeros(3)  # parent, donor, perturbed (chi excluded)
+    unit = []
+    for _ in range(5):
+        X = problem.uniform(rng, n)
+        fit = np.arange(n, dtype=float)  # whale 0 is the best: the donor
+        idx = np.arange(1, n)
+        Xn = np.full((n, d), np.nan)
+        u = rng.random(len(idx) * (wk.DE_SCALARS + 3 * d))
+        wk.de_trials(X, fit, idx, len(idx), u, kit.c, kit.box, Xn)
+        for t, i in enumerate(idx):
+            chi = min(int(u[t * (wk.DE_SCALARS + 3 * d) + 4] * d), d - 1)
+            parent, donor = Xn[i] == X[i], Xn[i] == X[0]
+            other = ~parent & ~donor
+            assert not parent[chi]  # chi always takes the donor's coordinate unless perturbed
+            keep = np.arange(d) != chi
+            counts += [parent[keep].sum(), donor[keep].sum(), other[keep].sum()]
+            unit.extend((Xn[i, other] - problem.lower[other]) / problem.span[other])
+    freq = counts / counts.sum()
+    expected = [(1 - alpha) * (1 - c_rate), (1 - alpha) * c_rate, alpha]
+    assert np.all(np.abs(freq - expected) < 0.03), (freq, expected)  # ~5 sigma at 4900 draws
+    unit = np.asarray(unit)
+    assert np.all((unit >= 0) & (unit < 1))
+    assert abs(unit.mean() - 0.5) < 0.05 and abs(unit.std() - 0.289) < 0.03  # U[0, 1): 1/2, 1/sqrt(12)

@@ -74,7 +74,8 @@ def _clip(c, lo, hi):  # noqa: ANN001, ANN202
 
 #: Layout of the per-run constants vector ``c`` the kernels take (one array instead of a
 #: dozen scalar arguments: each argument costs numba's dispatcher ~0.1 µs).
-C_F_MIN, C_F_SPAN, C_WALK, C_USE_BEST, C_ALPHA, C_FLOOR, C_F, C_T_LIMIT = range(8)
+C_F_MIN, C_F_SPAN, C_WALK, C_USE_BEST, C_ALPHA, C_FLOOR, C_F, C_T_LIMIT, C_A0, C_R0 = range(10)
+N_C = 10
 
 
 @njit(cache=True, nogil=True)
@@ -251,3 +252,45 @@ def iba_settle(X, fit, trial, on, fo, src, changed, best_x, best_f, c, scouts): 
         scouts[s] = trial[s] >= t_limit and s != ib
         count += scouts[s]
     return best_f, count
+
+
+@njit(cache=True, nogil=True)
+def iba_scouts(X, V, A, r, trial, U, scouts, c, box):  # noqa: ANN001, ANN201
+    """Step 14: the sources marked in ``scouts`` restart at uniform random points.
+
+    ``U`` holds one row of ``U[0, 1)`` draws per scout (in source order); in place it becomes
+    the scouts' points ``lower + U span`` (``Problem.uniform``'s arithmetic), which are copied
+    into ``X``; velocity, loudness, pulse rate and trial counter are reset.
+    """
+    ne, d = X.shape
+    t = 0
+    for s in range(ne):
+        if scouts[s]:
+            for j in range(d):
+                x = box[0, j] + U[t, j] * box[2, j]
+                U[t, j] = x
+                X[s, j] = x
+                V[s, j] = 0.0
+            A[s] = c[C_A0]
+            r[s] = c[C_R0]
+            trial[s] = 0
+            t += 1
+
+
+@njit(cache=True, nogil=True)
+def iba_scouts_settle(fit, Xs, fs, scouts, best_x, best_f):  # noqa: ANN001, ANN201
+    """The scouts' costs ``fs`` into ``fit`` and the ``X*`` update; returns the best cost."""
+    t = 0
+    for s in range(fit.shape[0]):
+        if scouts[s]:
+            fit[s] = fs[t]
+            t += 1
+    k = -1
+    for t in range(fs.shape[0]):  # first index of the minimum, taken only when it beats X*
+        if fs[t] < best_f:
+            best_f = fs[t]
+            k = t
+    if k >= 0:
+        for j in range(Xs.shape[1]):
+            best_x[j] = Xs[k, j]
+    return best_f

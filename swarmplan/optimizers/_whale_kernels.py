@@ -3,14 +3,14 @@
 Why numba here: with 30 whales every numpy call costs more than the arithmetic it does; one
 WOA generation was ~25 numpy calls, an RSCDWOA generation with its differential-evolution
 stage ~80: 6-9 µs of overhead per evaluation at d = 50 against the 1 µs target of issue 10.
-The random numbers are drawn by numpy (passing the Generator into numba costs ~10 µs per
-call to unbox it) and the kernels repeat the numpy code's floating-point operations in the
-same order. RSCDWOA makes the same draws in the same order as before, so it gives the same
-results bit for bit as the numpy code it replaces (it is the planner's default optimizer:
-escapes and golden logs are unchanged). WOA draws its partner from a uniform instead of
-``rng.integers`` (one ``integers`` call costs as much as ~8 ``random`` calls of its size):
-same distribution, another stream. Which equation each step is: see the
-docstrings of :mod:`swarmplan.optimizers.whale`.
+The random numbers are drawn by numpy in batches (passing the Generator into numba costs
+~10 µs per call to unbox it) and the kernels repeat the numpy code's floating-point
+operations in the same order. Random integers (partners, donors, the forced crossover
+coordinate) come from uniforms of the batch, ``floor(u k)``: one ``integers`` call costs as
+much as ~8 ``random`` calls of its size. An RSCDWOA generation is one ``rng.random`` call,
+plus with the DE stage one more and the normals of the reverse search (before: up to ten
+calls, four of them ``integers``); same distributions, another stream than the numpy code.
+Which equation each step is: see the docstrings of :mod:`swarmplan.optimizers.whale`.
 """
 
 from __future__ import annotations
@@ -46,19 +46,20 @@ def _unit_index(x, k):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True)
-def woa_move(X, best, coef, q, pu, off, a, c, box, Xn, de_on, idx):  # noqa: ANN001, ANN201
+def woa_move(X, best, coef, qp, a, c, box, Xn, de_on, idx):  # noqa: ANN001, ANN201
     """WOA position update (eqs 2-10, RSCDWOA's 11, 12 and 15) of every whale into ``Xn``, clipped.
 
     ``coef`` rows 0-2 drive ``A = 2 a coef_0 - a``, ``C = 2 coef_1`` and the spiral parameter
     ``l = ell_lo + ell_span coef_2`` (uniform draws for WOA, chaotic values for RSCDWOA);
-    ``q`` picks encircling (``q < 0.5``, or ``<= 0.5`` when ``c[C_Q_INCL]``) or the spiral;
-    whale ``i``'s random partner is ``(i + o_i) % n`` with ``o_i`` uniform in ``1..n-1``:
-    ``off_i`` when ``off`` is given (RSCDWOA: numpy's ``integers``, as before the kernels),
-    else ``1 + floor(pu_i (n - 1))`` (WOA: one ``rng.random`` call is ~8x cheaper than one
-    ``integers`` call). With ``de_on`` the encircling whales are instead listed in ``idx``
-    for the DE stage (their rows are left for it to fill) and their number is returned.
+    ``q = qp[0]`` picks encircling (``q < 0.5``, or ``<= 0.5`` when ``c[C_Q_INCL]``) or the
+    spiral; whale ``i``'s random partner is ``(i + o_i) % n`` with ``o_i = 1 + floor(qp[1, i]
+    (n - 1))`` uniform in ``1..n-1`` (a uniform of the generation's one ``rng.random`` batch:
+    one ``integers`` call costs as much as ~8 ``random`` calls of its size). With ``de_on``
+    the encircling whales are instead listed in ``idx`` for the DE stage (their rows are left
+    for it to fill) and their number is returned.
     """
     n, d = X.shape
+    q, pu = qp[0], qp[1]
     b, ell_lo, ell_span = c[C_B], c[C_ELL_LO], c[C_ELL_SPAN]
     q_incl = c[C_Q_INCL] != 0.0
     two_a = 2.0 * a
@@ -74,8 +75,7 @@ def woa_move(X, best, coef, q, pu, off, a, c, box, Xn, de_on, idx):  # noqa: ANN
             C = 2.0 * coef[1, i]
             p = -1  # encircle X_* (|A| < 1) or search for prey around a random other whale
             if abs(A) >= 1.0:
-                o = off[i] if off.size else 1 + _unit_index(pu[i], n - 1)
-                p = (i + o) % n
+                p = (i + 1 + _unit_index(pu[i], n - 1)) % n
             for j in range(d):
                 ref = X[p, j] if p >= 0 else best[j]
                 x = ref - A * abs(C * ref - X[i, j])
@@ -166,58 +166,74 @@ def chaos_advance(w, c, dead):  # noqa: ANN001, ANN201
     return count
 
 
-@njit(cache=True, nogil=True)
-def de_trials(X, F, idx, ua, o1, o2, uc, chi, up, uu, c, box, Xn):  # noqa: ANN001, ANN201
-    """DE trial vectors (eqs 17-22) of the whales ``idx`` into their rows of ``Xn``, clipped.
+#: Uniforms one DE whale takes (:func:`de_trials`) besides its ``3 d`` per-coordinate
+#: draws: ``p1``, ``p2``, ``r1``, ``r2``, ``chi``.
+DE_SCALARS = 5
 
-    The draws, as numpy made them (``RSCDWOA._de_draws``): ``ua`` = neighbourhood keys
-    ``(m, 2k+1)`` then ``g1``, ``g2`` ``(m, d)`` as ``U[0, 1)``; ``o1, o2`` the offsets of
-    ``r1, r2``; ``uc`` crossover draws, ``chi`` the forced coordinates; ``up`` perturbation
-    draws and ``uu`` the uniform points swapped in (empty when no coordinate is perturbed).
+
+@njit(cache=True, nogil=True)
+def de_trials(X, F, idx, m, u, c, box, Xn):  # noqa: ANN001, ANN201
+    """DE trial vectors (eqs 17-22) of the ``m`` whales ``idx[:m]`` into their rows of ``Xn``, clipped.
+
+    ``u`` is the DE stage's one uniform batch, ``DE_SCALARS + 3 d`` values per whale, whale
+    after whale: the neighbours ``p1 != p2`` of eq (18) and the random whales ``r1 != r2``
+    (both ``!= i``) of eq (19) as uniform indices, the forced coordinate ``chi`` of eq (21);
+    then per coordinate ``gamma_1 / lambda`` and ``gamma_2 / lambda`` (eq 17) and one draw
+    ``v`` for both the perturbation (eq 22) and the crossover (eq 21). The perturbation,
+    probability ``alpha``, overwrites whatever the crossover chose, so per coordinate the
+    outcomes are: perturbed (``alpha``), else ``V`` or ``X_i`` as the crossover decides. One
+    uniform gives exactly that: ``v < alpha`` perturbs, to the box point
+    ``lower + (v / alpha) span`` (``v / alpha`` is uniform in [0, 1) given ``v < alpha``);
+    otherwise ``w = (v - alpha) / (1 - alpha)`` is uniform in [0, 1) and independent of the
+    perturbation test, and is the crossover draw (take ``V`` when ``w <= C_rate`` or
+    ``j = chi``). Same distribution as two independent draws, half the uniforms.
     """
     n, d = X.shape
-    m = o1.size
     k = int(c[C_K])
     width = 2 * k + 1
     lam, Fs, omega, c_rate, alpha = c[C_LAM], c[C_F], c[C_OMEGA], c[C_CRATE], c[C_ALPHA]
     one_m_omega = 1.0 - omega
-    perturbing = uu.size > 0
+    per = DE_SCALARS + 3 * d
+    keep = 1.0 - alpha  # probability of no perturbation (alpha = 1: every v < alpha)
     g = 0  # population best (first index of the minimum)
     for i in range(n):
         if F[i] < F[g]:
             g = i
     for t in range(m):
         i = idx[t]
-        # ring neighbourhood [i-k, i+k] (Fig. 4): its best member, and p1 != p2 the members
-        # with the two smallest random keys (argsort order)
+        b = t * per
+        # ring neighbourhood [i-k, i+k] (Fig. 4): its best member lb, and two distinct
+        # members p1 != p2 drawn uniformly from it
         lb = (i - k) % n
-        s1 = 0
         for cc in range(1, width):
             j = (i + cc - k) % n
             if F[j] < F[lb]:
                 lb = j
-            if ua[t * width + cc] < ua[t * width + s1]:
-                s1 = cc
-        s2 = 1 if s1 == 0 else 0
-        for cc in range(width):
-            if cc != s1 and ua[t * width + cc] < ua[t * width + s2]:
-                s2 = cc
+        s1 = _unit_index(u[b], width)
+        s2 = _unit_index(u[b + 1], width - 1)
+        s2 += 1 if s2 >= s1 else 0
         p1 = (i + s1 - k) % n
         p2 = (i + s2 - k) % n
-        # r1 != r2, both != i
-        b2 = o2[t] + (1 if o2[t] >= o1[t] else 0)
-        r1 = (i + o1[t]) % n
-        r2 = (i + b2) % n
-        base_g1 = m * width + t * d
-        base_g2 = m * width + m * d + t * d
+        # r1 != r2, both != i: offsets 1..n-1 and 1..n-2 (the second skips the first's)
+        o1 = 1 + _unit_index(u[b + 2], n - 1)
+        o2 = 1 + _unit_index(u[b + 3], n - 2)
+        o2 += 1 if o2 >= o1 else 0
+        r1 = (i + o1) % n
+        r2 = (i + o2) % n
+        chi = _unit_index(u[b + 4], d)
+        b += DE_SCALARS
         for j in range(d):
             xi = X[i, j]
-            g1 = lam * ua[base_g1 + j]
-            g2 = lam * ua[base_g2 + j]
+            g1 = lam * u[b + j]
+            g2 = lam * u[b + d + j]
             L = xi + g1 * (X[lb, j] - xi) + g2 * (X[p1, j] - X[p2, j])  # eq (18)
             G = X[g, j] + Fs * (X[g, j] - xi) + Fs * (X[r1, j] - X[r2, j])  # eq (19)
             V = omega * G + one_m_omega * L  # eq (20)
-            u = V if (uc[t * d + j] <= c_rate or j == chi[t]) else xi  # eq (21)
-            if perturbing and up[t * d + j] <= alpha:  # eq (22)
-                u = box[0, j] + uu[t * d + j] * box[2, j]
-            Xn[i, j] = _clip(u, box[0, j], box[1, j])
+            v = u[b + 2 * d + j]
+            if v < alpha:  # eq (22): perturbed to a uniform point of the box
+                x = box[0, j] + (v / alpha) * box[2, j]
+            elif (v - alpha) / keep <= c_rate or j == chi:  # eq (21): the donor's coordinate
+                x = V
+            else:
+                x = xi
+            Xn[i, j] = _clip(x, box[0, j], box[1, j])

@@ -148,11 +148,15 @@ class _Kit:
     changed: np.ndarray  # (n,) bool: accepted / changed this generation
     src: np.ndarray  # (m,) int: the source each onlooker chose (iba_abc)
     scouts: np.ndarray  # (n,) bool: sources to scout (iba_abc)
+    # the candidates' work buffers, rewritten every generation (Problem.evaluate hands the
+    # cost function a copy, so the cost may keep what it gets)
+    cand: np.ndarray  # (n, d): the BA step's candidates
+    on: np.ndarray  # (m, d): the onlookers' candidates (iba_abc)
 
 
 def _kit(params, problem: Problem, n: int, m: int = 0) -> _Kit:
     p = params
-    c = np.zeros(8)
+    c = np.zeros(10)  # _bat_kernels.N_C
     c[:6] = (
         p["f_min"],
         p["f_max"] - p["f_min"],
@@ -161,13 +165,15 @@ def _kit(params, problem: Problem, n: int, m: int = 0) -> _Kit:
         p["alpha"],
         p["A0"] if p["A_min"] is None else p["A_min"],
     )
-    c[6:] = (p.get("F", 0.0), p.get("T_limit", 0))
+    c[6:] = (p.get("F", 0.0), p.get("T_limit", 0), p["A0"], p["r0"])
     return _Kit(
         c=c,
         box=np.stack([problem.lower, problem.upper, problem.span]),
         changed=np.zeros(n, dtype=bool),
         src=np.zeros(m, dtype=np.int64),
         scouts=np.zeros(n, dtype=bool),
+        cand=np.empty((n, problem.dim)),
+        on=np.empty((m, problem.dim)),
     )
 
 
@@ -257,7 +263,7 @@ class BatAlgorithm(Optimizer):
         # one draw for the generation, in the order the equations use them: frequencies,
         # rand_1, the walk's eps (eqs 8-9), rand_2 (eq 10); the kernels read it by offset
         u = rng.random(n * (d + 3))
-        cand = np.empty((n, d))  # new every generation: the cost function may keep it
+        cand = state.kit.cand
         k.bat_move(state.X, state.V, state.best_x, state.A, state.r, u, state.kit.c, state.kit.box, cand)
         fc = problem.evaluate(cand)
         state.best_f = k.bat_accept(
@@ -423,12 +429,12 @@ class IbaAbc(Optimizer):
         u = rng.random(ne * (d + 3) + 7 * m)
 
         # 1. employed bees: one BA step (eqs 8-10)
-        cand = np.empty((ne, d))  # new every generation: the cost function may keep it
+        cand = kit.cand
         k.bat_move(state.X, state.V, state.best_x, state.A, state.r, u, kit.c, kit.box, cand)
         fc = problem.evaluate(cand)
 
         # 2. onlookers: roulette (eq 11), one-dimension mutation (eq 12), local search (eq 13)
-        on = np.empty((m, d))
+        on = kit.on
         state.best_f = k.iba_onlookers(
             state.X, state.fit, state.A, state.r, cand, fc, u, state.best_x, state.best_f,
             _pulse(p, iteration), kit.c, kit.box, on, kit.src, kit.changed,
@@ -440,13 +446,10 @@ class IbaAbc(Optimizer):
             kit.c, kit.scouts,
         )  # fmt: skip
 
-        # 3. scouts after T_limit generations without change (step 14)
+        # 3. scouts after T_limit generations without change (step 14): uniform points in
+        # the box (the draws of problem.uniform), reset, evaluated in one batch
         if n_scouts:
-            idx = np.flatnonzero(kit.scouts)
-            state.X[idx] = problem.uniform(rng, len(idx))
-            state.V[idx] = 0.0
-            state.A[idx] = p["A0"]
-            state.r[idx] = p["r0"]
-            state.trial[idx] = 0
-            state.fit[idx] = problem.evaluate(state.X[idx])
-            _update_best(state, state.X[idx], state.fit[idx])
+            Xs = rng.random((n_scouts, d))
+            k.iba_scouts(state.X, state.V, state.A, state.r, state.trial, Xs, kit.scouts, kit.c, kit.box)
+            fs = problem.evaluate(Xs)
+            state.best_f = k.iba_scouts_settle(state.fit, Xs, fs, kit.scouts, state.best_x, state.best_f)

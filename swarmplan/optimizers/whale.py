@@ -123,7 +123,13 @@ class _Kit:
     idx: np.ndarray  # (n,) int: the DE whales of the generation (first m entries)
     dead: np.ndarray  # (3, n) bool: chaotic values to restart
     none: np.ndarray  # (0, d): stands for the reverse-search arrays of a generation without DE
-    no_off: np.ndarray  # (0,) int: no integer partner offsets (WOA draws them as uniforms)
+    lifespan: int = 0  # RSCDWOA: S of Algorithm 1 line 16
+    de_draws: int = 0  # RSCDWOA: uniforms per DE whale (see _whale_kernels.de_trials)
+    # RSCDWOA's work buffers (Problem.evaluate hands the cost a copy, so the cost may keep
+    # what it gets): the next generation's positions (the previous generation's array, swapped
+    # with state.X every generation) and the reverse points (first m rows)
+    spare: np.ndarray | None = None
+    xr: np.ndarray | None = None
 
 
 def _kit(problem: Problem, n: int, **consts: float) -> _Kit:
@@ -138,7 +144,6 @@ def _kit(problem: Problem, n: int, **consts: float) -> _Kit:
         idx=np.zeros(n, dtype=np.int64),
         dead=np.zeros((3, n), dtype=bool),
         none=np.empty((0, problem.dim)),
-        no_off=np.empty(0, dtype=np.int64),
     )
 
 
@@ -204,7 +209,7 @@ class WOA(Optimizer):
         # the partner X_rand of eqs (9)-(10) (whale i + 1 + floor(u (n-1)) mod n, never i)
         r = rng.random((5, n))
         Xn = np.empty((n, d))
-        k.woa_move(state.X, state.best_x, r, r[3], r[4], kit.no_off, a, kit.c, kit.box, Xn, False, kit.idx)
+        k.woa_move(state.X, state.best_x, r, r[3:], a, kit.c, kit.box, Xn, False, kit.idx)
         F = problem.evaluate(Xn)
         state.best_f = k.settle(
             state.X, F, Xn, F, kit.idx, 0, kit.none, kit.box, kit.none, state.best_x, state.best_f
@@ -354,27 +359,6 @@ class RSCDWOA(Optimizer):
         i = int(np.argmin(F))
         return _RSCDWOAState(X=X, F=F, best_x=X[i].copy(), best_f=float(F[i]), w=w, s=0)
 
-    def _de_draws(self, rng: np.random.Generator, n: int, m: int, d: int) -> tuple:
-        """The random numbers of eqs (17)-(22) for ``m`` DE whales, drawn as numpy always drew them.
-
-        Neighbourhood keys ``(m, 2k+1)`` for ``p1 != p2`` and ``g1``, ``g2`` of eq (17) (one
-        call); offsets of ``r1 != r2 (!= i)``; crossover draws and the forced coordinate
-        ``chi`` of eq (21); per-coordinate perturbation draws of eq (22) and, only when one
-        of them perturbs, a uniform point of the box per whale.
-        """
-        p = self.params
-        ua = rng.random(m * (2 * int(p["k"]) + 1) + 2 * m * d)
-        o1 = rng.integers(1, n, m)
-        o2 = rng.integers(1, n - 1, m)
-        uc = rng.random(m * d)
-        chi = rng.integers(0, d, m)
-        up = uu = np.empty(0)
-        if p["alpha"] > 0:
-            up = rng.random(m * d)
-            if up.min() <= p["alpha"]:
-                uu = rng.random(m * d)
-        return ua, o1, o2, uc, chi, up, uu
-
     def iterate(
         self, state: _RSCDWOAState, problem: Problem, rng: np.random.Generator, iteration: int
     ) -> None:
@@ -387,27 +371,33 @@ class RSCDWOA(Optimizer):
                 problem, n, ell_lo=0.0, ell_span=1.0, q_incl=1.0, tent=p["chaos"] == "tent",
                 crate=p["C_rate"], **consts,
             )  # fmt: skip
+            state.kit.lifespan = int(p["lifespan"])
+            state.kit.de_draws = k.DE_SCALARS + 3 * d
+            state.kit.spare, state.kit.xr = np.empty((n, d)), np.empty((n, d))
         kit = state.kit
         a = 2.0 - 2.0 * min(problem.evaluations / problem.max_evals, 1.0)  # eq (6)
         if k.chaos_advance(state.w, kit.c, kit.dead):  # eq (13) / (14); rare: see chaos_step
             fresh = rng.uniform(_CHAOS_EPS, 1.0 - _CHAOS_EPS, state.w.shape)
             state.w[kit.dead] = fresh[kit.dead]
-        q = rng.random(n)  # Algorithm 1 line 10: encircling / DE when q <= 0.5
-        partner = rng.integers(1, n, n)
-        Xn = np.empty((n, d))
+        # one draw, rows: q of Algorithm 1 line 10 (encircling / DE when q <= 0.5), and the
+        # random whale of eqs (9)-(10) as a uniform (see _whale_kernels.woa_move)
+        qp = rng.random((2, n))
+        Xn = kit.spare
         # eqs (3), (9)-(10) and the chaotic spiral (15), A = 2 a w - a (11), C = 2 w (12); the
         # encircling whales go to DE instead once the lifespan is used up (line 16)
-        de_on = state.s >= int(p["lifespan"])
-        m = k.woa_move(state.X, state.best_x, state.w, q, q, partner, a, kit.c, kit.box, Xn, de_on, kit.idx)
+        m = k.woa_move(
+            state.X, state.best_x, state.w, qp, a, kit.c, kit.box, Xn, state.s >= kit.lifespan, kit.idx
+        )
         z = Xr = kit.none
-        if m:  # DE stage, eqs (17)-(22)
-            k.de_trials(state.X, state.F, kit.idx, *self._de_draws(rng, n, m, d), kit.c, kit.box, Xn)
+        if m:  # DE stage, eqs (17)-(22): one uniform batch, its layout in _whale_kernels.de_trials
+            k.de_trials(state.X, state.F, kit.idx, m, rng.random(m * kit.de_draws), kit.c, kit.box, Xn)
         Fn = problem.evaluate(Xn)  # line 29
         if m:  # reverse search of eq (16) on the DE whales after their selection (eq 23)
             z = rng.standard_normal((m, d))
-            Xr = np.empty((m, d))
+            Xr = kit.xr[:m]
         best_f = k.settle(state.X, state.F, Xn, Fn, kit.idx, m, z, kit.box, Xr, state.best_x, state.best_f)
         improved = best_f < state.best_f
+        kit.spare = state.X
         state.X, state.F, state.best_f = Xn, Fn, best_f
         if m:
             Fr = problem.evaluate(Xr)
