@@ -4,10 +4,11 @@ agents on): every term of every agent in one pass.
 Why numba: in numpy the field is ~60 array operations per step on (agents, bodies, 3) and
 (pairs, 3) temporaries plus a k-d tree for the agent term (3.8 ms per step at 256 agents,
 2.1 ms at 64 with 32 movers), mostly per-call overhead and memory traffic; here each agent's
-force is summed where its terms are computed. The formulas, their order and the order of
-the terms are those of ``apf.py`` (tests/test_apf_compiled.py holds the two together): the
-agent term is bit for bit the indexed numpy one (same per-pair values, summed in the same
-order); the obstacle terms differ from ``np.einsum``'s sums by rounding, ~1e-16 relative.
+force is summed where its terms are computed. The formulas, their order, the order of the
+terms and of every sum are those of ``apf.py`` (``np.einsum`` adds in index order; the
+potentials' ``sum`` is numpy's pairwise summation, reproduced by :func:`_pairwise`; the agent
+term is the indexed one, in index order): the forces are numpy's bit for bit, so a world
+runs the same either way (tests/test_apf_compiled.py, tests/test_field_kernels.py).
 
 The agent term visits every other agent, but a pair is dismissed with a few products (no
 division) when the closest approach of the two centres within the prediction horizon stays
@@ -53,6 +54,72 @@ def _power(x, p):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _pairwise_block(a, lo, n):  # noqa: ANN001, ANN202
+    """numpy's pairwise summation of ``a[lo:lo + n]`` for n <= 128 (eight running sums)."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pairwise(a, lo, n):  # noqa: ANN001, ANN202
+    """``a[lo:lo + n].sum()`` in numpy's order: blocks of up to 128, longer runs split in
+    halves (a multiple of 8 first) and the halves' sums added. The halving is walked with
+    an explicit stack (numba's cache breaks callers of self-recursive functions)."""
+    if n <= 128:
+        return _pairwise_block(a, lo, n)
+    depth = 2 * (int(math.log2(n)) + 2)
+    s_lo = np.empty(depth, np.int64)
+    s_n = np.empty(depth, np.int64)
+    s_phase = np.zeros(depth, np.int64)
+    vals = np.empty(depth)
+    s_lo[0], s_n[0], top, nv = lo, n, 1, 0
+    while top:
+        t = top - 1
+        m = s_n[t]
+        if m <= 128:
+            vals[nv] = _pairwise_block(a, s_lo[t], m)
+            nv += 1
+            top -= 1
+            continue
+        half = m // 2
+        half -= half % 8
+        if s_phase[t] == 0:  # the left half first
+            s_phase[t] = 1
+            s_lo[top], s_n[top], s_phase[top] = s_lo[t], half, 0
+            top += 1
+        elif s_phase[t] == 1:  # then the right
+            s_phase[t] = 2
+            s_lo[top], s_n[top], s_phase[top] = s_lo[t] + half, m - half, 0
+            top += 1
+        else:
+            vals[nv - 2] = vals[nv - 2] + vals[nv - 1]
+            nv -= 1
+            top -= 1
+    return vals[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rep(rho, rho0, k):  # noqa: ANN001, ANN202
     """``apf._rep_magnitude`` of one value."""
     if rho < rho0:
@@ -69,25 +136,31 @@ def _face(offset, sign, r, rb0, k_rep, gfac):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _far_apart(dx, dy, dz, vx, vy, vz, horizon, reach):  # noqa: ANN001, ANN202
-    """True when ``|d + t v| >= reach`` for every t in [0, horizon] (with a margin for rounding):
-    the closest approach of the segment, from squared lengths only."""
+def _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near):  # noqa: ANN001, ANN202
+    """``near[b]`` = False when ``|d + t v| >= reach`` for every t in [0, horizon], d and v the
+    position and velocity of (px, py, pz) relative to agent b (a margin covers rounding): the
+    closest approach of the segment from squared lengths only, no division and no branch, so
+    the loop over the swarm is vectorized."""
     r2 = reach * reach
-    dd = dx * dx + dy * dy + dz * dz
-    if dd < r2:
-        return False
-    b = dx * vx + dy * vy + dz * vz
-    if b >= 0.0:
-        return True  # moving apart: the start is the closest point
-    a = vx * vx + vy * vy + vz * vz
-    if -b >= a * horizon:  # still approaching at the horizon: the end is the closest point
-        ex = dx + horizon * vx
-        ey = dy + horizon * vy
-        ez = dz + horizon * vz
-        return ex * ex + ey * ey + ez * ez >= r2 * (1.0 + 1e-9)
-    # Interior minimum dd - b^2 / a >= r2, without the division; the difference cancels when
-    # d and v are nearly parallel, hence the margin relative to dd * a.
-    return dd * a - b * b >= r2 * a + 1e-9 * dd * a
+    r2_end = r2 * (1.0 + 1e-9)
+    for b in range(X.shape[0]):
+        dx, dy, dz = px - X[b], py - Y[b], pz - Z[b]
+        wx, wy, wz = vx - VX[b], vy - VY[b], vz - VZ[b]
+        dd = dx * dx + dy * dy + dz * dz
+        bb = dx * wx + dy * wy + dz * wz
+        a = wx * wx + wy * wy + wz * wz
+        ex, ey, ez = dx + horizon * wx, dy + horizon * wy, dz + horizon * wz
+        ee = ex * ex + ey * ey + ez * ez
+        to_end = -bb >= a * horizon  # still approaching at the horizon: the end is the closest
+        inside = -bb < a * horizon
+        # Interior minimum dd - bb^2 / a >= r2 without the division; the difference cancels
+        # when d and v are nearly parallel, hence the margin relative to dd * a.
+        far = (dd >= r2) & (
+            (bb >= 0.0)  # moving apart: the start is the closest point
+            | (to_end & (ee >= r2_end))
+            | (inside & (dd * a - bb * bb >= r2 * a + 1e-9 * dd * a))
+        )
+        near[b] = not far
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -139,6 +212,11 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
     rho0_g = max(min(rho0, 3.0 * fmax), 2.0)
     rb0 = min(rho0, 10.0)
     k_mv = k_rep * k_moving
+    # The swarm by coordinate (contiguous columns for the vectorized pair test).
+    X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
+    VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
+    near = np.empty(n_all, dtype=np.bool_)
+    pot_s, pot_m = np.empty(m), np.empty(m)
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
@@ -166,10 +244,12 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
         # Obstacle surfaces: static (scaled per agent) then moving, as two sums.
         if m:
             ks = k_rep * static_scale[i]
-            sx = sy = sz = ps = 0.0
-            mx = my = mz = pm = 0.0
+            sx = sy = sz = 0.0
+            mx = my = mz = 0.0
+            n_s = n_m = 0
             for j in range(m):
                 rho = dist[i, j] - ri
+                pot = 0.0
                 if rho < rho0:
                     k = k_rep if moving[j] else ks
                     x = 1.0 / max(rho, 0.05) - 1.0 / rho0
@@ -179,18 +259,23 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
                         mx += w * grad[i, j, 0]
                         my += w * grad[i, j, 1]
                         mz += w * grad[i, j, 2]
-                        pm += pot
                     else:
                         sx += w * grad[i, j, 0]
                         sy += w * grad[i, j, 1]
                         sz += w * grad[i, j, 2]
-                        ps += pot
+                if moving[j]:
+                    pot_m[n_m] = pot
+                    n_m += 1
+                else:
+                    pot_s[n_s] = pot
+                    n_s += 1
             fx, fy, fz = fx + sx, fy + sy, fz + sz
-            c = ps * gfac_d
+            # The companion term sums the potentials as numpy's sum does (pairwise).
+            c = _pairwise(pot_s, 0, n_s) * gfac_d if gfac_d != 0.0 else 0.0
             fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
             if any_moving:
                 fx, fy, fz = fx + mx, fy + my, fz + mz
-                c = pm * gfac_d
+                c = _pairwise(pot_m, 0, n_m) * gfac_d if gfac_d != 0.0 else 0.0
                 fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
                 # Predicted closest approach to each mover, right-hand bias on collision course.
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
@@ -241,13 +326,12 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
         if n_all >= 2:
             ia = idx[i]
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
+            _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
             for b in range(n_all):
-                if b == ia:
+                if b == ia or not near[b]:
                     continue
                 dpx, dpy, dpz = px - all_pos[b, 0], py - all_pos[b, 1], pz - all_pos[b, 2]
                 dwx, dwy, dwz = vx - all_vel[b, 0], vy - all_vel[b, 1], vz - all_vel[b, 2]
-                if _far_apart(dpx, dpy, dpz, dwx, dwy, dwz, horizon, reach):
-                    continue
                 rr = radius[ia] + radius[b]
                 cx = max(separation[ia, 0], separation[b, 0]) + rr
                 cy = max(separation[ia, 1], separation[b, 1]) + rr

@@ -1,6 +1,7 @@
-"""The compiled potential field (swarm-sized worlds) equals the numpy one on random swarms,
-edge cases included: coincident agents, equal velocities, agents inside obstacles or at
-their surface, at their goal, beside the bounds, on terrain, head-on with movers."""
+"""The compiled potential field (swarm-sized worlds) equals the numpy one bit for bit on
+random swarms, edge cases included: coincident agents, equal velocities, agents inside
+obstacles or at their surface, at their goal, beside the bounds, on terrain, head-on with
+movers, crowds of bodies (numpy's pairwise sums)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from helpers import base_world, make_world
 
 from swarmplan.apf import ApfGains, FieldInputs, _apf_compiled, _apf_numpy, apf_forces
 from swarmplan.dynamics import AgentParams
-from swarmplan.geometry.compiled import COMPILED_FROM
+from swarmplan.geometry.compiled import COMPILED_FROM, use_compiled
 from swarmplan.geometry.shapes import ObstacleField
 
 N = 80
@@ -55,6 +56,26 @@ def _world(peaks: bool, gains: dict | None = None):
         ],
         planner={"apf": {"influence": 20.0, **(gains or {})}},
     )
+    # A crowd of small bodies, static and moving: numpy sums more than 8 potentials pairwise.
+    for k in range(10):
+        raw["obstacles"].append(
+            {
+                "id": f"p{k}",
+                "shape": "sphere",
+                "radius": 2.0,
+                "position": [140 + 8 * (k % 5), 240 + 10 * (k // 5), 30],
+            }
+        )
+    for k in range(9):
+        raw["obstacles"].append(
+            {
+                "id": f"q{k}",
+                "shape": "sphere",
+                "radius": 1.5,
+                "position": [136 + 6 * k, 270, 35],
+                "motion": {"type": "linear", "velocity": [0.0, -1.0, 0.2 * (k % 3)]},
+            }
+        )
     if peaks:
         raw["terrain"] = {"peaks": [{"center": [150, 150], "height": 25, "spread": [60, 50]}], "clearance": 5}
     return make_world(raw)
@@ -72,8 +93,11 @@ def _inputs(world, seed: int):
         min_altitude=rng.choice([2.0, 3.0, 10.0], N),
     )
     pos = rng.uniform([0.5, 0.5, 0.5], [299.5, 299.5, 79.5], (N, 3))
+    goal = rng.uniform([5, 5, 5], [295, 295, 75], (N, 3))
     # Clusters: dense groups well inside each other's separation.
     pos[:30] = pos[0] + rng.normal(0, 3.0, (30, 3))
+    pos[30:40] = np.array([156, 255, 32]) + rng.normal(0, 8.0, (10, 3))  # among the crowd of bodies
+    goal[30:40] = pos[30:40] + rng.normal(0, 6.0, (10, 3))  # with goals near (the companion term)
     pos[40:50] = np.array([100, 150, 30]) + rng.normal(0, 9.0, (10, 3))  # in and around the sphere
     vel = rng.normal(0, 5.0, (N, 3))
     pos[5] = pos[4]  # coincident agents, also with equal velocities
@@ -88,7 +112,6 @@ def _inputs(world, seed: int):
     pos[15] = [299.0, 299.0, 79.9]  # in the high corner
     pos[16] = [150.0 - 9.0, 60.0, 30.0]  # head-on with mover m1 along its path
     vel[16] = [3.0 + 6.0, 1.0 + 2.0, 0.0]
-    goal = rng.uniform([5, 5, 5], [295, 295, 75], (N, 3))
     goal[20] = pos[20]  # at the goal
     goal[21] = pos[21] + [3.0, 0, 0]  # inside the quadratic well
     pos[22], goal[22] = [200, 40, 6.0], [203, 40, 1.0]  # a low goal near (the goal factor scales the ground)
@@ -138,9 +161,9 @@ def test_compiled_equals_numpy_on_random_swarms(peaks, seed):
         ref = _apf_numpy(*args)
         got = _apf_compiled(*args)
         assert np.all(np.isfinite(ref))
-        tol = 1e-12 * np.maximum(np.abs(ref), 1.0)
-        assert np.all(np.abs(got - ref) <= tol), np.abs(got - ref).max()
-        assert apf_forces(*args) is not None and len(pos) >= COMPILED_FROM
+        # The same formulas in the same order, numpy's sums included: the same bits.
+        np.testing.assert_array_equal(got, ref)
+        assert use_compiled(len(pos))
         np.testing.assert_array_equal(apf_forces(*args), got)
 
 
@@ -208,3 +231,18 @@ def test_pairs_at_the_edge_of_the_reach():
     inside = np.abs(agent_term[0::2]).sum(axis=1) > 0
     np.testing.assert_array_equal(inside, [True, True, False, False, True, True, False, False])
     np.testing.assert_array_equal(_apf_compiled(*args), _apf_numpy(*args))
+
+
+def test_pairwise_sum_is_numpys():
+    """The kernel's sum of potentials is numpy's (pairwise: blocks of 8 running sums, halves
+    beyond 128 values), zeros among the values as in the field's rows."""
+    from swarmplan._apf_kernel import _pairwise
+
+    rng = np.random.default_rng(0)
+    for k in [*range(0, 140), 255, 256, 257, 1000, 1037]:
+        a = rng.uniform(0, 1, (4, k)) * (rng.random((4, k)) < 0.5) * 10.0 ** rng.integers(-8, 8, (4, k))
+        got = [_pairwise(np.ascontiguousarray(row), 0, k) for row in a]
+        np.testing.assert_array_equal(got, a.sum(axis=1))
+    # Not the plain running sum (the test above could not tell them apart otherwise).
+    a = np.array([1.0, 1e-16, 1e-16, 1e-16, 1e-16, 1e-16, 1e-16, 1e-16, 1e-16])
+    assert _pairwise(a, 0, len(a)) == a.sum() != sum(a.tolist())

@@ -7,11 +7,12 @@ Why numba: at 64-256 agents and 40 obstacles each of these was a dozen or more n
 on (agents, obstacles, 3) temporaries per step (``ShapeBatch.query`` alone ~1.1 ms at 64
 agents, 2.2 ms at 256, mostly per-call overhead and temporaries; the clearance a k-d tree
 build and query per step); one loop per point and obstacle computes each value where it is
-used. The formulas and their order are those of ``shapes.sdf_*`` and the numpy callers:
-distances and gradients equal theirs to the last bits where numpy does not go through BLAS
-(identity rotations); rotated bodies differ by the rounding of a 3x3 product (numpy's BLAS
-may fuse multiply-adds), ~1e-16 relative (tests/test_field_kernels.py). The clearance is
-exact (the same value per pair, a minimum). Meshes stay with their numpy grid.
+used. The formulas and their order are those of ``shapes.sdf_*`` and the numpy callers,
+so the values are theirs bit for bit (tests/test_field_kernels.py): rotated bodies get their
+local points and their gradients' rotation back from numpy (``ShapeBatch.query``), because
+numpy's 3x3 products go through BLAS, whose fused multiply-adds a loop here would not
+reproduce (30 % of the coordinates differed in the last bit). The clearance is exact (the
+same value per pair, a minimum). Meshes stay with their numpy grid.
 
 Imported lazily (:func:`swarmplan.geometry.compiled.field_kernels`): numba is not loaded by
 small worlds, and never at start-up. Every compiled function of these queries is in this
@@ -73,10 +74,11 @@ def _sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN202
         uy = y / m
         zd = 1.0 if z >= 0 else -1.0
         if outside > 0:
-            # radial * out_r + zdir * out_z (numpy's sums with zero change a zero's sign only)
-            vx = ux * out_r
-            vy = uy * out_r
-            vz = zd * out_z
+            # radial * out_r + zdir * out_z, component by component as numpy adds them (the
+            # zero terms decide the sign of a zero).
+            vx = ux * out_r + 0.0 * out_z
+            vy = uy * out_r + 0.0 * out_z
+            vz = 0.0 * out_r + zd * out_z
             n = max(math.sqrt(vx * vx + vy * vy + vz * vz), _EPS)
             return d, vx / n, vy / n, vz / n
         if dr > dz:
@@ -90,12 +92,13 @@ def _sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def field_query(points, centers, cols, code, rot, ident, prm, d, g):  # noqa: ANN001, ANN201
+def field_query(points, centers, cols, code, rot, prm, d, g):  # noqa: ANN001, ANN201
     """``d[i, j], g[i, j]`` (signed distance, world-frame gradient) of ``points[i]`` to the
     primitive obstacle ``j`` placed at ``centers[j]``, for every ``j`` in ``cols``: local point
-    ``(p - c) @ rot[j]``, gradient back through ``rot[j].T`` (skipped for identities)."""
-    n = points.shape[0]
-    for i in range(n):
+    ``(p - c) @ rot[j]``, gradient back through ``rot[j].T``. Only for rotations made of 0 and
+    1 (the identity): every product is exact, so these sums are BLAS's, zeros' signs included
+    (its sums start from +0.0)."""
+    for i in range(points.shape[0]):
         px = points[i, 0]
         py = points[i, 1]
         pz = points[i, 2]
@@ -104,22 +107,31 @@ def field_query(points, centers, cols, code, rot, ident, prm, d, g):  # noqa: AN
             rx = px - centers[j, 0]
             ry = py - centers[j, 1]
             rz = pz - centers[j, 2]
-            if ident[j]:
-                dist, gx, gy, gz = _sdf_grad(code[j], rx, ry, rz, prm[j, 0], prm[j, 1], prm[j, 2])
-                d[i, j] = dist
-                g[i, j, 0] = gx
-                g[i, j, 1] = gy
-                g[i, j, 2] = gz
-                continue
             R = rot[j]
-            x = rx * R[0, 0] + ry * R[1, 0] + rz * R[2, 0]
-            y = rx * R[0, 1] + ry * R[1, 1] + rz * R[2, 1]
-            z = rx * R[0, 2] + ry * R[1, 2] + rz * R[2, 2]
+            x = 0.0 + rx * R[0, 0] + ry * R[1, 0] + rz * R[2, 0]
+            y = 0.0 + rx * R[0, 1] + ry * R[1, 1] + rz * R[2, 1]
+            z = 0.0 + rx * R[0, 2] + ry * R[1, 2] + rz * R[2, 2]
             dist, gx, gy, gz = _sdf_grad(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
             d[i, j] = dist
-            g[i, j, 0] = gx * R[0, 0] + gy * R[0, 1] + gz * R[0, 2]
-            g[i, j, 1] = gx * R[1, 0] + gy * R[1, 1] + gz * R[1, 2]
-            g[i, j, 2] = gx * R[2, 0] + gy * R[2, 1] + gz * R[2, 2]
+            g[i, j, 0] = 0.0 + gx * R[0, 0] + gy * R[0, 1] + gz * R[0, 2]
+            g[i, j, 1] = 0.0 + gx * R[1, 0] + gy * R[1, 1] + gz * R[1, 2]
+            g[i, j, 2] = 0.0 + gx * R[2, 0] + gy * R[2, 1] + gz * R[2, 2]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def field_query_local(local, cols, code, prm, d, g_local):  # noqa: ANN001, ANN201
+    """``d[i, cols[k]]`` and the local gradient ``g_local[k, i]`` of the local points
+    ``local[k, i]`` (point i in the frame of obstacle ``cols[k]``)."""
+    for k in range(cols.shape[0]):
+        j = cols[k]
+        for i in range(local.shape[1]):
+            dist, gx, gy, gz = _sdf_grad(
+                code[j], local[k, i, 0], local[k, i, 1], local[k, i, 2], prm[j, 0], prm[j, 1], prm[j, 2]
+            )
+            d[i, j] = dist
+            g_local[k, i, 0] = gx
+            g_local[k, i, 1] = gy
+            g_local[k, i, 2] = gz
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
