@@ -92,30 +92,25 @@ def _sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def field_query(points, centers, cols, code, rot, prm, d, g):  # noqa: ANN001, ANN201
+def field_query(points, centers, cols, code, prm, d, g):  # noqa: ANN001, ANN201
     """``d[i, j], g[i, j]`` (signed distance, world-frame gradient) of ``points[i]`` to the
-    primitive obstacle ``j`` placed at ``centers[j]``, for every ``j`` in ``cols``: local point
-    ``(p - c) @ rot[j]``, gradient back through ``rot[j].T``. Only for rotations made of 0 and
-    1 (the identity): every product is exact, so these sums are BLAS's, zeros' signs included
-    (its sums start from +0.0)."""
+    unrotated primitive obstacle ``j`` placed at ``centers[j]``, for every ``j`` in ``cols``.
+    numpy multiplies by the identity through BLAS, whose sums start from +0.0: its products
+    with 0 and 1 are exact, so its result is each coordinate plus 0.0 (a -0.0 becomes +0.0)."""
     for i in range(points.shape[0]):
         px = points[i, 0]
         py = points[i, 1]
         pz = points[i, 2]
         for k in range(cols.shape[0]):
             j = cols[k]
-            rx = px - centers[j, 0]
-            ry = py - centers[j, 1]
-            rz = pz - centers[j, 2]
-            R = rot[j]
-            x = 0.0 + rx * R[0, 0] + ry * R[1, 0] + rz * R[2, 0]
-            y = 0.0 + rx * R[0, 1] + ry * R[1, 1] + rz * R[2, 1]
-            z = 0.0 + rx * R[0, 2] + ry * R[1, 2] + rz * R[2, 2]
+            x = (px - centers[j, 0]) + 0.0
+            y = (py - centers[j, 1]) + 0.0
+            z = (pz - centers[j, 2]) + 0.0
             dist, gx, gy, gz = _sdf_grad(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
             d[i, j] = dist
-            g[i, j, 0] = 0.0 + gx * R[0, 0] + gy * R[0, 1] + gz * R[0, 2]
-            g[i, j, 1] = 0.0 + gx * R[1, 0] + gy * R[1, 1] + gz * R[1, 2]
-            g[i, j, 2] = 0.0 + gx * R[2, 0] + gy * R[2, 1] + gz * R[2, 2]
+            g[i, j, 0] = gx + 0.0
+            g[i, j, 1] = gy + 0.0
+            g[i, j, 2] = gz + 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

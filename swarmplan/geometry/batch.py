@@ -198,7 +198,7 @@ class ShapeBatch:
         if self.compiled:
             kernels = field_kernels()
             if len(self.unrotated):
-                kernels.field_query(points, c, self.unrotated, self.code, self.rotation, self.prm, d, g)
+                kernels.field_query(points, c, self.unrotated, self.code, self.prm, d, g)
             if len(self.rotated):
                 # The 3x3 products in numpy (BLAS), as below: the same bits.
                 rot = self.rotated
