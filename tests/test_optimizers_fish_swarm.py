@@ -149,11 +149,11 @@ def test_defaults_follow_the_paper():
         0.618,
         -0.4,
     )
-    # AFSA: 002 section 4.2 (path planning) Visual = V0 = 50 in the 100 m box and Try_Num = 10,
-    # Step = Visual * 6/50 (section 4.1's ratio); all of them along the box diagonal
+    # AFSA: 002 section 4.1, the settings under which 002 compares AFSA with IAFSA (Visual 50,
+    # Step 6, Try_Num 5 on [-100, 100]), along the box diagonal as IAFSA's
     p = make("afsa").params
     got = (p["population"], p["visual"], p["step"], p["try_number"], p["delta"])
-    assert got == (50, 0.5, 0.06, 10, 0.618)
+    assert got == (50, 0.25, 0.03, 5, 0.618)
     assert p["visual_unit"] == make("iafsa").params["visual_unit"] == "diagonal"
     assert (p["prey_region"], p["random_move"]) == ("ball", "step")
 
