@@ -17,12 +17,15 @@ so the agent can still brake before the goal and before any obstacle surface ahe
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
+from functools import cache
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from swarmplan.dynamics import AgentParams
+from swarmplan.geometry.compiled import use_compiled
 from swarmplan.geometry.vec3 import dot3, norm3
 
 if TYPE_CHECKING:
@@ -98,7 +101,95 @@ def apf_forces(
     where they are like static obstacles, and like those their repulsion takes the goal-distance
     factor, or neighbours parked at goals inside the influence distance hold an agent off its
     own goal for good (swap worlds: 5 of 32 agents stalled 2.0-2.3 m out).
+    Swarm-sized worlds (``geometry.compiled.COMPILED_FROM`` agents on) run the compiled
+    kernel (:mod:`swarmplan._apf_kernel`), the same formulas in one pass.
     """
+    args = (world, params, gains, idx, pos, vel, goal, field, all_pos, all_vel, target, static_scale, parked)
+    return (_apf_compiled if use_compiled(len(all_pos)) else _apf_numpy)(*args)
+
+
+@cache
+def _kernel() -> ModuleType:
+    """:mod:`swarmplan._apf_kernel`, imported (and numba with it) at the first swarm-sized step."""
+    from swarmplan import _apf_kernel
+
+    return _apf_kernel
+
+
+def _apf_compiled(
+    world: World,
+    params: AgentParams,
+    gains: ApfGains,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    goal: np.ndarray,
+    field: FieldInputs,
+    all_pos: np.ndarray,
+    all_vel: np.ndarray,
+    target: np.ndarray | None,
+    static_scale: np.ndarray | None,
+    parked: np.ndarray | None,
+) -> np.ndarray:
+    """:func:`_apf_numpy` in one compiled pass (equal to rounding; tests/test_apf_compiled.py)."""
+    n = len(idx)
+    out = np.empty((n, 3))
+    if n == 0:
+        return out
+    h = world.terrain_height(pos[:, :2])
+    gh = world.terrain_gradient(pos[:, :2])
+    h_goal = world.terrain_height(goal[:, :2])
+    # A target equal to the goal is the same field as no target (the quadratic well included).
+    tgt = goal if target is None else target
+    scale = np.ones(n) if static_scale is None else static_scale
+    _kernel().apf_forces(
+        pos,
+        vel,
+        goal,
+        tgt,
+        np.asarray(scale, dtype=float),
+        idx,
+        params.radius,
+        params.separation,
+        params.min_altitude,
+        field.obstacle_distance,
+        field.obstacle_gradient,
+        field.obstacle_moving,
+        field.obstacle_center,
+        field.obstacle_velocity,
+        field.obstacle_radius,
+        h,
+        gh,
+        h_goal,
+        float(world.terrain_clearance) if world.peaks else 0.0,
+        world.bounds_min,
+        world.bounds_max,
+        all_pos,
+        all_vel,
+        np.zeros(len(all_pos), dtype=bool) if parked is None else np.asarray(parked, dtype=bool),
+        _current_reach(params, gains) * (1.0 + 1e-9) + 1e-9,
+        tuple(float(v) for v in astuple(gains)),
+        out,
+    )
+    return out
+
+
+def _apf_numpy(
+    world: World,
+    params: AgentParams,
+    gains: ApfGains,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    goal: np.ndarray,
+    field: FieldInputs,
+    all_pos: np.ndarray,
+    all_vel: np.ndarray,
+    target: np.ndarray | None,
+    static_scale: np.ndarray | None,
+    parked: np.ndarray | None,
+) -> np.ndarray:
+    """:func:`apf_forces` in numpy (worlds below ``COMPILED_FROM`` agents)."""
     n = len(idx)
     r = params.radius[idx]
     rho0 = gains.influence
@@ -271,18 +362,24 @@ def agent_reach(params: AgentParams, gains: ApfGains, vel: np.ndarray, all_vel: 
     |dp| < e0 max(scale), maximised over the pairs of agent kinds (separation, radius); the
     predicted one the same at dp + tau dv with tau <= horizon, |dv| <= max|v_i| + max|v_j|.
     """
+    current = _current_reach(params, gains)
+    vmax = float(
+        np.linalg.norm(vel, axis=1).max(initial=0.0) + np.linalg.norm(all_vel, axis=1).max(initial=0.0)
+    )
+    # A relative margin covers the rounding of the tree's distances.
+    return (current + gains.horizon * vmax) * (1.0 + 1e-9) + 1e-9
+
+
+def _current_reach(params: AgentParams, gains: ApfGains) -> float:
+    """Distance beyond which the *current* term of :func:`_agent_repulsion` is zero: e0 times
+    the largest semi-axis, maximised over the pairs of agent kinds (see :func:`agent_reach`)."""
     rows = np.column_stack([params.separation, params.radius])
     # Usually every agent is of one kind; np.unique over rows costs more than the rest.
     kinds = rows[:1] if (rows == rows[0]).all() else np.unique(rows, axis=0)
     sep = np.maximum(kinds[:, None, :3], kinds[None, :, :3])
     scale = sep + (kinds[:, None, 3] + kinds[None, :, 3])[..., None]
     e0 = 1.0 + gains.influence / np.maximum(np.linalg.norm(scale, axis=-1), _EPS)
-    current = float((e0 * scale.max(axis=-1)).max())
-    vmax = float(
-        np.linalg.norm(vel, axis=1).max(initial=0.0) + np.linalg.norm(all_vel, axis=1).max(initial=0.0)
-    )
-    # A relative margin covers the rounding of the tree's distances.
-    return (current + gains.horizon * vmax) * (1.0 + 1e-9) + 1e-9
+    return float((e0 * scale.max(axis=-1)).max())
 
 
 def _agent_repulsion_indexed(

@@ -1,5 +1,7 @@
 """AFSA and IAFSA (paper 002): operators on simple cases and a sanity comparison with random search."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -149,11 +151,11 @@ def test_defaults_follow_the_paper():
         0.618,
         -0.4,
     )
-    # AFSA: 002 section 4.2 (path planning) Visual = V0 = 50 in the 100 m box and Try_Num = 10,
-    # Step = Visual * 6/50 (section 4.1's ratio); all of them along the box diagonal
+    # AFSA: 002 section 4.1, the settings under which 002 compares AFSA with IAFSA (Visual 50,
+    # Step 6, Try_Num 5 on [-100, 100]), along the box diagonal as IAFSA's
     p = make("afsa").params
     got = (p["population"], p["visual"], p["step"], p["try_number"], p["delta"])
-    assert got == (50, 0.5, 0.06, 10, 0.618)
+    assert got == (50, 0.25, 0.03, 5, 0.618)
     assert p["visual_unit"] == make("iafsa").params["visual_unit"] == "diagonal"
     assert (p["prey_region"], p["random_move"]) == ("ball", "step")
 
@@ -368,3 +370,21 @@ def test_every_fish_ends_at_an_evaluated_move_with_its_cost(name):
             hit = np.flatnonzero(np.all(np.isclose(last, X[i], atol=1e-9), axis=1))
             assert hit.size, f"fish {i} is not at a point of its last batch"
             assert np.isclose(state.F[i], sphere(last[hit[:1]])[0])
+
+
+@pytest.mark.parametrize("name", ["afsa", "iafsa"])
+def test_registry_fish_leave_the_warm_start_in_the_mountains_path_problem(name):
+    """docs/comparison.md flies ``afsa`` with registry defaults in iafsa_mountains: its plans
+    must not be the warm start (section 4.2's Visual 0.5 along the diagonal gave cost 245.25,
+    the warm start's, on every seed: every try an infeasible path)."""
+    from swarmplan.planner.global_path import agent_problem, global_config
+    from swarmplan.world import load_world
+
+    world = load_world(Path(__file__).parents[1] / "worlds" / "papers" / "iafsa_mountains.yaml")
+    prob = agent_problem(world, world.agents[0], global_config(world))
+    enc = prob.encoding
+    x0 = enc.warm_start()
+    warm = float(np.min(prob.cost(x0)))
+    for seed in range(3):
+        res = make(name).minimize(prob.cost, enc.lower, enc.upper, max_evals=3000, seed=seed, x0=x0)
+        assert res.f < warm - 1.0, f"{name} seed {seed}: {res.f} vs warm start {warm}"

@@ -7,6 +7,9 @@ boxes, all cylinders, all capsules) and evaluates each group as one array operat
 group's parameters), so the values equal the per-shape path up to the rounding of the
 batched rotation (tests: 1e-12). Meshes keep their per-obstacle distance grid.
 :meth:`ShapeBatch.distance` skips the gradients where only distances are needed.
+With ``compiled=True`` (the simulation's swarm-sized worlds, ``geometry.compiled``)
+:meth:`ShapeBatch.query` computes every primitive in one compiled pass
+(:mod:`swarmplan.geometry._field_kernels`, the same formulas; tests/test_field_kernels.py).
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from swarmplan.geometry.compiled import field_kernels
 from swarmplan.geometry.shapes import (
     distance_and_gradient,
     mesh_grid,
@@ -53,8 +57,9 @@ def _dist_capsule(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) ->
 class ShapeBatch:
     """The obstacles grouped by shape; ``query``/``distance`` give ``(N, M)`` in input order."""
 
-    def __init__(self, obstacles: Sequence[Obstacle]):
+    def __init__(self, obstacles: Sequence[Obstacle], compiled: bool = False):
         self.obstacles = tuple(obstacles)
+        self.compiled = compiled
         self.groups: dict[str, np.ndarray] = {}
         for shape in _SHAPES:
             idx = np.array([j for j, o in enumerate(self.obstacles) if o.shape == shape], dtype=int)
@@ -92,6 +97,15 @@ class ShapeBatch:
                 full[idx] = v
                 cols.append(full)
             self.by_obstacle[shape] = tuple(cols)
+        # The compiled query's view: the primitives with and without a rotation, and up to
+        # three parameters per obstacle.
+        self.primitives = np.flatnonzero(self.code >= 0)
+        self.unrotated = np.flatnonzero((self.code >= 0) & self.identity)
+        self.rotated = np.flatnonzero((self.code >= 0) & ~self.identity)
+        self.prm = np.zeros((len(self.obstacles), 3))
+        for shape, idx in self.groups.items():
+            cols = np.column_stack(self.by_obstacle[shape])[idx]
+            self.prm[idx, : cols.shape[1]] = cols
 
     def __len__(self) -> int:
         return len(self.obstacles)
@@ -181,6 +195,20 @@ class ShapeBatch:
         n, m = len(points), len(self.obstacles)
         d = np.empty((n, m))
         g = np.empty((n, m, 3))
+        if self.compiled:
+            kernels = field_kernels()
+            if len(self.unrotated):
+                kernels.field_query(points, c, self.unrotated, self.code, self.prm, d, g)
+            if len(self.rotated):
+                # The 3x3 products in numpy (BLAS), as below: the same bits.
+                rot = self.rotated
+                local = self._local_exact(points, rot, c)
+                g_local = np.empty_like(local)
+                kernels.field_query_local(local, rot, self.code, self.prm, d, g_local)
+                g[:, rot] = (g_local @ self.rotation[rot].transpose(0, 2, 1)).transpose(1, 0, 2)
+            for j in self.meshes:
+                d[:, j], g[:, j] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])
+            return d, g
         for shape, idx in self.groups.items():
             local = self._local_exact(points, idx, c)  # (m, N, 3)
             prm = tuple(v[:, None] for v in self.params[shape])

@@ -10,6 +10,7 @@ import numpy as np
 from swarmplan.dynamics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import CollisionWorld
+from swarmplan.geometry.compiled import field_kernels, use_compiled
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
 from swarmplan.motion import max_speed, poses_at
@@ -24,9 +25,12 @@ class Scene:
         self.params = params
         self.collision = CollisionWorld(world)
         # Distances batched by shape type (one array operation per shape, meshes by their grid),
-        # equal to ObstacleField's; min_distance stays exact for meshes.
-        self.field = ShapeBatch(world.obstacles)
+        # equal to ObstacleField's; min_distance stays exact for meshes. Swarm-sized worlds
+        # compute the field and the nearest surfaces compiled (geometry.compiled).
+        self.compiled = use_compiled(len(world.agents))
+        self.field = ShapeBatch(world.obstacles, compiled=self.compiled)
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
+        self._static_mask = ~self.moving_mask
         self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
         self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
         self._moving = world.moving_obstacles
@@ -61,8 +65,12 @@ class Scene:
         """Clearance and outward normal of the closest static surface (obstacles, terrain) per agent."""
         r = self.params.radius[idx]
         h = self.world.terrain_height(pos[:, :2])
-        clear = pos[:, 2] - h - r
         gh = self.world.terrain_gradient(pos[:, :2])
+        if self.compiled:
+            clear, normal = np.empty(len(idx)), np.empty((len(idx), 3))
+            field_kernels().nearest_surface(d, g, self._static_mask, r, pos[:, 2], h, gh, clear, normal)
+            return clear, normal
+        clear = pos[:, 2] - h - r
         normal = np.stack([-gh[:, 0], -gh[:, 1], np.ones(len(idx))], axis=1)
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
         static = ~self.moving_mask

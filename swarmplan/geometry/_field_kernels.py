@@ -1,0 +1,195 @@
+"""Compiled per-step geometry of swarm-sized worlds: the distance field of every primitive
+obstacle (``ShapeBatch.query``), the nearest static surface per agent
+(``Scene.nearest_surface``) and the agents' clearance to each other
+(``neighbours.agent_clearance_indexed``).
+
+Why numba: at 64-256 agents and 40 obstacles each of these was a dozen or more numpy calls
+on (agents, obstacles, 3) temporaries per step (``ShapeBatch.query`` alone ~1.1 ms at 64
+agents, 2.2 ms at 256, mostly per-call overhead and temporaries; the clearance a k-d tree
+build and query per step); one loop per point and obstacle computes each value where it is
+used. The formulas and their order are those of ``shapes.sdf_*`` and the numpy callers,
+so the values are theirs bit for bit (tests/test_field_kernels.py): rotated bodies get their
+local points and their gradients' rotation back from numpy (``ShapeBatch.query``), because
+numpy's 3x3 products go through BLAS, whose fused multiply-adds a loop here would not
+reproduce (30 % of the coordinates differed in the last bit). The clearance is exact (the
+same value per pair, a minimum). Meshes stay with their numpy grid.
+
+Imported lazily (:func:`swarmplan.geometry.compiled.field_kernels`): numba is not loaded by
+small worlds, and never at start-up. Every compiled function of these queries is in this
+file: numba's cache does not see changes of callees in other files.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_EPS = 1e-12  # shapes._EPS: the floor of a normalized vector's length
+
+SPHERE, BOX, CYLINDER, CAPSULE = range(4)  # batch._SHAPES order
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN202
+    """Signed distance and local gradient of (x, y, z) to a sphere (radius a), box (half
+    sizes a, b, c), cylinder or capsule (radius a, half height b): ``shapes.sdf_*``."""
+    if code == SPHERE:
+        n = math.sqrt(x * x + y * y + z * z)
+        m = max(n, _EPS)
+        return n - a, x / m, y / m, z / m
+    if code == BOX:
+        sx = 1.0 if x >= 0 else -1.0
+        sy = 1.0 if y >= 0 else -1.0
+        sz = 1.0 if z >= 0 else -1.0
+        qx = abs(x) - a
+        qy = abs(y) - b
+        qz = abs(z) - c
+        px = max(qx, 0.0)
+        py = max(qy, 0.0)
+        pz = max(qz, 0.0)
+        outside = math.sqrt(px * px + py * py + pz * pz)
+        qmax = max(qx, qy, qz)
+        d = outside + min(qmax, 0.0)
+        if outside > 0:
+            m = max(outside, _EPS)
+            return d, px / m * sx, py / m * sy, pz / m * sz
+        # Inside or on the surface: the face of the largest q (the first on ties, np.argmax).
+        if qx >= qy and qx >= qz:
+            return d, sx, 0.0, 0.0
+        if qy >= qz:
+            return d, 0.0, sy, 0.0
+        return d, 0.0, 0.0, sz
+    if code == CYLINDER:
+        rxy = math.sqrt(x * x + y * y)
+        dr = rxy - a
+        dz = abs(z) - b
+        out_r = max(dr, 0.0)
+        out_z = max(dz, 0.0)
+        outside = math.hypot(out_r, out_z)
+        d = outside + min(max(dr, dz), 0.0)
+        m = max(rxy, _EPS)
+        ux = x / m
+        uy = y / m
+        zd = 1.0 if z >= 0 else -1.0
+        if outside > 0:
+            # radial * out_r + zdir * out_z, component by component as numpy adds them (the
+            # zero terms decide the sign of a zero).
+            vx = ux * out_r + 0.0 * out_z
+            vy = uy * out_r + 0.0 * out_z
+            vz = 0.0 * out_r + zd * out_z
+            n = max(math.sqrt(vx * vx + vy * vy + vz * vz), _EPS)
+            return d, vx / n, vy / n, vz / n
+        if dr > dz:
+            return d, ux, uy, 0.0
+        return d, 0.0, 0.0, zd
+    # capsule: to the closest point of its axis segment
+    vz = z - min(max(z, -b), b)
+    n = math.sqrt(x * x + y * y + vz * vz)
+    m = max(n, _EPS)
+    return n - a, x / m, y / m, vz / m
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def field_query(points, centers, cols, code, prm, d, g):  # noqa: ANN001, ANN201
+    """``d[i, j], g[i, j]`` (signed distance, world-frame gradient) of ``points[i]`` to the
+    unrotated primitive obstacle ``j`` placed at ``centers[j]``, for every ``j`` in ``cols``.
+    numpy multiplies by the identity through BLAS, whose sums start from +0.0: its products
+    with 0 and 1 are exact, so its result is each coordinate plus 0.0 (a -0.0 becomes +0.0)."""
+    for i in range(points.shape[0]):
+        px = points[i, 0]
+        py = points[i, 1]
+        pz = points[i, 2]
+        for k in range(cols.shape[0]):
+            j = cols[k]
+            x = (px - centers[j, 0]) + 0.0
+            y = (py - centers[j, 1]) + 0.0
+            z = (pz - centers[j, 2]) + 0.0
+            dist, gx, gy, gz = _sdf_grad(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
+            d[i, j] = dist
+            g[i, j, 0] = gx + 0.0
+            g[i, j, 1] = gy + 0.0
+            g[i, j, 2] = gz + 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def field_query_local(local, cols, code, prm, d, g_local):  # noqa: ANN001, ANN201
+    """``d[i, cols[k]]`` and the local gradient ``g_local[k, i]`` of the local points
+    ``local[k, i]`` (point i in the frame of obstacle ``cols[k]``)."""
+    for k in range(cols.shape[0]):
+        j = cols[k]
+        for i in range(local.shape[1]):
+            dist, gx, gy, gz = _sdf_grad(
+                code[j], local[k, i, 0], local[k, i, 1], local[k, i, 2], prm[j, 0], prm[j, 1], prm[j, 2]
+            )
+            d[i, j] = dist
+            g_local[k, i, 0] = gx
+            g_local[k, i, 1] = gy
+            g_local[k, i, 2] = gz
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def nearest_surface(d, g, static, r, pz, h, gh, clear, normal):  # noqa: ANN001, ANN201
+    """``Scene.nearest_surface``: per row, the terrain clearance ``pz - h - r`` and its unit
+    normal, replaced by the closest static obstacle (the first on ties) when that is closer."""
+    n, m = d.shape
+    for i in range(n):
+        c = pz[i] - h[i] - r[i]
+        nx = -gh[i, 0]
+        ny = -gh[i, 1]
+        nn = math.sqrt(nx * nx + ny * ny + 1.0)
+        nx, ny, nz = nx / nn, ny / nn, 1.0 / nn
+        best = np.inf
+        jb = -1
+        for j in range(m):
+            if static[j]:
+                v = d[i, j] - r[i]
+                if jb < 0 or v < best:
+                    best = v
+                    jb = j
+        if jb >= 0 and best < c:
+            c = best
+            nx, ny, nz = g[i, jb, 0], g[i, jb, 1], g[i, jb, 2]
+        clear[i] = c
+        normal[i, 0] = nx
+        normal[i, 1] = ny
+        normal[i, 2] = nz
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def agent_clearance(pos, radius, out):  # noqa: ANN001, ANN201
+    """``out[i]`` = min over j != i of |p_i - p_j| - (r_i + r_j) (inf alone), exactly.
+
+    A sweep along x: the others are visited outwards from ``i`` in x order and the walk stops
+    once the x gap alone exceeds the best value found plus the largest radii (any farther
+    agent is provably worse; a 1e-9 m margin covers rounding). Each pair's value is computed
+    as numpy does, so the minimum is the all-pairs one bit for bit."""
+    n = pos.shape[0]
+    order = np.argsort(pos[:, 0])
+    xs = pos[order, 0]
+    rmax = 0.0
+    for i in range(n):
+        rmax = max(rmax, radius[i])
+    for s in range(n):
+        i = order[s]
+        xi, yi, zi, ri = pos[i, 0], pos[i, 1], pos[i, 2], radius[i]
+        best = np.inf
+        for direction in (1, -1):
+            t = s + direction
+            while 0 <= t < n:
+                lim = best + ri + rmax + 1e-9 * (1.0 + abs(best) + ri + rmax)
+                gap = xs[t] - xi if direction > 0 else xi - xs[t]
+                if gap > lim:
+                    break
+                j = order[t]
+                dx = xi - pos[j, 0]
+                dy = yi - pos[j, 1]
+                dz = zi - pos[j, 2]
+                d2 = dx * dx + dy * dy + dz * dz
+                if lim <= 0.0 or d2 <= lim * lim:
+                    v = math.sqrt(d2) - (ri + radius[j])
+                    if v < best:
+                        best = v
+                t += direction
+        out[i] = best
