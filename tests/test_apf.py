@@ -300,3 +300,47 @@ def test_goal_between_parked_agents_is_reached(tmp_path):
     problems, _notes, stats = audit(log)
     assert problems == [], problems
     assert summary["collisions"] == 0
+
+
+def test_fixed_wings_keep_the_full_repulsion_of_parked_agents(monkeypatch):
+    """Only agents that can stop take the goal factor on parked agents: a fixed wing near its
+    goal circles at speed past them (rscdwoa_multi_uav, woa seed 9: uav1 circled its goal for
+    50 s with the factor, arrived at 60 s without it). A multirotor takes the factor."""
+    import swarmplan.sim.env as env
+    from swarmplan.sim import Simulation
+
+    fixed = {"model": "fixed_wing", "speed": {"min": 8, "max": 14, "cruise": 10}, "min_turn_radius": 20}
+    w = make_world(
+        base_world(
+            agents=[
+                {"id": "parked", "start": [50, 50, 20], "goal": [50, 50, 20]},
+                {"id": "fw", "start": [20, 56, 20], "goal": [45, 56, 20], **fixed},
+                {"id": "mr", "start": [20, 44, 20], "goal": [45, 44, 20]},
+            ]
+        )
+    )
+    used = []
+    real_cmd = env.commanded_velocity
+    monkeypatch.setattr(env, "commanded_velocity", lambda *a: used.append(a[2].copy()) or real_cmd(*a))
+    sim = Simulation(w)
+    sim.reset(seed=0)
+    sim.step()  # 'parked' starts on its goal: it arrives in this step
+    assert [m.name for m in sim.state.mode] == ["ARRIVED", "APF", "APF"]
+    pos0, vel0 = sim.state.position.copy(), sim.state.velocity.copy()
+    sim.step()
+    params, gains = AgentParams.from_world(w), ApfGains.from_world(w)
+    idx = np.array([1, 2])
+    inputs = FieldInputs(
+        np.zeros((2, 0)),
+        np.zeros((2, 0, 3)),
+        np.zeros((0, 3)),
+        np.zeros(0, bool),
+        np.zeros(0),
+        np.zeros((0, 3)),
+    )
+    args = (w, params, gains, idx, pos0[idx], vel0[idx], sim.state.goal[idx], inputs, pos0, vel0)
+    factor = apf_forces(*args, parked=np.array([True, False, False]))
+    full = apf_forces(*args)
+    assert not np.allclose(factor[0], full[0])  # the factor matters for the fixed wing here
+    np.testing.assert_array_equal(used[-1][0], full[0])
+    np.testing.assert_array_equal(used[-1][1], factor[1])

@@ -207,21 +207,17 @@ class Simulation:
             d, g = self._field_cache[0][idx], self._field_cache[1][idx]
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
             target, rep_scale = nav.attraction_targets(s, idx, events)
-            force = apf_forces(
-                w,
-                self.params,
-                self.gains,
-                idx,
-                pos0[idx],
-                vel0[idx],
-                s.goal[idx],
-                inputs,
-                pos0,
-                vel0,
-                target=target,
-                static_scale=rep_scale,
-                parked=~s.active,
-            )
+            parked = ~s.active
+            field_args = (w, self.params, self.gains, idx, pos0[idx], vel0[idx], s.goal[idx], inputs)
+            field_args += (pos0, vel0)
+            force = apf_forces(*field_args, target=target, static_scale=rep_scale, parked=parked)
+            fixed = self.params.fixed_wing[idx]
+            if fixed.any() and parked.any():
+                # Fixed wings keep the full repulsion of parked agents: they cannot stop, so the
+                # standstill the goal factor resolves (held off the goal by parked neighbours)
+                # does not arise, and near a goal they circle at speed past parked agents
+                # (rscdwoa_multi_uav, woa seed 9: with the factor uav1 circled its goal for 50 s).
+                force[fixed] = apf_forces(*field_args, target=target, static_scale=rep_scale)[fixed]
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0, self.metrics)
