@@ -138,8 +138,7 @@ def moving_clearance(
     centers = positions_at(obstacles, grid)  # (T, M, 3)
     for m, (j, o) in enumerate(zip(idx, obstacles, strict=True)):
         # A parked mover has one distinct pose over the whole window: measure it once.
-        poses, which = np.unique(centers[:, m].round(9), axis=0, return_inverse=True)
-        which = which.reshape(-1)
+        poses, which = _distinct_poses(centers[:, m].round(9))
         reach = cap + radius + o.bounding_radius
         if o.shape == "sphere" and np.array_equal(o.rotation, np.eye(3)):
             # Every (point, pose) pair at once: the distance is |p - c| - r, as
@@ -172,6 +171,17 @@ def moving_clearance(
                 d = distance_and_gradient(o, pts[sel], c, grid_j)[0] - radius
                 out[sel] = np.minimum(out[sel], d)
     return out
+
+
+def _distinct_poses(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(poses, which): the runs of equal consecutive rows of ``c`` (T, 3) and, per row, its run.
+
+    A mover's poses along the grid repeat only while it is parked, i.e. in consecutive rows;
+    a pose it comes back to later is measured twice, which changes no minimum. (Was
+    ``np.unique(axis=0)``, which sorts rows as structured values: ~40 % of an escape's
+    validation time with 32 movers.)"""
+    change = np.r_[True, (c[1:] != c[:-1]).any(axis=1)]
+    return c[change], np.cumsum(change) - 1
 
 
 def predicted_window(clock: EscapeClock, s: np.ndarray, detour: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
