@@ -16,6 +16,29 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _repair(x, u, frep):  # noqa: ANN001, ANN202
+    """Eq 16: a coordinate ``x`` that left the unit box goes back a fraction ``frep`` of the
+    way from its old position ``u`` to the face it crossed."""
+    out = x
+    if x < 0.0:
+        out = 0.0 + frep * (u - 0.0)
+    if x > 1.0:
+        out = 1.0 - frep * (1.0 - u)
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _to_box(out, lower, span, upper):  # noqa: ANN001, ANN202
+    """A unit-box coordinate in the problem's box, clipped to it (``_to_box`` of central_force)."""
+    y = lower + out * span
+    if y < lower:
+        y = lower
+    if y > upper:
+        y = upper
+    return y
+
+
 @njit(cache=True, nogil=True)
 def gravity_weights(F, sq, gram, inv_scale, G, alpha, beta, W):  # noqa: ANN001, ANN201
     """``W[i, k] = G * ((f_i - f_k) * inv_scale)**alpha / dist_ik**beta`` where probe ``k`` is
@@ -98,18 +121,9 @@ def move_probes(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lower, spa
                 x = x + (c2 * r[1, i]) * (gbest[j] - u)
             else:
                 x = u + (0.5 * a) * dt2
-            out = x
-            if x < 0.0:
-                out = 0.0 + frep * (u - 0.0)
-            if x > 1.0:
-                out = 1.0 - frep * (1.0 - u)
+            out = _repair(x, u, frep)
             Unew[i, j] = out
-            y = lower[j] + out * span[j]
-            if y < lower[j]:
-                y = lower[j]
-            if y > upper[j]:
-                y = upper[j]
-            Xnew[i, j] = y
+            Xnew[i, j] = _to_box(out, lower[j], span[j], upper[j])
 
 
 @njit(cache=True, nogil=True)
@@ -124,26 +138,13 @@ def move_probes_steps(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lowe
         for j in range(d):
             u = U[i, j]
             a = WU[i, j] - rowsum[i] * u
-            x = u + ((s[i] * 0.5) * dt2) * a
-            if x < 0.0:
-                x = 0.0 + frep * (u - 0.0)
-            if x > 1.0:
-                x = 1.0 - frep * (1.0 - u)
+            x = _repair(u + ((s[i] * 0.5) * dt2) * a, u, frep)
             u = x
             x = x + (c1 * r[0, i]) * (pbest[i, j] - u)
             x = x + (c2 * r[1, i]) * (gbest[j] - u)
-            out = x
-            if x < 0.0:
-                out = 0.0 + frep * (u - 0.0)
-            if x > 1.0:
-                out = 1.0 - frep * (1.0 - u)
+            out = _repair(x, u, frep)
             Unew[i, j] = out
-            y = lower[j] + out * span[j]
-            if y < lower[j]:
-                y = lower[j]
-            if y > upper[j]:
-                y = upper[j]
-            Xnew[i, j] = y
+            Xnew[i, j] = _to_box(out, lower[j], span[j], upper[j])
 
 
 @njit(cache=True, nogil=True)
@@ -191,15 +192,6 @@ def mutate_probes(new, idx, v, factor, span_div, frep, lower, span, upper, X):  
                 m = m / span_div[j]
             u = new[i, j]
             x = u + m
-            out = x
-            if x < 0.0:
-                out = 0.0 + frep * (u - 0.0)
-            if x > 1.0:
-                out = 1.0 - frep * (1.0 - u)
+            out = _repair(x, u, frep)
             new[i, j] = out
-            y = lower[j] + out * span[j]
-            if y < lower[j]:
-                y = lower[j]
-            if y > upper[j]:
-                y = upper[j]
-            X[a, j] = y
+            X[a, j] = _to_box(out, lower[j], span[j], upper[j])
