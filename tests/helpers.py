@@ -162,6 +162,21 @@ def base_world(**top: Any) -> dict[str, Any]:
     return raw
 
 
+def obstacles_of(
+    raw: list[dict[str, Any]], start: tuple[float, float, float], goal: tuple[float, float, float]
+) -> list:
+    """The parsed obstacles of ``raw`` in a 100 m box centred on the origin (one agent flying
+    ``start`` -> ``goal``, which must be clear of them)."""
+    return parse_world(
+        {
+            "name": "t",
+            "bounds": {"min": [-50, -50, -50], "max": [50, 50, 50]},
+            "obstacles": raw,
+            "agents": [{"id": "a", "start": list(start), "goal": list(goal)}],
+        }
+    ).obstacles
+
+
 def make_world(raw: dict[str, Any], base_dir: Path | str = ".") -> World:
     return parse_world(copy.deepcopy(raw), base_dir=base_dir)
 

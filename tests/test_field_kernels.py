@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import base_world, make_world
+from helpers import base_world, make_world, obstacles_of
 
 from swarmplan.dynamics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
@@ -23,14 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _obstacles(raw):
-    return parse_world(
-        {
-            "name": "t",
-            "bounds": {"min": [-50, -50, -50], "max": [50, 50, 50]},
-            "obstacles": raw,
-            "agents": [{"id": "a", "start": [-49, -49, 49], "goal": [49, 49, 49]}],
-        }
-    ).obstacles
+    return obstacles_of(raw, start=(-49, -49, 49), goal=(49, 49, 49))
 
 
 def _random_obstacles(rng, k=16):

@@ -4,21 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import obstacles_of
 
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.shapes import ObstacleField
-from swarmplan.world import parse_world
 
 
 def _obstacles(raw):
-    return parse_world(
-        {
-            "name": "t",
-            "bounds": {"min": [-50, -50, -50], "max": [50, 50, 50]},
-            "obstacles": raw,
-            "agents": [{"id": "a", "start": [-40, -40, 40], "goal": [40, 40, 40]}],
-        }
-    ).obstacles
+    return obstacles_of(raw, start=(-40, -40, 40), goal=(40, 40, 40))
 
 
 UNIT = [
