@@ -207,7 +207,7 @@ class Simulation:
             d, g = self._field_cache[0][idx], self._field_cache[1][idx]
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
             target, rep_scale = nav.attraction_targets(s, idx, events)
-            parked = ~s.active
+            parked = ~active  # modes changed above stay flying ones: arrivals come later
             field_args = (w, self.params, self.gains, idx, pos0[idx], vel0[idx], s.goal[idx], inputs)
             field_args += (pos0, vel0)
             force = apf_forces(*field_args, target=target, static_scale=rep_scale, parked=parked)
