@@ -174,7 +174,7 @@ class PlanningContext(Protocol):
     state: SwarmState
     ids: tuple[str, ...]
     n: int
-    params: Any  # swarmplan.dynamics.AgentParams
+    params: Any  # swarmplan.flight.kinematics.AgentParams
     collision: Any  # swarmplan.geometry.collision.CollisionWorld
     field: Any  # swarmplan.geometry.shapes.ObstacleField
     moving_mask: np.ndarray
@@ -207,7 +207,7 @@ class Planner(Protocol):
 
 
 class Recorder(Protocol):
-    """Where a run's messages go (``swarmplan.recording.McapRecorder`` writes MCAP)."""
+    """Where a run's messages go (``swarmplan.io.recording.McapRecorder`` writes MCAP)."""
 
     def write_world(self, world: dict[str, Any]) -> None: ...
     def write_state(self, t: float, agents: Sequence[dict], obstacles: list[dict] | None) -> None:

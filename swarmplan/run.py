@@ -2,33 +2,7 @@
 
 import sys
 
-from swarmplan.cli.run import (
-    EXIT_BAD_INPUT,
-    EXIT_FAILED,
-    EXIT_OK,
-    apply_overrides,
-    build_parser,
-    check_planner_settings,
-    format_summary,
-    log_path_for,
-    main,
-    make_planner,
-    simulate,
-)
-
-__all__ = [
-    "EXIT_BAD_INPUT",
-    "EXIT_FAILED",
-    "EXIT_OK",
-    "apply_overrides",
-    "build_parser",
-    "check_planner_settings",
-    "format_summary",
-    "log_path_for",
-    "main",
-    "make_planner",
-    "simulate",
-]
+from swarmplan.cli.run import main
 
 if __name__ == "__main__":
     sys.exit(main())

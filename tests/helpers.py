@@ -192,7 +192,7 @@ def run_to_end(
 
     With ``log_path`` the run is recorded by :class:`McapRecorder` (summary included).
     """
-    from swarmplan.recording import McapRecorder
+    from swarmplan.io.recording import McapRecorder
     from swarmplan.sim import Simulation
 
     rec = McapRecorder(log_path, foxglove=foxglove) if log_path is not None else None

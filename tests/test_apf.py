@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from helpers import audit, base_world, describe_failure, make_world, run_to_end
 
-from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
-from swarmplan.dynamics import AgentParams
+from swarmplan.flight.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.shapes import ObstacleField
-from swarmplan.motion import poses_at
+from swarmplan.world.motion import poses_at
 
 
 def _unit(v):
@@ -196,7 +196,7 @@ def _swarm(seed, n=120, size=300.0):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_indexed_agent_repulsion_equals_all_pairs(seed):
-    from swarmplan.apf import _agent_repulsion, _agent_repulsion_indexed
+    from swarmplan.flight.apf import _agent_repulsion, _agent_repulsion_indexed
 
     world, pos, vel = _swarm(seed)
     params, gains = AgentParams.from_world(world), ApfGains.from_world(world)
@@ -210,7 +210,7 @@ def test_indexed_agent_repulsion_equals_all_pairs(seed):
 def test_agent_reach_is_not_too_short():
     """A pair just inside the current term's reach (e slightly below e0) must be found: the
     reach is tight there, so a tree radius cut by 1e-6 would miss it."""
-    from swarmplan.apf import _agent_repulsion, _agent_repulsion_indexed, agent_reach
+    from swarmplan.flight.apf import _agent_repulsion, _agent_repulsion_indexed, agent_reach
 
     world, _, _ = _swarm(0, n=2)
     params, gains = AgentParams.from_world(world), ApfGains.from_world(world)

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world
 
-from swarmplan.apf import ApfGains, FieldInputs, _apf_compiled, _apf_numpy, apf_forces
-from swarmplan.dynamics import AgentParams
+from swarmplan.flight.apf import ApfGains, FieldInputs, _apf_compiled, _apf_numpy, apf_forces
+from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.compiled import COMPILED_FROM, use_compiled
 from swarmplan.geometry.shapes import ObstacleField
 
@@ -119,7 +119,7 @@ def _inputs(world, seed: int):
     pos[24], goal[24] = [100, 164, 30], [104, 160, 30]  # beside the sphere, goal too (companion term)
     pos[25], goal[25] = [119, 193, 41], [116, 195, 40]  # beside the mover m2 (at t), goal too
     t = 1.7
-    from swarmplan.motion import poses_at
+    from swarmplan.world.motion import poses_at
 
     q, qv = poses_at(world.obstacles, t)
     moving = np.array([o.moving for o in world.obstacles], bool)
@@ -225,7 +225,7 @@ def test_pairs_at_the_edge_of_the_reach():
     goal = pos + [0.0, 0.0, 0.0]
     idx = np.arange(n)
     args = (world, sub, gains, idx, pos, vel, goal, _no_obstacles(n), pos, vel, None, None, None)
-    from swarmplan.apf import _agent_repulsion_indexed
+    from swarmplan.flight.apf import _agent_repulsion_indexed
 
     agent_term = _agent_repulsion_indexed(sub, gains, idx, pos, vel, pos, vel)
     inside = np.abs(agent_term[0::2]).sum(axis=1) > 0
@@ -236,7 +236,7 @@ def test_pairs_at_the_edge_of_the_reach():
 def test_pairwise_sum_is_numpys():
     """The kernel's sum of potentials is numpy's (pairwise: blocks of 8 running sums, halves
     beyond 128 values), zeros among the values as in the field's rows."""
-    from swarmplan._apf_kernel import _pairwise
+    from swarmplan.flight._apf_kernel import _pairwise
 
     rng = np.random.default_rng(0)
     for k in [*range(0, 140), 255, 256, 257, 1000, 1037]:

@@ -9,7 +9,7 @@ import sys
 import numpy as np  # noqa: F401 - loads the BLAS library that threadpoolctl reports
 import pytest
 
-from swarmplan.blas import limit_blas_threads
+from swarmplan.runtime.blas import limit_blas_threads
 
 
 def test_limit_blas_threads_sets_every_blas_library_to_one_thread(monkeypatch) -> None:

@@ -21,7 +21,7 @@ def _strip(x, keys: set[str]):
 
 
 def test_same_seed_same_log_but_wall_clock(tmp_path):
-    from swarmplan.run import main as run_main
+    from swarmplan.cli.run import main as run_main
 
     world = ROOT / "worlds" / "traps" / "u_pocket.yaml"  # an escape: optimizer runs are logged too
     logs = [tmp_path / f"run{k}.mcap" for k in range(2)]

@@ -147,7 +147,7 @@ def test_stamp_names_commit_date_and_commands() -> None:
     from datetime import datetime, timezone
 
     line = docs.stamp(
-        docs.Block("python -m swarmplan.compare w.yaml", ""),
+        docs.Block("python -m swarmplan.cli.compare w.yaml", ""),
         "python -m swarmplan.bench docs --only x",
         "abc1234 dirty",
         datetime(2026, 11, 23, 12, 5, tzinfo=timezone.utc),
@@ -155,7 +155,7 @@ def test_stamp_names_commit_date_and_commands() -> None:
     )
     assert line == (
         "_Generated at commit `abc1234 dirty` on 2026-11-23 12:05 UTC, load average 1.2 (2 cores) by "
-        "`python -m swarmplan.bench docs --only x`, which ran: `python -m swarmplan.compare w.yaml`._"
+        "`python -m swarmplan.bench docs --only x`, which ran: `python -m swarmplan.cli.compare w.yaml`._"
     )
 
 
@@ -182,7 +182,7 @@ def test_compare_says_why_cells_are_empty() -> None:
 
 
 def test_compare_help_shows_defaults(monkeypatch: pytest.MonkeyPatch) -> None:
-    from swarmplan.compare import build_parser as compare_parser
+    from swarmplan.cli.compare import build_parser as compare_parser
 
     monkeypatch.setenv("COLUMNS", "200")  # no line breaks inside the defaults
     text = compare_parser().format_help()

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world, run_to_end
 
-from swarmplan.dynamics import (
+from swarmplan.flight.kinematics import (
     AgentParams,
     initial_velocity,
     limit_fixed_wing,

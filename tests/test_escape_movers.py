@@ -10,13 +10,13 @@ import pytest
 from helpers import base_world, make_world, read_log
 
 from swarmplan.cli.run import main as run_main
-from swarmplan.motion import pose_at
+from swarmplan.io.runner import apply_overrides, simulate
 from swarmplan.planner.escape import choose_subgoal, mover_leg_hit
 from swarmplan.planner.movers import EscapeClock, moving_clearance, positions_at
 from swarmplan.planner.segment_cost import SegmentCost
-from swarmplan.run import apply_overrides, simulate
 from swarmplan.sim import Simulation
 from swarmplan.world import load_world
+from swarmplan.world.motion import pose_at
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world, obstacles_of
 
-from swarmplan.dynamics import AgentParams
+from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.compiled import COMPILED_FROM
 from swarmplan.geometry.neighbours import agent_clearance_indexed

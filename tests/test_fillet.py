@@ -117,8 +117,8 @@ def test_a_circle_has_no_cusp_and_its_curvature():
 
 
 def test_summary_reports_cusps_and_the_models_limit():
-    from swarmplan.metrics import RunMetrics, curvature_limit, summary_report
     from swarmplan.sim import Simulation
+    from swarmplan.sim.metrics import RunMetrics, curvature_limit, summary_report
 
     world = make_world(base_world())
     sim = Simulation(world, planner="none")

@@ -1,4 +1,4 @@
-"""The fixed-wing turn-ahead guard (``swarmplan.lookahead``): a fixed wing whose potential field
+"""The fixed-wing turn-ahead guard (``swarmplan.flight.lookahead``): a fixed wing whose potential field
 reacts later than it can turn must still turn away in time."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world, run_to_end
 
-from swarmplan.dynamics import AgentParams
-from swarmplan.lookahead import guard_commands, horizon_steps
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.sim.safety import SafetyFilter
 
 WALL_X = 100.0
@@ -94,7 +94,7 @@ def test_horizon_is_half_a_turn_plus_a_second():
 
 
 def test_predicted_positions_are_exact_arcs():
-    from swarmplan.lookahead import predicted_positions
+    from swarmplan.flight.lookahead import predicted_positions
 
     pos = np.zeros((1, 3))
     vel = np.array([[15.0, 0.0, 0.0]])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world
 
-from swarmplan.motion import pose_at, poses_at
+from swarmplan.world.motion import pose_at, poses_at
 
 
 def mover(motion, position=(50, 80, 20)):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from helpers import base_world, make_world
 
-from swarmplan.motion import pose_at, poses_at
+from swarmplan.world.motion import pose_at, poses_at
 
 
 def test_linear_batch_and_cached_paths_equal_pose_at():

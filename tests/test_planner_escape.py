@@ -188,7 +188,7 @@ def test_culling_leaves_the_static_and_moving_terms_exactly_unchanged():
     """The terms skip bodies (and points) out of reach; on random polylines among boxes,
     cylinders, spheres and movers they must equal the brute-force sums over every body."""
     from swarmplan.geometry.shapes import ObstacleField, distance_and_gradient
-    from swarmplan.motion import poses_at
+    from swarmplan.world.motion import poses_at
 
     obstacles = [
         {"id": "b1", "shape": "box", "size": [8, 4, 30], "position": [30, 40, 15], "rotation": [0, 0, 30]},

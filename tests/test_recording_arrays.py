@@ -12,7 +12,7 @@ import pytest
 from mcap.reader import make_reader
 
 from swarmplan.core import AgentStates, Mode
-from swarmplan.recording import McapRecorder
+from swarmplan.io.recording import McapRecorder
 
 IDS = ("a0", "uav-1", 'q"uote', "pct%s%%", "ü", "x" * 150)
 

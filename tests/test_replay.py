@@ -22,8 +22,8 @@ from conftest_replay import (  # noqa: E402
     write_log,
 )
 
+from swarmplan.cli.replay import main as cli_main  # noqa: E402
 from swarmplan.replay import compare_with_summary, compute_metrics, load  # noqa: E402
-from swarmplan.replay.cli import main as cli_main  # noqa: E402
 from swarmplan.replay.recording import RecordingError  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from conftest_replay import base_world, rich_log, states_from_arrays, straight_past_sphere_log, write_log
 
+from swarmplan.cli.replay import main as cli_main
 from swarmplan.replay import Event, ObstacleTrack, load
-from swarmplan.replay.cli import main as cli_main
 from swarmplan.replay.geometry import euler_deg_to_matrix, euler_deg_to_quat, quat_to_matrix
 
 

@@ -11,7 +11,7 @@ import pytest
 import yaml
 from helpers import audit, base_world, read_log
 
-from swarmplan.run import main
+from swarmplan.cli.run import main
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -153,7 +153,7 @@ def _cluttered_world(rng: np.random.Generator):
 def test_culled_obstacle_terms_equal_brute_force(seed):
     """Static and moving terms (culled, batched by shape) equal every point against every body."""
     from swarmplan.geometry.shapes import ObstacleField
-    from swarmplan.motion import poses_at
+    from swarmplan.world.motion import poses_at
 
     rng = np.random.default_rng(seed)
     world = _cluttered_world(rng)
@@ -198,7 +198,7 @@ def _brute_force_obstacles(cost: SegmentCost, P: np.ndarray) -> tuple[np.ndarray
     """Static and moving terms with every sample against every body (no culling, no tracing),
     and whether each candidate has a sample inside the agent's radius of something."""
     from swarmplan.geometry.shapes import ObstacleField
-    from swarmplan.motion import poses_at
+    from swarmplan.world.motion import poses_at
 
     pts, ds, s = cost.sample(P)
     flat = pts.reshape(-1, 3)

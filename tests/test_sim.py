@@ -23,7 +23,7 @@ from helpers import (
 )
 
 from swarmplan.core import Event
-from swarmplan.run import apply_overrides, simulate
+from swarmplan.io.runner import apply_overrides, simulate
 from swarmplan.sim import Simulation
 from swarmplan.world import load_world
 

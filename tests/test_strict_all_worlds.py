@@ -30,8 +30,8 @@ def test_every_shipped_world_is_listed() -> None:
 
 @pytest.mark.parametrize("world", WORLDS, ids=[p.relative_to(ROOT / "worlds").as_posix() for p in WORLDS])
 def test_replay_strict_agrees_on_shipped_world(world: Path, tmp_path: Path) -> None:
-    from swarmplan.replay.cli import main as replay_main
-    from swarmplan.run import main as run_main
+    from swarmplan.cli.replay import main as replay_main
+    from swarmplan.cli.run import main as run_main
 
     log = tmp_path / "run.mcap"
     rc = run_main([str(world), "--out", str(log), "--max-time", MAX_TIME, "--quiet"])

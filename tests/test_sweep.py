@@ -21,11 +21,11 @@ import pytest
 import yaml
 from helpers import audit, find_check_log, log_positions
 
+from swarmplan.cli.sweep import main as sweep_main
 from swarmplan.replay.metrics import compare_with_summary, compute_metrics
 from swarmplan.replay.recording import load
 from swarmplan.sweep import engine
 from swarmplan.sweep.adapter import OverrideError, set_dotted
-from swarmplan.sweep.cli import main as sweep_main
 from swarmplan.sweep.spec import SpecError, load_spec
 
 AGENTS = {"model": "multirotor", "radius": 1.0, "speed": {"min": 0, "max": 10, "cruise": 7},
@@ -160,7 +160,7 @@ def test_report_tables_verdicts_and_box_plots(full, tmp_path):
 
 def _serial_row(tmp: Path, world: dict, optimizer: str, seed: int, population: int) -> tuple[Path, dict]:
     """The run as a user would do it by hand: a world file with the value, then swarmplan.run."""
-    from swarmplan.run import main as run_main
+    from swarmplan.cli.run import main as run_main
 
     raw = copy.deepcopy(world)
     raw["planner"]["optimizer"]["population"] = population
@@ -350,7 +350,7 @@ def test_set_dotted_paths():
 
 
 def test_compare_is_a_front_end_of_the_engine(cluster, tmp_path, capsys):
-    from swarmplan.compare import main as compare_main
+    from swarmplan.cli.compare import main as compare_main
 
     c, _ = cluster
     world = write(tmp_path / "open.yaml", OPEN)

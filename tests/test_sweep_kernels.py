@@ -18,7 +18,7 @@ from helpers import base_world, make_world
 
 from swarmplan.geometry import sweep_kernels as K
 from swarmplan.geometry.collision import CollisionWorld, _align_z, first_hits, first_hits_fcl, kernels
-from swarmplan.motion import poses_at
+from swarmplan.world.motion import poses_at
 
 
 @pytest.fixture(autouse=True)

@@ -18,9 +18,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from conftest_replay import base_world, states_from_arrays, write_log  # noqa: E402
 from helpers import audit  # noqa: E402
 
+from swarmplan.cli.track import main as cli_main  # noqa: E402
 from swarmplan.replay import load  # noqa: E402
 from swarmplan.track import PID, TrackerConfig, parse_tracker, track  # noqa: E402
-from swarmplan.track.cli import main as cli_main  # noqa: E402
 from swarmplan.track.config import G  # noqa: E402
 from swarmplan.track.quadrotor import _deriv, simulate  # noqa: E402
 from swarmplan.track.reference import Reference, build_reference, feasibility, fill_gaps  # noqa: E402

@@ -35,8 +35,8 @@ def _run(
 ) -> dict[str, Any]:
     """Run a world with the recorder on; wall and CPU time of the stepping (after ``warmup``
     untimed steps), step count, summary, and escape timings (wall from ``/optimizer``, CPU)."""
-    from swarmplan.recording import McapRecorder
-    from swarmplan.run import make_planner
+    from swarmplan.io.recording import McapRecorder
+    from swarmplan.planner import make_planner
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 
@@ -165,10 +165,10 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
         "import tempfile\n"
         "from pathlib import Path\n"
         "from swarmplan.bench.sim import swarm_world\n"
-        "from swarmplan.run import make_planner\n"
+        "from swarmplan.planner import make_planner\n"
         "from swarmplan.sim import Simulation\n"
         "from swarmplan.world import parse_world\n"
-        + ("from swarmplan.recording import McapRecorder\n" if record else "")
+        + ("from swarmplan.io.recording import McapRecorder\n" if record else "")
         + "w = parse_world(swarm_world(16, 4, 8))\n"
         f"s = Simulation(w, planner=make_planner(w, w.planner['optimizer']['name']), recorder={recorder})\n"
         "s.reset(seed=0); s.step()\n"

@@ -150,7 +150,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _time_worlds() -> int:
-    from swarmplan.run import simulate
+    from swarmplan.io.runner import simulate
     from swarmplan.world import load_world
 
     root = Path(__file__).resolve().parents[2] / "worlds"
@@ -192,8 +192,8 @@ def main(args: argparse.Namespace) -> int:
         return 2
     if args.worlds:
         return _time_worlds()
-    from swarmplan.recording import McapRecorder
-    from swarmplan.run import make_planner
+    from swarmplan.io.recording import McapRecorder
+    from swarmplan.planner import make_planner
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 

@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-from swarmplan.blas import limit_blas_threads
+from swarmplan.runtime.blas import limit_blas_threads
 
 #: subcommand name -> (module path, one-line help). Modules are imported lazily.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {

@@ -8,20 +8,13 @@ otherwise (or was interrupted: Ctrl-C or SIGTERM close the log with a summary th
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-import threading
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 from swarmplan import optimizers
-from swarmplan.blas import limit_blas_threads
-from swarmplan.core import StepResult
-from swarmplan.io.runner import run_episode
-from swarmplan.planner import make_planner, validate_planner_settings
-from swarmplan.sim import Simulation
+from swarmplan.io.runner import apply_overrides, simulate
+from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.world import World, WorldError, load_world
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -48,94 +41,6 @@ def check_writable(path: Path, label: str) -> None:
         raise WorldError(
             [f"{label}: cannot write the log {str(path)!r}: {exc.strerror or exc}"], "command line"
         ) from None
-
-
-def apply_overrides(world: World, optimizer: str | None, max_time: float | None) -> World:
-    changes: dict[str, Any] = {}
-    if max_time is not None:
-        changes["max_time"] = float(max_time)
-    if optimizer is not None:
-        planner = dict(world.planner)
-        opt = dict(planner["optimizer"], name=optimizer)
-        if optimizer != world.planner["optimizer"]["name"]:
-            # The world's params are settings of its own algorithm (e.g. rscdwoa's beta): another
-            # algorithm runs with its papers' defaults.
-            opt["params"] = {}
-        planner["optimizer"] = opt
-        changes["planner"] = planner
-    return world.with_overrides(**changes) if changes else world
-
-
-def simulate(
-    world: World,
-    seed: int,
-    log_path: Path | None,
-    *,
-    progress: bool = False,
-    stream: TextIO = sys.stderr,
-    stop_on_signals: bool = False,
-) -> dict[str, Any]:
-    """Run ``world`` to its end with ``seed``, recording to ``log_path``; returns the summary.
-
-    The log is finished whatever happens: on an exception the summary says ``interrupted``
-    and the exception propagates after the file is closed. With ``stop_on_signals`` (the
-    command line), Ctrl-C and SIGTERM end the run at the next step boundary instead, and the
-    summary says ``interrupted``; a second signal stops at once.
-    """
-    from swarmplan.io.recording import McapRecorder  # here: mcap and protobuf cost ~0.1 s of start-up
-
-    recorder = (
-        McapRecorder(
-            log_path,
-            flush_interval=world.resolved["log"]["flush_interval"],
-            foxglove=world.resolved["log"]["foxglove"],
-        )
-        if log_path is not None
-        else None
-    )
-    sim = Simulation(world, planner=make_planner(world), recorder=recorder)
-    from tqdm import tqdm  # here, not at import: start-up (importlib.metadata, ~0.1 s)
-
-    bar = tqdm(
-        total=world.max_time,
-        unit="sim-s",
-        file=stream,
-        disable=not progress,
-        delay=2.0,  # only runs that take a while show a bar
-        mininterval=0.2,
-        bar_format="{l_bar}{bar}| t={n:.1f}/{total:.0f} s [{elapsed}<{remaining}, {rate_fmt}]{postfix}",
-    )
-
-    def show(result: StepResult) -> None:
-        bar.update(result.state.t - bar.n)
-        bar.set_postfix_str(f"{int(result.state.active.sum())} flying", refresh=False)
-
-    try:
-        with _stop_requests(stop_on_signals) as stop_requested:
-            return run_episode(sim, seed, observers=[show], should_stop=stop_requested)
-    finally:
-        bar.close()
-
-
-@contextmanager
-def _stop_requests(enabled: bool) -> Iterator[Callable[[], bool]]:
-    """While active, SIGINT and SIGTERM only request a stop (the second one stops at once)."""
-    requested: list[int] = []
-    if not enabled or threading.current_thread() is not threading.main_thread():
-        yield lambda: False
-        return
-
-    def handler(signum: int, frame: object) -> None:
-        if requested:
-            raise KeyboardInterrupt
-        requested.append(signum)
-
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield lambda: bool(requested)
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
 
 
 def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
@@ -206,15 +111,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-time", type=float, default=None, help="override the world's sim.max_time (s)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     return p
-
-
-def check_planner_settings(world: World, source: str) -> None:
-    """The planner's own sections of the world file (``planner.escape``, ``planner.global``);
-    ``load_world`` checks them already, this is for a world changed since."""
-    try:
-        validate_planner_settings(world)
-    except WorldError as exc:
-        raise WorldError(exc.problems, source) from None
 
 
 def main(argv: list[str] | None = None) -> int:

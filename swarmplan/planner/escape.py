@@ -315,7 +315,7 @@ class EscapePlanner:
         r = float(sim.params.radius[i])
         k = int(n_free or self.cfg["waypoints"])
         # Keep waypoints where the potential field lets the agent reach them: out of the
-        # repulsion of the bounds' faces and of the ground (see swarmplan.apf).
+        # repulsion of the bounds' faces and of the ground (see swarmplan.flight.apf).
         rho0 = w.planner_config.apf.influence
         rb0 = min(rho0, 10.0)
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)

@@ -1,7 +1,7 @@
 """Moving obstacles in escape planning: where they will be while an escape is flown.
 
 An escape is planned from a stuck agent; it is flown later, over several seconds, while the
-moving obstacles go on along their motions (:mod:`swarmplan.motion`; a ``waypoints`` mover
+moving obstacles go on along their motions (:mod:`swarmplan.world.motion`; a ``waypoints`` mover
 without ``loop`` parks at its last waypoint and stays there). So the escape's sub-goal, its
 clearance checks and its FCL validation look at each mover at its *predicted* pose at the
 time the agent would be there:
@@ -27,7 +27,7 @@ import numpy as np
 
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.shapes import distance_and_gradient
-from swarmplan.motion import _waypoint_path
+from swarmplan.world.motion import _waypoint_path
 
 EARLY = 0.5  # s the agent may be ahead of the clock
 LATE_BASE = 0.5  # s it may be behind at the start
@@ -38,7 +38,7 @@ STEP = 0.2  # s between the predicted poses looked at
 
 def positions_at(obstacles, times: np.ndarray) -> np.ndarray:  # noqa: ANN001 - Obstacle sequence
     """Centres of ``obstacles`` at ``times`` (T,) → (T, M, 3); the same poses as
-    :func:`swarmplan.motion.pose_at` (times before 0 count as 0), vectorized over time."""
+    :func:`swarmplan.world.motion.pose_at` (times before 0 count as 0), vectorized over time."""
     times = np.maximum(np.asarray(times, dtype=float).reshape(-1), 0.0)
     out = np.empty((len(times), len(obstacles), 3))
     for j, o in enumerate(obstacles):

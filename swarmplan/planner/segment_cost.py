@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan.geometry.batch import ShapeBatch
-from swarmplan.motion import poses_at
 from swarmplan.planner._segment_pack import analytic, pack_bodies, pack_intents
+from swarmplan.world.motion import poses_at
 
 _EPS = 1e-9
 _ZERO3 = np.zeros(3)

@@ -1,5 +1,7 @@
+"""``python -m swarmplan.replay``: the command line lives in :mod:`swarmplan.cli.replay`."""
+
 import sys
 
-from .cli import main
+from swarmplan.cli.replay import main
 
 sys.exit(main())

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
-from swarmplan.dynamics import AgentParams
+from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.collision import first_hits, loaded_kernels, segment_segment_min_distance
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.metrics import RunMetrics
-from swarmplan.motion import poses_at
+from swarmplan.sim.metrics import RunMetrics
 from swarmplan.sim.scene import Scene
+from swarmplan.world.motion import poses_at
 
 CRASH_DEPTH = 0.02
 """Metres a crashed agent is recorded past its first contact (see :func:`crash_point`)."""
@@ -91,7 +91,7 @@ def arrivals(
     tolerance rule). The goal braking of ``SafetyFilter.braking_margin`` makes multirotors enter
     the tolerance at that speed, so they arrive where they first enter it (the replay's audit
     convention); should one enter faster, it keeps flying under the goal attraction, whose
-    speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.apf.commanded_velocity``)
+    speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.flight.apf.commanded_velocity``)
     brings it to rest at the goal, and arrives once slow enough.
     """
     compiled = loaded_kernels()

@@ -21,14 +21,14 @@ from typing import Any, Literal
 
 import numpy as np
 
-from swarmplan.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
 from swarmplan.core import AgentStates, Event, Mode, Planner, Recorder, StepResult, SwarmState
-from swarmplan.dynamics import AgentParams, initial_velocity, limit_velocity
+from swarmplan.flight.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
-from swarmplan.metrics import RunMetrics, summary_report
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
+from swarmplan.sim.metrics import RunMetrics, summary_report
 from swarmplan.sim.navigation import Navigator, distance_to_go
 from swarmplan.sim.safety import SafetyFilter
 from swarmplan.sim.scene import Scene

@@ -19,8 +19,8 @@ from swarmplan.core import (
     StuckOutcome,
     SwarmState,
 )
-from swarmplan.dynamics import AgentParams
-from swarmplan.metrics import RunMetrics
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.sim.metrics import RunMetrics
 from swarmplan.world.model import World
 
 

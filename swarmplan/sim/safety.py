@@ -15,7 +15,8 @@ import math
 import numpy as np
 
 from swarmplan.core import Event, Mode
-from swarmplan.dynamics import AgentParams, limit_multirotor, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity
+from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.geometry.collision import (
     SLACK,
     first_hits,
@@ -26,11 +27,10 @@ from swarmplan.geometry.collision import (
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.lookahead import guard_commands, horizon_steps
-from swarmplan.metrics import RunMetrics
-from swarmplan.motion import poses_at
+from swarmplan.sim.metrics import RunMetrics
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
+from swarmplan.world.motion import poses_at
 
 AGENT_MARGIN = 0.2
 """Metres kept between two agents' swept bodies by deconfliction."""
@@ -61,7 +61,7 @@ class SafetyFilter:
         metrics: RunMetrics,
     ) -> np.ndarray:
         """Fixed wings keep the field's command only while they could still turn away
-        (``swarmplan.lookahead``). Only agents with an obstacle, the terrain or the bounds within
+        (``swarmplan.flight.lookahead``). Only agents with an obstacle, the terrain or the bounds within
         reach of the horizon (obstacles' own motion included) are checked, and only against the
         obstacles within that reach."""
         p = self.params

@@ -7,14 +7,14 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.dynamics import AgentParams
+from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import CollisionWorld
 from swarmplan.geometry.compiled import field_kernels, use_compiled
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
-from swarmplan.motion import max_speed, poses_at
 from swarmplan.world.model import World
+from swarmplan.world.motion import max_speed, poses_at
 
 
 class Scene:

@@ -1,7 +1,7 @@
 """Sweeps: Monte-Carlo studies of worlds x optimizers x seeds x parameter overrides on
 ``dask.distributed``, from one laptop (a LocalCluster) to a cluster (any scheduler address).
 
-``python -m swarmplan.sweep SPEC.yaml`` (see :mod:`swarmplan.sweep.cli` and docs/sweeps.md).
+``python -m swarmplan.sweep SPEC.yaml`` (see :mod:`swarmplan.cli.sweep` and docs/sweeps.md).
 """
 
 from swarmplan.sweep.engine import columns, make_client, metrics_row, run_task, run_tasks

@@ -1,5 +1,7 @@
+"""``python -m swarmplan.sweep``: the command line lives in :mod:`swarmplan.cli.sweep`."""
+
 import sys
 
-from swarmplan.sweep.cli import main
+from swarmplan.cli.sweep import main
 
 sys.exit(main())

@@ -80,7 +80,7 @@ def build_world(world_path: str | Path, optimizer: str, overrides: tuple[tuple[s
     that does not fit the file's structure).
     """
     from swarmplan import optimizers
-    from swarmplan.run import apply_overrides, check_planner_settings
+    from swarmplan.io.runner import apply_overrides, check_planner_settings
     from swarmplan.world import parse_world
 
     path = Path(world_path)
@@ -107,7 +107,7 @@ def build_world(world_path: str | Path, optimizer: str, overrides: tuple[tuple[s
 
 def run_world(world: World, seed: int, log_path: Path) -> dict[str, Any]:
     """Run ``world`` with ``seed`` to its end, logging to ``log_path``; the run's summary."""
-    from swarmplan.run import simulate
+    from swarmplan.io.runner import simulate
 
     return simulate(world, seed, log_path)
 

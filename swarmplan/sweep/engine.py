@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.blas import limit_blas_threads
+from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sweep.adapter import build_world, read_log, run_world
 from swarmplan.sweep.spec import Task
 

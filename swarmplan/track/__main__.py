@@ -1,5 +1,7 @@
+"""``python -m swarmplan.track``: the command line lives in :mod:`swarmplan.cli.track`."""
+
 import sys
 
-from .cli import main
+from swarmplan.cli.track import main
 
 sys.exit(main())

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.recording import McapRecorder
+from swarmplan.io.recording import McapRecorder
 from swarmplan.replay import Recording
 
 from .core import TrackResult

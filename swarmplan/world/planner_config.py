@@ -182,7 +182,7 @@ def check_global(planner: dict[str, Any]) -> GlobalConfig:
 
 @dataclass(frozen=True)
 class ApfConfig:
-    """``planner.apf``: gains and ranges of the potential field (``swarmplan.apf``)."""
+    """``planner.apf``: gains and ranges of the potential field (``swarmplan.flight.apf``)."""
 
     k_att: float
     k_rep: float

@@ -56,7 +56,7 @@ def frozen_clock():
 
 
 def make_log(name: str, out_dir: Path) -> Path:
-    from swarmplan.run import apply_overrides, simulate
+    from swarmplan.io.runner import apply_overrides, simulate
     from swarmplan.world import load_world
 
     world_file, max_time = CASES[name]

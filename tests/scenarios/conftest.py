@@ -55,7 +55,7 @@ DEFAULT = "default" if planner_available() else "apf"
 @pytest.fixture
 def run_scenario(tmp_path):
     """``run_scenario(raw, planner, seed)`` → (summary, log path), asserting success from both sides."""
-    from swarmplan.run import simulate
+    from swarmplan.io.runner import simulate
 
     def run(raw: dict, planner: str, seed: int = 0) -> tuple[dict, Path]:
         raw = copy.deepcopy(raw)

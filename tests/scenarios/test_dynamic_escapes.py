@@ -21,7 +21,7 @@ import pytest
 import yaml
 from helpers import audit, describe_failure, events_of, make_world
 
-from swarmplan.run import simulate
+from swarmplan.io.runner import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
 WORLDS = ROOT / "worlds" / "scenarios"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from helpers import audit
 
-from swarmplan.run import simulate
+from swarmplan.io.runner import simulate
 from swarmplan.world import load_world
 
 ROOT = Path(__file__).resolve().parents[2]

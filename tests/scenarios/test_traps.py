@@ -14,7 +14,7 @@ import pytest
 from helpers import audit
 
 from swarmplan import optimizers
-from swarmplan.run import apply_overrides, simulate
+from swarmplan.io.runner import apply_overrides, simulate
 from swarmplan.world import load_world
 
 TRAPS = Path(__file__).resolve().parents[2] / "worlds" / "traps"

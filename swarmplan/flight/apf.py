@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.dynamics import AgentParams
+from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.compiled import use_compiled
 from swarmplan.geometry.vec3 import dot3, norm3
 
@@ -102,7 +102,7 @@ def apf_forces(
     factor, or neighbours parked at goals inside the influence distance hold an agent off its
     own goal for good (swap worlds: 5 of 32 agents stalled 2.0-2.3 m out).
     Swarm-sized worlds (``geometry.compiled.COMPILED_FROM`` agents on) run the compiled
-    kernel (:mod:`swarmplan._apf_kernel`), the same formulas in one pass.
+    kernel (:mod:`swarmplan.flight._apf_kernel`), the same formulas in one pass.
     """
     args = (world, params, gains, idx, pos, vel, goal, field, all_pos, all_vel, target, static_scale, parked)
     return (_apf_compiled if use_compiled(len(all_pos)) else _apf_numpy)(*args)
@@ -110,8 +110,8 @@ def apf_forces(
 
 @cache
 def _kernel() -> ModuleType:
-    """:mod:`swarmplan._apf_kernel`, imported (and numba with it) at the first swarm-sized step."""
-    from swarmplan import _apf_kernel
+    """:mod:`swarmplan.flight._apf_kernel`, imported (and numba with it) at the first swarm-sized step."""
+    from swarmplan.flight import _apf_kernel
 
     return _apf_kernel
 

@@ -15,7 +15,7 @@ the most clearance. Flying the field's command until the last step that keeps a 
 leaves the field in charge everywhere but where it would corner the aircraft.
 
 The predictions are closed-form arcs and helices of the model (constant speed, heading rate
-V / R_min, flight-path angle set at once, as ``swarmplan.dynamics.limit_fixed_wing`` flies
+V / R_min, flight-path angle set at once, as ``swarmplan.flight.kinematics.limit_fixed_wing`` flies
 them), so all candidates and all times are measured in one batched distance query.
 """
 
@@ -25,7 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from swarmplan.dynamics import AgentParams, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, limit_velocity
 
 ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 """``clearance(points (P, 3), radii (P,), times (P,)) -> (P,)`` distance from each body to the

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
-from .recording import Recording, RecordingError, load
+from swarmplan.replay.metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
+from swarmplan.replay.recording import Recording, RecordingError, load
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -230,7 +230,7 @@ def state_at(rec: Recording, t: float, agents: list[int]) -> list[str]:
 def _write_outputs(rec: Recording, args: argparse.Namespace, agent_ids: list[str] | None) -> list[str]:
     outputs: list[str] = []
     if args.plot or args.plot_2d or args.curvature or args.convergence:
-        from . import analysis_plots, plots
+        from swarmplan.replay import analysis_plots, plots
 
         if args.plot:
             outputs.append(plots.save(plots.plot_3d(rec, agents=agent_ids), _prepare(args.plot)))
@@ -243,7 +243,7 @@ def _write_outputs(rec: Recording, args: argparse.Namespace, agent_ids: list[str
             fig = analysis_plots.plot_convergence(rec, agents=agent_ids)
             outputs.append(plots.save(fig, _prepare(args.convergence)))
     if args.animate:
-        from .animate import animate
+        from swarmplan.replay.animate import animate
 
         outputs.append(
             animate(

@@ -20,10 +20,9 @@ import sys
 import time
 from pathlib import Path
 
-from swarmplan.blas import limit_blas_threads
-
-from .config import TrackerConfig, parse_tracker
-from .output import PLOT_FORMATS
+from swarmplan.runtime.blas import limit_blas_threads
+from swarmplan.track.config import TrackerConfig, parse_tracker
+from swarmplan.track.output import PLOT_FORMATS
 
 
 class InputError(Exception):
@@ -145,8 +144,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"track: {exc}", file=sys.stderr)
         return 2
 
-    from .core import track
-    from .output import plot, write_mcap
+    from swarmplan.track.core import track
+    from swarmplan.track.output import plot, write_mcap
 
     start = time.perf_counter()
     result = track(rec, cfg, args.agent)

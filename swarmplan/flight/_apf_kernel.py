@@ -17,7 +17,7 @@ beyond ``reach``, the distance past which both of its terms are provably zero
 unscaled ones over the largest semi-axis. At 256 agents that is ~65k cheap tests per step;
 a spatial index would pay off only for swarms several times larger.
 
-Imported lazily (:func:`swarmplan.apf._kernel`); every compiled function of the field is
+Imported lazily (:func:`swarmplan.flight.apf._kernel`); every compiled function of the field is
 in this file (numba's cache does not see changes of callees in other files).
 """
 
