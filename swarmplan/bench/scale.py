@@ -36,6 +36,7 @@ def _run(
     """Run a world with the recorder on; wall and CPU time of the stepping (after ``warmup``
     untimed steps), step count, summary, and escape timings (wall from ``/optimizer``, CPU)."""
     from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import RecordingObserver
     from swarmplan.planner import make_planner
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
@@ -43,18 +44,20 @@ def _run(
     world = parse_world(raw)
     with tempfile.TemporaryDirectory() as tmp:
         recorder = McapRecorder(Path(tmp) / "bench.mcap")
+        log = RecordingObserver(recorder)
         planner = make_planner(world, optimizer)
-        sim = Simulation(world, planner=planner, recorder=recorder)
-        sim.reset(seed=int(raw.get("seed", 0)))
+        sim = Simulation(world, planner=planner)
+        log.on_reset(sim.start(seed=int(raw.get("seed", 0))))
         escape_cpu = _time_escapes(planner)
         plan_cpu = _time_plans(planner)
         for _ in range(warmup):
-            sim.step()
+            log.on_step(sim.step())
         n = 0
         wall0, cpu0 = time.perf_counter(), time.process_time()
         try:
             while True:
                 r = sim.step()
+                log.on_step(r)
                 n += 1
                 if r.terminated or r.truncated:
                     break
@@ -157,9 +160,6 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
     the same point (interpreter start included: the figure a loaded machine does not inflate),
     whole subprocess wall time). With ``record`` the simulation writes an MCAP log as the
     command line does (mcap, protobuf and the Foxglove schemas imported, the header written)."""
-    recorder = "None"
-    if record:
-        recorder = "McapRecorder(Path(tempfile.mkdtemp()) / 'startup.mcap')"
     code = (
         "import time; t0 = time.perf_counter()\n"
         "import tempfile\n"
@@ -167,12 +167,17 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
         "from swarmplan.bench.sim import swarm_world\n"
         "from swarmplan.planner import make_planner\n"
         "from swarmplan.sim import Simulation\n"
-        "from swarmplan.world import parse_world\n"
-        + ("from swarmplan.io.recording import McapRecorder\n" if record else "")
-        + "w = parse_world(swarm_world(16, 4, 8))\n"
-        f"s = Simulation(w, planner=make_planner(w, w.planner['optimizer']['name']), recorder={recorder})\n"
-        "s.reset(seed=0); s.step()\n"
-        "print(time.perf_counter() - t0, time.process_time())\n"
+        "from swarmplan.world import parse_world\n" + "w = parse_world(swarm_world(16, 4, 8))\n"
+        "s = Simulation(w, planner=make_planner(w, w.planner['optimizer']['name']))\n"
+        + (
+            "from swarmplan.io.recording import McapRecorder\n"
+            "from swarmplan.io.runner import RecordingObserver\n"
+            "log = RecordingObserver(McapRecorder(Path(tempfile.mkdtemp()) / 'startup.mcap'))\n"
+            "log.on_reset(s.start(seed=0)); log.on_step(s.step())\n"
+            if record
+            else "s.reset(seed=0); s.step()\n"
+        )
+        + "print(time.perf_counter() - t0, time.process_time())\n"
     )
     t = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

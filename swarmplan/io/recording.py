@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from swarmplan.core import AgentStates, Mode
+from swarmplan.core import AgentStates, Mode, ObstacleStates
 from swarmplan.io.foxglove_scene import FoxgloveScene
 from swarmplan.io.json_floats import Interleaved
 
@@ -276,8 +276,12 @@ class McapRecorder:
             self._scene = FoxgloveScene(self._writer, world)
             self._scene.write_world()
 
-    def write_state(self, t: float, agents: Sequence[dict], obstacles: list[dict] | None) -> None:
+    def write_state(
+        self, t: float, agents: Sequence[dict], obstacles: ObstacleStates | list[dict] | None
+    ) -> None:
         self._last_t = t
+        if isinstance(obstacles, ObstacleStates):
+            obstacles = obstacles.dicts()
         data = self._states.encode(t, agents) if isinstance(agents, AgentStates) else None
         if data is not None:
             self.write_bytes("/agents/state", t, data)

@@ -1,7 +1,9 @@
 """Running a world to its end: overrides of the command line, one recorded episode (reset, step
 until terminated or truncated, finish the log).
 
-Observers (e.g. a progress bar) see every step's result. ``should_stop`` is asked between
+The simulation writes nothing: observers see every reset and step result (a
+:class:`RecordingObserver` writes the log from them, a progress bar counts time), and the
+runner owns the log from open to ``/summary`` to close. ``should_stop`` is asked between
 steps, so a stop requested by a signal ends the run on a step boundary: every step the
 summary counts is in the log.
 """
@@ -16,37 +18,81 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TextIO
 
-from swarmplan.core import StepResult
+from swarmplan.core import Event, Observer, Recorder, ResetResult, StepResult
 from swarmplan.planner import make_planner, validate_planner_settings
 from swarmplan.sim import Simulation
 from swarmplan.world import World, WorldError
 
-Observer = Callable[[StepResult], None]
+StepObserver = Callable[[StepResult], None]
+
+
+class RecordingObserver:
+    """Writes a run to a :class:`~swarmplan.core.Recorder` from the results alone: the world,
+    planning before flight and the state at t = 0 from the reset; per step its optimizer runs,
+    its state, then its events. ``/summary`` and closing are the runner's (:func:`run_episode`)."""
+
+    def __init__(self, recorder: Recorder):
+        self.recorder = recorder
+
+    def on_reset(self, result: ResetResult) -> None:
+        rec = self.recorder
+        rec.write_world(result.world)
+        for r in result.records:
+            if isinstance(r, Event):
+                rec.write_event(r.to_json())
+            else:
+                rec.write_optimizer(r.to_json())
+        rec.write_state(result.state.t, result.agents, result.obstacles)
+
+    def on_step(self, result: StepResult) -> None:
+        rec = self.recorder
+        for run in result.optimizer_runs:
+            rec.write_optimizer(run.to_json())
+        rec.write_state(result.state.t, result.agents, result.obstacles)
+        for e in result.events:
+            rec.write_event(e.to_json())
+
+
+class _StepOnly:
+    """A plain callable seeing step results only, as an :class:`~swarmplan.core.Observer`."""
+
+    def __init__(self, fn: StepObserver):
+        self.on_step = fn
+
+    def on_reset(self, result: ResetResult) -> None:
+        pass
 
 
 def run_episode(
     sim: Simulation,
     seed: int,
-    observers: Iterable[Observer] = (),
+    observers: Iterable[Observer | StepObserver] = (),
     should_stop: Callable[[], bool] | None = None,
+    recorder: Recorder | None = None,
 ) -> dict[str, Any]:
     """Run ``sim`` from ``reset(seed)`` to its end; returns the summary.
 
-    The recorder (if any) gets the summary and is closed whatever happens: when
-    ``should_stop`` says so, or on an exception (which propagates after the file is closed),
-    the summary says ``interrupted``.
+    ``observers`` see every result (objects with ``on_reset`` and ``on_step``, or callables of
+    a step result). With ``recorder``, the run is written to it (a :class:`RecordingObserver`
+    first), then ``/summary``, and it is closed whatever happens: when ``should_stop`` says
+    so, or on an exception (which propagates after the file is closed), the summary says
+    ``interrupted``.
     """
-    observers = list(observers)
-    interrupted = False
+    watchers: list[Observer] = [RecordingObserver(recorder)] if recorder is not None else []
+    watchers += [o if hasattr(o, "on_step") else _StepOnly(o) for o in observers]
+    interrupted = started = False
     try:
-        sim.reset(seed=seed)
+        first = sim.start(seed=seed)
+        started = True
+        for o in watchers:
+            o.on_reset(first)
         while True:
             if should_stop is not None and should_stop():
                 interrupted = True
                 break
             result = sim.step()
-            for observe in observers:
-                observe(result)
+            for o in watchers:
+                o.on_step(result)
             if result.terminated or result.truncated:
                 break
     except BaseException:
@@ -54,15 +100,14 @@ def run_episode(
         raise
     finally:
         summary = sim.summary(interrupted=interrupted) if sim.state is not None else {"interrupted": True}
-        recorder = sim.recorder
         if recorder is not None:
             try:
                 if sim.state is not None:
+                    if not started:  # planning before flight failed: the log still names its world
+                        recorder.write_world(sim.world_message())
                     recorder.write_summary(summary)
             finally:
-                close = getattr(recorder, "close", None)
-                if close is not None:
-                    close()
+                recorder.close()
     return summary
 
 
@@ -118,7 +163,7 @@ def simulate(
         if log_path is not None
         else None
     )
-    sim = Simulation(world, planner=make_planner(world), recorder=recorder)
+    sim = Simulation(world, planner=make_planner(world))
     from tqdm import tqdm  # here, not at import: start-up (importlib.metadata, ~0.1 s)
 
     bar = tqdm(
@@ -137,7 +182,7 @@ def simulate(
 
     try:
         with _stop_requests(stop_on_signals) as stop_requested:
-            return run_episode(sim, seed, observers=[show], should_stop=stop_requested)
+            return run_episode(sim, seed, observers=[show], should_stop=stop_requested, recorder=recorder)
     finally:
         bar.close()
 
