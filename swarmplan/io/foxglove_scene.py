@@ -14,15 +14,25 @@ topic              schema                  content
                                            terrain surface, goals
 ``/scene``         ``foxglove.SceneUpdate``  agents (spheres coloured by mode) and moving
                                            obstacles; every ``scene_period`` s of sim time
-``/scene/paths``   ``foxglove.SceneUpdate``  flown path of each agent (line strip, decimated
-                                           to ``path_max_points``); every ``path_period`` s
+``/scene/paths``   ``foxglove.SceneUpdate``  flown paths as they grow: every ``path_period`` s,
+                                           per agent that moved, one new line strip
+                                           ``path/<id>/<k>`` (k = 0, 1, ...) holding only
+                                           the points sampled since its chunk k - 1, from
+                                           that chunk's last point on (the chunks join)
+``/scene/paths/overview``  ``foxglove.SceneUpdate``  every ``overview_period`` s: each
+                                           agent's whole path as ``path/<id>``, at most
+                                           ``overview_points`` points (evenly spaced over
+                                           the kept samples), drawn thinner
 ``/tf``            ``foxglove.FrameTransforms`` one message per step holding a
                                            ``FrameTransform`` per agent: parent ``world``,
                                            child = agent id
 =================  ======================  ==============================================
 
 Static, dynamic and path entities are on separate topics because Foxglove, after a seek,
-restores each topic from its latest message only: every topic is self-contained.
+restores each topic from its latest message only. Every message is bounded independently
+of the run's length: a path's chunks accumulate in the 3D panel during playback (entities
+without a lifetime stay until replaced), and after a seek the overview's latest message
+draws every path whole (coarse) until the chunks fill it in again.
 ``log_time``/``publish_time`` are simulation time in ns, like every channel of the log.
 
 Cost: the per-agent fields (/tf, agents of /scene, path points) are written in protobuf's
@@ -77,6 +87,7 @@ from swarmplan.io.wire import (
 SCENE_TOPIC = "/scene"
 WORLD_TOPIC = "/scene/world"
 PATHS_TOPIC = "/scene/paths"
+OVERVIEW_TOPIC = "/scene/paths/overview"
 TF_TOPIC = "/tf"
 
 MODE_COLORS = {
@@ -109,6 +120,8 @@ class FoxgloveScene:
         path_period: float = 1.0,
         path_max_points: int = 400,
         tf_period: float = 0.0,
+        overview_period: float = 5.0,
+        overview_points: int = 64,
     ):
         self.writer = writer
         self.world = world
@@ -116,12 +129,15 @@ class FoxgloveScene:
         self.path_period = float(path_period)
         self.path_max_points = max(4, int(path_max_points))
         self.tf_period = float(tf_period)
+        self.overview_period = float(overview_period)
+        self.overview_points = max(2, int(overview_points))
         self._channels: dict[str, int] = {}
         schema_ids: dict[str, int] = {}
         for topic, cls in (
             (WORLD_TOPIC, SceneUpdate),
             (SCENE_TOPIC, SceneUpdate),
             (PATHS_TOPIC, SceneUpdate),
+            (OVERVIEW_TOPIC, SceneUpdate),
             # One message per step for all agents (one per agent made /tf ~95 % of the
             # messages of a 64-agent log and ~30 % of a pure-APF step's time).
             (TF_TOPIC, FrameTransforms),
@@ -146,8 +162,6 @@ class FoxgloveScene:
         self._mover_simple = True
         self._mover_rest: list[tuple[float, ...]] = []
         self._mover_templates: dict[tuple[int, bytes], Patched | bool] = {}
-        self._path_heads: dict[str, bytes] = {}
-        self._path_bytes: dict[str, bytearray] = {}  # per agent: its path's encoded points
         self._paths: dict[str, int] = {}  # agents with a path (message order) -> slot
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
         # Per agent slot (_rows): last heading as a quaternion's z and w, last path point.
@@ -158,11 +172,14 @@ class FoxgloveScene:
         self._qw = np.zeros(0)
         self._path_last = np.zeros((0, 3))
         self._path_has = np.zeros(0, dtype=bool)
-        # Per slot: the path's points (a row each, path_max_points + 1 rows), their count,
-        # and the same encoded points as _path_bytes.
+        # Per slot: the path's kept points (a row each, path_max_points + 1 rows, halved when
+        # full: the overview's source) and their count; the open chunk's encoded points (from
+        # the last point of the chunk before), whether it has new ones, and its number.
         self._path_points = np.zeros((0, self.path_max_points + 1, 3))
         self._path_count = np.zeros(0, dtype=np.intp)
-        self._path_slot_bytes: list[bytearray | None] = []
+        self._chunk_bytes: list[bytearray | None] = []
+        self._chunk_new = np.zeros(0, dtype=bool)
+        self._chunk_index = np.zeros(0, dtype=np.intp)
         self._sphere_cache: dict[tuple[str, Any, int], tuple[bytes, bytes, int]] = {}
         self._tf_ids: tuple[str, ...] | None = None
         self._tf_heads: list[bytes] = []
@@ -174,6 +191,7 @@ class FoxgloveScene:
         self._scene_templates: dict[int, Patched] = {}  # per timestamp length (_write_scene)
         self._next_scene = -math.inf
         self._next_path = -math.inf
+        self._next_overview = -math.inf
         self._next_tf = -math.inf
         self._last: tuple[float, list, list] | None = None
         self.messages_written = 0
@@ -209,6 +227,9 @@ class FoxgloveScene:
                 self._sample_paths(t, rows or self._rows(agents))
             self._write_paths(t)
             self._next_path = t + self.path_period
+        if force or t >= self._next_overview - eps:
+            self._write_overview(t)
+            self._next_overview = t + self.overview_period
 
     def finish(self) -> None:
         """Write the last step seen (unthrottled) so the scene ends in the final state."""
@@ -246,7 +267,9 @@ class FoxgloveScene:
                     [self._path_points, np.zeros((grow,) + self._path_points.shape[1:])]
                 )
                 self._path_count = np.concatenate([self._path_count, np.zeros(grow, dtype=np.intp)])
-                self._path_slot_bytes += [None] * grow
+                self._chunk_bytes += [None] * grow
+                self._chunk_new = np.concatenate([self._chunk_new, np.zeros(grow, dtype=bool)])
+                self._chunk_index = np.concatenate([self._chunk_index, np.zeros(grow, dtype=np.intp)])
             self._slot_ids = ids
             self._slots = np.array([self._slot[aid] for aid in ids], dtype=np.intp)
         return _Rows(ids, pos, vel, modes, self._slots)
@@ -430,20 +453,11 @@ class FoxgloveScene:
         entities = world_entities(self.world, list(self._obstacles.values()), t)
         self._write(WORLD_TOPIC, b"".join(map(_entity_record, entities)), t)
 
-    def _path_head(self, aid: str) -> bytes:
-        """A path entity's fixed fields (frame and entity ids)."""
-        head = self._path_heads.get(aid)
-        if head is None:
-            eid = f"path/{aid}".encode()
-            head = self._path_heads[aid] = (
-                b"\x12" + varint(len(FRAME)) + FRAME.encode() + b"\x1a" + varint(len(eid)) + eid
-            )
-        return head
-
     def _sample_paths(self, t: float, rows: _Rows) -> None:
-        """Append the agents' current positions to their path lines, kept encoded (the
-        ``points`` fields of a LinePrimitive): only new points are converted. An agent whose
-        position equals its last point (standing) adds none."""
+        """Append the agents' current positions to their paths: to the open chunk (encoded:
+        the ``points`` fields of a LinePrimitive, only new points converted) and to the kept
+        points of the overview. An agent whose position equals its last point (standing)
+        adds none."""
         last = self._path_last[rows.slots]
         same = self._path_has[rows.slots] & (last == rows.pos).all(axis=1)
         new = np.flatnonzero(~same)
@@ -452,48 +466,69 @@ class FoxgloveScene:
         slots = rows.slots[new]
         self._path_last[slots] = rows.pos[new]
         self._path_has[slots] = True
-        encoded = self._path_slot_bytes
         room = self.path_max_points + 1 - self._path_points.shape[1]
         if room > 0:  # path_max_points was raised after construction
             self._path_points = np.pad(self._path_points, ((0, 0), (0, room), (0, 0)))
         counts = self._path_count[slots]
+        chunks = self._chunk_bytes
         for i in np.flatnonzero(counts == 0).tolist():  # first points: paths start (message order)
-            aid = rows.ids[new[i]]
-            self._paths[aid] = int(slots[i])
-            encoded[slots[i]] = self._path_bytes[aid] = bytearray()
+            self._paths[rows.ids[new[i]]] = int(slots[i])
+            chunks[slots[i]] = bytearray()
         self._path_points[slots, counts] = rows.pos[new]
         counts += 1
         self._path_count[slots] = counts
-        fields = vector_fields(0x2A, rows.pos[new])
-        full = counts > self.path_max_points
-        if not full.any():
-            list(map(bytearray.extend, [encoded[k] for k in slots.tolist()], fields))
-            return
-        for k, b, decimate in zip(slots.tolist(), fields, full.tolist(), strict=True):
-            if not decimate:
-                encoded[k].extend(b)
-                continue
-            # halve the resolution of the older part, keep the newest point; rebuild
+        self._chunk_new[slots] = True
+        list(map(bytearray.extend, [chunks[k] for k in slots.tolist()], vector_fields(0x2A, rows.pos[new])))
+        for k in slots[counts > self.path_max_points].tolist():
+            # the overview's source: halve the resolution of the older part, keep the newest point
             pts = self._path_points[k, : self.path_max_points + 1]
             kept = np.concatenate([pts[:-1:2], pts[-1:]])
             self._path_points[k, : len(kept)] = kept
             self._path_count[k] = len(kept)
-            encoded[k][:] = b"".join(point_bytes(tuple(q)) for q in kept.tolist())
 
-    def _write_paths(self, t):
-        # Each path is a SceneEntity with one LINE_STRIP, assembled from its encoded points
-        # between the line's fixed fields (1-4: type, pose, thickness, scale_invariant) and its
-        # colour (6), in field order as protobuf writes them (tests/test_foxglove_tf_bytes.py).
+    def _write_paths(self, t: float) -> None:
+        # Per agent with new points: the chunk ``path/<id>/<k>``, a SceneEntity with one
+        # LINE_STRIP assembled from its encoded points between the line's fixed fields (1-4:
+        # type, pose, thickness, scale_invariant) and its colour (6), in field order as
+        # protobuf writes them (tests/test_foxglove_tf_bytes.py). The next chunk starts at
+        # this one's last point.
         stamp = timestamp_bytes(t)
         parts = []
-        for aid in self._paths:
-            pts = self._path_bytes[aid]
-            line_len = len(_LINE_HEAD) + len(pts) + len(_LINE_COLOR)
-            b = b"".join(
-                (stamp, self._path_head(aid), b"\x5a", varint(line_len), _LINE_HEAD, pts, _LINE_COLOR)
+        for aid, k in self._paths.items():
+            if not self._chunk_new[k]:
+                continue
+            pts = self._chunk_bytes[k]
+            eid = f"path/{aid}/{self._chunk_index[k]}".encode()
+            parts.append(self._line_entity(stamp, eid, pts, _LINE_HEAD, _LINE_COLOR))
+            self._chunk_bytes[k] = bytearray(point_bytes(tuple(self._path_last[k].tolist())))
+            self._chunk_new[k] = False
+            self._chunk_index[k] += 1
+        if parts:
+            self._write(PATHS_TOPIC, b"".join(parts), t)
+
+    def _write_overview(self, t: float) -> None:
+        """Every agent's whole path as ``path/<id>``, at most ``overview_points`` points evenly
+        spaced over the kept ones (the last always among them)."""
+        stamp = timestamp_bytes(t)
+        parts = []
+        for aid, k in self._paths.items():
+            n = int(self._path_count[k])
+            pts = self._path_points[k, :n]
+            if n > self.overview_points:
+                pts = pts[np.round(np.linspace(0, n - 1, self.overview_points)).astype(np.intp)]
+            encoded = b"".join(vector_fields(0x2A, pts))
+            parts.append(
+                self._line_entity(stamp, f"path/{aid}".encode(), encoded, _OVERVIEW_HEAD, _LINE_COLOR)
             )
-            parts.append(_ENTITIES_TAG + varint(len(b)) + b)
-        self._write(PATHS_TOPIC, b"".join(parts), t)
+        if parts:
+            self._write(OVERVIEW_TOPIC, b"".join(parts), t)
+
+    def _line_entity(self, stamp: bytes, eid: bytes, pts: bytes, head: bytes, color: bytes) -> bytes:
+        """A ``SceneUpdate.entities`` record: an entity with one line strip of the encoded ``pts``."""
+        line_len = len(head) + len(pts) + len(color)
+        ids = _FRAME_FIELD + b"\x1a" + varint(len(eid)) + eid
+        b = b"".join((stamp, ids, b"\x5a", varint(line_len), head, pts, color))
+        return _ENTITIES_TAG + varint(len(b)) + b
 
 
 def _entity_record(e: SceneEntity) -> bytes:
@@ -535,9 +570,9 @@ class _Rows(NamedTuple):
     slots: np.ndarray  # (n,) per-agent state index
 
 
-def _line_fixed_fields() -> tuple[bytes, bytes]:
+def _line_fixed_fields(thickness: float) -> tuple[bytes, bytes]:
     """The path line's fields before and after its points, serialized by protobuf itself."""
-    line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
+    line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=thickness, scale_invariant=True)
     set_pose(line.pose, (0.0, 0.0, 0.0))
     color = Color()
     set_color(color, PATH_RGBA)
@@ -546,7 +581,10 @@ def _line_fixed_fields() -> tuple[bytes, bytes]:
 
 
 PATH_RGBA = (0.12, 0.47, 0.71, 0.9)
-_LINE_HEAD, _LINE_COLOR = _line_fixed_fields()
+PATH_THICKNESS = 2.0  # px (scale invariant); the overview is drawn at half of it
+_LINE_HEAD, _LINE_COLOR = _line_fixed_fields(PATH_THICKNESS)
+_OVERVIEW_HEAD, _ = _line_fixed_fields(PATH_THICKNESS / 2)
+_FRAME_FIELD = b"\x12" + varint(len(FRAME)) + FRAME.encode()  # SceneEntity.frame_id
 
 
 __all__ = [
@@ -556,5 +594,6 @@ __all__ = [
     "SCENE_TOPIC",
     "WORLD_TOPIC",
     "PATHS_TOPIC",
+    "OVERVIEW_TOPIC",
     "TF_TOPIC",
 ]
