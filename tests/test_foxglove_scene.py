@@ -237,7 +237,7 @@ def test_path_messages_stay_bounded_and_the_overview_whole(tmp_path):
     world = _world(2)
     steps = _steps(world, n_steps=400)
     scene = _write(tmp_path / "long.mcap", world, steps, path_max_points=50, overview_points=20)
-    assert all(scene._path_count[k] <= 50 for k in scene._paths.values())
+    assert all(scene.trails.count[k] <= 50 for k in scene.trails.order.values())
     msgs = _decode(tmp_path / "long.mcap")
     # a chunk per agent per second: 5 samples, plus the previous chunk's last point
     assert max(len(e.lines[0].points) for _, _, m in msgs["/scene/paths"] for e in m.entities) <= 6

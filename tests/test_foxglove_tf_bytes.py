@@ -208,8 +208,8 @@ def test_path_bytes_equal_protobuf_serializer(seed):
         path_period=0.0,
         overview_period=0.0,
         overview_points=4,
+        path_max_points=6,
     )
-    scene.path_max_points = 6
     ref = _ReferencePaths(6, 4)
     last = {i: rng.normal(0, 30, 3) for i in ids}
     chunks, overviews = [], []

@@ -53,30 +53,28 @@ from typing import Any, NamedTuple
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
-from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 
-from swarmplan.core import AgentStates, Mode
+from swarmplan.core import AgentStates, Mode, ObstacleStates
+from swarmplan.io.foxglove_paths import PathTrails
 from swarmplan.io.foxglove_shapes import (
     FRAME,
     MOVING_RGBA,
     ONE_PRIMITIVE,
     obstacle_entity,
     rest_orientation,
-    set_color,
-    set_pose,
     world_entities,
 )
+from swarmplan.io.json_floats import record_kernels
 from swarmplan.io.wire import (
     DOUBLE,
     Patched,
     file_descriptor_set,
     join_records,
     length_prefixes,
-    point_bytes,
     pose_fields,
     record_starts,
     timestamp_bytes,
@@ -127,10 +125,8 @@ class FoxgloveScene:
         self.world = world
         self.scene_period = float(scene_period)
         self.path_period = float(path_period)
-        self.path_max_points = max(4, int(path_max_points))
         self.tf_period = float(tf_period)
         self.overview_period = float(overview_period)
-        self.overview_points = max(2, int(overview_points))
         self._channels: dict[str, int] = {}
         schema_ids: dict[str, int] = {}
         for topic, cls in (
@@ -160,26 +156,17 @@ class FoxgloveScene:
         self._colors: dict[tuple[float, float, float, float], bytes] = {}
         self._mover_ids: tuple[str, ...] | None = None
         self._mover_simple = True
+        self._mover_known: list[dict | None] = []
         self._mover_rest: list[tuple[float, ...]] = []
         self._mover_templates: dict[tuple[int, bytes], Patched | bool] = {}
-        self._paths: dict[str, int] = {}  # agents with a path (message order) -> slot
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
-        # Per agent slot (_rows): last heading as a quaternion's z and w, last path point.
+        # Per agent slot (_rows): last heading as a quaternion's z and w; its path (trails).
         self._slot: dict[str, int] = {}
         self._slot_ids: tuple[str, ...] | None = None
         self._slots = np.zeros(0, dtype=np.intp)
         self._qz = np.zeros(0)
         self._qw = np.zeros(0)
-        self._path_last = np.zeros((0, 3))
-        self._path_has = np.zeros(0, dtype=bool)
-        # Per slot: the path's kept points (a row each, path_max_points + 1 rows, halved when
-        # full: the overview's source) and their count; the open chunk's encoded points (from
-        # the last point of the chunk before), whether it has new ones, and its number.
-        self._path_points = np.zeros((0, self.path_max_points + 1, 3))
-        self._path_count = np.zeros(0, dtype=np.intp)
-        self._chunk_bytes: list[bytearray | None] = []
-        self._chunk_new = np.zeros(0, dtype=bool)
-        self._chunk_index = np.zeros(0, dtype=np.intp)
+        self.trails = PathTrails(path_max_points, overview_points)
         self._sphere_cache: dict[tuple[str, Any, int], tuple[bytes, bytes, int]] = {}
         self._tf_ids: tuple[str, ...] | None = None
         self._tf_heads: list[bytes] = []
@@ -195,6 +182,7 @@ class FoxgloveScene:
         self._next_tf = -math.inf
         self._last: tuple[float, list, list] | None = None
         self.messages_written = 0
+        self.compiled = False  # headings by a compiled kernel (the same bits)
 
     # ------------------------------------------------------------------ low level
     def _write(self, topic: str, data: bytes, t: float):
@@ -219,16 +207,21 @@ class FoxgloveScene:
         scene_due = force or t >= self._next_scene - eps
         if scene_due:
             rows = rows or self._rows(agents)
-            self._sample_paths(t, rows)
+            self.trails.sample(rows.ids, rows.pos, rows.slots)
             self._write_scene(t, rows, obstacles)
             self._next_scene = t + self.scene_period
         if force or t >= self._next_path - eps:
             if not scene_due:
-                self._sample_paths(t, rows or self._rows(agents))
-            self._write_paths(t)
+                rows = rows or self._rows(agents)
+                self.trails.sample(rows.ids, rows.pos, rows.slots)
+            data = self.trails.chunks(timestamp_bytes(t))
+            if data is not None:
+                self._write(PATHS_TOPIC, data, t)
             self._next_path = t + self.path_period
         if force or t >= self._next_overview - eps:
-            self._write_overview(t)
+            data = self.trails.overview(timestamp_bytes(t))
+            if data is not None:
+                self._write(OVERVIEW_TOPIC, data, t)
             self._next_overview = t + self.overview_period
 
     def finish(self) -> None:
@@ -261,15 +254,7 @@ class FoxgloveScene:
                 # No heading yet: the identity rotation (z = 0, w = 1); no path point yet.
                 self._qz = np.concatenate([self._qz, np.zeros(grow)])
                 self._qw = np.concatenate([self._qw, np.ones(grow)])
-                self._path_last = np.concatenate([self._path_last, np.full((grow, 3), np.nan)])
-                self._path_has = np.concatenate([self._path_has, np.zeros(grow, dtype=bool)])
-                self._path_points = np.concatenate(
-                    [self._path_points, np.zeros((grow,) + self._path_points.shape[1:])]
-                )
-                self._path_count = np.concatenate([self._path_count, np.zeros(grow, dtype=np.intp)])
-                self._chunk_bytes += [None] * grow
-                self._chunk_new = np.concatenate([self._chunk_new, np.zeros(grow, dtype=bool)])
-                self._chunk_index = np.concatenate([self._chunk_index, np.zeros(grow, dtype=np.intp)])
+                self.trails.grow(grow)
             self._slot_ids = ids
             self._slots = np.array([self._slot[aid] for aid in ids], dtype=np.intp)
         return _Rows(ids, pos, vel, modes, self._slots)
@@ -293,8 +278,12 @@ class FoxgloveScene:
         # numbers are packed for all agents at once (pose_fields) and the message is one join.
         stamp = timestamp_bytes(t)
         vx, vy = rows.vel[:, 0], rows.vel[:, 1]
-        turning = np.flatnonzero((vx != 0.0) | (vy != 0.0))
-        if len(turning):
+        turning = () if self.compiled else np.flatnonzero((vx != 0.0) | (vy != 0.0))
+        if self.compiled:
+            record_kernels().headings(
+                np.ascontiguousarray(rows.vel, dtype=float), rows.slots, self._qz, self._qw
+            )
+        elif len(turning):
             # math's functions, as the per-agent encoder used them (numpy's may round otherwise).
             half = np.array(list(map(math.atan2, vy[turning].tolist(), vx[turning].tolist()))) / 2.0
             slots = rows.slots[turning]
@@ -409,33 +398,46 @@ class FoxgloveScene:
             )
         return agents
 
-    def _movers_bytes(self, t: float, stamp: bytes, obstacles: list[dict[str, Any]]) -> bytes:
+    def _movers_bytes(
+        self, t: float, stamp: bytes, obstacles: list[dict[str, Any]] | ObstacleStates
+    ) -> bytes:
         """The moving obstacles' entities of a /scene message. With one-primitive shapes only,
         an entity changes between steps in its timestamp and pose alone: the numbers go into
         a template per layout (Patched; which pose components are left out as +0.0 and the
         timestamp's length); other shapes are built through the protobuf API."""
-        known = [(o, self._obstacles.get(str(o["id"]))) for o in obstacles]
-        known = [(o, obst) for o, obst in known if obst is not None]
-        ids = tuple(str(o["id"]) for o, _ in known)
+        arrays = isinstance(obstacles, ObstacleStates)
+        ids = obstacles.ids if arrays else tuple(str(o["id"]) for o in obstacles)
         if ids != self._mover_ids:
             self._mover_ids = ids
-            self._mover_simple = all(obst.get("shape") in ONE_PRIMITIVE for _, obst in known)
-            self._mover_rest = [rest_orientation(obst) for _, obst in known]
+            self._mover_known = [self._obstacles.get(oid) for oid in ids]
+            known = [obst for obst in self._mover_known if obst is not None]
+            self._mover_simple = all(obst.get("shape") in ONE_PRIMITIVE for obst in known)
+            self._mover_rest = [rest_orientation(obst) for obst in known]
             self._mover_templates = {}
+        if arrays and self._mover_simple and all(o is not None for o in self._mover_known):
+            known = [(None, obst) for obst in self._mover_known]
+            values = np.empty((len(ids), 7))
+            values[:, :3] = obstacles.position
+            values[:, 3:] = obstacles.orientation
+        else:
+            entries = obstacles.dicts() if arrays else obstacles
+            known = [
+                (o, obst) for o, obst in zip(entries, self._mover_known, strict=True) if obst is not None
+            ]
+            values = None
+            if self._mover_simple:
+                rows = [
+                    [*o["position"][:3], *(q if (q := o.get("orientation")) is not None else rest)]
+                    for (o, _), rest in zip(known, self._mover_rest, strict=True)
+                ]
+                values = np.array(rows, dtype=float) if all(len(r) == 7 for r in rows) else None
+            if values is None:
+                return b"".join(
+                    _entity_record(obstacle_entity(obst, t, o["position"], o.get("orientation"), MOVING_RGBA))
+                    for o, obst in known
+                )
         if not known:
             return b""
-        values = None
-        if self._mover_simple:
-            rows = [
-                [*o["position"][:3], *(q if (q := o.get("orientation")) is not None else rest)]
-                for (o, _), rest in zip(known, self._mover_rest, strict=True)
-            ]
-            values = np.array(rows, dtype=float) if all(len(r) == 7 for r in rows) else None
-        if values is None:
-            return b"".join(
-                _entity_record(obstacle_entity(obst, t, o["position"], o.get("orientation"), MOVING_RGBA))
-                for o, obst in known
-            )
         present = (values != 0.0) | np.signbit(values)  # proto3 leaves out +0.0 only
         key = (len(stamp), present.tobytes())
         template = self._mover_templates.get(key)
@@ -452,83 +454,6 @@ class FoxgloveScene:
         """Static obstacles, bounds, terrain and goals on ``/scene/world`` at time ``t``."""
         entities = world_entities(self.world, list(self._obstacles.values()), t)
         self._write(WORLD_TOPIC, b"".join(map(_entity_record, entities)), t)
-
-    def _sample_paths(self, t: float, rows: _Rows) -> None:
-        """Append the agents' current positions to their paths: to the open chunk (encoded:
-        the ``points`` fields of a LinePrimitive, only new points converted) and to the kept
-        points of the overview. An agent whose position equals its last point (standing)
-        adds none."""
-        last = self._path_last[rows.slots]
-        same = self._path_has[rows.slots] & (last == rows.pos).all(axis=1)
-        new = np.flatnonzero(~same)
-        if not len(new):
-            return
-        slots = rows.slots[new]
-        self._path_last[slots] = rows.pos[new]
-        self._path_has[slots] = True
-        room = self.path_max_points + 1 - self._path_points.shape[1]
-        if room > 0:  # path_max_points was raised after construction
-            self._path_points = np.pad(self._path_points, ((0, 0), (0, room), (0, 0)))
-        counts = self._path_count[slots]
-        chunks = self._chunk_bytes
-        for i in np.flatnonzero(counts == 0).tolist():  # first points: paths start (message order)
-            self._paths[rows.ids[new[i]]] = int(slots[i])
-            chunks[slots[i]] = bytearray()
-        self._path_points[slots, counts] = rows.pos[new]
-        counts += 1
-        self._path_count[slots] = counts
-        self._chunk_new[slots] = True
-        list(map(bytearray.extend, [chunks[k] for k in slots.tolist()], vector_fields(0x2A, rows.pos[new])))
-        for k in slots[counts > self.path_max_points].tolist():
-            # the overview's source: halve the resolution of the older part, keep the newest point
-            pts = self._path_points[k, : self.path_max_points + 1]
-            kept = np.concatenate([pts[:-1:2], pts[-1:]])
-            self._path_points[k, : len(kept)] = kept
-            self._path_count[k] = len(kept)
-
-    def _write_paths(self, t: float) -> None:
-        # Per agent with new points: the chunk ``path/<id>/<k>``, a SceneEntity with one
-        # LINE_STRIP assembled from its encoded points between the line's fixed fields (1-4:
-        # type, pose, thickness, scale_invariant) and its colour (6), in field order as
-        # protobuf writes them (tests/test_foxglove_tf_bytes.py). The next chunk starts at
-        # this one's last point.
-        stamp = timestamp_bytes(t)
-        parts = []
-        for aid, k in self._paths.items():
-            if not self._chunk_new[k]:
-                continue
-            pts = self._chunk_bytes[k]
-            eid = f"path/{aid}/{self._chunk_index[k]}".encode()
-            parts.append(self._line_entity(stamp, eid, pts, _LINE_HEAD, _LINE_COLOR))
-            self._chunk_bytes[k] = bytearray(point_bytes(tuple(self._path_last[k].tolist())))
-            self._chunk_new[k] = False
-            self._chunk_index[k] += 1
-        if parts:
-            self._write(PATHS_TOPIC, b"".join(parts), t)
-
-    def _write_overview(self, t: float) -> None:
-        """Every agent's whole path as ``path/<id>``, at most ``overview_points`` points evenly
-        spaced over the kept ones (the last always among them)."""
-        stamp = timestamp_bytes(t)
-        parts = []
-        for aid, k in self._paths.items():
-            n = int(self._path_count[k])
-            pts = self._path_points[k, :n]
-            if n > self.overview_points:
-                pts = pts[np.round(np.linspace(0, n - 1, self.overview_points)).astype(np.intp)]
-            encoded = b"".join(vector_fields(0x2A, pts))
-            parts.append(
-                self._line_entity(stamp, f"path/{aid}".encode(), encoded, _OVERVIEW_HEAD, _LINE_COLOR)
-            )
-        if parts:
-            self._write(OVERVIEW_TOPIC, b"".join(parts), t)
-
-    def _line_entity(self, stamp: bytes, eid: bytes, pts: bytes, head: bytes, color: bytes) -> bytes:
-        """A ``SceneUpdate.entities`` record: an entity with one line strip of the encoded ``pts``."""
-        line_len = len(head) + len(pts) + len(color)
-        ids = _FRAME_FIELD + b"\x1a" + varint(len(eid)) + eid
-        b = b"".join((stamp, ids, b"\x5a", varint(line_len), head, pts, color))
-        return _ENTITIES_TAG + varint(len(b)) + b
 
 
 def _entity_record(e: SceneEntity) -> bytes:
@@ -568,23 +493,6 @@ class _Rows(NamedTuple):
     vel: np.ndarray  # (n, 3)
     modes: list  # per agent: its mode (a Mode, a string or None)
     slots: np.ndarray  # (n,) per-agent state index
-
-
-def _line_fixed_fields(thickness: float) -> tuple[bytes, bytes]:
-    """The path line's fields before and after its points, serialized by protobuf itself."""
-    line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=thickness, scale_invariant=True)
-    set_pose(line.pose, (0.0, 0.0, 0.0))
-    color = Color()
-    set_color(color, PATH_RGBA)
-    c = color.SerializeToString()
-    return line.SerializeToString(), b"\x32" + varint(len(c)) + c
-
-
-PATH_RGBA = (0.12, 0.47, 0.71, 0.9)
-PATH_THICKNESS = 2.0  # px (scale invariant); the overview is drawn at half of it
-_LINE_HEAD, _LINE_COLOR = _line_fixed_fields(PATH_THICKNESS)
-_OVERVIEW_HEAD, _ = _line_fixed_fields(PATH_THICKNESS / 2)
-_FRAME_FIELD = b"\x12" + varint(len(FRAME)) + FRAME.encode()  # SceneEntity.frame_id
 
 
 __all__ = [
