@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 import time
 from pathlib import Path
@@ -101,11 +102,19 @@ def _write(path, world, steps, **kw):
     return scene
 
 
+PROTOBUF_TOPICS = ["/scene", "/scene/world", "/scene/paths", "/scene/paths/overview", "/tf"]
+
+
 def _decode(path):
     out: dict[str, list] = {}
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        for schema, channel, message, decoded in reader.iter_decoded_messages():
+        for schema, channel, message in reader.iter_messages():
+            if channel.topic == "/agents/speed":  # the one JSON channel
+                out.setdefault(channel.topic, []).append(
+                    (message.log_time, schema.name, json.loads(message.data))
+                )
+        for schema, channel, message, decoded in reader.iter_decoded_messages(topics=PROTOBUF_TOPICS):
             assert schema.encoding == "protobuf" and channel.message_encoding == "protobuf"
             out.setdefault(channel.topic, []).append((message.log_time, schema.name, decoded))
     return out
@@ -168,6 +177,13 @@ def test_scene_decodes_with_one_entity_per_agent_and_obstacle(tmp_path):
     line = overview.entities[0].lines[0]
     assert len(line.points) >= 2
     assert line.points[-1].x == pytest.approx(steps[-1][1][0]["position"][0])
+
+    # speeds with each /scene message: 2 m/s along x for every agent
+    speeds = msgs["/agents/speed"]
+    assert [t for t, _, _ in speeds] == [t for t, _, _ in msgs["/scene"]]
+    assert all(
+        m["speed"] == [2.0] * len(world["agents"]) and m["max"] == m["mean"] == 2.0 for _, _, m in speeds
+    )
 
     # one FrameTransforms message per step with a FrameTransform per agent, parent "world",
     # child = agent id, at the agent's position

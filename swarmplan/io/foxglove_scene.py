@@ -23,6 +23,10 @@ topic              schema                  content
                                            agent's whole path as ``path/<id>``, at most
                                            ``overview_points`` points (evenly spaced over
                                            the kept samples), drawn thinner
+``/agents/speed``  JSON                    with each ``/scene``: every agent's speed, their
+                                           mean and maximum (for plots)
+``/events/log``    ``foxglove.Log``        each ``/events`` message as a log entry (name:
+                                           the agent, message: kind and detail)
 ``/tf``            ``foxglove.FrameTransforms`` one message per step holding a
                                            ``FrameTransform`` per agent: parent ``world``,
                                            child = agent id
@@ -46,6 +50,7 @@ per-step cost.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from typing import Any, NamedTuple
@@ -53,6 +58,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
@@ -68,7 +74,7 @@ from swarmplan.io.foxglove_shapes import (
     rest_orientation,
     world_entities,
 )
-from swarmplan.io.json_floats import record_kernels
+from swarmplan.io.json_floats import Interleaved, record_kernels
 from swarmplan.io.wire import (
     DOUBLE,
     Patched,
@@ -85,6 +91,29 @@ from swarmplan.io.wire import (
 SCENE_TOPIC = "/scene"
 WORLD_TOPIC = "/scene/world"
 PATHS_TOPIC = "/scene/paths"
+SPEED_TOPIC = "/agents/speed"
+LOG_TOPIC = "/events/log"
+_EVENT_LEVELS = {
+    "collision": Log.ERROR,
+    "near_miss": Log.WARNING,
+    "stuck": Log.WARNING,
+    "timeout": Log.WARNING,
+}
+SPEED_SCHEMA = {
+    "title": "swarmplan.AgentSpeeds",
+    "type": "object",
+    "required": ["t", "mean", "max", "speed"],
+    "properties": {
+        "t": {"type": "number"},
+        "mean": {"type": "number"},
+        "max": {"type": "number"},
+        "speed": {
+            "type": "array",
+            "items": {"type": "number"},
+            "description": "per agent, /agents/state order",
+        },
+    },
+}
 OVERVIEW_TOPIC = "/scene/paths/overview"
 TF_TOPIC = "/tf"
 
@@ -137,6 +166,7 @@ class FoxgloveScene:
             # One message per step for all agents (one per agent made /tf ~95 % of the
             # messages of a 64-agent log and ~30 % of a pure-APF step's time).
             (TF_TOPIC, FrameTransforms),
+            (LOG_TOPIC, Log),
         ):
             name = cls.DESCRIPTOR.full_name
             if name not in schema_ids:
@@ -146,6 +176,13 @@ class FoxgloveScene:
             self._channels[topic] = writer.register_channel(
                 topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
             )
+        speed_schema = writer.register_schema(
+            name="swarmplan.AgentSpeeds", encoding="jsonschema", data=json.dumps(SPEED_SCHEMA).encode()
+        )
+        self._channels[SPEED_TOPIC] = writer.register_channel(
+            topic=SPEED_TOPIC, message_encoding="json", schema_id=speed_schema
+        )
+        self._speed_text: tuple[int, bool, Interleaved] | None = None
         defaults = world.get("agent_defaults") or {}
         self._radius = {
             str(a["id"]): float(a.get("radius", defaults.get("radius", 0.5)) or 0.5)
@@ -371,6 +408,34 @@ class FoxgloveScene:
         else:
             agents = self._scene_agents(stamp, rows, usual)
         self._write(SCENE_TOPIC, agents + self._movers_bytes(t, stamp, obstacles or []), t)
+        self._write_speeds(t, rows)
+
+    def write_event(self, event: dict[str, Any]) -> None:
+        """The event as a ``foxglove.Log`` entry on ``/events/log`` (Foxglove's Log panel):
+        name the agent (``run`` for the run's own), message its kind and detail."""
+        t = float(event["t"])
+        ns = int(round(t * 1e9))
+        entry = Log(
+            level=_EVENT_LEVELS.get(event["kind"], Log.INFO),
+            message=f"{event['kind']} {json.dumps(event['detail'], separators=(',', ':'), default=str)}",
+            name=event["agent"] or "run",
+        )
+        entry.timestamp.seconds, entry.timestamp.nanos = divmod(ns, 1_000_000_000)
+        self._write(LOG_TOPIC, entry.SerializeToString(), t)
+
+    def _write_speeds(self, t: float, rows: _Rows) -> None:
+        """``/agents/speed``: every agent's speed (m/s, 6 decimals) and their mean and maximum,
+        for plots (Foxglove's Plot panel: ``/agents/speed.max``, ``/agents/speed.speed[:]``)."""
+        n = len(rows.ids)
+        if not n:
+            return
+        speed = np.round(np.sqrt((rows.vel * rows.vel).sum(axis=1)), 6)
+        if self._speed_text is None or self._speed_text[:2] != (n, self.compiled):
+            pieces = [b'{"t":', b',"mean":', b',"max":', b',"speed":['] + [b","] * (n - 1) + [b"]}"]
+            self._speed_text = (n, self.compiled, Interleaved(pieces, compiled=self.compiled))
+        values = np.concatenate(([round(t, 9), round(float(speed.mean()), 6), speed.max()], speed))
+        if np.isfinite(values).all():
+            self._write(SPEED_TOPIC, self._speed_text[2].fill(values), t)
 
     def _scene_agents(self, stamp: bytes, rows: _Rows, keep: bool) -> bytes:
         """The agents' entities of a /scene message (``keep``: store them as the template

@@ -1,10 +1,10 @@
-"""MCAP recording of a run, per ``shared/spec/log-format.md``.
+"""MCAP recording of a run, per the log format (docs/log-format.md).
 
 JSON channels with ``jsonschema`` schemas, timestamps in simulation nanoseconds, zstd
-chunks, written by foxglove-sdk (``swarmplan.io.sink``; :meth:`McapRecorder.serve` also
-serves the channels live). The writer is flushed every ``flush_interval`` simulated seconds so a hard kill
-loses at most about that much; ``close`` always finishes the file (use the recorder as a
-context manager). Foxglove's protobuf scene channels are written alongside when enabled.
+chunks, written by foxglove-sdk (``swarmplan.io.sink``, which also serves them live with
+``live=(host, port)``). The writer is flushed every ``flush_interval`` simulated seconds so a
+hard kill loses at most about that much; ``close`` always finishes the file (use the recorder
+as a context manager). Foxglove's protobuf scene channels are written alongside when enabled.
 """
 
 from __future__ import annotations
@@ -257,10 +257,18 @@ def _clean(x: Any) -> Any:
 class McapRecorder:
     """Writes one run to ``path``. Use ``with McapRecorder(...) as rec:`` so the file is always finished."""
 
-    def __init__(self, path: str | Path, flush_interval: float = 1.0, foxglove: bool = True):
+    def __init__(
+        self,
+        path: str | Path,
+        flush_interval: float = 1.0,
+        foxglove: bool = True,
+        live: tuple[str, int] | None = None,
+    ):
+        """``live=(host, port)``: also serve every channel live (Foxglove WebSocket protocol;
+        port 0: a free one, see :attr:`live_port`)."""
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._writer = LogSink(self.path)
+        self._writer = LogSink(self.path, live)
         self._channels: dict[str, int] = {}
         for topic, schema in SCHEMAS.items():
             self.add_json_channel(topic, schema)
@@ -275,9 +283,10 @@ class McapRecorder:
         self._compiled = False  # set by the world's size (write_world)
         self.closed = False
 
-    def serve(self, host: str = "127.0.0.1", port: int = 8765) -> int:
-        """Also serve every channel live (Foxglove WebSocket protocol); returns the port bound."""
-        return self._writer.serve(host, port)
+    @property
+    def live_port(self) -> int | None:
+        """The live view's port (None when not served)."""
+        return self._writer.port
 
     def add_json_channel(self, topic: str, schema: dict[str, Any]) -> None:
         """Register a JSON channel (``schema["title"]`` names its JSON schema) beside the contract's."""
@@ -321,6 +330,7 @@ class McapRecorder:
     ) -> None:
         self._last_t = t
         self._states_written += 1
+        self._writer.tick(_ns(t))
         if self._states_written == 3 and self._compiled:
             # from the second step on (the first one and start-up stay without numba's load)
             self._states.compiled = self._obstacle_text.compiled = True
@@ -348,6 +358,8 @@ class McapRecorder:
 
     def write_event(self, event: dict[str, Any]) -> None:
         self._write("/events", float(event["t"]), event)
+        if self._scene is not None:
+            self._scene.write_event(event)
 
     def write_optimizer(self, msg: dict[str, Any]) -> None:
         self._write("/optimizer", float(msg["t"]), msg)

@@ -13,8 +13,10 @@ from __future__ import annotations
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -111,6 +113,39 @@ def run_episode(
     return summary
 
 
+@dataclass(frozen=True)
+class LiveView:
+    """Serve the run live (Foxglove WebSocket protocol) on ``host:port`` (port 0: a free one),
+    paced to ``speed`` times real time (0: as fast as it runs)."""
+
+    host: str = "127.0.0.1"
+    port: int = 8765
+    speed: float = 1.0
+
+
+class Pacer:
+    """Holds each step until its simulated time, divided by ``speed``, has passed on the wall
+    clock since the reset (waits in slices of at most 50 ms, so a stop request is seen)."""
+
+    def __init__(self, speed: float, should_stop: Callable[[], bool] = lambda: False):
+        if not speed > 0:
+            raise ValueError(f"speed: must be > 0, got {speed}")
+        self.speed = float(speed)
+        self.should_stop = should_stop
+        self._start = 0.0
+
+    def on_reset(self, result: ResetResult) -> None:
+        self._start = time.perf_counter()
+
+    def on_step(self, result: StepResult) -> None:
+        due = self._start + result.state.t / self.speed
+        while not self.should_stop():
+            left = due - time.perf_counter()
+            if left <= 0:
+                return
+            time.sleep(min(left, 0.05))
+
+
 def apply_overrides(world: World, optimizer: str | None, max_time: float | None) -> World:
     changes: dict[str, Any] = {}
     if max_time is not None:
@@ -144,26 +179,44 @@ def simulate(
     progress: bool = False,
     stream: TextIO = sys.stderr,
     stop_on_signals: bool = False,
+    live: LiveView | None = None,
 ) -> dict[str, Any]:
     """Run ``world`` to its end with ``seed``, recording to ``log_path``; returns the summary.
 
     The log is finished whatever happens: on an exception the summary says ``interrupted``
     and the exception propagates after the file is closed. With ``stop_on_signals`` (the
     command line), Ctrl-C and SIGTERM end the run at the next step boundary instead, and the
-    summary says ``interrupted``; a second signal stops at once.
+    summary says ``interrupted``; a second signal stops at once. With ``live`` the log's
+    channels are also served live (its address is printed on ``stream``), the run paced as
+    it says; the server stops when the log is closed.
     """
-    from swarmplan.io.recording import McapRecorder  # here: mcap and protobuf cost ~0.1 s of start-up
+    from swarmplan.io.recording import McapRecorder  # here: the writer's import costs start-up
 
+    if live is not None and log_path is None:
+        raise ValueError("a live view needs a log path (the log is written as well)")
     recorder = (
         McapRecorder(
             log_path,
             flush_interval=world.resolved["log"]["flush_interval"],
             foxglove=world.resolved["log"]["foxglove"],
+            live=None if live is None else (live.host, live.port),
         )
         if log_path is not None
         else None
     )
-    sim = Simulation(world, planner=make_planner(world))
+    if live is not None:
+        print(
+            f"live view: ws://{live.host}:{recorder.live_port} (in Foxglove: Open connection, "
+            "Foxglove WebSocket)",
+            file=stream,
+            flush=True,
+        )
+    try:
+        sim = Simulation(world, planner=make_planner(world))
+    except BaseException:
+        if recorder is not None:
+            recorder.close()
+        raise
     from tqdm import tqdm  # here, not at import: start-up (importlib.metadata, ~0.1 s)
 
     bar = tqdm(
@@ -182,7 +235,10 @@ def simulate(
 
     try:
         with _stop_requests(stop_on_signals) as stop_requested:
-            return run_episode(sim, seed, observers=[show], should_stop=stop_requested, recorder=recorder)
+            observers: list[Observer | StepObserver] = [show]
+            if live is not None and live.speed > 0:
+                observers.append(Pacer(live.speed, stop_requested))
+            return run_episode(sim, seed, observers=observers, should_stop=stop_requested, recorder=recorder)
     finally:
         bar.close()
 
