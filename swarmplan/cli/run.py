@@ -188,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
             progress=not args.quiet and sys.stderr.isatty(),
             stop_on_signals=True,
             live=live,
+            notices=not args.quiet,
         )
     except RuntimeError as exc:
         if live is None or "bind" not in str(exc):

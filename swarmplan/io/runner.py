@@ -22,6 +22,7 @@ from typing import Any, TextIO
 
 from swarmplan.core import Event, Observer, Recorder, ResetResult, StepResult
 from swarmplan.planner import make_planner, validate_planner_settings
+from swarmplan.runtime.kernel_cache import COMPILE_NOTICE, uncompiled_kernel_modules
 from swarmplan.sim import Simulation
 from swarmplan.world import World, WorldError
 
@@ -146,6 +147,31 @@ class Pacer:
             time.sleep(min(left, 0.05))
 
 
+def kernel_modules_for(world: World) -> list[Path]:
+    """The compiled-kernel modules a run of ``world`` loads: the swept checks; with a planner
+    the escape cost and the optimizer's generations; at swarm size the step's field and the
+    recorder's writers."""
+    import importlib.util
+    import re
+
+    from swarmplan import optimizers
+    from swarmplan.geometry.compiled import use_compiled
+
+    root = Path(__file__).resolve().parents[1]
+    names = ["geometry/sweep_kernels.py"]
+    optimizer = world.planner["optimizer"]["name"]
+    if optimizer != "none":
+        names += ["planner/_segment_kernel.py", "planner/_decode_kernel.py", "optimizers/_kernels.py"]
+        spec = importlib.util.find_spec(type(optimizers.make(optimizer)).__module__)
+        source = Path(spec.origin).read_text(encoding="utf-8") if spec and spec.origin else ""
+        names += [
+            f"optimizers/{m}.py" for m in re.findall(r"from swarmplan\.optimizers import (_\w+)", source)
+        ]
+    if use_compiled(len(world.agents)):
+        names += ["flight/_apf_kernel.py", "geometry/_field_kernels.py", "io/_record_kernels.py"]
+    return [root / n for n in dict.fromkeys(names) if (root / n).exists()]
+
+
 def apply_overrides(world: World, optimizer: str | None, max_time: float | None) -> World:
     changes: dict[str, Any] = {}
     if max_time is not None:
@@ -180,6 +206,7 @@ def simulate(
     stream: TextIO = sys.stderr,
     stop_on_signals: bool = False,
     live: LiveView | None = None,
+    notices: bool = False,
 ) -> dict[str, Any]:
     """Run ``world`` to its end with ``seed``, recording to ``log_path``; returns the summary.
 
@@ -188,7 +215,9 @@ def simulate(
     command line), Ctrl-C and SIGTERM end the run at the next step boundary instead, and the
     summary says ``interrupted``; a second signal stops at once. With ``live`` the log's
     channels are also served live (its address is printed on ``stream``), the run paced as
-    it says; the server stops when the log is closed.
+    it says; the server stops when the log is closed. With ``notices``, a first run says on
+    ``stream`` that the kernels it needs are being compiled (once per machine). The progress
+    bar ends at 100 % when the run ends by itself.
     """
     from swarmplan.io.recording import McapRecorder  # here: the writer's import costs start-up
 
@@ -217,6 +246,8 @@ def simulate(
         if recorder is not None:
             recorder.close()
         raise
+    if notices and uncompiled_kernel_modules(kernel_modules_for(world)):
+        print(COMPILE_NOTICE, file=stream, flush=True)
     from tqdm import tqdm  # here, not at import: start-up (importlib.metadata, ~0.1 s)
 
     bar = tqdm(
@@ -238,7 +269,13 @@ def simulate(
             observers: list[Observer | StepObserver] = [show]
             if live is not None and live.speed > 0:
                 observers.append(Pacer(live.speed, stop_requested))
-            return run_episode(sim, seed, observers=observers, should_stop=stop_requested, recorder=recorder)
+            summary = run_episode(
+                sim, seed, observers=observers, should_stop=stop_requested, recorder=recorder
+            )
+        if not summary["interrupted"]:
+            bar.total = bar.n  # ended before max_time (every agent done): the bar says 100 %
+            bar.refresh()
+        return summary
     finally:
         bar.close()
 
