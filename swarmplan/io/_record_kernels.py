@@ -6,7 +6,8 @@
 tables (a multiple of 1e-6 with ``1e-4 <= |x| < 2**33``, or zero); any other value makes it
 give up (-1) and the numpy path writes the message. :func:`headings` turns horizontal
 velocities into yaw quaternions with the C library's ``atan2``, ``sin`` and ``cos``, as
-Python's ``math`` does (tests/test_record_kernels.py compares the bits).
+Python's ``math`` does (tests/test_record_kernels.py compares the bits). :func:`patch` writes
+a step's timestamp and numbers into a protobuf message's bytes (``wire.Patched``).
 """
 
 from __future__ import annotations
@@ -84,3 +85,20 @@ def headings(vel: np.ndarray, slots: np.ndarray, qz: np.ndarray, qw: np.ndarray)
             half = math.atan2(vy, vx) / 2.0
             qz[slots[i]] = math.sin(half)
             qw[slots[i]] = math.cos(half)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def patch(
+    buf: np.ndarray, stamp_at: np.ndarray, stamp: np.ndarray, double_at: np.ndarray, values: np.ndarray
+) -> None:
+    """``stamp`` (bytes as uint8) at every ``stamp_at`` and each value's 8 little-endian bytes at
+    its ``double_at`` in ``buf`` (what ``swarmplan.io.wire.Patched.fill`` scatters with numpy)."""
+    for i in range(len(stamp_at)):
+        at = stamp_at[i]
+        for j in range(len(stamp)):
+            buf[at + j] = stamp[j]
+    raw = values.view(np.uint8)
+    for i in range(len(double_at)):
+        at = double_at[i]
+        for j in range(8):
+            buf[at + j] = raw[8 * i + j]

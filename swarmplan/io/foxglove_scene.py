@@ -53,6 +53,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
+from types import ModuleType
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -221,6 +222,10 @@ class FoxgloveScene:
         self.messages_written = 0
         self.compiled = False  # headings by a compiled kernel (the same bits)
 
+    def _kernels(self) -> ModuleType | None:
+        """The compiled writers once ``compiled`` is set (None before)."""
+        return record_kernels() if self.compiled else None
+
     # ------------------------------------------------------------------ low level
     def _write(self, topic: str, data: bytes, t: float):
         ns = int(round(t * 1e9))
@@ -339,7 +344,9 @@ class FoxgloveScene:
         usual = bool((rows.pos != 0.0).all() and (qz != 0.0).all() and (qw != 0.0).all())
         template = self._tf_templates.get(len(stamp)) if usual else None
         if template is not None:
-            self._write(TF_TOPIC, template.fill(stamp, np.column_stack((rows.pos, qz, qw))), t)
+            self._write(
+                TF_TOPIC, template.fill(stamp, np.column_stack((rows.pos, qz, qw)), self._kernels()), t
+            )
             return
         fields = pose_fields(rows.pos, qz, qw)
         shift = len(stamp) - self._tf_stamp_len
@@ -404,7 +411,7 @@ class FoxgloveScene:
         usual = bool((rows.pos != 0.0).all())
         template = self._scene_templates.get(len(stamp)) if usual else None
         if template is not None:
-            agents = template.fill(stamp, rows.pos)
+            agents = template.fill(stamp, rows.pos, self._kernels())
         else:
             agents = self._scene_agents(stamp, rows, usual)
         self._write(SCENE_TOPIC, agents + self._movers_bytes(t, stamp, obstacles or []), t)
@@ -513,7 +520,7 @@ class FoxgloveScene:
                 _entity_record(obstacle_entity(obst, t, list(v[:3]), list(v[3:]), MOVING_RGBA))
                 for (_, obst), v in zip(known, values.tolist(), strict=True)
             )
-        return template.fill(stamp, values[present])
+        return template.fill(stamp, values[present], self._kernels())
 
     def write_world(self, t: float = 0.0) -> None:
         """Static obstacles, bounds, terrain and goals on ``/scene/world`` at time ``t``."""
