@@ -80,3 +80,17 @@ def test_a_swarm_log_is_the_same_with_and_without_the_kernels(tmp_path: Path, mo
     for topic in compiled:
         if topic != "/summary":  # wall time
             assert compiled[topic] == plain[topic], topic
+
+
+def test_a_state_that_is_not_finite_is_refused_compiled_or_not(tmp_path: Path):
+    from swarmplan.core import AgentStates, Mode
+    from swarmplan.io.recording import McapRecorder
+
+    pos = np.array([[1.0, 2.0, np.nan]])
+    agents = AgentStates(("a",), pos, np.zeros((1, 3)), np.array([Mode.APF], dtype=object), np.ones((1, 3)))
+    for compiled in (False, True):
+        rec = McapRecorder(tmp_path / f"{compiled}.mcap", foxglove=False)
+        rec._states.compiled = compiled
+        with pytest.raises(ValueError, match="JSON compliant"):
+            rec.write_state(0.1, agents, None)
+        rec.close()

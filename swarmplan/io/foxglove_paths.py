@@ -58,7 +58,7 @@ class PathTrails:
     """The agents' paths by slot (an index per agent, given by the scene): :meth:`sample` each
     scene update, :meth:`chunks` and :meth:`overview` give the messages' bytes."""
 
-    def __init__(self, max_points: int = 400, overview_points: int = 64):
+    def __init__(self, max_points: int = 400, overview_points: int = 32):
         self.max_points = max(4, int(max_points))
         self.overview_points = max(2, int(overview_points))
         self.order: dict[str, int] = {}  # agents with a path, in the order they started -> slot

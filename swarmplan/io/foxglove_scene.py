@@ -149,7 +149,7 @@ class FoxgloveScene:
         path_max_points: int = 400,
         tf_period: float = 0.0,
         overview_period: float = 5.0,
-        overview_points: int = 64,
+        overview_points: int = 32,
     ):
         self.writer = writer
         self.world = world

@@ -109,21 +109,26 @@ class Interleaved:
         self._counter = np.arange(len(self._pieces) + n * _WIDTH, dtype=np.intp)
         self._piece_start = np.cumsum(piece_len) - piece_len
 
+    def fill_compiled(self, values: np.ndarray) -> bytes | None:
+        """The text by the compiled pass; None when a value is not in its fast form (more than
+        6 decimals, an exponent, not finite)."""
+        values = np.ascontiguousarray(np.ravel(values), dtype=float)
+        if len(values) != self._n:
+            raise ValueError(f"{self._n} numbers expected, got {len(values)}")
+        size = record_kernels().interleave(
+            self._pieces, self._piece_start, self._piece_len, values, self._out
+        )
+        return self._out[:size].tobytes() if size >= 0 else None
+
     def fill(self, values: np.ndarray) -> bytes:
         """The text with ``values`` (n numbers, any shape, row-major) in place."""
         values = np.ravel(values)
         if len(values) != self._n:
             raise ValueError(f"{self._n} numbers expected, got {len(values)}")
         if self.compiled:
-            size = record_kernels().interleave(
-                self._pieces,
-                self._piece_start,
-                self._piece_len,
-                np.ascontiguousarray(values, dtype=float),
-                self._out,
-            )
-            if size >= 0:
-                return self._out[:size].tobytes()
+            out = self.fill_compiled(values)
+            if out is not None:
+                return out
         chars, start, length = float_chars(values)
         seg_len = self._seg_len
         seg_len[1::2] = length

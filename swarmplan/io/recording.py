@@ -169,8 +169,8 @@ class _StateEncoder:
         """The message's bytes, or None when a value is not finite (the caller then goes
         through ``json``, which refuses it as before)."""
         pos, vel = agents.position, agents.velocity
-        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
-            return None
+        if not self.compiled and not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            return None  # (compiled: the numbers' pass refuses them, then the check below)
         goal = np.ascontiguousarray(agents.goal, dtype=float)
         key = (agents.ids, goal.tobytes())
         if key != self._key:
@@ -203,6 +203,12 @@ class _StateEncoder:
         rows[:, 0:3], rows[:, 3:6] = pos, vel
         if isinstance(self._text, str):
             return (self._text % tuple(values.tolist())).encode()
+        if self._text.compiled:
+            data = self._text.fill_compiled(values)
+            if data is not None:
+                return data
+            if not np.isfinite(values).all():
+                return None
         return self._text.fill(values)
 
 
