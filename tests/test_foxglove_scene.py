@@ -185,11 +185,11 @@ def test_scene_decodes_with_one_entity_per_agent_and_obstacle(tmp_path):
         m["speed"] == [2.0] * len(world["agents"]) and m["max"] == m["mean"] == 2.0 for _, _, m in speeds
     )
 
-    # one FrameTransforms message per step with a FrameTransform per agent, parent "world",
-    # child = agent id, at the agent's position
+    # a FrameTransforms message with each /scene message, a FrameTransform per agent, parent
+    # "world", child = agent id, at the agent's position
     tfs = msgs["/tf"]
     assert all(name == "foxglove.FrameTransforms" for _, name, _ in tfs)
-    assert len(tfs) >= len(steps)
+    assert [t for t, _, _ in tfs] == [t for t, _, _ in msgs["/scene"]]
     per_agent: dict[str, int] = {}
     for log_time, _, msg in tfs:
         assert [tf.child_frame_id for tf in msg.transforms] == [a["id"] for a in world["agents"]]
@@ -197,7 +197,7 @@ def test_scene_decodes_with_one_entity_per_agent_and_obstacle(tmp_path):
             assert tf.parent_frame_id == "world"
             per_agent[tf.child_frame_id] = per_agent.get(tf.child_frame_id, 0) + 1
             assert tf.timestamp.seconds * 10**9 + tf.timestamp.nanos == log_time
-    assert all(n >= len(steps) for n in per_agent.values())
+    assert all(n == len(tfs) for n in per_agent.values())
     last_t, _, last_tf = tfs[-1]
     assert last_t == round(steps[-1][0] * 1e9)
     for tf, a in zip(last_tf.transforms, steps[-1][1], strict=True):

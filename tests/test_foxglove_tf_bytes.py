@@ -59,7 +59,7 @@ def test_tf_bytes_equal_protobuf_serializer(seed):
     ids = ["a0", "uav-1", "x" * 200, "ü"]  # a child id longer than 127 bytes: two-byte length
     world = {"agents": [{"id": i} for i in ids]}
     cap = _Capture()
-    scene = FoxgloveScene(cap, world, scene_period=1e9, path_period=1e9)
+    scene = FoxgloveScene(cap, world, scene_period=1e9, path_period=1e9, tf_period=0.0)
     last: dict[str, FrameTransform] = {}
     special = [0.0, -0.0, 1.0, -2.5]
     for step in range(40):
@@ -104,7 +104,7 @@ def test_scene_agent_bytes_equal_protobuf_serializer(seed):
     radius = {"a0": 0.5, "uav-1": 1.25, "x" * 150: 0.3}
     world = {"agents": [{"id": i, "radius": r} for i, r in radius.items()]}
     cap = _Capture()
-    scene = FoxgloveScene(cap, world, scene_period=0.0, path_period=1e9)
+    scene = FoxgloveScene(cap, world, scene_period=0.0, path_period=1e9, tf_period=0.0)
     modes = [str(m) for m in Mode] + ["unknown"]
     for step in range(30):
         t = step * 0.1
@@ -250,6 +250,7 @@ def test_templated_steps_equal_protobuf_serializer(seed):
         {"agents": [{"id": i, "radius": r} for i, r in radius.items()]},
         scene_period=0.0,
         path_period=1e9,
+        tf_period=0.0,
     )
     last: dict[str, FrameTransform] = {}
     modes = {i: "apf" for i in radius}

@@ -40,6 +40,17 @@ def test_compiled_numbers_equal_json(seed):
     )
 
 
+def test_compiled_small_numbers_take_repr_exponent_form():
+    """Below 1e-4 repr writes an exponent (5e-06, 1.2e-05): every such multiple of 1e-6 and
+    its negative, compiled (no fallback: the compiled pass alone)."""
+    y = np.array([k / 1e6 for k in range(1, 100)] + [-k / 1e6 for k in range(1, 100)] + [1e-4, -0.0])
+    pieces = [b"["] + [b","] * (len(y) - 1) + [b"]"]
+    assert (
+        Interleaved(pieces, compiled=True).fill_compiled(y)
+        == json.dumps(y.tolist(), separators=(",", ":")).encode()
+    )
+
+
 def test_compiled_headings_equal_math():
     rng = np.random.default_rng(1)
     vel = rng.normal(0, 5, (5000, 3))

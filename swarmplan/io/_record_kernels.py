@@ -2,9 +2,10 @@
 :func:`swarmplan.io.json_floats.record_kernels` for swarm-sized worlds.
 
 :func:`interleave` writes JSON text with numbers between fixed pieces, each number as
-``repr`` writes it when it has the form :mod:`~swarmplan.io.json_floats` decides by its digit
-tables (a multiple of 1e-6 with ``1e-4 <= |x| < 2**33``, or zero); any other value makes it
-give up (-1) and the numpy path writes the message. :func:`headings` turns horizontal
+``repr`` writes it when it is a multiple of 1e-6 below 2**33 (what ``round(x, 6)`` gives:
+``[-]int.frac`` without the fraction's trailing zeros, and below 1e-4 ``repr``'s exponent form,
+``5e-06``, ``1.2e-05``); any other value makes it give up (-1) and the numpy path writes the
+message. :func:`headings` turns horizontal
 velocities into yaw quaternions with the C library's ``atan2``, ``sin`` and ``cos``, as
 Python's ``math`` does (tests/test_record_kernels.py compares the bits). :func:`patch` writes
 a step's timestamp and numbers into a protobuf message's bytes (``wire.Patched``).
@@ -19,6 +20,7 @@ from numba import njit
 
 _LIMIT = 2.0**33
 _ZERO, _DOT, _MINUS = 48, 46, 45
+_EXP = np.frombuffer(b"e-0", dtype=np.uint8).copy()  # and the exponent's last digit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -41,13 +43,31 @@ def interleave(
         if not ax < _LIMIT:  # NaN too
             return -1
         k = np.rint(ax * 1e6)
-        if k / 1e6 != ax or (ax < 1e-4 and ax != 0.0):
+        if k / 1e6 != ax:
             return -1
         ki = np.int64(k)
         whole, frac = ki // 1000000, ki % 1000000
         if math.copysign(1.0, x) < 0.0:
             out[pos] = _MINUS
             pos += 1
+        if 0 < ki < 100:  # below 1e-4 repr writes an exponent: d e-06, d e-05 or d.d e-05
+            if ki < 10:
+                out[pos] = _ZERO + ki
+                pos += 1
+                exp = 6
+            else:
+                out[pos] = _ZERO + ki // 10
+                pos += 1
+                if ki % 10:
+                    out[pos] = _DOT
+                    out[pos + 1] = _ZERO + ki % 10
+                    pos += 2
+                exp = 5
+            for j in range(3):
+                out[pos + j] = _EXP[j]
+            out[pos + 3] = _ZERO + exp
+            pos += 4
+            continue
         digits = 1
         w = whole
         while w >= 10:

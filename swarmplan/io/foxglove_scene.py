@@ -27,9 +27,9 @@ topic              schema                  content
                                            mean and maximum (for plots)
 ``/events/log``    ``foxglove.Log``        each ``/events`` message as a log entry (name:
                                            the agent, message: kind and detail)
-``/tf``            ``foxglove.FrameTransforms`` one message per step holding a
-                                           ``FrameTransform`` per agent: parent ``world``,
-                                           child = agent id
+``/tf``            ``foxglove.FrameTransforms`` every ``tf_period`` s (the scene's rate) a
+                                           message holding a ``FrameTransform`` per agent:
+                                           parent ``world``, child = agent id
 =================  ======================  ==============================================
 
 Static, dynamic and path entities are on separate topics because Foxglove, after a seek,
@@ -147,7 +147,7 @@ class FoxgloveScene:
         scene_period: float = 0.2,
         path_period: float = 1.0,
         path_max_points: int = 400,
-        tf_period: float = 0.0,
+        tf_period: float = 0.2,
         overview_period: float = 5.0,
         overview_points: int = 32,
     ):
