@@ -17,7 +17,6 @@ import numpy as np
 
 from swarmplan import optimizers
 from swarmplan.geometry.rotation import rotation_matrix
-from swarmplan.track.config import parse_tracker
 from swarmplan.world.checker import Checker, join, typename
 from swarmplan.world.checks import check_placements
 from swarmplan.world.meshes import load_mesh
@@ -36,6 +35,7 @@ from swarmplan.world.model import (
     WorldError,
 )
 from swarmplan.world.planner_config import check_escape, check_global
+from swarmplan.world.tracker_config import parse_tracker
 
 AGENT_DEFAULTS: dict[str, Any] = {
     "model": "multirotor",
