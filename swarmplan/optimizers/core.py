@@ -17,6 +17,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from swarmplan.runtime.compiled import kernel_module
+
 CostFn = Callable[[np.ndarray], np.ndarray]
 Callback = Callable[[int, np.ndarray, float], "bool | None"]
 
@@ -59,10 +61,7 @@ def kernels() -> Any:
     built; the planner's start-up (which imports the registry) stays free of it.
     """
     global _kernels
-    if _kernels is None:
-        from swarmplan.optimizers import _kernels as k
-
-        _kernels = k
+    _kernels = kernel_module("swarmplan.optimizers._kernels")
     return _kernels
 
 

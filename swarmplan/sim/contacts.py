@@ -7,7 +7,8 @@ import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.geometry.collision import first_hits, loaded_kernels, segment_segment_min_distance
+from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.metrics import NOTHING, Tally
@@ -87,16 +88,15 @@ def arrivals(
     speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.flight.apf.commanded_velocity``)
     brings it to rest at the goal, and arrives once slow enough.
     """
-    compiled = loaded_kernels()
-    if compiled is None:
-        # The reference path, until the kernels are loaded (equal answers).
+    if not use_compiled_checks(len(ids)):
+        # Below swarm size: numpy (the same answers as the kernel).
         flying = np.flatnonzero(s.active)
         d = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
         arrive = (d <= tolerance) & (norm3(vel1[flying]) <= stop_speed[flying] * (1.0 + 1e-9))
         rows, dmins = flying[arrive], d[arrive]
     else:
         # Compiled: segment_segment_min_distance to the goal and the speed test, term for term.
-        rows, dmins = compiled.arrivals(
+        rows, dmins = sweep_kernels().arrivals(
             np.ascontiguousarray(pos0, dtype=float),
             np.ascontiguousarray(pos1, dtype=float),
             np.ascontiguousarray(s.goal, dtype=float),
@@ -133,14 +133,12 @@ class NearMisses:
         if len(pos) < 2:
             return NOTHING
         # The pairs of ``separation_violations`` (sorted keys i * n + j, i.e. the all-pairs
-        # row-major order: same events, same order), from a compiled sweep and prune once the
-        # kernels are loaded.
-        compiled = loaded_kernels()
-        if compiled is None:
+        # row-major order: same events, same order), from a compiled sweep and prune at swarm size.
+        if not use_compiled_checks(self._n):
             pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
             keys = pi.astype(np.int64) * self._n + pj
         else:
-            keys = compiled.separation_keys(
+            keys = sweep_kernels().separation_keys(
                 np.ascontiguousarray(pos, dtype=float),
                 self._separation,
                 self._radius,

@@ -18,13 +18,8 @@ import numpy as np
 from swarmplan.core import Event, Mode
 from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
-from swarmplan.geometry.collision import (
-    SLACK,
-    first_hits,
-    kernels,
-    loaded_kernels,
-    segment_segment_min_distance,
-)
+from swarmplan.geometry.collision import SLACK, first_hits, segment_segment_min_distance
+from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
@@ -81,7 +76,6 @@ class SafetyFilter:
         self.world = world
         self.params = params
         self.scene = scene
-        self._filtered = 0
         self._bounds = (
             np.ascontiguousarray(world.bounds_min, dtype=float),
             np.ascontiguousarray(world.bounds_max, dtype=float),
@@ -239,16 +233,16 @@ class SafetyFilter:
         free distance along ``u``: a bisection on the swept check (monotone in length), 6
         halvings, under-estimated by at most reach / 64.
 
-        Over flat ground the compiled kernel runs every row's bisection; rows where it cannot
-        decide a check (a body within ``BAND`` of contact, or a mesh), and terrain worlds, run
-        the same bisection through :func:`first_hits` (FCL decides)."""
+        In swarm-sized worlds over flat ground the compiled kernel runs every row's bisection;
+        rows where it cannot decide a check (a body within ``BAND`` of contact, or a mesh),
+        terrain worlds and smaller worlds run the same bisection through :func:`first_hits`
+        (FCL decides)."""
         mv = self.scene.moving_mask
         cw = self.scene.collision
         redo = np.arange(len(start))
         hit_rows, free = [], []
-        compiled = loaded_kernels()
-        if compiled is not None and not self.world.peaks:
-            status, lo = compiled.free_distances(
+        if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
+            status, lo = sweep_kernels().free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
                 self._bounds[0], self._bounds[1],
                 *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
@@ -302,11 +296,6 @@ class SafetyFilter:
         q0, q1, t1 = window.q0, window.q1, window.t1
         events: list[Event] = []
         counts: list[tuple[str, int]] = []
-        self._filtered += 1
-        if self._filtered == 2:
-            # The compiled checks from the second step on: the first step of a process stays
-            # free of numba's load (~1 s); until then the reference paths give the same answers.
-            kernels()
         dt = self.world.dt
         ids = self.params.ids
         mv = self.scene.moving_mask
