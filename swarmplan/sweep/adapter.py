@@ -87,7 +87,7 @@ def build_world(world_path: str | Path, optimizer: str, overrides: tuple[tuple[s
         set_dotted(raw, key, value)
     names = optimizers.available()
     world = parse_world(copy.deepcopy(raw), base_dir=path.parent, source=path, optimizer_names=names)
-    if optimizer != world.planner["optimizer"]["name"]:
+    if optimizer != world.planner_config.optimizer.name:
         # Another algorithm than the file's: ``apply_overrides`` drops the file's params (they are
         # settings of its own algorithm), so params the sweep overrides are set on the raw mapping
         # and validated against the algorithm that will run them.
