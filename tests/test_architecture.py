@@ -277,3 +277,16 @@ def test_top_level_holds_only_core_and_thin_entry_points() -> None:
         ours = [t for t in import_graph()[mod] if t != "swarmplan.cli"]
         assert len(ours) == 1 and ours[0].startswith("swarmplan.cli."), (mod, ours)
         assert len(text.splitlines()) <= 12, mod
+
+
+def test_readme_layout_lists_every_package_bottom_up() -> None:
+    """The README's layout table has a row per package (and core.py), in the order of LAYERS."""
+    import re
+
+    text = (PACKAGE.parent / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Layout (data flow)", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| `swarmplan/([a-z_]+)(?:/|\.py)` \|", section, re.M)
+    packages = sorted(p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file())
+    assert sorted(rows) == sorted([*packages, "core"])
+    rank = {pkg: k for k, layer in enumerate(LAYERS) for pkg in layer}
+    assert [rank[r] for r in rows] == sorted(rank[r] for r in rows)
