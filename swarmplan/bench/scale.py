@@ -1,4 +1,4 @@
-"""Speed at swarm scale, every figure of issue 10 beside its target, in one run.
+"""Speed at swarm scale, every figure beside its target, in one run.
 
 ``python -m swarmplan.bench scale [--quick]`` measures, with the MCAP recorder on:
 
@@ -196,7 +196,7 @@ def main(args: argparse.Namespace) -> int:
 
     quick = bool(args.quick)
     print(
-        "Speed at swarm scale (issue 10). Recording on everywhere. Wall-clock figures: CPU share "
+        "Speed at swarm scale. Recording on everywhere. Wall-clock figures: CPU share "
         "= process CPU time / wall time (below ~95 % the machine was loaded)."
     )
     print("\n| figure | measured | target | verdict |")
