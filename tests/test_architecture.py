@@ -290,3 +290,46 @@ def test_readme_layout_lists_every_package_bottom_up() -> None:
     assert sorted(rows) == sorted([*packages, "core"])
     rank = {pkg: k for k, layer in enumerate(LAYERS) for pkg in layer}
     assert [rank[r] for r in rows] == sorted(rank[r] for r in rows)
+
+
+LAZY_IMPORTS: dict[tuple[str, str], str] = {
+    ("swarmplan.io.runner", "swarmplan.io.recording"): "mcap and protobuf only when a log is written",
+    ("swarmplan.planner", "swarmplan.planner.global_path"): "cost models and encodings only in mode: global",
+    ("swarmplan.replay.recording", "swarmplan.replay.geometry"): "scipy rotations for untracked obstacles",
+    ("swarmplan.track.output", "swarmplan.io.foxglove_scene"): "Foxglove schemas only for a scene",
+    ("swarmplan.flight.apf", "swarmplan.flight._apf_kernel"): "numba only in swarm-sized worlds",
+}
+"""Function-level imports of the package's modules outside ``cli/`` and ``bench/`` (whose
+subcommand modules the command line imports to build its help), each with the start-up cost
+it keeps away. Compiled kernels load through ``runtime.compiled.kernel_module`` instead."""
+
+
+def function_level_imports() -> set[tuple[str, str]]:
+    """(module, our module it imports inside a function) outside cli/ and bench/."""
+    out: set[tuple[str, str]] = set()
+    modules = {module_name(p) for p in PACKAGE.rglob("*.py")}
+    for path in PACKAGE.rglob("*.py"):
+        mod = module_name(path)
+        if package_of(mod) in ("cli", "bench"):
+            continue
+        own = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        for fn in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(fn):
+                if isinstance(node, ast.ImportFrom):
+                    base = node.module or ""
+                    if node.level:
+                        parts = own.split(".")
+                        base = ".".join(parts[: len(parts) - node.level + 1] + ([base] if base else []))
+                    if base.startswith("swarmplan"):
+                        for a in node.names:  # ``from pkg import module`` names the module
+                            sub = f"{base}.{a.name}"
+                            out.add((mod, sub if sub in modules else base))
+                elif isinstance(node, ast.Import):
+                    out.update((mod, a.name) for a in node.names if a.name.startswith("swarmplan"))
+    return out
+
+
+def test_lazy_imports_only_where_start_up_needs_them() -> None:
+    assert function_level_imports() - set(LAZY_IMPORTS) == set()
