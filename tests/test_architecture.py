@@ -333,3 +333,21 @@ def function_level_imports() -> set[tuple[str, str]]:
 
 def test_lazy_imports_only_where_start_up_needs_them() -> None:
     assert function_level_imports() - set(LAZY_IMPORTS) == set()
+
+
+def test_the_product_speaks_of_itself() -> None:
+    """No numbers of the work items that changed it (the words issue or stop and a number) and
+    no words of how it was made, in the code, tests, docs, worlds or README."""
+    import re
+
+    words = re.compile(r"\b(?:issue|stop)[ -]\d|\bsessions?\b|\bissue's\b", re.I)
+    root = PACKAGE.parent
+    files = [root / "README.md", *root.glob("docs/*.md"), *root.glob("worlds/**/*.yaml")]
+    files += [*PACKAGE.rglob("*.py"), *root.glob("tests/**/*.py")]
+    found = [
+        f"{p.relative_to(root)}:{k}: {line.strip()}"
+        for p in files
+        for k, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+        if words.search(line)
+    ]
+    assert found == []
