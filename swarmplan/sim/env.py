@@ -30,7 +30,7 @@ from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.navigation import Navigator, distance_to_go
-from swarmplan.sim.safety import Commands, Motion, SafetyFilter, StepWindow
+from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
 
@@ -241,8 +241,8 @@ class Simulation:
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
                 Commands(idx, v_cmd),
-                Motion(pos0, vel0),
-                Motion(pos1, vel1),
+                AgentMotion(pos0, vel0),
+                AgentMotion(pos1, vel1),
                 StepWindow(t0, t1, q0, q1),
                 s.mode,
             )

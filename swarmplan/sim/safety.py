@@ -33,7 +33,7 @@ AGENT_MARGIN = 0.2
 
 
 @dataclass(frozen=True)
-class Motion:
+class AgentMotion:
     """Every agent's position and velocity (``(n, 3)`` each, rows by agent index)."""
 
     position: np.ndarray
@@ -64,7 +64,7 @@ class Filtered:
     flying agent's step was cleared with the safety margin (rows of ``Commands.idx``), and the
     stops it had to make."""
 
-    end: Motion
+    end: AgentMotion
     validated: np.ndarray
     tally: Tally
 
@@ -282,7 +282,7 @@ class SafetyFilter:
         )
 
     def filter(
-        self, commands: Commands, start: Motion, end: Motion, window: StepWindow, mode: np.ndarray
+        self, commands: Commands, start: AgentMotion, end: AgentMotion, window: StepWindow, mode: np.ndarray
     ) -> Filtered:
         """Replace steps that would touch an obstacle by the closest safe feasible alternative.
 
@@ -355,7 +355,7 @@ class SafetyFilter:
             if not changed:
                 break
         tally = Tally(events=tuple(events), counts=tuple(counts)) if events or counts else NOTHING
-        return Filtered(Motion(pos1, vel1), validated & ~stopped[idx], tally)
+        return Filtered(AgentMotion(pos1, vel1), validated & ~stopped[idx], tally)
 
     def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]:
         """The counters an emergency stop of agent ``i`` from velocity ``v0`` adds to: always
