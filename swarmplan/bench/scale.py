@@ -212,7 +212,7 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
         "from swarmplan.planner import make_planner\n"
         "from swarmplan.sim import Simulation\n"
         "from swarmplan.world import parse_world\n" + "w = parse_world(swarm_world(16, 4, 8))\n"
-        "s = Simulation(w, planner=make_planner(w, w.planner['optimizer']['name']))\n"
+        "s = Simulation(w, planner=make_planner(w, w.planner_config.optimizer.name))\n"
         + (
             "from swarmplan.io.recording import McapRecorder\n"
             "from swarmplan.io.runner import RecordingObserver\n"

@@ -15,10 +15,11 @@ text (tests/test_json_floats.py checks the bytes against ``repr`` and ``json``);
 
 from __future__ import annotations
 
-from functools import cache
 from types import ModuleType
 
 import numpy as np
+
+from swarmplan.runtime.compiled import kernel_module
 
 # A row per value: [sign] up to 10 integer digits (columns 1-10), "." (11), 6 fraction digits
 # (12-17); repr's text from column 0 for the other values (at most 24 characters).
@@ -68,12 +69,9 @@ def float_chars(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return chars, start, length
 
 
-@cache
 def record_kernels() -> ModuleType:
     """:mod:`swarmplan.io._record_kernels`, imported (and numba with it) at first use."""
-    from swarmplan.io import _record_kernels
-
-    return _record_kernels
+    return kernel_module("swarmplan.io._record_kernels")
 
 
 class Interleaved:

@@ -10,6 +10,8 @@ summary counts is in the log.
 
 from __future__ import annotations
 
+import importlib.util
+import re
 import signal
 import sys
 import threading
@@ -20,7 +22,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
+from swarmplan import optimizers
 from swarmplan.core import Event, Observer, Recorder, ResetResult, StepResult
+from swarmplan.geometry.compiled import use_compiled
 from swarmplan.planner import make_planner, validate_planner_settings
 from swarmplan.runtime.kernel_cache import COMPILE_NOTICE, uncompiled_kernel_modules
 from swarmplan.sim import Simulation
@@ -151,12 +155,6 @@ def kernel_modules_for(world: World) -> list[Path]:
     """The compiled-kernel modules a run of ``world`` loads: the swept checks; with a planner
     the escape cost and the optimizer's generations; at swarm size the step's field and the
     recorder's writers."""
-    import importlib.util
-    import re
-
-    from swarmplan import optimizers
-    from swarmplan.geometry.compiled import use_compiled
-
     root = Path(__file__).resolve().parents[1]
     names = ["geometry/sweep_kernels.py"]
     optimizer = world.planner["optimizer"]["name"]
@@ -179,7 +177,7 @@ def apply_overrides(world: World, optimizer: str | None, max_time: float | None)
     if optimizer is not None:
         planner = dict(world.planner)
         opt = dict(planner["optimizer"], name=optimizer)
-        if optimizer != world.planner["optimizer"]["name"]:
+        if optimizer != world.planner_config.optimizer.name:
             # The world's params are settings of its own algorithm (e.g. rscdwoa's beta): another
             # algorithm runs with its papers' defaults.
             opt["params"] = {}
