@@ -147,3 +147,17 @@ def test_the_layout_shows_channels_a_log_has(tmp_path: Path):
     assert len(arrived) == 1 and arrived[0].name == "a" and arrived[0].level == Log.INFO
     speeds = [p for _, p in msgs["/agents/speed"]]
     assert all(0.0 <= s["max"] and s["speed"][0] == s["max"] for s in speeds)
+
+
+def test_a_closed_log_lets_its_channels_go(tmp_path: Path):
+    """A process that records many runs (a sweep worker) keeps none of their channels."""
+    from foxglove import channel as foxglove_channel
+
+    from swarmplan.io.recording import McapRecorder
+
+    before = len(foxglove_channel._channels_by_id)
+    for k in range(5):
+        rec = McapRecorder(tmp_path / f"{k}.mcap")
+        rec.write_world({"name": "w", "agents": [], "obstacles": [], "bounds": {}, "seed": 0})
+        rec.close()
+    assert len(foxglove_channel._channels_by_id) == before

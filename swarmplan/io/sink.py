@@ -19,6 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import foxglove
+from foxglove import channel as foxglove_channel
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from foxglove.websocket import Capability, ChannelView, Client
 
@@ -47,6 +48,7 @@ class LogSink:
         self.context = foxglove.Context()
         self._schemas: list[foxglove.Schema] = []
         self._log: list[Callable[..., None]] = []
+        self._channels: list[foxglove.Channel] = []
         self._server: foxglove.WebSocketServer | None = None
         self._live_context: foxglove.Context | None = None
         self._live_log: list[Callable[..., None]] = []
@@ -86,12 +88,14 @@ class LogSink:
         channel = foxglove.Channel(
             topic, schema=schema, message_encoding=message_encoding, context=self.context
         )
-        self._log.append(channel.log)
+        self._channels.append(channel)  # kept: released in close()
+        self._log.append(channel.base.log)  # bytes only: foxglove.Channel.log's checks skipped
         if self._live_context is not None:
             live = foxglove.Channel(
                 topic, schema=schema, message_encoding=message_encoding, context=self._live_context
             )
-            self._live_log.append(live.log)
+            self._channels.append(live)
+            self._live_log.append(live.base.log)
             if topic in LATCHED:
                 self._latched_ids.add(len(self._log))
         return len(self._log)
@@ -100,13 +104,13 @@ class LogSink:
         self, channel_id: int, log_time: int, data: bytes, publish_time: int = 0, sequence: int = 0
     ) -> None:
         """One message (``publish_time`` is ``log_time``; foxglove-sdk numbers each channel's messages)."""
-        self._log[channel_id - 1](data, log_time=log_time)
+        self._log[channel_id - 1](data, log_time)
         if self._server is not None:
             if self._subscriptions.pending:
                 self._subscriptions.pending = False
                 for k, (old, t) in self._latched.items():
-                    self._live_log[k - 1](old, log_time=t)
-            self._live_log[channel_id - 1](data, log_time=log_time)
+                    self._live_log[k - 1](old, t)
+            self._live_log[channel_id - 1](data, log_time)
             if channel_id in self._latched_ids:
                 self._latched[channel_id] = (data, log_time)
 
@@ -119,11 +123,24 @@ class LogSink:
         self._file.flush()
 
     def close(self) -> None:
-        """Finish the file and stop the server (if any)."""
+        """Finish the file, stop the server (if any) and let the channels go."""
         try:
             self._file.close()
         finally:
             self._stop_server()
+            self._release_channels()
+
+    def _release_channels(self) -> None:
+        # foxglove-sdk keeps every Channel it made in a module-level registry (for its
+        # foxglove.log helper, which this sink does not use): without this, a process that
+        # records many runs (a sweep worker) would keep every run's channels.
+        registry = getattr(foxglove_channel, "_channels_by_id", {})
+        for channel in self._channels:
+            channel.close()
+            registry.pop(channel.base.id(), None)
+        self._channels.clear()
+        self._log.clear()
+        self._live_log.clear()
 
     def _stop_server(self) -> None:
         if self._server is not None:
