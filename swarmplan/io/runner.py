@@ -10,8 +10,6 @@ summary counts is in the log.
 
 from __future__ import annotations
 
-import importlib.util
-import re
 import signal
 import sys
 import threading
@@ -22,11 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-from swarmplan import optimizers
 from swarmplan.core import Event, Observer, Recorder, ResetResult, StepResult
-from swarmplan.geometry.compiled import use_compiled
+from swarmplan.io.compile_notice import CompileNotice
 from swarmplan.planner import make_planner, validate_planner_settings
-from swarmplan.runtime.kernel_cache import COMPILE_NOTICE, uncompiled_kernel_modules
 from swarmplan.sim import Simulation
 from swarmplan.world import World, WorldError
 
@@ -151,25 +147,6 @@ class Pacer:
             time.sleep(min(left, 0.05))
 
 
-def kernel_modules_for(world: World) -> list[Path]:
-    """The compiled-kernel modules a run of ``world`` loads: the swept checks; with a planner
-    the escape cost and the optimizer's generations; at swarm size the step's field and the
-    recorder's writers."""
-    root = Path(__file__).resolve().parents[1]
-    names = ["geometry/sweep_kernels.py"]
-    optimizer = world.planner["optimizer"]["name"]
-    if optimizer != "none":
-        names += ["planner/_segment_kernel.py", "planner/_decode_kernel.py", "optimizers/_kernels.py"]
-        spec = importlib.util.find_spec(type(optimizers.make(optimizer)).__module__)
-        source = Path(spec.origin).read_text(encoding="utf-8") if spec and spec.origin else ""
-        names += [
-            f"optimizers/{m}.py" for m in re.findall(r"from swarmplan\.optimizers import (_\w+)", source)
-        ]
-    if use_compiled(len(world.agents)):
-        names += ["flight/_apf_kernel.py", "geometry/_field_kernels.py", "io/_record_kernels.py"]
-    return [root / n for n in dict.fromkeys(names) if (root / n).exists()]
-
-
 def apply_overrides(world: World, optimizer: str | None, max_time: float | None) -> World:
     changes: dict[str, Any] = {}
     if max_time is not None:
@@ -213,8 +190,8 @@ def simulate(
     command line), Ctrl-C and SIGTERM end the run at the next step boundary instead, and the
     summary says ``interrupted``; a second signal stops at once. With ``live`` the log's
     channels are also served live (its address is printed on ``stream``), the run paced as
-    it says; the server stops when the log is closed. With ``notices``, a first run says on
-    ``stream`` that the kernels it needs are being compiled (once per machine). The progress
+    it says; the server stops when the log is closed. With ``notices``, a run that compiles
+    kernels (the first on a machine) says so on ``stream`` (``CompileNotice``). The progress
     bar ends at 100 % when the run ends by itself.
     """
     from swarmplan.io.recording import McapRecorder  # here: the writer's import costs start-up
@@ -244,8 +221,6 @@ def simulate(
         if recorder is not None:
             recorder.close()
         raise
-    if notices and uncompiled_kernel_modules(kernel_modules_for(world)):
-        print(COMPILE_NOTICE, file=stream, flush=True)
     from tqdm import tqdm  # here, not at import: start-up (importlib.metadata, ~0.1 s)
 
     bar = tqdm(
@@ -262,6 +237,7 @@ def simulate(
         bar.update(result.state.t - bar.n)
         bar.set_postfix_str(f"{int(result.state.active.sum())} flying", refresh=False)
 
+    notice = CompileNotice(lambda text: tqdm.write(text, file=stream)).start() if notices else None
     try:
         with _stop_requests(stop_on_signals) as stop_requested:
             observers: list[Observer | StepObserver] = [show]
@@ -275,6 +251,8 @@ def simulate(
             bar.refresh()
         return summary
     finally:
+        if notice is not None:
+            notice.stop()
         bar.close()
 
 
