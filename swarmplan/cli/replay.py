@@ -267,8 +267,9 @@ def main(argv: list[str] | None = None) -> int:
     t_start = time.perf_counter()
     try:
         rec = load(args.log)
-    except RecordingError as exc:
-        print(f"error: cannot read {args.log}: {exc}", file=sys.stderr)
+    except RecordingError as exc:  # its message starts with the file's name: say it once
+        reason = str(exc).removeprefix(f"{args.log}: ")
+        print(f"error: cannot read {args.log}: {reason}", file=sys.stderr)
         return 2
     except (OSError, ValueError) as exc:
         print(f"error: cannot read {args.log}: {exc}", file=sys.stderr)

@@ -16,7 +16,9 @@ from __future__ import annotations
 import csv
 import math
 import os
+import signal
 import sys
+import threading
 import uuid
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -197,6 +199,23 @@ def read_results(path: Path) -> list[dict[str, str]]:
 # ----------------------------------------------------------------------------- running
 
 
+def scheduler_problem(address: str | None) -> str | None:
+    """Why ``address`` is not a Dask scheduler address (``tcp://host:port`` or ``host:port``), or None."""
+    if not address:
+        return None
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            _host, port = parse_host_port(location)
+            if not 0 < int(port) < 65536:
+                raise ValueError(f"port {port} out of range 1..65535")
+    except (ValueError, TypeError) as exc:
+        return f"--scheduler {address}: not a scheduler address ({exc}); e.g. tcp://head:8786"
+    return None
+
+
 def make_client(workers: int | None, scheduler: str | None):  # noqa: ANN201 - distributed.Client
     """A client of the scheduler at ``scheduler``, or of a new LocalCluster of ``workers`` processes."""
     import logging
@@ -205,13 +224,50 @@ def make_client(workers: int | None, scheduler: str | None):  # noqa: ANN201 - d
 
     if scheduler:
         return Client(scheduler, timeout="20s")
-    cluster = LocalCluster(
-        n_workers=workers or os.cpu_count() or 1,
-        threads_per_worker=1,  # the simulator is single-threaded Python: one run per process
-        processes=True,
-        silence_logs=logging.ERROR,
-    )
+    # The workers start with SIGINT ignored (a started Python keeps an inherited SIG_IGN): a Ctrl-C
+    # in the terminal reaches the whole process group, and only this process should answer it,
+    # by closing the cluster, instead of every worker printing its own traceback.
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+    try:
+        cluster = LocalCluster(
+            n_workers=workers or os.cpu_count() or 1,
+            threads_per_worker=1,  # the simulator is single-threaded Python: one run per process
+            processes=True,
+            silence_logs=logging.ERROR,
+        )
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, previous)
     return Client(cluster)
+
+
+def complete_results(out_dir: Path, tasks: list[Task], override_keys: list[str], since: float) -> int:
+    """After an interrupted sweep: append to results.csv the row of every run whose log was
+    completed since ``since`` (a time.time()) but whose row never reached the client (the
+    interruption came between the two). Returns the number of rows added."""
+    path = out_dir / "results.csv"
+    if not path.is_file():
+        return 0
+    listed = {r.get("log", "") for r in read_results(path)}
+    added = []
+    for t in tasks:
+        log = out_dir / log_name(t)
+        if log_name(t) in listed or not log.is_file() or log.stat().st_mtime < since:
+            continue
+        try:
+            row = finished_row(t, out_dir)
+        except Exception:  # noqa: BLE001 - a log that cannot be read has no row
+            row = None
+        if row is not None:
+            added.append(row)
+    if added:
+        cols = columns(override_keys)
+        with open(path, "a", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            for row in added:
+                w.writerow([_cell(row.get(c, "")) for c in cols])
+    return len(added)
 
 
 def dashboard_line(client) -> str:  # noqa: ANN001
