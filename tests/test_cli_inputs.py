@@ -169,7 +169,8 @@ def _sweep_in_a_terminal(tmp_path: Path, stop_after_logs: int) -> tuple[subproce
     )
     out = tmp_path / "out"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    cmd = [sys.executable, "-m", "swarmplan.sweep", "spec.yaml", "--workers", "2", "--out", "out", "--no-progress"]
+    cmd = [sys.executable, "-m", "swarmplan.sweep", "spec.yaml", "--workers", "2", "--out", "out"]
+    cmd.append("--no-progress")
     proc = subprocess.Popen(
         cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True,
