@@ -194,6 +194,9 @@ def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
         f"{'agent':<10} {'arrived':>7} {'t_arr':>8} {'path_m':>9} {'min_clear':>9} {'closest':<12}"
         f" {'max_curv':>8} {'limit':>7} {'cusps':>5} {'coll':>4} {'esc':>3} {'stuck':>5}"
     )
+    threats = any(m.threat_time is not None for m in metrics)
+    if threats:
+        head += f" {'threat_s':>8} {'core_s':>6} {'closest':>7}"
     out = [head]
     for m in metrics:
         out.append(
@@ -201,9 +204,17 @@ def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
             f" {_f(m.min_clearance, '{:.3f}'):>9} {str(m.closest_body or '-'):<12} {m.max_curvature:>8.4f}"
             f" {_f(m.curvature_limit, '{:.4f}'):>7} {m.cusps:>5}"
             f" {m.collisions:>4} {m.escapes:>3} {m.stuck_events:>5}"
+            + (
+                f" {_f(m.threat_time, '{:.1f}'):>8} {_f(m.threat_core_time, '{:.1f}'):>6}"
+                f" {_f(m.threat_closest, '{:.1f}'):>7}"
+                if threats
+                else ""
+            )
         )
         if m.collisions:
             out.append(f"{'':<10} collided with: {', '.join(m.collision_bodies)}")
+        if m.threat_core_time:
+            out.append(f"{'':<10} WARNING: {m.threat_core_time:.1f} s inside a threat's core (r_min)")
     return out
 
 

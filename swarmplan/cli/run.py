@@ -15,6 +15,7 @@ from typing import Any
 from swarmplan import optimizers
 from swarmplan.io.runner import apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
+from swarmplan.sim.threats import exposure_warnings
 from swarmplan.world import World, WorldError, load_world
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -77,9 +78,16 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
                 str(a["escapes"]),
             )
         )
+    if any("threat_time" in a for a in summary["agents"]):  # the world has threats
+        head += ("threat s", "core s", "closest m")
+        rows = [
+            (*r, f"{a['threat_time']:.1f}", f"{a['threat_core_time']:.1f}", _closest(a))
+            for r, a in zip(rows, summary["agents"], strict=True)
+        ]
     widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(head)]
     line = lambda cells: "  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True))  # noqa: E731
     out = [line(head), line(["-" * w for w in widths])] + [line(r) for r in rows]
+    out += exposure_warnings(summary)
     verdict = "SUCCESS" if summary["success"] else ("INTERRUPTED" if summary["interrupted"] else "FAILED")
     out.append("")
     out.append(
@@ -92,6 +100,12 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
     if log_path is not None:
         out.append(f"log: {log_path}")
     return "\n".join(out)
+
+
+def _closest(a: dict[str, Any]) -> str:
+    if a.get("threat_closest") is None:
+        return "-"
+    return f"{a['threat_closest']:.1f} ({a['threat_closest_to']})"
 
 
 def build_parser() -> argparse.ArgumentParser:

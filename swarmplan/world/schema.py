@@ -279,7 +279,7 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
 
 
 def _resolve_threat(c: Checker, t: Any, path: str) -> tuple[dict | None, Threat | None]:
-    if not c.keys(t, path, ["kind", "position", "r_min", "r_max", "weight"]):
+    if not c.keys(t, path, ["kind", "position", "r_min", "r_max", "weight", "avoid"]):
         return None, None
     kind = c.string(t, "kind", path, None, THREAT_KINDS)
     pos = c.vector(t, "position", path, 3)
@@ -288,10 +288,15 @@ def _resolve_threat(c: Checker, t: Any, path: str) -> tuple[dict | None, Threat 
     weight = c.number(t, "weight", path, 1.0, nonneg=True)
     if r_min is not None and r_max is not None and r_min >= r_max:
         c.add(path, f"r_min ({r_min:g}) must be below r_max ({r_max:g})")
+    avoid = c.boolean(t, "avoid", path, False)
+    if avoid and r_min is not None and r_min <= 0:
+        c.add(f"{path}.avoid", "needs a core to keep out of: r_min > 0")
     out = {"kind": kind, "position": _lst(pos), "r_min": r_min, "r_max": r_max, "weight": weight}
-    if None in (kind, r_min, r_max, weight) or pos is None:
+    if "avoid" in t:  # written only when given: logs of worlds without the key stay as they were
+        out["avoid"] = avoid
+    if None in (kind, r_min, r_max, weight, avoid) or pos is None:
         return out, None
-    return out, Threat(kind, pos, r_min, r_max, weight)
+    return out, Threat(kind, pos, r_min, r_max, weight, bool(avoid))
 
 
 def parse_world(
