@@ -29,10 +29,10 @@ from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
 from swarmplan.sim.metrics import RunMetrics, summary_report
-from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.sim.navigation import Navigator, distance_to_go
 from swarmplan.sim.safety import SafetyFilter
 from swarmplan.sim.scene import Scene
+from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
 
 
@@ -224,8 +224,8 @@ class Simulation:
                 force[fixed] = apf_forces(*field_args, target=target, static_scale=rep_scale)[fixed]
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             if self._threat_cores is not None:
-                radius = self.params.radius[idx]
-                clearance, normal = nearest_with_cores(clearance, normal, pos0[idx], radius, self._threat_cores)
+                cores, radius = self._threat_cores, self.params.radius[idx]
+                clearance, normal = nearest_with_cores(clearance, normal, pos0[idx], radius, cores)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0, self.metrics)
             v_cmd = self.safety.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
