@@ -54,19 +54,33 @@ def everything_world() -> dict:
         {"id": f"m{k}", "shape": "sphere", "radius": 1, "position": [20 + 10 * k, 80, 40], "motion": m}
         for k, m in enumerate(MOTIONS)
     ]
-    speed = {"min": 0, "max": 12, "cruise": 8}
+    params = {
+        "model": "multirotor",
+        "radius": 1,
+        "speed": {"min": 0, "max": 12, "cruise": 8},
+        "max_accel": 4,
+        "min_turn_radius": 20,
+        "max_climb_angle": 45,
+        "min_altitude": 5,
+        "separation": [4, 4, 2],
+    }
+    threat = {"kind": "radar", "position": [50, 50, 0], "r_min": 5, "r_max": 20, "weight": 1, "avoid": True}
+    planner = {
+        "mode": "reactive",
+        "apf": {"k_att": 1},
+        "stuck": {"window": 3},
+        "smoothing": {"enabled": True},
+        "escape": {"waypoints": 4},
+        "global": {"cost": "mcfo"},
+        "optimizer": {"name": "woa", "population": 10, "iterations": 5, "params": {}},
+    }
     return base_world(
         terrain={"peaks": [{"center": [50, 50], "height": 5, "spread": [10, 10]}], "clearance": 2},
         obstacles=obstacles,
-        threats=[{"kind": "radar", "position": [50, 50, 0], "r_min": 5, "r_max": 20, "weight": 1, "avoid": True}],
-        agent_defaults={"model": "multirotor", "radius": 1, "speed": speed, "max_accel": 4, "min_turn_radius": 20,
-                        "max_climb_angle": 45, "min_altitude": 5, "separation": [4, 4, 2]},
-        agents=[{"id": "a", "start": [10, 50, 30], "goal": [90, 50, 30], "model": "multirotor", "radius": 1,
-                 "speed": speed, "max_accel": 4, "min_turn_radius": 20, "max_climb_angle": 45,
-                 "min_altitude": 5, "separation": [4, 4, 2]}],
-        planner={"mode": "reactive", "apf": {"k_att": 1}, "stuck": {"window": 3}, "smoothing": {"enabled": True},
-                 "optimizer": {"name": "woa", "population": 10, "iterations": 5, "params": {}},
-                 "escape": {"waypoints": 4}, "global": {"cost": "mcfo"}},
+        threats=[threat],
+        agent_defaults=params,
+        agents=[{"id": "a", "start": [10, 50, 30], "goal": [90, 50, 30], **params}],
+        planner=planner,
         log={"path": "logs/x.mcap", "foxglove": False, "flush_interval": 1.0},
         tracker={"mass": 1.5, "position": {"kp": 6}, "attitude": {"kp": 12}, "rate": {"kp": 40}},
     )  # fmt: skip
