@@ -101,6 +101,14 @@ def main(argv: list[str] | None = None) -> int:
         for p in problems:
             print(f"error: {p}", file=sys.stderr)
         return 2
+    from swarmplan.sweep.report import seeds_needed
+
+    if len(names) > 1 and args.seeds < seeds_needed(args.alpha):
+        print(
+            f"note: with {args.seeds} seed(s) per optimizer no rank-sum verdict can reach p < {args.alpha:g}"
+            f" (it takes at least {seeds_needed(args.alpha)} seeds); the table shows the figures only",
+            file=sys.stderr,
+        )
     tmp = tempfile.TemporaryDirectory(prefix="swarmplan-compare-") if args.out_dir == "none" else None
     out_dir = Path(tmp.name if tmp is not None else args.out_dir)
     try:
@@ -126,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
             tmp.cleanup()
     print(f"world {args.world}, {args.seeds} seed(s) per optimizer (seeds 0..{args.seeds - 1})")
     print(format_table(rows, names, args.alpha))
-    for note in table_notes(rows, names):
+    for note in table_notes(rows, names, args.alpha):
         print(f"note: {note}")
     if tmp is None:
         print(f"rows: {out_dir / 'results.csv'}, logs: {out_dir / 'runs'}", file=sys.stderr)

@@ -145,9 +145,11 @@ def describe(rec: Recording) -> list[str]:
     opt = planner.get("optimizer") or {}
     lines = []
     opt_name = (rec.summary or {}).get("optimizer") or opt.get("name", "?")
+    budget = f" (pop {opt.get('population', '?')}, iter {opt.get('iterations', '?')})"
+    if opt_name == "none":  # pure APF: no optimizer runs, no budget
+        budget = ""
     lines.append(
-        f"run: {w.get('name', '?')}  seed {w.get('seed', '?')}  optimizer {opt_name}"
-        f" (pop {opt.get('population', '?')}, iter {opt.get('iterations', '?')})"
+        f"run: {w.get('name', '?')}  seed {w.get('seed', '?')}  optimizer {opt_name}{budget}"
         f"  swarmplan {w.get('swarmplan_version', '?')}"
     )
     size = os.path.getsize(rec.file)

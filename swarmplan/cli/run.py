@@ -8,6 +8,7 @@ otherwise (or was interrupted: Ctrl-C or SIGTERM close the log with a summary th
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 from pathlib import Path
 from typing import Any
@@ -33,7 +34,13 @@ def log_path_for(world: World, seed: int, optimizer: str, out: str | None) -> Pa
 
 
 def check_writable(path: Path, label: str) -> None:
-    """Fail before any work when the log cannot be written (a directory, no such place, no rights)."""
+    """Fail before any work when the log cannot be written (a directory, no such place, no rights)
+    or is not named as an MCAP file: replay, track and the Foxglove app recognise a log by its
+    ``.mcap`` extension, and an MCAP file named ``.txt`` would be opened as text."""
+    if path.suffix.lower() != ".mcap":
+        raise WorldError(
+            [f"{label}: the log {str(path)!r} is an MCAP file: give it the .mcap extension"], "command line"
+        )
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("ab"):  # appends nothing: an existing file is left as it is until the run
@@ -133,8 +140,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         names = optimizers.available()
         if args.optimizer is not None and args.optimizer != "none" and args.optimizer not in names:
+            close = difflib.get_close_matches(args.optimizer, ["none", *names], n=1, cutoff=0.5)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
             raise WorldError(
-                [f"--optimizer: unknown optimizer '{args.optimizer}'; known: none, {', '.join(names)}"],
+                [f"--optimizer: unknown optimizer '{args.optimizer}'{hint}; known: none, {', '.join(names)}"],
                 "command line",
             )
         if args.max_time is not None and not args.max_time > 0:

@@ -158,8 +158,8 @@ def finished_row(task: Task, out_dir: Path) -> dict[str, Any] | None:
 
 
 def _cell(v: Any) -> str:
-    if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
+    if isinstance(v, float):  # 12 significant digits: 20.292, not 20.291999999999998
+        return "" if math.isnan(v) else f"{v:.12g}"
     if isinstance(v, (list, dict)):
         import json
 
