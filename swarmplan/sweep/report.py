@@ -171,6 +171,12 @@ def groups(rows: list[dict[str, Any]], override_keys: list[str]) -> list[tuple[s
 
 def box_plot(path: Path, title: str, rows: list[dict[str, Any]], labels: list[tuple[str, Any]]) -> Path:
     """One PNG: a panel per metric of :data:`BOXES`, a box per (label, selector) over its runs."""
+    box_figure(title, rows, labels).savefig(path)
+    return path
+
+
+def box_figure(title: str, rows: list[dict[str, Any]], labels: list[tuple[str, Any]]):  # noqa: ANN201
+    """The matplotlib Figure of :func:`box_plot`."""
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
@@ -203,8 +209,7 @@ def box_plot(path: Path, title: str, rows: list[dict[str, Any]], labels: list[tu
     ]
     fig.legend(handles=legend, loc="outside lower center", ncol=3, fontsize=8)
     fig.suptitle(f"{title}: boxes over the seeds (box: quartiles, whiskers: 1.5 IQR)")
-    fig.savefig(path)
-    return path
+    return fig
 
 
 def plot_name(world: str, worlds: list[str]) -> str:
