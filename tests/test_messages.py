@@ -118,8 +118,8 @@ def test_p_is_printed_on_its_side_of_alpha():
 
 def _rows(n_seeds: int) -> list[dict]:
     return [
-        {"optimizer": o, "seed": s, "status": "ok", "success": True, "path_length_mean": 10.0 + s + 5 * (o == "b"),
-         "arrival_time_mean": 5.0 + s, "planning_ms": 1.0, "plan_cost": math.nan, "path_ratio_mean": 1.0,
+        {"optimizer": o, "seed": s, "status": "ok", "success": True,
+         "path_length_mean": 10.0 + s + 5 * (o == "b"), "arrival_time_mean": 5.0 + s, "planning_ms": 1.0, "plan_cost": math.nan, "path_ratio_mean": 1.0,
          "curvature_mean": 0.01}
         for o, s in itertools.product("ab", range(n_seeds))
     ]  # fmt: skip
@@ -137,12 +137,13 @@ def test_box_plot_has_a_legend_and_tick_labels_that_do_not_overlap():
     labels = []
     for o, pop in itertools.product(["woa", "rscdwoa", "iba_gauss"], [10, 20, 40]):
         rows += [dict(r, optimizer=o, pop=pop) for r in _rows(3) if r["optimizer"] == "a"]
-        labels.append((f"{o} population={pop}", lambda r, o=o, pop=pop: r["optimizer"] == o and r["pop"] == pop))
+        labels.append((f"{o} population={pop}", lambda r, o=o, p=pop: r["optimizer"] == o and r["pop"] == p))
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     fig = report.box_figure("w.yaml", rows, labels)
     FigureCanvasAgg(fig).draw()
-    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["median", "mean", "outlier (beyond 1.5 IQR)"]
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert legend == ["median", "mean", "outlier (beyond 1.5 IQR)"]
     renderer = fig.canvas.get_renderer()
     for ax in fig.axes:
         boxes = [t.get_window_extent(renderer) for t in ax.get_xticklabels() if t.get_text()]
