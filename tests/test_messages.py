@@ -119,8 +119,8 @@ def test_p_is_printed_on_its_side_of_alpha():
 def _rows(n_seeds: int) -> list[dict]:
     return [
         {"optimizer": o, "seed": s, "status": "ok", "success": True,
-         "path_length_mean": 10.0 + s + 5 * (o == "b"), "arrival_time_mean": 5.0 + s, "planning_ms": 1.0, "plan_cost": math.nan, "path_ratio_mean": 1.0,
-         "curvature_mean": 0.01}
+         "path_length_mean": 10.0 + s + 5 * (o == "b"), "arrival_time_mean": 5.0 + s,
+         "planning_ms": 1.0, "plan_cost": math.nan, "path_ratio_mean": 1.0, "curvature_mean": 0.01}
         for o, s in itertools.product("ab", range(n_seeds))
     ]  # fmt: skip
 
