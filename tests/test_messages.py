@@ -169,3 +169,31 @@ def test_quick_scale_figures_have_no_verdict():
         assert scale._verdict(0.76, 1.0, False) == "met"
     finally:
         scale.judge_targets(True)
+
+
+def _parsers():
+    import argparse
+
+    from swarmplan.cli import bench, compare, replay, run, sweep, track
+
+    out = {m.__name__: m.build_parser() for m in (run, replay, track, sweep, compare)}
+    top = bench.build_parser()
+    out["bench"] = top
+    for action in top._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            out.update({f"bench {name}": p for name, p in action.choices.items()})
+    return out
+
+
+def test_every_help_is_plain_text_with_each_default_once_and_every_option_explained():
+    import re
+
+    for name, parser in _parsers().items():
+        text = parser.format_help()
+        assert "(default: None)" not in text, name
+        assert not re.search(r"\(default: [^()]*\)\s+\(default:", text), name
+        assert "``" not in text and ":mod:" not in text, name
+        assert not re.search(r"\bissue \d+", text), name
+        for action in parser._actions:
+            if action.option_strings and action.dest != "help":
+                assert action.help, f"{name} {action.option_strings[0]} has no help"

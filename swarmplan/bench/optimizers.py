@@ -280,7 +280,7 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescrip
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.formatter_class = _HelpFormatter
-    p.add_argument("--suite", required=True, choices=sorted(SUITES))
+    p.add_argument("--suite", required=True, choices=sorted(SUITES), help="the benchmark suite (see above)")
     p.add_argument("--runs", type=int, default=10, help="independent runs per algorithm x function")
     p.add_argument(
         "--out",

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from swarmplan.cli.common import HelpFormatter
 from swarmplan.replay.metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
 from swarmplan.replay.recording import Recording, RecordingError, load
 
@@ -28,7 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="python -m swarmplan.replay",
         description="Replay a swarmplan run log: run overview, recomputed metrics, plots, animation.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     ap.add_argument("log", help="run log (.mcap)")
     ap.add_argument(

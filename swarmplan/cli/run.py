@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from swarmplan import optimizers
+from swarmplan.cli.common import HelpFormatter
 from swarmplan.io.runner import apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sim.threats import exposure_warnings
@@ -119,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m swarmplan.run",
         description="Simulate a swarmplan world and log it to MCAP.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("world", help="world YAML file")
     p.add_argument("--seed", type=int, default=None, help="random seed; unset: the world's seed")
