@@ -196,3 +196,15 @@ def test_ctrl_c_on_a_sweep_prints_no_worker_traceback_and_keeps_every_finished_r
     assert len(logs) >= 3
     assert sorted(r["log"] for r in rows) == logs
     assert np.all([r["status"] == "ok" for r in rows])
+
+
+def test_track_with_no_trackable_agent_says_so_and_writes_nothing(tmp_path, capsys):
+    """Every agent skipped (here: one in /world that never flew): an error, not a blank plot."""
+    from conftest_replay import base_world, write_log
+
+    agents = [{"id": "ghost", "start": [0, 0, 20], "goal": [40, 0, 20]}]
+    states = [{"t": round(0.1 * k, 9), "agents": []} for k in range(20)]
+    log = write_log(tmp_path / "g.mcap", base_world(agents), states, summary={"agents": []})
+    png = tmp_path / "g.png"
+    one_line_exit_2(capsys, track_main([log, "--plot", str(png)]), "no agent of")
+    assert not png.exists()

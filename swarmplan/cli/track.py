@@ -7,8 +7,10 @@ gains come from the ``tracker:`` section of the log's /world message when it has
 documented defaults (``swarmplan/track/config.py``).
 
 Exit codes: 0 normally; 2 for bad input (missing or unreadable log, unknown agent, bad
-``tracker:`` section, unwritable ``--out``, unsupported ``--plot`` extension), with one line on
-stderr and nothing done.
+``tracker:`` section, unwritable ``--out``, unsupported ``--plot`` extension, a log without any
+agent the tracker can fly), with one line on stderr and nothing written. Missing folders of
+``--out`` and ``--plot`` are created. A log cut short is tracked up to its last complete chunk,
+with a notice on stderr.
 """
 
 from __future__ import annotations
@@ -150,6 +152,10 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     result = track(rec, cfg, args.agent)
     wall = time.perf_counter() - start
+    if not result.ids:  # nothing to fly: no plot, log or table of nothing
+        reasons = "; ".join(f"{aid}: {why}" for aid, why in result.skipped.items())
+        print(f"track: no agent of {args.log} can be tracked ({reasons})", file=sys.stderr)
+        return 2
     for path in (args.out, args.plot):
         if path:  # missing folders are created, as run and replay do
             Path(path).parent.mkdir(parents=True, exist_ok=True)
