@@ -197,3 +197,22 @@ def test_every_help_is_plain_text_with_each_default_once_and_every_option_explai
         for action in parser._actions:
             if action.option_strings and action.dest != "help":
                 assert action.help, f"{name} {action.option_strings[0]} has no help"
+
+
+NUMBERS = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8}
+
+
+def test_shipped_world_headers_count_their_agents():
+    """A header that says how many agents fly ("Three multirotors ...") says it right."""
+    import re
+
+    checked = 0
+    for path in sorted((REPO / "worlds").rglob("*.yaml")):
+        text = path.read_text(encoding="utf-8")
+        header = " ".join(line for line in text.splitlines()[:3] if line.startswith("#")).lower()
+        found = re.search(r"\b(one|two|three|four|five|six|seven|eight)\b (multirotors?|fixed-wing|agents?)", header)
+        if found:
+            n = len(yaml.safe_load(text)["agents"])
+            assert NUMBERS[found.group(1)] == n, f"{path.name}: header says {found.group(0)!r}, {n} agents fly"
+            checked += 1
+    assert checked >= 6
