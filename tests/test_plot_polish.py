@@ -34,7 +34,8 @@ def test_movers_say_when_they_are_drawn_and_have_their_own_colour(rich, kind):
     ax = fig.axes[0]
     moving = [lab for lab in _labels(ax) if lab.startswith("moving obstacle ")]
     oid = rich.moving_obstacles[0]["id"]
-    assert moving and moving[0].startswith(f"moving obstacle {oid} at t = ") and moving[0].endswith("(last pose)")
+    assert moving and moving[0].startswith(f"moving obstacle {oid} at t = ")
+    assert moving[0].endswith("(last pose)")
     track = next(line for line in ax.lines if line.get_gid() == f"track:{oid}")
     np.testing.assert_allclose(plots.mover_color(0), np.asarray(track.get_color())[:3])
     at_step = plots.plot_top(rich, step=10).axes[0]  # drawn at a step: that step's time
@@ -62,11 +63,12 @@ def test_both_threat_rings_are_in_the_legend(rich, kind):
 
 
 def test_path_points_inside_a_threat_core_are_marked(tmp_path):
-    world = base_world([{"id": "a", "start": [-20, 0, 10], "goal": [20, 0, 10]}],
-                       threats=[{"kind": "radar", "position": [0, 0, 10], "r_min": 4, "r_max": 15}])  # fmt: skip
+    threat = {"kind": "radar", "position": [0, 0, 10], "r_min": 4, "r_max": 15}
+    world = base_world([{"id": "a", "start": [-20, 0, 10], "goal": [20, 0, 10]}], threats=[threat])
     times = np.arange(41) * 0.1
     pos = np.stack([np.linspace(-20, 20, 41), np.zeros(41), np.full(41, 10.0)], axis=1)[None]
-    rec = load(write_log(tmp_path / "c.mcap", world, states_from_arrays(times, ["a"], pos, goals=[[20, 0, 10]])))
+    states = states_from_arrays(times, ["a"], pos, goals=[[20, 0, 10]])
+    rec = load(write_log(tmp_path / "c.mcap", world, states))
     ax = plots.plot_top(rec).axes[0]
     crosses = next(line for line in ax.lines if line.get_gid() == "core:a")
     assert len(crosses.get_xdata()) == int(np.sum(np.abs(pos[0, :, 0]) < 4))
