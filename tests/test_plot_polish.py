@@ -83,3 +83,20 @@ def test_starts_do_not_look_like_the_animations_agents(rich):
     assert starts and {line.get_marker() for line in starts} == {plots.START_MARKER}
     assert plots.START_MARKER != "o"  # the animation's agents are circles
     assert "start" in _labels(ax)
+
+
+def test_the_track_plot_shows_the_obstacles_within_the_world_bounds(tmp_path, monkeypatch):
+    from conftest_replay import straight_past_sphere_log
+    from matplotlib.figure import Figure
+
+    from swarmplan.track import TrackerConfig, track
+    from swarmplan.track.output import plot
+
+    rec = load(straight_past_sphere_log(tmp_path / "s.mcap")[0])
+    shown = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: shown.append(fig))
+    plot(track(rec, TrackerConfig()), tmp_path / "t.png", rec=rec)
+    ax3 = shown[0].axes[0]
+    assert "obstacle:ball" in {c.get_gid() for c in ax3.collections}
+    lo, hi = rec.world["bounds"]["min"], rec.world["bounds"]["max"]
+    np.testing.assert_allclose(ax3.get_zlim(), (lo[2], hi[2]))

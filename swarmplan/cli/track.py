@@ -166,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
             result,
             args.plot,
             title=f"{rec.world.get('name', '')}: quadrotor tracking ({Path(args.log).name})",
+            rec=rec,
         )
     if args.json:
         print(json.dumps(result.to_json()))

@@ -232,6 +232,20 @@ def plot_3d(
     return fig
 
 
+def world_in_3d(ax, rec: Recording) -> None:
+    """The world's bounds (as the axes' limits, true aspect), terrain and static obstacles on a 3D
+    axes, for plots of other tools (``python -m swarmplan.track``)."""
+    lo, hi = _bounds(rec)
+    _terrain_3d(ax, rec, lo, hi)
+    for obst in rec.static_obstacles:
+        _draw_obstacle_3d(ax, obst)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ext = np.maximum(hi - lo, 1e-9)
+    ax.set_box_aspect((ext[0], ext[1], max(ext[2], 0.25 * max(ext[0], ext[1]))))
+
+
 def mover_color(m: int) -> np.ndarray:
     """The colour (RGB) of the ``m``-th moving obstacle (its body and its track)."""
     from matplotlib.colors import to_rgb
