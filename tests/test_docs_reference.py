@@ -173,3 +173,20 @@ def test_readme_and_docs_point_only_inside_the_repository():
     assert outside == []
     for ref in ("docs/world-format.md", "docs/log-format.md"):
         assert ref in (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def test_the_replay_example_figures_are_those_of_the_code():
+    """docs/replay.md's paper 001 example: arrivals, collisions and simulated time as run now."""
+    from swarmplan.world import load_world
+
+    text = " ".join((ROOT / "docs" / "replay.md").read_text(encoding="utf-8").split())
+    found = re.search(r"run (\d+)/(\d+) fixed wings arrived, (\d+) collisions, ([\d.]+) s simulated", text)
+    assert found, "the example's figures are missing from docs/replay.md"
+    world = load_world(ROOT / "worlds" / "papers" / "rscdwoa_multi_uav.yaml")
+    from helpers import default_planner
+
+    _sim, summary, _ = run_to_end(world, planner=default_planner(world))
+    assert (summary["arrived"], summary["agents_total"], summary["collisions"]) == tuple(
+        int(found.group(k)) for k in (1, 2, 3)
+    )
+    assert f"{summary['sim_time']:.1f}" == found.group(4)
