@@ -235,11 +235,17 @@ def make_client(workers: int | None, scheduler: str | None):  # noqa: ANN201 - d
             threads_per_worker=1,  # the simulator is single-threaded Python: one run per process
             processes=True,
             silence_logs=logging.ERROR,
+            dashboard_address=":0",  # a free port (printed): no warning when 8787 is taken
         )
     finally:
         if main_thread:
             signal.signal(signal.SIGINT, previous)
-    return Client(cluster)
+    client = Client(cluster)
+    # a worker the nanny restarts later is a fresh process: the plugin ignores SIGINT there too
+    from swarmplan.sweep.worker_plugin import IgnoreSigint
+
+    client.register_plugin(IgnoreSigint(), name="swarmplan-ignore-sigint")
+    return client
 
 
 def complete_results(out_dir: Path, tasks: list[Task], override_keys: list[str], since: float) -> int:
