@@ -182,7 +182,7 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
         "from swarmplan.world import parse_world\n"
         + ("from swarmplan.io.recording import McapRecorder\n" if record else "")
         + "w = parse_world(swarm_world(16, 4, 8))\n"
-        f"s = Simulation(w, planner=make_planner(w, w.planner['optimizer']['name']), recorder={recorder})\n"
+        f"s = Simulation(w, planner=make_planner(w, w.planner_config.optimizer.name), recorder={recorder})\n"
         "s.reset(seed=0); s.step()\n"
         "print(time.perf_counter() - t0, time.process_time())\n"
     )

@@ -4,7 +4,7 @@ Flies each multirotor agent's recorded trajectory with a quadrotor model under p
 cascaded PID and prints, per agent, the max and RMS tracking error, the peak tilt and thrust,
 and whether the reference was flyable (every infeasible stretch is reported). The vehicle and
 gains come from the ``tracker:`` section of the log's /world message when it has one, else the
-documented defaults (``swarmplan/track/config.py``).
+documented defaults (``swarmplan/world/tracker_config.py``).
 
 Exit codes: 0 normally; 2 for bad input (missing or unreadable log, unknown agent, bad
 ``tracker:`` section, unwritable ``--out``, unsupported ``--plot`` extension, a log without any
@@ -24,8 +24,8 @@ from pathlib import Path
 
 from swarmplan.cli.common import HelpFormatter, output_file_problem
 from swarmplan.runtime.blas import limit_blas_threads
-from swarmplan.track.config import TrackerConfig, parse_tracker
 from swarmplan.track.output import PLOT_FORMATS
+from swarmplan.world.tracker_config import TrackerConfig, parse_tracker
 
 
 class InputError(Exception):
