@@ -18,9 +18,9 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).parent))
 
+import swarmplan.track.config as tracker_config  # noqa: E402
 from helpers import base_world, make_world, run_to_end  # noqa: E402
 
-import swarmplan.track.config as tracker_config  # noqa: E402
 from swarmplan.world.checker import Checker  # noqa: E402
 from swarmplan.world.planner_config import _KEYS as GLOBAL_KEYS  # noqa: E402
 from swarmplan.world.planner_config import COST_WEIGHTS, ESCAPE_DEFAULTS  # noqa: E402
@@ -190,15 +190,3 @@ def test_the_replay_example_figures_are_those_of_the_code():
         int(found.group(k)) for k in (1, 2, 3)
     )
     assert f"{summary['sim_time']:.1f}" == found.group(4)
-
-
-def test_the_user_docs_speak_of_the_product_only():
-    """No words of how the product was made (issue or stop numbers) in the README and user docs."""
-    docs = ["README.md", *(f"docs/{n}.md" for n in ("replay", "sweeps", "tracking", "comparison", "escape",
-                                                     "world-format", "log-format"))]  # fmt: skip
-    found = [
-        f"{name}: {m.group(0)}"
-        for name in docs
-        for m in re.finditer(r"\b(issue|stop|session) \d+\b", (ROOT / name).read_text(encoding="utf-8"))
-    ]
-    assert found == []

@@ -307,8 +307,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from swarmplan.cli.common import output_file_problem
     from swarmplan.optimizers import available
+    from swarmplan.runtime.paths import output_file_problem
 
     suite = SUITES[args.suite]
     # numbers and outputs are checked before the benchmark runs (its results would be lost)

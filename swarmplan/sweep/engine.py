@@ -242,10 +242,36 @@ def make_client(workers: int | None, scheduler: str | None):  # noqa: ANN201 - d
             signal.signal(signal.SIGINT, previous)
     client = Client(cluster)
     # a worker the nanny restarts later is a fresh process: the plugin ignores SIGINT there too
-    from swarmplan.sweep.worker_plugin import IgnoreSigint
-
-    client.register_plugin(IgnoreSigint(), name="swarmplan-ignore-sigint")
+    client.register_plugin(_quiet_worker_plugin(), name="swarmplan-quiet-workers")
     return client
+
+
+def _quiet_worker_plugin():  # noqa: ANN202 - a distributed.WorkerPlugin
+    """A worker plugin: the worker ignores SIGINT and keeps quiet about a scheduler that goes away.
+
+    A Ctrl-C in a terminal reaches the whole process group; the sweep's own process answers it
+    (it closes the cluster and keeps every finished row), the workers must not each print a
+    traceback. Workers started with the cluster inherit an ignored SIGINT; the plugin covers
+    the ones a nanny restarts later. When the cluster closes under a busy worker, its heartbeat
+    to the scheduler fails and ``distributed.worker`` logs an ERROR with a traceback: a worker's
+    own log is only about its connection (a run's failure comes back as its row's ``error``, a
+    worker's death is reported by the scheduler), so it is raised to CRITICAL. (Defined here,
+    sent to the workers by value.)
+    """
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class QuietWorker(WorkerPlugin):
+        def setup(self, worker) -> None:  # noqa: ANN001 - distributed.Worker
+            import logging
+            import signal
+            import threading
+
+            logging.getLogger("distributed.worker").setLevel(logging.CRITICAL)
+            logging.getLogger("distributed.core").setLevel(logging.CRITICAL)
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return QuietWorker()
 
 
 def complete_results(out_dir: Path, tasks: list[Task], override_keys: list[str], since: float) -> int:
