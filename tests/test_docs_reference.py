@@ -18,9 +18,9 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-import swarmplan.track.config as tracker_config  # noqa: E402
 from helpers import base_world, make_world, run_to_end  # noqa: E402
 
+import swarmplan.world.tracker_config as tracker_config  # noqa: E402
 from swarmplan.world.checker import Checker  # noqa: E402
 from swarmplan.world.planner_config import _KEYS as GLOBAL_KEYS  # noqa: E402
 from swarmplan.world.planner_config import COST_WEIGHTS, ESCAPE_DEFAULTS  # noqa: E402
