@@ -38,6 +38,8 @@ def check_writable(path: Path, label: str) -> None:
     """Fail before any work when the log cannot be written (a directory, no such place, no rights)
     or is not named as an MCAP file: replay, track and the Foxglove app recognise a log by its
     ``.mcap`` extension, and an MCAP file named ``.txt`` would be opened as text."""
+    if path.is_dir():
+        raise WorldError([f"{label}: cannot write the log {str(path)!r}: it is a directory"], "command line")
     if path.suffix.lower() != ".mcap":
         raise WorldError(
             [f"{label}: the log {str(path)!r} is an MCAP file: give it the .mcap extension"], "command line"
@@ -141,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         names = optimizers.available()
         if args.optimizer is not None and args.optimizer != "none" and args.optimizer not in names:
-            close = difflib.get_close_matches(args.optimizer, ["none", *names], n=1, cutoff=0.5)
+            close = difflib.get_close_matches(args.optimizer, ["none", *names], n=1, cutoff=0.6)
             hint = f" (did you mean '{close[0]}'?)" if close else ""
             raise WorldError(
                 [f"--optimizer: unknown optimizer '{args.optimizer}'{hint}; known: none, {', '.join(names)}"],
