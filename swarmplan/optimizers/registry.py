@@ -29,6 +29,7 @@ BUILTIN_MODULES: dict[str, str] = {
     "iafsa": "fish_swarm",
     "woa": "whale",
     "rscdwoa": "whale",
+    "lshade": "shade",
 }
 
 _REGISTRY: dict[str, type[Optimizer]] = {}
