@@ -50,7 +50,7 @@ def cell_verdict(paper: float, ours: float) -> str:
     rel = (ours - paper) / abs(paper) if paper != 0 else ours
     if abs(rel) <= 0.1:
         return "within 10 %"
-    off = f"{abs(rel):.0%}" if abs(rel) < 10 else f"{abs(rel):.2g}x |paper|"
+    off = f"{abs(rel):.0%}" if abs(rel) < 10 else f"{abs(rel):.2g}x its magnitude"
     return f"{'worse' if rel > 0 else 'better'} by {off}"
 
 

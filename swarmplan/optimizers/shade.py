@@ -132,7 +132,9 @@ class LShade(Optimizer):
             lost = X[better]
             state.archive = np.vstack([state.archive, lost]) if len(state.archive) else lost.copy()
             gain = Fx[better] - Fu[better]
-            w = gain / gain.sum() if gain.sum() > 0 else np.full(gain.size, 1.0 / gain.size)
+            total = gain.sum()
+            # improvement weights; equal weights when a parent's cost was inf (no finite gain)
+            w = gain / total if np.isfinite(total) and total > 0 else np.full(gain.size, 1.0 / gain.size)
             s_f, s_cr = f[better], cr[better]
             state.m_f[state.k] = np.sum(w * s_f**2) / np.sum(w * s_f)
             if np.isnan(state.m_cr[state.k]) or s_cr.max() == 0.0:
