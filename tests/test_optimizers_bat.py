@@ -350,3 +350,31 @@ def test_ba_generation_is_eqs_8_to_10_on_the_same_draws():
     assert np.array_equal(state.V, V) and np.array_equal(state.X, X)
     assert np.array_equal(state.A, A) and np.array_equal(state.r, r)
     assert state.best_f == min(best_f, fc.min())
+
+
+@pytest.mark.parametrize("position", ["accepted", "always"])
+def test_iba_gauss_position_reading(position):
+    """``position="always"``: every bat sits on the candidate it evaluated (eq 4 applied
+    unconditionally); ``"accepted"``: only accepted bats move."""
+    seen = []
+
+    def cost(X: np.ndarray) -> np.ndarray:
+        seen.append(X.copy())
+        return sphere(X - 1.0)
+
+    opt = make("iba_gauss", population=12, position=position, acceptance="own")
+    problem = Problem(cost, LOWER, UPPER, 10_000)
+    rng = np.random.default_rng(2)
+    state = opt.setup(problem, rng, None)
+    before = state.X.copy()
+    opt.iterate(state, problem, rng, 1)
+    cand = seen[1]  # the generation's candidates (then ILSA's pair)
+    if position == "always":
+        np.testing.assert_array_equal(state.X, cand)
+        np.testing.assert_allclose(state.fit, sphere(cand - 1.0))
+    else:
+        moved = np.any(state.X != before, axis=1)
+        np.testing.assert_array_equal(state.X[moved], cand[moved])
+        assert not moved.all()
+    with pytest.raises(ValueError, match="position"):
+        make("iba_gauss", position="sometimes")

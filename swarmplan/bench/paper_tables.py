@@ -28,6 +28,7 @@ TABLE10_ROWS: list[tuple[str, str]] = [
 TABLE4_ROWS: list[tuple[str, str]] = [
     ("iba_gauss", "003 as printed: accept against X*, no loudness floor (registry default)"),
     ("iba_gauss@own", "Yang's acceptance: against the bat's own cost"),
+    ("iba_gauss@fly", "own-cost acceptance and every bat flies to its candidate (eq 4 always)"),
     ("ba", "003's BA, Table 3 settings"),
 ]
 TABLE4_FUNCTIONS = ["F1", "F2", "F3", "F4", "F5", "F6", "F7", "F8", "F10", "F11", "F12", "F13", "F14", "F15"]

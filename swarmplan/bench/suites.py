@@ -39,6 +39,8 @@ PARAM_SETS: dict[str, tuple[str, dict[str, object]]] = {
     "iba_abc@floor": ("iba_abc", {"A_min": None}),
     # 003's IBA with Yang's acceptance (a bat's candidate against its own cost, not X*'s)
     "iba_gauss@own": ("iba_gauss", {"acceptance": "own"}),
+    # ... and every bat flying to its candidate (eq 4 unconditionally, Algorithm 2 line 14)
+    "iba_gauss@fly": ("iba_gauss", {"acceptance": "own", "position": "always"}),
 }
 
 #: improved algorithm -> its base, as the papers compare them (each pair at its paper's settings).
@@ -147,6 +149,7 @@ def _cec_paper() -> dict[str, dict[str, tuple[float, float]]]:
         "ba": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_BA)},
         "iba_gauss": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_IBA)},
         "iba_gauss@own": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_IBA)},
+        "iba_gauss@fly": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_IBA)},
     }
 
 
