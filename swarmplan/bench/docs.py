@@ -323,6 +323,12 @@ GENERATORS: dict[str, Generator] = {
         _paper_table("shifted_peers"),
         frozenset({"quick", "seeds"}),
     ),
+    "rscdwoa-table4": Generator(
+        "rscdwoa-table4",
+        "001 Table 4 functions: each improved algorithm against its base (10 runs)",
+        _paper_table("rscdwoa_table4"),
+        frozenset({"quick", "seeds"}),
+    ),
     "escape-swarm-bench": Generator(
         "escape-swarm-bench",
         "64 agents, 16 movers, rscdwoa escapes: wall time",

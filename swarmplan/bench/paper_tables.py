@@ -163,3 +163,44 @@ def shifted_peers(opts: Any) -> Any:
         f"--jobs 1 --algorithms {','.join(ours)}"
     )
     return Block(cmd, "\n".join(parts))
+
+
+def rscdwoa_table4(opts: Any) -> Any:
+    """001's Table 4 functions (no paper values): each improved algorithm against its base."""
+    from swarmplan.bench.docs import Block
+    from swarmplan.bench.optimizers import PAIRS, SUITES, format_verdicts, run_suite, summarize
+
+    suite = SUITES["rscdwoa-table4"]
+    runs = opts.seeds or (2 if opts.quick else 10)
+    evals = 600 if opts.quick else suite.evals
+    pairs = [(a, b) for a, b in PAIRS.items() if "@" not in a]
+    algorithms = [x for pair in pairs for x in pair]
+    records = run_suite(suite, algorithms, runs=runs, evals=evals, variants=[False, True], jobs=1)
+    rows = summarize(suite, records)
+    got = {(r["variant"], r["function"], r["algorithm"]): r for r in rows}
+    parts = []
+    for variant in ("plain", "shifted"):
+        parts += [
+            f"**{variant}** (mean over runs; sign: rank-sum against the base)",
+            "",
+            "| algorithm | " + " | ".join(suite.functions) + " |",
+            "|---|" + "---|" * len(suite.functions),
+        ]
+        for a, b in pairs:
+            cells = []
+            for fn in suite.functions:
+                r = got[(variant, fn, a)]
+                cells.append(f"{_fmt(r['mean'])} {r['verdict']}")
+            parts.append(f"| {a} (vs {b}) | " + " | ".join(cells) + " |")
+        parts.append("")
+    parts += [
+        "Verdict counts (improved vs base, over the nine functions):",
+        "",
+        format_verdicts(rows),
+        "",
+        f"{runs} runs (seeds 0..{runs - 1}; 001: 30), d = 30, {evals} evaluations.",
+    ]
+    cmd = (
+        f"python -m swarmplan.bench optimizers --suite rscdwoa-table4 --runs {runs} --evals {evals} --jobs 1"
+    )
+    return Block(cmd, "\n".join(parts))
