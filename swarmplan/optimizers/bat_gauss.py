@@ -131,7 +131,7 @@ class IbaGauss(Optimizer):
     none); walk in box-width units (``walk_scale = 1/200``, 003's box is ``[-100, 100]``);
     ILSA towards the box centre (``ilsa_centre = "box"``, step 4).
 
-    Measured against ``ba`` at the same Table 3 settings (issue 11, docs/benchmarks.md): better
+    Measured against ``ba`` at the same Table 3 settings (docs/benchmarks.md): better
     on shifted Ackley and on most CEC2013 functions (including CEC's Rastrigin F11), but not on
     the plain shifted Rastrigin, neither at d = 10 / 2e4 evaluations (49.0 vs 54.9, p = 0.52,
     12 seeds) nor at 003's own budget of 3e5 evaluations (d = 10: 48.8 vs 54.9; d = 30: 281 vs

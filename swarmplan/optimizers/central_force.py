@@ -396,7 +396,7 @@ class ModifiedCentralForce(CentralForce):
     initial parameters); eq 29 is met per probe (above), not by other defaults.
     :class:`CentralForce` has no such limit (004 gives CFO no stability analysis).
 
-    Measured (issue 11; shifted Rastrigin / Ackley, d = 10, 2e4 evaluations, the slow test's 12
+    Measured (shifted Rastrigin / Ackley, d = 10, 2e4 evaluations, the slow test's 12
     seeds, medians, one-sided rank-sum against CFO's 17.56 / 1.45; docs/benchmarks.md): no
     reading of what 004 leaves open (``c1 = c2``, the order of step 4) makes MCFO beat CFO on
     both functions. Eq 23 (default) with ``c1 = c2`` = 0.5 / 1 / 2: Rastrigin 16.2 / 17.1 /
