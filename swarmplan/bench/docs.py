@@ -286,7 +286,7 @@ def _paper_table(name: str) -> Callable[[Options], Block]:
     def run(opts: Options) -> Block:
         from swarmplan.bench import paper_tables
 
-        return getattr(paper_tables, name)(opts)
+        return Block(*getattr(paper_tables, name)(opts))
 
     return run
 

@@ -8,7 +8,8 @@
 * ``shifted-peers``: the shifted suite with mealpy's and niapy's peers: medians and verdicts
   against random search, same-named peers, and our best against the best peer per function.
 
-Each block states its runs; verdicts are two-sided Wilcoxon rank-sum tests at p < 0.05.
+Each block states its runs; verdicts are two-sided Wilcoxon rank-sum tests at p < 0.05. Every
+generator takes the options of ``swarmplan.bench docs`` and returns ``(command, markdown)``.
 """
 
 from __future__ import annotations
@@ -98,9 +99,7 @@ def _paper_cells(
     return "\n".join(out), ",".join(algorithms)
 
 
-def table10(opts: Any) -> Any:
-    from swarmplan.bench.docs import Block
-
+def table10(opts: Any) -> tuple[str, str]:
     runs = opts.seeds or (1 if opts.quick else 5)
     evals = 3000 if opts.quick else 300_000
     body, algs = _paper_cells("iba-table10", TABLE10_ROWS, runs, evals, None)
@@ -109,12 +108,10 @@ def table10(opts: Any) -> Any:
         f"--runs {runs} --evals {evals} --jobs 1"
     )
     note = f"\n\n{runs} runs per row (seeds 0..{runs - 1}; 000: 20), d = 50, {evals} evaluations."
-    return Block(cmd, body + note)
+    return cmd, body + note
 
 
-def table4(opts: Any) -> Any:
-    from swarmplan.bench.docs import Block
-
+def table4(opts: Any) -> tuple[str, str]:
     runs = opts.seeds or (1 if opts.quick else 3)
     evals = 3000 if opts.quick else 300_000
     fns = TABLE4_FUNCTIONS[:2] if opts.quick else TABLE4_FUNCTIONS
@@ -127,11 +124,10 @@ def table4(opts: Any) -> Any:
         f"\n\n{runs} runs per row (seeds 0..{runs - 1}; 003: 51), d = 30, {evals} evaluations; "
         "values are errors f - f*."
     )
-    return Block(cmd, body + note)
+    return cmd, body + note
 
 
-def shifted_peers(opts: Any) -> Any:
-    from swarmplan.bench.docs import Block
+def shifted_peers(opts: Any) -> tuple[str, str]:
     from swarmplan.bench.optimizers import PAIRS, format_best, format_peers, format_vs_random
     from swarmplan.bench.peers import PEERS
     from swarmplan.optimizers import available
@@ -162,12 +158,11 @@ def shifted_peers(opts: Any) -> Any:
         f"python -m swarmplan.bench optimizers --suite shifted --peers --runs {runs} --evals {evals} "
         f"--jobs 1 --algorithms {','.join(ours)}"
     )
-    return Block(cmd, "\n".join(parts))
+    return cmd, "\n".join(parts)
 
 
-def rscdwoa_table4(opts: Any) -> Any:
+def rscdwoa_table4(opts: Any) -> tuple[str, str]:
     """001's Table 4 functions (no paper values): each improved algorithm against its base."""
-    from swarmplan.bench.docs import Block
     from swarmplan.bench.optimizers import PAIRS, SUITES, format_verdicts, run_suite, summarize
 
     suite = SUITES["rscdwoa-table4"]
@@ -203,4 +198,4 @@ def rscdwoa_table4(opts: Any) -> Any:
     cmd = (
         f"python -m swarmplan.bench optimizers --suite rscdwoa-table4 --runs {runs} --evals {evals} --jobs 1"
     )
-    return Block(cmd, "\n".join(parts))
+    return cmd, "\n".join(parts)
