@@ -49,7 +49,7 @@ Readings shared by the three algorithms (the papers are silent, garbled or unwor
   only floor of our sweep that reproduces 000's Table 10 (see :data:`A_MIN` and
   docs/benchmarks.md); the benchmarks run it as the named set ``ba@floor`` /
   ``iba_abc@floor`` beside the literal rows. Yang's acceptance (``acceptance="own"``) does
-  not rescue the literal decay (docs/benchmarks.md, "Suite iba-table10").
+  not rescue the literal decay (docs/benchmarks.md, "Paper 000, Table 10").
 * The pulse rate update ``r = r0 (1 - exp(-gamma t))`` (eq 10) uses the iteration number
   ``t``; it is not a ``t / T_max`` schedule. Pulse rates start at ``r0`` and loudness at
   ``A0``; velocities start at zero; ``f_i`` is redrawn every generation.

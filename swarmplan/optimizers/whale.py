@@ -187,7 +187,7 @@ class WOA(Optimizer):
     default). mealpy's ``OriginalWOA`` keeps a whale's old position when the new one is worse
     (one-to-one greedy selection, ``"greedy"`` here): that selection, not the spiral distance,
     the a-schedule, the shared ``r`` of its ``A`` and ``C`` or its uniform ``X_rand``, is what
-    makes it stronger on the shifted suite (docs/benchmarks.md, "WOA and mealpy's WOA").
+    makes it stronger on the shifted suite (docs/benchmarks.md, "Shifted suite").
     """
 
     name = "woa"
