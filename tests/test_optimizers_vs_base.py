@@ -39,7 +39,7 @@ KNOWN_FAILURES = {
     # MCFO = CFO + eq 18 memory + eq 19 mutation, with CFO's rank masses; with the additions off
     # it is CFO move for move (tests/test_optimizers_central_force.py). Ablation at these
     # settings: memory alone (c3 = 0) 24.7 / 2.41, mutation alone (c1 = c2 = 0) 20.2 / 1.46:
-    # the memory pull without inertia (c1 = c2 = 1, ours; 004 gives none) is what costs. Re-read:
+    # the memory pull without inertia (c1 = c2 = 1, ours; 004 gives none) is what costs. Re-read
     # neither order of 004's step 4 (update="eq23" / "steps") nor c1 = c2 in 0.5-2,
     # with or without mutation, beats CFO on both functions (table in docs/benchmarks.md).
     ("mcfo", "rastrigin"): (
@@ -131,7 +131,7 @@ def test_improved_beats_base_fast(improved, base, request):
     assert wins == len(FUNCTIONS), f"{improved} beat {base} on {wins}/{len(FUNCTIONS)} shifted functions"
 
 
-# Strict xfails (they fail the day the algorithm passes). Empty: with 002's CEC
+# Strict xfails (they fail the day the algorithm passes). Empty since the scale fixes: with 002's CEC
 # settings in box widths (Visual 25 %, Step 3 %) no fish ever saw another in d = 10 and AFSA
 # lost to random search (medians of 5: sphere 1.49e4 vs 7.75e3, Rastrigin 94.8 vs 95.0, with
 # 1.42e4 / 98.5 before the random stream changed); with Visual / Step as fractions of the box

@@ -1,6 +1,6 @@
 """Compiled steps of AFSA / IAFSA (:mod:`swarmplan.optimizers.fish_swarm`, paper 002).
 
-Why numba here (optimizer overhead target: <= 1 µs per evaluation at d = 50): a fish
+Why numba here (target: optimizer overhead <= 1 µs per evaluation at d = 50): a fish
 generation was ~150 numpy calls (views, centres, the prey rounds with fancy indexing, three
 kinds of moves, concatenation, selection), at ~1 µs each before they touch a number, for
 ~150 evaluations. The kernels below do the per-fish work in a few passes; random numbers

@@ -9,22 +9,18 @@ documented in :mod:`swarmplan.optimizers.bat`.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.optimizers.bat import WALK_SCALE, _check_bat_params
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 
-@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._bat_gauss_kernels`, imported at the first generation."""
-    from swarmplan.optimizers import _bat_gauss_kernels
-
-    return _bat_gauss_kernels
+    return kernel_module("swarmplan.optimizers._bat_gauss_kernels")
 
 
 # --------------------------------------------------------------------------------------
@@ -74,7 +70,6 @@ class _IbaGaussState:
     best_f: float
 
 
-@register
 class IbaGauss(Optimizer):
     """IBA of Huang & Ma (paper 003): integration strategy, Gaussian perturbation, ILSA.
 

@@ -42,23 +42,19 @@ docstrings for the per-algorithm ones):
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 _EMPTY = np.empty(0)
 
 
-@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._central_force_kernel`, imported at the first generation."""
-    from swarmplan.optimizers import _central_force_kernel
-
-    return _central_force_kernel
+    return kernel_module("swarmplan.optimizers._central_force_kernel")
 
 
 def accommodate(
@@ -224,7 +220,6 @@ def _mass_scale(F: np.ndarray) -> float:
     return max(abs(float(F.max())), 1.0)
 
 
-@register
 class CentralForce(Optimizer):
     """Central force optimization, paper 004 section 3 (eqs 13-16), minimisation form.
 
@@ -312,7 +307,6 @@ class CentralForce(Optimizer):
         state.U = U
 
 
-@register
 class ModifiedCentralForce(CentralForce):
     """Modified CFO (MCFO2 of paper 004 section 4): CFO + PSO memory (eq 18) + mutation (eq 19).
 

@@ -70,7 +70,7 @@ Readings chosen where paper 002 is ambiguous:
 * Prey tries follow the paper's sequential rule: a fish stops at its *first* better try and
   moves towards it. The tries are drawn and evaluated in rounds (round ``r``: try ``r`` of
   every fish still searching), so only the tries a fish makes are drawn and count against the
-  budget. (Until the overhead work all ``try_number`` tries were drawn up front, about
+  budget. (Earlier all ``try_number`` tries were drawn up front, about
   2x the random numbers used; the random stream, not the algorithm, changed with that.)
   (Before, all ``try_number`` tries of every fish were evaluated in one batch; on a smooth
   function about half of the first tries already succeed, so that spent 2-3x the evaluations
@@ -85,21 +85,17 @@ Readings chosen where paper 002 is ambiguous:
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population, kernels
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 
-@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._fish_swarm_kernels`, imported at the first generation."""
-    from swarmplan.optimizers import _fish_swarm_kernels
-
-    return _fish_swarm_kernels
+    return kernel_module("swarmplan.optimizers._fish_swarm_kernels")
 
 
 @dataclass
@@ -324,7 +320,6 @@ class _FishBase(Optimizer):
         return False
 
 
-@register
 class ArtificialFishSwarm(_FishBase):
     """Artificial fish swarm algorithm, paper 002 section 3.1 (eqs 16-21).
 
@@ -375,7 +370,6 @@ class ArtificialFishSwarm(_FishBase):
         self._generation(state, problem, rng)
 
 
-@register
 class ImprovedFishSwarm(_FishBase):
     """Improved AFSA (IAFSA), paper 002 section 3.2.
 

@@ -36,7 +36,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
 
 _N_MIN = 4
 
@@ -52,7 +51,6 @@ class _ShadeState:
     n_init: int
 
 
-@register
 class LShade(Optimizer):
     """L-SHADE (Tanabe & Fukunaga 2014): see the module docstring for every step."""
 
