@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-from swarmplan.cli.common import HelpFormatter, plain
+from swarmplan.cli.common import HelpFormatter, plain, quiet_on_closed_stdout
 from swarmplan.runtime.blas import limit_blas_threads
 
 #: subcommand name -> (module path, one-line help). Modules are imported lazily.
@@ -44,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()

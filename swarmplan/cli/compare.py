@@ -25,7 +25,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from swarmplan.cli.common import HelpFormatter, output_dir_problem, plain
+from swarmplan.cli.common import HelpFormatter, output_dir_problem, plain, quiet_on_closed_stdout
 from swarmplan.cli.sweep import WORKERS_HELP, default_workers
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sweep.report import table, table_notes, verdict  # noqa: F401 - part of this module's API
@@ -65,6 +65,7 @@ def _line(r: dict[str, Any]) -> str:
     )
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()
