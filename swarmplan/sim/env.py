@@ -22,7 +22,7 @@ from typing import Any, Literal
 import numpy as np
 
 from swarmplan.core import AgentStates, Event, Mode, Planner, Recorder, StepResult, SwarmState
-from swarmplan.flight.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
 from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -59,7 +59,7 @@ class Simulation:
         self.planner = planner
         self.recorder = recorder
         self.params = AgentParams.from_world(world)
-        self.gains = ApfGains.from_world(world)
+        self.apf = ApfField(world, self.params)
         self.scene = Scene(world, self.params)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
@@ -208,16 +208,8 @@ class Simulation:
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
             target, rep_scale = nav.attraction_targets(s, idx, events)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
-            field_args = (w, self.params, self.gains, idx, pos0[idx], vel0[idx], s.goal[idx], inputs)
-            field_args += (pos0, vel0)
-            force = apf_forces(*field_args, target=target, static_scale=rep_scale, parked=parked)
-            fixed = self.params.fixed_wing[idx]
-            if fixed.any() and parked.any():
-                # Fixed wings keep the full repulsion of parked agents: they cannot stop, so the
-                # standstill the goal factor resolves (held off the goal by parked neighbours)
-                # does not arise, and near a goal they circle at speed past parked agents
-                # (rscdwoa_multi_uav, woa seed 9: with the factor uav1 circled its goal for 50 s).
-                force[fixed] = apf_forces(*field_args, target=target, static_scale=rep_scale)[fixed]
+            flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
+            force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked))
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0, self.metrics)
