@@ -5,10 +5,10 @@ Below ``COMPILED_FROM`` agents the numpy paths run: numba's one-time load (its i
 the cached machine code, ~0.9 s CPU per process) costs more than a small world's whole run
 saves, and the start-up figure of issue 10 (a 16-agent world to after its first step,
 <= 0.5 s) would not hold. From it on (swarm scale) the field, the nearest surfaces, the
-agents' clearance and the potential field are compiled kernels. Both paths give the same
-bits (the kernels follow numpy's formulas and order of sums, rotations stay with numpy's
-BLAS), so a world runs identically either way (tests/test_field_kernels.py,
-tests/test_apf_compiled.py); the choice depends on the world only.
+agents' clearance are compiled kernels. Both paths give the same bits (the kernels follow
+numpy's formulas and order of sums, rotations stay with numpy's BLAS), so a world runs
+identically either way (tests/test_field_kernels.py); the choice depends on the world only.
+The potential field has one implementation, compiled, for every world (``flight.apf``).
 """
 
 from __future__ import annotations
@@ -17,9 +17,7 @@ from functools import cache
 from types import ModuleType
 
 COMPILED_FROM = 49
-"""Swarm size (agents in the world) from which the compiled kernels run: where the numpy
-potential field sums the agent term over the k-d tree's pairs (above ``apf._INDEX_FROM``
-= 48 agents), whose order of sums the compiled term reproduces."""
+"""Swarm size (agents in the world) from which the compiled geometry kernels run."""
 
 
 def use_compiled(n_agents: int) -> bool:
