@@ -415,10 +415,25 @@ class EscapePlanner:
                     best, best_c = q, score
         return best
 
+    def only_agents_around(self, sim: PlanningContext, i: int) -> bool:
+        """Whether nothing but other agents can hold ``i``: no obstacle, ground or face of the
+        bounds (static or moving, now) within the field's influence distance. Such a jam is the
+        swarm's (the field's agent term, with its right-hand rule, and the other agents' own
+        progress dissolve it); one agent's escape around its neighbours only adds a detour."""
+        pos = sim.state.position[i]
+        r = float(sim.params.radius[i])
+        rho0 = float(sim.world.planner_config.apf.influence)
+        if float(static_clearance(sim, pos, r)[0]) < rho0:
+            return False
+        t = sim.state.t
+        return float(moving_clearance(sim, pos[None], r, t, t, cap=rho0)[0]) >= rho0
+
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
+        if self.only_agents_around(sim, i):
+            return None
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
             return FAILED
