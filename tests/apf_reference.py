@@ -58,7 +58,20 @@ def reference_forces(world, params: AgentParams, flyers: Flyers, field: FieldInp
         k = np.where(field.obstacle_moving[None, :], g.k_rep, g.k_rep * scale[:, None])
         mag = _rep(rho, rho0, k)
         pot = np.where(rho < rho0, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
-        force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], field.obstacle_gradient)
+        grad = field.obstacle_gradient
+        force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
+        # Blocked by a static body: the opposing part of its push turns along its surface,
+        # towards its nearer side horizontally (right-hand when dead centre).
+        block = np.einsum("nd,nkd->nk", _unit(et), grad)
+        c = pos[:, None, :] - field.obstacle_center[None, :, :]
+        c[..., 2] = 0.0
+        side = c - dot3(c, grad)[..., None] * grad
+        tiny = dot3(side, side) < 1e-12 * (1.0 + dot3(c, c))
+        side = np.where(tiny[..., None], _right_of(-grad), side)
+        on = (block < 0) & ~field.obstacle_moving[None, :] & (rho < rho0)
+        turn = np.clip(dg / rho0 - 1.0, 0.0, 1.0)  # fades in from one to two influences off the goal
+        w = np.where(on, mag * (gfac * turn)[:, None] * block, 0.0)
+        force = force - np.einsum("nk,nkd->nd", w, _unit(side))
         force = force + (pot.sum(axis=1) * gfac_d)[:, None] * goal_dir
         mv = field.obstacle_moving
         if mv.any():
@@ -116,7 +129,7 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     q = dp / scale
     e = norm3(q)
     grad = _unit(q / scale)
-    e0 = 1.0 + (reach[idx][:, None] + reach[None, :]) / scale.max(axis=-1)
+    e0 = 1.0 + np.minimum(reach[idx][:, None] + reach[None, :], g.influence) / scale.max(axis=-1)
     mag = np.where(others & (e < e0), g.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     dvw = vel[:, None, :] - all_vel[None, :, :]
     dv = dvw / scale
@@ -127,9 +140,12 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     urgency = 1.0 - tau / (g.horizon + _EPS)
     live = others & (es < e0) & (tau > 0)
     mag_p = np.where(live, g.k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
-    if swarm.parked is not None:
-        factored = swarm.parked[None, :] & ~params.fixed_wing[idx][:, None]
-        mag = np.where(factored, mag * gfac[:, None], mag)
-        mag_p = np.where(factored, mag_p * gfac[:, None], mag_p)
+    parked = np.zeros(n_all, dtype=bool) if swarm.parked is None else swarm.parked
+    farther = np.zeros((len(idx), n_all), dtype=bool)
+    if swarm.goal_distance is not None:
+        farther = norm3(flyers.goal - pos)[:, None] <= swarm.goal_distance[None, :]
+    factored = (parked[None, :] | farther) & ~params.fixed_wing[idx][:, None]
+    mag = np.where(factored, mag * gfac[:, None], mag)
+    mag_p = np.where(factored, mag_p * gfac[:, None], mag_p)
     direction = _unit(_unit(qs * scale) + 0.5 * _right_of(dvw))
     return np.einsum("nk,nkd->nd", mag, grad) + np.einsum("nk,nkd->nd", mag_p, direction)

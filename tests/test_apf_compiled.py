@@ -157,7 +157,8 @@ def test_compiled_equals_reference_on_random_swarms(peaks, seed):
         inputs = FieldInputs(f[0][idx], f[1][idx], *f[2:])
         parked = None if case < 2 else rng.random(N) < 0.3  # agents that no longer fly
         flyers = Flyers(idx, pos[idx], vel[idx], goal[idx], target, scale)
-        swarm = Swarm(pos, vel, parked)
+        to_go = None if case < 2 else np.linalg.norm(goal - pos, axis=1)  # priority near goals
+        swarm = Swarm(pos, vel, parked, to_go)
         ref = reference_forces(world, params, flyers, inputs, swarm)
         got = field.forces(flyers, inputs, swarm)
         assert np.all(np.isfinite(ref))
@@ -185,10 +186,12 @@ def test_pairs_at_the_edge_of_the_reach():
     gains = world.planner_config.apf
     params = AgentParams.from_world(world)
     # One kind, semi-axes (6, 6, 4): along y the scaled and unscaled distances agree, so the
-    # bound is tight there: the predicted term starts at |dy| = 6 e0, e0 = 1 + 2 reach / 6.
+    # bound is tight there: the predicted term starts at |dy| = 6 e0, e0 = 1 + range / 6 with
+    # the range both stopping reaches (22 m), capped at the influence (20 m).
     reach = stopping_reach(params, world.dt)[0]
-    edge = 6.0 + 2.0 * reach
-    assert current_reach(params, stopping_reach(params, world.dt)) == pytest.approx(edge)
+    edge = 6.0 + min(2.0 * reach, gains.influence)
+    assert edge == 26.0
+    assert current_reach(params, stopping_reach(params, world.dt), gains.influence) == pytest.approx(edge)
     horizon = gains.horizon
     pairs = []  # (x gap, lateral offset, closing speed per agent)
     for rel in (1 - 1e-6, 1 + 1e-6, 1 - 1e-12, 1 + 1e-12):
@@ -206,7 +209,7 @@ def test_pairs_at_the_edge_of_the_reach():
     sub = dataclasses.replace(
         params,
         **{k: getattr(params, k)[:n] for k in ("radius", "separation", "min_altitude", "speed_cruise",
-                                               "max_accel", "fixed_wing")},
+                                               "max_accel", "fixed_wing", "min_turn_radius")},
     )  # fmt: skip
     goal = pos + [0.0, 0.0, 0.0]
     idx = np.arange(n)
@@ -220,8 +223,8 @@ def test_pairs_at_the_edge_of_the_reach():
 
 def test_range_of_agents_comes_from_their_stopping_distance():
     """Two agents at rest along an axis repel each other out to the separation semi-axis plus
-    both stopping reaches (v dt + v^2 / 2a each), and not a metre beyond: the obstacles'
-    influence distance plays no part."""
+    both stopping reaches (v dt + v^2 / 2a each), and not a metre beyond (the influence
+    distance, longer here, only caps it)."""
     world = _world(False, {"influence": 100.0})
     params = AgentParams.from_world(world)
     reach = 10.0 * world.dt + 10.0**2 / (2 * 5.0)  # cruise 10 m/s, 5 m/s^2

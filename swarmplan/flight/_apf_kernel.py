@@ -111,13 +111,13 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
     terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
-    velocities, parked) of every agent; ``gains``: (k_att, k_rep, influence, k_agent,
+    velocities, parked, distance to the goal) of every agent; ``gains``: (k_att, k_rep, influence, k_agent,
     quadratic_radius, goal_power, k_moving, horizon)."""
     pos, vel, goal, target, static_scale, idx = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    all_pos, all_vel, parked = swarm
+    all_pos, all_vel, parked, goal_dist = swarm
     k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
     m = dist.shape[1]
@@ -165,6 +165,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
         if m:
             ks = k_rep * static_scale[i]
             pot_sum = 0.0
+            ax, ay, az = _unit(tx, ty, tz)
+            # The turn along blocking bodies fades in from one to two influence distances from
+            # the goal: a goal beside a body is reached through the goal factor instead.
+            turn = min(1.0, max(0.0, dg / rho0 - 1.0))
             for j in range(m):
                 rho = dist[i, j] - ri
                 if rho < rho0:
@@ -172,9 +176,25 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                     x = 1.0 / max(rho, 0.05) - 1.0 / rho0
                     w = k * x * gfac
                     pot_sum += 0.5 * k * (x * x) * rho0
-                    fx += w * grad[i, j, 0]
-                    fy += w * grad[i, j, 1]
-                    fz += w * grad[i, j, 2]
+                    nx, ny, nz = grad[i, j, 0], grad[i, j, 1], grad[i, j, 2]
+                    fx += w * nx
+                    fy += w * ny
+                    fz += w * nz
+                    block = ax * nx + ay * ny + az * nz
+                    if block < 0.0 and turn > 0.0 and not moving[j]:
+                        # The way on lies behind a static body: the part of the push that
+                        # opposes the pull turns along its surface, towards its nearer side
+                        # (horizontally: from its centre), right-hand when dead centre.
+                        cx, cy = px - o_center[j, 0], py - o_center[j, 1]
+                        d = cx * nx + cy * ny
+                        sx, sy, sz = cx - d * nx, cy - d * ny, -d * nz
+                        if sx * sx + sy * sy + sz * sz < 1e-12 * (1.0 + cx * cx + cy * cy):
+                            sx, sy, sz = _right(-nx, -ny, -nz)
+                        sx, sy, sz = _unit(sx, sy, sz)
+                        wt = w * block * turn
+                        fx -= wt * sx
+                        fy -= wt * sy
+                        fz -= wt * sz
             c = pot_sum * gfac_d
             fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
             if any_moving:
@@ -221,7 +241,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
         fz += _face(pz - hi[2], -1.0, ri, rb0, k_rep, gfac)
 
         # Other agents: ellipsoidal separation, current and predicted, out to the pair's
-        # stopping reach beyond the ellipsoid.
+        # stopping reach beyond the ellipsoid (at most the influence distance).
         if n_all >= 2:
             ia = idx[i]
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
@@ -237,7 +257,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                 cz = max(separation[ia, 2], separation[b, 2]) + rr
                 qx, qy, qz = dpx / cx, dpy / cy, dpz / cz
                 e = math.sqrt(qx * qx + qy * qy + qz * qz)
-                e0 = 1.0 + (stop_reach[ia] + stop_reach[b]) / max(cx, cy, cz)
+                e0 = 1.0 + min(stop_reach[ia] + stop_reach[b], rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz
                 tau = min(max(-(qx * dvx + qy * dvy + qz * dvz) / max(aa, _EPS), 0.0), horizon)
@@ -252,7 +272,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                 urgency = 1.0 - tau / (horizon + _EPS)
                 mag_p = k_agent * (1.0 / max(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if predicted else 0.0
                 mag_p = mag_p * urgency
-                if parked[b] and can_stop[ia]:  # a parked agent repels as a static body
+                # Priority: a parked agent, or one farther from its goal, repels as a static
+                # body does (with the goal factor): near its goal an agent that can stop goes
+                # on through the crowd and the others give way.
+                if can_stop[ia] and (parked[b] or dg <= goal_dist[b]):
                     mag = mag * gfac
                     mag_p = mag_p * gfac
                 wx, wy, wz = _unit(sx * cx, sy * cy, sz * cz)

@@ -15,9 +15,12 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   neighbour is no threat, and a longer range only pushes a dense swarm apart and holds
   agents off goals that sit close together. Head-on and many-way encounters are broken by a
   right-hand component about the relative velocity;
-- arrived (parked) agents repel as static bodies do, with the goal factor, for agents that
-  can stop (multirotors); fixed wings keep their full repulsion (they cannot stop, so the
-  standstill the factor resolves does not arise).
+- priority near goals: arrived (parked) agents, and agents farther from their goals than the
+  agent itself, repel as static bodies do, with its goal factor, for agents that can stop
+  (multirotors): near its goal an agent goes on through the crowd and the others give way
+  (without it, neighbours hovering by their own goals hold each other off for good). Fixed
+  wings keep the full repulsion (they cannot stop, so the standstill the factor resolves does
+  not arise).
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
 so the agent can still brake before the goal and before any obstacle surface ahead.
 
@@ -74,19 +77,25 @@ class Flyers:
 @dataclass(frozen=True)
 class Swarm:
     """Every agent of the world (``pos``/``vel`` (N, 3)); ``parked`` (N,) marks those that no
-    longer fly (arrived, stopped), which repel as static bodies (with the goal factor)."""
+    longer fly (arrived, stopped), which repel as static bodies (with the goal factor);
+    ``goal_distance`` (N,) each one's distance to its goal (default: none nearer than any
+    flyer to its own, i.e. no priority between flying agents)."""
 
     pos: np.ndarray
     vel: np.ndarray
     parked: np.ndarray | None = None
+    goal_distance: np.ndarray | None = None
 
 
 def stopping_reach(params: AgentParams, dt: float) -> np.ndarray:
-    """Per agent: the distance it covers from cruise speed until it stands still, one step of
-    reaction and then braking at ``max_accel`` (``v dt + v^2 / (2 a)``). Two agents' repulsion
-    reaches the sum of their two values beyond their separation ellipsoid."""
+    """Per agent: the distance it covers from cruise speed until it is out of another's way,
+    one step of reaction and then, for a multirotor, braking to a stop at ``max_accel``
+    (``v dt + v^2 / (2 a)``), for a fixed wing (which cannot stop) a turn at its minimum
+    radius (``v dt + min_turn_radius``). Two agents' repulsion reaches the sum of their two
+    values beyond their separation ellipsoid, at most the field's ``influence``."""
     v = params.speed_cruise
-    return v * dt + v * v / (2.0 * np.maximum(params.max_accel, _EPS))
+    stop = v * v / (2.0 * np.maximum(params.max_accel, _EPS))
+    return v * dt + np.where(params.fixed_wing, params.min_turn_radius, stop)
 
 
 class ApfField:
@@ -105,7 +114,7 @@ class ApfField:
         gains_ = (g.k_att, g.k_rep, g.influence, g.k_agent, g.quadratic_radius, g.goal_power, g.k_moving, g.horizon)
         self._gains = tuple(float(v) for v in gains_)
         self._floor = float(world.terrain_clearance) if world.peaks else 0.0
-        self._reach = current_reach(params, self.reach_per_agent)
+        self._reach = current_reach(params, self.reach_per_agent, self.gains.influence)
 
     def forces(self, flyers: Flyers, field: FieldInputs, swarm: Swarm) -> np.ndarray:
         n = len(flyers.idx)
@@ -121,13 +130,15 @@ class ApfField:
         tgt = goal if flyers.target is None else flyers.target
         scale = np.ones(n) if flyers.static_scale is None else np.asarray(flyers.static_scale, dtype=float)
         parked = np.zeros(len(swarm.pos), dtype=bool) if swarm.parked is None else swarm.parked
+        goal_dist = swarm.goal_distance
+        goal_dist = np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         _kernel().apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64)),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              field.obstacle_center, field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (swarm.pos, swarm.vel, np.asarray(parked, dtype=np.bool_)),
+            (swarm.pos, swarm.vel, np.asarray(parked, dtype=np.bool_), goal_dist),
             self._reach * (1.0 + 1e-9) + 1e-9,
             self._gains,
             out,
@@ -143,16 +154,17 @@ def _kernel() -> ModuleType:
     return _apf_kernel
 
 
-def current_reach(params: AgentParams, reach_per_agent: np.ndarray) -> float:
+def current_reach(params: AgentParams, reach_per_agent: np.ndarray, influence: float) -> float:
     """Distance between centres beyond which another agent's *current* repulsion is zero:
-    the largest semi-axis of the pair's separation ellipsoid plus both stopping reaches,
-    maximised over the pairs of agent kinds (the predicted term adds the relative motion)."""
+    the largest semi-axis of the pair's separation ellipsoid plus both stopping reaches (at
+    most ``influence``), maximised over the pairs of agent kinds (the predicted term adds the
+    relative motion)."""
     rows = np.column_stack([params.separation, params.radius, reach_per_agent])
     # Usually every agent is of one kind; np.unique over rows costs more than the rest.
     kinds = rows[:1] if (rows == rows[0]).all() else np.unique(rows, axis=0)
     sep = np.maximum(kinds[:, None, :3], kinds[None, :, :3])
     scale = sep + (kinds[:, None, 3] + kinds[None, :, 3])[..., None]
-    return float((scale.max(axis=-1) + kinds[:, None, 4] + kinds[None, :, 4]).max())
+    return float((scale.max(axis=-1) + np.minimum(kinds[:, None, 4] + kinds[None, :, 4], influence)).max())
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -209,7 +209,8 @@ class Simulation:
             target, rep_scale = nav.attraction_targets(s, idx, events)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
             flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
-            force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked))
+            to_go = np.linalg.norm(s.goal - pos0, axis=1)
+            force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0, self.metrics)
