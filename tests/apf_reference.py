@@ -147,5 +147,8 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     factored = (parked[None, :] | farther) & ~params.fixed_wing[idx][:, None]
     mag = np.where(factored, mag * gfac[:, None], mag)
     mag_p = np.where(factored, mag_p * gfac[:, None], mag_p)
-    direction = _unit(_unit(qs * scale) + 0.5 * _right_of(dvw))
+    over = (2.0 * dvw[..., 0] + dvw[..., 1]) / (np.sqrt(5.0) * np.maximum(norm3(dvw), _EPS))
+    up = np.zeros_like(dvw)
+    up[..., 2] = over
+    direction = _unit(_unit(qs * scale) + 0.5 * (_right_of(dvw) + up))
     return np.einsum("nk,nkd->nd", mag, grad) + np.einsum("nk,nkd->nd", mag_p, direction)
