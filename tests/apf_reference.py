@@ -52,6 +52,8 @@ def reference_forces(world, params: AgentParams, flyers: Flyers, field: FieldInp
     gfac = np.minimum(1.0, dg / rho0) ** npow
     gfac_d = np.where(dg < rho0, npow * np.minimum(1.0, dg / rho0) ** (npow - 1) / rho0, 0.0)
 
+    turn_force = np.zeros_like(force)
+    hold = np.zeros(n)
     if field.obstacle_distance.shape[1]:
         rho = field.obstacle_distance - r[:, None]
         scale = np.ones(n) if static_scale is None else static_scale
@@ -61,17 +63,27 @@ def reference_forces(world, params: AgentParams, flyers: Flyers, field: FieldInp
         grad = field.obstacle_gradient
         force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
         # Blocked by a static body: the opposing part of its push turns along its surface,
-        # towards its nearer side horizontally (right-hand when dead centre).
-        block = np.einsum("nd,nkd->nk", _unit(et), grad)
+        # the way the pull leans along it, or when the pull is nearly square to it towards the
+        # body's nearer side horizontally (right-hand when dead centre); only where the static
+        # bodies hold the agent (below).
+        pull = _unit(et)
+        block = np.einsum("nd,nkd->nk", pull, grad)
         c = pos[:, None, :] - field.obstacle_center[None, :, :]
         c[..., 2] = 0.0
-        side = c - dot3(c, grad)[..., None] * grad
-        tiny = dot3(side, side) < 1e-12 * (1.0 + dot3(c, c))
-        side = np.where(tiny[..., None], _right_of(-grad), side)
-        on = (block < 0) & ~field.obstacle_moving[None, :] & (rho < rho0)
-        turn = np.clip(dg / rho0 - 1.0, 0.0, 1.0)  # fades in from one to two influences off the goal
+        nearer = c - dot3(c, grad)[..., None] * grad
+        tiny = dot3(nearer, nearer) < 1e-12 * (1.0 + dot3(c, c))
+        nearer = np.where(tiny[..., None], _right_of(-grad), nearer)
+        along = pull[:, None, :] - block[..., None] * grad  # the pull's part along the surface
+        side = np.where((dot3(along, along) < 0.04)[..., None], nearer, along)
+        static = ~field.obstacle_moving[None, :] & (rho < rho0)
+        hold = np.where(static, mag * gfac[:, None] * block, 0.0).sum(axis=1)
+        on = (block < 0) & static
+        # fades in from one to two influences off the goal; only on the way to the goal itself
+        turn = np.clip(dg / rho0 - 1.0, 0.0, 1.0)
+        if target is not None:
+            turn = np.where(np.all(np.abs(target - goal) <= 1e-9, axis=1), turn, 0.0)
         w = np.where(on, mag * (gfac * turn)[:, None] * block, 0.0)
-        force = force - np.einsum("nk,nkd->nd", w, _unit(side))
+        turn_force = -np.einsum("nk,nkd->nd", w, _unit(side))
         force = force + (pot.sum(axis=1) * gfac_d)[:, None] * goal_dir
         mv = field.obstacle_moving
         if mv.any():
@@ -107,7 +119,12 @@ def reference_forces(world, params: AgentParams, flyers: Flyers, field: FieldInp
                 continue
             rho_b = sign * (pos[:, axis] - plane) - r
             force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep) * gfac
-    return force + agent_term(world, params, g, flyers, swarm, gfac)
+    force = force + agent_term(world, params, g, flyers, swarm, gfac)
+    # The turn only where the static bodies hold the agent (the pull and their push along it
+    # under a quarter of the pull).
+    pull_size = g.k_att * np.minimum(dt_, dq)
+    held = pull_size + hold < 0.25 * pull_size
+    return force + np.where(held[:, None], turn_force, 0.0)
 
 
 def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac=None):

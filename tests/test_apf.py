@@ -67,19 +67,30 @@ def test_obstacle_between_repels_away_from_it():
     rep = field_forces(w, p)[0] - field_forces(w_free, p)[0]
     away = _unit(p - np.array([45, 51, 25]))
     assert np.linalg.norm(rep) > 0.5
-    # The push is the outward surface normal (away from the centre) plus, as the goal lies
-    # behind the body, the part opposing the pull turned along the surface towards the
-    # body's nearer side (here -y: the agent is south of its centre).
-    side = _unit(np.cross(np.cross(away, [0.0, -1.0, 0.0]), away))  # tangent towards -y
-    normal_part, side_part = float(np.dot(rep, away)), float(np.dot(rep, side))
-    assert normal_part > 0 and side_part > 0
-    pull = _unit(np.subtract((90, 50, 25), p))
-    k = 50.0 * (1 / (np.linalg.norm(p - [45, 51, 25]) - 5 - 1.0) - 1 / w.planner_config.apf.influence)
-    np.testing.assert_allclose(normal_part, k, rtol=1e-9)  # k_rep (1/rho - 1/rho0), goal far
-    # ... times how much the body blocks the pull, fading in from one to two influences off the goal.
-    turn = min(1.0, 60.0 / w.planner_config.apf.influence - 1.0)
-    np.testing.assert_allclose(side_part, k * float(np.dot(pull, -away)) * turn, rtol=1e-9)
+    # The repulsion points along the outward surface normal, i.e. away from the centre.
+    assert float(np.dot(_unit(rep), away)) > 0.999
     assert rep[0] < 0 and rep[1] < 0  # back from it and sideways away from its off-centre bulk
+
+
+def test_a_body_that_holds_the_agent_turns_its_push_along_its_surface():
+    """Held by a body square across its way (the field's force makes less than a quarter of
+    the pull's way), the agent also gets the opposing part of the push turned along the surface
+    towards the body's nearer side (here -y: the agent is south of its centre)."""
+    obstacle = {"id": "rock", "shape": "sphere", "radius": 5, "position": [45, 51, 25]}
+    w_free, w = world_of(), world_of([obstacle])
+    p = np.array([38.0, 50, 25])
+    f = field_forces(w, p)[0]
+    pull = _unit(np.subtract((90, 50, 25), p))
+    assert float(np.dot(f, pull)) < 0.25 * 10.0  # held: k_att * quadratic_radius = 10
+    rep = f - field_forces(w_free, p)[0]
+    away = _unit(p - np.array([45, 51, 25]))
+    side = _unit(np.cross(np.cross(away, [0.0, -1.0, 0.0]), away))  # tangent towards -y
+    rho0 = w.planner_config.apf.influence
+    k = 50.0 * (1 / (np.linalg.norm(p - [45, 51, 25]) - 5 - 1.0) - 1 / rho0)
+    np.testing.assert_allclose(float(np.dot(rep, away)), k, rtol=1e-9)  # k_rep (1/rho - 1/rho0)
+    # ... times how much the body blocks the pull, fading in from one to two influences off the goal.
+    turn = min(1.0, 52.0 / rho0 - 1.0)
+    np.testing.assert_allclose(float(np.dot(rep, side)), k * float(np.dot(pull, -away)) * turn, rtol=1e-9)
 
 
 def test_repulsion_grows_as_the_surface_nears_and_vanishes_beyond_influence():

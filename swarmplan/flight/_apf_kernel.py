@@ -154,12 +154,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
         dg = math.sqrt(ex * ex + ey * ey + ez * ez)
         tx, ty, tz = target[i, 0] - px, target[i, 1] - py, target[i, 2] - pz
         dt = math.sqrt(tx * tx + ty * ty + tz * tz)
-        well = (
-            dt <= dq
-            and abs(target[i, 0] - goal[i, 0]) <= 1e-9
+        to_goal = (
+            abs(target[i, 0] - goal[i, 0]) <= 1e-9
             and abs(target[i, 1] - goal[i, 1]) <= 1e-9
             and abs(target[i, 2] - goal[i, 2]) <= 1e-9
         )
+        well = dt <= dq and to_goal
         if well:
             fx, fy, fz = k_att * tx, k_att * ty, k_att * tz
         else:
@@ -172,13 +172,16 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
 
         # Obstacle surfaces (static ones scaled per agent), and the goal factor's companion
         # term pulling towards the goal with the sum of their potentials.
+        bx = by = bz = 0.0  # the turn along blocking bodies (added if they hold the agent)
+        hold = 0.0  # the static bodies' push along the pull
         if m:
             ks = k_rep * static_scale[i]
             pot_sum = 0.0
             ax, ay, az = _unit(tx, ty, tz)
             # The turn along blocking bodies fades in from one to two influence distances from
-            # the goal: a goal beside a body is reached through the goal factor instead.
-            turn = min(1.0, max(0.0, dg / rho0 - 1.0))
+            # the goal (a goal beside a body is reached through the goal factor instead), and
+            # only on the way to the goal itself: a route or segment already chose the way round.
+            turn = min(1.0, max(0.0, dg / rho0 - 1.0)) if to_goal else 0.0
             for j in range(m):
                 rho = dist[i, j] - ri
                 if rho < rho0:
@@ -191,20 +194,26 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                     fy += w * ny
                     fz += w * nz
                     block = ax * nx + ay * ny + az * nz
+                    if not moving[j]:
+                        hold += w * block
                     if block < 0.0 and turn > 0.0 and not moving[j]:
                         # The way on lies behind a static body: the part of the push that
-                        # opposes the pull turns along its surface, towards its nearer side
-                        # (horizontally: from its centre), right-hand when dead centre.
-                        cx, cy = px - o_center[j, 0], py - o_center[j, 1]
-                        d = cx * nx + cy * ny
-                        sx, sy, sz = cx - d * nx, cy - d * ny, -d * nz
-                        if sx * sx + sy * sy + sz * sz < 1e-12 * (1.0 + cx * cx + cy * cy):
-                            sx, sy, sz = _right(-nx, -ny, -nz)
+                        # opposes the pull turns along its surface, the way the pull leans
+                        # along it, or when the pull is nearly square to it (under a fifth)
+                        # towards its nearer side (horizontally: from its centre), right-hand
+                        # when dead centre.
+                        sx, sy, sz = ax - block * nx, ay - block * ny, az - block * nz
+                        if sx * sx + sy * sy + sz * sz < 0.04:
+                            cx, cy = px - o_center[j, 0], py - o_center[j, 1]
+                            d = cx * nx + cy * ny
+                            sx, sy, sz = cx - d * nx, cy - d * ny, -d * nz
+                            if sx * sx + sy * sy + sz * sz < 1e-12 * (1.0 + cx * cx + cy * cy):
+                                sx, sy, sz = _right(-nx, -ny, -nz)
                         sx, sy, sz = _unit(sx, sy, sz)
                         wt = w * block * turn
-                        fx -= wt * sx
-                        fy -= wt * sy
-                        fz -= wt * sz
+                        bx -= wt * sx
+                        by -= wt * sy
+                        bz -= wt * sz
             c = pot_sum * gfac_d
             fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
             if any_moving:
@@ -295,6 +304,13 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                 fx += mag * gx + mag_p * wx
                 fy += mag * gy + mag_p * wy
                 fz += mag * gz + mag_p * wz
+        # The turn along blocking bodies only where they hold the agent: the pull and their
+        # push together make less than a quarter of the pull's way towards the goal (a wall
+        # square across the way, a pillar dead ahead), not while it flies on past a body's edge.
+        if bx != 0.0 or by != 0.0 or bz != 0.0:
+            pull = k_att * min(dt, dq)
+            if pull + hold < 0.25 * pull:
+                fx, fy, fz = fx + bx, fy + by, fz + bz
         out[i, 0] = fx
         out[i, 1] = fy
         out[i, 2] = fz

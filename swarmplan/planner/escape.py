@@ -48,6 +48,7 @@ from swarmplan.core import (
     PlanningContext,
     StuckOutcome,
 )
+from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import fillet_path
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
@@ -176,6 +177,7 @@ class EscapePlanner:
         self.escapes: dict[int, int] = {}
         self.pending: dict[int, object] = {}  # yield segments planned for other agents
         self.failures: dict[int, int] = {}  # planning rounds in a row without a valid segment
+        self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
 
     # ------------------------------------------------------------------ validation
 
@@ -416,17 +418,25 @@ class EscapePlanner:
         return best
 
     def only_agents_around(self, sim: PlanningContext, i: int) -> bool:
-        """Whether nothing but other agents can hold ``i``: no obstacle, ground or face of the
-        bounds (static or moving, now) within the field's influence distance. Such a jam is the
-        swarm's (the field's agent term, with its right-hand rule, and the other agents' own
-        progress dissolve it); one agent's escape around its neighbours only adds a detour."""
-        pos = sim.state.position[i]
-        r = float(sim.params.radius[i])
+        """Whether only other agents can hold ``i``: some within the reach of the field's agent
+        term, and no obstacle, ground or face of the bounds (static or moving, now) within its
+        influence distance. Such a jam is the swarm's (the field's agent term, with its
+        passing rules and priority near goals, and the other agents' own progress dissolve
+        it); one agent's escape around its neighbours only adds a detour."""
+        s, p = sim.state, sim.params
+        pos = s.position[i]
+        if self._agent_reach is None:
+            rho0 = float(sim.world.planner_config.apf.influence)
+            self._agent_reach = current_reach(p, stopping_reach(p, sim.world.dt), rho0)
+        near = np.linalg.norm(s.position - pos, axis=1) < self._agent_reach
+        near[i] = False
+        if not near.any():
+            return False
+        r = float(p.radius[i])
         rho0 = float(sim.world.planner_config.apf.influence)
         if float(static_clearance(sim, pos, r)[0]) < rho0:
             return False
-        t = sim.state.t
-        return float(moving_clearance(sim, pos[None], r, t, t, cap=rho0)[0]) >= rho0
+        return float(moving_clearance(sim, pos[None], r, s.t, s.t, cap=rho0)[0]) >= rho0
 
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
 
