@@ -51,6 +51,7 @@ from swarmplan.core import (
 from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import fillet_path
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
+from swarmplan.world.motion import poses_at
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 
 
@@ -423,11 +424,12 @@ class EscapePlanner:
         return best
 
     def only_agents_around(self, sim: PlanningContext, i: int) -> bool:
-        """Whether only other agents can hold ``i``: ``CROWD`` or more flying agents within the
-        reach of the field's agent term, or some, and no obstacle, ground or face of the bounds
-        (static or moving, now) within its influence distance. Such a jam is the swarm's (the field's agent term, with its
-        passing rules and priority near goals, and the other agents' own progress dissolve
-        it); one agent's escape around its neighbours only adds a detour."""
+        """Whether other agents, not a trap, hold ``i``: ``CROWD`` or more flying agents within
+        the reach of the field's agent term; or some, while the obstacles do not hold it (their
+        push along its pull leaves it more than half the pull). Such a jam is the swarm's (the
+        field's agent term, with its passing rules and priority near goals, and the other
+        agents' own progress dissolve it); one agent's escape around its neighbours only adds
+        a detour."""
         s, p = sim.state, sim.params
         pos = s.position[i]
         if self._agent_reach is None:
@@ -439,11 +441,29 @@ class EscapePlanner:
             return False
         if near.sum() >= CROWD:
             return True  # in a crowd, obstacles or not: one agent's detour does not dissolve it
-        r = float(p.radius[i])
-        rho0 = float(sim.world.planner_config.apf.influence)
-        if float(static_clearance(sim, pos, r)[0]) < rho0:
+        return not self.held_by_obstacles(sim, i)
+
+    @staticmethod
+    def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
+        """Whether the obstacles' push (static and moving, at their poses now) along agent
+        ``i``'s pull towards its goal takes more than half of the pull."""
+        w = sim.world
+        if not w.obstacles:
             return False
-        return float(moving_clearance(sim, pos[None], r, s.t, s.t, cap=rho0)[0]) >= rho0
+        apf = w.planner_config.apf
+        s = sim.state
+        pos, goal = s.position[i], s.goal[i]
+        to_goal = float(np.linalg.norm(goal - pos))
+        pull = apf.k_att * min(to_goal, apf.quadratic_radius)
+        d, g = sim.field.query(pos[None], poses_at(w.obstacles, s.t)[0])
+        rho = d[0] - float(sim.params.radius[i])
+        near = rho < apf.influence
+        if not near.any():
+            return False
+        gfac = min(1.0, to_goal / apf.influence) ** apf.goal_power
+        push = apf.k_rep * (1.0 / np.maximum(rho[near], 0.05) - 1.0 / apf.influence) * gfac
+        along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
+        return bool(pull + float(push @ along) < 0.5 * pull)
 
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
 
