@@ -430,18 +430,22 @@ class EscapePlanner:
         field's agent term, with its passing rules and priority near goals, and the other
         agents' own progress dissolve it); one agent's escape around its neighbours only adds
         a detour."""
-        s, p = sim.state, sim.params
-        pos = s.position[i]
-        if self._agent_reach is None:
-            rho0 = float(sim.world.planner_config.apf.influence)
-            self._agent_reach = current_reach(p, stopping_reach(p, sim.world.dt), rho0)
-        near = (np.linalg.norm(s.position - pos, axis=1) < self._agent_reach) & s.active
-        near[i] = False
+        near = self.agents_near(sim, i)
         if not near.any():
             return False
         if near.sum() >= CROWD:
             return True  # in a crowd, obstacles or not: one agent's detour does not dissolve it
         return not self.held_by_obstacles(sim, i)
+
+    def agents_near(self, sim: PlanningContext, i: int) -> np.ndarray:
+        """Mask of the flying agents other than ``i`` within the reach of the field's agent term."""
+        s, p = sim.state, sim.params
+        if self._agent_reach is None:
+            rho0 = float(sim.world.planner_config.apf.influence)
+            self._agent_reach = current_reach(p, stopping_reach(p, sim.world.dt), rho0)
+        near = (np.linalg.norm(s.position - s.position[i], axis=1) < self._agent_reach) & s.active
+        near[i] = False
+        return near
 
     @staticmethod
     def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
