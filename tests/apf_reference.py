@@ -30,7 +30,9 @@ def _rep(rho, rho0, k):
     return np.where(rho < rho0, k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0), 0.0)
 
 
-def reference_forces(world, params: AgentParams, flyers: Flyers, field: FieldInputs, swarm: Swarm, gains=None):
+def reference_forces(
+    world, params: AgentParams, flyers: Flyers, field: FieldInputs, swarm: Swarm, gains=None
+):
     """The field's force on every flyer, shape (n, 3)."""
     g = world.planner_config.apf if gains is None else gains
     idx, pos, vel, goal = flyers.idx, flyers.pos, flyers.vel, flyers.goal

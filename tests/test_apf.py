@@ -265,9 +265,7 @@ def test_parked_agents_repel_like_static_obstacles_near_the_goal():
     assert float(apf_forces(*args, parked=parked)[0] @ to_goal) > 0.6 * pull
     # At the goal itself parked agents add exactly nothing.
     at_goal = np.array([*_PARKED_GOALS, goal[2]])
-    f = apf_forces(
-        w, params, idx, at_goal[idx], vel[idx], goal[idx], inputs, at_goal, vel, parked=parked
-    )
+    f = apf_forces(w, params, idx, at_goal[idx], vel[idx], goal[idx], inputs, at_goal, vel, parked=parked)
     np.testing.assert_allclose(f, 0.0, atol=1e-12)
 
 

@@ -10,9 +10,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from helpers import base_world, make_world
-
 from apf_reference import agent_term, reference_forces
+from helpers import base_world, make_world
 
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, current_reach, stopping_reach
 from swarmplan.flight.kinematics import AgentParams
@@ -162,7 +161,9 @@ def test_compiled_equals_reference_on_random_swarms(peaks, seed):
         ref = reference_forces(world, params, flyers, inputs, swarm)
         got = field.forces(flyers, inputs, swarm)
         assert np.all(np.isfinite(ref))
-        assert (np.linalg.norm(agent_term(world, params, world.planner_config.apf, flyers, swarm), axis=1) > 0).sum() > 20
+        assert (
+            np.linalg.norm(agent_term(world, params, world.planner_config.apf, flyers, swarm), axis=1) > 0
+        ).sum() > 20
         _close(got, ref)
 
 

@@ -123,7 +123,11 @@ def run_swarmplan(name: str, agents: int, seed: int, system: str, keep_paths: bo
             recorder.close()
     m = sim.metrics
     arrived = np.isfinite(m.arrival_time)
-    ratio = float(np.mean(m.path_length[arrived] / np.maximum(_straight(world)[arrived], 1e-9))) if arrived.any() else math.nan
+    ratio = (
+        float(np.mean(m.path_length[arrived] / np.maximum(_straight(world)[arrived], 1e-9)))
+        if arrived.any()
+        else math.nan
+    )
     flown = sim.state.t - t_first
     row = Row(name, agents, system, seed, int(arrived.sum()), len(meter.pairs), meter.min_gap, ratio,
               float(np.nanmax(m.arrival_time)) if arrived.any() else math.nan, sim.state.t, wall,
@@ -239,7 +243,10 @@ def main(args: argparse.Namespace) -> int:
         run_swarmplan(warm, 16, 0, "planner")
     rows: list[Row] = []
     pictures: dict[str, tuple[int, np.ndarray]] = {}
-    print("scenario agents system seed: arrived collisions min_sep path_ratio last_arrival rtf escapes", flush=True)
+    print(
+        "scenario agents system seed: arrived collisions min_sep path_ratio last_arrival rtf escapes",
+        flush=True,
+    )
     for name in scenarios:
         for n in sizes:
             if n > MAX_AGENTS.get(name, n):
@@ -256,8 +263,9 @@ def main(args: argparse.Namespace) -> int:
                             pictures[name] = (n, paths)
                     rows.append(row)
                     print(
-                        f"{name} {n} {system} {seed}: {row.arrived}/{n} {row.collisions} {row.min_separation:.2f} "
-                        f"{row.path_ratio:.3f} {row.last_arrival:.1f} {row.rtf:.1f} {row.escapes}",
+                        f"{name} {n} {system} {seed}: {row.arrived}/{n} {row.collisions} "
+                        f"{row.min_separation:.2f} {row.path_ratio:.3f} {row.last_arrival:.1f} "
+                        f"{row.rtf:.1f} {row.escapes}",
                         flush=True,
                     )
     with open(out / "swarm.csv", "w", newline="") as fh:
@@ -273,7 +281,10 @@ def main(args: argparse.Namespace) -> int:
         from swarmplan.bench.swarm_report import write_docs
 
         write_docs(Path(args.docs), rows, table, verdicts, pictures, sizes, seeds, orca)
-    print(f"wrote {out / 'swarm.csv'}" + ("" if args.no_docs else f" and {Path(args.docs) / 'swarm-benchmarks.md'}"))
+    print(
+        f"wrote {out / 'swarm.csv'}"
+        + ("" if args.no_docs else f" and {Path(args.docs) / 'swarm-benchmarks.md'}")
+    )
     return 0
 
 
@@ -287,7 +298,8 @@ def _groups(rows: list[Row]) -> dict[tuple[str, int, str], list[Row]]:
 def summary_table(rows: list[Row]) -> str:
     """Markdown table: one line per scenario x size x system, over its seeds."""
     lines = [
-        "| scenario | N | system | arrived | collisions | min sep (m) | path / straight | last arrival (s) | real-time factor | escapes |",
+        "| scenario | N | system | arrived | collisions | min sep (m) | path / straight "
+        "| last arrival (s) | real-time factor | escapes |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for (name, n, system), g in _groups(rows).items():
@@ -311,7 +323,10 @@ def done_verdicts(rows: list[Row]) -> list[str]:
     total = sum(r.agents for r in ours)
     contacts = sum(r.collisions for r in ours)
     ok = home == total and contacts == 0
-    out.append(f"- every agent home, no contact (planner and pure APF): {home}/{total}, {contacts} pairs: {'met' if ok else 'NOT met'}")
+    out.append(
+        f"- every agent home, no contact (planner and pure APF): {home}/{total}, {contacts} pairs: "
+        f"{'met' if ok else 'NOT met'}"
+    )
     slow = []
     for (name, n, system), rs in g.items():
         if system != "planner" or (name, n, "apf") not in g:

@@ -17,8 +17,9 @@ if TYPE_CHECKING:
 
 def _commit() -> str:
     try:
-        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
-                             cwd=Path(__file__).resolve().parent)  # fmt: skip
+        here = Path(__file__).resolve().parent
+        git = ["git", "rev-parse", "--short", "HEAD"]
+        out = subprocess.run(git, capture_output=True, text=True, check=True, cwd=here)
         return out.stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"

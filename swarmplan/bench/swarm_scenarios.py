@@ -37,7 +37,9 @@ FLOOR = 15.0  # m: lowest start/goal height (clear of the ground's repulsion)
 MARGIN = 15.0  # m between the swarm and the faces of the bounds
 
 
-def _world(name: str, seed: int, starts: np.ndarray, goals: np.ndarray, obstacles: list[dict]) -> dict[str, Any]:
+def _world(
+    name: str, seed: int, starts: np.ndarray, goals: np.ndarray, obstacles: list[dict]
+) -> dict[str, Any]:
     """A world around ``starts``/``goals`` (N, 3) with the benchmark's agents and horizon."""
     pts = np.vstack([starts, goals])
     lo = pts.min(axis=0) - MARGIN
@@ -49,7 +51,11 @@ def _world(name: str, seed: int, starts: np.ndarray, goals: np.ndarray, obstacle
         "name": name,
         "seed": int(seed),
         "bounds": {"min": [round(float(v), 6) for v in lo], "max": [round(float(v), 6) for v in hi]},
-        "sim": {"dt": DT, "max_time": round(math.ceil(horizon * 10.0) / 10.0, 1), "goal_tolerance": GOAL_TOLERANCE},
+        "sim": {
+            "dt": DT,
+            "max_time": round(math.ceil(horizon * 10.0) / 10.0, 1),
+            "goal_tolerance": GOAL_TOLERANCE,
+        },
         "obstacles": obstacles,
         "agent_defaults": {
             "model": "multirotor",
@@ -102,7 +108,11 @@ def sphere_pillars(agents: int, seed: int = 0) -> dict[str, Any]:
                 "shape": "cylinder",
                 "radius": 1.0,
                 "height": round(1.6 * rad, 6),
-                "position": [round(ring * math.cos(a), 6), round(ring * math.sin(a), 6), round(FLOOR + rad, 6)],
+                "position": [
+                    round(ring * math.cos(a), 6),
+                    round(ring * math.sin(a), 6),
+                    round(FLOOR + rad, 6),
+                ],
             }
         )
     raw["obstacles"] = pillars
@@ -124,7 +134,9 @@ def _block(count: int, spacing: float) -> np.ndarray:
     cols = math.ceil(math.sqrt(count))
     rows = math.ceil(count / cols)
     k = np.arange(count)
-    return np.column_stack([(k % cols - (cols - 1) / 2.0) * spacing, (k // cols - (rows - 1) / 2.0) * spacing])
+    return np.column_stack(
+        [(k % cols - (cols - 1) / 2.0) * spacing, (k // cols - (rows - 1) / 2.0) * spacing]
+    )
 
 
 def crossing(agents: int, seed: int = 0) -> dict[str, Any]:

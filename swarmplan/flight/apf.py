@@ -111,7 +111,16 @@ class ApfField:
         self.reach_per_agent = np.ascontiguousarray(stopping_reach(params, world.dt))
         self.can_stop = np.ascontiguousarray(~params.fixed_wing)
         g = self.gains
-        gains_ = (g.k_att, g.k_rep, g.influence, g.k_agent, g.quadratic_radius, g.goal_power, g.k_moving, g.horizon)
+        gains_ = (
+            g.k_att,
+            g.k_rep,
+            g.influence,
+            g.k_agent,
+            g.quadratic_radius,
+            g.goal_power,
+            g.k_moving,
+            g.horizon,
+        )
         self._gains = tuple(float(v) for v in gains_)
         self._floor = float(world.terrain_clearance) if world.peaks else 0.0
         self._reach = current_reach(params, self.reach_per_agent, self.gains.influence)
@@ -131,7 +140,9 @@ class ApfField:
         scale = np.ones(n) if flyers.static_scale is None else np.asarray(flyers.static_scale, dtype=float)
         parked = np.zeros(len(swarm.pos), dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
-        goal_dist = np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
+        goal_dist = (
+            np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
+        )
         _kernel().apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64)),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),

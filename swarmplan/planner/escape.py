@@ -51,8 +51,8 @@ from swarmplan.core import (
 from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import fillet_path
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
-from swarmplan.world.motion import poses_at
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
+from swarmplan.world.motion import poses_at
 
 
 def escape_settings(world) -> dict:

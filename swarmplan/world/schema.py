@@ -65,6 +65,7 @@ PLANNER_DEFAULTS: dict[str, Any] = {
     "smoothing": {"enabled": True},
 }
 
+
 def default_influence(agents: list[AgentSpec]) -> float:
     """``planner.apf.influence`` left out: ``2 v^2 / a`` (four braking distances from cruise
     speed) of the agent that needs the most room, at least 2 m. The field's repulsion starts
