@@ -10,28 +10,25 @@ import argparse
 import importlib
 import sys
 
+from swarmplan.cli.common import HelpFormatter, plain
 from swarmplan.runtime.blas import limit_blas_threads
 
 #: subcommand name -> (module path, one-line help). Modules are imported lazily.
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "optimizers": ("swarmplan.bench.optimizers", "run a paper benchmark suite over the optimizers"),
     "overhead": ("swarmplan.bench.overhead", "measure the library's own overhead per evaluation"),
-    "scale": ("swarmplan.bench.scale", "issue 10's speed figures at swarm scale, each beside its target"),
+    "scale": ("swarmplan.bench.scale", "speed figures at swarm scale, each beside its target"),
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
     "swarm": ("swarmplan.bench.swarm", "dense swarms on the standard scenarios, beside ORCA-3D"),
     "docs": ("swarmplan.bench.docs", "re-run the commands behind the docs' tables and rewrite them"),
 }
 
 
-class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Defaults shown; the subcommands' module docstrings keep their line breaks."""
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m swarmplan.bench",
         description="Benchmarks: optimizers against their papers and peers, overhead, simulation speed.",
-        formatter_class=_Formatter,
+        formatter_class=HelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
     for name, (module_path, help_text) in SUBCOMMANDS.items():
@@ -40,10 +37,10 @@ def build_parser() -> argparse.ArgumentParser:
             name,
             help=help_text,
             # help shows plain text: reStructuredText literals (``x``) become x
-            description=(module.__doc__ or help_text).strip().replace("``", ""),
-            formatter_class=_Formatter,
+            description=plain(module.__doc__ or help_text),
         )
         module.add_arguments(p)
+        p.formatter_class = HelpFormatter  # every subcommand's help alike: each default once
         p.set_defaults(_main=module.main)
     return parser
 

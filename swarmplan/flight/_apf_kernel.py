@@ -11,7 +11,7 @@ beyond ``reach``, the distance past which both of its terms are provably zero
 (``apf.current_reach``): the scaled distances are at least the unscaled ones over the largest
 semi-axis.
 
-Imported lazily (:func:`swarmplan.flight.apf._kernel`); every compiled function of the field is
+Loaded at the first step through ``runtime.compiled.kernel_module``; every compiled function of the field is
 in this file (numba's cache does not see changes of callees in other files).
 """
 

@@ -31,14 +31,13 @@ reference the tests compare it with lives in tests/apf_reference.py).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cache
-from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.vec3 import dot3, norm3
+from swarmplan.runtime.compiled import kernel_module
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -143,7 +142,7 @@ class ApfField:
         goal_dist = (
             np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         )
-        _kernel().apf_forces(
+        kernel_module("swarmplan.flight._apf_kernel").apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64)),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
@@ -155,14 +154,6 @@ class ApfField:
             out,
         )  # fmt: skip
         return out
-
-
-@cache
-def _kernel() -> ModuleType:
-    """:mod:`swarmplan.flight._apf_kernel`, imported (and numba with it) at the first step."""
-    from swarmplan.flight import _apf_kernel
-
-    return _apf_kernel
 
 
 def current_reach(params: AgentParams, reach_per_agent: np.ndarray, influence: float) -> float:

@@ -34,6 +34,7 @@ import numpy as np
 
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.planner._segment_pack import analytic, pack_bodies, pack_intents
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.world.motion import poses_at
 
 _EPS = 1e-9
@@ -142,12 +143,11 @@ class SegmentEncoding:
     def decode(self, X: np.ndarray) -> np.ndarray:
         """(n, 3K) → polylines (n, K+2, 3) (compiled: numpy's dozen small operations cost as
         much as scoring the population)."""
-        from swarmplan.planner._decode_kernel import decode_segments
-
         X = np.ascontiguousarray(np.atleast_2d(X), dtype=float)
         clip = self.lo is not None
         lo = np.asarray(self.lo, dtype=float) if clip else _ZERO3
         hi = np.asarray(self.hi, dtype=float) if clip else _ZERO3
+        decode_segments = kernel_module("swarmplan.planner._decode_kernel").decode_segments
         return decode_segments(X, self.frame, self.base, self.start, self.end, lo, hi, clip)
 
     def encode(self, waypoints: np.ndarray) -> np.ndarray:
@@ -389,6 +389,9 @@ class SegmentCost:
             d = np.linalg.norm(pts - th.position, axis=-1)
             depth = np.clip((th.r_max - d) / max(th.r_max - th.r_min, _EPS), 0.0, 1.0)
             cost = cost + self.w.threat * th.weight * (depth * ds).sum(1)
+            if th.avoid:  # a core the world keeps flight out of costs like an obstacle's inside
+                inside = np.maximum(th.r_min + self.r - d, 0.0)
+                cost = cost + self.w.collision * (inside * ds).sum(1)
         return cost
 
     def _centers(self, kmax: int) -> np.ndarray:
@@ -486,8 +489,7 @@ class SegmentCost:
 
     def _kernel(self, P: np.ndarray) -> np.ndarray:
         """(n, 9): the terms in ``TERMS`` order and their total (summed in that order)."""
-        from swarmplan.planner._segment_kernel import segment_terms
-
+        segment_terms = kernel_module("swarmplan.planner._segment_kernel").segment_terms
         P = np.ascontiguousarray(P, dtype=float)
         n = len(P)
         world = self.world

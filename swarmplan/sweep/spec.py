@@ -20,6 +20,7 @@ from typing import Any
 
 import yaml
 
+from swarmplan import optimizers as registry
 from swarmplan.sweep.adapter import OverrideError, build_world, read_raw, set_dotted
 from swarmplan.world import WorldError
 
@@ -55,7 +56,9 @@ class Task:
     def run_id(self) -> str:
         """File-name-safe id: readable parts plus a hash of the full key (values may be long)."""
         digest = hashlib.sha1(repr(self.key).encode()).hexdigest()[:8]
-        stem = re.sub(r"[^A-Za-z0-9_.=+-]+", "_", Path(self.world).with_suffix("").as_posix())
+        # the file's name, wherever it lies (compare and sweep name the same runs alike); the
+        # digest keeps worlds of the same name in different folders apart
+        stem = re.sub(r"[^A-Za-z0-9_.=+-]+", "_", Path(self.world).stem)
         parts = [stem, self.optimizer, f"s{self.seed}"]
         parts += [f"{k.rsplit('.', 1)[-1]}={_short(v)}" for k, v in self.overrides]
         readable = re.sub(r"[^A-Za-z0-9_.=+-]+", "_", "-".join(parts))[:120]
@@ -111,8 +114,6 @@ def load_spec(path: str | Path) -> Spec:
 
 def parse_spec(raw: Any, base_dir: str | Path = ".", source: str | Path = "spec") -> Spec:
     """Validate an already-parsed spec mapping; world paths and globs are relative to ``base_dir``."""
-    from swarmplan import optimizers as registry
-
     base_dir = Path(base_dir).resolve()
     problems: list[str] = []
     if not isinstance(raw, dict):

@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 
 from swarmplan.replay import Recording
+from swarmplan.world.tracker_config import G, TrackerConfig
 
-from .config import G, TrackerConfig
 from .quadrotor import Flight, simulate
 from .reference import Reference, build_reference, feasibility, fill_gaps
 

@@ -205,8 +205,9 @@ def write_mcap(result: TrackResult, rec: Recording, path: str | Path, source: st
         )
 
 
-def plot(result: TrackResult, path: str | Path, title: str = "") -> None:
-    """Reference vs tracked paths in 3D, and the error over time, one colour per agent."""
+def plot(result: TrackResult, path: str | Path, title: str = "", rec: Recording | None = None) -> None:
+    """Reference vs tracked paths in 3D, and the error over time, one colour per agent; with the
+    log's ``rec``, among the world's obstacles and terrain, within its bounds."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -236,6 +237,10 @@ def plot(result: TrackResult, path: str | Path, title: str = "") -> None:
     ax2.axhline(1.2, color="k", ls=":", lw=1, label="1.2 m (paper 004)")
     if result.record_end < t[-1]:
         ax2.axvspan(result.record_end, t[-1], color="0.9", label="settle hover")
+    if rec is not None:
+        from swarmplan.replay.plots import world_in_3d
+
+        world_in_3d(ax3, rec)
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
