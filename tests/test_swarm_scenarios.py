@@ -83,6 +83,19 @@ def test_scenarios_are_seeded_and_valid():
         )
 
 
+@pytest.mark.parametrize(
+    "agents", [16, 64, pytest.param(256, marks=pytest.mark.slow), pytest.param(512, marks=pytest.mark.slow)]
+)
+def test_every_scenario_parses_for_several_seeds(agents):
+    """Starts and goals clear of every obstacle at every size (the pillars inside the sphere
+    once touched agents on it at 16 agents, seed 2)."""
+    for name in S.SCENARIOS:
+        if agents > S.MAX_AGENTS.get(name, agents):
+            continue
+        for seed in range(3 if agents > 64 else 5):
+            S.scenario_world(name, agents, seed)
+
+
 def test_circle_is_planar_and_doorway_has_one_gap():
     raw = S.circle(32, 0)
     z = {a["start"][2] for a in raw["agents"]} | {a["goal"][2] for a in raw["agents"]}

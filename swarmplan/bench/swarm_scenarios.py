@@ -94,8 +94,8 @@ def sphere(agents: int, seed: int = 0) -> dict[str, Any]:
 
 
 def sphere_pillars(agents: int, seed: int = 0) -> dict[str, Any]:
-    """The sphere with 8 vertical pillars (radius 1 m, 1.6 sphere radii tall: inside the sphere)
-    on a ring of 0.4 sphere radii about its vertical axis."""
+    """The sphere with 8 vertical pillars (radius 1 m, 1.4 sphere radii tall: inside the sphere,
+    clear of the agents on it) on a ring of 0.4 sphere radii about its vertical axis."""
     raw = sphere(agents, seed)
     rad = sphere_radius(agents)
     ring = 0.4 * rad
@@ -107,7 +107,7 @@ def sphere_pillars(agents: int, seed: int = 0) -> dict[str, Any]:
                 "id": f"pillar{k}",
                 "shape": "cylinder",
                 "radius": 1.0,
-                "height": round(1.6 * rad, 6),
+                "height": round(1.4 * rad, 6),
                 "position": [
                     round(ring * math.cos(a), 6),
                     round(ring * math.sin(a), 6),
