@@ -26,7 +26,8 @@ def _commit() -> str:
 
 
 def picture(path: Path, name: str, agents: int, paths: np.ndarray) -> None:
-    """Flown paths (every 5th step) of one run in 3D, obstacles as grey lines, starts as dots."""
+    """Flown paths (every 5th sample) of one run in 3D: static pillars as grey lines, boxes
+    (axis-aligned, as the scenarios' walls) as outlines, starts as dots."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -40,10 +41,17 @@ def picture(path: Path, name: str, agents: int, paths: np.ndarray) -> None:
         ax.plot(paths[:, i, 0], paths[:, i, 1], paths[:, i, 2], lw=0.6, color=colours[i])
     ax.scatter(paths[0, :, 0], paths[0, :, 1], paths[0, :, 2], s=4, color="k")
     for o in world.obstacles:
-        if o.shape in ("cylinder", "box") and not o.moving:
-            h = o.height if o.shape == "cylinder" else o.size[2]
-            x, y, z = o.position
-            ax.plot([x, x], [y, y], [z - h / 2, z + h / 2], color="0.5", lw=2 if o.shape == "cylinder" else 6)
+        x, y, z = o.position
+        if o.shape == "cylinder" and not o.moving:
+            ax.plot([x, x], [y, y], [z - o.height / 2, z + o.height / 2], color="0.5", lw=2)
+        elif o.shape == "box" and not o.moving:  # an axis-aligned box: its outline at both ends
+            hx, hy, hz = np.asarray(o.size) / 2
+            ring_x = [x - hx, x + hx, x + hx, x - hx, x - hx]
+            ring_y = [y - hy, y - hy, y + hy, y + hy, y - hy]
+            for zz in (z - hz, z + hz):
+                ax.plot(ring_x, ring_y, [zz] * 5, color="0.4", lw=1)
+            for cx, cy in zip(ring_x[:4], ring_y[:4], strict=True):
+                ax.plot([cx, cx], [cy, cy], [z - hz, z + hz], color="0.4", lw=1)
     ax.set_title(f"{name}, {agents} agents (default planner, seed 0)")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
