@@ -89,52 +89,62 @@ def _straight(world) -> np.ndarray:  # noqa: ANN001
     return np.array([np.linalg.norm(np.subtract(a.goal, a.start)) for a in world.agents])
 
 
+class _RunMeter:
+    """Observer of a run (``io.runner.run_episode``): contacts from consecutive positions, the
+    flown paths (every 5th sample) and the wall time of the stepping loop from the end of the
+    first step (start-up and the first step excluded; the meter's own work subtracted)."""
+
+    def __init__(self, radius: np.ndarray, keep_paths: bool):
+        self.meter = ContactMeter(radius)
+        self.keep_paths = keep_paths
+        self.paths: list[np.ndarray] = []
+        self.steps = 0
+        self.wall = 0.0
+        self.t_first = 0.0
+        self._clock = 0.0
+        self._pos: np.ndarray | None = None
+
+    def on_reset(self, result) -> None:  # noqa: ANN001
+        self._pos = result.state.position.copy()
+        if self.keep_paths:
+            self.paths.append(self._pos)
+
+    def on_step(self, result) -> None:  # noqa: ANN001
+        now = time.perf_counter()
+        self.steps += 1
+        if self.steps == 1:
+            self.t_first = result.state.t
+        else:
+            self.wall += now - self._clock
+        pos = result.state.position.copy()
+        self.meter.update(self._pos, pos)
+        self._pos = pos
+        if self.keep_paths and (self.steps % 5 == 0 or result.terminated or result.truncated):
+            self.paths.append(pos)
+        self._clock = time.perf_counter()
+
+
 def run_swarmplan(name: str, agents: int, seed: int, system: str, keep_paths: bool = False):  # noqa: ANN201
-    """One run of swarmplan (``system``: 'planner' or 'apf'); (Row, paths or None)."""
+    """One run of swarmplan (``system``: 'planner' or 'apf'), recording its MCAP log as the
+    command line does; (Row, paths (samples, N, 3) or None)."""
     from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import run_episode
     from swarmplan.sim import Simulation
 
     world = scenario_world(name, agents, seed)
+    sim = Simulation(world, planner="world" if system == "planner" else "none")
+    run = _RunMeter(sim.params.radius, keep_paths)
     with tempfile.TemporaryDirectory() as tmp:
-        recorder = McapRecorder(Path(tmp) / "run.mcap")
-        sim = Simulation(world, planner="world" if system == "planner" else "none", recorder=recorder)
-        sim.reset(seed=seed)
-        meter = ContactMeter(sim.params.radius)
-        paths = [sim.state.position.copy()] if keep_paths else None
-        wall, steps, t_first = 0.0, 0, 0.0
-        try:
-            while True:
-                p0 = sim.state.position.copy()
-                t = time.perf_counter()
-                r = sim.step()
-                dt_wall = time.perf_counter() - t
-                steps += 1
-                if steps == 1:
-                    t_first = sim.state.t  # the first step (kernel load) is start-up
-                else:
-                    wall += dt_wall
-                meter.update(p0, sim.state.position)
-                if keep_paths and steps % 5 == 0:
-                    paths.append(sim.state.position.copy())
-                if r.terminated or r.truncated:
-                    break
-        finally:
-            recorder.write_summary(sim.summary())
-            recorder.close()
+        run_episode(sim, seed, observers=[run], recorder=McapRecorder(Path(tmp) / "run.mcap"))
     m = sim.metrics
     arrived = np.isfinite(m.arrival_time)
-    ratio = (
-        float(np.mean(m.path_length[arrived] / np.maximum(_straight(world)[arrived], 1e-9)))
-        if arrived.any()
-        else math.nan
-    )
-    flown = sim.state.t - t_first
-    row = Row(name, agents, system, seed, int(arrived.sum()), len(meter.pairs), meter.min_gap, ratio,
-              float(np.nanmax(m.arrival_time)) if arrived.any() else math.nan, sim.state.t, wall,
-              flown / wall if wall > 0 else math.nan, int(m.escapes.sum()))  # fmt: skip
-    if keep_paths:
-        paths.append(sim.state.position.copy())
-    return row, (np.array(paths) if keep_paths else None)
+    straight = _straight(world)[arrived]
+    ratio = float(np.mean(m.path_length[arrived] / np.maximum(straight, 1e-9))) if arrived.any() else math.nan
+    flown = sim.state.t - run.t_first
+    row = Row(name, agents, system, seed, int(arrived.sum()), len(run.meter.pairs), run.meter.min_gap, ratio,
+              float(np.nanmax(m.arrival_time)) if arrived.any() else math.nan, sim.state.t, run.wall,
+              flown / run.wall if run.wall > 0 else math.nan, int(m.escapes.sum()))  # fmt: skip
+    return row, (np.array(run.paths) if keep_paths else None)
 
 
 def run_orca(name: str, agents: int, seed: int) -> Row:
