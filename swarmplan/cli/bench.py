@@ -19,6 +19,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "overhead": ("swarmplan.bench.overhead", "measure the library's own overhead per evaluation"),
     "scale": ("swarmplan.bench.scale", "speed figures at swarm scale, each beside its target"),
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
+    "swarm": ("swarmplan.bench.swarm", "dense swarms on the standard scenarios, beside ORCA-3D"),
     "docs": ("swarmplan.bench.docs", "re-run the commands behind the docs' tables and rewrite them"),
 }
 
