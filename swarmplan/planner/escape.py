@@ -437,6 +437,17 @@ class EscapePlanner:
             return True  # in a crowd, obstacles or not: one agent's detour does not dissolve it
         return not self.held_by_obstacles(sim, i)
 
+    @staticmethod
+    def under_way(sim: PlanningContext, i: int) -> bool:
+        """Whether agent ``i``, one that can stop (a multirotor), still flies at half its cruise
+        speed or more: the field is carrying it round something (a pillar, a crowd), not holding
+        it in a local minimum, where it would come to rest; an escape only adds a detour and its
+        planning time. A fixed wing flies at cruise speed in a trap too: it is never under way."""
+        p = sim.params
+        if p.fixed_wing[i]:
+            return False
+        return bool(np.linalg.norm(sim.state.velocity[i]) >= 0.5 * p.speed_cruise[i])
+
     def agents_near(self, sim: PlanningContext, i: int) -> np.ndarray:
         """Mask of the flying agents other than ``i`` within the reach of the field's agent term."""
         s, p = sim.state, sim.params
@@ -473,7 +484,7 @@ class EscapePlanner:
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
-        if self.only_agents_around(sim, i):
+        if self.only_agents_around(sim, i) or self.under_way(sim, i):
             return None
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
