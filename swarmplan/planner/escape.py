@@ -184,6 +184,8 @@ class EscapePlanner:
         self.pending: dict[int, object] = {}  # yield segments planned for other agents
         self.failures: dict[int, int] = {}  # planning rounds in a row without a valid segment
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
+        # Per agent: its distance to the goal when its last escape started.
+        self._escaped_at: dict[int, float] = {}
 
     # ------------------------------------------------------------------ validation
 
@@ -448,6 +450,18 @@ class EscapePlanner:
             return False
         return bool(np.linalg.norm(sim.state.velocity[i]) >= 0.5 * p.speed_cruise[i])
 
+    def queued(self, sim: PlanningContext, i: int) -> bool:
+        """Whether agent ``i`` waits in a queue: other agents are near, and its last escape
+        (or its attempt at one) left it no nearer its goal than where it started (by ``stuck.min_progress``).
+        What holds it then is the queue at the way out (a gap the others fly through first),
+        which their progress dissolves; another escape only plans the same detour again."""
+        start = self._escaped_at.get(i)
+        if start is None or not self.agents_near(sim, i).any():
+            return False
+        s = sim.state
+        progress = start - float(np.linalg.norm(s.goal[i] - s.position[i]))
+        return progress < sim.world.planner_config.stuck.min_progress
+
     def agents_near(self, sim: PlanningContext, i: int) -> np.ndarray:
         """Mask of the flying agents other than ``i`` within the reach of the field's agent term."""
         s, p = sim.state, sim.params
@@ -484,12 +498,13 @@ class EscapePlanner:
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
-        if self.only_agents_around(sim, i) or self.under_way(sim, i):
+        if self.only_agents_around(sim, i) or self.under_way(sim, i) or self.queued(sim, i):
             return None
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
             return FAILED
         self.escapes[i] = n_done + 1
+        self._escaped_at[i] = float(np.linalg.norm(sim.state.goal[i] - sim.state.position[i]))
         r = float(sim.params.radius[i])
         need = r + float(self.cfg["margin"]) + 1.0
         s = sim.state
