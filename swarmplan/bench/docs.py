@@ -13,7 +13,7 @@ of the blocks named in ``--only``) and rewrites the text between the markers: a 
 and the table the command produced. Everything outside the markers is left byte for byte as
 it was. An unknown block name, an unclosed or a nested block is an error (exit 2) before any
 work. ``--list`` prints the known blocks. ``--resume`` reuses the finished runs' logs of an
-earlier (or interrupted) sweep in ``--out-dir``, e.g. of ``python -m swarmplan.cli.compare``
+earlier (or interrupted) sweep in ``--out-dir``, e.g. of ``python -m swarmplan.compare``
 with the same ``--out-dir``.
 """
 
@@ -193,7 +193,7 @@ def _comparison(stem: str) -> Callable[[Options], Block]:
         seeds = opts.seeds or (2 if opts.quick else 10)
         world = ROOT / "worlds" / "papers" / f"{stem}.yaml"
         out_dir = opts.out_dir / "comparison" / stem
-        # the same one-world study as `python -m swarmplan.cli.compare` (same run ids: its logs resume)
+        # the same one-world study as `python -m swarmplan.compare` (same run ids: its logs resume)
         raw = {"name": "compare", "worlds": [world.name], "optimizers": names, "seeds": seeds}
         spec = parse_spec(raw, base_dir=world.parent, source="docs generator")
         client = make_client(opts.jobs, None)
@@ -205,7 +205,7 @@ def _comparison(stem: str) -> Callable[[Options], Block]:
             if cluster is not None:
                 cluster.close()
         command = (
-            f"python -m swarmplan.cli.compare {_rel(world)} --optimizers {','.join(names)} --seeds {seeds} "
+            f"python -m swarmplan.compare {_rel(world)} --optimizers {','.join(names)} --seeds {seeds} "
             f"--jobs {opts.jobs} --out-dir {_rel(out_dir)}"
         )
         ok = [r for r in rows if r["status"] == "ok"]

@@ -1,4 +1,4 @@
-"""``python -m swarmplan.cli.compare WORLD --optimizers woa,rscdwoa,ba,iba_abc,cfo,mcfo --seeds 10``.
+"""``python -m swarmplan.compare WORLD --optimizers woa,rscdwoa,ba,iba_abc,cfo,mcfo --seeds 10``.
 
 Runs the world once per (optimizer, seed) on the sweep engine (:mod:`swarmplan.sweep`: a
 LocalCluster of ``--workers`` worker processes, or the Dask scheduler at ``--scheduler``) — one
@@ -38,7 +38,7 @@ def format_table(rows: list[dict[str, Any]], names: list[str], alpha: float = 0.
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="python -m swarmplan.cli.compare",
+        prog="python -m swarmplan.compare",
         description=plain(__doc__.split("\n\n", 1)[1]),
         formatter_class=HelpFormatter,
     )
