@@ -498,7 +498,8 @@ class EscapePlanner:
 
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
-        if self.only_agents_around(sim, i) or self.under_way(sim, i) or self.queued(sim, i):
+        # Cheapest test first (same answers in any order).
+        if self.under_way(sim, i) or self.queued(sim, i) or self.only_agents_around(sim, i):
             return None
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):

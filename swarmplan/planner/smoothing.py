@@ -93,6 +93,8 @@ class CurvatureSmoother:
             if s.mode[i] != Mode.APF or s.t < self.next_check.get(i, 0.0):
                 continue
             self.next_check[i] = s.t + self.check_interval
+            if np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i]):
+                continue  # too slow to need a turn wider than it can fly (``check``'s first test)
             if self.ep.agents_near(sim, i).any():
                 continue  # among other agents the way is theirs to shape: no segment to smooth
             found = self.check(sim, i)
