@@ -57,6 +57,10 @@ class CurvatureSmoother:
         if speed < 0.5 * float(sim.params.speed_cruise[i]):
             return None
         R = model_turn_radius(sim, i)
+        if not sim.params.fixed_wing[i]:
+            # A multirotor turns at speed v on a radius of v^2/a, and slows down near its
+            # target (``commanded_velocity``): its turning circles are those of its speed now.
+            R = min(R, speed * speed / max(float(sim.params.max_accel[i]), 1e-9))
         target, after, k = self._target(sim, i)
         to_t = target - p
         dist = float(np.linalg.norm(to_t))
