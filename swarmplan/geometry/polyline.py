@@ -187,8 +187,11 @@ CUSP_ANGLE_DEG = 150.0
 
 
 def curvature_with_cusps(
-    points: np.ndarray, min_step: float = 1e-3, cusp_angle_deg: float = CUSP_ANGLE_DEG
-) -> tuple[np.ndarray, np.ndarray]:
+    points: np.ndarray,
+    min_step: float = 1e-3,
+    cusp_angle_deg: float = CUSP_ANGLE_DEG,
+    with_steps: bool = False,
+) -> tuple[np.ndarray, ...]:
     """(curvature, cusp mask) at the interior vertices of a flown path.
 
     Points closer than ``min_step`` to the last kept one are dropped first (hovering, a stop),
@@ -196,20 +199,24 @@ def curvature_with_cusps(
     the turning angle over the mean length of the two steps; a vertex turning by more than
     ``cusp_angle_deg`` is a **cusp** (stop and reverse: no circle of any radius passes there,
     its "curvature" is only 1/step length). Report cusps as a count and the max curvature
-    over the other vertices (``curv[~cusp]``).
+    over the other vertices (``curv[~cusp]``). With ``with_steps``, also the mean length of
+    the two steps at each vertex (the curvature's denominator).
     """
     pts = np.asarray(points, dtype=float)
     pts = pts[np.isfinite(pts).all(axis=1)]
+    empty = (np.zeros(0), np.zeros(0, dtype=bool)) + ((np.zeros(0),) if with_steps else ())
     if len(pts) < 3:
-        return np.zeros(0), np.zeros(0, dtype=bool)
+        return empty
     keep = [0]
     for k in range(1, len(pts)):
         if np.linalg.norm(pts[k] - pts[keep[-1]]) >= min_step:
             keep.append(k)
     p = pts[keep]
     if len(p) < 3:
-        return np.zeros(0), np.zeros(0, dtype=bool)
+        return empty
     a, b = p[1:-1] - p[:-2], p[2:] - p[1:-1]
     la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", a, b) / (la * lb), -1.0, 1.0))
-    return angle / (0.5 * (la + lb)), angle > math.radians(cusp_angle_deg)
+    mean = 0.5 * (la + lb)
+    out = (angle / mean, angle > math.radians(cusp_angle_deg))
+    return out + ((mean,) if with_steps else ())
