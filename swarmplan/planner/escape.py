@@ -74,6 +74,9 @@ def model_turn_radius(sim: PlanningContext, i: int) -> float:
     return float(p.speed_cruise[i]) ** 2 / max(float(p.max_accel[i]), 1e-9)
 
 
+CHAIN_RADIUS_FACTOR = 1.25
+"""A fixed wing's segment turns at this times its minimum radius (see ``EscapePlanner.fillet``)."""
+
 # An escape around a blocker is about this many times longer than the straight ray to the
 # sub-goal: movers are looked at until the agent would get there on such a detour.
 DETOUR = 2.0
@@ -243,15 +246,23 @@ class EscapePlanner:
 
         A fixed wing cannot stop at a corner: its segment is then flown as a chain of Dubins
         "turn, then straight" pieces at its minimum radius from its current position and heading
-        through the filleted points (:func:`~swarmplan.geometry.polyline.dubins_chain`), which
-        it can fly; the chain is used when FCL finds it clear, else the filleted polyline."""
+        to the segment's end, or else through the filleted points
+        (:func:`~swarmplan.geometry.polyline.dubins_chain`), which it can fly; the first of
+        them FCL finds clear is used, else the filleted polyline."""
         out = self._fillet(sim, i, poly)
         if not sim.params.fixed_wing[i] or len(out) < 2:
             return out
-        R = model_turn_radius(sim, i)
-        chain = dubins_chain(out[0], sim.state.velocity[i], out[1:], R)
+        # Arcs a little wider than the minimum radius leave the waypoint follower room to
+        # correct a lag (on an arc at R_min exactly, falling inside it means going round again).
+        R = CHAIN_RADIUS_FACTOR * model_turn_radius(sim, i)
         start_clear = float(static_clearance(sim, out[0], float(sim.params.radius[i]))[0])
-        return chain if self.segment_hit(sim, i, chain, start_clear) is None else out
+        v = sim.state.velocity[i]
+        # Straight to the segment's end if that is clear (no loop at points close together),
+        # else through every point.
+        for chain in (dubins_chain(out[0], v, out[-1:], R), dubins_chain(out[0], v, out[1:], R)):
+            if self.segment_hit(sim, i, chain, start_clear) is None:
+                return chain
+        return out
 
     def _fillet(self, sim: PlanningContext, i: int, poly: np.ndarray) -> np.ndarray:
         col = sim.collision
