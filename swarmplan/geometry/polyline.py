@@ -198,9 +198,12 @@ def curvature_with_cusps(
     so a stop-and-reverse shows as two consecutive steps in opposite directions. Curvature is
     the turning angle over the mean length of the two steps; a vertex turning by more than
     ``cusp_angle_deg`` is a **cusp** (stop and reverse: no circle of any radius passes there,
-    its "curvature" is only 1/step length). Report cusps as a count and the max curvature
-    over the other vertices (``curv[~cusp]``). With ``with_steps``, also the mean length of
-    the two steps at each vertex (the curvature's denominator).
+    its "curvature" is only 1/step length), and so is a vertex where the agent stood still for
+    a step or more (points dropped after it) and then left in another direction: a stop and
+    turn, where the velocity passed through zero and no turn radius applies. Report cusps as
+    a count and the max curvature over the other vertices (``curv[~cusp]``). With
+    ``with_steps``, also the mean length of the two steps at each vertex (the curvature's
+    denominator).
     """
     pts = np.asarray(points, dtype=float)
     pts = pts[np.isfinite(pts).all(axis=1)]
@@ -218,7 +221,9 @@ def curvature_with_cusps(
     la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", a, b) / (la * lb), -1.0, 1.0))
     mean = 0.5 * (la + lb)
-    out = (angle / mean, angle > math.radians(cusp_angle_deg))
+    kept = np.asarray(keep)
+    stopped = (np.diff(kept)[1:] > 1) & (angle > 1e-9)
+    out = (angle / mean, (angle > math.radians(cusp_angle_deg)) | stopped)
     return out + ((mean,) if with_steps else ())
 
 

@@ -17,7 +17,9 @@ Conventions
   agent: centre distance minus both radii. ``min_clearance`` is the minimum of both.
 * Curvature: turning angle between consecutive steps divided by the mean length of the
   two steps, after dropping steps shorter than 1 mm. A vertex turning by more than 150°
-  is a *cusp* (stop and reverse): counted in ``cusps`` and left out of ``max_curvature``.
+  is a *cusp* (stop and reverse), and so is a turning vertex where the agent stood still
+  for a step or more (a dropped step right after it: stop and turn): counted in ``cusps``
+  and left out of ``max_curvature``.
   ``curvature_limit`` is the model's, from ``/world``: max_accel / cruise² (multirotor,
   paper 004 eq 34 at cruise) or 1 / min_turn_radius (fixed wing).
 * Lateral acceleration: ``v² κ`` at the same vertices (cusps left out), ``v`` the mean length
@@ -177,7 +179,9 @@ def _turns(
     cos = np.einsum("ij,ij->i", a, b) / (la * lb)
     angle = np.arccos(np.clip(cos, -1.0, 1.0))
     mean = (la + lb) / 2.0
-    return t[1:-1], angle / mean, angle > math.radians(CUSP_DEG), mean
+    # Stood still after the vertex (a dropped step): a stop, then a turn of any size.
+    still = (np.diff(np.asarray(keep))[1:] > 1) & (angle > 1e-9)
+    return t[1:-1], angle / mean, (angle > math.radians(CUSP_DEG)) | still, mean
 
 
 def obstacle_distances(rec: Recording, mesh_cache: dict | None = None) -> dict[str, np.ndarray]:
