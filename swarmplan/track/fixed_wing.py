@@ -24,8 +24,12 @@ Guidance and control:
   reference's climb angle plus a proportional term on the height error.
 
 The default bank limit is what the world's own minimum turn radius needs at the top speed,
-``atan(speed.max^2 / (g R_min))``, plus ``bank_margin_deg`` (at most 80 degrees): the recorded
-path may turn at R_min at any speed, and a vehicle with less bank could not fly it.
+``atan(speed.max^2 / (g R_min))``, plus ``bank_margin_deg`` (at most 88 degrees): the recorded
+path may turn at R_min at any speed, and a vehicle with less bank could not fly it. The roll
+is that of an agile aircraft (0.1 s lag, 360 deg/s): the simulator's model may enter a turn at
+R_min from one step to the next, and at 55 m/s on a 40 m radius (paper 001's world at 1:50)
+that is an 82 degree bank, which a slower roll would enter metres late. ``max_load_factor``
+(1 / cos(bank)) shows what a world's turn radius asks of the airframe.
 """
 
 from __future__ import annotations
@@ -44,10 +48,10 @@ from .reference import build_reference
 class FixedWingConfig:
     """Aircraft dynamics and guidance gains of the fixed-wing tracker (defaults are ours)."""
 
-    roll_time_constant: float = 0.15  # s, bank lag
-    max_roll_rate_deg_s: float = 120.0
+    roll_time_constant: float = 0.1  # s, bank lag
+    max_roll_rate_deg_s: float = 360.0
     bank_margin_deg: float = 10.0  # over the bank R_min needs at speed.max
-    max_bank_cap_deg: float = 80.0
+    max_bank_cap_deg: float = 88.0
     pitch_time_constant: float = 0.3  # s
     climb_margin_deg: float = 5.0  # over the world's max_climb_angle
     thrust_accel_factor: float = 1.5  # |V'| from thrust within this times max_accel
