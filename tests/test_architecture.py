@@ -1,5 +1,11 @@
-"""The package's shape: no import cycles (function-level imports included) and no module
-over the size a reader can hold in mind."""
+"""The package's shape: no import cycles between modules or between packages (function-level
+imports included), layers that point one way, command-line programs only in ``cli/`` and its
+thin entry points, and no module over the size a reader can hold in mind.
+
+The import graph counts every import that can run (``if TYPE_CHECKING:`` blocks left out) and
+the two dynamic forms the package uses: ``kernel_module("swarmplan....")`` (the loader of
+compiled kernels) and ``importlib.import_module(f"swarmplan.x.{...}")`` (counted as importing
+every module under ``swarmplan.x``)."""
 
 from __future__ import annotations
 
@@ -35,6 +41,29 @@ def runtime_nodes(tree: ast.AST) -> list[ast.AST]:
     return out
 
 
+def dynamic_imports(node: ast.AST, files: dict[str, Path]) -> list[str] | None:
+    """The modules a call imports by name (see the module docstring), None for any other node;
+    a dynamic import whose module cannot be read off the call is an error."""
+    if not isinstance(node, ast.Call):
+        return None
+    func = node.func
+    name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+    if name not in ("kernel_module", "import_module") or not node.args:
+        return None
+    arg = node.args[0]
+    if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+        return [arg.value]
+    if (
+        isinstance(arg, ast.JoinedStr)
+        and arg.values
+        and isinstance(arg.values[0], ast.Constant)
+        and str(arg.values[0].value).startswith("swarmplan.")
+    ):
+        prefix = str(arg.values[0].value)
+        return [m for m in files if m.startswith(prefix)]
+    return ["<unknown: " + ast.unparse(node) + ">"]
+
+
 def import_graph() -> dict[str, set[str]]:
     """Module -> our modules it imports anywhere it can run (function level included).
 
@@ -48,7 +77,7 @@ def import_graph() -> dict[str, set[str]]:
         own = mod if mod in packages else mod.rpartition(".")[0]
         targets: set[str] = set()
         for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8"))):
-            names: list[str] = []
+            names: list[str] = dynamic_imports(node, files) or []
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom):
@@ -126,3 +155,199 @@ def test_every_module_imports() -> None:
     for mod in sorted(import_graph()):
         if not mod.endswith("__main__"):
             importlib.import_module(mod)
+
+
+# ------------------------------------------------------------------ packages and layers
+
+TOP_LEVEL = {"swarmplan", "swarmplan.core", "swarmplan.run", "swarmplan.compare"}
+"""The only modules outside a subpackage: the root, the shared types and two ``python -m``
+entry points."""
+
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("runtime",),  # process settings (BLAS threads), the loader of compiled kernels
+    ("core", "optimizers"),  # the simulation's shared types; the metaheuristics (standalone)
+    ("geometry",),  # shapes, distances, swept collision checks, neighbours
+    ("world",),  # world files -> typed World (planner and tracker settings included)
+    ("flight",),  # potential field, kinematic limits, fixed-wing look-ahead
+    ("planner",),  # global routes, escapes, smoothing (optimizers over segment costs)
+    ("sim",),  # one run: reset/step, safety filter, contacts, metrics
+    ("io",),  # MCAP logs, Foxglove scene, running a world to a log
+    ("replay", "sweep"),  # reading logs back; studies over worlds x optimizers x seeds
+    ("track", "bench"),  # flying logs with a quadrotor; benchmarks
+    ("cli",),  # the command-line programs
+)
+"""Bottom to top: a package imports only from layers below its own (the root package, which
+imports nothing, from anywhere)."""
+
+
+def is_entry_point(mod: str) -> bool:
+    """``python -m`` entry points: ``swarmplan.x.__main__`` and the top-level run/compare."""
+    return mod.endswith(".__main__") or mod in ("swarmplan.run", "swarmplan.compare")
+
+
+def package_of(mod: str) -> str:
+    """``swarmplan.x.y`` -> ``x``; ``swarmplan.core`` -> ``core``; the root -> ``swarmplan``."""
+    parts = mod.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Package -> packages its modules import (entry points, which nothing imports, left out)."""
+    out: dict[str, set[str]] = {}
+    for mod, targets in graph.items():
+        if is_entry_point(mod):
+            continue
+        src = package_of(mod)
+        out.setdefault(src, set()).update(package_of(t) for t in targets if package_of(t) != src)
+    for targets in list(out.values()):
+        for t in targets:
+            out.setdefault(t, set())
+    return out
+
+
+def test_every_dynamic_import_names_its_module() -> None:
+    """Outside the command line (and the kernel loader itself) a dynamic import's module can be
+    read off the call, so the graph above sees it."""
+    files = {module_name(p): p for p in PACKAGE.rglob("*.py")}
+    unknown = {
+        f"{mod}: {name}"
+        for mod, path in files.items()
+        if not mod.startswith("swarmplan.cli.") and mod != "swarmplan.runtime.compiled"
+        for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8")))
+        for name in dynamic_imports(node, files) or []
+        if name.startswith("<")
+    }
+    assert unknown == set()
+
+
+def test_no_package_level_cycles() -> None:
+    assert cycles(package_graph(import_graph())) == []
+
+
+def test_package_cycle_finder_sees_function_level_imports(tmp_path: Path) -> None:
+    """Negative control: a loop made only by a function-level import is found."""
+    graph = {"swarmplan.world.a": {"swarmplan.geometry.b"}, "swarmplan.geometry.b": set()}
+    assert cycles(package_graph(graph)) == []
+    graph["swarmplan.geometry.b"] = {"swarmplan.world.a"}
+    assert cycles(package_graph(graph)) == [["geometry", "world"]]
+
+
+def test_layers_point_one_way() -> None:
+    rank = {pkg: k for k, layer in enumerate(LAYERS) for pkg in layer}
+    pkgs = package_graph(import_graph())
+    assert sorted(set(pkgs) - {"swarmplan"}) == sorted(rank), "every package has a layer"
+    upward = {
+        f"{src} -> {dst}"
+        for src, targets in pkgs.items()
+        for dst in targets
+        if dst != "swarmplan" and (src == "swarmplan" or rank[dst] >= rank[src])
+    }
+    assert upward == set()
+
+
+def test_world_imports_nothing_above_geometry() -> None:
+    above = {"flight", "planner", "sim", "io", "cli", "track", "replay", "sweep", "bench"}
+    graph = import_graph()
+    leaks = {
+        f"{m} -> {t}"
+        for m, ts in graph.items()
+        if package_of(m) == "world"
+        for t in ts
+        if package_of(t) in above
+    }
+    assert leaks == set()
+
+
+def test_only_entry_points_import_the_command_line() -> None:
+    graph = import_graph()
+    callers = {
+        m
+        for m, ts in graph.items()
+        if any(package_of(t) == "cli" for t in ts) and package_of(m) != "cli" and not is_entry_point(m)
+    }
+    assert callers == set()
+
+
+def test_top_level_holds_only_core_and_thin_entry_points() -> None:
+    top = {module_name(p) for p in PACKAGE.glob("*.py")}
+    assert top == TOP_LEVEL
+    for mod in sorted(m for m in import_graph() if is_entry_point(m)):
+        path = PACKAGE.parent / (mod.replace(".", "/") + ".py")
+        text = path.read_text(encoding="utf-8")
+        ours = [t for t in import_graph()[mod] if t != "swarmplan.cli"]
+        assert len(ours) == 1 and ours[0].startswith("swarmplan.cli."), (mod, ours)
+        assert len(text.splitlines()) <= 12, mod
+
+
+def test_readme_layout_lists_every_package_bottom_up() -> None:
+    """The README's layout table has a row per package (and core.py), in the order of LAYERS."""
+    import re
+
+    text = (PACKAGE.parent / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Layout (data flow)", 1)[1].split("\n## ", 1)[0]
+    rows = re.findall(r"^\| `swarmplan/([a-z_]+)(?:/|\.py)` \|", section, re.M)
+    packages = sorted(p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file())
+    assert sorted(rows) == sorted([*packages, "core"])
+    rank = {pkg: k for k, layer in enumerate(LAYERS) for pkg in layer}
+    assert [rank[r] for r in rows] == sorted(rank[r] for r in rows)
+
+
+LAZY_IMPORTS: dict[tuple[str, str], str] = {
+    ("swarmplan.io.runner", "swarmplan.io.recording"): "mcap and protobuf only when a log is written",
+    ("swarmplan.planner", "swarmplan.planner.global_path"): "cost models and encodings only in mode: global",
+    ("swarmplan.replay.recording", "swarmplan.replay.geometry"): "scipy rotations for untracked obstacles",
+    ("swarmplan.track.output", "swarmplan.io.foxglove_scene"): "Foxglove schemas only for a scene",
+    ("swarmplan.flight.apf", "swarmplan.flight._apf_kernel"): "numba only in swarm-sized worlds",
+}
+"""Function-level imports of the package's modules outside ``cli/`` and ``bench/`` (whose
+subcommand modules the command line imports to build its help), each with the start-up cost
+it keeps away. Compiled kernels load through ``runtime.compiled.kernel_module`` instead."""
+
+
+def function_level_imports() -> set[tuple[str, str]]:
+    """(module, our module it imports inside a function) outside cli/ and bench/."""
+    out: set[tuple[str, str]] = set()
+    modules = {module_name(p) for p in PACKAGE.rglob("*.py")}
+    for path in PACKAGE.rglob("*.py"):
+        mod = module_name(path)
+        if package_of(mod) in ("cli", "bench"):
+            continue
+        own = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        for fn in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(fn):
+                if isinstance(node, ast.ImportFrom):
+                    base = node.module or ""
+                    if node.level:
+                        parts = own.split(".")
+                        base = ".".join(parts[: len(parts) - node.level + 1] + ([base] if base else []))
+                    if base.startswith("swarmplan"):
+                        for a in node.names:  # ``from pkg import module`` names the module
+                            sub = f"{base}.{a.name}"
+                            out.add((mod, sub if sub in modules else base))
+                elif isinstance(node, ast.Import):
+                    out.update((mod, a.name) for a in node.names if a.name.startswith("swarmplan"))
+    return out
+
+
+def test_lazy_imports_only_where_start_up_needs_them() -> None:
+    assert function_level_imports() - set(LAZY_IMPORTS) == set()
+
+
+def test_the_product_speaks_of_itself() -> None:
+    """No numbers of the work items that changed it (the words issue or stop and a number) and
+    no words of how it was made, in the code, tests, docs, worlds or README."""
+    import re
+
+    words = re.compile(r"\b(?:issue|stop)[ -]\d|\bsessions?\b|\bissue's\b", re.I)
+    root = PACKAGE.parent
+    files = [root / "README.md", *root.glob("docs/*.md"), *root.glob("worlds/**/*.yaml")]
+    files += [*PACKAGE.rglob("*.py"), *root.glob("tests/**/*.py")]
+    found = [
+        f"{p.relative_to(root)}:{k}: {line.strip()}"
+        for p in files
+        for k, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+        if words.search(line)
+    ]
+    assert found == []

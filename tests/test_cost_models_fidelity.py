@@ -1,4 +1,4 @@
-"""Cost-model details the papers prescribe (issue 11 item 6): 000 eq 5 and 002 eq 15."""
+"""Cost-model details the papers prescribe: 000 eq 5 and 002 eq 15."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Same seed and world, same log (README, issue 14 item 10): every message of every channel is
+"""Same seed and world, same log (README): every message of every channel is
 identical except the wall-clock timings ``wall_ms`` (/optimizer), ``wall_time`` and
 ``escape_planning_ms`` (/summary)."""
 

@@ -15,13 +15,10 @@ from swarmplan.geometry.neighbours import (
 
 @pytest.fixture(autouse=True, params=["compiled", "reference"])
 def _path(request, monkeypatch):
-    """Every test on both paths: the compiled kernels, and the reference path the checks take
-    until the kernels are loaded."""
-    import swarmplan.geometry.collision as collision
-
-    collision.kernels()
-    if request.param == "reference":
-        monkeypatch.setattr(collision, "_kernels", None)
+    """Every test on both paths: the compiled kernels (swarm-sized worlds) and the reference
+    path (smaller worlds), whatever the size of the test's swarm."""
+    threshold = 0 if request.param == "compiled" else 10**9
+    monkeypatch.setattr("swarmplan.geometry.compiled.CHECKS_COMPILED_FROM", threshold)
 
 
 def _swarm(seed, n=200):

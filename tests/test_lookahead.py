@@ -9,6 +9,7 @@ from helpers import base_world, make_world, run_to_end
 
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
+from swarmplan.sim.metrics import NOTHING
 from swarmplan.sim.safety import SafetyFilter
 
 WALL_X = 100.0
@@ -47,7 +48,9 @@ def test_fixed_wing_turns_away_from_a_wall_its_field_sees_too_late():
 
 def test_without_the_guard_the_same_flight_hits_the_wall(monkeypatch):
     """Negative control: the scenario above is a real test of the guard."""
-    monkeypatch.setattr(SafetyFilter, "guard_fixed_wings", lambda self, idx, p, v, v_cmd, *a: v_cmd)
+    monkeypatch.setattr(
+        SafetyFilter, "guard_fixed_wings", lambda self, idx, p, v, v_cmd, *a: (v_cmd, NOTHING)
+    )
     _, summary, _ = run_to_end(wall_world(), seed=0)
     assert summary["collisions"] == 1
     assert summary["agents"][0]["collided_with"] == ["wall"]

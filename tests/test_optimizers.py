@@ -248,7 +248,7 @@ def _finals(name: str, fn_name: str) -> list[float]:
 
 
 # Measured, kept visible as strict xfails (they fail the day the algorithm passes). Empty since
-# issue 11: AFSA was level with random search on shifted Rastrigin with 002's CEC settings in
+# AFSA was level with random search on shifted Rastrigin with 002's CEC settings in
 # box widths (7-seed medians 80.3 vs 79.0); with Visual / Step as fractions of the box diagonal
 # and 002's path-planning Visual and Try_Num (fish_swarm.py) it is 65.7 (sphere 1583 vs 5305).
 BEATS_RANDOM_KNOWN: dict[tuple[str, str], str] = {}
@@ -310,7 +310,7 @@ def test_bench_cli(tmp_path, capsys, monkeypatch):
 
 
 def test_bench_help_and_output_defaults(tmp_path, capsys, monkeypatch):
-    """Issue 14 item 12: plain help text with defaults, no empty paper column, CSV into logs/."""
+    """Plain help text with defaults, no empty paper column, CSV into logs/."""
     from swarmplan.bench import peers
     from swarmplan.cli.bench import build_parser, main
 

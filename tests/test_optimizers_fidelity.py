@@ -1,4 +1,4 @@
-"""Scale fixes of issue 11: each test here fails on the code before the fix.
+"""Scale fixes: each test here fails on the code before the fix.
 
 * bat family: the loudness never drops below its floor (000 section III rule (3)); the random
   walk of eq 9 is in box-width units, so it still moves in a wide box;

@@ -247,7 +247,7 @@ def test_random_move_visual_is_the_texts_reading():
 
 
 # Measured on sphere d=10, 20000 evals, seeds 0-2: random 9.4-12.5, afsa 1.5-2.9 (6.1-10.6 with
-# 002's CEC settings in box widths, before issue 11), iafsa <= 2e-4.
+# 002's CEC settings in box widths, before the scale fixes), iafsa <= 2e-4.
 def test_afsa_beats_random_search_on_sphere():
     rnd = [make("random").minimize(sphere, LOWER, UPPER, max_evals=20000, seed=s).f for s in SEEDS]
     afsa = [make("afsa").minimize(sphere, LOWER, UPPER, max_evals=20000, seed=s).f for s in SEEDS]

@@ -31,7 +31,7 @@ SEEDS = range(12)
 ALPHA = 0.05
 
 #: each pair compares at its own paper's settings: 003 compares IBA with BA at its Table 3
-#: settings, not 000's (issue 11 item 3); the others use the registry defaults.
+#: settings, not 000's; the others use the registry defaults.
 BASE_PARAMS: dict[tuple[str, str], dict] = {("iba_gauss", "ba"): BA_003}
 
 # Measured, reported and kept visible: a strict xfail turns into a failure the day it passes.
@@ -40,7 +40,7 @@ KNOWN_FAILURES = {
     # it is CFO move for move (tests/test_optimizers_central_force.py). Ablation at these
     # settings: memory alone (c3 = 0) 24.7 / 2.41, mutation alone (c1 = c2 = 0) 20.2 / 1.46:
     # the memory pull without inertia (c1 = c2 = 1, ours; 004 gives none) is what costs. Re-read
-    # (issue 11): neither order of 004's step 4 (update="eq23" / "steps") nor c1 = c2 in 0.5-2,
+    # neither order of 004's step 4 (update="eq23" / "steps") nor c1 = c2 in 0.5-2,
     # with or without mutation, beats CFO on both functions (table in docs/benchmarks.md).
     ("mcfo", "rastrigin"): (
         "MCFO (004 eqs 19, 23 literal, rank masses as CFO) does not beat CFO on shifted Rastrigin: "
@@ -131,7 +131,7 @@ def test_improved_beats_base_fast(improved, base, request):
     assert wins == len(FUNCTIONS), f"{improved} beat {base} on {wins}/{len(FUNCTIONS)} shifted functions"
 
 
-# Strict xfails (they fail the day the algorithm passes). Empty since issue 11: with 002's CEC
+# Strict xfails (they fail the day the algorithm passes). Empty since the scale fixes: with 002's CEC
 # settings in box widths (Visual 25 %, Step 3 %) no fish ever saw another in d = 10 and AFSA
 # lost to random search (medians of 5: sphere 1.49e4 vs 7.75e3, Rastrigin 94.8 vs 95.0, with
 # 1.42e4 / 98.5 before the random stream changed); with Visual / Step as fractions of the box
@@ -142,7 +142,7 @@ BEATS_RANDOM_KNOWN: dict[str, str] = {}
 
 @pytest.mark.parametrize("name", [a for a in available() if a != "random"])
 def test_beats_random_on_shifted_sphere_and_rastrigin(name, request):
-    """Issue 11: every registry algorithm beats random search (medians of 5 seeds, d = 10, 3000 evals)."""
+    """Every registry algorithm beats random search (medians of 5 seeds, d = 10, 3000 evals)."""
     if name in BEATS_RANDOM_KNOWN:
         request.applymarker(pytest.mark.xfail(strict=True, reason=BEATS_RANDOM_KNOWN[name]))
     for fn_name in ("sphere", "rastrigin"):

@@ -1,4 +1,4 @@
-"""Replay's command line on bad input (issue 14, item 1) and its library API (item 13)."""
+"""Replay's command line on bad input and its library API."""
 
 from __future__ import annotations
 
@@ -127,7 +127,7 @@ def test_recording_attributes(tmp_path):
     assert all(isinstance(e, Event) and e.t == round(e.t, 9) for e in rec.events)
 
 
-# ---------------------------------------------------------------------- rotations (issue 9)
+# ---------------------------------------------------------------------- rotations
 
 
 def _rz_ry_rx(rpy):

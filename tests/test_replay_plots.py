@@ -1,4 +1,4 @@
-"""Replay's plots (issue 14, item 11): threats drawn, escape segments in the agent's colour,
+"""Replay's plots: threats drawn, escape segments in the agent's colour,
 moving obstacles in a colour no agent gets and in the animation's legend, legends outside the
 axes, cusps clipped and marked, convergence legend and run count, one-step segments visible."""
 

@@ -380,3 +380,23 @@ def test_random_streams_are_per_purpose_and_agent_and_seeded():
     assert not np.array_equal(sim.rng_for("escape", 0).random(4), a[0])  # the seed matters
     sim.reset(seed=5)  # reset starts the streams again
     np.testing.assert_array_equal(sim.rng_for("escape", 0).random(4), a[0])
+
+
+def test_a_tally_is_merged_into_the_run_metrics_and_unknown_counters_are_refused():
+    from swarmplan.sim.metrics import NOTHING, RunMetrics, Tally
+
+    m = RunMetrics(("a", "b"), 0)
+    hit = Tally(
+        events=(Event(1.0, "a", "collision", {"other": "b"}),),
+        counts=(("collisions", 0), ("near_misses", 0), ("near_misses", 1)),
+        contacts=((0, "b"),),
+    )
+    arrived = Tally(events=(Event(2.0, "b", "arrived", {}),), arrivals=((1, 2.0),))
+    both = hit + NOTHING + arrived
+    assert [e.kind for e in both.events] == ["collision", "arrived"]
+    m.merge(both)
+    assert m.collisions.tolist() == [1, 0] and m.near_misses.tolist() == [1, 1]
+    assert m.collided_with == [["b"], []]
+    assert np.isnan(m.arrival_time[0]) and m.arrival_time[1] == 2.0
+    with pytest.raises(ValueError, match="unknown run counter 'crashes'"):
+        m.merge(Tally(counts=(("crashes", 0),)))

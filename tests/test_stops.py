@@ -1,4 +1,4 @@
-"""Stops within the acceleration limit (issue 13): arrival only at a speed one step can stop,
+"""Stops within the acceleration limit: arrival only at a speed one step can stop,
 the braking margin that keeps the safety filter's one-step stop rare, and the count of the
 hard stops that remain (``/summary`` ``hard_stops``)."""
 

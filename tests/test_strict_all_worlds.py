@@ -1,5 +1,5 @@
 """Every shipped world's log passes ``replay --strict``: the summary the simulator writes agrees
-with the metrics replay recomputes independently from the recorded states (issue 14, item 3).
+with the metrics replay recomputes independently from the recorded states.
 
 Plus the cause of the mesh_hangar disagreement, pinned on exact geometry: the mesh distance grid
 is only a lower bound beyond its extent, so the clearance metric must query the mesh exactly.

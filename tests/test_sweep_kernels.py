@@ -17,14 +17,15 @@ import pytest
 from helpers import base_world, make_world
 
 from swarmplan.geometry import sweep_kernels as K
-from swarmplan.geometry.collision import CollisionWorld, _align_z, first_hits, first_hits_fcl, kernels
+from swarmplan.geometry.collision import CollisionWorld, _align_z, first_hits, first_hits_fcl
 from swarmplan.world.motion import poses_at
 
 
 @pytest.fixture(autouse=True)
-def _compiled():
-    """The compiled path under test (checks take the reference path until it is loaded)."""
-    kernels()
+def _compiled(monkeypatch):
+    """The compiled path under test, in worlds of any size (by default only swarm-sized
+    worlds take it: ``geometry.compiled.use_compiled_checks``)."""
+    monkeypatch.setattr("swarmplan.geometry.compiled.CHECKS_COMPILED_FROM", 0)
 
 
 SHAPES = [
@@ -336,9 +337,10 @@ def test_compiled_arrivals_equal_the_numpy_test():
         np.testing.assert_array_equal(dist, d[flying][keep])
 
 
-def test_the_first_step_stays_free_of_the_kernels_and_the_second_loads_them():
-    """Start-up: a fresh process's first step runs the reference paths (no numba load); the
-    second step loads the kernels."""
+def test_the_world_chooses_the_path_not_the_process():
+    """A 16-agent world runs its steps on the reference paths (no numba load: its start-up stays
+    short) even in a process that has loaded the kernels; a 64-agent world runs them from its
+    first step."""
     import subprocess
     import sys
 
@@ -348,9 +350,10 @@ def test_the_first_step_stays_free_of_the_kernels_and_the_second_loads_them():
         "from swarmplan.sim import Simulation\n"
         "from swarmplan.world import parse_world\n"
         "s = Simulation(parse_world(swarm_world(16, 4, 8)))\n"
-        "s.reset(seed=0); s.step()\n"
+        "s.reset(seed=0); s.step(); s.step()\n"
         "print('swarmplan.geometry.sweep_kernels' in sys.modules)\n"
-        "s.step()\n"
+        "s = Simulation(parse_world(swarm_world(64, 4, 8)))\n"
+        "s.reset(seed=0); s.step()\n"
         "print('swarmplan.geometry.sweep_kernels' in sys.modules)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -358,10 +361,10 @@ def test_the_first_step_stays_free_of_the_kernels_and_the_second_loads_them():
 
 
 def test_reference_and_compiled_runs_are_identical(monkeypatch):
-    """A whole run with the kernels never loaded (every check on its reference path) gives the
-    same states and events as the default (compiled from the second step)."""
-    import swarmplan.geometry.collision as collision
+    """A whole 24-agent run with every swept check compiled gives the same states and events as
+    its default (every check on its reference path: numpy and FCL)."""
     from swarmplan.bench.sim import swarm_world
+    from swarmplan.geometry import compiled as choice
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 
@@ -373,10 +376,10 @@ def test_reference_and_compiled_runs_are_identical(monkeypatch):
             events += [e.to_json() for e in sim.step().events]
         return events, sim.state.position.copy()
 
-    compiled = run()
-    monkeypatch.setattr(collision, "_kernels", None)
-    monkeypatch.setattr(collision, "kernels", lambda: None)
-    monkeypatch.setattr("swarmplan.sim.safety.kernels", lambda: None)
+    compiled = run()  # the fixture: compiled checks at any size
+    monkeypatch.setattr(choice, "CHECKS_COMPILED_FROM", choice.COMPILED_FROM)
+    assert not choice.use_compiled_checks(24)
     reference = run()
+    assert len(compiled[0]) > 0
     assert compiled[0] == reference[0]
     np.testing.assert_array_equal(compiled[1], reference[1])

@@ -21,9 +21,9 @@ from helpers import audit  # noqa: E402
 from swarmplan.cli.track import main as cli_main  # noqa: E402
 from swarmplan.replay import load  # noqa: E402
 from swarmplan.track import PID, TrackerConfig, parse_tracker, track  # noqa: E402
-from swarmplan.track.config import G  # noqa: E402
 from swarmplan.track.quadrotor import _deriv, simulate  # noqa: E402
 from swarmplan.track.reference import Reference, build_reference, feasibility, fill_gaps  # noqa: E402
+from swarmplan.world.tracker_config import G  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 DT = 0.1

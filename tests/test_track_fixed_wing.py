@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from swarmplan.track.config import G
 from swarmplan.track.fixed_wing import Aircraft, FixedWingConfig, bank_limit_deg, error_limit, fly
+from swarmplan.world.tracker_config import G
 
 DT = 0.1
 

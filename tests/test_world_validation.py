@@ -410,8 +410,24 @@ def test_typed_planner_config_reads_the_validated_mapping_and_is_frozen():
         cfg.stuck.window = 1.0  # type: ignore[misc]
     with pytest.raises(TypeError):
         cfg.escape["retries"] = 5  # type: ignore[index]
-    # An override is seen by the typed view of the new world.
-    assert w.with_overrides(planner={**w.planner, "mode": "reactive"}).planner_config.mode == "reactive"
+    # An override is seen by the typed settings of the new world and by its /world message.
+    v = w.with_overrides(planner={**w.planner, "mode": "reactive"})
+    assert v.planner_config.mode == "reactive" == v.to_message(0)["planner"]["mode"]
+    assert w.to_message(0)["planner"]["mode"] == "global"
+
+
+def test_planner_settings_are_carried_once():
+    """One copy: the typed settings; the mapping and the /world message are read from them, and
+    a change to a mapping handed out changes nothing in the world."""
+    w = load_world(WORLDS / "papers" / "rscdwoa_multi_uav.yaml")
+    assert "planner" not in w.resolved
+    msg = w.to_message(0)
+    assert msg["planner"] == w.planner == w.planner_config.to_dict()
+    assert list(msg).index("planner") == list(msg).index("agents") + 1
+    w.planner["apf"]["influence"] = -1.0
+    msg["planner"]["mode"] = "reactive"
+    assert w.planner["apf"]["influence"] == w.planner_config.apf.influence > 0
+    assert w.to_message(0)["planner"]["mode"] == "global"
 
 
 # ----------------------------------------------------------------------------- tracker:

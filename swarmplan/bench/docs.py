@@ -185,8 +185,8 @@ def _rel(path: Path) -> str:
 
 def _comparison(stem: str) -> Callable[[Options], Block]:
     def run(opts: Options) -> Block:
-        from swarmplan.cli.compare import format_table, table_notes
         from swarmplan.sweep.engine import make_client, run_tasks
+        from swarmplan.sweep.report import table, table_notes
         from swarmplan.sweep.spec import parse_spec
 
         names = COMPARISON[stem]
@@ -211,7 +211,7 @@ def _comparison(stem: str) -> Callable[[Options], Block]:
         ok = [r for r in rows if r["status"] == "ok"]
         collisions = sum(int(r["collisions"]) for r in ok)
         lines = [
-            format_table(rows, names),
+            table(rows, names),
             "",
             f"{len(rows)} runs ({seeds} seeds, 0..{seeds - 1}, per optimizer), {len(rows) - len(ok)} "
             f"error(s), {collisions} collision(s) in total"

@@ -1,4 +1,4 @@
-"""Speed at swarm scale, every figure of issue 10 beside its target, in one run.
+"""Speed at swarm scale, every figure beside its target, in one run.
 
 ``python -m swarmplan.bench scale [--quick]`` measures, with the MCAP recorder on:
 
@@ -170,7 +170,7 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
         "from swarmplan.world import parse_world\n"
         + ("from swarmplan.io.recording import McapRecorder\n" if record else "")
         + "w = parse_world(swarm_world(16, 4, 8))\n"
-        f"s = Simulation(w, planner=make_planner(w, w.planner['optimizer']['name']), recorder={recorder})\n"
+        f"s = Simulation(w, planner=make_planner(w, w.planner_config.optimizer.name), recorder={recorder})\n"
         "s.reset(seed=0); s.step()\n"
         "print(time.perf_counter() - t0, time.process_time())\n"
     )
@@ -196,7 +196,7 @@ def main(args: argparse.Namespace) -> int:
 
     quick = bool(args.quick)
     print(
-        "Speed at swarm scale (issue 10). Recording on everywhere. Wall-clock figures: CPU share "
+        "Speed at swarm scale. Recording on everywhere. Wall-clock figures: CPU share "
         "= process CPU time / wall time (below ~95 % the machine was loaded)."
     )
     print("\n| figure | measured | target | verdict |")

@@ -16,7 +16,7 @@ from swarmplan.runtime.blas import limit_blas_threads
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "optimizers": ("swarmplan.bench.optimizers", "run a paper benchmark suite over the optimizers"),
     "overhead": ("swarmplan.bench.overhead", "measure the library's own overhead per evaluation"),
-    "scale": ("swarmplan.bench.scale", "issue 10's speed figures at swarm scale, each beside its target"),
+    "scale": ("swarmplan.bench.scale", "speed figures at swarm scale, each beside its target"),
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
     "docs": ("swarmplan.bench.docs", "re-run the commands behind the docs' tables and rewrite them"),
 }

@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
             raise WorldError([f"--seed: must be >= 0, got {args.seed}"], "command line")
         world = apply_overrides(load_world(args.world, names), args.optimizer, args.max_time)
         seed = world.seed if args.seed is None else args.seed
-        log_path = log_path_for(world, seed, world.planner["optimizer"]["name"], args.out)
+        log_path = log_path_for(world, seed, world.planner_config.optimizer.name, args.out)
         check_writable(log_path, "--out" if args.out is not None else "log.path")
     except WorldError as exc:
         print(f"error: {exc.source}: invalid input", file=sys.stderr)

@@ -7,7 +7,7 @@ are flown by a coordinated-turn aircraft (bank limit, airspeed dynamics) under L
 an energy loop: max and RMS error, peak bank, and whether the error stays within
 max(5 m, 0.05 R_min). The vehicle and
 gains come from the ``tracker:`` section of the log's /world message when it has one, else the
-documented defaults (``swarmplan/track/config.py``).
+documented defaults (``swarmplan/world/tracker_config.py``).
 
 Exit codes: 0 normally; 2 for bad input (missing or unreadable log, unknown agent, bad
 ``tracker:`` section, unwritable ``--out``, unsupported ``--plot`` extension), with one line on
@@ -24,8 +24,8 @@ import time
 from pathlib import Path
 
 from swarmplan.runtime.blas import limit_blas_threads
-from swarmplan.track.config import TrackerConfig, parse_tracker
 from swarmplan.track.output import PLOT_FORMATS
+from swarmplan.world.tracker_config import TrackerConfig, parse_tracker
 
 
 class InputError(Exception):

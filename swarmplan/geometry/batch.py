@@ -15,6 +15,7 @@ With ``compiled=True`` (the simulation's swarm-sized worlds, ``geometry.compiled
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,7 +28,9 @@ from swarmplan.geometry.shapes import (
     sdf_cylinder,
     sdf_sphere,
 )
-from swarmplan.world import Obstacle
+
+if TYPE_CHECKING:
+    from swarmplan.world.model import Obstacle
 
 _SHAPES = ("sphere", "box", "cylinder", "capsule")
 

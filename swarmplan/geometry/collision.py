@@ -14,12 +14,12 @@ obstacles and the query capsule are fcl objects created once and moved by transf
 
 from __future__ import annotations
 
-from types import ModuleType
 from typing import TYPE_CHECKING
 
 import fcl
 import numpy as np
 
+from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.vec3 import dot3, norm3
 
 if TYPE_CHECKING:
@@ -31,28 +31,6 @@ _Z = np.array([0.0, 0.0, 1.0])
 SLACK = 1e-3
 """Metres added to a body's bounding radius when choosing the candidates of the narrow phase
 (only costs narrow-phase calls; covers FCL's own tolerance on contact)."""
-
-
-_kernels: ModuleType | None = None
-
-
-def kernels() -> ModuleType:
-    """The compiled swept checks (numba), imported at the first call: not at start-up."""
-    global _kernels
-    if _kernels is None:
-        from swarmplan.geometry import sweep_kernels
-
-        _kernels = sweep_kernels
-    return _kernels
-
-
-def loaded_kernels() -> ModuleType | None:
-    """The compiled swept checks if :func:`kernels` has loaded them, else None.
-
-    Every compiled check has a reference path (numpy and FCL) with equal answers (tests); the
-    checks take the reference path until the kernels are loaded, so that a process's first
-    step does not pay numba's load (~1 s): ``SafetyFilter`` loads them from its second step."""
-    return _kernels
 
 
 def shape_table(obstacles: list[Obstacle]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -311,18 +289,20 @@ def first_hits(
 ) -> list[str | None]:
     """:meth:`CollisionWorld.first_hit` for many agents at once.
 
-    Bounds, ground and terrain are decided in numpy; the bodies by the compiled kernels
-    (``sweep_kernels``: exact geometry, decided only away from contact), and the agents whose
-    answer the kernels leave undecided (a body within ``BAND`` of contact, or a mesh) by
-    :func:`first_hits_fcl`, FCL on every candidate as before.
+    Swarm-sized worlds (``use_compiled_checks``): bounds, ground and terrain are decided in
+    numpy; the bodies by the compiled kernels (``sweep_kernels``: exact geometry, decided only
+    away from contact), and the agents whose answer the kernels leave undecided (a body within
+    ``BAND`` of contact, or a mesh) by :func:`first_hits_fcl`. Smaller worlds:
+    :func:`first_hits_fcl` for all (the same answers).
     """
     n = len(p0)
     out: list[str | None] = [None] * n
-    compiled = loaded_kernels()
-    if n == 0 or compiled is None:
-        return first_hits_fcl(cw, p0, p1, radii, q0, q1) if n else out
+    if n == 0:
+        return out
+    if not use_compiled_checks(len(cw.world.agents)):
+        return first_hits_fcl(cw, p0, p1, radii, q0, q1)
     oob, low, ground_name = _bounds_and_ground(cw.world, p0, p1, radii)
-    kind, index = compiled.sweep_many(
+    kind, index = sweep_kernels().sweep_many(
         np.ascontiguousarray(p0, dtype=float),
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),

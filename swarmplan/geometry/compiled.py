@@ -1,25 +1,34 @@
-"""From which swarm size the simulation's per-step field runs compiled (numba), and the lazy
-import of the compiled geometry.
+"""From which swarm size the simulation runs compiled (numba) per-step work, and where it
+loads the compiled geometry.
 
-Below ``COMPILED_FROM`` agents the numpy paths run: numba's one-time load (its import and
-the cached machine code, ~0.9 s CPU per process) costs more than a small world's whole run
-saves, and the start-up figure of issue 10 (a 16-agent world to after its first step,
-<= 0.5 s) would not hold. From it on (swarm scale) the field, the nearest surfaces, the
-agents' clearance and the potential field are compiled kernels. Both paths give the same
-bits (the kernels follow numpy's formulas and order of sums, rotations stay with numpy's
-BLAS), so a world runs identically either way (tests/test_field_kernels.py,
-tests/test_apf_compiled.py); the choice depends on the world only.
+Below ``COMPILED_FROM`` agents the numpy (and FCL) paths run: numba's one-time load (its
+import and the cached machine code, ~0.9 s CPU per process) costs more than a small world's
+whole run saves, and a 16-agent world would not reach its first step within 0.5 s. From it
+on (swarm scale) the field, the nearest surfaces, the agents' clearance, the potential field
+and the swept checks are compiled kernels. Both paths give the same bits (the kernels follow
+numpy's formulas and order of sums, rotations stay with numpy's BLAS; the swept checks
+decide exactly what FCL decides), so a world runs identically either way
+(tests/test_field_kernels.py, tests/test_apf_compiled.py, tests/test_sweep_kernels.py,
+tests/test_geometry_neighbours.py). The choice depends on the world only, never on what a
+process has loaded before.
 """
 
 from __future__ import annotations
 
-from functools import cache
 from types import ModuleType
+
+from swarmplan.runtime.compiled import kernel_module
 
 COMPILED_FROM = 49
 """Swarm size (agents in the world) from which the compiled kernels run: where the numpy
 potential field sums the agent term over the k-d tree's pairs (above ``apf._INDEX_FROM``
 = 48 agents), whose order of sums the compiled term reproduces."""
+
+CHECKS_COMPILED_FROM = COMPILED_FROM
+"""Swarm size from which the swept checks (``first_hits``, arrivals, near misses, agent
+contacts, the braking margin's free distances) run compiled: the same rule as the field. Their
+answers are exact on both paths, so this is a speed choice only (its own name lets the tests
+run either path)."""
 
 
 def use_compiled(n_agents: int) -> bool:
@@ -27,9 +36,16 @@ def use_compiled(n_agents: int) -> bool:
     return n_agents >= COMPILED_FROM
 
 
-@cache
-def field_kernels() -> ModuleType:
-    """:mod:`swarmplan.geometry._field_kernels`, imported (and numba with it) at first use."""
-    from swarmplan.geometry import _field_kernels
+def use_compiled_checks(n_agents: int) -> bool:
+    """Whether a world of ``n_agents`` agents runs the compiled swept checks."""
+    return n_agents >= CHECKS_COMPILED_FROM
 
-    return _field_kernels
+
+def field_kernels() -> ModuleType:
+    """:mod:`swarmplan.geometry._field_kernels` (numba loads with it at the first call)."""
+    return kernel_module("swarmplan.geometry._field_kernels")
+
+
+def sweep_kernels() -> ModuleType:
+    """:mod:`swarmplan.geometry.sweep_kernels` (numba loads with it at the first call)."""
+    return kernel_module("swarmplan.geometry.sweep_kernels")

@@ -15,8 +15,8 @@ from itertools import chain
 
 import numpy as np
 
-from swarmplan.geometry.collision import loaded_kernels, segment_segment_min_distance
-from swarmplan.geometry.compiled import field_kernels, use_compiled
+from swarmplan.geometry.collision import segment_segment_min_distance
+from swarmplan.geometry.compiled import field_kernels, sweep_kernels, use_compiled, use_compiled_checks
 from swarmplan.geometry.vec3 import norm3
 
 SMALL = 32
@@ -47,13 +47,13 @@ def agent_contacts_indexed(
     ``sweep_kernels.agent_contacts``): two points moving along their steps stay within half of
     each step of their midpoints, so a contact needs the midpoints closer than both half-steps
     + both radii + ``margin``; the candidates' distances are ``segment_segment_min_distance``'s
-    arithmetic, term for term, and the pairs come in ``np.triu_indices`` order."""
+    arithmetic, term for term, and the pairs come in ``np.triu_indices`` order. Below swarm size
+    (``use_compiled_checks``, all ``n`` agents of the world in ``p0``) a tree's candidates and
+    numpy's test give the same pairs."""
     n = len(p0)
     if n < 2:
         return []
-    compiled = loaded_kernels()
-    if compiled is None:
-        # The reference path (until the kernels are loaded): a tree's candidates, numpy's test.
+    if not use_compiled_checks(n):
         half = 0.5 * norm3(p1 - p0)
         reach = 2.0 * float(half.max()) + 2.0 * float(radii.max()) + margin
         i, j = _pairs(0.5 * (p0 + p1), reach * (1.0 + 1e-9) + 1e-9)
@@ -62,7 +62,7 @@ def agent_contacts_indexed(
         d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
         hit = d < radii[i] + radii[j] + margin
         return list(zip(i[hit].tolist(), j[hit].tolist(), strict=True))
-    i, j = compiled.agent_contacts(
+    i, j = sweep_kernels().agent_contacts(
         np.ascontiguousarray(p0, dtype=float),
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),

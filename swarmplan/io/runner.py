@@ -73,7 +73,7 @@ def apply_overrides(world: World, optimizer: str | None, max_time: float | None)
     if optimizer is not None:
         planner = dict(world.planner)
         opt = dict(planner["optimizer"], name=optimizer)
-        if optimizer != world.planner["optimizer"]["name"]:
+        if optimizer != world.planner_config.optimizer.name:
             # The world's params are settings of its own algorithm (e.g. rscdwoa's beta): another
             # algorithm runs with its papers' defaults.
             opt["params"] = {}

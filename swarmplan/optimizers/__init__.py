@@ -4,7 +4,7 @@
 
 Each family lives in its own module (``baselines``, ``bat``, ``bat_gauss``, ``bee_colony``,
 ``central_force``, ``fish_swarm``, ``whale``); ``make`` imports the one it needs
-(``registry.BUILTIN_MODULES``).
+(``registry.BUILTIN``).
 """
 
 from swarmplan.optimizers.core import Optimizer, Problem, Result

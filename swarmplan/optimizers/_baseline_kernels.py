@@ -1,6 +1,6 @@
 """Compiled generation steps of PSO, DE, GA (``baselines.py``) and ABC (``bee_colony.py``).
 
-Why numba (issue 10, optimizer overhead <= 1 µs per evaluation at d = 50): with populations
+Why numba (target: optimizer overhead <= 1 µs per evaluation at d = 50): with populations
 of 30-50 the numpy versions spent 3-13 µs per evaluation in 15-40 Python-level numpy calls
 per generation (fancy indexing, masks, ``np.where`` chains, argsorts), each worth about a
 microsecond before any arithmetic. Each algorithm now runs a generation as: one batched

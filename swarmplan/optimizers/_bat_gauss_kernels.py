@@ -1,6 +1,6 @@
 """Compiled steps of ``iba_gauss`` (:mod:`swarmplan.optimizers.bat_gauss`, paper 003).
 
-Why numba here (issue 10, optimizer overhead <= 1 µs per evaluation at d = 50): a generation
+Why numba here (target: optimizer overhead <= 1 µs per evaluation at d = 50): a generation
 of 100 bats was ~40 numpy calls on (n, d) arrays (velocity operator, Gaussian walk, masked
 assignment, clip, acceptance with fancy indexing) at ~1 µs each before they touch a number.
 Two kernels do the same arithmetic in numpy's operation order (bit-identical, no fastmath);

@@ -3,7 +3,7 @@
 Why numba here: at the populations these algorithms run with (30 bats, 6 employed sources
 and 24 onlookers) every numpy call costs more than the arithmetic it does, and one
 generation of the numpy code was ~40 (``ba``) to ~90 (``iba_abc``) calls: 4-16 µs of
-overhead per evaluation at d = 50 against the 1 µs target of issue 10. Here a generation is
+overhead per evaluation at d = 50 against the 1 µs target. Here a generation is
 one batched ``rng.random`` draw made in numpy (passing the Generator into numba costs ~10 µs
 per call to unbox it, and numpy's batched draw is faster than numba's per-scalar one), the
 cost call(s), and two or three kernel calls. The equations, their order of floating-point

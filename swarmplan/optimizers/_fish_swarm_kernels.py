@@ -1,6 +1,6 @@
 """Compiled steps of AFSA / IAFSA (:mod:`swarmplan.optimizers.fish_swarm`, paper 002).
 
-Why numba here (issue 10, optimizer overhead <= 1 µs per evaluation at d = 50): a fish
+Why numba here (target: optimizer overhead <= 1 µs per evaluation at d = 50): a fish
 generation was ~150 numpy calls (views, centres, the prey rounds with fancy indexing, three
 kinds of moves, concatenation, selection), at ~1 µs each before they touch a number, for
 ~150 evaluations. The kernels below do the per-fish work in a few passes; random numbers
@@ -249,7 +249,7 @@ def spiral_visual(U, best_U, u, b, v0, absolute, hbar, vis, stp):  # noqa: ANN00
     """IAFSA's eq 28 and eq 31 per fish: ``w = 2 u - 1`` (bit for bit ``rng.uniform(-1, 1)``
     from the same draws), ``Dis_i = |u_i - X_gm|``, ``vis_i = Dis_i e^{b w} cos(2 pi w)``
     (its absolute value with ``absolute``) ``+ v0``, ``stp_i = vis_i / hbar``. One pass instead
-    of ~10 numpy calls per generation (issue 10)."""
+    of ~10 numpy calls per generation."""
     n, d = U.shape
     for i in range(n):
         w = -1.0 + 2.0 * u[i]

@@ -2,7 +2,7 @@
 
 Why numba here: at the populations the planner uses (30 x d = 50) an optimizer's own cost is
 the number of Python-level numpy calls per generation, not their arithmetic (each call costs
-about a microsecond before it touches a number; issue 10 asks for <= 1 µs of overhead per
+about a microsecond before it touches a number; the target is <= 1 µs of overhead per
 *evaluation*, i.e. ~30 µs per generation for everything). One compiled loop replaces the
 5-10 numpy calls of a clip + copy or a NaN scan + argmin with one call.
 

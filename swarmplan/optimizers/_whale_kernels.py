@@ -2,7 +2,7 @@
 
 Why numba here: with 30 whales every numpy call costs more than the arithmetic it does; one
 WOA generation was ~25 numpy calls, an RSCDWOA generation with its differential-evolution
-stage ~80: 6-9 µs of overhead per evaluation at d = 50 against the 1 µs target of issue 10.
+stage ~80: 6-9 µs of overhead per evaluation at d = 50 against the 1 µs target.
 The random numbers are drawn by numpy in batches (passing the Generator into numba costs
 ~10 µs per call to unbox it) and the kernels repeat the numpy code's floating-point
 operations in the same order. Random integers (partners, donors, the forced crossover

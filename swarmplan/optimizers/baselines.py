@@ -6,14 +6,13 @@ settings tuned to beat or lose to the paper algorithms.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 
 def _check_positive(name: str, algo: str, value: float, *, upper: float | None = None) -> None:
@@ -27,13 +26,10 @@ def _check_unit(name: str, algo: str, value: float) -> None:
         raise ValueError(f"{algo}: {name} must be in [0, 1], got {value!r}")
 
 
-@functools.cache
 def baseline_kernels() -> Any:
     """The compiled generation steps (:mod:`swarmplan.optimizers._baseline_kernels`),
     imported at first use so that importing the registry does not import numba."""
-    from swarmplan.optimizers import _baseline_kernels
-
-    return _baseline_kernels
+    return kernel_module("swarmplan.optimizers._baseline_kernels")
 
 
 # --------------------------------------------------------------------------- random search
@@ -44,7 +40,6 @@ class _RandomState:
     pass
 
 
-@register
 class RandomSearch(Optimizer):
     """Uniform random sampling of the box, one population-sized batch per iteration."""
 
@@ -78,7 +73,6 @@ class _PSOState:
     coef: tuple[float, float, float]  # w, c1, c2 as floats (one type for the compiled kernel)
 
 
-@register
 class PSO(Optimizer):
     """Global-best inertia-weight particle swarm optimization.
 
@@ -135,7 +129,6 @@ class _DEState:
     CR: float
 
 
-@register
 class DE(Optimizer):
     """Differential evolution DE/rand/1/bin (Storn & Price 1997).
 
@@ -189,7 +182,6 @@ class _GAState:
     eta_m: float
 
 
-@register
 class GA(Optimizer):
     """Real-coded generational genetic algorithm with elitism.
 

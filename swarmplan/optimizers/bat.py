@@ -53,14 +53,13 @@ Readings shared by the three algorithms (the papers are silent, garbled or unwor
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 # --------------------------------------------------------------------------------------
 # shared helpers
@@ -131,12 +130,9 @@ def _update_best(state, X: np.ndarray, f: np.ndarray) -> bool:
     return False
 
 
-@functools.cache
 def _k():  # noqa: ANN202
     """The compiled kernels; numba is imported at the first run, not with the package."""
-    from swarmplan.optimizers import _bat_kernels
-
-    return _bat_kernels
+    return kernel_module("swarmplan.optimizers._bat_kernels")
 
 
 @dataclass
@@ -198,7 +194,6 @@ class _BatState:
     kit: _Kit | None = None  # kernel constants and scratch, built at the first generation
 
 
-@register
 class BatAlgorithm(Optimizer):
     """Classic bat algorithm, paper 000 section III (Zhou et al., after Yang 2010).
 
@@ -313,7 +308,6 @@ def roulette_probabilities(cost: np.ndarray) -> np.ndarray:
     return fit / total
 
 
-@register
 class IbaAbc(Optimizer):
     """IBA of paper 000 section IV: the bat algorithm with artificial bee colony roles.
 

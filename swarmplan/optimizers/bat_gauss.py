@@ -9,22 +9,18 @@ documented in :mod:`swarmplan.optimizers.bat`.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.optimizers.bat import WALK_SCALE, _check_bat_params
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 
-@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._bat_gauss_kernels`, imported at the first generation."""
-    from swarmplan.optimizers import _bat_gauss_kernels
-
-    return _bat_gauss_kernels
+    return kernel_module("swarmplan.optimizers._bat_gauss_kernels")
 
 
 # --------------------------------------------------------------------------------------
@@ -74,7 +70,6 @@ class _IbaGaussState:
     best_f: float
 
 
-@register
 class IbaGauss(Optimizer):
     """IBA of Huang & Ma (paper 003): integration strategy, Gaussian perturbation, ILSA.
 
@@ -121,7 +116,7 @@ class IbaGauss(Optimizer):
     none); walk in box-width units (``walk_scale = 1/200``, 003's box is ``[-100, 100]``);
     ILSA towards the box centre (``ilsa_centre = "box"``, step 4).
 
-    Measured against ``ba`` at the same Table 3 settings (issue 11, docs/benchmarks.md): better
+    Measured against ``ba`` at the same Table 3 settings (docs/benchmarks.md): better
     on shifted Ackley and on most CEC2013 functions (including CEC's Rastrigin F11), but not on
     the plain shifted Rastrigin, neither at d = 10 / 2e4 evaluations (49.0 vs 54.9, p = 0.52,
     12 seeds) nor at 003's own budget of 3e5 evaluations (d = 10: 48.8 vs 54.9; d = 30: 281 vs

@@ -13,7 +13,6 @@ import numpy as np
 
 from swarmplan.optimizers.baselines import baseline_kernels
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
 
 
 @dataclass
@@ -25,7 +24,6 @@ class _AbcState:
     src: np.ndarray  # (SN,) their sources
 
 
-@register
 class ArtificialBeeColony(Optimizer):
     """Artificial bee colony (Karaboga & Basturk 2007), one cycle per generation.
 

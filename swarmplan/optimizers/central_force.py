@@ -42,23 +42,19 @@ docstrings for the per-algorithm ones):
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 _EMPTY = np.empty(0)
 
 
-@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._central_force_kernel`, imported at the first generation."""
-    from swarmplan.optimizers import _central_force_kernel
-
-    return _central_force_kernel
+    return kernel_module("swarmplan.optimizers._central_force_kernel")
 
 
 def accommodate(
@@ -224,7 +220,6 @@ def _mass_scale(F: np.ndarray) -> float:
     return max(abs(float(F.max())), 1.0)
 
 
-@register
 class CentralForce(Optimizer):
     """Central force optimization, paper 004 section 3 (eqs 13-16), minimisation form.
 
@@ -312,7 +307,6 @@ class CentralForce(Optimizer):
         state.U = U
 
 
-@register
 class ModifiedCentralForce(CentralForce):
     """Modified CFO (MCFO2 of paper 004 section 4): CFO + PSO memory (eq 18) + mutation (eq 19).
 
@@ -396,7 +390,7 @@ class ModifiedCentralForce(CentralForce):
     initial parameters); eq 29 is met per probe (above), not by other defaults.
     :class:`CentralForce` has no such limit (004 gives CFO no stability analysis).
 
-    Measured (issue 11; shifted Rastrigin / Ackley, d = 10, 2e4 evaluations, the slow test's 12
+    Measured (shifted Rastrigin / Ackley, d = 10, 2e4 evaluations, the slow test's 12
     seeds, medians, one-sided rank-sum against CFO's 17.56 / 1.45; docs/benchmarks.md): no
     reading of what 004 leaves open (``c1 = c2``, the order of step 4) makes MCFO beat CFO on
     both functions. Eq 23 (default) with ``c1 = c2`` = 0.5 / 1 / 2: Rastrigin 16.2 / 17.1 /

@@ -17,6 +17,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from swarmplan.runtime.compiled import kernel_module
+
 CostFn = Callable[[np.ndarray], np.ndarray]
 Callback = Callable[[int, np.ndarray, float], "bool | None"]
 
@@ -59,10 +61,7 @@ def kernels() -> Any:
     built; the planner's start-up (which imports the registry) stays free of it.
     """
     global _kernels
-    if _kernels is None:
-        from swarmplan.optimizers import _kernels as k
-
-        _kernels = k
+    _kernels = kernel_module("swarmplan.optimizers._kernels")
     return _kernels
 
 
@@ -74,7 +73,7 @@ class Problem:
     When the budget runs out mid-batch the rows that could not be evaluated get ``inf`` and
     :class:`BudgetExhausted` is raised *after* the best point has been updated.
 
-    Fast path (issue 10, optimizer overhead): ``evaluate`` costs two compiled calls besides
+    Fast path (optimizer overhead): ``evaluate`` costs two compiled calls besides
     the user's cost when it gets a float64 ``(n, d)`` ndarray and the cost returns a float64
     ``(k,)`` ndarray; anything else (lists, other dtypes, ``(k, 1)`` costs) takes the general
     path with the same results. ``uniform`` is one batched draw plus one compiled call. The

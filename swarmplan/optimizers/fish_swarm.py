@@ -22,7 +22,7 @@ Readings chosen where paper 002 is ambiguous:
   Euclidean distances between fish grow as ``sqrt(d)`` (about ``sqrt(d/6)`` widths between
   two uniform points, 1.3 at ``d = 10``), so a field of view of 25 % of the width holds no
   other fish once ``d`` is above a few, following and swarming never fire, and a fish moves
-  3 % of the width per generation (issue 11: AFSA then lost to random search at 3000
+  3 % of the width per generation (AFSA then lost to random search at 3000
   evaluations, d = 10: sphere 1.49e4 vs 7.75e3). Measured along the diagonal, the
   per-coordinate reach of a try (``Visual * rand / sqrt(d)`` r.m.s.) is the same fraction of
   the width in every dimension. This is our scaling, not 002's (at 002's own ``d = 10`` it
@@ -46,7 +46,7 @@ Readings chosen where paper 002 is ambiguous:
   length ``Visual * rand(0, 1)``, one ``rand`` per try. The paper does not say how the
   direction is distributed; ours (``direction="cube"``) is ``unit(2 u - 1)`` with ``u``
   uniform in ``[0, 1)^d``: ``d`` uniforms, about a quarter of the cost of the ``d`` normals of
-  an isotropic direction (``direction="normal"``, the stream before issue 10), which made
+  an isotropic direction (``direction="normal"``, the earlier stream), which made
   most of AFSA's overhead at ``d = 50``. Quality does not differ (20 seeds each, rank-sum,
   AFSA and IAFSA, d = 10 with 3000 / 20000 evaluations, d = 50 with 30000, shifted sphere,
   Rastrigin, Ackley: p >= 0.16 except IAFSA on Ackley at d = 10 and 3000, where ``"cube"``
@@ -70,7 +70,7 @@ Readings chosen where paper 002 is ambiguous:
 * Prey tries follow the paper's sequential rule: a fish stops at its *first* better try and
   moves towards it. The tries are drawn and evaluated in rounds (round ``r``: try ``r`` of
   every fish still searching), so only the tries a fish makes are drawn and count against the
-  budget. (Until issue 10's overhead work all ``try_number`` tries were drawn up front, about
+  budget. (Earlier all ``try_number`` tries were drawn up front, about
   2x the random numbers used; the random stream, not the algorithm, changed with that.)
   (Before, all ``try_number`` tries of every fish were evaluated in one batch; on a smooth
   function about half of the first tries already succeed, so that spent 2-3x the evaluations
@@ -85,21 +85,17 @@ Readings chosen where paper 002 is ambiguous:
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population, kernels
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 
-@functools.cache
 def _kernel():  # noqa: ANN202
     """:mod:`swarmplan.optimizers._fish_swarm_kernels`, imported at the first generation."""
-    from swarmplan.optimizers import _fish_swarm_kernels
-
-    return _fish_swarm_kernels
+    return kernel_module("swarmplan.optimizers._fish_swarm_kernels")
 
 
 @dataclass
@@ -324,7 +320,6 @@ class _FishBase(Optimizer):
         return False
 
 
-@register
 class ArtificialFishSwarm(_FishBase):
     """Artificial fish swarm algorithm, paper 002 section 3.1 (eqs 16-21).
 
@@ -375,7 +370,6 @@ class ArtificialFishSwarm(_FishBase):
         self._generation(state, problem, rng)
 
 
-@register
 class ImprovedFishSwarm(_FishBase):
     """Improved AFSA (IAFSA), paper 002 section 3.2.
 
@@ -392,7 +386,7 @@ class ImprovedFishSwarm(_FishBase):
       cannot be negative) and ``v0_decay=True`` uses ``V0 * (1 - t/T)`` with ``t/T`` the
       fraction of the evaluation budget used (the text says the view "gradually decreases",
       which the constant ``V0`` of eq 28 does not do). With both, IAFSA was 2-20x better on
-      shifted functions than with the literal eq 28 (issue 11), so comparisons against AFSA
+      shifted functions than with the literal eq 28, so comparisons against AFSA
       that use them measure our additions, not the paper's.
     * Enhanced following (eqs 29-30): ``X + Step * (R * unit(X_j - X) + (1 - R) * unit(X_gm - X))``
       with ``R ~ U(0, 1)`` per fish, when ``X_j`` (best in view) is better and uncrowded.

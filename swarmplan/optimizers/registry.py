@@ -1,8 +1,9 @@
 """Name → optimizer class registry, ``make`` and ``available``.
 
-The built-in algorithms are listed by name with the module that defines them and imported on
-first use: a run that flies one optimizer does not pay the import of the other thirteen
-(start-up to the first step, issue 10). ``register`` still adds any class, built-in or not.
+The built-in algorithms are listed by name with the module and class that define them, and
+their module is imported on first use: a run that flies one optimizer does not pay the import
+of the other thirteen (start-up to the first step). The algorithm modules know nothing of
+the registry. ``register`` adds any other class under a name of its own.
 """
 
 from __future__ import annotations
@@ -12,48 +13,49 @@ from typing import Any
 
 from swarmplan.optimizers.core import Optimizer
 
-#: built-in algorithm name -> module (under ``swarmplan.optimizers``) whose import registers it;
-#: tests/test_optimizer_registry.py checks that this table and the modules' ``name`` attributes agree
-BUILTIN_MODULES: dict[str, str] = {
-    "random": "baselines",
-    "pso": "baselines",
-    "de": "baselines",
-    "ga": "baselines",
-    "ba": "bat",
-    "iba_abc": "bat",
-    "iba_gauss": "bat_gauss",
-    "abc": "bee_colony",
-    "cfo": "central_force",
-    "mcfo": "central_force",
-    "afsa": "fish_swarm",
-    "iafsa": "fish_swarm",
-    "woa": "whale",
-    "rscdwoa": "whale",
+#: built-in algorithm name -> (module under ``swarmplan.optimizers``, class in it);
+#: tests/test_optimizer_registry.py checks that the classes' ``name`` attributes agree
+BUILTIN: dict[str, tuple[str, str]] = {
+    "random": ("baselines", "RandomSearch"),
+    "pso": ("baselines", "PSO"),
+    "de": ("baselines", "DE"),
+    "ga": ("baselines", "GA"),
+    "ba": ("bat", "BatAlgorithm"),
+    "iba_abc": ("bat", "IbaAbc"),
+    "iba_gauss": ("bat_gauss", "IbaGauss"),
+    "abc": ("bee_colony", "ArtificialBeeColony"),
+    "cfo": ("central_force", "CentralForce"),
+    "mcfo": ("central_force", "ModifiedCentralForce"),
+    "afsa": ("fish_swarm", "ArtificialFishSwarm"),
+    "iafsa": ("fish_swarm", "ImprovedFishSwarm"),
+    "woa": ("whale", "WOA"),
+    "rscdwoa": ("whale", "RSCDWOA"),
 }
 
 _REGISTRY: dict[str, type[Optimizer]] = {}
 
 
 def register(cls: type[Optimizer]) -> type[Optimizer]:
-    """Class decorator: make ``cls`` available under ``cls.name``."""
+    """Class decorator: make ``cls`` available under ``cls.name`` (not a built-in's name)."""
     if not cls.name:
         raise TypeError(f"{cls.__name__} has no name")
-    if cls.name in _REGISTRY and _REGISTRY[cls.name] is not cls:
+    if cls.name in BUILTIN or (cls.name in _REGISTRY and _REGISTRY[cls.name] is not cls):
         raise TypeError(f"optimizer name {cls.name!r} registered twice")
     _REGISTRY[cls.name] = cls
     return cls
 
 
 def available() -> list[str]:
-    """Names of every registered optimizer (built-in or added with ``register``), sorted."""
-    return sorted(set(BUILTIN_MODULES) | set(_REGISTRY))
+    """Names of every optimizer (built-in or added with ``register``), sorted."""
+    return sorted(set(BUILTIN) | set(_REGISTRY))
 
 
 def optimizer_class(name: str) -> type[Optimizer]:
-    """The class registered as ``name``, importing its built-in module on first use;
-    unknown names raise ``ValueError``."""
-    if name not in _REGISTRY and name in BUILTIN_MODULES:
-        importlib.import_module(f"swarmplan.optimizers.{BUILTIN_MODULES[name]}")
+    """The class of ``name``, importing its built-in module on first use; unknown names raise
+    ``ValueError``."""
+    if name in BUILTIN:
+        module, cls = BUILTIN[name]
+        return getattr(importlib.import_module(f"swarmplan.optimizers.{module}"), cls)
     try:
         return _REGISTRY[name]
     except KeyError:

@@ -14,14 +14,13 @@ Where the paper is ambiguous the reading chosen is stated in the class docstring
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from swarmplan.optimizers.core import Optimizer, Problem, initial_population
-from swarmplan.optimizers.registry import register
+from swarmplan.runtime.compiled import kernel_module
 
 _TWO_PI = 2.0 * np.pi
 # Chaotic values are kept in [_CHAOS_EPS, 1 - _CHAOS_EPS]: the open interval (0, 1) of eq (13).
@@ -106,12 +105,9 @@ def secondary_reflection(rng: np.random.Generator, X: np.ndarray, lower: np.ndar
 # --------------------------------------------------------------------------- kernels
 
 
-@functools.cache
 def _k():  # noqa: ANN202
     """The compiled kernels; numba is imported at the first run, not with the package."""
-    from swarmplan.optimizers import _whale_kernels
-
-    return _whale_kernels
+    return kernel_module("swarmplan.optimizers._whale_kernels")
 
 
 @dataclass
@@ -133,8 +129,7 @@ class _Kit:
 
 
 def _kit(problem: Problem, n: int, **consts: float) -> _Kit:
-    from swarmplan.optimizers import _whale_kernels as wk
-
+    wk = _k()
     c = np.zeros(wk.N_C)
     for key, value in consts.items():
         c[getattr(wk, "C_" + key.upper())] = value
@@ -159,7 +154,6 @@ class _WOAState:
     kit: _Kit | None = None  # kernel constants and scratch, built at the first generation
 
 
-@register
 class WOA(Optimizer):
     """Whale optimization algorithm, paper 001 section 2.2 (Mirjalili & Lewis 2016).
 
@@ -231,7 +225,6 @@ class _RSCDWOAState:
     kit: _Kit | None = None  # kernel constants and scratch, built at the first generation
 
 
-@register
 class RSCDWOA(Optimizer):
     """Reverse-search chaos differential-evolution WOA, paper 001 section 3 and Algorithm 1.
 

@@ -34,6 +34,7 @@ import numpy as np
 
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.planner._segment_pack import analytic, pack_bodies, pack_intents
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.world.motion import poses_at
 
 _EPS = 1e-9
@@ -142,12 +143,11 @@ class SegmentEncoding:
     def decode(self, X: np.ndarray) -> np.ndarray:
         """(n, 3K) → polylines (n, K+2, 3) (compiled: numpy's dozen small operations cost as
         much as scoring the population)."""
-        from swarmplan.planner._decode_kernel import decode_segments
-
         X = np.ascontiguousarray(np.atleast_2d(X), dtype=float)
         clip = self.lo is not None
         lo = np.asarray(self.lo, dtype=float) if clip else _ZERO3
         hi = np.asarray(self.hi, dtype=float) if clip else _ZERO3
+        decode_segments = kernel_module("swarmplan.planner._decode_kernel").decode_segments
         return decode_segments(X, self.frame, self.base, self.start, self.end, lo, hi, clip)
 
     def encode(self, waypoints: np.ndarray) -> np.ndarray:
@@ -486,8 +486,7 @@ class SegmentCost:
 
     def _kernel(self, P: np.ndarray) -> np.ndarray:
         """(n, 9): the terms in ``TERMS`` order and their total (summed in that order)."""
-        from swarmplan.planner._segment_kernel import segment_terms
-
+        segment_terms = kernel_module("swarmplan.planner._segment_kernel").segment_terms
         P = np.ascontiguousarray(P, dtype=float)
         n = len(P)
         world = self.world

@@ -7,10 +7,11 @@ import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.geometry.collision import first_hits, loaded_kernels, segment_segment_min_distance
+from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
+from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.sim.metrics import RunMetrics
+from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.scene import Scene
 from swarmplan.world.motion import poses_at
 
@@ -51,39 +52,32 @@ def crash_point(
     return p0 + min(1.0, hi + CRASH_DEPTH / length) * step
 
 
-def collide(
-    s: SwarmState,
-    metrics: RunMetrics,
-    ids: tuple[str, ...],
-    i: int,
-    other: str,
-    events: list[Event],
-    t1: float,
-) -> None:
-    """Agent ``i`` touched ``other`` (an obstacle id, an agent id or 'bounds'): it stops flying."""
+def collide(s: SwarmState, ids: tuple[str, ...], i: int, other: str, t1: float) -> Tally:
+    """Agent ``i`` touched ``other`` (an obstacle id, an agent id or 'bounds'): it stops flying.
+    Returns the collision (nothing when the agent had already collided)."""
     if s.mode[i] == Mode.COLLIDED:
-        return
+        return NOTHING
     s.mode[i] = Mode.COLLIDED
     s.segment[i] = None
-    metrics.collisions[i] += 1
-    metrics.collided_with[i].append(other)
-    events.append(Event(t1, ids[i], "collision", {"other": other}))
+    return Tally(
+        events=(Event(t1, ids[i], "collision", {"other": other}),),
+        counts=(("collisions", i),),
+        contacts=((i, other),),
+    )
 
 
 def arrivals(
     s: SwarmState,
-    metrics: RunMetrics,
     ids: tuple[str, ...],
     pos0: np.ndarray,
     pos1: np.ndarray,
     vel1: np.ndarray,
     tolerance: float,
-    events: list[Event],
     t1: float,
     stop_speed: np.ndarray,
-) -> None:
+) -> Tally:
     """Agents whose step passed within ``tolerance`` of their goal, slowly enough to stop there,
-    have arrived (and stop).
+    have arrived (and stop: their mode and their row of ``vel1`` change). Returns the arrivals.
 
     An arrived agent is frozen: its next step is zero. A multirotor may only change its velocity
     by ``max_accel * dt`` per step, so it counts as arrived only once its speed is at most that
@@ -94,16 +88,15 @@ def arrivals(
     speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.flight.apf.commanded_velocity``)
     brings it to rest at the goal, and arrives once slow enough.
     """
-    compiled = loaded_kernels()
-    if compiled is None:
-        # The reference path, until the kernels are loaded (equal answers).
+    if not use_compiled_checks(len(ids)):
+        # Below swarm size: numpy (the same answers as the kernel).
         flying = np.flatnonzero(s.active)
         d = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
         arrive = (d <= tolerance) & (norm3(vel1[flying]) <= stop_speed[flying] * (1.0 + 1e-9))
         rows, dmins = flying[arrive], d[arrive]
     else:
         # Compiled: segment_segment_min_distance to the goal and the speed test, term for term.
-        rows, dmins = compiled.arrivals(
+        rows, dmins = sweep_kernels().arrivals(
             np.ascontiguousarray(pos0, dtype=float),
             np.ascontiguousarray(pos1, dtype=float),
             np.ascontiguousarray(s.goal, dtype=float),
@@ -112,12 +105,15 @@ def arrivals(
             np.ascontiguousarray(stop_speed, dtype=float),
             float(tolerance),
         )
+    if not len(rows):
+        return NOTHING
+    events = []
     for i, dmin in zip(rows.tolist(), dmins.tolist(), strict=True):
         s.mode[i] = Mode.ARRIVED
         vel1[i] = 0.0
         s.segment[i] = None
-        metrics.arrival_time[i] = t1
         events.append(Event(t1, ids[i], "arrived", {"distance": round(dmin, 6)}))
+    return Tally(events=tuple(events), arrivals=tuple((i, t1) for i in rows.tolist()))
 
 
 class NearMisses:
@@ -131,21 +127,18 @@ class NearMisses:
         self._separation = np.ascontiguousarray(params.separation, dtype=float)
         self._radius = np.ascontiguousarray(params.radius, dtype=float)
 
-    def update(
-        self, pos: np.ndarray, active: np.ndarray, metrics: RunMetrics, events: list[Event], t1: float
-    ) -> None:
-        """A pair entering each other's separation ellipsoid is a near miss (reported once per entry)."""
+    def update(self, pos: np.ndarray, active: np.ndarray, t1: float) -> Tally:
+        """A pair entering each other's separation ellipsoid is a near miss (reported once per
+        entry). Returns the near misses of this step."""
         if len(pos) < 2:
-            return
+            return NOTHING
         # The pairs of ``separation_violations`` (sorted keys i * n + j, i.e. the all-pairs
-        # row-major order: same events, same order), from a compiled sweep and prune once the
-        # kernels are loaded.
-        compiled = loaded_kernels()
-        if compiled is None:
+        # row-major order: same events, same order), from a compiled sweep and prune at swarm size.
+        if not use_compiled_checks(self._n):
             pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
             keys = pi.astype(np.int64) * self._n + pj
         else:
-            keys = compiled.separation_keys(
+            keys = sweep_kernels().separation_keys(
                 np.ascontiguousarray(pos, dtype=float),
                 self._separation,
                 self._radius,
@@ -154,9 +147,10 @@ class NearMisses:
         new = ~np.isin(keys, self._near, assume_unique=True)
         self._near = keys
         pi, pj = keys // self._n, keys % self._n
+        events, counts = [], []
         for i, j in zip(pi[new].tolist(), pj[new].tolist(), strict=True):
             dist = float(np.linalg.norm(pos[i] - pos[j]))
-            metrics.near_misses[[i, j]] += 1
+            counts += [("near_misses", i), ("near_misses", j)]
             events.append(
                 Event(
                     t1,
@@ -165,3 +159,4 @@ class NearMisses:
                     {"other": self.params.ids[j], "distance": round(dist, 6)},
                 )
             )
+        return Tally(events=tuple(events), counts=tuple(counts))

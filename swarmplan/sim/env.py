@@ -21,16 +21,16 @@ from typing import Any, Literal
 
 import numpy as np
 
-from swarmplan.core import AgentStates, Event, Mode, Planner, Recorder, StepResult, SwarmState
+from swarmplan.core import AgentStates, Event, Mode, Planner, Recorder, StepResult, StuckOutcome, SwarmState
 from swarmplan.flight.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
 from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
-from swarmplan.sim.metrics import RunMetrics, summary_report
+from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.navigation import Navigator, distance_to_go
-from swarmplan.sim.safety import SafetyFilter
+from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
 
@@ -169,6 +169,19 @@ class Simulation:
             return
         self._events.append(event)
 
+    def _merge(self, tally: Tally) -> None:
+        """Take in what one part of the step changed: its events (after those so far) and its counts."""
+        self._events.extend(tally.events)
+        self.metrics.merge(tally)
+
+    def _ask_planner(self, i: int) -> tuple[StuckOutcome, tuple[Event, ...]]:
+        """The planner's answer for stuck agent ``i`` and the events it reported meanwhile."""
+        before = len(self._events)
+        outcome = self.planner.on_stuck(self, i)
+        reported = tuple(self._events[before:])
+        del self._events[before:]
+        return outcome, reported
+
     def world_message(self) -> dict[str, Any]:
         return self.world.to_message(self.seed)
 
@@ -193,7 +206,7 @@ class Simulation:
         if self.planner is not None and len(idx):
             for i, seg in self.planner.on_step(self).items():
                 if s.mode[i] == Mode.APF:
-                    nav.start_segment(s, self.metrics, i, seg, events)
+                    self._merge(nav.start_segment(s, i, seg))
 
         pos0 = s.position.copy()
         vel0 = s.velocity.copy()
@@ -206,7 +219,8 @@ class Simulation:
                 self._field_cache = self.field.query(pos0, q0)
             d, g = self._field_cache[0][idx], self._field_cache[1][idx]
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
-            target, rep_scale = nav.attraction_targets(s, idx, events)
+            target, rep_scale, ended = nav.attraction_targets(s, idx)
+            self._merge(ended)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
             field_args = (w, self.params, self.gains, idx, pos0[idx], vel0[idx], s.goal[idx], inputs)
             field_args += (pos0, vel0)
@@ -220,13 +234,20 @@ class Simulation:
                 force[fixed] = apf_forces(*field_args, target=target, static_scale=rep_scale)[fixed]
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
-            v_cmd = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0, self.metrics)
+            v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
+            self._merge(guarded)
             v_cmd = self.safety.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
             vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
-            validated = self.safety.filter(
-                idx, pos0, vel0, pos1, vel1, v_cmd, q0, q1, s.mode, self.metrics, events, t1
+            filtered = self.safety.filter(
+                Commands(idx, v_cmd),
+                AgentMotion(pos0, vel0),
+                AgentMotion(pos1, vel1),
+                StepWindow(t0, t1, q0, q1),
+                s.mode,
             )
+            pos1, vel1, validated = filtered.end.position, filtered.end.velocity, filtered.validated
+            self._merge(filtered.tally)
             # Contact on the committed step ends the agent. Steps the filter cleared with a
             # margin cannot touch anything; the rest (stops, agent-conflict brakes) are checked.
             check = idx[~validated]
@@ -236,17 +257,17 @@ class Simulation:
                 )
                 for i, hit in zip(check, hits, strict=True):
                     if hit is not None:
-                        collide(s, self.metrics, self.ids, i, hit, events, t1)
+                        self._merge(collide(s, self.ids, i, hit, t1))
                         pos1[i] = crash_point(self.scene, self.params.radius[i], pos0[i], pos1[i], t0, dt)
                         vel1[i] = 0.0
         for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] not in (Mode.ARRIVED, Mode.COLLIDED):
-                    collide(s, self.metrics, self.ids, a, self.ids[b], events, t1)
+                    self._merge(collide(s, self.ids, a, self.ids[b], t1))
 
         # Arrival (and its stop) only at a speed a one-step stop can take within max_accel.
         stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * dt)
-        arrivals(s, self.metrics, self.ids, pos0, pos1, vel1, w.goal_tolerance, events, t1, stop_speed)
+        self._merge(arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed))
 
         # Clearances at the committed positions (also the next step's distances).
         self._field_cache = self.field.query(pos1, q1)
@@ -256,11 +277,10 @@ class Simulation:
         agent_clear = self.scene.agent_clearance(pos1)
         terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
         self.metrics.add_step(pos0, pos1, active, obst_clear, agent_clear, terr_clear)
-        self.near_misses.update(pos1, active, self.metrics, events, t1)
+        self._merge(self.near_misses.update(pos1, active, t1))
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
-        on_stuck = None if self.planner is None else (lambda i: self.planner.on_stuck(self, i))
-        nav.detect_stuck(s, self.metrics, events, on_stuck)
+        self._merge(nav.detect_stuck(s, None if self.planner is None else self._ask_planner))
 
         terminated = not s.active.any()
         truncated = (not terminated) and t1 >= w.max_time - 1e-9

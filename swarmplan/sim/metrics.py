@@ -16,16 +16,56 @@ lateral acceleration over 1.05 max_accel.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from swarmplan.core import Mode, SwarmState
+from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.geometry.polyline import curvature_with_cusps
 from swarmplan.geometry.vec3 import norm3
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
+
+
+COUNTERS = (
+    "collisions",
+    "escapes",
+    "stuck_events",
+    "near_misses",
+    "emergency_stops",
+    "hard_stops",
+    "guard_steps",
+)
+"""The per-agent event counters of :class:`RunMetrics` a :class:`Tally` may add to."""
+
+
+@dataclass(frozen=True)
+class Tally:
+    """What one part of a step changed besides the swarm state: the events it raised (in order)
+    and what it adds to the run's per-agent metrics. The simulation merges it: the events into the
+    step's events, the rest into :class:`RunMetrics` (:meth:`RunMetrics.merge`)."""
+
+    events: tuple[Event, ...] = ()
+    counts: tuple[tuple[str, int], ...] = ()
+    """(counter of ``COUNTERS``, agent index): one more, once per entry."""
+    arrivals: tuple[tuple[int, float], ...] = ()
+    """(agent index, time): the agent arrived then."""
+    contacts: tuple[tuple[int, str], ...] = ()
+    """(agent index, what it touched: an obstacle id, an agent id or 'bounds')."""
+
+    def __add__(self, other: Tally) -> Tally:
+        return Tally(
+            self.events + other.events,
+            self.counts + other.counts,
+            self.arrivals + other.arrivals,
+            self.contacts + other.contacts,
+        )
+
+
+NOTHING = Tally()
+"""The tally of a part of a step that changed nothing."""
 
 
 class RunMetrics:
@@ -71,6 +111,17 @@ class RunMetrics:
             active, np.minimum(self.min_terrain_clearance, terrain_clearance), self.min_terrain_clearance
         )
         self.positions.append(pos1.copy())
+
+    def merge(self, tally: Tally) -> None:
+        """Add what one part of a step counted (its events go to the step, not here)."""
+        for counter, i in tally.counts:
+            if counter not in COUNTERS:
+                raise ValueError(f"unknown run counter {counter!r} (known: {', '.join(COUNTERS)})")
+            getattr(self, counter)[i] += 1
+        for i, t in tally.arrivals:
+            self.arrival_time[i] = t
+        for i, other in tally.contacts:
+            self.collided_with[i].append(other)
 
     def curvature(self, i: int, until: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(curvature, cusp mask) of agent ``i``'s flown path (see ``curvature_with_cusps``)."""

@@ -4,7 +4,7 @@ goal), starting and ending segments, the segment watchdog, and stuck detection."
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.sim.metrics import RunMetrics
+from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.world.model import World
 
 
@@ -41,11 +41,11 @@ class Navigator:
         self.progress_t = np.zeros(len(self.params.ids))
         self.segment_ref = {}
 
-    def attraction_targets(
-        self, s: SwarmState, idx: np.ndarray, events: list[Event]
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Point each agent is attracted to (segment waypoint, route waypoint or goal) and the scale
-        of its static repulsion (reduced along a segment that FCL already validated)."""
+    def attraction_targets(self, s: SwarmState, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, Tally]:
+        """Point each agent is attracted to (segment waypoint, route waypoint or goal), the scale
+        of its static repulsion (reduced along a segment that FCL already validated), and the
+        segments that ended."""
+        events = []
         target = s.goal[idx].copy()
         scale = np.ones(len(idx))
         # Agents with neither a segment nor a route fly at their goal: nothing to do for them.
@@ -68,7 +68,7 @@ class Navigator:
             if s.route[i] is not None:
                 wp = self.advance(s, s.route[i], i, "route")
                 target[k] = s.goal[i] if wp is None else wp
-        return target, scale
+        return target, scale, Tally(events=tuple(events)) if events else NOTHING
 
     def advance(self, s: SwarmState, pts: np.ndarray, i: int, which: str) -> np.ndarray | None:
         """Next waypoint of ``pts`` not yet reached by agent ``i`` (None once all are)."""
@@ -83,113 +83,116 @@ class Navigator:
         index[i] = k
         return None if k >= len(pts) else pts[k]
 
-    def start_segment(
-        self, s: SwarmState, metrics: RunMetrics, i: int, seg: PlannedSegment, events: list[Event]
-    ) -> None:
+    def start_segment(self, s: SwarmState, i: int, seg: PlannedSegment) -> Tally:
+        """Agent ``i`` follows ``seg`` from now on; returns its start (and an escape's count)."""
         s.segment[i] = np.asarray(seg.waypoints, dtype=float)
         s.segment_index[i] = 0
         if seg.route_index is not None:
             s.route_index[i] = seg.route_index
         s.mode[i] = seg.mode
         if seg.mode == Mode.ESCAPE:
-            metrics.escapes[i] += 1
-            events.append(
-                Event(
-                    s.t, self.params.ids[i], "escape_start", {"waypoints": np.round(s.segment[i], 6).tolist()}
-                )
+            return Tally(
+                events=(
+                    Event(
+                        s.t,
+                        self.params.ids[i],
+                        "escape_start",
+                        {"waypoints": np.round(s.segment[i], 6).tolist()},
+                    ),
+                ),
+                counts=(("escapes", i),),
             )
-        else:
-            events.append(
+        return Tally(
+            events=(
                 Event(
                     s.t,
                     self.params.ids[i],
                     "smoothing_start",
                     {"waypoints": np.round(s.segment[i], 6).tolist()},
-                )
+                ),
             )
+        )
 
     def detect_stuck(
         self,
         s: SwarmState,
-        metrics: RunMetrics,
-        events: list[Event],
-        on_stuck: Callable[[int], StuckOutcome] | None,
-    ) -> None:
+        on_stuck: Callable[[int], tuple[StuckOutcome, Sequence[Event]]] | None,
+    ) -> Tally:
         """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
 
         Progress is measured as the distance still to fly: straight to the goal, or along the
         rest of the global route when the agent has one (a route may detour away from the goal).
+        ``on_stuck(i)`` answers for a stuck agent: a segment to follow, ``FAILED`` or None (keep
+        flying under APF), with the events reported while planning it (logged after the
+        ``stuck`` event). Returns what was detected and started.
         """
+        out = NOTHING
         window = self.world.planner_config.stuck.window
         min_progress = self.world.planner_config.stuck.min_progress
         dg = distance_to_go(s)
         # Only agents following a segment or whose window has run out need work this step.
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
         due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
-        for i in np.flatnonzero(due):
+        for i in np.flatnonzero(due).tolist():
             if s.mode[i] != Mode.APF:
                 self.progress_ref[i], self.progress_t[i] = dg[i], s.t
-                self.segment_watchdog(s, int(i), window, min_progress, events)
+                out += self.segment_watchdog(s, i, window, min_progress)
                 continue
             if s.t - self.progress_t[i] < window - 1e-9:
                 continue
             progress = self.progress_ref[i] - dg[i]
             self.progress_ref[i], self.progress_t[i] = dg[i], s.t
-            if progress < min_progress:
-                metrics.stuck_events[i] += 1
-                events.append(
-                    Event(
-                        s.t,
-                        self.params.ids[i],
-                        "stuck",
-                        {
-                            "progress": round(float(progress), 6),
-                            "window": window,
-                            "distance_to_goal": round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6),
-                            "distance_to_go": round(float(dg[i]), 6),
-                        },
-                    )
-                )
-                if on_stuck is not None:
-                    outcome = on_stuck(int(i))
-                    if outcome == FAILED:
-                        s.mode[i] = Mode.FAILED
-                        events.append(
-                            Event(s.t, self.params.ids[i], "failed", {"reason": "no valid escape segment"})
-                        )
-                    elif outcome is not None:
-                        self.start_segment(s, metrics, int(i), outcome, events)
+            if progress >= min_progress:
+                continue
+            detail = {
+                "progress": round(float(progress), 6),
+                "window": window,
+                "distance_to_goal": round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6),
+                "distance_to_go": round(float(dg[i]), 6),
+            }
+            out += Tally(
+                events=(Event(s.t, self.params.ids[i], "stuck", detail),), counts=(("stuck_events", i),)
+            )
+            if on_stuck is None:
+                continue
+            outcome, reported = on_stuck(i)
+            out += Tally(events=tuple(reported))
+            if outcome == FAILED:
+                s.mode[i] = Mode.FAILED
+                failed = Event(s.t, self.params.ids[i], "failed", {"reason": "no valid escape segment"})
+                out += Tally(events=(failed,))
+            elif outcome is not None:
+                out += self.start_segment(s, i, outcome)
+        return out
 
-    def segment_watchdog(
-        self, s: SwarmState, i: int, window: float, min_progress: float, events: list[Event]
-    ) -> None:
+    def segment_watchdog(self, s: SwarmState, i: int, window: float, min_progress: float) -> Tally:
         """A segment whose next waypoint gets no closer for ``window`` s is abandoned (back to APF,
-        whose stuck detection then asks the planner again)."""
+        whose stuck detection then asks the planner again). Returns the abandonment, if any."""
         seg = s.segment[i]
         if seg is None or s.segment_index[i] >= len(seg):
-            return
+            return NOTHING
         k = int(s.segment_index[i])
         d = float(np.linalg.norm(seg[k] - s.position[i]))
         ref = self.segment_ref.get(i)
         if ref is None or ref[0] != k or ref[3] is not seg:
             self.segment_ref[i] = (k, d, s.t, seg)
-            return
+            return NOTHING
         # A sharp corner at a waypoint costs a turnaround (brake, turn, speed up again) before
         # the distance to the next one falls: half a minimum-radius circle at cruise speed.
         p = self.params
         turn_radius = p.min_turn_radius[i] if p.fixed_wing[i] else p.speed_cruise[i] ** 2 / p.max_accel[i]
         grace = math.pi * turn_radius / max(p.speed_cruise[i], 1e-6)
         if s.t - ref[2] < window + grace - 1e-9:
-            return
+            return NOTHING
         if ref[1] - d >= min_progress:
             self.segment_ref[i] = (k, d, s.t, seg)
-            return
+            return NOTHING
         kind = "escape_end" if s.mode[i] == Mode.ESCAPE else "smoothing_end"
-        events.append(Event(s.t, self.params.ids[i], kind, {"abandoned": True, "waypoint": k}))
         s.mode[i] = Mode.APF
         s.segment[i] = None
         self.segment_ref.pop(i, None)
         rejoin_route(s, i)
+        return Tally(events=(Event(s.t, self.params.ids[i], kind, {"abandoned": True, "waypoint": k}),))
 
 
 def distance_to_go(s: SwarmState) -> np.ndarray:

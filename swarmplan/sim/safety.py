@@ -11,29 +11,62 @@ nearest surface along the motion."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from swarmplan.core import Event, Mode
 from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
-from swarmplan.geometry.collision import (
-    SLACK,
-    first_hits,
-    kernels,
-    loaded_kernels,
-    segment_segment_min_distance,
-)
+from swarmplan.geometry.collision import SLACK, first_hits, segment_segment_min_distance
+from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.sim.metrics import RunMetrics
+from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
 from swarmplan.world.motion import poses_at
 
 AGENT_MARGIN = 0.2
 """Metres kept between two agents' swept bodies by deconfliction."""
+
+
+@dataclass(frozen=True)
+class AgentMotion:
+    """Every agent's position and velocity (``(n, 3)`` each, rows by agent index)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+
+
+@dataclass(frozen=True)
+class Commands:
+    """The flying agents (``idx``, agent indices) and their commanded velocities (rows of ``idx``)."""
+
+    idx: np.ndarray
+    velocity: np.ndarray
+
+
+@dataclass(frozen=True)
+class StepWindow:
+    """The step from ``t0`` to ``t1`` and every obstacle's pose at both ends (``q0``, ``q1``)."""
+
+    t0: float
+    t1: float
+    q0: np.ndarray
+    q1: np.ndarray
+
+
+@dataclass(frozen=True)
+class Filtered:
+    """What :meth:`SafetyFilter.filter` made of a step: where every agent ends it, whether each
+    flying agent's step was cleared with the safety margin (rows of ``Commands.idx``), and the
+    stops it had to make."""
+
+    end: AgentMotion
+    validated: np.ndarray
+    tally: Tally
 
 
 class SafetyFilter:
@@ -43,7 +76,6 @@ class SafetyFilter:
         self.world = world
         self.params = params
         self.scene = scene
-        self._filtered = 0
         self._bounds = (
             np.ascontiguousarray(world.bounds_min, dtype=float),
             np.ascontiguousarray(world.bounds_max, dtype=float),
@@ -58,16 +90,15 @@ class SafetyFilter:
         d: np.ndarray,
         clearance: np.ndarray,
         t0: float,
-        metrics: RunMetrics,
-    ) -> np.ndarray:
+    ) -> tuple[np.ndarray, Tally]:
         """Fixed wings keep the field's command only while they could still turn away
         (``swarmplan.flight.lookahead``). Only agents with an obstacle, the terrain or the bounds within
         reach of the horizon (obstacles' own motion included) are checked, and only against the
-        obstacles within that reach."""
+        obstacles within that reach. Returns the commands and the guarded steps (``guard_steps``)."""
         p = self.params
         fw = p.fixed_wing[idx]
         if not fw.any():
-            return v_cmd
+            return v_cmd, NOTHING
         dt = self.world.dt
         speed = np.linalg.norm(vel0[idx], axis=1)
         horizon = horizon_steps(p, idx[fw], speed[fw], dt) * dt
@@ -80,7 +111,7 @@ class SafetyFilter:
         )
         near = fw & (np.minimum(np.minimum(clearance, obstacle_clear), bounds_clear) < reach)
         if not near.any():
-            return v_cmd
+            return v_cmd, NOTHING
         rows = np.flatnonzero(near)
         close = np.flatnonzero((d[rows] < reach[rows, None]).any(axis=0)) if d.shape[1] else np.array([], int)
         obstacles = self.world.obstacles
@@ -111,9 +142,7 @@ class SafetyFilter:
         )
         out = v_cmd.copy()
         out[rows] = guarded
-        for i in idx[rows][replaced]:
-            metrics.guard_steps[i] += 1
-        return out
+        return out, Tally(counts=tuple(("guard_steps", i) for i in idx[rows][replaced].tolist()))
 
     def braking_margin(
         self,
@@ -204,16 +233,16 @@ class SafetyFilter:
         free distance along ``u``: a bisection on the swept check (monotone in length), 6
         halvings, under-estimated by at most reach / 64.
 
-        Over flat ground the compiled kernel runs every row's bisection; rows where it cannot
-        decide a check (a body within ``BAND`` of contact, or a mesh), and terrain worlds, run
-        the same bisection through :func:`first_hits` (FCL decides)."""
+        In swarm-sized worlds over flat ground the compiled kernel runs every row's bisection;
+        rows where it cannot decide a check (a body within ``BAND`` of contact, or a mesh),
+        terrain worlds and smaller worlds run the same bisection through :func:`first_hits`
+        (FCL decides)."""
         mv = self.scene.moving_mask
         cw = self.scene.collision
         redo = np.arange(len(start))
         hit_rows, free = [], []
-        compiled = loaded_kernels()
-        if compiled is not None and not self.world.peaks:
-            status, lo = compiled.free_distances(
+        if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
+            status, lo = sweep_kernels().free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
                 self._bounds[0], self._bounds[1],
                 *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
@@ -253,29 +282,20 @@ class SafetyFilter:
         )
 
     def filter(
-        self,
-        idx: np.ndarray,
-        pos0: np.ndarray,
-        vel0: np.ndarray,
-        pos1: np.ndarray,
-        vel1: np.ndarray,
-        v_cmd: np.ndarray,
-        q0: np.ndarray,
-        q1: np.ndarray,
-        mode: np.ndarray,
-        metrics: RunMetrics,
-        events: list[Event],
-        t1: float,
-    ) -> np.ndarray:
+        self, commands: Commands, start: AgentMotion, end: AgentMotion, window: StepWindow, mode: np.ndarray
+    ) -> Filtered:
         """Replace steps that would touch an obstacle by the closest safe feasible alternative.
 
-        Returns, per agent of ``idx``, whether its final step was cleared with the safety margin.
+        ``end`` is where the commands lead (within the kinematic limits), ``mode`` every agent's
+        mode. Returns the filtered end of the step, per agent of ``commands.idx`` whether its
+        final step was cleared with the safety margin, and the stops made.
         """
-        self._filtered += 1
-        if self._filtered == 2:
-            # The compiled checks from the second step on: the first step of a process stays
-            # free of numba's load (~1 s); until then the reference paths give the same answers.
-            kernels()
+        idx, v_cmd = commands.idx, commands.velocity
+        pos0, vel0 = start.position, start.velocity
+        pos1, vel1 = end.position.copy(), end.velocity.copy()
+        q0, q1, t1 = window.q0, window.q1, window.t1
+        events: list[Event] = []
+        counts: list[tuple[str, int]] = []
         dt = self.world.dt
         ids = self.params.ids
         mv = self.scene.moving_mask
@@ -299,8 +319,7 @@ class SafetyFilter:
             elif not self.params.fixed_wing[i]:
                 # No feasible command avoids contact: stop (beyond the accel limit) and say so.
                 vel1[i] = 0.0
-                metrics.emergency_stops[i] += 1
-                self.count_hard_stop(i, vel0[i], metrics)
+                counts += self.stop_counts(i, vel0[i])
                 events.append(
                     Event(t1, ids[i], "emergency_stop", {"speed": round(float(np.linalg.norm(vel0[i])), 6)})
                 )
@@ -328,22 +347,25 @@ class SafetyFilter:
                             vel1[i] = safe_brake
                         else:
                             vel1[i] = 0.0
-                            metrics.emergency_stops[i] += 1
-                            self.count_hard_stop(i, vel0[i], metrics)
+                            counts += self.stop_counts(i, vel0[i])
                             events.append(Event(t1, ids[i], "emergency_stop", {"other": ids[other]}))
                         pos1[i] = pos0[i] + vel1[i] * dt
                         stopped[i] = True
                         changed = True
             if not changed:
                 break
-        return validated & ~stopped[idx]
+        tally = Tally(events=tuple(events), counts=tuple(counts)) if events or counts else NOTHING
+        return Filtered(AgentMotion(pos1, vel1), validated & ~stopped[idx], tally)
 
-    def count_hard_stop(self, i: int, v0: np.ndarray, metrics: RunMetrics) -> None:
-        """A stop to zero within one step is a *hard* stop when it needs more than ``max_accel``
-        (``/summary`` ``hard_stops``): the kinematic model's limit broken, unflyable for a real
-        multirotor (docs/tracking.md)."""
+    def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]:
+        """The counters an emergency stop of agent ``i`` from velocity ``v0`` adds to: always
+        ``emergency_stops``; ``hard_stops`` too when the stop to zero within one step needs more
+        than ``max_accel`` (``/summary`` ``hard_stops``): the kinematic model's limit broken,
+        unflyable for a real multirotor (docs/tracking.md)."""
+        counts = [("emergency_stops", int(i))]
         if float(np.linalg.norm(v0)) > self.params.max_accel[i] * self.world.dt * (1.0 + 1e-9):
-            metrics.hard_stops[i] += 1
+            counts.append(("hard_stops", int(i)))
+        return counts
 
     def brake(self, i: int, v0: np.ndarray) -> np.ndarray:
         sp = float(np.linalg.norm(v0))

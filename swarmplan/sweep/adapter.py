@@ -14,7 +14,9 @@ from typing import Any
 
 import yaml
 
-from swarmplan.world import World, WorldError
+from swarmplan import optimizers
+from swarmplan.io.runner import apply_overrides, check_planner_settings, simulate
+from swarmplan.world import World, WorldError, parse_world
 
 OPTIMIZER_PARAMS = "planner.optimizer.params."
 
@@ -79,17 +81,13 @@ def build_world(world_path: str | Path, optimizer: str, overrides: tuple[tuple[s
     Raises :class:`WorldError` (bad world or override value) or :class:`OverrideError` (a path
     that does not fit the file's structure).
     """
-    from swarmplan import optimizers
-    from swarmplan.io.runner import apply_overrides, check_planner_settings
-    from swarmplan.world import parse_world
-
     path = Path(world_path)
     raw = read_raw(path)
     for key, value in overrides:
         set_dotted(raw, key, value)
     names = optimizers.available()
     world = parse_world(copy.deepcopy(raw), base_dir=path.parent, source=path, optimizer_names=names)
-    if optimizer != world.planner["optimizer"]["name"]:
+    if optimizer != world.planner_config.optimizer.name:
         # Another algorithm than the file's: ``apply_overrides`` drops the file's params (they are
         # settings of its own algorithm), so params the sweep overrides are set on the raw mapping
         # and validated against the algorithm that will run them.
@@ -107,8 +105,6 @@ def build_world(world_path: str | Path, optimizer: str, overrides: tuple[tuple[s
 
 def run_world(world: World, seed: int, log_path: Path) -> dict[str, Any]:
     """Run ``world`` with ``seed`` to its end, logging to ``log_path``; the run's summary."""
-    from swarmplan.io.runner import simulate
-
     return simulate(world, seed, log_path)
 
 

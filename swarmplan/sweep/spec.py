@@ -20,6 +20,7 @@ from typing import Any
 
 import yaml
 
+from swarmplan import optimizers as registry
 from swarmplan.sweep.adapter import OverrideError, build_world, read_raw, set_dotted
 from swarmplan.world import WorldError
 
@@ -111,8 +112,6 @@ def load_spec(path: str | Path) -> Spec:
 
 def parse_spec(raw: Any, base_dir: str | Path = ".", source: str | Path = "spec") -> Spec:
     """Validate an already-parsed spec mapping; world paths and globs are relative to ``base_dir``."""
-    from swarmplan import optimizers as registry
-
     base_dir = Path(base_dir).resolve()
     problems: list[str] = []
     if not isinstance(raw, dict):

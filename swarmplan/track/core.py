@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 
 from swarmplan.replay import Recording
+from swarmplan.world.tracker_config import G, TrackerConfig
 
-from .config import G, TrackerConfig
 from .fixed_wing import FixedWingConfig, FixedWingFlight, aircraft_of, fly
 from .quadrotor import Flight, simulate
 from .reference import Reference, build_reference, feasibility, fill_gaps

@@ -40,7 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from .config import G
+from swarmplan.world.tracker_config import G
+
 from .reference import build_reference
 
 

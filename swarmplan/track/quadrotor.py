@@ -31,7 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import G, TrackerConfig
+from swarmplan.world.tracker_config import G, TrackerConfig
+
 from .reference import Reference
 
 # Clamp of the integral terms' contribution (m/s^2 for position, rad/s^2 for rates): anti-windup

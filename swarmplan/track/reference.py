@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from .config import REFERENCE_METHODS, G, TrackerConfig
+from swarmplan.world.tracker_config import REFERENCE_METHODS, G, TrackerConfig
 
 
 @dataclass(frozen=True)

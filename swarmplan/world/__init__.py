@@ -11,7 +11,6 @@ typos; :class:`WorldError` carries the list.
 - :mod:`~swarmplan.world.io`: ``load_world`` from a file
 """
 
-from swarmplan.geometry.rotation import matrix_to_quaternion, rotation_matrix
 from swarmplan.world.io import load_world
 from swarmplan.world.model import AgentSpec, Motion, Obstacle, Peak, Threat, World, WorldError
 from swarmplan.world.planner_config import PlannerConfig
@@ -27,7 +26,5 @@ __all__ = [
     "World",
     "WorldError",
     "load_world",
-    "matrix_to_quaternion",
     "parse_world",
-    "rotation_matrix",
 ]

@@ -1,14 +1,15 @@
 """The typed world: frozen dataclasses a validated world file resolves into.
 
 ``World.resolved`` is the same world as a plain mapping (defaults applied, mesh geometry
-inlined): the ``/world`` message of the log (:meth:`World.to_message`).
+inlined), but for the planner settings, which the world carries once, typed
+(``World.planner_config``): together they make the ``/world`` message of the log
+(:meth:`World.to_message`).
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -123,15 +124,16 @@ class World:
     obstacles: tuple[Obstacle, ...]
     threats: tuple[Threat, ...]
     agents: tuple[AgentSpec, ...]
-    planner: dict[str, Any]
+    planner_config: PlannerConfig
     log_path: str
-    resolved: dict[str, Any] = field(repr=False)  # the /world message (before seed/version)
+    resolved: dict[str, Any] = field(repr=False)  # the /world message but planner (before seed/version)
     source: Path | None = None
 
-    @functools.cached_property
-    def planner_config(self) -> PlannerConfig:
-        """``planner`` as typed, frozen settings (read from the validated mapping)."""
-        return planner_config(self.planner)
+    @property
+    def planner(self) -> dict[str, Any]:
+        """The planner settings as a plain mapping (a copy: ``planner_config.to_dict()``), as the
+        world file and the ``/world`` message have them."""
+        return self.planner_config.to_dict()
 
     @property
     def static_obstacles(self) -> tuple[Obstacle, ...]:
@@ -151,14 +153,19 @@ class World:
 
     def to_message(self, seed: int) -> dict[str, Any]:
         """The ``/world`` message of a run with ``seed``: the resolved world, seed and version."""
-        msg = dict(self.resolved)
+        msg: dict[str, Any] = {}
+        for key, value in self.resolved.items():
+            msg[key] = value
+            if key == "agents":  # the message's order of sections
+                msg["planner"] = self.planner_config.to_dict()
         msg["seed"] = seed
         msg["swarmplan_version"] = __version__
         return msg
 
     def with_overrides(self, **changes: Any) -> World:
-        """A copy with ``max_time``, ``planner`` or ``seed`` replaced; ``resolved`` (the ``/world``
-        message) follows. Other fields are refused: they would leave ``resolved`` out of step."""
+        """A copy with ``max_time``, ``planner`` (a mapping, validated into ``planner_config``) or
+        ``seed`` replaced; ``resolved`` (the ``/world`` message) follows. Other fields are refused:
+        they would leave ``resolved`` out of step."""
         unknown = sorted(set(changes) - {"max_time", "planner", "seed"})
         if unknown:
             raise ValueError(
@@ -168,7 +175,7 @@ class World:
         if "max_time" in changes:
             resolved["sim"]["max_time"] = changes["max_time"]
         if "planner" in changes:
-            resolved["planner"] = copy.deepcopy(changes["planner"])
+            changes["planner_config"] = planner_config(changes.pop("planner"))
         if "seed" in changes:
             resolved["seed"] = changes["seed"]
         return dataclasses.replace(self, resolved=resolved, **changes)

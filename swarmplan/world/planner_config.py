@@ -5,6 +5,7 @@ weights (the names ``planner.global.weights`` may use, with their defaults)."""
 
 from __future__ import annotations
 
+import copy
 import difflib
 import math
 from collections.abc import Mapping
@@ -221,6 +222,13 @@ class PlannerConfig:
     smoothing: bool
     escape: Mapping[str, Any]  # ESCAPE_DEFAULTS' keys
     global_: GlobalConfig
+    mapping: Mapping[str, Any] = field(repr=False, compare=False, default_factory=dict)
+    """The validated mapping these settings were read from (the ``/world`` message's ``planner``,
+    which keeps the file's own ``escape`` and ``global`` sections as written): :meth:`to_dict`."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The section as a plain mapping (a copy), as a world file or the ``/world`` message has it."""
+        return copy.deepcopy(dict(self.mapping))
 
 
 def planner_config(planner: dict[str, Any]) -> PlannerConfig:
@@ -236,4 +244,5 @@ def planner_config(planner: dict[str, Any]) -> PlannerConfig:
         smoothing=bool(planner.get("smoothing", {}).get("enabled", True)),
         escape=MappingProxyType(check_escape(planner)),
         global_=check_global(planner),
+        mapping=MappingProxyType(copy.deepcopy(dict(planner))),
     )

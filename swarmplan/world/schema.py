@@ -17,7 +17,6 @@ import numpy as np
 
 from swarmplan import optimizers
 from swarmplan.geometry.rotation import rotation_matrix
-from swarmplan.track.config import parse_tracker
 from swarmplan.world.checker import Checker, join, typename
 from swarmplan.world.checks import check_placements
 from swarmplan.world.meshes import load_mesh
@@ -35,7 +34,8 @@ from swarmplan.world.model import (
     World,
     WorldError,
 )
-from swarmplan.world.planner_config import check_escape, check_global
+from swarmplan.world.planner_config import check_escape, check_global, planner_config
+from swarmplan.world.tracker_config import parse_tracker
 
 AGENT_DEFAULTS: dict[str, Any] = {
     "model": "multirotor",
@@ -465,7 +465,6 @@ def parse_world(
         "threats": threats_out,
         "agent_defaults": defaults,
         "agents": agents_out,
-        "planner": planner,
         "log": log,
         "tracker": tracker_cfg.to_dict(),
     }
@@ -482,7 +481,7 @@ def parse_world(
         obstacles=tuple(obstacles),
         threats=tuple(threats),
         agents=tuple(agents),
-        planner=planner,
+        planner_config=planner_config(planner),
         log_path=log["path"],
         resolved=resolved,
         source=Path(source) if source is not None else None,

@@ -1,4 +1,4 @@
-"""Moving obstacles that force the planner to escape (issue 14, item 8): the shipped worlds
+"""Moving obstacles that force the planner to escape: the shipped worlds
 ``worlds/scenarios/parked_mover_corridor.yaml`` (a mover parks across the far mouth of the
 corridor the agent is in) and ``closing_gap.yaml`` (two movers close the only gap of a wall
 in front of two agents). Pure APF stays trapped in both; the planner must detect the stuck

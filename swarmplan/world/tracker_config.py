@@ -18,7 +18,7 @@ The tilt limit of 55 degrees leaves, at a thrust-to-weight ratio of 2, a vertica
 1.43 m (position 4/0.4/3.6, attitude 8, rate 25, tilt 45, motor 0.03 s) to 1.05 m, both
 dominated by the log's instantaneous stops (see docs/tracking.md).
 
-The thrust-to-weight ratio of 2 and the quadratic drag are the issue's vehicle model.
+The thrust-to-weight ratio of 2 and the quadratic drag complete the vehicle model.
 ``parse_tracker`` validates a raw ``tracker:`` mapping the way the world parser validates
 every other key: all problems collected as ``tracker.mass: must be > 0, got -1`` strings,
 unknown keys answered with the nearest known key.
