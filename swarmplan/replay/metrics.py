@@ -22,9 +22,11 @@ Conventions
   and left out of ``max_curvature``.
   ``curvature_limit`` is the model's, from ``/world``: max_accel / cruise² (multirotor,
   paper 004 eq 34 at cruise) or 1 / min_turn_radius (fixed wing).
-* Lateral acceleration: ``v² κ`` at the same vertices (cusps left out), ``v`` the mean length
-  of the two steps over ``dt``; a multirotor's limit is ``max_accel`` at any speed (a slow turn
-  may be tighter than ``curvature_limit`` and still legal). ``curvature_violation``: a fixed
+* Lateral acceleration: ``v² κ`` at the same vertices (cusps left out), in its one-step form
+  ``2 v sin(θ/2) / dt`` (θ the turn, ``v`` the mean length of the two steps over ``dt``: the
+  velocity change the turn needs, equal to ``v² κ`` for small turns); a multirotor's limit
+  is ``max_accel`` at any speed (a slow turn may be tighter than ``curvature_limit`` and
+  still legal). ``curvature_violation``: a fixed
   wing's max curvature above 1.05 / min_turn_radius, or a multirotor's max lateral
   acceleration above 1.05 max_accel.
 * Collisions: number of contact episodes (maximal runs of consecutive active steps with
@@ -148,12 +150,15 @@ def curvature_cusps(
 
 
 def lateral_accel(points: np.ndarray, times: np.ndarray, dt: float, min_step: float = MIN_STEP) -> float:
-    """Max ``v² κ`` (m/s²) over the non-cusp vertices, ``v`` = mean length of the two steps / ``dt``."""
+    """Max lateral acceleration (m/s²) over the non-cusp vertices: ``v² κ`` in its one-step
+    form ``2 v sin(θ / 2) / dt`` (θ the turn, ``v`` = mean length of the two steps / ``dt``)."""
     _, curv, cusp, mean = _turns(points, times, min_step)
     ok = ~cusp
     if not ok.any():
         return 0.0
-    return float(((mean[ok] / dt) ** 2 * curv[ok]).max())
+    # One-step form of v^2 kappa: the velocity change 2 v sin(theta / 2) a turn by theta needs.
+    theta = curv[ok] * mean[ok]
+    return float((2.0 * (mean[ok] / dt) * np.sin(0.5 * theta) / dt).max())
 
 
 def _turns(

@@ -129,14 +129,22 @@ class RunMetrics:
         return curvature_with_cusps(pts)
 
     def lateral_accel(self, i: int, dt: float) -> float:
-        """Max ``v^2 kappa`` (m/s^2) over agent ``i``'s non-cusp vertices, ``v`` the mean of the
-        two steps' speeds (the steps ``curvature_with_cusps`` keeps, i.e. its mean step / dt)."""
+        """Max lateral acceleration (m/s^2) over agent ``i``'s non-cusp vertices (see
+        :func:`lateral_accel_of`)."""
         pts = np.array([p[i] for p in self.positions])
         curv, cusp, mean_step = curvature_with_cusps(pts, with_steps=True)
         if not (~cusp).any():
             return 0.0
-        v = mean_step[~cusp] / dt
-        return float((v**2 * curv[~cusp]).max())
+        return float(lateral_accel_of(curv[~cusp], mean_step[~cusp], dt).max())
+
+
+def lateral_accel_of(curv: np.ndarray, mean_step: np.ndarray, dt: float) -> np.ndarray:
+    """Lateral acceleration at vertices of curvature ``curv`` between steps of mean length
+    ``mean_step``: ``v^2 kappa`` in its one-step form ``2 v sin(theta / 2) / dt``, the velocity
+    change a turn by ``theta = kappa * mean_step`` at speed ``v = mean_step / dt`` needs (the
+    two agree for small turns; for a sharp turn at low speed ``v^2 kappa`` overstates it)."""
+    v = mean_step / dt
+    return 2.0 * v * np.sin(0.5 * curv * mean_step) / dt
 
 
 def curvature_limit(agent) -> float:
