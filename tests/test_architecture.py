@@ -297,6 +297,7 @@ LAZY_IMPORTS: dict[tuple[str, str], str] = {
     ("swarmplan.planner", "swarmplan.planner.global_path"): "cost models and encodings only in mode: global",
     ("swarmplan.replay.recording", "swarmplan.replay.geometry"): "scipy rotations for untracked obstacles",
     ("swarmplan.track.output", "swarmplan.io.foxglove_scene"): "Foxglove schemas only for a scene",
+    ("swarmplan.track.output", "swarmplan.replay.plots"): "matplotlib only when a plot is drawn",
     ("swarmplan.flight.apf", "swarmplan.flight._apf_kernel"): "numba only in swarm-sized worlds",
 }
 """Function-level imports of the package's modules outside ``cli/`` and ``bench/`` (whose

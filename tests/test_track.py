@@ -453,7 +453,7 @@ def test_cli_reads_the_tracker_section_of_the_world(tmp_path, capsys):
     [
         (["missing.mcap"], "track: missing.mcap: no such file"),
         (["{log}", "--agent", "nobody"], "track: --agent nobody: no such agent (agents: quad, plane)"),
-        (["{log}", "--out", "/nonexistent/dir/x.mcap"], "does not exist"),
+        (["{log}", "--out", "{log}/dir/x.mcap"], "is a file, not a directory"),
         (["{log}", "--out", "{tmp}/x.txt"], "expected a .mcap file"),
         (["{log}", "--out", "{log}"], "would overwrite the input log"),
         (["{log}", "--plot", "{tmp}/x.bmpx"], "unsupported extension '.bmpx'"),

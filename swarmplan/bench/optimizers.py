@@ -280,7 +280,7 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescrip
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.formatter_class = _HelpFormatter
-    p.add_argument("--suite", required=True, choices=sorted(SUITES))
+    p.add_argument("--suite", required=True, choices=sorted(SUITES), help="the benchmark suite (see above)")
     p.add_argument("--runs", type=int, default=10, help="independent runs per algorithm x function")
     p.add_argument(
         "--out",
@@ -308,8 +308,25 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from swarmplan.optimizers import available
+    from swarmplan.runtime.paths import output_file_problem
 
     suite = SUITES[args.suite]
+    # numbers and outputs are checked before the benchmark runs (its results would be lost)
+    problems = [
+        f"--{k}: must be >= 1, got {getattr(args, k)}" for k in ("runs", "jobs") if getattr(args, k) < 1
+    ]
+    if args.evals is not None and args.evals < 1:
+        problems.append(f"--evals: must be >= 1, got {args.evals}")
+    if args.seed < 0:
+        problems.append(f"--seed: must be >= 0, got {args.seed}")
+    if args.out:
+        problems.append(output_file_problem("--out", args.out.replace("{suite}", suite.name)))
+    if args.raw:
+        problems.append(output_file_problem("--raw", args.raw))
+    problems = [p for p in problems if p]
+    if problems:
+        print(f"error: {problems[0]}", file=sys.stderr)
+        return 2
     if suite.name == "cec2013":
         try:
             import opfunu  # noqa: F401
@@ -409,5 +426,6 @@ def main(args: argparse.Namespace) -> int:
         print(f"wrote {out}")
     if args.raw:
         keys = ("variant", "function", "algorithm", "seed")
+        Path(args.raw).parent.mkdir(parents=True, exist_ok=True)
         write_csv(args.raw, sorted(records, key=lambda r: tuple(r[k] for k in keys)))
     return 0

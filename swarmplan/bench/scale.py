@@ -143,7 +143,19 @@ def _time_escapes(planner: Any) -> list[tuple[float, float]]:
     return out
 
 
+#: Quick mode measures single short runs: figures to look at, too few to judge a target by.
+QUICK_VERDICT = "no verdict (--quick)"
+_judge = {"on": True}
+
+
+def judge_targets(on: bool) -> None:
+    """Whether figures get a verdict against their targets (not from quick mode's single runs)."""
+    _judge["on"] = on
+
+
 def _verdict(value: float, target: float, higher_is_better: bool) -> str:
+    if not _judge["on"]:
+        return QUICK_VERDICT
     ok = value >= target if higher_is_better else value <= target
     return "met" if ok else "NOT met"
 
@@ -195,6 +207,9 @@ def main(args: argparse.Namespace) -> int:
     from swarmplan.bench.sim import swap_world, swarm_world
 
     quick = bool(args.quick)
+    judge_targets(not quick)
+    if quick:
+        print("--quick: single short runs; the figures are shown without verdicts (run without it to judge).")
     print(
         "Speed at swarm scale. Recording on everywhere. Wall-clock figures: CPU share "
         "= process CPU time / wall time (below ~95 % the machine was loaded)."

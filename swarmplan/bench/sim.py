@@ -139,11 +139,11 @@ def swap_world(agents: int = 32, movers: int = 1, seed: int = 0, max_time: float
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--agents", type=int, default=64)
-    parser.add_argument("--movers", type=int, default=16)
-    parser.add_argument("--statics", type=int, default=24)
+    parser.add_argument("--agents", type=int, default=64, help="agents of the generated swarm world")
+    parser.add_argument("--movers", type=int, default=16, help="moving obstacles of the generated world")
+    parser.add_argument("--statics", type=int, default=24, help="static obstacles of the generated world")
     parser.add_argument("--sim-time", type=float, default=30.0, help="simulated seconds to run")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the generated world and of the run")
     parser.add_argument("--optimizer", default="none", help="planner optimizer ('none' = pure APF)")
     parser.add_argument("--no-log", action="store_true", help="do not record (measures the simulator alone)")
     parser.add_argument("--worlds", action="store_true", help="time every shipped world instead")

@@ -10,6 +10,7 @@ import argparse
 import importlib
 import sys
 
+from swarmplan.cli.common import HelpFormatter, plain
 from swarmplan.runtime.blas import limit_blas_threads
 
 #: subcommand name -> (module path, one-line help). Modules are imported lazily.
@@ -22,15 +23,11 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
-    """Defaults shown; the subcommands' module docstrings keep their line breaks."""
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m swarmplan.bench",
         description="Benchmarks: optimizers against their papers and peers, overhead, simulation speed.",
-        formatter_class=_Formatter,
+        formatter_class=HelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="SUBCOMMAND")
     for name, (module_path, help_text) in SUBCOMMANDS.items():
@@ -39,10 +36,10 @@ def build_parser() -> argparse.ArgumentParser:
             name,
             help=help_text,
             # help shows plain text: reStructuredText literals (``x``) become x
-            description=(module.__doc__ or help_text).strip().replace("``", ""),
-            formatter_class=_Formatter,
+            description=plain(module.__doc__ or help_text),
         )
         module.add_arguments(p)
+        p.formatter_class = HelpFormatter  # every subcommand's help alike: each default once
         p.set_defaults(_main=module.main)
     return parser
 

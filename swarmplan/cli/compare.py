@@ -1,7 +1,7 @@
 """``python -m swarmplan.cli.compare WORLD --optimizers woa,rscdwoa,ba,iba_abc,cfo,mcfo --seeds 10``.
 
 Runs the world once per (optimizer, seed) on the sweep engine (:mod:`swarmplan.sweep`: a
-LocalCluster of ``--jobs`` worker processes, or the Dask scheduler at ``--scheduler``) — one
+LocalCluster of ``--workers`` worker processes, or the Dask scheduler at ``--scheduler``) — one
 MCAP log per run in ``--out-dir``/runs, the rows in ``--out-dir``/results.csv — and prints a
 table in the style of the papers: success rate, flown path length, mean curvature, arrival
 time, planning time (and the best global-plan cost in ``mode: global``), each as mean ± std
@@ -25,6 +25,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from swarmplan.cli.common import HelpFormatter, output_dir_problem, plain
+from swarmplan.cli.sweep import WORKERS_HELP, default_workers
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sweep.report import table, table_notes, verdict  # noqa: F401 - part of this module's API
 
@@ -37,8 +39,8 @@ def format_table(rows: list[dict[str, Any]], names: list[str], alpha: float = 0.
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m swarmplan.cli.compare",
-        description=__doc__.split("\n\n")[1],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description=plain(__doc__.split("\n\n", 1)[1]),
+        formatter_class=HelpFormatter,
     )
     p.add_argument("world", help="world YAML file")
     p.add_argument(
@@ -46,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--seeds", type=int, default=10, help="seeds 0..N-1 per optimizer")
     p.add_argument("--out-dir", default="logs/compare", help="where the logs go ('none' for no logs)")
-    p.add_argument("--jobs", type=int, default=2, help="worker processes of the local Dask cluster")
+    p.add_argument("--workers", "--jobs", type=int, default=default_workers(), help=WORKERS_HELP)
     p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler instead")
     p.add_argument("--alpha", type=float, default=0.05, help="significance level of the rank-sum test")
     return p
@@ -73,8 +75,18 @@ def main(argv: list[str] | None = None) -> int:
     problems = []
     if args.seeds < 1:
         problems.append(f"--seeds: must be >= 1, got {args.seeds}")
-    if args.jobs < 1:
-        problems.append(f"--jobs: must be >= 1, got {args.jobs}")
+    if args.workers < 1:
+        problems.append(f"--workers: must be >= 1, got {args.workers}")
+    if not 0 < args.alpha < 1:
+        problems.append(f"--alpha: must be in (0, 1), got {args.alpha:g}")
+    from swarmplan.sweep.engine import scheduler_problem
+
+    for problem in (
+        scheduler_problem(args.scheduler),
+        output_dir_problem("--out-dir", args.out_dir) if args.out_dir != "none" else None,
+    ):
+        if problem:
+            problems.append(problem)
     if not names:
         problems.append("--optimizers: give at least one")
     world = Path(args.world)
@@ -89,9 +101,21 @@ def main(argv: list[str] | None = None) -> int:
         for p in problems:
             print(f"error: {p}", file=sys.stderr)
         return 2
+    from swarmplan.sweep.report import seeds_needed
+
+    if len(names) > 1 and args.seeds < seeds_needed(args.alpha):
+        print(
+            f"note: with {args.seeds} seed(s) per optimizer no rank-sum verdict can reach p < {args.alpha:g}"
+            f" (it takes at least {seeds_needed(args.alpha)} seeds); the table shows the figures only",
+            file=sys.stderr,
+        )
     tmp = tempfile.TemporaryDirectory(prefix="swarmplan-compare-") if args.out_dir == "none" else None
     out_dir = Path(tmp.name if tmp is not None else args.out_dir)
-    client = make_client(args.jobs, args.scheduler)
+    try:
+        client = make_client(args.workers, args.scheduler)
+    except (OSError, TimeoutError) as exc:
+        print(f"error: --scheduler: cannot reach {args.scheduler!r}: {exc}", file=sys.stderr)
+        return 2
     try:
         rows, _ = run_tasks(
             spec.tasks(),
@@ -110,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
             tmp.cleanup()
     print(f"world {args.world}, {args.seeds} seed(s) per optimizer (seeds 0..{args.seeds - 1})")
     print(format_table(rows, names, args.alpha))
-    for note in table_notes(rows, names):
+    for note in table_notes(rows, names, args.alpha):
         print(f"note: {note}")
     if tmp is None:
         print(f"rows: {out_dir / 'results.csv'}, logs: {out_dir / 'runs'}", file=sys.stderr)

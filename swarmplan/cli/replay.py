@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from swarmplan.cli.common import HelpFormatter
 from swarmplan.replay.metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
 from swarmplan.replay.recording import Recording, RecordingError, load
 
@@ -28,7 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="python -m swarmplan.replay",
         description="Replay a swarmplan run log: run overview, recomputed metrics, plots, animation.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     ap.add_argument("log", help="run log (.mcap)")
     ap.add_argument(
@@ -145,9 +146,11 @@ def describe(rec: Recording) -> list[str]:
     opt = planner.get("optimizer") or {}
     lines = []
     opt_name = (rec.summary or {}).get("optimizer") or opt.get("name", "?")
+    budget = f" (pop {opt.get('population', '?')}, iter {opt.get('iterations', '?')})"
+    if opt_name == "none":  # pure APF: no optimizer runs, no budget
+        budget = ""
     lines.append(
-        f"run: {w.get('name', '?')}  seed {w.get('seed', '?')}  optimizer {opt_name}"
-        f" (pop {opt.get('population', '?')}, iter {opt.get('iterations', '?')})"
+        f"run: {w.get('name', '?')}  seed {w.get('seed', '?')}  optimizer {opt_name}{budget}"
         f"  swarmplan {w.get('swarmplan_version', '?')}"
     )
     size = os.path.getsize(rec.file)
@@ -195,6 +198,9 @@ def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
         f" {'max_curv':>8} {'limit':>7} {'lat_acc':>7} {'a_max':>5}"
         f" {'cusps':>5} {'coll':>4} {'esc':>3} {'stuck':>5}"
     )
+    threats = any(m.threat_time is not None for m in metrics)
+    if threats:
+        head += f" {'threat_s':>8} {'core_s':>6} {'closest':>7}"
     out = [head]
     for m in metrics:
         out.append(
@@ -203,10 +209,18 @@ def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
             f" {_f(m.curvature_limit, '{:.4f}'):>7} {m.max_lateral_accel:>7.2f}"
             f" {_f(m.lateral_accel_limit, '{:.2f}'):>5}"
             f" {m.cusps:>5} {m.collisions:>4} {m.escapes:>3} {m.stuck_events:>5}"
+            + (
+                f" {_f(m.threat_time, '{:.1f}'):>8} {_f(m.threat_core_time, '{:.1f}'):>6}"
+                f" {_f(m.threat_closest, '{:.1f}'):>7}"
+                if threats
+                else ""
+            )
             + ("  TURN LIMIT BROKEN" if m.curvature_violation else "")
         )
         if m.collisions:
             out.append(f"{'':<10} collided with: {', '.join(m.collision_bodies)}")
+        if m.threat_core_time:
+            out.append(f"{'':<10} WARNING: {m.threat_core_time:.1f} s inside a threat's core (r_min)")
     return out
 
 
@@ -270,8 +284,9 @@ def main(argv: list[str] | None = None) -> int:
     t_start = time.perf_counter()
     try:
         rec = load(args.log)
-    except RecordingError as exc:
-        print(f"error: cannot read {args.log}: {exc}", file=sys.stderr)
+    except RecordingError as exc:  # its message starts with the file's name: say it once
+        reason = str(exc).removeprefix(f"{args.log}: ")
+        print(f"error: cannot read {args.log}: {reason}", file=sys.stderr)
         return 2
     except (OSError, ValueError) as exc:
         print(f"error: cannot read {args.log}: {exc}", file=sys.stderr)

@@ -8,13 +8,16 @@ otherwise (or was interrupted: Ctrl-C or SIGTERM close the log with a summary th
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 from pathlib import Path
 from typing import Any
 
 from swarmplan import optimizers
+from swarmplan.cli.common import HelpFormatter
 from swarmplan.io.runner import apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
+from swarmplan.sim.threats import exposure_warnings
 from swarmplan.world import World, WorldError, load_world
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -32,7 +35,15 @@ def log_path_for(world: World, seed: int, optimizer: str, out: str | None) -> Pa
 
 
 def check_writable(path: Path, label: str) -> None:
-    """Fail before any work when the log cannot be written (a directory, no such place, no rights)."""
+    """Fail before any work when the log cannot be written (a directory, no such place, no rights)
+    or is not named as an MCAP file: replay, track and the Foxglove app recognise a log by its
+    ``.mcap`` extension, and an MCAP file named ``.txt`` would be opened as text."""
+    if path.is_dir():
+        raise WorldError([f"{label}: cannot write the log {str(path)!r}: it is a directory"], "command line")
+    if path.suffix.lower() != ".mcap":
+        raise WorldError(
+            [f"{label}: the log {str(path)!r} is an MCAP file: give it the .mcap extension"], "command line"
+        )
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("ab"):  # appends nothing: an existing file is left as it is until the run
@@ -87,6 +98,12 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
                 str(a["escapes"]),
             )
         )
+    if any("threat_time" in a for a in summary["agents"]):  # the world has threats
+        head += ("threat s", "core s", "closest m")
+        rows = [
+            (*r, f"{a['threat_time']:.1f}", f"{a['threat_core_time']:.1f}", _closest(a))
+            for r, a in zip(rows, summary["agents"], strict=True)
+        ]
     widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(head)]
     line = lambda cells: "  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True))  # noqa: E731
     out = [line(head), line(["-" * w for w in widths])] + [line(r) for r in rows]
@@ -96,6 +113,7 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
             f"TURN LIMIT BROKEN (!): {', '.join(broken)} (fixed wing: curvature over 1.05 / min_turn_radius; "
             "multirotor: lateral acceleration over 1.05 max_accel)"
         )
+    out += exposure_warnings(summary)
     verdict = "SUCCESS" if summary["success"] else ("INTERRUPTED" if summary["interrupted"] else "FAILED")
     out.append("")
     out.append(
@@ -110,11 +128,17 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
     return "\n".join(out)
 
 
+def _closest(a: dict[str, Any]) -> str:
+    if a.get("threat_closest") is None:
+        return "-"
+    return f"{a['threat_closest']:.1f} ({a['threat_closest_to']})"
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m swarmplan.run",
         description="Simulate a swarmplan world and log it to MCAP.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("world", help="world YAML file")
     p.add_argument("--seed", type=int, default=None, help="random seed; unset: the world's seed")
@@ -135,8 +159,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         names = optimizers.available()
         if args.optimizer is not None and args.optimizer != "none" and args.optimizer not in names:
+            close = difflib.get_close_matches(args.optimizer, ["none", *names], n=1, cutoff=0.6)
+            hint = f" (did you mean '{close[0]}'?)" if close else ""
             raise WorldError(
-                [f"--optimizer: unknown optimizer '{args.optimizer}'; known: none, {', '.join(names)}"],
+                [f"--optimizer: unknown optimizer '{args.optimizer}'{hint}; known: none, {', '.join(names)}"],
                 "command line",
             )
         if args.max_time is not None and not args.max_time > 0:

@@ -13,25 +13,33 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 from pathlib import Path
 
+from swarmplan.cli.common import HelpFormatter, output_dir_problem
 from swarmplan.sweep.spec import SpecError, load_spec
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def default_workers() -> int:
+    """Worker processes of a local cluster unless told otherwise: one per core."""
+    return os.cpu_count() or 1
+
+
+WORKERS_HELP = f"worker processes of the local cluster (default: one per core, {default_workers()} here)"
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m swarmplan.sweep",
         description="Run a Monte-Carlo study (worlds x optimizers x seeds x overrides) on dask.distributed.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("spec", help="sweep spec YAML (see docs/sweeps.md)")
-    p.add_argument(
-        "--workers", type=int, default=os.cpu_count() or 1, help="worker processes of the local cluster"
-    )
+    p.add_argument("--workers", type=int, default=default_workers(), help=WORKERS_HELP)
     p.add_argument(
         "--scheduler", default=None, help="address of a running Dask scheduler (e.g. tcp://head:8786)"
     )
@@ -46,16 +54,25 @@ def main(argv: list[str] | None = None) -> int:
     problems = []
     if args.workers < 1:
         problems.append(f"--workers: must be >= 1, got {args.workers}")
+    from swarmplan.sweep.engine import scheduler_problem
+
+    for problem in (scheduler_problem(args.scheduler), args.out and output_dir_problem("--out", args.out)):
+        if problem:
+            problems.append(problem)
     try:
         spec = load_spec(args.spec)
     except SpecError as exc:
         problems += [f"{exc.source}: {p}" for p in exc.problems]
+    if not problems and args.out is None:
+        problem = output_dir_problem("--out", f"logs/sweeps/{spec.name}")
+        if problem:
+            problems.append(problem.replace("--out", "output folder", 1))
     if problems:
         for p in problems:
             print(f"error: {p}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
-    from swarmplan.sweep.engine import dashboard_line, make_client, run_tasks
+    from swarmplan.sweep.engine import complete_results, dashboard_line, make_client, run_tasks
     from swarmplan.sweep.report import write_report
 
     out_dir = Path(args.out if args.out is not None else f"logs/sweeps/{spec.name}")
@@ -67,6 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         file=sys.stderr,
     )
     start = time.perf_counter()
+    started_at = time.time()
     try:
         client = make_client(args.workers, args.scheduler)
     except (OSError, TimeoutError) as exc:
@@ -83,12 +101,18 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         interrupted = True
     finally:
-        cluster = getattr(client, "cluster", None)
-        client.close()
-        if cluster is not None and args.scheduler is None:
-            cluster.close()
+        # a second Ctrl-C must not cut the shutdown short (workers would be left behind)
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            cluster = getattr(client, "cluster", None)
+            client.close()
+            if cluster is not None and args.scheduler is None:
+                cluster.close()
+        finally:
+            signal.signal(signal.SIGINT, previous)
     wall = time.perf_counter() - start
     if interrupted:
+        complete_results(out_dir, tasks, spec.override_keys, started_at)
         print(
             f"\ninterrupted after {wall:.1f} s: every finished row is in {out_dir / 'results.csv'}; "
             "run again with --resume to finish",

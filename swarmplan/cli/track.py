@@ -10,8 +10,10 @@ gains come from the ``tracker:`` section of the log's /world message when it has
 documented defaults (``swarmplan/world/tracker_config.py``).
 
 Exit codes: 0 normally; 2 for bad input (missing or unreadable log, unknown agent, bad
-``tracker:`` section, unwritable ``--out``, unsupported ``--plot`` extension), with one line on
-stderr and nothing done.
+``tracker:`` section, unwritable ``--out``, unsupported ``--plot`` extension, a log without any
+agent the tracker can fly), with one line on stderr and nothing written. Missing folders of
+``--out`` and ``--plot`` are created. A log cut short is tracked up to its last complete chunk,
+with a notice on stderr.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import sys
 import time
 from pathlib import Path
 
+from swarmplan.cli.common import HelpFormatter, output_file_problem
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.track.output import PLOT_FORMATS
 from swarmplan.world.tracker_config import TrackerConfig, parse_tracker
@@ -38,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Fly the recorded trajectories of a run log with a vehicle model (multirotors: "
         "a quadrotor under a cascaded PID, paper 004; fixed wings: a coordinated-turn aircraft under "
         "L1 guidance and an energy loop) and report the tracking error.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     ap.add_argument("log", help="run log (.mcap) written by python -m swarmplan.run")
     ap.add_argument("--agent", metavar="ID", default=None, help="only this agent (default: every agent)")
@@ -48,17 +51,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--json", action="store_true", help='print {"agents": {ID: {...}}} instead of a table')
     return ap
-
-
-def _check_writable(path: str, what: str) -> None:
-    p = Path(path)
-    if p.is_dir():
-        raise InputError(f"{what} {path}: is a directory")
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        raise InputError(f"{what} {path}: directory {parent} does not exist")
-    if not os.access(parent, os.W_OK) or (p.exists() and not os.access(p, os.W_OK)):
-        raise InputError(f"{what} {path}: not writable")
 
 
 def check_args(args: argparse.Namespace) -> None:
@@ -72,7 +64,9 @@ def check_args(args: argparse.Namespace) -> None:
             raise InputError(f"--out {args.out}: expected a .mcap file")
         if Path(args.out).resolve() == Path(args.log).resolve():
             raise InputError(f"--out {args.out}: would overwrite the input log")
-        _check_writable(args.out, "--out")
+        problem = output_file_problem("--out", args.out)
+        if problem:
+            raise InputError(problem)
     if args.plot is not None:
         ext = Path(args.plot).suffix.lower().lstrip(".")
         if ext not in PLOT_FORMATS:
@@ -81,7 +75,9 @@ def check_args(args: argparse.Namespace) -> None:
                 if ext
                 else f"--plot {args.plot}: no extension (use one of: {', '.join(PLOT_FORMATS)})"
             )
-        _check_writable(args.plot, "--plot")
+        problem = output_file_problem("--plot", args.plot)
+        if problem:
+            raise InputError(problem)
 
 
 def tracker_config(world: dict) -> TrackerConfig:
@@ -164,6 +160,12 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"track: {exc}", file=sys.stderr)
         return 2
+    if rec.truncated:
+        print(
+            f"track: NOTICE: {args.log} was cut short (no summary section/footer, e.g. the run was"
+            f" hard-killed); tracking the {rec.n_steps} steps up to its last complete chunk",
+            file=sys.stderr,
+        )
 
     from swarmplan.track.core import track
     from swarmplan.track.output import plot, write_mcap
@@ -171,6 +173,13 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     result = track(rec, cfg, args.agent)
     wall = time.perf_counter() - start
+    if not result.ids:  # nothing to fly: no plot, log or table of nothing
+        reasons = "; ".join(f"{aid}: {why}" for aid, why in result.skipped.items())
+        print(f"track: no agent of {args.log} can be tracked ({reasons})", file=sys.stderr)
+        return 2
+    for path in (args.out, args.plot):
+        if path:  # missing folders are created, as run and replay do
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
     if args.out:
         write_mcap(result, rec, args.out, source=str(args.log))
     if args.plot:
@@ -178,6 +187,7 @@ def main(argv: list[str] | None = None) -> int:
             result,
             args.plot,
             title=f"{rec.world.get('name', '')}: tracking ({Path(args.log).name})",
+            rec=rec,
         )
     if args.json:
         print(json.dumps(result.to_json()))

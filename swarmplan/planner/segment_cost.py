@@ -389,6 +389,9 @@ class SegmentCost:
             d = np.linalg.norm(pts - th.position, axis=-1)
             depth = np.clip((th.r_max - d) / max(th.r_max - th.r_min, _EPS), 0.0, 1.0)
             cost = cost + self.w.threat * th.weight * (depth * ds).sum(1)
+            if th.avoid:  # a core the world keeps flight out of costs like an obstacle's inside
+                inside = np.maximum(th.r_min + self.r - d, 0.0)
+                cost = cost + self.w.collision * (inside * ds).sum(1)
         return cost
 
     def _centers(self, kmax: int) -> np.ndarray:

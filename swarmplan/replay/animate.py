@@ -116,8 +116,8 @@ def animation_figure(
 
     def draw(k: int):
         t = rec.times[k]
-        patches = []
-        for o in moving:
+        patches, faces = [], []
+        for m, o in enumerate(moving):
             oid = o.get("id")
             if oid in rec.obstacle_tracks:
                 p, q = rec.obstacle_poses(oid, np.array([t]))
@@ -125,7 +125,9 @@ def animation_figure(
             else:
                 polys = plots._footprint(o)  # noqa: SLF001
             patches += [Polygon(poly, closed=True) for poly in polys]
+            faces += [plots.mover_color(m)] * len(polys)
         mov_coll.set_paths(patches)
+        mov_coll.set_facecolors(faces)
         xy, edge = [], []
         for i in idx:
             P = rec.positions[i, : k + 1]

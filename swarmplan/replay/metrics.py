@@ -73,6 +73,9 @@ class AgentMetrics:
     escapes: int = 0
     stuck_events: int = 0
     final_goal_distance: float = math.nan
+    threat_time: float | None = None  # s inside some threat's r_max (worlds with threats)
+    threat_core_time: float | None = None  # s inside some threat's r_min
+    threat_closest: float | None = None  # m, closest approach to a threat's centre
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -278,6 +281,7 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
         key = (str(e.agent), e.kind)
         event_counts[key] = event_counts.get(key, 0) + 1
 
+    exposure = threat_exposure(rec)
     result = []
     for i, aid in enumerate(rec.agent_ids):
         act = active[i]
@@ -360,9 +364,40 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
                 escapes=int(escapes),
                 stuck_events=int(event_counts.get((aid, "stuck"), 0)),
                 final_goal_distance=fgd,
+                **(exposure[i] if exposure else {}),
             )
         )
     return result
+
+
+def threat_exposure(rec: Recording) -> list[dict[str, float | None]] | None:
+    """Per agent: seconds inside some threat's ``r_max`` and ``r_min`` and the closest approach to
+    a threat's centre (3D distance), over the recorded steps it flew (it had not arrived,
+    collided or failed at the step before); None without threats."""
+    threats = [t for t in rec.world.get("threats") or [] if isinstance(t, dict) and t.get("position")]
+    if not threats or rec.n_steps < 2:
+        return None
+    done = np.isin(rec.modes[:, :-1].astype(str), ["arrived", "collided", "failed"])
+    flying = ~done  # (A, T-1): the interval ending at step t + 1
+    span = np.diff(rec.times)[None, :]
+    ends = rec.positions[:, 1:]
+    in_range = np.zeros(flying.shape, bool)
+    in_core = np.zeros(flying.shape, bool)
+    closest = np.full(rec.n_agents, np.inf)
+    for th in threats:
+        d = np.linalg.norm(ends - np.asarray(th["position"], float), axis=2)
+        d = np.nan_to_num(d, nan=np.inf)
+        in_range |= flying & (d < float(th.get("r_max") or 0.0))
+        in_core |= flying & (d < float(th.get("r_min") or 0.0))
+        closest = np.minimum(closest, np.where(flying, d, np.inf).min(axis=1))
+    return [
+        {
+            "threat_time": float((span * in_range)[i].sum()),
+            "threat_core_time": float((span * in_core)[i].sum()),
+            "threat_closest": float(closest[i]) if np.isfinite(closest[i]) else None,
+        }
+        for i in range(rec.n_agents)
+    ]
 
 
 def _curvature_limit(rec: Recording, i: int) -> float | None:
@@ -469,6 +504,9 @@ def compare_with_summary(
             ("collisions", m.collisions, row.get("collisions"), None),
             ("escapes", m.escapes, row.get("escapes"), None),
             ("stuck_events", m.stuck_events, row.get("stuck_events"), None),
+            ("threat_time", m.threat_time, row.get("threat_time"), (2.01 * dt, 0.02)),
+            ("threat_core_time", m.threat_core_time, row.get("threat_core_time"), (2.01 * dt, 0.02)),
+            ("threat_closest", m.threat_closest, row.get("threat_closest"), (0.01, 1e-4)),
         ]
         for key, mine, theirs, t in checks:
             if key not in row:

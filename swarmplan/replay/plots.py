@@ -6,8 +6,12 @@ tests) can find them: :func:`agent_paths_in` lists the agents drawn in a figure.
 
 Colours: each agent has its own colour everywhere, also along its escape (a thick line
 outlined in black) and smoothing segments (a translucent halo); obstacles are grey,
-moving ones dark teal and hatched, a colour no agent gets; threats are red markers with a
-filled core (``r_min``) and a dotted outer ring (``r_max``). Legends sit outside the axes.
+moving ones hatched in dark colours no agent gets (one per mover, its track dashed in the same
+colour, drawn at one pose that the legend states: the last recorded one unless a step is
+asked for); threats are red markers with a filled core (``r_min``) and a dotted outer ring
+(``r_max``), and path points inside a core are red crosses. Starts are squares (the
+animation's agents are circles), goals stars. Terrain contours carry their heights.
+Legends sit outside the axes.
 """
 
 from __future__ import annotations
@@ -35,6 +39,9 @@ MODE_STYLE = {
 }
 OBSTACLE_COLOR = np.array([0.55, 0.58, 0.65])
 MOVING_COLOR = np.array([0.10, 0.30, 0.30])  # dark teal: not in the tab10/tab20 agent palettes
+# one per mover (then repeated): dark, unlike the agents' tab10/tab20 colours
+MOVING_COLORS = ("#1a4d4d", "#5c3a1e", "#3d1f5c", "#4d4d00", "#0d2b52", "#5c1f3d")
+START_MARKER = "s"
 MOVING_HATCH = "////"
 THREAT_COLOR = "#b00020"
 THREAT_MARKERS = {"radar": "^", "missile": "X", "artillery": "s", "weather": "o"}
@@ -195,15 +202,16 @@ def plot_3d(
     _terrain_3d(ax, rec, lo, hi)
     for obst in rec.static_obstacles:
         _draw_obstacle_3d(ax, obst)
-    for obst in rec.moving_obstacles:
+    for m, obst in enumerate(rec.moving_obstacles):
         oid = obst.get("id")
+        col = mover_color(m)
         if oid in rec.obstacle_tracks:
             tr = rec.obstacle_tracks[oid]
-            ax.plot(*tr.positions.T, color=MOVING_COLOR, ls="--", lw=1.2, gid=f"track:{oid}")
+            ax.plot(*tr.positions.T, color=col, ls="--", lw=1.2, gid=f"track:{oid}")
             k = -1 if step is None else int(np.argmin(np.abs(tr.times - rec.times[step])))
-            _draw_obstacle_3d(ax, obst, tr.positions[k], tr.orientations[k], MOVING_COLOR, 0.6)
+            _draw_obstacle_3d(ax, obst, tr.positions[k], tr.orientations[k], col, 0.6)
         else:
-            _draw_obstacle_3d(ax, obst, color=MOVING_COLOR)
+            _draw_obstacle_3d(ax, obst, color=col)
     _threats_3d(ax, rec)
     idx = _select(rec, agents)
     colors = agent_colors(rec.n_agents)
@@ -219,9 +227,48 @@ def plot_3d(
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
-    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles))
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles), mover_time(rec, step))
     ax.set_title(_title(rec))
     return fig
+
+
+def world_in_3d(ax, rec: Recording) -> None:
+    """The world's bounds (as the axes' limits, true aspect), terrain and static obstacles on a 3D
+    axes, for plots of other tools (``python -m swarmplan.track``)."""
+    lo, hi = _bounds(rec)
+    _terrain_3d(ax, rec, lo, hi)
+    for obst in rec.static_obstacles:
+        _draw_obstacle_3d(ax, obst)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ext = np.maximum(hi - lo, 1e-9)
+    ax.set_box_aspect((ext[0], ext[1], max(ext[2], 0.25 * max(ext[0], ext[1]))))
+
+
+def mover_color(m: int) -> np.ndarray:
+    """The colour (RGB) of the ``m``-th moving obstacle (its body and its track)."""
+    from matplotlib.colors import to_rgb
+
+    return np.array(to_rgb(MOVING_COLORS[m % len(MOVING_COLORS)]))
+
+
+def mover_time(rec: Recording, step: int | None) -> float:
+    """The time at which the moving obstacles are drawn: the step's, or the last recorded."""
+    if step is not None and rec.n_steps:
+        return float(rec.times[step])
+    ends = [float(tr.times[-1]) for tr in rec.obstacle_tracks.values() if len(tr.times)]
+    return max(ends) if ends else (float(rec.times[-1]) if rec.n_steps else 0.0)
+
+
+def inside_cores(rec: Recording, i: int, valid: np.ndarray) -> np.ndarray:
+    """Agent ``i``'s recorded positions (K, 3) inside some threat's core (r_min)."""
+    P = rec.positions[i][valid]
+    inside = np.zeros(len(P), bool)
+    for th in _threats(rec):
+        r = float(th.get("r_min") or 0.0)
+        inside |= np.linalg.norm(P - np.asarray(th["position"], float), axis=1) < r
+    return P[inside]
 
 
 def _threats(rec: Recording) -> list[dict[str, Any]]:
@@ -248,6 +295,10 @@ def _threats_3d(ax, rec: Recording) -> None:
         if r > 0:
             ax.plot(c[0] + r * np.cos(ang), c[1] + r * np.sin(ang), np.full_like(ang, c[2]),
                     color=THREAT_COLOR, lw=1.0, alpha=0.8)  # fmt: skip
+        r = float(th.get("r_max") or 0.0)
+        if r > 0:
+            ax.plot(c[0] + r * np.cos(ang), c[1] + r * np.sin(ang), np.full_like(ang, c[2]),
+                    color=THREAT_COLOR, lw=0.8, ls=":", alpha=0.6)  # fmt: skip
 
 
 def _threats_top(ax, rec: Recording) -> None:
@@ -337,8 +388,13 @@ def _draw_path(ax, rec, i, color, active, used_modes, three_d):
                 gid=f"mode-dot:{mode}:{aid}",
             )
         used_modes.add(mode)
+    core = inside_cores(rec, i, valid)
+    if len(core):
+        ax.plot(*coords(core), marker="x", color=THREAT_COLOR, ms=5, ls="none", gid=f"core:{aid}", zorder=5)
+        used_modes.add("core")
     s, g = P[last[0]], rec.goals[i]
-    ax.plot(*coords(s[None]), marker="o", color=color, ms=6, mec="k", ls="none", gid=f"start:{aid}", zorder=6)
+    ax.plot(*coords(s[None]), marker=START_MARKER, color=color, ms=6, mec="k", ls="none", gid=f"start:{aid}",
+            zorder=6)  # fmt: skip
     ax.plot(*coords(g[None]), marker="*", color=color, ms=12, mec="k", ls="none", gid=f"goal:{aid}", zorder=6)
 
 
@@ -346,7 +402,9 @@ def path_length_of(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum()) if len(points) > 1 else 0.0
 
 
-def legend_handles(rec, idx, colors, used_modes, moving: bool, tracks: bool = True) -> list[Line2D]:
+def legend_handles(
+    rec, idx, colors, used_modes, moving: bool, tracks: bool = True, at: float | None = None
+) -> list[Line2D]:
     """Legend entries: agents, the modes drawn, start/goal, obstacles, moving obstacles, threats."""
     from matplotlib.patches import Patch
 
@@ -372,16 +430,23 @@ def legend_handles(rec, idx, colors, used_modes, moving: bool, tracks: bool = Tr
                     label=st["label"] + (" (agent colour)" if st["color"] is None else ""),
                 )
             )
-    handles.append(Line2D([], [], marker="o", color="0.5", mec="k", ls="none", label="start"))
+    if "core" in used_modes:
+        handles.append(
+            Line2D([], [], marker="x", color=THREAT_COLOR, ls="none", label="inside a threat core")
+        )
+    handles.append(Line2D([], [], marker=START_MARKER, color="0.5", mec="k", ls="none", label="start"))
     handles.append(Line2D([], [], marker="*", color="0.5", mec="k", ms=12, ls="none", label="goal"))
     if rec.static_obstacles:
         handles.append(Patch(fc=OBSTACLE_COLOR, ec="0.3", label="obstacle"))
     if moving:
-        handles.append(
-            Patch(fc=MOVING_COLOR, ec="0.3", hatch=MOVING_HATCH, alpha=0.75, label="moving obstacle")
-        )
+        where = "" if at is None else f" at t = {at:.1f} s" + (" (last pose)" if at >= rec.duration else "")
+        for m, obst in enumerate(rec.moving_obstacles[:6]):
+            handles.append(
+                Patch(fc=mover_color(m), ec="0.3", hatch=MOVING_HATCH, alpha=0.75,
+                      label=f"moving obstacle {obst.get('id')}{where}")
+            )  # fmt: skip
         if tracks:
-            handles.append(Line2D([], [], color=MOVING_COLOR, ls="--", label="moving obstacle track"))
+            handles.append(Line2D([], [], color="0.3", ls="--", label="moving obstacle track (its colour)"))
     kinds = []
     for th in _threats(rec):
         if th.get("kind") not in kinds:
@@ -391,13 +456,15 @@ def legend_handles(rec, idx, colors, used_modes, moving: bool, tracks: bool = Tr
             Line2D([], [], marker=THREAT_MARKERS.get(kind, "P"), color=THREAT_COLOR, mec="k", ms=8, ls="none",
                    label=f"threat: {kind} (core r_min)")
         )  # fmt: skip
+    if kinds:
+        handles.append(Line2D([], [], color=THREAT_COLOR, ls=":", lw=0.8, label="threat outer ring (r_max)"))
     return handles
 
 
-def _legend(ax, rec, idx, colors, used_modes, moving):
+def _legend(ax, rec, idx, colors, used_modes, moving, at=None):
     # Outside the axes, so it never hides a start, a goal or a path.
     ax.legend(
-        handles=legend_handles(rec, idx, colors, used_modes, moving),
+        handles=legend_handles(rec, idx, colors, used_modes, moving, at=at),
         loc="upper left",
         bbox_to_anchor=(1.02, 1.0),
         borderaxespad=0.0,
@@ -457,18 +524,19 @@ def plot_top(
         ax.contourf(
             X, Y, Z, levels=levels, cmap="terrain", vmin=-0.3 * top, vmax=top, alpha=0.35, extend="neither"
         )
-        ax.contour(X, Y, Z, levels=levels, colors="0.5", linewidths=0.4)
+        lines = ax.contour(X, Y, Z, levels=levels, colors="0.5", linewidths=0.4)
+        ax.clabel(lines, lines.levels[::2], fmt="%.0f m", fontsize=6, inline=True)
     for obst in rec.static_obstacles:
         for poly in _footprint(obst):
             ax.add_patch(Polygon(poly, closed=True, fc=OBSTACLE_COLOR, ec="0.3", alpha=0.7, lw=0.5))
-    for obst in rec.moving_obstacles:
+    for m, obst in enumerate(rec.moving_obstacles):
         oid = obst.get("id")
         tr = rec.obstacle_tracks.get(oid)
         if tr is not None and len(tr.times):
             ax.plot(
                 tr.positions[:, 0],
                 tr.positions[:, 1],
-                color=MOVING_COLOR,
+                color=mover_color(m),
                 ls="--",
                 lw=1.2,
                 gid=f"track:{oid}",
@@ -479,7 +547,7 @@ def plot_top(
             polys = _footprint(obst)
         for poly in polys:
             ax.add_patch(
-                Polygon(poly, closed=True, fc=MOVING_COLOR, ec="0.2", alpha=0.6, lw=0.5, hatch=MOVING_HATCH)
+                Polygon(poly, closed=True, fc=mover_color(m), ec="0.2", alpha=0.6, lw=0.5, hatch=MOVING_HATCH)
             )
     _threats_top(ax, rec)
     idx = _select(rec, agents)
@@ -494,7 +562,7 @@ def plot_top(
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.grid(alpha=0.3)
-    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles))
+    _legend(ax, rec, idx, colors, used_modes, bool(rec.moving_obstacles), mover_time(rec, step))
     ax.set_title(_title(rec) + " - top view", fontsize=10)
     return fig
 

@@ -269,6 +269,11 @@ def load(path: str | Path) -> Recording:
             head = f.read(8)
         if not head.startswith(b"\x89MCAP"):
             raise RecordingError(f"{path}: not an MCAP file")
+        if truncated:
+            raise RecordingError(
+                f"{path}: cut short before its first complete chunk (e.g. the run was hard-killed"
+                " at its start): no swarmplan message to read"
+            )
         raise RecordingError(f"{path}: no swarmplan channels ({', '.join(TOPICS)}) found")
     if "/world" not in raw:
         raise RecordingError(f"{path}: no /world message (not a swarmplan run log?)")

@@ -32,6 +32,7 @@ from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.navigation import Navigator, distance_to_go
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
+from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
 
 
@@ -61,6 +62,7 @@ class Simulation:
         self.params = AgentParams.from_world(world)
         self.gains = ApfGains.from_world(world)
         self.scene = Scene(world, self.params)
+        self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
         self.field = self.scene.field
@@ -222,6 +224,8 @@ class Simulation:
                 self._field_cache = self.field.query(pos0, q0)
             d, g = self._field_cache[0][idx], self._field_cache[1][idx]
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
+            if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
+                inputs = with_cores(inputs, pos0[idx], self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
@@ -236,6 +240,9 @@ class Simulation:
                 # (rscdwoa_multi_uav, woa seed 9: with the factor uav1 circled its goal for 50 s).
                 force[fixed] = apf_forces(*field_args, target=target, static_scale=rep_scale)[fixed]
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
+            if self._threat_cores is not None:
+                cores, radius = self._threat_cores, self.params.radius[idx]
+                clearance, normal = nearest_with_cores(clearance, normal, pos0[idx], radius, cores)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             self._merge(guarded)

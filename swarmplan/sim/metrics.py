@@ -24,6 +24,7 @@ import numpy as np
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.geometry.polyline import curvature_with_cusps
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.sim.threats import exposure
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -90,6 +91,7 @@ class RunMetrics:
         self.hard_stops = np.zeros(n, dtype=int)  # stops within one step beyond max_accel (sim/safety.py)
         self.guard_steps = np.zeros(n, dtype=int)  # fixed-wing steps flown by the turn-ahead guard
         self.positions: list[np.ndarray] = []  # per step (N, 3), for curvature
+        self.flying: list[np.ndarray] = []  # per step (N,): who flew it (threat exposure)
 
     def add_step(
         self,
@@ -111,6 +113,7 @@ class RunMetrics:
             active, np.minimum(self.min_terrain_clearance, terrain_clearance), self.min_terrain_clearance
         )
         self.positions.append(pos1.copy())
+        self.flying.append(active.copy())
 
     def merge(self, tally: Tally) -> None:
         """Add what one part of a step counted (its events go to the step, not here)."""
@@ -224,6 +227,10 @@ def summary_report(
                 "guard_steps": int(m.guard_steps[i]),
             }
         )
+    if m.flying:  # threat exposure, in worlds with threats (sim/threats.py)
+        exposed = exposure(world, np.array(m.positions[-len(m.flying) :]), np.array(m.flying))
+        for a, e in zip(agents, exposed or [], strict=False):
+            a.update(e)
     arrived = sum(a["arrived"] for a in agents)
     collisions = sum(a["collisions"] for a in agents)
     return {

@@ -16,7 +16,9 @@ from __future__ import annotations
 import csv
 import math
 import os
+import signal
 import sys
+import threading
 import uuid
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -156,8 +158,8 @@ def finished_row(task: Task, out_dir: Path) -> dict[str, Any] | None:
 
 
 def _cell(v: Any) -> str:
-    if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
+    if isinstance(v, float):  # 12 significant digits: 20.292, not 20.291999999999998
+        return "" if math.isnan(v) else f"{v:.12g}"
     if isinstance(v, (list, dict)):
         import json
 
@@ -197,6 +199,23 @@ def read_results(path: Path) -> list[dict[str, str]]:
 # ----------------------------------------------------------------------------- running
 
 
+def scheduler_problem(address: str | None) -> str | None:
+    """Why ``address`` is not a Dask scheduler address (``tcp://host:port`` or ``host:port``), or None."""
+    if not address:
+        return None
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(address)
+        if scheme in ("tcp", "tls", "ws", "wss"):
+            _host, port = parse_host_port(location)
+            if not 0 < int(port) < 65536:
+                raise ValueError(f"port {port} out of range 1..65535")
+    except (ValueError, TypeError) as exc:
+        return f"--scheduler {address}: not a scheduler address ({exc}); e.g. tcp://head:8786"
+    return None
+
+
 def make_client(workers: int | None, scheduler: str | None):  # noqa: ANN201 - distributed.Client
     """A client of the scheduler at ``scheduler``, or of a new LocalCluster of ``workers`` processes."""
     import logging
@@ -205,13 +224,82 @@ def make_client(workers: int | None, scheduler: str | None):  # noqa: ANN201 - d
 
     if scheduler:
         return Client(scheduler, timeout="20s")
-    cluster = LocalCluster(
-        n_workers=workers or os.cpu_count() or 1,
-        threads_per_worker=1,  # the simulator is single-threaded Python: one run per process
-        processes=True,
-        silence_logs=logging.ERROR,
-    )
-    return Client(cluster)
+    # The workers start with SIGINT ignored (a started Python keeps an inherited SIG_IGN): a Ctrl-C
+    # in the terminal reaches the whole process group, and only this process should answer it,
+    # by closing the cluster, instead of every worker printing its own traceback.
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main_thread else None
+    try:
+        cluster = LocalCluster(
+            n_workers=workers or os.cpu_count() or 1,
+            threads_per_worker=1,  # the simulator is single-threaded Python: one run per process
+            processes=True,
+            silence_logs=logging.ERROR,
+            dashboard_address=":0",  # a free port (printed): no warning when 8787 is taken
+        )
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGINT, previous)
+    client = Client(cluster)
+    # a worker the nanny restarts later is a fresh process: the plugin ignores SIGINT there too
+    client.register_plugin(_quiet_worker_plugin(), name="swarmplan-quiet-workers")
+    return client
+
+
+def _quiet_worker_plugin():  # noqa: ANN202 - a distributed.WorkerPlugin
+    """A worker plugin: the worker ignores SIGINT and keeps quiet about a scheduler that goes away.
+
+    A Ctrl-C in a terminal reaches the whole process group; the sweep's own process answers it
+    (it closes the cluster and keeps every finished row), the workers must not each print a
+    traceback. Workers started with the cluster inherit an ignored SIGINT; the plugin covers
+    the ones a nanny restarts later. When the cluster closes under a busy worker, its heartbeat
+    to the scheduler fails and ``distributed.worker`` logs an ERROR with a traceback: a worker's
+    own log is only about its connection (a run's failure comes back as its row's ``error``, a
+    worker's death is reported by the scheduler), so it is raised to CRITICAL. (Defined here,
+    sent to the workers by value.)
+    """
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class QuietWorker(WorkerPlugin):
+        def setup(self, worker) -> None:  # noqa: ANN001 - distributed.Worker
+            import logging
+            import signal
+            import threading
+
+            logging.getLogger("distributed.worker").setLevel(logging.CRITICAL)
+            logging.getLogger("distributed.core").setLevel(logging.CRITICAL)
+            if threading.current_thread() is threading.main_thread():
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return QuietWorker()
+
+
+def complete_results(out_dir: Path, tasks: list[Task], override_keys: list[str], since: float) -> int:
+    """After an interrupted sweep: append to results.csv the row of every run whose log was
+    completed since ``since`` (a time.time()) but whose row never reached the client (the
+    interruption came between the two). Returns the number of rows added."""
+    path = out_dir / "results.csv"
+    if not path.is_file():
+        return 0
+    listed = {r.get("log", "") for r in read_results(path)}
+    added = []
+    for t in tasks:
+        log = out_dir / log_name(t)
+        if log_name(t) in listed or not log.is_file() or log.stat().st_mtime < since:
+            continue
+        try:
+            row = finished_row(t, out_dir)
+        except Exception:  # noqa: BLE001 - a log that cannot be read has no row
+            row = None
+        if row is not None:
+            added.append(row)
+    if added:
+        cols = columns(override_keys)
+        with open(path, "a", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            for row in added:
+                w.writerow([_cell(row.get(c, "")) for c in cols])
+    return len(added)
 
 
 def dashboard_line(client) -> str:  # noqa: ANN001

@@ -65,8 +65,34 @@ def verdict(base: list[float], other: list[float], alpha: float) -> str:
         return "n/a"
     p = float(ranksums(b, a).pvalue)
     if p >= alpha or np.median(a) == np.median(b):
-        return f"= (p={p:.2g})"
-    return f"{'+' if np.median(b) < np.median(a) else '-'} (p={p:.2g})"
+        return f"= (p={p_text(p, alpha)})"
+    return f"{'+' if np.median(b) < np.median(a) else '-'} (p={p_text(p, alpha)})"
+
+
+def p_text(p: float, alpha: float) -> str:
+    """``p`` with the digits it takes to read on the same side of ``alpha`` as it is
+    (0.0495 is not printed as 0.05 beside alpha = 0.05)."""
+    for digits in range(2, 17):
+        text = f"{p:.{digits}g}"
+        shown = float(text)
+        if (shown < alpha) == (p < alpha) and (shown != alpha or p == alpha):
+            return text
+    return repr(p)
+
+
+def smallest_p(n_a: int, n_b: int) -> float:
+    """The smallest p the rank-sum test can give with ``n_a`` and ``n_b`` runs (every run of one
+    side below every run of the other)."""
+    from scipy.stats import ranksums
+
+    if n_a < 1 or n_b < 1:
+        return 1.0
+    return float(ranksums(np.arange(n_a), np.arange(n_a, n_a + n_b)).pvalue)
+
+
+def seeds_needed(alpha: float, most: int = 100) -> int:
+    """The fewest runs per side with which the rank-sum test can reach p < ``alpha``."""
+    return next((n for n in range(2, most + 1) if smallest_p(n, n) < alpha), most)
 
 
 def _success(rows: list[dict[str, Any]]) -> str:
@@ -102,7 +128,7 @@ def table(rows: list[dict[str, Any]], optimizers: list[str], alpha: float = 0.05
     return "\n".join([line(head), line(["-" * w for w in widths])] + [line(r) for r in out_rows])
 
 
-def table_notes(rows: list[dict[str, Any]], optimizers: list[str]) -> list[str]:
+def table_notes(rows: list[dict[str, Any]], optimizers: list[str], alpha: float = 0.05) -> list[str]:
     """One sentence per kind of ``n/a`` (or missing column) in :func:`table`, saying why."""
     notes = []
     if not _vals(rows, "plan_cost"):
@@ -118,6 +144,13 @@ def table_notes(rows: list[dict[str, Any]], optimizers: list[str]) -> list[str]:
             "arrived (these metrics average the agents that arrived)"
         )
     cols = [c for c, _ in VERDICTS] + (["plan_cost"] if _vals(rows, "plan_cost") else [])
+    sizes = [len(rs) for rs in by.values() if rs]
+    if len(optimizers) > 1 and sizes and smallest_p(min(sizes), min(sizes)) >= alpha:
+        notes.append(
+            f"no verdict can be significant: with {min(sizes)} run(s) per optimizer the rank-sum test's "
+            f"smallest possible p is {p_text(smallest_p(min(sizes), min(sizes)), alpha)} (>= alpha = "
+            f"{alpha:g}); it takes at least {seeds_needed(alpha)} seeds"
+        )
     few = [n for n, rs in by.items() if any(len(_vals(rs, c)) < 2 for c in cols)]
     if len(optimizers) > 1 and few:
         notes.append(
@@ -138,24 +171,54 @@ def groups(rows: list[dict[str, Any]], override_keys: list[str]) -> list[tuple[s
 
 def box_plot(path: Path, title: str, rows: list[dict[str, Any]], labels: list[tuple[str, Any]]) -> Path:
     """One PNG: a panel per metric of :data:`BOXES`, a box per (label, selector) over its runs."""
-    from matplotlib.figure import Figure
+    box_figure(title, rows, labels).savefig(path)
+    return path
 
-    fig = Figure(figsize=(4.0 * len(BOXES), 4.2), dpi=100, layout="constrained")
+
+def box_figure(title: str, rows: list[dict[str, Any]], labels: list[tuple[str, Any]]):  # noqa: ANN201
+    """The matplotlib Figure of :func:`box_plot`."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    # wide enough for its labels: a box per label, the optimizer and its settings on two lines
+    width = max(4.0, 0.9 * len(labels))
+    fig = Figure(figsize=(width * len(BOXES), 4.8), dpi=100, layout="constrained")
     axes = fig.subplots(1, len(BOXES))
     for ax, (col, name) in zip(np.atleast_1d(axes), BOXES, strict=True):
         data = [_vals([r for r in rows if sel(r)], col) for _, sel in labels]
-        names = [lab for lab, _ in labels]
+        names = [lab.replace(" ", "\n", 1) for lab, _ in labels]
         keep = [i for i, d in enumerate(data) if d]
         if keep:
-            ax.boxplot([data[i] for i in keep], showmeans=True)
-            ax.set_xticks(range(1, len(keep) + 1), [names[i] for i in keep], rotation=30, ha="right")
+            ax.boxplot(
+                [data[i] for i in keep],
+                showmeans=True,
+                medianprops={"color": "tab:orange"},
+                meanprops={"marker": "^", "markerfacecolor": "tab:green", "markeredgecolor": "tab:green"},
+            )
+            rotate = 45 if max(len(n) for n in names) * len(keep) > 60 else 0
+            ax.set_xticks(range(1, len(keep) + 1), [names[i] for i in keep], rotation=rotate,
+                          ha="right" if rotate else "center", fontsize=8)  # fmt: skip
         else:
             ax.text(0.5, 0.5, "no finished run", ha="center", va="center", transform=ax.transAxes)
         ax.set_title(name)
         ax.grid(True, axis="y", alpha=0.3)
-    fig.suptitle(title)
-    fig.savefig(path)
-    return path
+    legend = [
+        Line2D([], [], color="tab:orange", label="median"),
+        Line2D([], [], color="tab:green", marker="^", ls="", label="mean"),
+        Line2D([], [], color="k", marker="o", mfc="none", ls="", label="outlier (beyond 1.5 IQR)"),
+    ]
+    fig.legend(handles=legend, loc="outside lower center", ncol=3, fontsize=8)
+    fig.suptitle(f"{title}: boxes over the seeds (box: quartiles, whiskers: 1.5 IQR)")
+    return fig
+
+
+def plot_name(world: str, worlds: list[str]) -> str:
+    """A file-name-safe name for a world's plots: its file name, or its label when another world
+    of the study has the same file name."""
+    stem = Path(world).stem
+    if sum(Path(w).stem == stem for w in worlds) > 1:
+        stem = Path(world).with_suffix("").as_posix()
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", stem).strip("_")
 
 
 def _fmt_combo(override_keys: list[str], vals: tuple) -> str:
@@ -189,7 +252,7 @@ def write_report(
         if override_keys:
             lines += ["", f"### {_fmt_combo(override_keys, tuple(json.loads(v) for v in vals))}"]
         lines += ["", table(rs, optimizers, alpha)]
-        lines += [f"\n{n}" for n in table_notes(rs, optimizers)]
+        lines += [f"\n{n}" for n in table_notes(rs, optimizers, alpha)]
         errors = [r for r in rs if r.get("status") != "ok"]
         for r in errors:
             lines.append(f"\nerror: {r['optimizer']} seed {r['seed']}: {r.get('error', '')}")
@@ -211,7 +274,7 @@ def write_report(
                     )
 
                 labels.append((f"{o} {tag}".strip(), sel))
-        png = out_dir / f"box-{re.sub(r'[^A-Za-z0-9_.-]+', '_', Path(w).with_suffix('').as_posix())}.png"
+        png = out_dir / f"box-{plot_name(w, worlds)}.png"
         box_plot(png, w, wrows, labels)
         lines += ["", f"![{w}]({png.name})"]
     path = out_dir / "report.md"

@@ -56,7 +56,9 @@ class Task:
     def run_id(self) -> str:
         """File-name-safe id: readable parts plus a hash of the full key (values may be long)."""
         digest = hashlib.sha1(repr(self.key).encode()).hexdigest()[:8]
-        stem = re.sub(r"[^A-Za-z0-9_.=+-]+", "_", Path(self.world).with_suffix("").as_posix())
+        # the file's name, wherever it lies (compare and sweep name the same runs alike); the
+        # digest keeps worlds of the same name in different folders apart
+        stem = re.sub(r"[^A-Za-z0-9_.=+-]+", "_", Path(self.world).stem)
         parts = [stem, self.optimizer, f"s{self.seed}"]
         parts += [f"{k.rsplit('.', 1)[-1]}={_short(v)}" for k, v in self.overrides]
         readable = re.sub(r"[^A-Za-z0-9_.=+-]+", "_", "-".join(parts))[:120]

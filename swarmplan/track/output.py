@@ -212,8 +212,9 @@ def write_mcap(result: TrackResult, rec: Recording, path: str | Path, source: st
         )
 
 
-def plot(result: TrackResult, path: str | Path, title: str = "") -> None:
-    """Reference vs tracked paths in 3D, and the error over time, one colour per agent."""
+def plot(result: TrackResult, path: str | Path, title: str = "", rec: Recording | None = None) -> None:
+    """Reference vs tracked paths in 3D, and the error over time, one colour per agent; with the
+    log's ``rec``, among the world's obstacles and terrain, within its bounds."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -260,6 +261,10 @@ def plot(result: TrackResult, path: str | Path, title: str = "") -> None:
         ax2.axhline(lim, color="0.4", ls="-.", lw=1, label=f"{lim:g} m (fixed-wing limit)")
     if result.record_end < t[-1]:
         ax2.axvspan(result.record_end, t[-1], color="0.9", label="settle hover")
+    if rec is not None:
+        from swarmplan.replay.plots import world_in_3d
+
+        world_in_3d(ax3, rec)
     ax3.set_xlabel("x [m]")
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")

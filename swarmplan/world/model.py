@@ -91,6 +91,7 @@ class Threat:
     r_min: float
     r_max: float
     weight: float
+    avoid: bool = False  # local flight keeps out of the core (the ball of radius r_min)
 
 
 @dataclass(frozen=True)

@@ -96,6 +96,7 @@ def _resolve_planner(c: Checker, raw: Any, optimizer_names: list[str] | None) ->
                 "planner.optimizer.name", f"unknown optimizer '{name}'{hint}; known: none, {', '.join(names)}"
             )
         planner["optimizer"]["name"] = name
+        before = len(c.problems)
         for k in ("population", "iterations"):
             v = c.number(
                 opt, k, "planner.optimizer", planner["optimizer"][k], lo=2 if k == "population" else 1
@@ -108,7 +109,8 @@ def _resolve_planner(c: Checker, raw: Any, optimizer_names: list[str] | None) ->
             c.add("planner.optimizer.params", f"expected a mapping, got {typename(params)}")
             params = {}
         planner["optimizer"]["params"] = dict(params)
-        if name not in (None, "none") and names and name in names:
+        # params are checked with a valid budget only (a bad population is named once, above)
+        if name not in (None, "none") and names and name in names and len(c.problems) == before:
             try:
                 optimizers.make(name, population=planner["optimizer"]["population"], **params)
             except ValueError as exc:
@@ -148,16 +150,16 @@ def _resolve_agent_params(c: Checker, node: dict, path: str, base: dict[str, Any
         if c.keys(sp, join(path, "speed"), ["min", "max", "cruise"]):
             for k in ("min", "max", "cruise"):
                 if k in sp:
-                    out["speed"][k] = c.number(sp, k, join(path, "speed"), base["speed"][k], nonneg=True)
+                    out["speed"][k] = c.number(
+                        sp, k, join(path, "speed"), base["speed"][k], nonneg=k != "max", positive=k == "max"
+                    )
     return out
 
 
 def _check_agent_params(c: Checker, a: dict[str, Any], path: str) -> None:
     sp = a["speed"]
-    if None in (sp["min"], sp["max"], sp["cruise"]):
-        return
-    if sp["max"] <= 0:
-        c.add(f"{path}.speed.max", f"must be > 0, got {sp['max']:g}")
+    if None in (sp["min"], sp["max"], sp["cruise"]) or sp["max"] <= 0:
+        return  # a speed.max <= 0 was reported where it was written
     if sp["min"] > sp["max"]:
         c.add(f"{path}.speed", f"min ({sp['min']:g}) is above max ({sp['max']:g})")
     elif not sp["min"] <= sp["cruise"] <= sp["max"]:
@@ -279,7 +281,7 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
 
 
 def _resolve_threat(c: Checker, t: Any, path: str) -> tuple[dict | None, Threat | None]:
-    if not c.keys(t, path, ["kind", "position", "r_min", "r_max", "weight"]):
+    if not c.keys(t, path, ["kind", "position", "r_min", "r_max", "weight", "avoid"]):
         return None, None
     kind = c.string(t, "kind", path, None, THREAT_KINDS)
     pos = c.vector(t, "position", path, 3)
@@ -288,10 +290,15 @@ def _resolve_threat(c: Checker, t: Any, path: str) -> tuple[dict | None, Threat 
     weight = c.number(t, "weight", path, 1.0, nonneg=True)
     if r_min is not None and r_max is not None and r_min >= r_max:
         c.add(path, f"r_min ({r_min:g}) must be below r_max ({r_max:g})")
+    avoid = c.boolean(t, "avoid", path, False)
+    if avoid and r_min is not None and r_min <= 0:
+        c.add(f"{path}.avoid", "needs a core to keep out of: r_min > 0")
     out = {"kind": kind, "position": _lst(pos), "r_min": r_min, "r_max": r_max, "weight": weight}
-    if None in (kind, r_min, r_max, weight) or pos is None:
+    if "avoid" in t:  # written only when given: logs of worlds without the key stay as they were
+        out["avoid"] = avoid
+    if None in (kind, r_min, r_max, weight, avoid) or pos is None:
         return out, None
-    return out, Threat(kind, pos, r_min, r_max, weight)
+    return out, Threat(kind, pos, r_min, r_max, weight, bool(avoid))
 
 
 def parse_world(
@@ -410,7 +417,8 @@ def parse_world(
         start = c.vector(a, "start", p, 3) if "start" in a else None
         goal = c.vector(a, "goal", p, 3) if "goal" in a else None
         params = _resolve_agent_params(c, a, p, defaults)
-        _check_agent_params(c, params, p)
+        if "speed" in a or "model" in a:  # what the agent inherits is checked once, in agent_defaults
+            _check_agent_params(c, params, p)
         resolved = {"id": aid, "start": _lst(start), "goal": _lst(goal), **copy.deepcopy(params)}
         agents_out.append(resolved)
         if aid is None or start is None or goal is None or None in _flat_values(params):
@@ -496,9 +504,7 @@ def _flat_values(d: dict) -> list:
 
 
 def _check_defaults_alone(c: Checker, defaults: dict) -> None:
-    sp = defaults["speed"]
-    if None not in (sp["min"], sp["max"]) and sp["min"] > sp["max"]:
-        c.add("agent_defaults.speed", f"min ({sp['min']:g}) is above max ({sp['max']:g})")
+    _check_agent_params(c, defaults, "agent_defaults")
 
 
 def _check_planner_sections(c: Checker, planner: dict[str, Any]) -> None:
