@@ -99,9 +99,10 @@ def test_guard_keeps_the_field_command_while_a_way_out_remains():
     assert abs(heading) >= 0.99 * np.degrees(15 / 20 * 0.1)
 
 
-def test_horizon_is_half_a_turn_plus_a_second():
+def test_horizon_is_a_full_turn_plus_a_second():
     p = _one_agent_params()
-    assert horizon_steps(p, np.array([0]), np.array([15.0]), 0.1) == int(np.ceil((np.pi * 20 / 15 + 1) / 0.1))
+    full = int(np.ceil((2 * np.pi * 20 / 15 + 1) / 0.1))
+    assert horizon_steps(p, np.array([0]), np.array([15.0]), 0.1) == full
 
 
 def test_predicted_positions_are_exact_arcs():

@@ -4,7 +4,7 @@ A multirotor can brake, so the one-step safety filter of the simulation is enoug
 fixed wing cannot stop: by the time one step would touch a wall, no command avoids it. The
 potential field does not know this either (its influence distance may be shorter than the
 turn radius). So, each step, for every fixed wing that has something within reach, the
-guard predicts, for the time of a half turn plus a second, the sustained manoeuvres — hard
+guard predicts, for the time of a full turn plus a second, the sustained manoeuvres — hard
 left/right turns and straight flight, each level, climbing and diving — and measures the
 clearance of every predicted position to the obstacles (moving ones at their predicted
 poses), the terrain and the bounds. The field's command stands if, after one step of it, at
@@ -39,9 +39,12 @@ _MANOEUVRES = tuple((turn, climb) for turn in (-1, 0, 1) for climb in (0, 1, -1)
 
 
 def horizon_steps(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: float) -> int:
-    """Steps needed to turn through 180 degrees at the minimum radius, plus one second."""
+    """Steps needed to fly a full circle at the minimum radius, plus one second: a turn that
+    stays clear that long is a loiter the aircraft can keep up among static obstacles (half a
+    circle let moving ones close the rest of it: a 2 km-radius aircraft was cornered between
+    two movers and a no-fly zone)."""
     v = np.maximum(speed, 1e-6)
-    t = np.pi * params.min_turn_radius[idx] / v + 1.0
+    t = 2.0 * np.pi * params.min_turn_radius[idx] / v + 1.0
     return int(np.ceil(float(np.max(t)) / dt))
 
 
