@@ -145,6 +145,61 @@ class Event:
 
 
 @dataclass(frozen=True)
+class OptimizerRun:
+    """One optimizer run (escape, smoothing, global route): the fields of an ``/optimizer``
+    message, in its order."""
+
+    t: float
+    agent: str | None
+    algorithm: str
+    purpose: str
+    evaluations: int
+    iterations: int
+    best_cost: float
+    wall_ms: float
+    convergence: list[float]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "t": self.t,
+            "agent": self.agent,
+            "algorithm": self.algorithm,
+            "purpose": self.purpose,
+            "evaluations": self.evaluations,
+            "iterations": self.iterations,
+            "best_cost": self.best_cost,
+            "wall_ms": self.wall_ms,
+            "convergence": self.convergence,
+        }
+
+
+class ObstacleStates:
+    """The moving obstacles' entries of an ``/obstacles/state`` message, kept as arrays
+    (``position`` and ``velocity`` already rounded as the log writes them); :meth:`dicts`
+    gives the message's entries ``{"id", "position", "orientation", "velocity"}``."""
+
+    __slots__ = ("ids", "position", "orientation", "velocity")
+
+    def __init__(
+        self, ids: tuple[str, ...], position: np.ndarray, orientation: list[list[float]], velocity: np.ndarray
+    ):
+        self.ids = ids
+        self.position = position
+        self.orientation = orientation  # per obstacle [qx, qy, qz, qw]
+        self.velocity = velocity
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def dicts(self) -> list[dict[str, Any]]:
+        pos, vel = self.position.tolist(), self.velocity.tolist()
+        return [
+            {"id": oid, "position": p, "orientation": q, "velocity": v}
+            for oid, p, q, v in zip(self.ids, pos, self.orientation, vel, strict=True)
+        ]
+
+
+@dataclass(frozen=True)
 class PlannedSegment:
     """A segment an agent follows in ``mode`` (escape or smoothing) before returning to APF."""
 
@@ -161,10 +216,37 @@ StuckOutcome = PlannedSegment | None | Literal["failed"]
 
 @dataclass
 class StepResult:
+    """What one step did, and everything a log of it needs: the agents' and moving obstacles'
+    entries at the step's end, the optimizer runs made during the step (logged before its
+    state) and its events (logged after)."""
+
     state: SwarmState
     events: list[Event]
     terminated: bool
     truncated: bool
+    agents: AgentStates | None = None
+    obstacles: ObstacleStates | None = None  # None when nothing moves
+    optimizer_runs: list[OptimizerRun] = field(default_factory=list)
+
+
+@dataclass
+class ResetResult:
+    """What a reset produced: the state at t = 0, the ``/world`` message, what planning before
+    flight reported (optimizer runs and events, in the order they came) and the t = 0 entries
+    of the agents and moving obstacles."""
+
+    state: SwarmState
+    world: dict[str, Any]
+    records: list[OptimizerRun | Event]
+    agents: AgentStates
+    obstacles: ObstacleStates | None
+
+
+class Observer(Protocol):
+    """Sees a run from outside (a log, a live view, a progress bar): every reset and step result."""
+
+    def on_reset(self, result: ResetResult) -> None: ...
+    def on_step(self, result: StepResult) -> None: ...
 
 
 class PlanningContext(Protocol):
@@ -185,7 +267,8 @@ class PlanningContext(Protocol):
     def record_optimizer(
         self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None
     ) -> None:
-        """Log one optimizer run (a ``swarmplan.optimizers.Result``)."""
+        """Report one optimizer run (a ``swarmplan.optimizers.Result``): it goes out with the
+        running step's result (before flight: with the reset's)."""
 
     def note_event(self, agent: int | None, kind: str, detail: dict[str, Any]) -> None:
         """Report an event; it is recorded with the running step's events."""
@@ -207,12 +290,17 @@ class Planner(Protocol):
 
 
 class Recorder(Protocol):
-    """Where a run's messages go (``swarmplan.io.recording.McapRecorder`` writes MCAP)."""
+    """Where a run's messages go (``swarmplan.io.recording.McapRecorder`` writes MCAP). The
+    simulator knows none: an observer (``swarmplan.io.runner.RecordingObserver``) writes what
+    the reset and step results carry, and the runner writes ``/summary`` and closes it."""
 
     def write_world(self, world: dict[str, Any]) -> None: ...
-    def write_state(self, t: float, agents: Sequence[dict], obstacles: list[dict] | None) -> None:
+    def write_state(
+        self, t: float, agents: Sequence[dict], obstacles: ObstacleStates | list[dict] | None
+    ) -> None:
         """``agents``: a list of dicts or an :class:`AgentStates` (which reads as one)."""
 
     def write_event(self, event: dict[str, Any]) -> None: ...
     def write_optimizer(self, msg: dict[str, Any]) -> None: ...
     def write_summary(self, summary: dict[str, Any]) -> None: ...
+    def close(self) -> None: ...

@@ -193,25 +193,22 @@ def run_to_end(
     With ``log_path`` the run is recorded by :class:`McapRecorder` (summary included).
     """
     from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import run_episode
     from swarmplan.sim import Simulation
 
     rec = McapRecorder(log_path, foxglove=foxglove) if log_path is not None else None
-    sim = Simulation(world, planner=planner, recorder=rec)
-    positions = []
-    try:
-        state = sim.reset(seed=seed)
-        positions.append(state.position.copy())
-        while True:
-            r = sim.step()
-            positions.append(r.state.position.copy())
-            if r.terminated or r.truncated:
-                break
-        summary = sim.summary()
-        if rec is not None:
-            rec.write_summary(summary)
-    finally:
-        if rec is not None:
-            rec.close()
+    sim = Simulation(world, planner=planner)
+    positions: list = []
+
+    class _Positions:
+        def on_reset(self, result):
+            positions.append(result.state.position.copy())
+
+        def on_step(self, result):
+            positions.append(result.state.position.copy())
+
+    seed = sim.world.seed if seed is None else seed
+    summary = run_episode(sim, seed, observers=[_Positions()], recorder=rec)
     return sim, summary, positions
 
 

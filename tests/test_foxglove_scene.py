@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 import time
 from pathlib import Path
@@ -101,11 +102,19 @@ def _write(path, world, steps, **kw):
     return scene
 
 
+PROTOBUF_TOPICS = ["/scene", "/scene/world", "/scene/paths", "/scene/paths/overview", "/tf"]
+
+
 def _decode(path):
     out: dict[str, list] = {}
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        for schema, channel, message, decoded in reader.iter_decoded_messages():
+        for schema, channel, message in reader.iter_messages():
+            if channel.topic == "/agents/speed":  # the one JSON channel
+                out.setdefault(channel.topic, []).append(
+                    (message.log_time, schema.name, json.loads(message.data))
+                )
+        for schema, channel, message, decoded in reader.iter_decoded_messages(topics=PROTOBUF_TOPICS):
             assert schema.encoding == "protobuf" and channel.message_encoding == "protobuf"
             out.setdefault(channel.topic, []).append((message.log_time, schema.name, decoded))
     return out
@@ -160,18 +169,27 @@ def test_scene_decodes_with_one_entity_per_agent_and_obstacle(tmp_path):
     for items in msgs.values():
         assert max(t for t, _, _ in items) <= round(steps[-1][0] * 1e9)
 
-    # flown paths: one line per agent, ending at the final position
-    _, _, paths = msgs["/scene/paths"][-1]
-    assert sorted(e.id for e in paths.entities) == sorted(f"path/{a['id']}" for a in world["agents"])
-    line = paths.entities[0].lines[0]
+    # flown paths: chunks that join into every sampled point of each agent's path, ending at
+    # the final position; the overview draws each path whole
+    assert _joined_chunks(msgs) == _sampled(world, steps)
+    _, _, overview = msgs["/scene/paths/overview"][-1]
+    assert sorted(e.id for e in overview.entities) == sorted(f"path/{a['id']}" for a in world["agents"])
+    line = overview.entities[0].lines[0]
     assert len(line.points) >= 2
     assert line.points[-1].x == pytest.approx(steps[-1][1][0]["position"][0])
 
-    # one FrameTransforms message per step with a FrameTransform per agent, parent "world",
-    # child = agent id, at the agent's position
+    # speeds with each /scene message: 2 m/s along x for every agent
+    speeds = msgs["/agents/speed"]
+    assert [t for t, _, _ in speeds] == [t for t, _, _ in msgs["/scene"]]
+    assert all(
+        m["speed"] == [2.0] * len(world["agents"]) and m["max"] == m["mean"] == 2.0 for _, _, m in speeds
+    )
+
+    # a FrameTransforms message with each /scene message, a FrameTransform per agent, parent
+    # "world", child = agent id, at the agent's position
     tfs = msgs["/tf"]
     assert all(name == "foxglove.FrameTransforms" for _, name, _ in tfs)
-    assert len(tfs) >= len(steps)
+    assert [t for t, _, _ in tfs] == [t for t, _, _ in msgs["/scene"]]
     per_agent: dict[str, int] = {}
     for log_time, _, msg in tfs:
         assert [tf.child_frame_id for tf in msg.transforms] == [a["id"] for a in world["agents"]]
@@ -179,7 +197,7 @@ def test_scene_decodes_with_one_entity_per_agent_and_obstacle(tmp_path):
             assert tf.parent_frame_id == "world"
             per_agent[tf.child_frame_id] = per_agent.get(tf.child_frame_id, 0) + 1
             assert tf.timestamp.seconds * 10**9 + tf.timestamp.nanos == log_time
-    assert all(n >= len(steps) for n in per_agent.values())
+    assert all(n == len(tfs) for n in per_agent.values())
     last_t, _, last_tf = tfs[-1]
     assert last_t == round(steps[-1][0] * 1e9)
     for tf, a in zip(last_tf.transforms, steps[-1][1], strict=True):
@@ -199,14 +217,52 @@ def test_file_descriptor_set_is_self_contained():
         assert set(f.dependency) <= set(names[:i])
 
 
-def test_path_decimation_keeps_bounded_points(tmp_path):
+def _joined_chunks(msgs) -> dict[str, list[tuple[float, float, float]]]:
+    """Per agent: its chunks' points in order, each chunk's first point (the one before's
+    last) dropped after the first chunk."""
+    out: dict[str, list] = {}
+    nxt: dict[str, int] = {}
+    for _, _, m in msgs["/scene/paths"]:
+        for e in m.entities:
+            _, aid, k = e.id.split("/")
+            assert int(k) == nxt.get(aid, 0)  # chunks numbered 0, 1, ... in message order
+            nxt[aid] = int(k) + 1
+            pts = [(p.x, p.y, p.z) for p in e.lines[0].points]
+            if aid in out:
+                assert pts[0] == out[aid][-1]
+                pts = pts[1:]
+            out.setdefault(aid, []).extend(pts)
+    return out
+
+
+def _sampled(world, steps, period: float = 0.2) -> dict[str, list[tuple[float, float, float]]]:
+    """Per agent: its positions at the scene's samples (every ``period`` s and the last step)."""
+    out: dict[str, list] = {}
+    due = -1.0
+    for k, (t, agents, _) in enumerate(steps):
+        if t >= due - 1e-9 or k == len(steps) - 1:
+            due = t + period
+            for a in agents:
+                pts = out.setdefault(a["id"], [])
+                if not pts or pts[-1] != tuple(a["position"]):
+                    pts.append(tuple(a["position"]))
+    return out
+
+
+def test_path_messages_stay_bounded_and_the_overview_whole(tmp_path):
     world = _world(2)
     steps = _steps(world, n_steps=400)
-    scene = _write(tmp_path / "long.mcap", world, steps, path_max_points=50)
-    assert all(scene._path_count[k] <= 50 for k in scene._paths.values())
+    scene = _write(tmp_path / "long.mcap", world, steps, path_max_points=50, overview_points=20)
+    assert all(scene.trails.count[k] <= 50 for k in scene.trails.order.values())
     msgs = _decode(tmp_path / "long.mcap")
-    _, _, paths = msgs["/scene/paths"][-1]
-    assert all(2 <= len(e.lines[0].points) <= 50 for e in paths.entities)
+    # a chunk per agent per second: 5 samples, plus the previous chunk's last point
+    assert max(len(e.lines[0].points) for _, _, m in msgs["/scene/paths"] for e in m.entities) <= 6
+    assert _joined_chunks(msgs) == _sampled(world, steps)
+    _, _, overview = msgs["/scene/paths/overview"][-1]
+    for e in overview.entities:
+        pts = [(p.x, p.y, p.z) for p in e.lines[0].points]
+        want = _sampled(world, steps)[e.id.split("/")[1]]
+        assert len(pts) == 20 and pts[0] == want[0] and pts[-1] == want[-1]
 
 
 def test_cost_per_step_64_agents(tmp_path):

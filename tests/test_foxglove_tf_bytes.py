@@ -27,7 +27,7 @@ class _Capture:
         return 1
 
     def register_channel(self, topic, **_):
-        return {"/tf": 10, "/scene": 12, "/scene/paths": 13}.get(topic, 11)
+        return {"/tf": 10, "/scene": 12, "/scene/paths": 13, "/scene/paths/overview": 14}.get(topic, 11)
 
     def add_message(self, channel_id, log_time, publish_time, data):
         self.messages.append((channel_id, log_time, data))
@@ -59,7 +59,7 @@ def test_tf_bytes_equal_protobuf_serializer(seed):
     ids = ["a0", "uav-1", "x" * 200, "ü"]  # a child id longer than 127 bytes: two-byte length
     world = {"agents": [{"id": i} for i in ids]}
     cap = _Capture()
-    scene = FoxgloveScene(cap, world, scene_period=1e9, path_period=1e9)
+    scene = FoxgloveScene(cap, world, scene_period=1e9, path_period=1e9, tf_period=0.0)
     last: dict[str, FrameTransform] = {}
     special = [0.0, -0.0, 1.0, -2.5]
     for step in range(40):
@@ -104,7 +104,7 @@ def test_scene_agent_bytes_equal_protobuf_serializer(seed):
     radius = {"a0": 0.5, "uav-1": 1.25, "x" * 150: 0.3}
     world = {"agents": [{"id": i, "radius": r} for i, r in radius.items()]}
     cap = _Capture()
-    scene = FoxgloveScene(cap, world, scene_period=0.0, path_period=1e9)
+    scene = FoxgloveScene(cap, world, scene_period=0.0, path_period=1e9, tf_period=0.0)
     modes = [str(m) for m in Mode] + ["unknown"]
     for step in range(30):
         t = step * 0.1
@@ -131,73 +131,105 @@ def test_varint_table_equals_the_encoding():
 
 
 class _ReferencePaths:
-    """The /scene/paths rules through the protobuf API (the previous implementation)."""
+    """The /scene/paths and /scene/paths/overview rules through the protobuf API: per agent
+    with new points a chunk ``path/<id>/<k>`` from the last chunk's last point on; the overview
+    ``path/<id>`` of at most ``overview_points`` kept points (halved past ``max_points``)."""
 
-    def __init__(self, max_points: int):
-        from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
-
-        self.max_points, self.paths, self.entities, self.kind = max_points, {}, {}, LinePrimitive
+    def __init__(self, max_points: int, overview_points: int):
+        self.max_points, self.overview_points = max_points, overview_points
+        self.kept: dict[str, list] = {}
+        self.chunk: dict[str, list] = {}
+        self.index: dict[str, int] = {}
+        self.new: dict[str, bool] = {}
 
     def sample(self, agents):
         for a in agents:
             aid = a["id"]
-            pts = self.paths.setdefault(aid, [])
             pt = tuple(float(c) for c in a["position"])
-            if pts and pts[-1] == pt:
+            kept = self.kept.setdefault(aid, [])
+            if kept and kept[-1] == pt:
                 continue
-            pts.append(pt)
-            e = self.entities.get(aid)
-            if e is None:
-                e = self.entities[aid] = SceneEntity(frame_id="world", id=f"path/{aid}")
-                line = e.lines.add(type=self.kind.LINE_STRIP, thickness=2.0, scale_invariant=True)
-                line.pose.position.x = line.pose.position.y = line.pose.position.z = 0.0
-                o = line.pose.orientation
-                o.x, o.y, o.z, o.w = 0.0, 0.0, 0.0, 1.0
-                line.color.r, line.color.g, line.color.b, line.color.a = (0.12, 0.47, 0.71, 0.9)
-            line = e.lines[0]
-            if len(pts) > self.max_points:
-                pts = self.paths[aid] = pts[:-1:2] + [pts[-1]]
-                del line.points[:]
-                for x, y, z in pts:
-                    line.points.add(x=x, y=y, z=z)
-            else:
-                line.points.add(x=pt[0], y=pt[1], z=pt[2])
+            kept.append(pt)
+            if len(kept) > self.max_points:
+                self.kept[aid] = kept[:-1:2] + [kept[-1]]
+            self.chunk.setdefault(aid, []).append(pt)
+            self.new[aid] = True
 
-    def message(self, t: float) -> bytes:
-        out = SceneUpdate()
+    def _entity(self, t, eid, pts, thickness):
+        from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+
+        e = SceneEntity(frame_id="world", id=eid)
         ns = int(round(t * 1e9))
-        for aid in self.paths:
-            e = self.entities[aid]
-            e.timestamp.seconds, e.timestamp.nanos = divmod(ns, 1_000_000_000)
-            out.entities.append(e)
+        e.timestamp.seconds, e.timestamp.nanos = divmod(ns, 1_000_000_000)
+        line = e.lines.add(type=LinePrimitive.LINE_STRIP, thickness=thickness, scale_invariant=True)
+        line.pose.position.x = line.pose.position.y = line.pose.position.z = 0.0
+        o = line.pose.orientation
+        o.x, o.y, o.z, o.w = 0.0, 0.0, 0.0, 1.0
+        for x, y, z in pts:
+            line.points.add(x=x, y=y, z=z)
+        line.color.r, line.color.g, line.color.b, line.color.a = (0.12, 0.47, 0.71, 0.9)
+        return e
+
+    def message(self, t: float) -> bytes | None:
+        out = SceneUpdate()
+        for aid in self.kept:
+            if self.new.get(aid):
+                k = self.index.get(aid, 0)
+                out.entities.append(self._entity(t, f"path/{aid}/{k}", self.chunk[aid], 2.0))
+                self.chunk[aid] = [self.chunk[aid][-1]]
+                self.index[aid], self.new[aid] = k + 1, False
+        return out.SerializeToString() if out.entities else None
+
+    def overview(self, t: float) -> bytes:
+        out = SceneUpdate()
+        for aid, kept in self.kept.items():
+            n = len(kept)
+            pick = (
+                range(n)
+                if n <= self.overview_points
+                else np.round(np.linspace(0, n - 1, self.overview_points))
+            )
+            out.entities.append(self._entity(t, f"path/{aid}", [kept[int(i)] for i in pick], 1.0))
         return out.SerializeToString()
 
 
 @pytest.mark.parametrize("seed", range(2))
 def test_path_bytes_equal_protobuf_serializer(seed):
-    """Paths sampled every step, written every step, decimated past 6 points; repeated
-    positions (a standing agent), zero and -0.0 coordinates."""
+    """Paths sampled every step, chunks and overview written every step, kept points halved
+    past 6, the overview at most 4 points; repeated positions (a standing agent), zero and
+    -0.0 coordinates."""
     rng = np.random.default_rng(seed)
     ids = ["a0", "b1", "y" * 140]
     cap = _Capture()
-    scene = FoxgloveScene(cap, {"agents": [{"id": i} for i in ids]}, scene_period=0.0, path_period=0.0)
-    scene.path_max_points = 6
-    ref = _ReferencePaths(6)
+    scene = FoxgloveScene(
+        cap,
+        {"agents": [{"id": i} for i in ids]},
+        scene_period=0.0,
+        path_period=0.0,
+        overview_period=0.0,
+        overview_points=4,
+        path_max_points=6,
+    )
+    ref = _ReferencePaths(6, 4)
     last = {i: rng.normal(0, 30, 3) for i in ids}
+    chunks, overviews = [], []
     for step in range(40):
         t = step * 0.1
         agents = []
         for i in ids:
-            if rng.random() < 0.7:  # otherwise it stands still: no new point
+            if step % 10 != 5 and rng.random() < 0.7:  # otherwise it stands still: no new point
                 last[i] = rng.normal(0, 30, 3)
                 if rng.random() < 0.3:
                     last[i][rng.integers(3)] = [0.0, -0.0][rng.integers(2)]
             agents.append({"id": i, "position": last[i].tolist(), "velocity": [0.0, 0.0, 0.0], "mode": "apf"})
         scene.write_step(t, agents, [])
         ref.sample(agents)
-        msg = [m for m in cap.messages if m[0] == 13][-1][2]
-        assert msg == ref.message(t)
-    assert max(len(e.lines[0].points) for e in SceneUpdate.FromString(msg).entities) <= 6
+        chunks.append(ref.message(t))
+        overviews.append(ref.overview(t))
+    assert [m[2] for m in cap.messages if m[0] == 13] == [c for c in chunks if c is not None]
+    assert [m[2] for m in cap.messages if m[0] == 14] == overviews
+    assert any(c is None for c in chunks)  # a step where nobody moved writes no chunk message
+    assert max(len(e.lines[0].points) for e in SceneUpdate.FromString(overviews[-1]).entities) == 4
 
 
 def _times():
@@ -218,6 +250,7 @@ def test_templated_steps_equal_protobuf_serializer(seed):
         {"agents": [{"id": i, "radius": r} for i, r in radius.items()]},
         scene_period=0.0,
         path_period=1e9,
+        tf_period=0.0,
     )
     last: dict[str, FrameTransform] = {}
     modes = {i: "apf" for i in radius}

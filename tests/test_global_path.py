@@ -10,27 +10,6 @@ from swarmplan.planner.global_path import global_config, plan_global_routes
 from swarmplan.sim import Simulation
 from swarmplan.world import WorldError, parse_world
 
-
-class _Rec:
-    def __init__(self):
-        self.events, self.optimizer = [], []
-
-    def write_event(self, e):
-        self.events.append(e)
-
-    def write_optimizer(self, m):
-        self.optimizer.append(m)
-
-    def write_world(self, *a):
-        pass
-
-    def write_state(self, *a):
-        pass
-
-    def write_summary(self, *a):
-        pass
-
-
 TOWER = [{"id": "tower", "shape": "cylinder", "radius": 12, "height": 60, "position": [100, 50, 30]}]
 
 
@@ -85,8 +64,7 @@ def test_defaults():
 @pytest.mark.parametrize("cost", ["mcfo", "iba", "iafsa"])
 def test_plan_is_valid_and_recorded(cost):
     w = _world({"cost": cost, "waypoints": 6})
-    rec = _Rec()
-    sim = Simulation(w, planner="none", recorder=rec)
+    sim = Simulation(w, planner="none")
     sim.reset(3)
     routes = plan_global_routes(sim, "rscdwoa")
     assert list(routes) == [0]
@@ -96,26 +74,27 @@ def test_plan_is_valid_and_recorded(cost):
     path = np.vstack([w.agents[0].start, route])
     for p0, p1 in zip(path[:-1], path[1:], strict=True):
         assert sim.collision.first_hit(p0, p1, 1.0, np.zeros((0, 3)), np.zeros((0, 3))) is None
-    assert [m["purpose"] for m in rec.optimizer] == ["global"]
-    assert rec.optimizer[0]["evaluations"] == 20 * 40
-    # Noted after reset: the events go out with the next step's events (one route for every event).
-    assert [e.kind for e in sim.step().events if e.kind.startswith("global")] == ["global_plan"]
-    assert [e["kind"] for e in rec.events if e["kind"].startswith("global")] == ["global_plan"]
+    # Planned after reset: the run and the events go out with the next step's result.
+    r = sim.step()
+    assert [m.purpose for m in r.optimizer_runs] == ["global"]
+    assert r.optimizer_runs[0].evaluations == 20 * 40 and r.optimizer_runs[0].t == 0.0
+    assert [e.kind for e in r.events if e.kind.startswith("global")] == ["global_plan"]
+    assert sim.step().optimizer_runs == []
 
 
 def test_impossible_plan_falls_back_with_an_event():
     wall = [{"id": "wall", "shape": "box", "size": [4, 100, 60], "position": [100, 50, 30]}]
     w = _world(obstacles=wall)
-    rec = _Rec()
-    sim = Simulation(w, planner="none", recorder=rec)
+    sim = Simulation(w, planner="none")
     sim.reset(0)
     assert plan_global_routes(sim, "random") == {}
-    sim.step()
-    assert rec.events[0]["kind"] == "global_plan_invalid"
-    assert "no route" in rec.events[0]["detail"]["fallback"]
+    r = sim.step()
+    event = r.events[0].to_json()
+    assert event["kind"] == "global_plan_invalid"
+    assert "no route" in event["detail"]["fallback"]
     # Planned again before giving up: 1 + retries runs, the budget growing by 1.5 each time.
-    assert rec.events[0]["detail"]["attempts"] == 3
-    assert [m["evaluations"] for m in rec.optimizer] == [800, 1200, 1800]
+    assert event["detail"]["attempts"] == 3
+    assert [m.to_json()["evaluations"] for m in r.optimizer_runs] == [800, 1200, 1800]
 
 
 def test_sim_flies_the_route_to_arrival():

@@ -8,7 +8,9 @@
 2. escape planning latency (median, p95, max of ``/optimizer`` ``wall_ms`` for escapes) in a
    32-agent antipodal swap through a hub with a mover (``bench.sim.swap_world``), default
    planner (rscdwoa, population 30 x 100 iterations), with arrivals and collisions;
-3. the real-time factor of a 64-agent / 32-mover world with the default planner;
+3. the real-time factor of a 64-agent / 32-mover world with the default planner, how its
+   log grows (largest message per channel in the last tenth of the run against the second
+   tenth; bytes per agent-step) and what the recorder alone costs per step there;
 4. the optimizers' own overhead per evaluation at d = 50 (``bench.overhead``), worst entry;
 5. start-up to the first step in a fresh interpreter (import, parse, build, reset, one step),
    without and with the MCAP recorder.
@@ -29,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from swarmplan.bench.log_size import growth_table
+
 
 def _run(
     raw: dict[str, Any], optimizer: str, sim_time: float | None, steps: int | None, warmup: int = 0
@@ -36,6 +40,7 @@ def _run(
     """Run a world with the recorder on; wall and CPU time of the stepping (after ``warmup``
     untimed steps), step count, summary, and escape timings (wall from ``/optimizer``, CPU)."""
     from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import RecordingObserver
     from swarmplan.planner import make_planner
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
@@ -43,18 +48,20 @@ def _run(
     world = parse_world(raw)
     with tempfile.TemporaryDirectory() as tmp:
         recorder = McapRecorder(Path(tmp) / "bench.mcap")
+        log = RecordingObserver(recorder)
         planner = make_planner(world, optimizer)
-        sim = Simulation(world, planner=planner, recorder=recorder)
-        sim.reset(seed=int(raw.get("seed", 0)))
+        sim = Simulation(world, planner=planner)
+        log.on_reset(sim.start(seed=int(raw.get("seed", 0))))
         escape_cpu = _time_escapes(planner)
         plan_cpu = _time_plans(planner)
         for _ in range(warmup):
-            sim.step()
+            log.on_step(sim.step())
         n = 0
         wall0, cpu0 = time.perf_counter(), time.process_time()
         try:
             while True:
                 r = sim.step()
+                log.on_step(r)
                 n += 1
                 if r.terminated or r.truncated:
                     break
@@ -66,6 +73,7 @@ def _run(
             wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
             recorder.write_summary(sim.summary())
             recorder.close()
+        log = growth_table(Path(tmp) / "bench.mcap", len(world.agents), warmup + n)
     escapes = np.array([ms for per_agent in sim.metrics.escape_ms for ms in per_agent], dtype=float)
     return {
         "sim": sim,
@@ -77,7 +85,46 @@ def _run(
         "escape_cpu_ms": np.array([c for c, _ in escape_cpu], dtype=float),
         "escape_cost_cpu_ms": np.array([c for _, c in escape_cpu], dtype=float),
         "plan_cpu_ms": np.array(plan_cpu, dtype=float),
+        "log": log,
     }
+
+
+def recording_cost(raw: dict[str, Any], steps: int, repeats: int = 3) -> dict[str, float]:
+    """The recorder alone: ``steps`` step results of pure APF in ``raw`` computed first, then
+    written to an MCAP log (as ``run`` does: JSON channels, Foxglove scene, zstd); the best of
+    ``repeats`` in CPU and wall ms per step, and the log's bytes per agent-step."""
+    import copy
+    from dataclasses import replace
+
+    from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import RecordingObserver
+    from swarmplan.sim import Simulation
+    from swarmplan.world import parse_world
+
+    world = parse_world(raw)
+    sim = Simulation(world, planner="none")
+    first = sim.start(seed=int(raw.get("seed", 0)))
+    first = replace(first, state=copy.copy(first.state))
+    results = [replace(r, state=copy.copy(r.state)) for r in (sim.step() for _ in range(steps))]
+    best = {"cpu_ms": np.inf, "wall_ms": np.inf, "bytes_per_agent_step": 0.0}
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(repeats):
+            path = Path(tmp) / f"rec{k}.mcap"
+            recorder = McapRecorder(path)
+            log = RecordingObserver(recorder)
+            log.on_reset(first)
+            for r in results[:2]:  # the first steps run without the compiled writers (start-up)
+                log.on_step(r)
+            wall0, cpu0 = time.perf_counter(), time.process_time()
+            for r in results[2:]:
+                log.on_step(r)
+            cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+            recorder.write_summary(sim.summary())
+            recorder.close()
+            best["cpu_ms"] = min(best["cpu_ms"], 1e3 * cpu / (steps - 2))
+            best["wall_ms"] = min(best["wall_ms"], 1e3 * wall / (steps - 2))
+            best["bytes_per_agent_step"] = path.stat().st_size / (len(world.agents) * steps)
+    return best
 
 
 def _time_plans(planner: Any) -> list[float]:
@@ -169,9 +216,6 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
     the same point (interpreter start included: the figure a loaded machine does not inflate),
     whole subprocess wall time). With ``record`` the simulation writes an MCAP log as the
     command line does (mcap, protobuf and the Foxglove schemas imported, the header written)."""
-    recorder = "None"
-    if record:
-        recorder = "McapRecorder(Path(tempfile.mkdtemp()) / 'startup.mcap')"
     code = (
         "import time; t0 = time.perf_counter()\n"
         "import tempfile\n"
@@ -179,12 +223,17 @@ def startup_seconds(record: bool = False) -> tuple[float, float, float]:
         "from swarmplan.bench.sim import swarm_world\n"
         "from swarmplan.planner import make_planner\n"
         "from swarmplan.sim import Simulation\n"
-        "from swarmplan.world import parse_world\n"
-        + ("from swarmplan.io.recording import McapRecorder\n" if record else "")
-        + "w = parse_world(swarm_world(16, 4, 8))\n"
-        f"s = Simulation(w, planner=make_planner(w, w.planner_config.optimizer.name), recorder={recorder})\n"
-        "s.reset(seed=0); s.step()\n"
-        "print(time.perf_counter() - t0, time.process_time())\n"
+        "from swarmplan.world import parse_world\n" + "w = parse_world(swarm_world(16, 4, 8))\n"
+        "s = Simulation(w, planner=make_planner(w, w.planner_config.optimizer.name))\n"
+        + (
+            "from swarmplan.io.recording import McapRecorder\n"
+            "from swarmplan.io.runner import RecordingObserver\n"
+            "log = RecordingObserver(McapRecorder(Path(tempfile.mkdtemp()) / 'startup.mcap'))\n"
+            "log.on_reset(s.start(seed=0)); log.on_step(s.step())\n"
+            if record
+            else "s.reset(seed=0); s.step()\n"
+        )
+        + "print(time.perf_counter() - t0, time.process_time())\n"
     )
     t = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -294,21 +343,42 @@ def main(args: argparse.Namespace) -> int:
     else:
         _row("escape wall_ms, 32-agent swap", f"no escapes ({outcome})", "<= 30 ms", "n/a")
 
-    # 3. real-time factor, 64 agents + 32 movers, default planner
-    t_big = 20.0 if quick else 100.0
+    # 3. real-time factor, 64 agents + 32 movers, default planner; its log's growth
+    t_big = 20.0 if quick else 80.0
     raw = swarm_world(64, 32, 24, args.seed)
     r = _run(raw, "rscdwoa", t_big, None)
     s = r["summary"]
     rtf = r["sim"].state.t / r["wall"]
     rtf_cpu = r["sim"].state.t / r["cpu"]
     _row(
-        "real time, 64 agents + 32 movers, default planner",
+        "real time, 64 agents + 32 movers, default planner, logging on",
         f"{rtf:.1f}x wall, {rtf_cpu:.1f}x on CPU time "
         f"({r['sim'].state.t:.0f} s simulated in {r['wall']:.1f} s; "
         f"{s['arrived']}/{s['agents_total']} arrived, {s['collisions']} collisions; "
         f"{len(r['escape_ms'])} escapes; CPU share {r['cpu'] / r['wall']:.0%})",
-        ">= 50x",
-        _verdict(rtf, 50, True),
+        ">= 100x, all arrive, 0 collisions",
+        _verdict(rtf, 100, True),
+    )
+    g = r["log"]
+    pairs = ", ".join(f"{k} {a / 1e3:.1f}->{b / 1e3:.1f} KB" for k, (a, b) in sorted(g["growth"].items()))
+    _row(
+        f"log growth, same run ({t_big:.0f} s): largest message in the last tenth / in the second",
+        f"{g['worst_ratio']:.2f} (worst: {g['worst_topic']}; {pairs})",
+        "<= 1.5 per channel",
+        _verdict(g["worst_ratio"], 1.5, False),
+    )
+    _row(
+        "log bytes per agent-step, same run",
+        f"{g['bytes_per_agent_step']:.0f} B ({g['file_bytes'] / 1e6:.1f} MB)",
+        "-",
+        "-",
+    )
+    rec = recording_cost(raw, 60 if quick else 300)
+    _row(
+        "recording per step, 64 agents + 32 movers (the recorder alone, on computed steps)",
+        f"{rec['cpu_ms']:.3f} ms CPU, {rec['wall_ms']:.3f} ms wall (best of 3)",
+        "<= 0.3 ms",
+        _verdict(rec["cpu_ms"], 0.3, False),
     )
 
     # 4. optimizer overhead

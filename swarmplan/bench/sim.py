@@ -193,6 +193,7 @@ def main(args: argparse.Namespace) -> int:
     if args.worlds:
         return _time_worlds()
     from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import RecordingObserver
     from swarmplan.planner import make_planner
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
@@ -200,13 +201,18 @@ def main(args: argparse.Namespace) -> int:
     world = parse_world(swarm_world(args.agents, args.movers, args.statics, args.seed))
     with tempfile.TemporaryDirectory() as tmp:
         recorder = None if args.no_log else McapRecorder(Path(tmp) / "bench.mcap")
-        sim = Simulation(world, planner=make_planner(world, args.optimizer), recorder=recorder)
-        sim.reset(seed=args.seed)
+        log = RecordingObserver(recorder) if recorder is not None else None
+        sim = Simulation(world, planner=make_planner(world, args.optimizer))
+        first = sim.start(seed=args.seed)
+        if log is not None:
+            log.on_reset(first)
         start, cpu0 = time.perf_counter(), time.process_time()
         steps = 0
         try:
             while sim.state.t < args.sim_time - 1e-9:
                 r = sim.step()
+                if log is not None:
+                    log.on_step(r)
                 steps += 1
                 if r.terminated:
                     break

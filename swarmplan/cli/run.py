@@ -1,4 +1,8 @@
-"""``python -m swarmplan.run WORLD [--seed N] [--out PATH] [--optimizer NAME] [--max-time S] [--quiet]``.
+"""``python -m swarmplan.run WORLD [--seed N] [--out PATH] [--optimizer NAME] [--max-time S] [--quiet]
+[--live [--port N] [--speed X]]``.
+
+``--live`` serves the run on 127.0.0.1 (Foxglove WebSocket protocol) while it is logged, paced
+to real time (``--speed``: a multiple of it, 0 as fast as it runs).
 
 Exit status: 0 when every agent arrived without collision, 1 when the run finished
 otherwise (or was interrupted: Ctrl-C or SIGTERM close the log with a summary that says so),
@@ -9,13 +13,14 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import socket
 import sys
 from pathlib import Path
 from typing import Any
 
 from swarmplan import optimizers
 from swarmplan.cli.common import HelpFormatter
-from swarmplan.io.runner import apply_overrides, simulate
+from swarmplan.io.runner import LiveView, apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sim.threats import exposure_warnings
 from swarmplan.world import World, WorldError, load_world
@@ -150,7 +155,45 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--max-time", type=float, default=None, help="override the world's sim.max_time (s)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.add_argument(
+        "--live",
+        action="store_true",
+        help="also serve the run live on 127.0.0.1 (Foxglove WebSocket protocol: in Foxglove, "
+        "Open connection, Foxglove WebSocket, ws://127.0.0.1:PORT); the log is written as well",
+    )
+    p.add_argument(
+        "--port", type=int, default=None, help="with --live: the port (unset: 8765; 0: a free one)"
+    )
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=None,
+        help="with --live: times real time (unset: 1; 0: as fast as it runs)",
+    )
     return p
+
+
+def live_view(args: argparse.Namespace) -> LiveView | None:
+    """The live view the options ask for (None without --live); problems as a WorldError."""
+    if not args.live:
+        given = [name for name in ("port", "speed") if getattr(args, name) is not None]
+        if given:
+            raise WorldError([f"--{given[0]}: only with --live"], "command line")
+        return None
+    port = LiveView.port if args.port is None else args.port
+    speed = 1.0 if args.speed is None else args.speed
+    if not 0 <= port <= 65535:
+        raise WorldError([f"--port: must be 0-65535, got {port}"], "command line")
+    if not speed >= 0 or speed == float("inf"):
+        raise WorldError([f"--speed: must be >= 0 and finite, got {speed:g}"], "command line")
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind((LiveView.host, port))
+        except OSError as exc:
+            raise WorldError(
+                [f"--port: cannot serve on {LiveView.host}:{port}: {exc.strerror or exc}"], "command line"
+            ) from None
+    return LiveView(port=port, speed=speed)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -169,6 +212,7 @@ def main(argv: list[str] | None = None) -> int:
             raise WorldError([f"--max-time: must be > 0, got {args.max_time:g}"], "command line")
         if args.seed is not None and args.seed < 0:
             raise WorldError([f"--seed: must be >= 0, got {args.seed}"], "command line")
+        live = live_view(args)
         world = apply_overrides(load_world(args.world, names), args.optimizer, args.max_time)
         seed = world.seed if args.seed is None else args.seed
         log_path = log_path_for(world, seed, world.planner_config.optimizer.name, args.out)
@@ -180,8 +224,19 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     try:
         summary = simulate(
-            world, seed, log_path, progress=not args.quiet and sys.stderr.isatty(), stop_on_signals=True
+            world,
+            seed,
+            log_path,
+            progress=not args.quiet and sys.stderr.isatty(),
+            stop_on_signals=True,
+            live=live,
+            notices=not args.quiet,
         )
+    except RuntimeError as exc:
+        if live is None or "bind" not in str(exc):
+            raise
+        print(f"error: command line: invalid input\n  --port: cannot serve: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         summary = {"interrupted": True}
     if summary["interrupted"]:

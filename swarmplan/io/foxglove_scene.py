@@ -14,15 +14,29 @@ topic              schema                  content
                                            terrain surface, goals
 ``/scene``         ``foxglove.SceneUpdate``  agents (spheres coloured by mode) and moving
                                            obstacles; every ``scene_period`` s of sim time
-``/scene/paths``   ``foxglove.SceneUpdate``  flown path of each agent (line strip, decimated
-                                           to ``path_max_points``); every ``path_period`` s
-``/tf``            ``foxglove.FrameTransforms`` one message per step holding a
-                                           ``FrameTransform`` per agent: parent ``world``,
-                                           child = agent id
+``/scene/paths``   ``foxglove.SceneUpdate``  flown paths as they grow: every ``path_period`` s,
+                                           per agent that moved, one new line strip
+                                           ``path/<id>/<k>`` (k = 0, 1, ...) holding only
+                                           the points sampled since its chunk k - 1, from
+                                           that chunk's last point on (the chunks join)
+``/scene/paths/overview``  ``foxglove.SceneUpdate``  every ``overview_period`` s: each
+                                           agent's whole path as ``path/<id>``, at most
+                                           ``overview_points`` points (evenly spaced over
+                                           the kept samples), drawn thinner
+``/agents/speed``  JSON                    with each ``/scene``: every agent's speed, their
+                                           mean and maximum (for plots)
+``/events/log``    ``foxglove.Log``        each ``/events`` message as a log entry (name:
+                                           the agent, message: kind and detail)
+``/tf``            ``foxglove.FrameTransforms`` every ``tf_period`` s (the scene's rate) a
+                                           message holding a ``FrameTransform`` per agent:
+                                           parent ``world``, child = agent id
 =================  ======================  ==============================================
 
 Static, dynamic and path entities are on separate topics because Foxglove, after a seek,
-restores each topic from its latest message only: every topic is self-contained.
+restores each topic from its latest message only. Every message is bounded independently
+of the run's length: a path's chunks accumulate in the 3D panel during playback (entities
+without a lifetime stay until replaced), and after a seek the overview's latest message
+draws every path whole (coarse) until the chunks fill it in again.
 ``log_time``/``publish_time`` are simulation time in ns, like every channel of the log.
 
 Cost: the per-agent fields (/tf, agents of /scene, path points) are written in protobuf's
@@ -36,37 +50,38 @@ per-step cost.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
+from types import ModuleType
 from typing import Any, NamedTuple
 
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
-from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 
-from swarmplan.core import AgentStates, Mode
+from swarmplan.core import AgentStates, Mode, ObstacleStates
+from swarmplan.io.foxglove_paths import PathTrails
 from swarmplan.io.foxglove_shapes import (
     FRAME,
     MOVING_RGBA,
     ONE_PRIMITIVE,
     obstacle_entity,
     rest_orientation,
-    set_color,
-    set_pose,
     world_entities,
 )
+from swarmplan.io.json_floats import Interleaved, record_kernels
 from swarmplan.io.wire import (
     DOUBLE,
     Patched,
     file_descriptor_set,
     join_records,
     length_prefixes,
-    point_bytes,
     pose_fields,
     record_starts,
     timestamp_bytes,
@@ -77,6 +92,30 @@ from swarmplan.io.wire import (
 SCENE_TOPIC = "/scene"
 WORLD_TOPIC = "/scene/world"
 PATHS_TOPIC = "/scene/paths"
+SPEED_TOPIC = "/agents/speed"
+LOG_TOPIC = "/events/log"
+_EVENT_LEVELS = {
+    "collision": Log.ERROR,
+    "near_miss": Log.WARNING,
+    "stuck": Log.WARNING,
+    "timeout": Log.WARNING,
+}
+SPEED_SCHEMA = {
+    "title": "swarmplan.AgentSpeeds",
+    "type": "object",
+    "required": ["t", "mean", "max", "speed"],
+    "properties": {
+        "t": {"type": "number"},
+        "mean": {"type": "number"},
+        "max": {"type": "number"},
+        "speed": {
+            "type": "array",
+            "items": {"type": "number"},
+            "description": "per agent, /agents/state order",
+        },
+    },
+}
+OVERVIEW_TOPIC = "/scene/paths/overview"
 TF_TOPIC = "/tf"
 
 MODE_COLORS = {
@@ -108,23 +147,27 @@ class FoxgloveScene:
         scene_period: float = 0.2,
         path_period: float = 1.0,
         path_max_points: int = 400,
-        tf_period: float = 0.0,
+        tf_period: float = 0.2,
+        overview_period: float = 5.0,
+        overview_points: int = 32,
     ):
         self.writer = writer
         self.world = world
         self.scene_period = float(scene_period)
         self.path_period = float(path_period)
-        self.path_max_points = max(4, int(path_max_points))
         self.tf_period = float(tf_period)
+        self.overview_period = float(overview_period)
         self._channels: dict[str, int] = {}
         schema_ids: dict[str, int] = {}
         for topic, cls in (
             (WORLD_TOPIC, SceneUpdate),
             (SCENE_TOPIC, SceneUpdate),
             (PATHS_TOPIC, SceneUpdate),
+            (OVERVIEW_TOPIC, SceneUpdate),
             # One message per step for all agents (one per agent made /tf ~95 % of the
             # messages of a 64-agent log and ~30 % of a pure-APF step's time).
             (TF_TOPIC, FrameTransforms),
+            (LOG_TOPIC, Log),
         ):
             name = cls.DESCRIPTOR.full_name
             if name not in schema_ids:
@@ -134,6 +177,13 @@ class FoxgloveScene:
             self._channels[topic] = writer.register_channel(
                 topic=topic, message_encoding="protobuf", schema_id=schema_ids[name]
             )
+        speed_schema = writer.register_schema(
+            name="swarmplan.AgentSpeeds", encoding="jsonschema", data=json.dumps(SPEED_SCHEMA).encode()
+        )
+        self._channels[SPEED_TOPIC] = writer.register_channel(
+            topic=SPEED_TOPIC, message_encoding="json", schema_id=speed_schema
+        )
+        self._speed_text: tuple[int, bool, Interleaved] | None = None
         defaults = world.get("agent_defaults") or {}
         self._radius = {
             str(a["id"]): float(a.get("radius", defaults.get("radius", 0.5)) or 0.5)
@@ -144,25 +194,17 @@ class FoxgloveScene:
         self._colors: dict[tuple[float, float, float, float], bytes] = {}
         self._mover_ids: tuple[str, ...] | None = None
         self._mover_simple = True
+        self._mover_known: list[dict | None] = []
         self._mover_rest: list[tuple[float, ...]] = []
         self._mover_templates: dict[tuple[int, bytes], Patched | bool] = {}
-        self._path_heads: dict[str, bytes] = {}
-        self._path_bytes: dict[str, bytearray] = {}  # per agent: its path's encoded points
-        self._paths: dict[str, int] = {}  # agents with a path (message order) -> slot
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
-        # Per agent slot (_rows): last heading as a quaternion's z and w, last path point.
+        # Per agent slot (_rows): last heading as a quaternion's z and w; its path (trails).
         self._slot: dict[str, int] = {}
         self._slot_ids: tuple[str, ...] | None = None
         self._slots = np.zeros(0, dtype=np.intp)
         self._qz = np.zeros(0)
         self._qw = np.zeros(0)
-        self._path_last = np.zeros((0, 3))
-        self._path_has = np.zeros(0, dtype=bool)
-        # Per slot: the path's points (a row each, path_max_points + 1 rows), their count,
-        # and the same encoded points as _path_bytes.
-        self._path_points = np.zeros((0, self.path_max_points + 1, 3))
-        self._path_count = np.zeros(0, dtype=np.intp)
-        self._path_slot_bytes: list[bytearray | None] = []
+        self.trails = PathTrails(path_max_points, overview_points)
         self._sphere_cache: dict[tuple[str, Any, int], tuple[bytes, bytes, int]] = {}
         self._tf_ids: tuple[str, ...] | None = None
         self._tf_heads: list[bytes] = []
@@ -174,9 +216,15 @@ class FoxgloveScene:
         self._scene_templates: dict[int, Patched] = {}  # per timestamp length (_write_scene)
         self._next_scene = -math.inf
         self._next_path = -math.inf
+        self._next_overview = -math.inf
         self._next_tf = -math.inf
         self._last: tuple[float, list, list] | None = None
         self.messages_written = 0
+        self.compiled = False  # headings by a compiled kernel (the same bits)
+
+    def _kernels(self) -> ModuleType | None:
+        """The compiled writers once ``compiled`` is set (None before)."""
+        return record_kernels() if self.compiled else None
 
     # ------------------------------------------------------------------ low level
     def _write(self, topic: str, data: bytes, t: float):
@@ -201,14 +249,22 @@ class FoxgloveScene:
         scene_due = force or t >= self._next_scene - eps
         if scene_due:
             rows = rows or self._rows(agents)
-            self._sample_paths(t, rows)
+            self.trails.sample(rows.ids, rows.pos, rows.slots)
             self._write_scene(t, rows, obstacles)
             self._next_scene = t + self.scene_period
         if force or t >= self._next_path - eps:
             if not scene_due:
-                self._sample_paths(t, rows or self._rows(agents))
-            self._write_paths(t)
+                rows = rows or self._rows(agents)
+                self.trails.sample(rows.ids, rows.pos, rows.slots)
+            data = self.trails.chunks(timestamp_bytes(t))
+            if data is not None:
+                self._write(PATHS_TOPIC, data, t)
             self._next_path = t + self.path_period
+        if force or t >= self._next_overview - eps:
+            data = self.trails.overview(timestamp_bytes(t))
+            if data is not None:
+                self._write(OVERVIEW_TOPIC, data, t)
+            self._next_overview = t + self.overview_period
 
     def finish(self) -> None:
         """Write the last step seen (unthrottled) so the scene ends in the final state."""
@@ -240,13 +296,7 @@ class FoxgloveScene:
                 # No heading yet: the identity rotation (z = 0, w = 1); no path point yet.
                 self._qz = np.concatenate([self._qz, np.zeros(grow)])
                 self._qw = np.concatenate([self._qw, np.ones(grow)])
-                self._path_last = np.concatenate([self._path_last, np.full((grow, 3), np.nan)])
-                self._path_has = np.concatenate([self._path_has, np.zeros(grow, dtype=bool)])
-                self._path_points = np.concatenate(
-                    [self._path_points, np.zeros((grow,) + self._path_points.shape[1:])]
-                )
-                self._path_count = np.concatenate([self._path_count, np.zeros(grow, dtype=np.intp)])
-                self._path_slot_bytes += [None] * grow
+                self.trails.grow(grow)
             self._slot_ids = ids
             self._slots = np.array([self._slot[aid] for aid in ids], dtype=np.intp)
         return _Rows(ids, pos, vel, modes, self._slots)
@@ -270,8 +320,12 @@ class FoxgloveScene:
         # numbers are packed for all agents at once (pose_fields) and the message is one join.
         stamp = timestamp_bytes(t)
         vx, vy = rows.vel[:, 0], rows.vel[:, 1]
-        turning = np.flatnonzero((vx != 0.0) | (vy != 0.0))
-        if len(turning):
+        turning = () if self.compiled else np.flatnonzero((vx != 0.0) | (vy != 0.0))
+        if self.compiled:
+            record_kernels().headings(
+                np.ascontiguousarray(rows.vel, dtype=float), rows.slots, self._qz, self._qw
+            )
+        elif len(turning):
             # math's functions, as the per-agent encoder used them (numpy's may round otherwise).
             half = np.array(list(map(math.atan2, vy[turning].tolist(), vx[turning].tolist()))) / 2.0
             slots = rows.slots[turning]
@@ -290,7 +344,9 @@ class FoxgloveScene:
         usual = bool((rows.pos != 0.0).all() and (qz != 0.0).all() and (qw != 0.0).all())
         template = self._tf_templates.get(len(stamp)) if usual else None
         if template is not None:
-            self._write(TF_TOPIC, template.fill(stamp, np.column_stack((rows.pos, qz, qw))), t)
+            self._write(
+                TF_TOPIC, template.fill(stamp, np.column_stack((rows.pos, qz, qw)), self._kernels()), t
+            )
             return
         fields = pose_fields(rows.pos, qz, qw)
         shift = len(stamp) - self._tf_stamp_len
@@ -355,10 +411,38 @@ class FoxgloveScene:
         usual = bool((rows.pos != 0.0).all())
         template = self._scene_templates.get(len(stamp)) if usual else None
         if template is not None:
-            agents = template.fill(stamp, rows.pos)
+            agents = template.fill(stamp, rows.pos, self._kernels())
         else:
             agents = self._scene_agents(stamp, rows, usual)
         self._write(SCENE_TOPIC, agents + self._movers_bytes(t, stamp, obstacles or []), t)
+        self._write_speeds(t, rows)
+
+    def write_event(self, event: dict[str, Any]) -> None:
+        """The event as a ``foxglove.Log`` entry on ``/events/log`` (Foxglove's Log panel):
+        name the agent (``run`` for the run's own), message its kind and detail."""
+        t = float(event["t"])
+        ns = int(round(t * 1e9))
+        entry = Log(
+            level=_EVENT_LEVELS.get(event["kind"], Log.INFO),
+            message=f"{event['kind']} {json.dumps(event['detail'], separators=(',', ':'), default=str)}",
+            name=event["agent"] or "run",
+        )
+        entry.timestamp.seconds, entry.timestamp.nanos = divmod(ns, 1_000_000_000)
+        self._write(LOG_TOPIC, entry.SerializeToString(), t)
+
+    def _write_speeds(self, t: float, rows: _Rows) -> None:
+        """``/agents/speed``: every agent's speed (m/s, 6 decimals) and their mean and maximum,
+        for plots (Foxglove's Plot panel: ``/agents/speed.max``, ``/agents/speed.speed[:]``)."""
+        n = len(rows.ids)
+        if not n:
+            return
+        speed = np.round(np.sqrt((rows.vel * rows.vel).sum(axis=1)), 6)
+        if self._speed_text is None or self._speed_text[:2] != (n, self.compiled):
+            pieces = [b'{"t":', b',"mean":', b',"max":', b',"speed":['] + [b","] * (n - 1) + [b"]}"]
+            self._speed_text = (n, self.compiled, Interleaved(pieces, compiled=self.compiled))
+        values = np.concatenate(([round(t, 9), round(float(speed.mean()), 6), speed.max()], speed))
+        if np.isfinite(values).all():
+            self._write(SPEED_TOPIC, self._speed_text[2].fill(values), t)
 
     def _scene_agents(self, stamp: bytes, rows: _Rows, keep: bool) -> bytes:
         """The agents' entities of a /scene message (``keep``: store them as the template
@@ -386,33 +470,46 @@ class FoxgloveScene:
             )
         return agents
 
-    def _movers_bytes(self, t: float, stamp: bytes, obstacles: list[dict[str, Any]]) -> bytes:
+    def _movers_bytes(
+        self, t: float, stamp: bytes, obstacles: list[dict[str, Any]] | ObstacleStates
+    ) -> bytes:
         """The moving obstacles' entities of a /scene message. With one-primitive shapes only,
         an entity changes between steps in its timestamp and pose alone: the numbers go into
         a template per layout (Patched; which pose components are left out as +0.0 and the
         timestamp's length); other shapes are built through the protobuf API."""
-        known = [(o, self._obstacles.get(str(o["id"]))) for o in obstacles]
-        known = [(o, obst) for o, obst in known if obst is not None]
-        ids = tuple(str(o["id"]) for o, _ in known)
+        arrays = isinstance(obstacles, ObstacleStates)
+        ids = obstacles.ids if arrays else tuple(str(o["id"]) for o in obstacles)
         if ids != self._mover_ids:
             self._mover_ids = ids
-            self._mover_simple = all(obst.get("shape") in ONE_PRIMITIVE for _, obst in known)
-            self._mover_rest = [rest_orientation(obst) for _, obst in known]
+            self._mover_known = [self._obstacles.get(oid) for oid in ids]
+            known = [obst for obst in self._mover_known if obst is not None]
+            self._mover_simple = all(obst.get("shape") in ONE_PRIMITIVE for obst in known)
+            self._mover_rest = [rest_orientation(obst) for obst in known]
             self._mover_templates = {}
+        if arrays and self._mover_simple and all(o is not None for o in self._mover_known):
+            known = [(None, obst) for obst in self._mover_known]
+            values = np.empty((len(ids), 7))
+            values[:, :3] = obstacles.position
+            values[:, 3:] = obstacles.orientation
+        else:
+            entries = obstacles.dicts() if arrays else obstacles
+            known = [
+                (o, obst) for o, obst in zip(entries, self._mover_known, strict=True) if obst is not None
+            ]
+            values = None
+            if self._mover_simple:
+                rows = [
+                    [*o["position"][:3], *(q if (q := o.get("orientation")) is not None else rest)]
+                    for (o, _), rest in zip(known, self._mover_rest, strict=True)
+                ]
+                values = np.array(rows, dtype=float) if all(len(r) == 7 for r in rows) else None
+            if values is None:
+                return b"".join(
+                    _entity_record(obstacle_entity(obst, t, o["position"], o.get("orientation"), MOVING_RGBA))
+                    for o, obst in known
+                )
         if not known:
             return b""
-        values = None
-        if self._mover_simple:
-            rows = [
-                [*o["position"][:3], *(q if (q := o.get("orientation")) is not None else rest)]
-                for (o, _), rest in zip(known, self._mover_rest, strict=True)
-            ]
-            values = np.array(rows, dtype=float) if all(len(r) == 7 for r in rows) else None
-        if values is None:
-            return b"".join(
-                _entity_record(obstacle_entity(obst, t, o["position"], o.get("orientation"), MOVING_RGBA))
-                for o, obst in known
-            )
         present = (values != 0.0) | np.signbit(values)  # proto3 leaves out +0.0 only
         key = (len(stamp), present.tobytes())
         template = self._mover_templates.get(key)
@@ -423,77 +520,12 @@ class FoxgloveScene:
                 _entity_record(obstacle_entity(obst, t, list(v[:3]), list(v[3:]), MOVING_RGBA))
                 for (_, obst), v in zip(known, values.tolist(), strict=True)
             )
-        return template.fill(stamp, values[present])
+        return template.fill(stamp, values[present], self._kernels())
 
     def write_world(self, t: float = 0.0) -> None:
         """Static obstacles, bounds, terrain and goals on ``/scene/world`` at time ``t``."""
         entities = world_entities(self.world, list(self._obstacles.values()), t)
         self._write(WORLD_TOPIC, b"".join(map(_entity_record, entities)), t)
-
-    def _path_head(self, aid: str) -> bytes:
-        """A path entity's fixed fields (frame and entity ids)."""
-        head = self._path_heads.get(aid)
-        if head is None:
-            eid = f"path/{aid}".encode()
-            head = self._path_heads[aid] = (
-                b"\x12" + varint(len(FRAME)) + FRAME.encode() + b"\x1a" + varint(len(eid)) + eid
-            )
-        return head
-
-    def _sample_paths(self, t: float, rows: _Rows) -> None:
-        """Append the agents' current positions to their path lines, kept encoded (the
-        ``points`` fields of a LinePrimitive): only new points are converted. An agent whose
-        position equals its last point (standing) adds none."""
-        last = self._path_last[rows.slots]
-        same = self._path_has[rows.slots] & (last == rows.pos).all(axis=1)
-        new = np.flatnonzero(~same)
-        if not len(new):
-            return
-        slots = rows.slots[new]
-        self._path_last[slots] = rows.pos[new]
-        self._path_has[slots] = True
-        encoded = self._path_slot_bytes
-        room = self.path_max_points + 1 - self._path_points.shape[1]
-        if room > 0:  # path_max_points was raised after construction
-            self._path_points = np.pad(self._path_points, ((0, 0), (0, room), (0, 0)))
-        counts = self._path_count[slots]
-        for i in np.flatnonzero(counts == 0).tolist():  # first points: paths start (message order)
-            aid = rows.ids[new[i]]
-            self._paths[aid] = int(slots[i])
-            encoded[slots[i]] = self._path_bytes[aid] = bytearray()
-        self._path_points[slots, counts] = rows.pos[new]
-        counts += 1
-        self._path_count[slots] = counts
-        fields = vector_fields(0x2A, rows.pos[new])
-        full = counts > self.path_max_points
-        if not full.any():
-            list(map(bytearray.extend, [encoded[k] for k in slots.tolist()], fields))
-            return
-        for k, b, decimate in zip(slots.tolist(), fields, full.tolist(), strict=True):
-            if not decimate:
-                encoded[k].extend(b)
-                continue
-            # halve the resolution of the older part, keep the newest point; rebuild
-            pts = self._path_points[k, : self.path_max_points + 1]
-            kept = np.concatenate([pts[:-1:2], pts[-1:]])
-            self._path_points[k, : len(kept)] = kept
-            self._path_count[k] = len(kept)
-            encoded[k][:] = b"".join(point_bytes(tuple(q)) for q in kept.tolist())
-
-    def _write_paths(self, t):
-        # Each path is a SceneEntity with one LINE_STRIP, assembled from its encoded points
-        # between the line's fixed fields (1-4: type, pose, thickness, scale_invariant) and its
-        # colour (6), in field order as protobuf writes them (tests/test_foxglove_tf_bytes.py).
-        stamp = timestamp_bytes(t)
-        parts = []
-        for aid in self._paths:
-            pts = self._path_bytes[aid]
-            line_len = len(_LINE_HEAD) + len(pts) + len(_LINE_COLOR)
-            b = b"".join(
-                (stamp, self._path_head(aid), b"\x5a", varint(line_len), _LINE_HEAD, pts, _LINE_COLOR)
-            )
-            parts.append(_ENTITIES_TAG + varint(len(b)) + b)
-        self._write(PATHS_TOPIC, b"".join(parts), t)
 
 
 def _entity_record(e: SceneEntity) -> bytes:
@@ -535,20 +567,6 @@ class _Rows(NamedTuple):
     slots: np.ndarray  # (n,) per-agent state index
 
 
-def _line_fixed_fields() -> tuple[bytes, bytes]:
-    """The path line's fields before and after its points, serialized by protobuf itself."""
-    line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=2.0, scale_invariant=True)
-    set_pose(line.pose, (0.0, 0.0, 0.0))
-    color = Color()
-    set_color(color, PATH_RGBA)
-    c = color.SerializeToString()
-    return line.SerializeToString(), b"\x32" + varint(len(c)) + c
-
-
-PATH_RGBA = (0.12, 0.47, 0.71, 0.9)
-_LINE_HEAD, _LINE_COLOR = _line_fixed_fields()
-
-
 __all__ = [
     "FoxgloveScene",
     "file_descriptor_set",
@@ -556,5 +574,6 @@ __all__ = [
     "SCENE_TOPIC",
     "WORLD_TOPIC",
     "PATHS_TOPIC",
+    "OVERVIEW_TOPIC",
     "TF_TOPIC",
 ]

@@ -9,12 +9,17 @@ decimal with as few digits rounds to it, since the gap between two doubles there
 2**-20) is below 1e-6. Those digits come from digit tables for all values at once; any other
 value (more decimals, ``|x| < 1e-4``, which ``repr`` writes with an exponent, very large
 ones) goes through ``repr`` itself. :class:`Interleaved` places the numbers between fixed
-text (tests/test_json_floats.py checks the bytes against ``repr`` and ``json``).
+text (tests/test_json_floats.py checks the bytes against ``repr`` and ``json``); with
+``compiled`` set, one compiled pass writes the same bytes (:mod:`~swarmplan.io._record_kernels`).
 """
 
 from __future__ import annotations
 
+from types import ModuleType
+
 import numpy as np
+
+from swarmplan.runtime.compiled import kernel_module
 
 # A row per value: [sign] up to 10 integer digits (columns 1-10), "." (11), 6 fraction digits
 # (12-17); repr's text from column 0 for the other values (at most 24 characters).
@@ -64,16 +69,35 @@ def float_chars(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return chars, start, length
 
 
+def record_kernels() -> ModuleType:
+    """:mod:`swarmplan.io._record_kernels`, imported (and numba with it) at first use."""
+    return kernel_module("swarmplan.io._record_kernels")
+
+
 class Interleaved:
     """Text ``p0 v0 p1 v1 ... v(n-1) pn``: fixed pieces ``p`` around n numbers, written each
-    time as :func:`float_chars` gives them (one gather from the rows and the pieces)."""
+    time as :func:`float_chars` gives them (one gather from the rows and the pieces), or with
+    ``compiled`` set by one compiled pass (the same bytes; values it does not take, e.g. more
+    than 6 decimals, go the numpy way)."""
 
-    __slots__ = ("_n", "_pieces", "_seg_len", "_src", "_counter")
+    __slots__ = (
+        "_n",
+        "_pieces",
+        "_seg_len",
+        "_src",
+        "_counter",
+        "_piece_len",
+        "_piece_start",
+        "_out",
+        "compiled",
+    )
 
-    def __init__(self, pieces: list[bytes]):
+    def __init__(self, pieces: list[bytes], compiled: bool = False):
         n = self._n = len(pieces) - 1
         self._pieces = np.frombuffer(b"".join(pieces), dtype=np.uint8)
-        piece_len = np.array([len(p) for p in pieces], dtype=np.intp)
+        piece_len = self._piece_len = np.array([len(p) for p in pieces], dtype=np.intp)
+        self._out = np.empty(len(self._pieces) + 18 * n, dtype=np.uint8)
+        self.compiled = compiled
         self._seg_len = np.empty(2 * n + 1, dtype=np.intp)
         self._seg_len[0::2] = piece_len
         # where each segment's text is in [rows of the numbers, pieces]
@@ -81,12 +105,28 @@ class Interleaved:
         self._src[0::2] = n * _WIDTH + np.cumsum(piece_len) - piece_len
         self._src[1::2] = np.arange(n) * _WIDTH
         self._counter = np.arange(len(self._pieces) + n * _WIDTH, dtype=np.intp)
+        self._piece_start = np.cumsum(piece_len) - piece_len
+
+    def fill_compiled(self, values: np.ndarray) -> bytes | None:
+        """The text by the compiled pass; None when a value is not in its fast form (more than
+        6 decimals, an exponent, not finite)."""
+        values = np.ascontiguousarray(np.ravel(values), dtype=float)
+        if len(values) != self._n:
+            raise ValueError(f"{self._n} numbers expected, got {len(values)}")
+        size = record_kernels().interleave(
+            self._pieces, self._piece_start, self._piece_len, values, self._out
+        )
+        return self._out[:size].tobytes() if size >= 0 else None
 
     def fill(self, values: np.ndarray) -> bytes:
         """The text with ``values`` (n numbers, any shape, row-major) in place."""
         values = np.ravel(values)
         if len(values) != self._n:
             raise ValueError(f"{self._n} numbers expected, got {len(values)}")
+        if self.compiled:
+            out = self.fill_compiled(values)
+            if out is not None:
+                return out
         chars, start, length = float_chars(values)
         seg_len = self._seg_len
         seg_len[1::2] = length

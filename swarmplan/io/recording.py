@@ -1,9 +1,10 @@
-"""MCAP recording of a run, per ``shared/spec/log-format.md``.
+"""MCAP recording of a run, per the log format (docs/log-format.md).
 
 JSON channels with ``jsonschema`` schemas, timestamps in simulation nanoseconds, zstd
-chunks. The writer is flushed every ``flush_interval`` simulated seconds so a hard kill
-loses at most about that much; ``close`` always finishes the file (use the recorder as a
-context manager). Foxglove's protobuf scene channels are written alongside when enabled.
+chunks, written by foxglove-sdk (``swarmplan.io.sink``, which also serves them live with
+``live=(host, port)``). The writer is flushed every ``flush_interval`` simulated seconds so a
+hard kill loses at most about that much; ``close`` always finishes the file (use the recorder
+as a context manager). Foxglove's protobuf scene channels are written alongside when enabled.
 """
 
 from __future__ import annotations
@@ -15,11 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from mcap.writer import CompressionType, Writer
 
-from swarmplan.core import AgentStates, Mode
+from swarmplan.core import AgentStates, Mode, ObstacleStates
+from swarmplan.geometry.compiled import use_compiled
 from swarmplan.io.foxglove_scene import FoxgloveScene
 from swarmplan.io.json_floats import Interleaved
+from swarmplan.io.sink import LogSink
 
 _NUM3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 
@@ -156,6 +158,7 @@ class _StateEncoder:
     then the ``repr`` of every number (``%r``) most of what remained."""
 
     def __init__(self) -> None:
+        self.compiled = False  # write the numbers in one compiled pass (same bytes)
         self._key: tuple[tuple[str, ...], bytes] | None = None
         self._heads: list[str] = []  # per agent: '{"id":..,"position":['
         self._goals: list[str] = []  # per agent: ',"goal":[..]}'
@@ -166,8 +169,8 @@ class _StateEncoder:
         """The message's bytes, or None when a value is not finite (the caller then goes
         through ``json``, which refuses it as before)."""
         pos, vel = agents.position, agents.velocity
-        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
-            return None
+        if not self.compiled and not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            return None  # (compiled: the numbers' pass refuses them, then the check below)
         goal = np.ascontiguousarray(agents.goal, dtype=float)
         key = (agents.ids, goal.tobytes())
         if key != self._key:
@@ -177,6 +180,8 @@ class _StateEncoder:
             ]
             self._key, self._modes = key, None
         modes = agents.mode.tolist()
+        if self.compiled and not (isinstance(self._text, Interleaved) and self._text.compiled):
+            self._modes = None
         if modes != self._modes:
             # the text before each number: t first, then x, y, z, vx, vy, vz of every agent
             text = ['{"t":', ',"agents":[']
@@ -187,8 +192,8 @@ class _StateEncoder:
                 text[-1] += "," if i < len(modes) - 1 else ""
             text[-1] += "]}"
             self._modes = modes
-            if len(text) - 1 >= _NUMPY_FROM:
-                self._text = Interleaved([p.encode() for p in text])
+            if self.compiled or len(text) - 1 >= _NUMPY_FROM:
+                self._text = Interleaved([p.encode() for p in text], compiled=self.compiled)
             else:
                 self._text = "%r".join(p.replace("%", "%%") for p in text)
         n = len(agents.ids)
@@ -198,6 +203,45 @@ class _StateEncoder:
         rows[:, 0:3], rows[:, 3:6] = pos, vel
         if isinstance(self._text, str):
             return (self._text % tuple(values.tolist())).encode()
+        if self._text.compiled:
+            data = self._text.fill_compiled(values)
+            if data is not None:
+                return data
+            if not np.isfinite(values).all():
+                return None
+        return self._text.fill(values)
+
+
+class _ObstacleEncoder:
+    """``/obstacles/state`` from :class:`ObstacleStates`: the text around the numbers (ids and
+    the fixed orientations) once per set of movers, then t, positions and velocities written
+    into it (:class:`~swarmplan.io.json_floats.Interleaved`); the bytes ``json.dumps`` gives."""
+
+    def __init__(self) -> None:
+        self.compiled = False
+        self._key: tuple[tuple[str, ...], bool] | None = None
+        self._text: Interleaved | None = None
+
+    def encode(self, t: float, obstacles: ObstacleStates) -> bytes | None:
+        pos, vel = obstacles.position, obstacles.velocity
+        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            return None
+        key = (obstacles.ids, self.compiled)
+        if key != self._key or self._text is None:
+            text = ['{"t":', ',"obstacles":[']
+            for i, (oid, q) in enumerate(zip(obstacles.ids, obstacles.orientation, strict=True)):
+                text[-1] += f'{{"id":{json.dumps(oid)},"position":['
+                orientation = json.dumps(q, separators=(",", ":"), allow_nan=False)
+                text += [",", ",", f'],"orientation":{orientation},"velocity":[', ",", ","]
+                text.append("]}" + ("," if i < len(obstacles.ids) - 1 else ""))
+            text[-1] += "]}"
+            self._text = Interleaved([p.encode() for p in text], compiled=self.compiled)
+            self._key = key
+        n = len(obstacles.ids)
+        values = np.empty(1 + 6 * n)
+        values[0] = round(t, 9)
+        rows = values[1:].reshape(n, 6)
+        rows[:, 0:3], rows[:, 3:6] = pos, vel
         return self._text.fill(values)
 
 
@@ -219,12 +263,18 @@ def _clean(x: Any) -> Any:
 class McapRecorder:
     """Writes one run to ``path``. Use ``with McapRecorder(...) as rec:`` so the file is always finished."""
 
-    def __init__(self, path: str | Path, flush_interval: float = 1.0, foxglove: bool = True):
+    def __init__(
+        self,
+        path: str | Path,
+        flush_interval: float = 1.0,
+        foxglove: bool = True,
+        live: tuple[str, int] | None = None,
+    ):
+        """``live=(host, port)``: also serve every channel live (Foxglove WebSocket protocol;
+        port 0: a free one, see :attr:`live_port`)."""
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb")
-        self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
-        self._writer.start(profile="", library="swarmplan")
+        self._writer = LogSink(self.path, live)
         self._channels: dict[str, int] = {}
         for topic, schema in SCHEMAS.items():
             self.add_json_channel(topic, schema)
@@ -234,8 +284,15 @@ class McapRecorder:
         self._scene = None
         self._last_t = 0.0
         self._states = _StateEncoder()
-        self._sequence = 0
+        self._obstacle_text = _ObstacleEncoder()
+        self._states_written = 0
+        self._compiled = False  # set by the world's size (write_world)
         self.closed = False
+
+    @property
+    def live_port(self) -> int | None:
+        """The live view's port (None when not served)."""
+        return self._writer.port
 
     def add_json_channel(self, topic: str, schema: dict[str, Any]) -> None:
         """Register a JSON channel (``schema["title"]`` names its JSON schema) beside the contract's."""
@@ -259,11 +316,7 @@ class McapRecorder:
 
     def write_bytes(self, topic: str, t: float, data: bytes) -> None:
         """One already-serialized message (e.g. protobuf) on a registered channel."""
-        ns = _ns(t)
-        self._sequence += 1
-        self._writer.add_message(
-            self._channels[topic], log_time=ns, data=data, publish_time=ns, sequence=self._sequence
-        )
+        self._writer.add_message(self._channels[topic], _ns(t), data)
 
     def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
         # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
@@ -272,30 +325,47 @@ class McapRecorder:
 
     def write_world(self, world: dict[str, Any]) -> None:
         self._write("/world", 0.0, world)
+        # Swarm-sized worlds write the per-step numbers compiled, as their step runs compiled.
+        self._compiled = use_compiled(len(world.get("agents") or []))
         if self._foxglove_enabled:
             self._scene = FoxgloveScene(self._writer, world)
             self._scene.write_world()
 
-    def write_state(self, t: float, agents: Sequence[dict], obstacles: list[dict] | None) -> None:
+    def write_state(
+        self, t: float, agents: Sequence[dict], obstacles: ObstacleStates | list[dict] | None
+    ) -> None:
         self._last_t = t
+        self._states_written += 1
+        self._writer.tick(_ns(t))
+        if self._states_written == 3 and self._compiled:
+            # from the second step on (the first one and start-up stay without numba's load)
+            self._states.compiled = self._obstacle_text.compiled = True
+            if self._scene is not None:
+                self._scene.compiled = True
         data = self._states.encode(t, agents) if isinstance(agents, AgentStates) else None
         if data is not None:
             self.write_bytes("/agents/state", t, data)
         else:
-            if isinstance(agents, AgentStates):
-                agents = agents.dicts()
-            self._write("/agents/state", t, {"t": round(t, 9), "agents": agents}, clean=False)
+            entries = agents.dicts() if isinstance(agents, AgentStates) else agents
+            self._write("/agents/state", t, {"t": round(t, 9), "agents": entries}, clean=False)
         if obstacles is not None:
-            self._write("/obstacles/state", t, {"t": round(t, 9), "obstacles": obstacles}, clean=False)
+            moving = isinstance(obstacles, ObstacleStates)
+            data = self._obstacle_text.encode(t, obstacles) if moving else None
+            if data is not None:
+                self.write_bytes("/obstacles/state", t, data)
+            else:
+                entries = obstacles.dicts() if moving else obstacles
+                self._write("/obstacles/state", t, {"t": round(t, 9), "obstacles": entries}, clean=False)
         if self._scene is not None:
-            self._scene.write_step(t, agents, obstacles or [])
+            self._scene.write_step(t, agents, obstacles if obstacles is not None else [])
         if t - self._last_flush >= self._flush_interval - 1e-9:
             self._writer.flush()
-            self._file.flush()
             self._last_flush = t
 
     def write_event(self, event: dict[str, Any]) -> None:
         self._write("/events", float(event["t"]), event)
+        if self._scene is not None:
+            self._scene.write_event(event)
 
     def write_optimizer(self, msg: dict[str, Any]) -> None:
         self._write("/optimizer", float(msg["t"]), msg)
@@ -310,9 +380,8 @@ class McapRecorder:
         try:
             if self._scene is not None:
                 self._scene.finish()  # the last throttled scene update
-            self._writer.finish()
         finally:
-            self._file.close()
+            self._writer.close()
 
     def __enter__(self) -> McapRecorder:
         return self

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import struct
+from types import ModuleType
 
 import numpy as np
 from google.protobuf.descriptor_pb2 import FileDescriptorSet
@@ -163,16 +164,24 @@ class Patched:
     starts, in the order of the values given to :meth:`fill` (e.g. (n, k) for k per record).
     Every byte that can change is overwritten by ``fill``, so the template is filled in place."""
 
-    __slots__ = ("_buf", "_stamp_idx", "_value_idx")
+    __slots__ = ("_buf", "_stamp_at", "_double_at", "_stamp_idx", "_value_idx")
 
     def __init__(self, message: bytes, stamp_at: np.ndarray, stamp_len: int, double_at: np.ndarray):
         self._buf = np.frombuffer(message, dtype=np.uint8).copy()
-        self._stamp_idx = np.asarray(stamp_at, dtype=np.intp)[:, None] + np.arange(stamp_len)
-        at = np.asarray(double_at, dtype=np.intp).ravel()
-        self._value_idx = (at[:, None] + np.arange(8)).ravel()
+        self._stamp_at = np.asarray(stamp_at, dtype=np.intp)
+        self._double_at = np.asarray(double_at, dtype=np.intp).ravel()
+        self._stamp_idx = self._stamp_at[:, None] + np.arange(stamp_len)
+        self._value_idx = (self._double_at[:, None] + np.arange(8)).ravel()
 
-    def fill(self, stamp: bytes, values: np.ndarray) -> bytes:
-        """The message with ``stamp`` and ``values`` (as little-endian doubles) in place."""
+    def fill(self, stamp: bytes, values: np.ndarray, kernels: ModuleType | None = None) -> bytes:
+        """The message with ``stamp`` and ``values`` (as little-endian doubles) in place; with
+        ``kernels`` (``swarmplan.io._record_kernels``) written by its compiled ``patch``."""
+        if kernels is not None:
+            flat = np.ascontiguousarray(values, dtype="<f8").ravel()
+            kernels.patch(
+                self._buf, self._stamp_at, np.frombuffer(stamp, dtype=np.uint8), self._double_at, flat
+            )
+            return self._buf.tobytes()
         buf = self._buf
         buf[self._stamp_idx] = np.frombuffer(stamp, dtype=np.uint8)
         buf[self._value_idx] = np.ascontiguousarray(values, dtype="<f8").view(np.uint8).ravel()

@@ -4,8 +4,9 @@ Each step, for every flying agent at once: potential-field command (or segment f
 while escaping/smoothing) → kinematic limits → a swept FCL safety check of the step
 (alternative feasible commands when the step would touch something) → the committed
 step is checked again (contact ends the agent) → arrival, stuck and near-miss detection
-→ recording. ``terminated`` means every agent arrived, collided or failed; ``truncated``
-means the world's ``sim.max_time`` ran out.
+→ the step's result (everything a log needs: states, events, optimizer runs; the simulation
+writes nothing itself, observers of the results do). ``terminated`` means every agent
+arrived, collided or failed; ``truncated`` means the world's ``sim.max_time`` ran out.
 
 This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.scene`
 (obstacles, distances), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection),
@@ -21,7 +22,18 @@ from typing import Any, Literal
 
 import numpy as np
 
-from swarmplan.core import AgentStates, Event, Mode, Planner, Recorder, StepResult, StuckOutcome, SwarmState
+from swarmplan.core import (
+    AgentStates,
+    Event,
+    Mode,
+    ObstacleStates,
+    OptimizerRun,
+    Planner,
+    ResetResult,
+    StepResult,
+    StuckOutcome,
+    SwarmState,
+)
 from swarmplan.flight.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
 from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
@@ -37,7 +49,8 @@ from swarmplan.world.model import World
 
 
 class Simulation:
-    """One run of a world; ``recorder`` (optional) logs it.
+    """One run of a world. It records nothing: :meth:`start` and :meth:`step` return everything
+    a log needs (see ``swarmplan.io.runner``, whose observers write it).
 
     ``planner`` plans global routes, escapes and smoothing: by default (``"world"``) the
     world's own ``planner.optimizer``, as the command line flies it; ``"none"`` (or None) is
@@ -48,7 +61,6 @@ class Simulation:
         self,
         world: World,
         planner: Planner | Literal["world", "none"] | None = "world",
-        recorder: Recorder | None = None,
     ):
         self.world = world
         if planner == "world":
@@ -58,7 +70,6 @@ class Simulation:
         elif isinstance(planner, str):
             raise ValueError(f"planner: expected 'world', 'none' or a Planner, got {planner!r}")
         self.planner = planner
-        self.recorder = recorder
         self.params = AgentParams.from_world(world)
         self.gains = ApfGains.from_world(world)
         self.scene = Scene(world, self.params)
@@ -77,15 +88,22 @@ class Simulation:
         self.metrics: RunMetrics | None = None
         self.wall_start = 0.0
         self._events: list[Event] = []  # the running step's events (see note_event)
-        self._planning_before_flight = False
+        self._optimizer_runs: list[OptimizerRun] = []  # the running step's (see record_optimizer)
+        self._records: list[OptimizerRun | Event] | None = None  # planning before flight, in order
 
     # ------------------------------------------------------------------ lifecycle
 
     def reset(self, seed: int | None = None) -> SwarmState:
         """Start the run at t = 0 with ``seed`` (default: the world's seed)."""
+        return self.start(seed).state
+
+    def start(self, seed: int | None = None) -> ResetResult:
+        """:meth:`reset`, with what it produced for observers: the ``/world`` message, the
+        optimizer runs and events of planning before flight, the entries at t = 0."""
         self.seed = self.world.seed if seed is None else int(seed)
         self._streams = {}
         self._events = []
+        self._optimizer_runs = []
         start = np.array([a.start for a in self.world.agents], dtype=float)
         goal = np.array([a.goal for a in self.world.agents], dtype=float)
         self.state = SwarmState(
@@ -106,20 +124,19 @@ class Simulation:
         self.near_misses = NearMisses(self.params)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.wall_start = time.perf_counter()
-        if self.recorder is not None:
-            self.recorder.write_world(self.world.to_message(self.seed))
+        world_message = self.world.to_message(self.seed)
+        records: list[OptimizerRun | Event] = []
         if self.planner is not None:
-            self._planning_before_flight = True  # its events are logged as they come (see note_event)
+            self._records = records  # its runs and events in the order they come (note_event)
             try:
                 routes = self.planner.on_reset(self)
             finally:
-                self._planning_before_flight = False
+                self._records = None
             for i, route in routes.items():
                 self.state.route[i] = np.asarray(route, dtype=float)
             self.navigator.reset(self.state)
-        if self.recorder is not None:
-            self.recorder.write_state(0.0, self._agent_states(), self.scene.obstacle_dicts(0.0))
-        return self.state
+        agents, obstacles = self._agent_states(), self._obstacle_states(0.0)
+        return ResetResult(self.state, world_message, records, agents, obstacles)
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
         """The random stream of one purpose (e.g. 'escape') for one agent, seeded from the run's
@@ -137,37 +154,35 @@ class Simulation:
     def record_optimizer(
         self, agent: int | None, purpose: str, algorithm: str, result: Any, t: float | None = None
     ) -> None:
-        """Log one optimizer run (a ``swarmplan.optimizers.Result``) on ``/optimizer`` and in the metrics."""
+        """One optimizer run (a ``swarmplan.optimizers.Result``): in the metrics, and in the running
+        step's result (``optimizer_runs``; before flight: the reset's ``records``)."""
         wall_ms = float(result.wall_time) * 1000.0
         if agent is not None and purpose == "escape":
             self.metrics.escape_ms[agent].append(wall_ms)
         if agent is not None:
             self.metrics.optimizer_runs[agent] += 1
-        if self.recorder is not None:
-            self.recorder.write_optimizer(
-                {
-                    "t": round(self.state.t if t is None else t, 9),
-                    "agent": None if agent is None else self.ids[agent],
-                    "algorithm": algorithm,
-                    "purpose": purpose,
-                    "evaluations": int(result.evaluations),
-                    "iterations": int(result.iterations),
-                    "best_cost": float(result.f),
-                    "wall_ms": round(wall_ms, 3),
-                    "convergence": [float(x) for x in result.history],
-                }
-            )
+        run = OptimizerRun(
+            t=round(self.state.t if t is None else t, 9),
+            agent=None if agent is None else self.ids[agent],
+            algorithm=algorithm,
+            purpose=purpose,
+            evaluations=int(result.evaluations),
+            iterations=int(result.iterations),
+            best_cost=float(result.f),
+            wall_ms=round(wall_ms, 3),
+            convergence=[float(x) for x in result.history],
+        )
+        (self._optimizer_runs if self._records is None else self._records).append(run)
 
     def note_event(self, agent: int | None, kind: str, detail: dict[str, Any]) -> None:
         """An event the planner reports during ``step()`` (recorded with that step's events)."""
         if self.state is None:
             raise RuntimeError("call reset() before note_event()")
         event = Event(self.state.t, None if agent is None else self.ids[agent], kind, detail)
-        if self._planning_before_flight:
-            # Before the first step there is no step to carry it: it goes to the log at t = 0,
+        if self._records is not None:
+            # Before the first step there is no step to carry it: it goes out with the reset,
             # between the optimizer runs it follows.
-            if self.recorder is not None:
-                self.recorder.write_event(event.to_json())
+            self._records.append(event)
             return
         self._events.append(event)
 
@@ -305,11 +320,9 @@ class Simulation:
                 distance = round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6)
                 events.append(Event(t1, self.ids[i], "timeout", {"distance_to_goal": distance}))
         self._events = []
-        if self.recorder is not None:
-            self.recorder.write_state(t1, self._agent_states(), self.scene.obstacle_dicts(t1))
-            for e in events:
-                self.recorder.write_event(e.to_json())
-        return StepResult(s, events, terminated, truncated)
+        runs, self._optimizer_runs = self._optimizer_runs, []
+        agents, obstacles = self._agent_states(), self._obstacle_states(t1)
+        return StepResult(s, events, terminated, truncated, agents, obstacles, runs)
 
     # ------------------------------------------------------------------ reports
 
@@ -318,9 +331,13 @@ class Simulation:
         return distance_to_go(self.state)
 
     def _agent_states(self) -> AgentStates:
-        """The ``/agents/state`` entries, as arrays (no dict per agent: the recorder encodes them)."""
+        """The ``/agents/state`` entries, as arrays (no dict per agent: a log encodes them directly)."""
         s = self.state
         return AgentStates(self.ids, np.round(s.position, 6), np.round(s.velocity, 6), s.mode.copy(), s.goal)
+
+    def _obstacle_states(self, t: float) -> ObstacleStates | None:
+        """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
+        return self.scene.obstacle_states(t)
 
     def summary(self, interrupted: bool = False) -> dict[str, Any]:
         """Per-agent and overall metrics for ``/summary`` and the CLI table."""

@@ -3,10 +3,9 @@ field for the potential field and clearances, which obstacles move, and their po
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
+from swarmplan.core import ObstacleStates
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import CollisionWorld
@@ -35,6 +34,7 @@ class Scene:
         self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
         self._moving = world.moving_obstacles
         self._moving_idx = np.flatnonzero(self.moving_mask)
+        self._moving_ids = tuple(o.id for o in self._moving)
         self._static_pos = np.array([o.position for o in world.obstacles], dtype=float).reshape(-1, 3)
         self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self.moving_quat = [
@@ -88,16 +88,11 @@ class Scene:
         # Through a k-d tree: equal to the all-pairs minimum (tests/test_geometry_neighbours.py).
         return agent_clearance_indexed(pos, self.params.radius)
 
-    def obstacle_dicts(self, t: float) -> list[dict[str, Any]] | None:
+    def obstacle_states(self, t: float) -> ObstacleStates | None:
         """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
         moving = self._moving
         if not moving:
             return None
         pos, vel = self.poses(t)
         pos, vel = pos[self._moving_idx], vel[self._moving_idx]
-        pos = np.round(pos, 6).tolist()
-        vel = np.round(vel, 6).tolist()
-        return [
-            {"id": o.id, "position": pos[k], "orientation": self.moving_quat[k], "velocity": vel[k]}
-            for k, o in enumerate(moving)
-        ]
+        return ObstacleStates(self._moving_ids, np.round(pos, 6), self.moving_quat, np.round(vel, 6))

@@ -8,7 +8,7 @@ plus small facts (message counts per topic, last state time, event kinds) that h
 where a mismatch starts. The digest covers the log's content - header, schemas, channels and
 every message (channel, times, sequence, payload) in file order - not the container's bytes:
 the zstd chunks' compressed bytes change with the zstandard release while the log they hold
-does not.
+does not; likewise the header's ``library`` (the writer's name and version) is left out.
 
 Re-store after a deliberate behaviour change (and say so in the commit message)::
 
@@ -80,7 +80,7 @@ def describe(path: Path) -> dict[str, Any]:
     with path.open("rb") as f:
         reader = make_reader(f)
         header = reader.get_header()
-        digest.update(repr((header.profile, header.library)).encode())
+        digest.update(repr(header.profile).encode())
         seen_channels: set[int] = set()
         for schema, channel, message in reader.iter_messages(log_time_order=False):
             if channel.id not in seen_channels:

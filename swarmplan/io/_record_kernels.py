@@ -1,0 +1,124 @@
+"""Compiled (numba) pieces of the recorder's per-step messages, loaded through
+:func:`swarmplan.io.json_floats.record_kernels` for swarm-sized worlds.
+
+:func:`interleave` writes JSON text with numbers between fixed pieces, each number as
+``repr`` writes it when it is a multiple of 1e-6 below 2**33 (what ``round(x, 6)`` gives:
+``[-]int.frac`` without the fraction's trailing zeros, and below 1e-4 ``repr``'s exponent form,
+``5e-06``, ``1.2e-05``); any other value makes it give up (-1) and the numpy path writes the
+message. :func:`headings` turns horizontal
+velocities into yaw quaternions with the C library's ``atan2``, ``sin`` and ``cos``, as
+Python's ``math`` does (tests/test_record_kernels.py compares the bits). :func:`patch` writes
+a step's timestamp and numbers into a protobuf message's bytes (``wire.Patched``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_LIMIT = 2.0**33
+_ZERO, _DOT, _MINUS = 48, 46, 45
+_EXP = np.frombuffer(b"e-0", dtype=np.uint8).copy()  # and the exponent's last digit
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def interleave(
+    pieces: np.ndarray, piece_start: np.ndarray, piece_len: np.ndarray, values: np.ndarray, out: np.ndarray
+) -> int:
+    """``p0 v0 p1 v1 ... pn`` into ``out`` (uint8, room for the pieces and 18 bytes per value):
+    its length, or -1 when a value does not have the fast form."""
+    n = len(values)
+    pos = 0
+    for i in range(n + 1):
+        s = piece_start[i]
+        for j in range(piece_len[i]):
+            out[pos + j] = pieces[s + j]
+        pos += piece_len[i]
+        if i == n:
+            break
+        x = values[i]
+        ax = abs(x)
+        if not ax < _LIMIT:  # NaN too
+            return -1
+        k = np.rint(ax * 1e6)
+        if k / 1e6 != ax:
+            return -1
+        ki = np.int64(k)
+        whole, frac = ki // 1000000, ki % 1000000
+        if math.copysign(1.0, x) < 0.0:
+            out[pos] = _MINUS
+            pos += 1
+        if 0 < ki < 100:  # below 1e-4 repr writes an exponent: d e-06, d e-05 or d.d e-05
+            if ki < 10:
+                out[pos] = _ZERO + ki
+                pos += 1
+                exp = 6
+            else:
+                out[pos] = _ZERO + ki // 10
+                pos += 1
+                if ki % 10:
+                    out[pos] = _DOT
+                    out[pos + 1] = _ZERO + ki % 10
+                    pos += 2
+                exp = 5
+            for j in range(3):
+                out[pos + j] = _EXP[j]
+            out[pos + 3] = _ZERO + exp
+            pos += 4
+            continue
+        digits = 1
+        w = whole
+        while w >= 10:
+            w //= 10
+            digits += 1
+        w = whole
+        for d in range(digits - 1, -1, -1):
+            out[pos + d] = _ZERO + w % 10
+            w //= 10
+        pos += digits
+        out[pos] = _DOT
+        pos += 1
+        if frac == 0:
+            out[pos] = _ZERO
+            pos += 1
+            continue
+        kept = 6
+        while frac % 10 == 0:
+            frac //= 10
+            kept -= 1
+        for d in range(kept - 1, -1, -1):
+            out[pos + d] = _ZERO + frac % 10
+            frac //= 10
+        pos += kept
+    return pos
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def headings(vel: np.ndarray, slots: np.ndarray, qz: np.ndarray, qw: np.ndarray) -> None:
+    """Per agent moving horizontally: the yaw along its velocity as the quaternion (0, 0, qz, qw)
+    at its slot; the others keep their last heading."""
+    for i in range(len(slots)):
+        vx, vy = vel[i, 0], vel[i, 1]
+        if vx != 0.0 or vy != 0.0:
+            half = math.atan2(vy, vx) / 2.0
+            qz[slots[i]] = math.sin(half)
+            qw[slots[i]] = math.cos(half)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def patch(
+    buf: np.ndarray, stamp_at: np.ndarray, stamp: np.ndarray, double_at: np.ndarray, values: np.ndarray
+) -> None:
+    """``stamp`` (bytes as uint8) at every ``stamp_at`` and each value's 8 little-endian bytes at
+    its ``double_at`` in ``buf`` (what ``swarmplan.io.wire.Patched.fill`` scatters with numpy)."""
+    for i in range(len(stamp_at)):
+        at = stamp_at[i]
+        for j in range(len(stamp)):
+            buf[at + j] = stamp[j]
+    raw = values.view(np.uint8)
+    for i in range(len(double_at)):
+        at = double_at[i]
+        for j in range(8):
+            buf[at + j] = raw[8 * i + j]

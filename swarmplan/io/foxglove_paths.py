@@ -1,0 +1,153 @@
+"""Flown paths for the Foxglove scene, sent as they grow (every message bounded by the run's
+length, not growing with it).
+
+``/scene/paths``: per agent with new points since the last message, one line strip entity
+``path/<id>/<k>`` (k = 0, 1, ...) holding those points, from the previous chunk's last point
+on, so the chunks join into the whole path in the 3D panel (entities without a lifetime stay).
+``/scene/paths/overview``: every agent's whole path as ``path/<id>``, at most
+``overview_points`` points evenly spaced over the kept ones (the i-th of m of n kept:
+index round(i (n - 1) / (m - 1)), halves up; kept: at most ``max_points``,
+the older half's resolution halved when full), drawn thinner: after a seek, Foxglove restores
+each topic from its latest message, and the overview draws every path whole again.
+
+The entities are assembled in protobuf's wire format from the points encoded all at once
+(``swarmplan.io.wire.vector_fields``), the bytes protobuf's own serializer gives
+(tests/test_foxglove_tf_bytes.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+
+from swarmplan.io.foxglove_shapes import FRAME, set_color, set_pose
+from swarmplan.io.wire import varint, vector_fields
+
+PATH_RGBA = (0.12, 0.47, 0.71, 0.9)
+PATH_THICKNESS = 2.0  # px (scale invariant); the overview is drawn at half of it
+_ENTITIES_TAG = b"\x12"  # SceneUpdate.entities
+_POINTS_TAG = 0x2A  # LinePrimitive.points: field 5, wire type 2
+_FRAME_FIELD = b"\x12" + varint(len(FRAME)) + FRAME.encode()  # SceneEntity.frame_id
+
+
+def _line_fixed_fields(thickness: float) -> tuple[bytes, bytes]:
+    """A path line's fields before its points (1-4: type, pose, thickness, scale_invariant) and
+    after them (6: colour), serialized by protobuf itself."""
+    line = LinePrimitive(type=LinePrimitive.LINE_STRIP, thickness=thickness, scale_invariant=True)
+    set_pose(line.pose, (0.0, 0.0, 0.0))
+    color = Color()
+    set_color(color, PATH_RGBA)
+    c = color.SerializeToString()
+    return line.SerializeToString(), b"\x32" + varint(len(c)) + c
+
+
+_LINE_HEAD, _LINE_COLOR = _line_fixed_fields(PATH_THICKNESS)
+_OVERVIEW_HEAD, _ = _line_fixed_fields(PATH_THICKNESS / 2)
+
+
+def _line_entity(stamp: bytes, eid: bytes, points: bytes, head: bytes) -> bytes:
+    """A ``SceneUpdate.entities`` record: an entity with one line strip of the encoded ``points``."""
+    line_len = len(head) + len(points) + len(_LINE_COLOR)
+    ids = _FRAME_FIELD + b"\x1a" + varint(len(eid)) + eid
+    b = b"".join((stamp, ids, b"\x5a", varint(line_len), head, points, _LINE_COLOR))
+    return _ENTITIES_TAG + varint(len(b)) + b
+
+
+class PathTrails:
+    """The agents' paths by slot (an index per agent, given by the scene): :meth:`sample` each
+    scene update, :meth:`chunks` and :meth:`overview` give the messages' bytes."""
+
+    def __init__(self, max_points: int = 400, overview_points: int = 32):
+        self.max_points = max(4, int(max_points))
+        self.overview_points = max(2, int(overview_points))
+        self.order: dict[str, int] = {}  # agents with a path, in the order they started -> slot
+        self.last = np.zeros((0, 3))  # per slot: the last point (the next chunk starts there)
+        self.has = np.zeros(0, dtype=bool)
+        self.points = np.zeros((0, self.max_points + 1, 3))  # per slot: kept points
+        self.count = np.zeros(0, dtype=np.intp)
+        self.chunk_index = np.zeros(0, dtype=np.intp)
+        self._sent_last = np.zeros((0, 3))  # per slot: the last point of its last chunk
+        self._pending: list[tuple[np.ndarray, np.ndarray]] = []  # (slots, points) since the last chunks
+
+    def grow(self, k: int) -> None:
+        """Room for ``k`` more slots."""
+        self.last = np.concatenate([self.last, np.full((k, 3), np.nan)])
+        self.has = np.concatenate([self.has, np.zeros(k, dtype=bool)])
+        self.points = np.concatenate([self.points, np.zeros((k,) + self.points.shape[1:])])
+        self.count = np.concatenate([self.count, np.zeros(k, dtype=np.intp)])
+        self.chunk_index = np.concatenate([self.chunk_index, np.zeros(k, dtype=np.intp)])
+        self._sent_last = np.concatenate([self._sent_last, np.zeros((k, 3))])
+
+    def sample(self, ids: tuple[str, ...], pos: np.ndarray, slots: np.ndarray) -> None:
+        """Append the agents' positions to their paths; an agent standing on its last point adds none."""
+        same = self.has[slots] & (self.last[slots] == pos).all(axis=1)
+        new = np.flatnonzero(~same)
+        if not len(new):
+            return
+        s, p = slots[new], pos[new]
+        for i in np.flatnonzero(~self.has[s]).tolist():  # first points: paths start (message order)
+            self.order[ids[new[i]]] = int(s[i])
+        self._pending.append((s, p.copy()))
+        self.last[s] = p
+        self.has[s] = True
+        room = self.max_points + 1 - self.points.shape[1]
+        if room > 0:  # max_points was raised after construction
+            self.points = np.pad(self.points, ((0, 0), (0, room), (0, 0)))
+        counts = self.count[s]
+        self.points[s, counts] = p
+        counts += 1
+        self.count[s] = counts
+        for k in s[counts > self.max_points].tolist():
+            # halve the resolution of the older part, keep the newest point
+            pts = self.points[k, : self.max_points + 1]
+            kept = np.concatenate([pts[:-1:2], pts[-1:]])
+            self.points[k, : len(kept)] = kept
+            self.count[k] = len(kept)
+
+    def chunks(self, stamp: bytes) -> bytes | None:
+        """The ``/scene/paths`` message: per agent with new points, its next chunk (None: none new)."""
+        if not self._pending:
+            return None
+        slots = np.concatenate([s for s, _ in self._pending])
+        pts = np.concatenate([p for _, p in self._pending])
+        self._pending = []
+        by_slot = np.argsort(slots, kind="stable")  # each slot's points in the order they came
+        slots, pts = slots[by_slot], pts[by_slot]
+        first = np.flatnonzero(np.diff(slots, prepend=-1))
+        moved = slots[first]
+        sizes = np.diff(first, append=len(slots))
+        # a chunk after an agent's first starts at the last point of the one before
+        joined = self.chunk_index[moved] > 0
+        pts = np.insert(pts, first[joined], self._sent_last[moved[joined]], axis=0)
+        fields = vector_fields(_POINTS_TAG, pts)
+        bounds = np.concatenate([[0], np.cumsum(sizes + joined)]).tolist()
+        encoded = {k: b"".join(fields[bounds[j] : bounds[j + 1]]) for j, k in enumerate(moved.tolist())}
+        parts = [
+            _line_entity(stamp, f"path/{aid}/{self.chunk_index[k]}".encode(), encoded[k], _LINE_HEAD)
+            for aid, k in self.order.items()
+            if k in encoded
+        ]
+        self._sent_last[moved] = self.last[moved]
+        self.chunk_index[moved] += 1
+        return b"".join(parts)
+
+    def overview(self, stamp: bytes) -> bytes | None:
+        """The ``/scene/paths/overview`` message (None: no path yet)."""
+        if not self.order:
+            return None
+        slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
+        counts = self.count[slots]
+        m = np.minimum(counts, self.overview_points)
+        # per path: m evenly spaced indices over its kept points (all of them when few)
+        i = np.arange(m.max())
+        idx = (2 * i * (counts - 1)[:, None] + (m - 1)[:, None]) // (2 * np.maximum(m - 1, 1))[:, None]
+        valid = i < m[:, None]
+        fields = vector_fields(_POINTS_TAG, self.points[np.repeat(slots, m), idx[valid]])
+        bounds = np.concatenate([[0], np.cumsum(m)])
+        return b"".join(
+            _line_entity(
+                stamp, f"path/{aid}".encode(), b"".join(fields[bounds[j] : bounds[j + 1]]), _OVERVIEW_HEAD
+            )
+            for j, aid in enumerate(self.order)
+        )
