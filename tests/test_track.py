@@ -531,3 +531,10 @@ def test_the_world_files_tracker_section_reaches_the_tracker(tmp_path, capsys):
     default = track(load(log), TrackerConfig())
     for aid, m in out.items():
         assert m["max_tilt_deg"] <= 12.5 < default.agents[aid].max_tilt_deg
+
+
+def test_cli_tracks_a_fixed_wing_alone(two_agent_log, capsys):
+    r = run_main(capsys, two_agent_log, "--agent", "plane", "--json")
+    assert r.returncode == 0, r.stderr
+    plane = json.loads(r.stdout)["agents"]["plane"]
+    assert plane["model"] == "fixed_wing" and plane["within_error_limit"]

@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     result = track(rec, cfg, args.agent)
     wall = time.perf_counter() - start
-    if not result.ids:  # nothing to fly: no plot, log or table of nothing
+    if not result.ids and not result.fixed_wing:  # nothing to fly: no plot, log or table of nothing
         reasons = "; ".join(f"{aid}: {why}" for aid, why in result.skipped.items())
         print(f"track: no agent of {args.log} can be tracked ({reasons})", file=sys.stderr)
         return 2
