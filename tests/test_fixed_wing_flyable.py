@@ -141,7 +141,7 @@ def test_the_100_km_fixed_wing_world_with_movers_arrives_on_every_seed(seed, tmp
     from swarmplan.io.runner import run_episode
     from swarmplan.sim import Simulation
 
-    world = load_world(ROOT / "worlds/papers/rscdwoa_100km_movers.yaml")
+    world = load_world(ROOT / "worlds/fixed_wing_movers_100km.yaml")
     log = tmp_path / "run.mcap"
     summary = run_episode(Simulation(world, recorder=McapRecorder(log)), seed)
     assert summary["arrived"] == 4 and summary["collisions"] == 0, summary
