@@ -298,7 +298,6 @@ LAZY_IMPORTS: dict[tuple[str, str], str] = {
     ("swarmplan.replay.recording", "swarmplan.replay.geometry"): "scipy rotations for untracked obstacles",
     ("swarmplan.track.output", "swarmplan.io.foxglove_scene"): "Foxglove schemas only for a scene",
     ("swarmplan.track.output", "swarmplan.replay.plots"): "matplotlib only when a plot is drawn",
-    ("swarmplan.flight.apf", "swarmplan.flight._apf_kernel"): "numba only in swarm-sized worlds",
 }
 """Function-level imports of the package's modules outside ``cli/`` and ``bench/`` (whose
 subcommand modules the command line imports to build its help), each with the start-up cost
@@ -352,3 +351,70 @@ def test_the_product_speaks_of_itself() -> None:
         if words.search(line)
     ]
     assert found == []
+
+
+def names_in_code(tree: ast.AST, module: str) -> tuple[set[str], set[str]]:
+    """(modules imported, identifiers used) anywhere in ``tree`` (``if TYPE_CHECKING:`` blocks
+    included): imports resolved to absolute names; identifiers are names, attributes,
+    definitions, arguments, keywords and imported aliases (comments and strings are not code)."""
+    imported: set[str] = set()
+    idents: set[str] = set()
+    package = module.rpartition(".")[0]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            imported.update(a.name for a in node.names)
+            idents.update(a.asname or a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            imported.add(base)
+            imported.update(f"{base}.{a.name}" for a in node.names)
+            idents.update(n for a in node.names for n in (a.name, a.asname) if n)
+        elif isinstance(node, ast.Call) and (dynamic := dynamic_imports(node, {})):
+            imported.update(dynamic)
+        if isinstance(node, ast.Name):
+            idents.add(node.id)
+        elif isinstance(node, ast.Attribute):
+            idents.add(node.attr)
+        elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            idents.add(node.name)
+        elif isinstance(node, ast.arg):
+            idents.add(node.arg)
+        elif isinstance(node, ast.keyword) and node.arg:
+            idents.add(node.arg)
+    return imported, idents
+
+
+def recorder_leaks(sim_dir: Path) -> list[str]:
+    """Where a module under ``sim_dir`` imports ``swarmplan.io`` or names a recorder."""
+    leaks = []
+    for path in sorted(sim_dir.rglob("*.py")):
+        mod = module_name(path) if path.is_relative_to(PACKAGE) else f"swarmplan.sim.{path.stem}"
+        imported, idents = names_in_code(ast.parse(path.read_text(encoding="utf-8")), mod)
+        leaks += [
+            f"{path.name} imports {m}" for m in sorted(imported) if m.split(".")[:2] == ["swarmplan", "io"]
+        ]
+        leaks += [f"{path.name} names {n}" for n in sorted(idents) if "recorder" in n.lower()]
+    return leaks
+
+
+def test_the_simulation_knows_no_recorder() -> None:
+    """sim/ steps the world and reports; the runner and its observers own the log."""
+    assert recorder_leaks(PACKAGE / "sim") == []
+
+
+def test_the_recorder_check_sees_imports_and_names_not_comments(tmp_path: Path) -> None:
+    (tmp_path / "a.py").write_text("from swarmplan.io.recording import McapRecorder\n")
+    (tmp_path / "b.py").write_text("from ..io import runner  # the runner\n")
+    (tmp_path / "c.py").write_text("def step(self, rec):\n    self.recorder.write(rec)\n")
+    (tmp_path / "d.py").write_text('"""No recorder here."""\n# recorder\nx = "McapRecorder"\n')
+    assert recorder_leaks(tmp_path) == [
+        "a.py imports swarmplan.io.recording",
+        "a.py imports swarmplan.io.recording.McapRecorder",
+        "a.py names McapRecorder",
+        "b.py imports swarmplan.io",
+        "b.py imports swarmplan.io.runner",
+        "c.py names recorder",
+    ]

@@ -147,7 +147,7 @@ def test_stamp_names_commit_date_and_commands() -> None:
     from datetime import datetime, timezone
 
     line = docs.stamp(
-        docs.Block("python -m swarmplan.cli.compare w.yaml", ""),
+        docs.Block("python -m swarmplan.compare w.yaml", ""),
         "python -m swarmplan.bench docs --only x",
         "abc1234 dirty",
         datetime(2026, 11, 23, 12, 5, tzinfo=timezone.utc),
@@ -155,7 +155,7 @@ def test_stamp_names_commit_date_and_commands() -> None:
     )
     assert line == (
         "_Generated at commit `abc1234 dirty` on 2026-11-23 12:05 UTC, load average 1.2 (2 cores) by "
-        "`python -m swarmplan.bench docs --only x`, which ran: `python -m swarmplan.cli.compare w.yaml`._"
+        "`python -m swarmplan.bench docs --only x`, which ran: `python -m swarmplan.compare w.yaml`._"
     )
 
 

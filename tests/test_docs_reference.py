@@ -3,7 +3,8 @@
 Every key the world parser accepts (recorded from its own key checks while it parses a world
 that uses every section, shape and motion type) is in a table of docs/world-format.md, and
 every key of those tables is accepted; the complete example is a valid world. Every key of a
-run's ``/summary`` (a world with threats, so the exposure keys too) is in docs/log-format.md.
+run's ``/summary`` (a world with threats, so the exposure keys too) is in docs/log-format.md,
+and so is every topic a run's log contains (Foxglove channels on).
 The README and docs point only inside the repository.
 """
 
@@ -190,3 +191,26 @@ def test_the_replay_example_figures_are_those_of_the_code():
         int(found.group(k)) for k in (1, 2, 3)
     )
     assert f"{summary['sim_time']:.1f}" == found.group(4)
+
+
+def documented_topics() -> set[str]:
+    """The topics named in the first cell of a table row of docs/log-format.md."""
+    return {k for k in documented_keys(LOG_DOC) if k.startswith("/")}
+
+
+def test_every_topic_a_log_contains_is_documented(tmp_path):
+    """A short run of the quickstart world (movers, an escape, events, Foxglove channels on):
+    every topic of its log is a row of a channel table in docs/log-format.md."""
+    from helpers import default_planner, read_log
+
+    raw = yaml.safe_load((ROOT / "worlds" / "quickstart.yaml").read_text(encoding="utf-8"))
+    raw["sim"]["max_time"] = 12
+    world = make_world(raw, base_dir=ROOT / "worlds")
+    log = tmp_path / "q.mcap"
+    run_to_end(world, log_path=log, planner=default_planner(world), foxglove=True)
+    topics = set(read_log(log))
+    expected = {"/agents/speed", "/events/log", "/scene/paths/overview", "/tf", "/optimizer"}
+    expected.add("/obstacles/state")
+    assert expected <= topics, f"the run no longer writes {sorted(expected - topics)}"
+    missing = sorted(topics - documented_topics())
+    assert missing == [], f"topics a log contains that docs/log-format.md does not document: {missing}"

@@ -108,6 +108,27 @@ def test_regeneration_never_replaces_the_best_fish():
     np.testing.assert_allclose(state.F, sphere(problem.lower + state.U * problem.span))
 
 
+def test_regeneration_is_translation_invariant():
+    # eq 34 about the box centre: the same state on a box moved by +300 regenerates the same
+    # fish moved by +300 (the printed X_gm (1 + z) scales with the distance from the origin)
+    out = {}
+    for shift in (0.0, 300.0):
+        opt = make("iafsa")
+
+        def cost(X, shift=shift):
+            return sphere(X - shift - 1.0)
+
+        problem = Problem(cost, LOWER + shift, UPPER + shift, 10_000)
+        rng = np.random.default_rng(4)
+        state = opt.setup(problem, rng, None)
+        idx = opt.regenerate(state, problem, rng, iteration=40)
+        out[shift] = (idx, problem.lower + state.U[idx] * problem.span)
+    np.testing.assert_array_equal(out[0.0][0], out[300.0][0])
+    np.testing.assert_allclose(out[300.0][1], out[0.0][1] + 300.0, atol=1e-9)
+    with pytest.raises(ValueError, match="regen_centre"):
+        make("iafsa", regen_centre="corner")
+
+
 @pytest.mark.parametrize("name", ["afsa", "iafsa"])
 def test_fish_stay_in_box(name):
     seen = []

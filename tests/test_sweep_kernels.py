@@ -339,8 +339,8 @@ def test_compiled_arrivals_equal_the_numpy_test():
 
 def test_the_world_chooses_the_path_not_the_process():
     """A 16-agent world runs its steps on the reference paths (no numba load: its start-up stays
-    short) even in a process that has loaded the kernels; a 64-agent world runs them from its
-    first step."""
+    short); a 64-agent world runs them compiled from its first step; and a 16-agent world run
+    after it, in the same process with the kernels loaded, still calls none of them."""
     import subprocess
     import sys
 
@@ -349,15 +349,26 @@ def test_the_world_chooses_the_path_not_the_process():
         "from swarmplan.bench.sim import swarm_world\n"
         "from swarmplan.sim import Simulation\n"
         "from swarmplan.world import parse_world\n"
-        "s = Simulation(parse_world(swarm_world(16, 4, 8)))\n"
-        "s.reset(seed=0); s.step(); s.step()\n"
+        "def run(n, steps):\n"
+        "    s = Simulation(parse_world(swarm_world(n, 4, 8)))\n"
+        "    s.reset(seed=0)\n"
+        "    for _ in range(steps):\n"
+        "        s.step()\n"
+        "run(16, 2)\n"
         "print('swarmplan.geometry.sweep_kernels' in sys.modules)\n"
-        "s = Simulation(parse_world(swarm_world(64, 4, 8)))\n"
-        "s.reset(seed=0); s.step()\n"
-        "print('swarmplan.geometry.sweep_kernels' in sys.modules)\n"
+        "run(64, 1)\n"
+        "K = sys.modules['swarmplan.geometry.sweep_kernels']\n"
+        "print(K is not None)\n"
+        "def refuse(*args, **kwargs):\n"
+        "    raise RuntimeError('a compiled swept check ran in a 16-agent world')\n"
+        "for name in ('sweep_many', 'free_distances', 'agent_contacts', 'separation_keys', 'arrivals'):\n"
+        "    setattr(K, name, refuse)\n"
+        "run(16, 30)\n"
+        "print('reference')\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["False", "True"]
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["False", "True", "reference"]
 
 
 def test_reference_and_compiled_runs_are_identical(monkeypatch):
@@ -369,7 +380,9 @@ def test_reference_and_compiled_runs_are_identical(monkeypatch):
     from swarmplan.world import parse_world
 
     def run() -> tuple[list, np.ndarray]:
-        sim = Simulation(parse_world(swarm_world(24, 8, 12, 1)))
+        # Layout 2: a stuck agent and an emergency stop within the 150 steps (layout 1 has no
+        # event there since the field's agent term reaches the agents' stopping distance).
+        sim = Simulation(parse_world(swarm_world(24, 8, 12, 2)))
         sim.reset(seed=1)
         events = []
         for _ in range(150):
@@ -383,3 +396,39 @@ def test_reference_and_compiled_runs_are_identical(monkeypatch):
     assert len(compiled[0]) > 0
     assert compiled[0] == reference[0]
     np.testing.assert_array_equal(compiled[1], reference[1])
+
+
+def test_a_crowded_run_is_identical_on_both_paths(monkeypatch):
+    """A 24-agent antipodal swap with wide separation ellipsoids (near misses, arrivals, escapes,
+    smoothing and timeouts all happen) steps to the same bits on both paths: every step's
+    positions, velocities and modes and every event, compiled checks against the reference ones."""
+    from swarmplan.bench.sim import swap_world
+    from swarmplan.geometry import compiled as choice
+    from swarmplan.sim import Simulation
+    from swarmplan.world import parse_world
+
+    raw = swap_world(24, 1, 0, 20.0)
+    raw["agent_defaults"]["separation"] = [10, 10, 5]
+
+    def run() -> tuple[list, list]:
+        sim = Simulation(parse_world(raw))
+        sim.reset(seed=1)
+        events, states = [], []
+        while True:
+            result = sim.step()
+            events += [e.to_json() for e in result.events]
+            s = sim.state
+            states.append((s.position.tobytes(), s.velocity.tobytes(), s.mode.tolist()))
+            if result.terminated or result.truncated:
+                return events, states
+
+    compiled = run()  # the fixture: compiled checks at any size
+    monkeypatch.setattr(choice, "CHECKS_COMPILED_FROM", choice.COMPILED_FROM)
+    assert not choice.use_compiled_checks(24)
+    reference = run()
+    kinds = {e["kind"] for e in compiled[0]}
+    assert {"near_miss", "arrived", "escape_start", "timeout"} <= kinds
+    assert compiled[0] == reference[0]
+    assert len(compiled[1]) == len(reference[1]) == 200
+    differ = [k for k, (a, b) in enumerate(zip(compiled[1], reference[1], strict=True)) if a != b]
+    assert differ == [], f"the paths part at step {differ[:1]}"

@@ -13,7 +13,7 @@ of the blocks named in ``--only``) and rewrites the text between the markers: a 
 and the table the command produced. Everything outside the markers is left byte for byte as
 it was. An unknown block name, an unclosed or a nested block is an error (exit 2) before any
 work. ``--list`` prints the known blocks. ``--resume`` reuses the finished runs' logs of an
-earlier (or interrupted) sweep in ``--out-dir``, e.g. of ``python -m swarmplan.cli.compare``
+earlier (or interrupted) sweep in ``--out-dir``, e.g. of ``python -m swarmplan.compare``
 with the same ``--out-dir``.
 """
 
@@ -193,7 +193,7 @@ def _comparison(stem: str) -> Callable[[Options], Block]:
         seeds = opts.seeds or (2 if opts.quick else 10)
         world = ROOT / "worlds" / "papers" / f"{stem}.yaml"
         out_dir = opts.out_dir / "comparison" / stem
-        # the same one-world study as `python -m swarmplan.cli.compare` (same run ids: its logs resume)
+        # the same one-world study as `python -m swarmplan.compare` (same run ids: its logs resume)
         raw = {"name": "compare", "worlds": [world.name], "optimizers": names, "seeds": seeds}
         spec = parse_spec(raw, base_dir=world.parent, source="docs generator")
         client = make_client(opts.jobs, None)
@@ -205,7 +205,7 @@ def _comparison(stem: str) -> Callable[[Options], Block]:
             if cluster is not None:
                 cluster.close()
         command = (
-            f"python -m swarmplan.cli.compare {_rel(world)} --optimizers {','.join(names)} --seeds {seeds} "
+            f"python -m swarmplan.compare {_rel(world)} --optimizers {','.join(names)} --seeds {seeds} "
             f"--jobs {opts.jobs} --out-dir {_rel(out_dir)}"
         )
         ok = [r for r in rows if r["status"] == "ok"]
@@ -282,6 +282,15 @@ def _swarm_bench(opts: Options) -> Block:
     return Block("python " + " ".join(cmd[1:]), body)
 
 
+def _paper_table(name: str) -> Callable[[Options], Block]:
+    def run(opts: Options) -> Block:
+        from swarmplan.bench import paper_tables
+
+        return Block(*getattr(paper_tables, name)(opts))
+
+    return run
+
+
 GENERATORS: dict[str, Generator] = {
     **{
         f"comparison-{stem}": Generator(
@@ -295,6 +304,30 @@ GENERATORS: dict[str, Generator] = {
     "paper-worlds": Generator("paper-worlds", "run and wall time of each paper world", _paper_worlds),
     "overhead": Generator(
         "overhead", "optimizer overhead per evaluation at d = 50", _overhead, frozenset({"quick"})
+    ),
+    "table10": Generator(
+        "table10",
+        "000 Table 10 cell by cell, eq 10 literal and with the floor (5 runs, 3e5 evaluations)",
+        _paper_table("table10"),
+        frozenset({"quick", "seeds"}),
+    ),
+    "table4": Generator(
+        "table4",
+        "003 Table 4 (CEC2013) cell by cell at 3e5 evaluations (3 runs)",
+        _paper_table("table4"),
+        frozenset({"quick", "seeds"}),
+    ),
+    "shifted-peers": Generator(
+        "shifted-peers",
+        "shifted suite with mealpy/niapy peers, vs random search, best vs best (20 runs)",
+        _paper_table("shifted_peers"),
+        frozenset({"quick", "seeds"}),
+    ),
+    "rscdwoa-table4": Generator(
+        "rscdwoa-table4",
+        "001 Table 4 functions: each improved algorithm against its base (10 runs)",
+        _paper_table("rscdwoa_table4"),
+        frozenset({"quick", "seeds"}),
     ),
     "escape-swarm-bench": Generator(
         "escape-swarm-bench",

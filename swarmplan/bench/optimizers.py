@@ -127,6 +127,7 @@ def summarize(suite: Suite, records: list[dict]) -> list[dict]:
             "base": "",
             "verdict": "",
             "p_value": float("nan"),
+            "values": v.tolist(),  # per seed, in seed order (not written to the CSV)
         }
         if alg.startswith("peer:"):
             ours = next((k for k, v in _peer_table().items() if any(lab == alg[5:] for lab, _, _ in v)), "")
@@ -215,6 +216,61 @@ def format_peers(rows: list[dict]) -> str:
     return "\n".join(head + lines)
 
 
+def format_best(rows: list[dict]) -> str:
+    """Per function: our best algorithm (lowest median) against the best peer of any name.
+
+    ``+``: ours significantly better (rank-sum, p < 0.05), ``~`` level, ``-`` the peer better.
+    """
+    by_fn: dict[tuple[str, str], dict[str, dict]] = {}
+    for r in rows:
+        by_fn.setdefault((r["variant"], r["function"]), {})[r["algorithm"]] = r
+    lines = []
+    for (_, fn), algs in by_fn.items():
+        ours = [r for a, r in algs.items() if not a.startswith("peer:")]
+        peers = [r for a, r in algs.items() if a.startswith("peer:")]
+        if not ours or not peers:
+            continue
+        o = min(ours, key=lambda r: r["median"])
+        q = min(peers, key=lambda r: r["median"])
+        sign, p = verdict(np.asarray(o["values"]), np.asarray(q["values"]))
+        lines.append(
+            f"| {fn} | {o['algorithm']} | {_fmt(o['median'])} | {q['algorithm'][5:]} | {_fmt(q['median'])} | "
+            f"{sign} (p={p:.2g}) |"
+        )
+    if not lines:
+        return ""
+    head = [
+        "| function | our best | median | best peer | median | ours vs peer |",
+        "|---|---|---|---|---|---|",
+    ]
+    return "\n".join(head + lines)
+
+
+def format_vs_random(rows: list[dict], reference: str = "random") -> str:
+    """Every algorithm of ours against random search: medians, rank-sum sign and p per function
+    (``+`` better than random search, ``-`` worse, ``~`` level; p < 0.05, two-sided)."""
+    ref = {(r["variant"], r["function"]): r for r in rows if r["algorithm"] == reference}
+    if not ref:
+        return ""
+    fns = list(dict.fromkeys((r["variant"], r["function"]) for r in rows))
+    algs = sorted({r["algorithm"] for r in rows if not r["algorithm"].startswith("peer:")} - {reference})
+    cell = {(r["variant"], r["function"], r["algorithm"]): r for r in rows}
+    head = "| algorithm | " + " | ".join(f"{fn} median (vs {reference})" for _, fn in fns) + " |"
+    lines = [head, "|---|" + "---|" * len(fns), "| " + reference + " | " + " | ".join(
+        _fmt(ref[k]["median"]) for k in fns) + " |"]  # fmt: skip
+    for a in algs:
+        cells = []
+        for v, fn in fns:
+            r = cell.get((v, fn, a))
+            if r is None or (v, fn) not in ref:
+                cells.append("")
+                continue
+            sign, p = verdict(np.asarray(r["values"]), np.asarray(ref[(v, fn)]["values"]))
+            cells.append(f"{_fmt(r['median'])} {sign} (p={p:.2g})")
+        lines.append(f"| {a} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def format_verdicts(rows: list[dict]) -> str:
     """Summary: per improved algorithm and variant, counts of + / ~ / - against its base."""
     counts: dict[tuple[str, str, str], list[int]] = {}
@@ -231,8 +287,9 @@ def format_verdicts(rows: list[dict]) -> str:
 
 
 def write_csv(path: str, rows: list[dict]) -> None:
+    fields = [k for k in rows[0] if k != "values"]
     with open(path, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
 
@@ -418,6 +475,12 @@ def main(args: argparse.Namespace) -> int:
             "(Wilcoxon rank-sum, p < 0.05; + ours better):\n"
         )
         print(peers)
+        print("\nOur best (lowest median) vs the best peer of any name (+ ours better):\n")
+        print(format_best(rows))
+    vs_random = format_vs_random(rows)
+    if vs_random:
+        print("\nAgainst random search (Wilcoxon rank-sum, two-sided, p < 0.05; + better than random):\n")
+        print(vs_random)
     print(f"\ntotal wall time {time.perf_counter() - t0:.0f} s")
     if args.out:
         out = Path(args.out.replace("{suite}", suite.name))

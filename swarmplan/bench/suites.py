@@ -31,6 +31,16 @@ PARAM_SETS: dict[str, tuple[str, dict[str, object]]] = {
     "ba@003": ("ba", BA_003),
     "mcfo@ours": ("mcfo", {"stability": "eq29", "mutation_units": "unit"}),
     "iafsa@ours": ("iafsa", {"visual_abs": True, "v0_decay": True}),
+    # WOA with mealpy's one-to-one greedy selection (not in Mirjalili & Lewis nor in 001)
+    "woa@greedy": ("woa", {"selection": "greedy"}),
+    # 000's bats with the loudness floor A_min = A0 (eq 10 switched off): the reading that
+    # reproduces 000's Table 10; the registry defaults decay the loudness as printed
+    "ba@floor": ("ba", {"A_min": None}),
+    "iba_abc@floor": ("iba_abc", {"A_min": None}),
+    # 003's IBA with Yang's acceptance (a bat's candidate against its own cost, not X*'s)
+    "iba_gauss@own": ("iba_gauss", {"acceptance": "own"}),
+    # ... and every bat flying to its candidate (eq 4 unconditionally, Algorithm 2 line 14)
+    "iba_gauss@fly": ("iba_gauss", {"acceptance": "own", "position": "always"}),
 }
 
 #: improved algorithm -> its base, as the papers compare them (each pair at its paper's settings).
@@ -38,6 +48,7 @@ PAIRS: dict[str, str] = {
     "rscdwoa": "woa",
     "iba_abc": "ba",
     "iba_gauss": "ba@003",
+    "iba_abc@floor": "ba@floor",
     "mcfo": "cfo",
     "iafsa": "afsa",
 }
@@ -80,7 +91,13 @@ _T10 = {
     ),
 }
 #: our registry name -> the column of 000 Table 10 it corresponds to.
-_T10_ALIASES = {"iba_abc": "IBA", "ba": "BA", "pso": "PSO"}
+_T10_ALIASES = {
+    "iba_abc": "IBA",
+    "iba_abc@floor": "IBA",
+    "ba": "BA",
+    "ba@floor": "BA",
+    "pso": "PSO",
+}
 
 # --- 003 Table 4 (CEC2013, d = 30, 3e5 evaluations, 51 runs): mean error ----------------------
 _CEC_BA = [
@@ -131,6 +148,8 @@ def _cec_paper() -> dict[str, dict[str, tuple[float, float]]]:
     return {
         "ba": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_BA)},
         "iba_gauss": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_IBA)},
+        "iba_gauss@own": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_IBA)},
+        "iba_gauss@fly": {f"F{i + 1}": (v, nan) for i, v in enumerate(_CEC_IBA)},
     }
 
 

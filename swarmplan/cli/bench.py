@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-from swarmplan.cli.common import HelpFormatter, plain
+from swarmplan.cli.common import HelpFormatter, plain, quiet_on_closed_stdout
 from swarmplan.runtime.blas import limit_blas_threads
 
 #: subcommand name -> (module path, one-line help). Modules are imported lazily.
@@ -19,6 +19,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "overhead": ("swarmplan.bench.overhead", "measure the library's own overhead per evaluation"),
     "scale": ("swarmplan.bench.scale", "speed figures at swarm scale, each beside its target"),
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
+    "swarm": ("swarmplan.bench.swarm", "dense swarms on the standard scenarios, beside ORCA-3D"),
     "docs": ("swarmplan.bench.docs", "re-run the commands behind the docs' tables and rewrite them"),
 }
 
@@ -44,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()

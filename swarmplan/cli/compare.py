@@ -1,4 +1,4 @@
-"""``python -m swarmplan.cli.compare WORLD --optimizers woa,rscdwoa,ba,iba_abc,cfo,mcfo --seeds 10``.
+"""``python -m swarmplan.compare WORLD --optimizers woa,rscdwoa,ba,iba_abc,cfo,mcfo --seeds 10``.
 
 Runs the world once per (optimizer, seed) on the sweep engine (:mod:`swarmplan.sweep`: a
 LocalCluster of ``--workers`` worker processes, or the Dask scheduler at ``--scheduler``) — one
@@ -25,7 +25,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from swarmplan.cli.common import HelpFormatter, output_dir_problem, plain
+from swarmplan.cli.common import HelpFormatter, output_dir_problem, plain, quiet_on_closed_stdout
 from swarmplan.cli.sweep import WORKERS_HELP, default_workers
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sweep.report import table, table_notes, verdict  # noqa: F401 - part of this module's API
@@ -38,7 +38,7 @@ def format_table(rows: list[dict[str, Any]], names: list[str], alpha: float = 0.
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog="python -m swarmplan.cli.compare",
+        prog="python -m swarmplan.compare",
         description=plain(__doc__.split("\n\n", 1)[1]),
         formatter_class=HelpFormatter,
     )
@@ -65,6 +65,7 @@ def _line(r: dict[str, Any]) -> str:
     )
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()

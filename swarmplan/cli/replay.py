@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from swarmplan.cli.common import HelpFormatter
+from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout
 from swarmplan.replay.metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
 from swarmplan.replay.recording import Recording, RecordingError, load
 
@@ -275,6 +275,7 @@ def _write_outputs(rec: Recording, args: argparse.Namespace, agent_ids: list[str
     return outputs
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     problem = check_arguments(args)

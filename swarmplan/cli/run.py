@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from swarmplan import optimizers
-from swarmplan.cli.common import HelpFormatter
+from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout
 from swarmplan.io.runner import LiveView, apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sim.threats import exposure_warnings
@@ -196,6 +196,7 @@ def live_view(args: argparse.Namespace) -> LiveView | None:
     return LiveView(port=port, speed=speed)
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()

@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from swarmplan.cli.common import HelpFormatter, output_dir_problem
+from swarmplan.cli.common import HelpFormatter, output_dir_problem, quiet_on_closed_stdout
 from swarmplan.sweep.spec import SpecError, load_spec
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -49,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     problems = []

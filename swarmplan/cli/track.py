@@ -25,7 +25,7 @@ import sys
 import time
 from pathlib import Path
 
-from swarmplan.cli.common import HelpFormatter, output_file_problem
+from swarmplan.cli.common import HelpFormatter, output_file_problem, quiet_on_closed_stdout
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.track.output import PLOT_FORMATS
 from swarmplan.world.tracker_config import TrackerConfig, parse_tracker
@@ -141,6 +141,7 @@ def _fmt_table(result, wall: float) -> list[str]:
     return lines
 
 
+@quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()

@@ -1,23 +1,17 @@
-"""Compiled potential field of swarm-sized worlds (``apf.apf_forces`` from ``COMPILED_FROM``
-agents on): every term of every agent in one pass.
+"""The potential field of ``swarmplan.flight.apf`` compiled: every term of every agent in one
+pass (the one implementation of the field; tests/apf_reference.py is its numpy reference).
 
 Why numba: in numpy the field is ~60 array operations per step on (agents, bodies, 3) and
-(pairs, 3) temporaries plus a k-d tree for the agent term (3.8 ms per step at 256 agents,
-2.1 ms at 64 with 32 movers), mostly per-call overhead and memory traffic; here each agent's
-force is summed where its terms are computed. The formulas, their order, the order of the
-terms and of every sum are those of ``apf.py`` (``np.einsum`` adds in index order; the
-potentials' ``sum`` is numpy's pairwise summation, reproduced by :func:`_pairwise`; the agent
-term is the indexed one, in index order): the forces are numpy's bit for bit, so a world
-runs the same either way (tests/test_apf_compiled.py, tests/test_field_kernels.py).
+(pairs, 3) temporaries plus a neighbour index for the agent term, mostly per-call overhead and
+memory traffic; here each agent's force is summed where its terms are computed.
 
 The agent term visits every other agent, but a pair is dismissed with a few products (no
 division) when the closest approach of the two centres within the prediction horizon stays
 beyond ``reach``, the distance past which both of its terms are provably zero
-(``apf.agent_reach``'s bound without the speed part): the scaled distances are at least the
-unscaled ones over the largest semi-axis. At 256 agents that is ~65k cheap tests per step;
-a spatial index would pay off only for swarms several times larger.
+(``apf.current_reach``): the scaled distances are at least the unscaled ones over the largest
+semi-axis.
 
-Imported lazily (:func:`swarmplan.flight.apf._kernel`); every compiled function of the field is
+Loaded at the first step through ``runtime.compiled.kernel_module``; every compiled function of the field is
 in this file (numba's cache does not see changes of callees in other files).
 """
 
@@ -51,72 +45,6 @@ def _power(x, p):  # noqa: ANN001, ANN202
     if p == 0.0:
         return 1.0
     return math.pow(x, p)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _pairwise_block(a, lo, n):  # noqa: ANN001, ANN202
-    """numpy's pairwise summation of ``a[lo:lo + n]`` for n <= 128 (eight running sums)."""
-    if n < 8:
-        res = 0.0
-        for i in range(lo, lo + n):
-            res += a[i]
-        return res
-    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
-    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
-    i = 8
-    while i < n - n % 8:
-        r0 += a[lo + i]
-        r1 += a[lo + i + 1]
-        r2 += a[lo + i + 2]
-        r3 += a[lo + i + 3]
-        r4 += a[lo + i + 4]
-        r5 += a[lo + i + 5]
-        r6 += a[lo + i + 6]
-        r7 += a[lo + i + 7]
-        i += 8
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        res += a[lo + i]
-        i += 1
-    return res
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _pairwise(a, lo, n):  # noqa: ANN001, ANN202
-    """``a[lo:lo + n].sum()`` in numpy's order: blocks of up to 128, longer runs split in
-    halves (a multiple of 8 first) and the halves' sums added. The halving is walked with
-    an explicit stack (numba's cache breaks callers of self-recursive functions)."""
-    if n <= 128:
-        return _pairwise_block(a, lo, n)
-    depth = 2 * (int(math.log2(n)) + 2)
-    s_lo = np.empty(depth, np.int64)
-    s_n = np.empty(depth, np.int64)
-    s_phase = np.zeros(depth, np.int64)
-    vals = np.empty(depth)
-    s_lo[0], s_n[0], top, nv = lo, n, 1, 0
-    while top:
-        t = top - 1
-        m = s_n[t]
-        if m <= 128:
-            vals[nv] = _pairwise_block(a, s_lo[t], m)
-            nv += 1
-            top -= 1
-            continue
-        half = m // 2
-        half -= half % 8
-        if s_phase[t] == 0:  # the left half first
-            s_phase[t] = 1
-            s_lo[top], s_n[top], s_phase[top] = s_lo[t], half, 0
-            top += 1
-        elif s_phase[t] == 1:  # then the right
-            s_phase[t] = 2
-            s_lo[top], s_n[top], s_phase[top] = s_lo[t] + half, m - half, 0
-            top += 1
-        else:
-            vals[nv - 2] = vals[nv - 2] + vals[nv - 1]
-            nv -= 1
-            top -= 1
-    return vals[0]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -164,40 +92,42 @@ def _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near):  #
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
-    pos,
-    vel,
-    goal,
-    target,
-    static_scale,
-    idx,
-    radius,
-    separation,
-    min_altitude,
-    dist,
-    grad,
-    moving,
-    o_center,
-    o_vel,
-    o_radius,
-    h,
-    gh,
-    h_goal,
-    terrain_floor,
-    lo,
-    hi,
-    all_pos,
-    all_vel,
-    parked,
-    reach,
-    gains,
-    out,
-):
-    """``out[i]``: the force of ``apf.apf_forces`` on agent ``idx[i]`` (row i of pos/vel/goal/
-    target). ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power,
-    k_moving, horizon). ``h``, ``gh``, ``h_goal``: terrain height and gradient under each agent
-    and height under its goal; ``terrain_floor``: the terrain clearance (0 without peaks);
-    ``parked`` (all agents): agents that no longer fly, whose repulsion takes the goal factor."""
+def _right(x, y, z):  # noqa: ANN001, ANN202
+    """Unit vector to the right of the relative velocity (x, y, z): horizontal (z up) while the
+    motion has a horizontal part of at least a fifth of its speed, else about the x axis (the
+    right-hand rule still breaks the symmetry of vertical head-on encounters)."""
+    h2 = x * x + y * y
+    if h2 >= 0.04 * (h2 + z * z):
+        return _unit(y, -x, 0.0)
+    return _unit(0.0, z, -y)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _over(x, y, z):  # noqa: ANN001, ANN202
+    """Vertical part of the way past another agent, from the relative velocity (x, y, z): up
+    for one of the two, down for the other (the relative velocity changes sign between them),
+    by a fixed horizontal direction (2, 1, 0) / sqrt(5), so that agents also pass over and under
+    each other where there is no room beside (a doorway)."""
+    n = max(math.sqrt(x * x + y * y + z * z), _EPS)
+    return (2.0 * x + y) / (math.sqrt(5.0) * n)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noqa: ANN001, ANN201, PLR0915
+    """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
+
+    ``flyers``: (pos, vel, goal, target, static_scale, idx) of the agents computed;
+    ``agents``: per agent of the world (radius, separation, min_altitude, stopping reach,
+    can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
+    ``ground``: (terrain height and gradient under each flyer, height under its goal, the
+    terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
+    velocities, parked, distance to the goal) of every agent; ``gains``: (k_att, k_rep, influence, k_agent,
+    quadratic_radius, goal_power, k_moving, horizon)."""
+    pos, vel, goal, target, static_scale, idx = flyers
+    radius, separation, min_altitude, stop_reach, can_stop = agents
+    dist, grad, moving, o_center, o_vel, o_radius = bodies
+    h, gh, h_goal, terrain_floor, lo, hi = ground
+    all_pos, all_vel, parked, goal_dist = swarm
     k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
     m = dist.shape[1]
@@ -216,7 +146,6 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
     X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
     VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
     near = np.empty(n_all, dtype=np.bool_)
-    pot_s, pot_m = np.empty(m), np.empty(m)
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
@@ -225,12 +154,12 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
         dg = math.sqrt(ex * ex + ey * ey + ez * ez)
         tx, ty, tz = target[i, 0] - px, target[i, 1] - py, target[i, 2] - pz
         dt = math.sqrt(tx * tx + ty * ty + tz * tz)
-        well = (
-            dt <= dq
-            and abs(target[i, 0] - goal[i, 0]) <= 1e-9
+        to_goal = (
+            abs(target[i, 0] - goal[i, 0]) <= 1e-9
             and abs(target[i, 1] - goal[i, 1]) <= 1e-9
             and abs(target[i, 2] - goal[i, 2]) <= 1e-9
         )
+        well = dt <= dq and to_goal
         if well:
             fx, fy, fz = k_att * tx, k_att * ty, k_att * tz
         else:
@@ -241,45 +170,55 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
         gfac = _power(ratio, npow)
         gfac_d = npow * _power(ratio, npow - 1.0) / rho0 if dg < rho0 else 0.0
 
-        # Obstacle surfaces: static (scaled per agent) then moving, as two sums.
+        # Obstacle surfaces (static ones scaled per agent), and the goal factor's companion
+        # term pulling towards the goal with the sum of their potentials.
+        bx = by = bz = 0.0  # the turn along blocking bodies (added if they hold the agent)
+        hold = 0.0  # the static bodies' push along the pull
         if m:
             ks = k_rep * static_scale[i]
-            sx = sy = sz = 0.0
-            mx = my = mz = 0.0
-            n_s = n_m = 0
+            pot_sum = 0.0
+            ax, ay, az = _unit(tx, ty, tz)
+            # The turn along blocking bodies fades in from one to two influence distances from
+            # the goal (a goal beside a body is reached through the goal factor instead), and
+            # only on the way to the goal itself: a route or segment already chose the way round.
+            turn = min(1.0, max(0.0, dg / rho0 - 1.0)) if to_goal else 0.0
             for j in range(m):
                 rho = dist[i, j] - ri
-                pot = 0.0
                 if rho < rho0:
                     k = k_rep if moving[j] else ks
                     x = 1.0 / max(rho, 0.05) - 1.0 / rho0
                     w = k * x * gfac
-                    pot = 0.5 * k * (x * x) * rho0
-                    if moving[j]:
-                        mx += w * grad[i, j, 0]
-                        my += w * grad[i, j, 1]
-                        mz += w * grad[i, j, 2]
-                    else:
-                        sx += w * grad[i, j, 0]
-                        sy += w * grad[i, j, 1]
-                        sz += w * grad[i, j, 2]
-                if moving[j]:
-                    pot_m[n_m] = pot
-                    n_m += 1
-                else:
-                    pot_s[n_s] = pot
-                    n_s += 1
-            fx, fy, fz = fx + sx, fy + sy, fz + sz
-            # The companion term sums the potentials as numpy's sum does (pairwise).
-            c = _pairwise(pot_s, 0, n_s) * gfac_d if gfac_d != 0.0 else 0.0
+                    pot_sum += 0.5 * k * (x * x) * rho0
+                    nx, ny, nz = grad[i, j, 0], grad[i, j, 1], grad[i, j, 2]
+                    fx += w * nx
+                    fy += w * ny
+                    fz += w * nz
+                    block = ax * nx + ay * ny + az * nz
+                    if not moving[j]:
+                        hold += w * block
+                    if block < 0.0 and turn > 0.0 and not moving[j]:
+                        # The way on lies behind a static body: the part of the push that
+                        # opposes the pull turns along its surface, the way the pull leans
+                        # along it, or when the pull is nearly square to it (under a fifth)
+                        # towards its nearer side (horizontally: from its centre), right-hand
+                        # when dead centre.
+                        sx, sy, sz = ax - block * nx, ay - block * ny, az - block * nz
+                        if sx * sx + sy * sy + sz * sz < 0.04:
+                            cx, cy = px - o_center[j, 0], py - o_center[j, 1]
+                            d = cx * nx + cy * ny
+                            sx, sy, sz = cx - d * nx, cy - d * ny, -d * nz
+                            if sx * sx + sy * sy + sz * sz < 1e-12 * (1.0 + cx * cx + cy * cy):
+                                sx, sy, sz = _right(-nx, -ny, -nz)
+                        sx, sy, sz = _unit(sx, sy, sz)
+                        wt = w * block * turn
+                        bx -= wt * sx
+                        by -= wt * sy
+                        bz -= wt * sz
+            c = pot_sum * gfac_d
             fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
             if any_moving:
-                fx, fy, fz = fx + mx, fy + my, fz + mz
-                c = _pairwise(pot_m, 0, n_m) * gfac_d if gfac_d != 0.0 else 0.0
-                fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
                 # Predicted closest approach to each mover, right-hand bias on collision course.
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
-                sx = sy = sz = 0.0
                 for j in range(m):
                     if not moving[j]:
                         continue
@@ -300,10 +239,9 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
                     else:
                         qx, qy, qz = _unit(spx, spy, spz)
                         wx, wy, wz = _unit(qx + 0.3 * rx, qy + 0.3 * ry, qz + 0.3 * rz)
-                    sx += mag * wx
-                    sy += mag * wy
-                    sz += mag * wz
-                fx, fy, fz = fx + sx, fy + sy, fz + sz
+                    fx += mag * wx
+                    fy += mag * wy
+                    fz += mag * wz
 
         # Terrain / ground, pushing only while it is not the way to the goal.
         nx, ny, nz = _unit(-gh[i, 0], -gh[i, 1], 1.0)
@@ -314,15 +252,15 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
             mag = mag * gfac
         fx, fy, fz = fx + mag * nx, fy + mag * ny, fz + mag * nz
 
-        # Faces of the flight volume (the floor is the ground's): low face, then high, per axis.
+        # Faces of the flight volume (the floor is the ground's).
         fx += _face(px - lo[0], 1.0, ri, rb0, k_rep, gfac)
         fx += _face(px - hi[0], -1.0, ri, rb0, k_rep, gfac)
         fy += _face(py - lo[1], 1.0, ri, rb0, k_rep, gfac)
         fy += _face(py - hi[1], -1.0, ri, rb0, k_rep, gfac)
         fz += _face(pz - hi[2], -1.0, ri, rb0, k_rep, gfac)
 
-        # Other agents: ellipsoidal separation, current and predicted (apf._agent_repulsion_indexed).
-        ax = ay = az = 0.0
+        # Other agents: ellipsoidal separation, current and predicted, out to the pair's
+        # stopping reach beyond the ellipsoid (at most the influence distance).
         if n_all >= 2:
             ia = idx[i]
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
@@ -338,7 +276,7 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
                 cz = max(separation[ia, 2], separation[b, 2]) + rr
                 qx, qy, qz = dpx / cx, dpy / cy, dpz / cz
                 e = math.sqrt(qx * qx + qy * qy + qz * qz)
-                e0 = 1.0 + rho0 / max(math.sqrt(cx * cx + cy * cy + cz * cz), _EPS)
+                e0 = 1.0 + min(stop_reach[ia] + stop_reach[b], rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz
                 tau = min(max(-(qx * dvx + qy * dvy + qz * dvz) / max(aa, _EPS), 0.0), horizon)
@@ -353,15 +291,26 @@ def apf_forces(  # noqa: ANN201, PLR0913, PLR0915
                 urgency = 1.0 - tau / (horizon + _EPS)
                 mag_p = k_agent * (1.0 / max(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if predicted else 0.0
                 mag_p = mag_p * urgency
-                if parked[b]:  # a parked agent repels as a static body: with the goal factor
+                # Priority: a parked agent, or one farther from its goal, repels as a static
+                # body does (with the goal factor): near its goal an agent that can stop goes
+                # on through the crowd and the others give way.
+                if can_stop[ia] and (parked[b] or dg <= goal_dist[b]):
                     mag = mag * gfac
                     mag_p = mag_p * gfac
                 wx, wy, wz = _unit(sx * cx, sy * cy, sz * cz)
-                rx, ry, rz = _unit(dwy, -dwx, 0.0)
-                wx, wy, wz = _unit(wx + 0.5 * rx, wy + 0.5 * ry, wz + 0.5 * rz)
-                ax += mag * gx + mag_p * wx
-                ay += mag * gy + mag_p * wy
-                az += mag * gz + mag_p * wz
-        out[i, 0] = fx + ax
-        out[i, 1] = fy + ay
-        out[i, 2] = fz + az
+                rx, ry, rz = _right(dwx, dwy, dwz)
+                uz = _over(dwx, dwy, dwz)
+                wx, wy, wz = _unit(wx + 0.5 * rx, wy + 0.5 * ry, wz + 0.5 * (rz + uz))
+                fx += mag * gx + mag_p * wx
+                fy += mag * gy + mag_p * wy
+                fz += mag * gz + mag_p * wz
+        # The turn along blocking bodies only where they hold the agent: the pull and their
+        # push together make less than a quarter of the pull's way towards the goal (a wall
+        # square across the way, a pillar dead ahead), not while it flies on past a body's edge.
+        if bx != 0.0 or by != 0.0 or bz != 0.0:
+            pull = k_att * min(dt, dq)
+            if pull + hold < 0.25 * pull:
+                fx, fy, fz = fx + bx, fy + by, fz + bz
+        out[i, 0] = fx
+        out[i, 1] = fy
+        out[i, 2] = fz

@@ -4,13 +4,13 @@ loads the compiled geometry.
 Below ``COMPILED_FROM`` agents the numpy (and FCL) paths run: numba's one-time load (its
 import and the cached machine code, ~0.9 s CPU per process) costs more than a small world's
 whole run saves, and a 16-agent world would not reach its first step within 0.5 s. From it
-on (swarm scale) the field, the nearest surfaces, the agents' clearance, the potential field
-and the swept checks are compiled kernels. Both paths give the same bits (the kernels follow
+on (swarm scale) the field, the nearest surfaces, the agents' clearance and the swept
+checks are compiled kernels. Both paths give the same bits (the kernels follow
 numpy's formulas and order of sums, rotations stay with numpy's BLAS; the swept checks
 decide exactly what FCL decides), so a world runs identically either way
-(tests/test_field_kernels.py, tests/test_apf_compiled.py, tests/test_sweep_kernels.py,
-tests/test_geometry_neighbours.py). The choice depends on the world only, never on what a
-process has loaded before.
+(tests/test_field_kernels.py, tests/test_sweep_kernels.py, tests/test_geometry_neighbours.py).
+The choice depends on the world only, never on what a process has loaded before. The
+potential field has one implementation, compiled, for every world (``flight.apf``).
 """
 
 from __future__ import annotations
@@ -20,9 +20,7 @@ from types import ModuleType
 from swarmplan.runtime.compiled import kernel_module
 
 COMPILED_FROM = 49
-"""Swarm size (agents in the world) from which the compiled kernels run: where the numpy
-potential field sums the agent term over the k-d tree's pairs (above ``apf._INDEX_FROM``
-= 48 agents), whose order of sums the compiled term reproduces."""
+"""Swarm size (agents in the world) from which the compiled geometry kernels run."""
 
 CHECKS_COMPILED_FROM = COMPILED_FROM
 """Swarm size from which the swept checks (``first_hits``, arrivals, near misses, agent

@@ -394,10 +394,16 @@ class ImprovedFishSwarm(_FishBase):
       improvement of the best cost, ``round(c1 + iter / c2)`` fish (at most ``N - 1``; the
       best fish is never replaced) chosen by the logistic map ``x <- r0 x (1 - x)`` (eq 33,
       ``x0`` drawn from the run's rng, indices ``floor(x * N)``) are replaced by
-      ``X_gm * (1 + z)`` (eq 34, in problem coordinates as printed, clipped to the box), with
+      ``c + (X_gm - c)(1 + z)`` with ``c`` the box centre (eq 34, clipped to the box), with
       ``z`` per coordinate from a Student t distribution with ``iter`` degrees of freedom
       (heavy-tailed early, near-Gaussian later; the paper does not give the degrees of freedom).
-      The counter restarts after each regeneration.
+      The counter restarts after each regeneration. Eq 34 prints ``X_gm (1 + z)``: a
+      perturbation scaled by the distance of ``X_gm`` from the origin, which is the centre of
+      002's CEC boxes but a corner or a point outside the box elsewhere (a planning volume
+      ``[0, 600]``, a shifted box): the absolute-coordinate mistake fixed in IBA-Gauss's ILSA.
+      About the box centre the two are identical on origin-centred boxes (every benchmark
+      suite here) and IAFSA is translation invariant; ``regen_centre="origin"`` keeps the
+      printed form.
 
     Defaults: paper 002 section 4.1 (CEC2020): ``N = 50``, ``chi = 0.95``, ``V0 = 50`` on
     ``[-100, 100]`` (``v0 = 0.25``, a fraction of the box diagonal by default: ``visual_unit``
@@ -422,6 +428,7 @@ class ImprovedFishSwarm(_FishBase):
         "r0": 4.0,
         "visual_abs": False,
         "v0_decay": False,
+        "regen_centre": "box",
         "visual_unit": "diagonal",
         "prey_region": "ball",
         "direction": "cube",
@@ -445,6 +452,10 @@ class ImprovedFishSwarm(_FishBase):
         for key in ("visual_abs", "v0_decay"):
             if not isinstance(p[key], bool):
                 raise ValueError(f"{self.name}: {key} must be true or false, got {p[key]!r}")
+        if p["regen_centre"] not in ("box", "origin"):
+            raise ValueError(
+                f"{self.name}: regen_centre must be 'box' or 'origin', got {p['regen_centre']!r}"
+            )
 
     def setup(self, problem: Problem, rng: np.random.Generator, x0: np.ndarray | None) -> _FishState:
         n = self.population
@@ -490,7 +501,9 @@ class ImprovedFishSwarm(_FishBase):
             return idx
         xgm = _to_box(problem, state.best_U[None, :])[0]
         z = rng.standard_t(max(iteration, 1), (idx.size, d))
-        Xnew = problem.clip(xgm * (1.0 + z))
+        # eq 34 about the box centre (the origin of 002's boxes), see the class docstring
+        c = 0.5 * (problem.lower + problem.upper) if p["regen_centre"] == "box" else 0.0
+        Xnew = problem.clip(c + (xgm - c) * (1.0 + z))
         Fnew = problem.evaluate(Xnew)
         state.U[idx] = _to_unit(problem, Xnew)
         state.F[idx] = Fnew

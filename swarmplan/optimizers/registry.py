@@ -30,6 +30,7 @@ BUILTIN: dict[str, tuple[str, str]] = {
     "iafsa": ("fish_swarm", "ImprovedFishSwarm"),
     "woa": ("whale", "WOA"),
     "rscdwoa": ("whale", "RSCDWOA"),
+    "lshade": ("shade", "LShade"),
 }
 
 _REGISTRY: dict[str, type[Optimizer]] = {}

@@ -11,7 +11,9 @@ routes, escapes and smoothing segments are all filleted before they are flown.
 (the next route waypoint, or the goal) lies inside one of their minimum turning circles,
 or the route turns at the next waypoint more tightly than the model's radius allows, it
 plans a ``smoothing`` segment with the optimizer (same cost as escapes, purpose
-"smoothing"), validated with FCL. Checks are rate-limited per agent.
+"smoothing"), validated with FCL. Checks are rate-limited per agent, and skipped while other
+agents are within the reach of the field's agent term (their passing shapes the way, and a
+segment planned through them would be out of date within a second).
 """
 
 from __future__ import annotations
@@ -91,6 +93,8 @@ class CurvatureSmoother:
             if s.mode[i] != Mode.APF or s.t < self.next_check.get(i, 0.0):
                 continue
             self.next_check[i] = s.t + self.check_interval
+            if self.ep.agents_near(sim, i).any():
+                continue  # among other agents the way is theirs to shape: no segment to smooth
             found = self.check(sim, i)
             if found is None:
                 continue

@@ -34,7 +34,7 @@ from swarmplan.core import (
     StuckOutcome,
     SwarmState,
 )
-from swarmplan.flight.apf import ApfGains, FieldInputs, apf_forces, commanded_velocity
+from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
 from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -71,7 +71,7 @@ class Simulation:
             raise ValueError(f"planner: expected 'world', 'none' or a Planner, got {planner!r}")
         self.planner = planner
         self.params = AgentParams.from_world(world)
-        self.gains = ApfGains.from_world(world)
+        self.apf = ApfField(world, self.params)
         self.scene = Scene(world, self.params)
         self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
@@ -244,16 +244,9 @@ class Simulation:
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
-            field_args = (w, self.params, self.gains, idx, pos0[idx], vel0[idx], s.goal[idx], inputs)
-            field_args += (pos0, vel0)
-            force = apf_forces(*field_args, target=target, static_scale=rep_scale, parked=parked)
-            fixed = self.params.fixed_wing[idx]
-            if fixed.any() and parked.any():
-                # Fixed wings keep the full repulsion of parked agents: they cannot stop, so the
-                # standstill the goal factor resolves (held off the goal by parked neighbours)
-                # does not arise, and near a goal they circle at speed past parked agents
-                # (rscdwoa_multi_uav, woa seed 9: with the factor uav1 circled its goal for 50 s).
-                force[fixed] = apf_forces(*field_args, target=target, static_scale=rep_scale)[fixed]
+            flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
+            to_go = np.linalg.norm(s.goal - pos0, axis=1)
+            force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             if self._threat_cores is not None:
                 cores, radius = self._threat_cores, self.params.radius[idx]

@@ -53,7 +53,7 @@ PLANNER_DEFAULTS: dict[str, Any] = {
     "apf": {
         "k_att": 1.0,
         "k_rep": 50.0,
-        "influence": 40.0,
+        "influence": None,  # m; left out: from the agents (default_influence)
         "k_agent": 20.0,
         "quadratic_radius": 10.0,  # m: attraction is quadratic inside, conic outside
         "goal_power": 2.0,  # n of the goal-distance factor rho_goal^n in the repulsion
@@ -64,6 +64,17 @@ PLANNER_DEFAULTS: dict[str, Any] = {
     "optimizer": {"name": "rscdwoa", "population": 30, "iterations": 100, "params": {}},
     "smoothing": {"enabled": True},
 }
+
+
+def default_influence(agents: list[AgentSpec]) -> float:
+    """``planner.apf.influence`` left out: ``2 v^2 / a`` (four braking distances from cruise
+    speed) of the agent that needs the most room, at least 2 m. The field's repulsion starts
+    where it leaves room to turn or stop; 40 m for the default agent (10 m/s, 5 m/s^2), 10 m for
+    a 5 m/s multirotor braking at 5 m/s^2. A longer range sums the pushes of whole forests
+    and crowds into walls that hold agents away from their goals."""
+    need = [2.0 * a.speed_cruise**2 / max(a.max_accel, 1e-9) for a in agents]
+    return max(2.0, max(need, default=40.0))
+
 
 SIM_DEFAULTS = {"dt": 0.1, "max_time": 120.0, "goal_tolerance": 2.0}
 
@@ -84,6 +95,8 @@ def _resolve_planner(c: Checker, raw: Any, optimizer_names: list[str] | None) ->
             continue
         if c.keys(node, f"planner.{section}", list(planner[section])):
             for k, dv in PLANNER_DEFAULTS[section].items():
+                if dv is None and node.get(k) is None:
+                    continue  # derived from the agents once they are known
                 planner[section][k] = c.number(node, k, f"planner.{section}", dv, positive=True)
     opt = raw.get("optimizer")
     if opt is not None and c.keys(opt, "planner.optimizer", ["name", "population", "iterations", "params"]):
@@ -443,6 +456,8 @@ def parse_world(
     _check_defaults_alone(c, defaults)
 
     planner = _resolve_planner(c, raw.get("planner"), optimizer_names)
+    if planner["apf"]["influence"] is None:
+        planner["apf"]["influence"] = default_influence(agents)
     _check_planner_sections(c, planner)
 
     log = dict(LOG_DEFAULTS)

@@ -1,0 +1,362 @@
+"""Dense swarms on the field's standard scenarios, side by side with ORCA-3D.
+
+``python -m swarmplan.bench swarm [--sizes 16,64,256,512] [--seeds K] [--peers orca] [--out DIR]
+[--docs DIR] [--quick]`` flies every scenario of :mod:`swarmplan.bench.swarm_scenarios` (sphere,
+circle, crossing, doorway (up to 64 agents), sphere_pillars, forest) at every size and seed with
+swarmplan's default planner and with pure APF (``--optimizer none``), and, with ``--peers orca``,
+ORCA-3D (RVO2-3D through the ``jt-pyrvo23d`` package: ``pip install -e '.[orca]'``) on the
+obstacle-free ones with the same radius, speeds and dt and the preferred velocity towards the goal
+(an agent stops within the goal tolerance, as swarmplan's do).
+
+Per scenario x size x system (means over the seeds, with the worst seed where it matters):
+arrived/N; collisions: pairs of agents whose centres came closer than the sum of their radii,
+measured the same way for every system from the positions of consecutive steps (swept between
+them); minimum separation (surface to surface); mean path length over the straight line; time of
+the last arrival; real-time factor of the stepping loop (simulated over wall seconds, start-up and
+the first step excluded, swarmplan recording its MCAP log); escapes. Each run's horizon is three
+times the longest straight-line flight at cruise speed plus 30 s.
+
+Writes ``swarm.csv`` (one row per run) to ``--out`` and ``swarm-benchmarks.md`` with the table
+and one picture per scenario (``swarm-<scenario>.png``, flown paths) to ``--docs``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import importlib.util
+import math
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from swarmplan.bench.swarm_scenarios import MAX_AGENTS, OBSTACLE_FREE, SCENARIOS, scenario_world
+
+SYSTEMS = ("planner", "apf", "orca")
+
+
+@dataclass
+class Row:
+    scenario: str
+    agents: int
+    system: str
+    seed: int
+    arrived: int
+    collisions: int
+    min_separation: float
+    path_ratio: float
+    last_arrival: float
+    sim_time: float
+    wall: float
+    rtf: float
+    escapes: int
+
+
+class ContactMeter:
+    """Pairs of agents closer than the sum of their radii between consecutive samples (the
+    relative motion of a step taken as straight), and the minimum surface distance."""
+
+    def __init__(self, radius: np.ndarray):
+        self.radius = np.asarray(radius, dtype=float)
+        self.pairs: set[tuple[int, int]] = set()
+        self.min_gap = math.inf
+
+    def update(self, p0: np.ndarray, p1: np.ndarray) -> None:
+        from scipy.spatial import cKDTree
+
+        move = float(np.linalg.norm(p1 - p0, axis=1).max(initial=0.0))
+        reach = 2.0 * float(self.radius.max()) + 2.0 * move + 5.0
+        pairs = cKDTree(p1).query_pairs(reach, output_type="ndarray")
+        if not len(pairs):
+            return
+        a, b = pairs[:, 0], pairs[:, 1]
+        dp = p0[a] - p0[b]
+        dv = (p1[a] - p1[b]) - dp
+        vv = np.einsum("ij,ij->i", dv, dv)
+        t = np.clip(-np.einsum("ij,ij->i", dp, dv) / np.maximum(vv, 1e-12), 0.0, 1.0)
+        d = np.linalg.norm(dp + t[:, None] * dv, axis=1)
+        gap = d - self.radius[a] - self.radius[b]
+        self.min_gap = min(self.min_gap, float(gap.min()))
+        for k in np.flatnonzero(gap < 0.0):
+            self.pairs.add((int(a[k]), int(b[k])))
+
+
+def _straight(world) -> np.ndarray:  # noqa: ANN001
+    return np.array([np.linalg.norm(np.subtract(a.goal, a.start)) for a in world.agents])
+
+
+class _RunMeter:
+    """Observer of a run (``io.runner.run_episode``): contacts from consecutive positions, the
+    flown paths (every 5th sample) and the wall time of the stepping loop from the end of the
+    first step (start-up and the first step excluded; the meter's own work subtracted)."""
+
+    def __init__(self, radius: np.ndarray, keep_paths: bool):
+        self.meter = ContactMeter(radius)
+        self.keep_paths = keep_paths
+        self.paths: list[np.ndarray] = []
+        self.steps = 0
+        self.wall = 0.0
+        self.t_first = 0.0
+        self._clock = 0.0
+        self._pos: np.ndarray | None = None
+
+    def on_reset(self, result) -> None:  # noqa: ANN001
+        self._pos = result.state.position.copy()
+        if self.keep_paths:
+            self.paths.append(self._pos)
+
+    def on_step(self, result) -> None:  # noqa: ANN001
+        now = time.perf_counter()
+        self.steps += 1
+        if self.steps == 1:
+            self.t_first = result.state.t
+        else:
+            self.wall += now - self._clock
+        pos = result.state.position.copy()
+        self.meter.update(self._pos, pos)
+        self._pos = pos
+        if self.keep_paths and (self.steps % 5 == 0 or result.terminated or result.truncated):
+            self.paths.append(pos)
+        self._clock = time.perf_counter()
+
+
+def run_swarmplan(name: str, agents: int, seed: int, system: str, keep_paths: bool = False):  # noqa: ANN201
+    """One run of swarmplan (``system``: 'planner' or 'apf'), recording its MCAP log as the
+    command line does; (Row, paths (samples, N, 3) or None)."""
+    from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import run_episode
+    from swarmplan.sim import Simulation
+
+    world = scenario_world(name, agents, seed)
+    sim = Simulation(world, planner="world" if system == "planner" else "none")
+    run = _RunMeter(sim.params.radius, keep_paths)
+    with tempfile.TemporaryDirectory() as tmp:
+        run_episode(sim, seed, observers=[run], recorder=McapRecorder(Path(tmp) / "run.mcap"))
+    m = sim.metrics
+    arrived = np.isfinite(m.arrival_time)
+    straight = _straight(world)[arrived]
+    ratio = float(np.mean(m.path_length[arrived] / np.maximum(straight, 1e-9))) if arrived.any() else math.nan
+    flown = sim.state.t - run.t_first
+    row = Row(name, agents, system, seed, int(arrived.sum()), len(run.meter.pairs), run.meter.min_gap, ratio,
+              float(np.nanmax(m.arrival_time)) if arrived.any() else math.nan, sim.state.t, run.wall,
+              flown / run.wall if run.wall > 0 else math.nan, int(m.escapes.sum()))  # fmt: skip
+    return row, (np.array(run.paths) if keep_paths else None)
+
+
+def run_orca(name: str, agents: int, seed: int) -> Row:
+    """One run of ORCA-3D on the same world: radius, maximum speed and dt of the agents, the
+    preferred velocity towards the goal at cruise speed (slowed to stop on it), an agent stops
+    for good within the goal tolerance. Neighbours as RVO2-3D's sphere example (15 m, 10, 10 s)."""
+    import rvo23d
+
+    world = scenario_world(name, agents, seed)
+    a0 = world.agents[0]
+    sim = rvo23d.PyRVOSimulator(world.dt, 15.0, 10, 10.0, a0.radius, a0.speed_max)
+    start = np.array([a.start for a in world.agents], dtype=float)
+    goal = np.array([a.goal for a in world.agents], dtype=float)
+    for p in start:
+        sim.addAgent(tuple(float(v) for v in p))
+    n = len(start)
+    pos = start.copy()
+    arrival = np.full(n, np.nan)
+    path = np.zeros(n)
+    meter = ContactMeter(np.full(n, a0.radius))
+    cruise, amax, tol = a0.speed_cruise, a0.max_accel, world.goal_tolerance
+    t, wall, steps = 0.0, 0.0, 0
+    while t < world.max_time - 1e-9 and np.isnan(arrival).any():
+        clock = time.perf_counter()
+        e = goal - pos
+        d = np.linalg.norm(e, axis=1)
+        speed = np.minimum(cruise, np.sqrt(2.0 * amax * d))
+        pref = np.where(np.isnan(arrival)[:, None], e / np.maximum(d, 1e-9)[:, None] * speed[:, None], 0.0)
+        for i in range(n):
+            sim.setAgentPrefVelocity(i, (float(pref[i, 0]), float(pref[i, 1]), float(pref[i, 2])))
+        sim.doStep()
+        new = np.array([sim.getAgentPosition(i) for i in range(n)], dtype=float)
+        steps += 1
+        if steps > 1:
+            wall += time.perf_counter() - clock
+        t = steps * world.dt
+        meter.update(pos, new)
+        path += np.where(np.isnan(arrival), np.linalg.norm(new - pos, axis=1), 0.0)
+        pos = new
+        done = np.isnan(arrival) & (np.linalg.norm(goal - pos, axis=1) <= tol)
+        arrival[done] = t
+    arrived = np.isfinite(arrival)
+    straight = _straight(world)
+    ratio = float(np.mean(path[arrived] / np.maximum(straight[arrived], 1e-9))) if arrived.any() else math.nan
+    last = float(np.nanmax(arrival)) if arrived.any() else math.nan
+    rtf = (t - world.dt) / wall if wall > 0 else math.nan
+    return Row(name, agents, "orca", seed, int(arrived.sum()), len(meter.pairs), meter.min_gap, ratio, last,
+               t, wall, rtf, 0)  # fmt: skip
+
+
+def _parse_sizes(text: str) -> list[int] | None:
+    try:
+        sizes = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        return None
+    return sizes if sizes and all(s >= 2 for s in sizes) else None
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--sizes", default="16,64,256,512", help="swarm sizes, comma-separated (each >= 2)")
+    parser.add_argument("--seeds", type=int, default=3, help="seeds per scenario and size")
+    parser.add_argument("--scenarios", default=",".join(SCENARIOS), help="scenarios, comma-separated")
+    parser.add_argument("--peers", default="", help="peer systems to fly beside swarmplan: orca")
+    parser.add_argument("--out", default="logs/bench-swarm", help="folder of the CSV (one row per run)")
+    parser.add_argument("--docs", default="docs", help="folder of swarm-benchmarks.md and its pictures")
+    parser.add_argument("--no-docs", action="store_true", help="write the CSV only")
+    parser.add_argument("--quick", action="store_true", help="16 agents, one seed (a smoke test)")
+
+
+def check_arguments(args: argparse.Namespace) -> list[str]:
+    problems = []
+    if _parse_sizes(args.sizes) is None:
+        problems.append(f"--sizes: expected whole numbers >= 2 separated by commas, got {args.sizes!r}")
+    if args.seeds < 1:
+        problems.append(f"--seeds: must be >= 1, got {args.seeds}")
+    unknown = [s for s in args.scenarios.split(",") if s not in SCENARIOS]
+    if unknown:
+        problems.append(f"--scenarios: unknown {', '.join(unknown)} (known: {', '.join(SCENARIOS)})")
+    peers = [p for p in args.peers.split(",") if p]
+    if any(p != "orca" for p in peers):
+        problems.append(f"--peers: only 'orca' is known, got {args.peers!r}")
+    elif peers and importlib.util.find_spec("rvo23d") is None:
+        problems.append("--peers orca: ORCA-3D is not installed (pip install -e '.[orca]')")
+    for flag in ("out", "docs"):
+        path = Path(getattr(args, flag))
+        if path.exists() and not path.is_dir():
+            problems.append(f"--{flag}: {path} is a file, expected a folder")
+    return problems
+
+
+def main(args: argparse.Namespace) -> int:
+    problems = check_arguments(args)
+    if problems:
+        for p in problems:
+            print(f"error: {p}", file=sys.stderr)
+        return 2
+    sizes = [16] if args.quick else _parse_sizes(args.sizes)
+    seeds = 1 if args.quick else args.seeds
+    scenarios = args.scenarios.split(",")
+    orca = "orca" in args.peers.split(",")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    # Start-up out of the figures: every compiled kernel a run may call (field, checks, escape
+    # and smoothing costs, movers) loaded once, by small runs whose rows are not kept.
+    for warm in ("sphere_pillars", "forest"):
+        run_swarmplan(warm, 16, 0, "planner")
+    rows: list[Row] = []
+    pictures: dict[str, tuple[int, np.ndarray]] = {}
+    print(
+        "scenario agents system seed: arrived collisions min_sep path_ratio last_arrival rtf escapes",
+        flush=True,
+    )
+    for name in scenarios:
+        for n in sizes:
+            if n > MAX_AGENTS.get(name, n):
+                continue
+            for seed in range(seeds):
+                systems = ["planner", "apf"] + (["orca"] if orca and name in OBSTACLE_FREE else [])
+                for system in systems:
+                    if system == "orca":
+                        row = run_orca(name, n, seed)
+                    else:
+                        keep = system == "planner" and seed == 0 and n == min(max(sizes), 64)
+                        row, paths = run_swarmplan(name, n, seed, system, keep_paths=keep)
+                        if keep:
+                            pictures[name] = (n, paths)
+                    rows.append(row)
+                    print(
+                        f"{name} {n} {system} {seed}: {row.arrived}/{n} {row.collisions} "
+                        f"{row.min_separation:.2f} {row.path_ratio:.3f} {row.last_arrival:.1f} "
+                        f"{row.rtf:.1f} {row.escapes}",
+                        flush=True,
+                    )
+    with open(out / "swarm.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(asdict(rows[0])))
+        w.writeheader()
+        for r in rows:
+            w.writerow(asdict(r))
+    table = summary_table(rows)
+    verdicts = done_verdicts(rows)
+    print(table)
+    print("\n".join(verdicts))
+    if not args.no_docs:
+        from swarmplan.bench.swarm_report import write_docs
+
+        write_docs(Path(args.docs), rows, table, verdicts, pictures, sizes, seeds, orca)
+    print(
+        f"wrote {out / 'swarm.csv'}"
+        + ("" if args.no_docs else f" and {Path(args.docs) / 'swarm-benchmarks.md'}")
+    )
+    return 0
+
+
+def _groups(rows: list[Row]) -> dict[tuple[str, int, str], list[Row]]:
+    out: dict[tuple[str, int, str], list[Row]] = {}
+    for r in rows:
+        out.setdefault((r.scenario, r.agents, r.system), []).append(r)
+    return out
+
+
+def summary_table(rows: list[Row]) -> str:
+    """Markdown table: one line per scenario x size x system, over its seeds."""
+    lines = [
+        "| scenario | N | system | arrived | collisions | min sep (m) | path / straight "
+        "| last arrival (s) | real-time factor | escapes |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for (name, n, system), g in _groups(rows).items():
+        arrived = sum(r.arrived for r in g)
+        last = [r.last_arrival for r in g if math.isfinite(r.last_arrival)]
+        lines.append(
+            f"| {name} | {n} | {system} | {arrived}/{n * len(g)} | {sum(r.collisions for r in g)} | "
+            f"{min(r.min_separation for r in g):.2f} | {np.nanmean([r.path_ratio for r in g]):.3f} | "
+            f"{(max(last) if last else math.nan):.1f} | {np.mean([r.rtf for r in g]):.1f} | "
+            f"{sum(r.escapes for r in g)} |"
+        )
+    return "\n".join(lines)
+
+
+def done_verdicts(rows: list[Row]) -> list[str]:
+    """The benchmark's targets, each with its figure and met / NOT met."""
+    g = _groups(rows)
+    out = []
+    ours = [r for r in rows if r.system != "orca"]
+    home = sum(r.arrived for r in ours)
+    total = sum(r.agents for r in ours)
+    contacts = sum(r.collisions for r in ours)
+    ok = home == total and contacts == 0
+    out.append(
+        f"- every agent home, no contact (planner and pure APF): {home}/{total}, {contacts} pairs: "
+        f"{'met' if ok else 'NOT met'}"
+    )
+    slow = []
+    for (name, n, system), rs in g.items():
+        if system != "planner" or (name, n, "apf") not in g:
+            continue
+        ratio = np.mean([r.rtf for r in rs]) / np.mean([r.rtf for r in g[(name, n, "apf")]])
+        if ratio < 0.5:
+            slow.append(f"{name}/{n} {ratio:.2f}")
+    out.append("- default planner >= 0.5x pure APF's real-time factor everywhere: "
+               + ("met" if not slow else "NOT met (" + ", ".join(slow) + ")"))  # fmt: skip
+    for n, check_last in ((64, True), (512, False)):
+        key_a, key_o = ("sphere", n, "apf"), ("sphere", n, "orca")
+        if key_a not in g or key_o not in g:
+            continue
+        rtf_a = np.mean([r.rtf for r in g[key_a]])
+        rtf_o = np.mean([r.rtf for r in g[key_o]])
+        out.append(f"- sphere {n}: pure APF real-time factor {rtf_a:.1f} vs ORCA {rtf_o:.1f}: "
+                   f"{'met' if rtf_a >= rtf_o else 'NOT met'}")  # fmt: skip
+        if check_last:
+            la = max(r.last_arrival for r in g[key_a])
+            lo = max(r.last_arrival for r in g[key_o])
+            out.append(f"- sphere {n}: last arrival {la:.1f} s vs 1.5 x ORCA's {lo:.1f} s: "
+                       f"{'met' if la <= 1.5 * lo else 'NOT met'}")  # fmt: skip
+    return out

@@ -1,0 +1,173 @@
+"""The potential field of ``swarmplan.flight.apf`` in plain numpy over every pair: the reference
+the compiled field (the product's one implementation) is tested against. Same formulas, array
+by array; sums in another order, so the two agree to rounding (tests use 1e-9 relative)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from swarmplan.flight.apf import FieldInputs, Flyers, Swarm, stopping_reach
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.vec3 import dot3, norm3
+
+_EPS = 1e-9
+
+
+def _unit(v):
+    return v / np.maximum(norm3(v, keepdims=True), _EPS)
+
+
+def _right_of(v):
+    """Right of ``v`` (z up) while its horizontal part is at least a fifth of it, else about x."""
+    h2 = v[..., 0] ** 2 + v[..., 1] ** 2
+    zero = np.zeros(v.shape[:-1])
+    horizontal = np.stack([v[..., 1], -v[..., 0], zero], axis=-1)
+    about_x = np.stack([zero, v[..., 2], -v[..., 1]], axis=-1)
+    return _unit(np.where((h2 >= 0.04 * (h2 + v[..., 2] ** 2))[..., None], horizontal, about_x))
+
+
+def _rep(rho, rho0, k):
+    return np.where(rho < rho0, k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0), 0.0)
+
+
+def reference_forces(
+    world, params: AgentParams, flyers: Flyers, field: FieldInputs, swarm: Swarm, gains=None
+):
+    """The field's force on every flyer, shape (n, 3)."""
+    g = world.planner_config.apf if gains is None else gains
+    idx, pos, vel, goal = flyers.idx, flyers.pos, flyers.vel, flyers.goal
+    target, static_scale = flyers.target, flyers.static_scale
+    n = len(idx)
+    r = params.radius[idx]
+    rho0 = g.influence
+    e = goal - pos
+    dg = norm3(e)
+    et = e if target is None else target - pos
+    dt_ = norm3(et)
+    dq = g.quadratic_radius
+    well = dt_ <= dq
+    if target is not None:
+        well &= np.all(np.abs(target - goal) <= 1e-9, axis=1)
+    force = g.k_att * np.where(well[:, None], et, dq * et / np.maximum(dt_, _EPS)[:, None])
+    goal_dir = _unit(e)
+    npow = g.goal_power
+    gfac = np.minimum(1.0, dg / rho0) ** npow
+    gfac_d = np.where(dg < rho0, npow * np.minimum(1.0, dg / rho0) ** (npow - 1) / rho0, 0.0)
+
+    turn_force = np.zeros_like(force)
+    hold = np.zeros(n)
+    if field.obstacle_distance.shape[1]:
+        rho = field.obstacle_distance - r[:, None]
+        scale = np.ones(n) if static_scale is None else static_scale
+        k = np.where(field.obstacle_moving[None, :], g.k_rep, g.k_rep * scale[:, None])
+        mag = _rep(rho, rho0, k)
+        pot = np.where(rho < rho0, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
+        grad = field.obstacle_gradient
+        force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
+        # Blocked by a static body: the opposing part of its push turns along its surface,
+        # the way the pull leans along it, or when the pull is nearly square to it towards the
+        # body's nearer side horizontally (right-hand when dead centre); only where the static
+        # bodies hold the agent (below).
+        pull = _unit(et)
+        block = np.einsum("nd,nkd->nk", pull, grad)
+        c = pos[:, None, :] - field.obstacle_center[None, :, :]
+        c[..., 2] = 0.0
+        nearer = c - dot3(c, grad)[..., None] * grad
+        tiny = dot3(nearer, nearer) < 1e-12 * (1.0 + dot3(c, c))
+        nearer = np.where(tiny[..., None], _right_of(-grad), nearer)
+        along = pull[:, None, :] - block[..., None] * grad  # the pull's part along the surface
+        side = np.where((dot3(along, along) < 0.04)[..., None], nearer, along)
+        static = ~field.obstacle_moving[None, :] & (rho < rho0)
+        hold = np.where(static, mag * gfac[:, None] * block, 0.0).sum(axis=1)
+        on = (block < 0) & static
+        # fades in from one to two influences off the goal; only on the way to the goal itself
+        turn = np.clip(dg / rho0 - 1.0, 0.0, 1.0)
+        if target is not None:
+            turn = np.where(np.all(np.abs(target - goal) <= 1e-9, axis=1), turn, 0.0)
+        w = np.where(on, mag * (gfac * turn)[:, None] * block, 0.0)
+        turn_force = -np.einsum("nk,nkd->nd", w, _unit(side))
+        force = force + (pot.sum(axis=1) * gfac_d)[:, None] * goal_dir
+        mv = field.obstacle_moving
+        if mv.any():
+            dp = pos[:, None, :] - field.obstacle_center[mv][None]
+            dv = vel[:, None, :] - field.obstacle_velocity[mv][None]
+            a = dot3(dv, dv)
+            tau = np.clip(-dot3(dp, dv) / np.maximum(a, _EPS), 0.0, g.horizon)
+            sep = dp + tau[..., None] * dv
+            dist = norm3(sep)
+            radii = field.obstacle_radius[mv]
+            rr = dist - radii[None, :] - r[:, None]
+            m = _rep(rr, rho0, g.k_rep * g.k_moving) * (1.0 - tau / (g.horizon + _EPS)) * (tau > 0)
+            right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
+            head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
+            direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))
+            force = force + np.einsum("nk,nkd->nd", m, direction)
+
+    h = world.terrain_height(pos[:, :2])
+    gh = world.terrain_gradient(pos[:, :2])
+    normal = _unit(np.stack([-gh[:, 0], -gh[:, 1], np.ones(n)], axis=1))
+    floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
+    rho_g = (pos[:, 2] - h) - r
+    rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 2.0)
+    low_goal = goal[:, 2] - world.terrain_height(goal[:, :2]) < floor
+    mag_g = _rep(rho_g, rho0_g, g.k_rep)
+    force = force + np.where(low_goal, mag_g * gfac, mag_g)[:, None] * normal
+
+    lo, hi = world.bounds_min, world.bounds_max
+    rb0 = min(rho0, 10.0)
+    for axis in range(3):
+        for sign, plane in ((1.0, lo[axis]), (-1.0, hi[axis])):
+            if axis == 2 and sign > 0:
+                continue
+            rho_b = sign * (pos[:, axis] - plane) - r
+            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep) * gfac
+    force = force + agent_term(world, params, g, flyers, swarm, gfac)
+    # The turn only where the static bodies hold the agent (the pull and their push along it
+    # under a quarter of the pull).
+    pull_size = g.k_att * np.minimum(dt_, dq)
+    held = pull_size + hold < 0.25 * pull_size
+    return force + np.where(held[:, None], turn_force, 0.0)
+
+
+def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac=None):
+    """The other agents' repulsion on every flyer (every pair, no index)."""
+    idx, pos, vel = flyers.idx, flyers.pos, flyers.vel
+    all_pos, all_vel = swarm.pos, swarm.vel
+    n_all = len(all_pos)
+    if gfac is None:
+        gfac = np.ones(len(idx))
+    if n_all < 2:
+        return np.zeros_like(pos)
+    reach = stopping_reach(params, world.dt)
+    others = np.ones((len(idx), n_all), dtype=bool)
+    others[np.arange(len(idx)), idx] = False
+    sep = np.maximum(params.separation[idx][:, None, :], params.separation[None, :, :])
+    rr = params.radius[idx][:, None] + params.radius[None, :]
+    scale = sep + rr[..., None]
+    dp = pos[:, None, :] - all_pos[None, :, :]
+    q = dp / scale
+    e = norm3(q)
+    grad = _unit(q / scale)
+    e0 = 1.0 + np.minimum(reach[idx][:, None] + reach[None, :], g.influence) / scale.max(axis=-1)
+    mag = np.where(others & (e < e0), g.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    dvw = vel[:, None, :] - all_vel[None, :, :]
+    dv = dvw / scale
+    a = dot3(dv, dv)
+    tau = np.clip(-dot3(q, dv) / np.maximum(a, _EPS), 0.0, g.horizon)
+    qs = q + tau[..., None] * dv
+    es = norm3(qs)
+    urgency = 1.0 - tau / (g.horizon + _EPS)
+    live = others & (es < e0) & (tau > 0)
+    mag_p = np.where(live, g.k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
+    parked = np.zeros(n_all, dtype=bool) if swarm.parked is None else swarm.parked
+    farther = np.zeros((len(idx), n_all), dtype=bool)
+    if swarm.goal_distance is not None:
+        farther = norm3(flyers.goal - pos)[:, None] <= swarm.goal_distance[None, :]
+    factored = (parked[None, :] | farther) & ~params.fixed_wing[idx][:, None]
+    mag = np.where(factored, mag * gfac[:, None], mag)
+    mag_p = np.where(factored, mag_p * gfac[:, None], mag_p)
+    over = (2.0 * dvw[..., 0] + dvw[..., 1]) / (np.sqrt(5.0) * np.maximum(norm3(dvw), _EPS))
+    up = np.zeros_like(dvw)
+    up[..., 2] = over
+    direction = _unit(_unit(qs * scale) + 0.5 * (_right_of(dvw) + up))
+    return np.einsum("nk,nkd->nd", mag, grad) + np.einsum("nk,nkd->nd", mag_p, direction)

@@ -1,0 +1,141 @@
+"""Dense swarms on the field's standard scenarios (swarmplan.bench.swarm_scenarios): every agent
+home with no contact, with the default planner and with pure APF; the scenario generator's
+geometry; the contact meter of ``bench swarm`` on exact cases; its command line's errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from swarmplan.bench import swarm_scenarios as S
+from swarmplan.bench.swarm import ContactMeter
+from swarmplan.sim import Simulation
+
+
+def fly(name: str, agents: int, planner: str, seed: int = 0) -> tuple[Simulation, ContactMeter]:
+    """Fly a scenario to its end; contacts measured from positions, swept between steps."""
+    world = S.scenario_world(name, agents, seed)
+    sim = Simulation(world, planner=planner)
+    sim.reset(seed=seed)
+    meter = ContactMeter(sim.params.radius)
+    while True:
+        p0 = sim.state.position.copy()
+        r = sim.step()
+        meter.update(p0, sim.state.position)
+        if r.terminated or r.truncated:
+            return sim, meter
+
+
+def _assert_home(name: str, agents: int, planner: str) -> None:
+    sim, meter = fly(name, agents, planner)
+    s = sim.summary()
+    assert s["arrived"] == agents, f"{name} {agents} {planner}: {s['arrived']}/{agents} at t={sim.state.t}"
+    assert s["collisions"] == 0 and not meter.pairs, meter.pairs
+    assert meter.min_gap > 0.0
+    assert sim.state.t < sim.world.max_time  # within 3x the straight flight + 30 s
+
+
+@pytest.mark.parametrize("planner", ["world", "none"])
+@pytest.mark.parametrize("agents", [16, 64])
+@pytest.mark.parametrize("name", ["sphere", "circle"])
+def test_every_agent_home_without_contact(name, agents, planner):
+    _assert_home(name, agents, planner)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("planner", ["world", "none"])
+@pytest.mark.parametrize("agents", [256, 512])
+@pytest.mark.parametrize("name", ["sphere", "circle"])
+def test_every_agent_home_without_contact_at_scale(name, agents, planner):
+    _assert_home(name, agents, planner)
+
+
+def test_sphere_is_antipodal_on_its_radius():
+    raw = S.sphere(64, seed=3)
+    start = np.array([a["start"] for a in raw["agents"]])
+    goal = np.array([a["goal"] for a in raw["agents"]])
+    centre = (start + goal) / 2.0
+    np.testing.assert_allclose(centre, np.broadcast_to(centre[0], centre.shape), atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(start - centre, axis=1), 2.2 * 8.0, atol=1e-5)
+    # Evenly spread: no two starts closer than 4 m at 64 agents (17.6 m sphere).
+    d = np.linalg.norm(start[:, None] - start[None], axis=-1) + np.eye(64) * 1e9
+    assert d.min() > 4.0
+    # The horizon: 3x the straight flight at cruise (5 m/s) plus 30 s.
+    assert raw["sim"]["max_time"] == pytest.approx(3 * 2 * 17.6 / 5.0 + 30.0, abs=0.1)
+
+
+def test_scenarios_are_seeded_and_valid():
+    for name, make in S.SCENARIOS.items():
+        assert make(16, 1) == make(16, 1)
+        assert make(16, 1) != make(16, 2)
+        world = S.scenario_world(name, 16, 1)  # parses: starts and goals clear of everything
+        assert len(world.agents) == 16
+        a = world.agents[0]
+        assert (a.radius, a.speed_max, a.speed_cruise, world.dt, world.goal_tolerance) == (
+            0.5,
+            6.0,
+            5.0,
+            0.1,
+            2.0,
+        )
+
+
+@pytest.mark.parametrize(
+    "agents", [16, 64, pytest.param(256, marks=pytest.mark.slow), pytest.param(512, marks=pytest.mark.slow)]
+)
+def test_every_scenario_parses_for_several_seeds(agents):
+    """Starts and goals clear of every obstacle at every size (the pillars inside the sphere
+    once touched agents on it at 16 agents, seed 2)."""
+    for name in S.SCENARIOS:
+        if agents > S.MAX_AGENTS.get(name, agents):
+            continue
+        for seed in range(3 if agents > 64 else 5):
+            S.scenario_world(name, agents, seed)
+
+
+def test_circle_is_planar_and_doorway_has_one_gap():
+    raw = S.circle(32, 0)
+    z = {a["start"][2] for a in raw["agents"]} | {a["goal"][2] for a in raw["agents"]}
+    assert len(z) == 1
+    door = S.doorway(16, 0)
+    walls = sorted(door["obstacles"], key=lambda o: o["position"][1])
+    top_of_south = walls[0]["position"][1] + walls[0]["size"][1] / 2
+    bottom_of_north = walls[1]["position"][1] - walls[1]["size"][1] / 2
+    assert bottom_of_north - top_of_south == pytest.approx(S.DOOR_WIDTH)
+    assert all(o["size"][2] >= door["bounds"]["max"][2] for o in walls)  # as high as the bounds
+
+
+def test_contact_meter_sees_a_crossing_between_samples():
+    meter = ContactMeter(np.array([0.5, 0.5]))
+    # Head-on, they swap places within one step: both samples 4 m apart, the sweep meets.
+    meter.update(np.array([[0.0, 0, 0], [2.0, 0, 0]]), np.array([[2.0, 0, 0], [0.0, 0, 0]]))
+    assert meter.pairs == {(0, 1)}
+    assert meter.min_gap == pytest.approx(-1.0)
+    # Parallel 1.2 m apart: no contact, gap 0.2 m.
+    meter = ContactMeter(np.array([0.5, 0.5]))
+    meter.update(np.array([[0.0, 0, 0], [0.0, 1.2, 0]]), np.array([[1.0, 0, 0], [1.0, 1.2, 0]]))
+    assert not meter.pairs and meter.min_gap == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--sizes", "16,x"], "--sizes"),
+        (["--sizes", "1"], "--sizes"),
+        (["--seeds", "0"], "--seeds"),
+        (["--peers", "rvo"], "--peers"),
+        (["--scenarios", "spheres"], "--scenarios"),
+    ],
+)
+def test_bench_swarm_rejects_bad_arguments(argv, message, tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "swarmplan.bench", "swarm", *argv, "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in out.stderr
