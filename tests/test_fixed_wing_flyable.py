@@ -120,13 +120,11 @@ def test_a_small_fixed_wing_world_is_flyable_from_its_log(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("path", FIXED_WING_WORLDS)
 def test_shipped_fixed_wing_worlds_are_flyable(path, tmp_path):
-    from swarmplan.io.recording import McapRecorder
-    from swarmplan.io.runner import run_episode
-    from swarmplan.sim import Simulation
+    from swarmplan.io.runner import simulate
 
     world = load_world(ROOT / path)
     log = tmp_path / "run.mcap"
-    summary = run_episode(Simulation(world, recorder=McapRecorder(log)), world.seed)
+    summary = simulate(world, world.seed, log)
     assert summary["arrived"] == summary["agents_total"] and summary["collisions"] == 0
     assert_flyable(flight_envelope(log))
     problems, _notes, _ = audit(log)
@@ -137,13 +135,11 @@ def test_shipped_fixed_wing_worlds_are_flyable(path, tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_the_100_km_fixed_wing_world_with_movers_arrives_on_every_seed(seed, tmp_path):
-    from swarmplan.io.recording import McapRecorder
-    from swarmplan.io.runner import run_episode
-    from swarmplan.sim import Simulation
+    from swarmplan.io.runner import simulate
 
     world = load_world(ROOT / "worlds/fixed_wing_movers_100km.yaml")
     log = tmp_path / "run.mcap"
-    summary = run_episode(Simulation(world, recorder=McapRecorder(log)), seed)
+    summary = simulate(world, seed, log)
     assert summary["arrived"] == 4 and summary["collisions"] == 0, summary
     assert_flyable(flight_envelope(log))
     problems, _notes, _ = audit(log)
