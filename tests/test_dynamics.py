@@ -66,6 +66,12 @@ def _wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
+def _angle(a, b):
+    """Angle (rad) between the rows of ``a`` and ``b``."""
+    c = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+    return np.arccos(np.clip(c, -1.0, 1.0))
+
+
 def test_fixed_wing_random_commands_respect_envelope():
     rng = np.random.default_rng(1)
     n, dt = 12, 0.1
@@ -86,17 +92,51 @@ def test_fixed_wing_random_commands_respect_envelope():
         # Flight-path angle within the climb/dive limit.
         gamma = np.arcsin(np.clip(v1[:, 2] / s1, -1, 1))
         assert np.all(np.abs(gamma) <= climb + 1e-9)
-        # Turn radius from the heading change over the distance flown in the step.
-        dpsi = np.abs(_wrap(_heading(v1) - _heading(v)))
-        dist = s1 * dt
-        turning = dpsi > 1e-9
-        r_est = dist[turning] / dpsi[turning]
+        # 3D turn radius: the distance flown at the slower speed over the angle the direction turned.
+        turn = _angle(v, v1)
+        dist = np.minimum(s0, s1) * dt
+        turning = turn > 1e-9
+        r_est = dist[turning] / turn[turning]
         assert np.all(r_est >= radius[turning] * (1 - 1e-9)), (r_est / radius[turning]).min()
         if turning.any():
             min_radius_ratio = min(min_radius_ratio, float((r_est / radius[turning]).min()))
         v = v1
     # Tight turns were actually flown (the limit is active, not just never approached).
     assert min_radius_ratio < 1.2
+
+
+def test_fixed_wing_climb_angle_is_rate_limited():
+    """Level flight commanded straight up: the flight-path angle ramps at V / R per second (no
+    jump to the climb limit), the heading is kept, and the climb limit is never passed."""
+    R, V, dt, climb = 40.0, 20.0, 0.1, math.radians(15)
+    lim = [np.array([x]) for x in (10.0, 30.0, 2.0, R, climb)]
+    v = np.array([[V, 0.0, 0.0]])
+    gammas = []
+    for _ in range(30):
+        v = limit_fixed_wing(v, np.array([[0.0, 0.0, 50.0]]), *lim, dt)
+        gammas.append(math.atan2(v[0, 2], math.hypot(v[0, 0], v[0, 1])))
+        assert abs(_heading(v)[0]) < 1e-12
+    g = np.array(gammas)
+    assert g[0] == pytest.approx(V * dt / R, rel=1e-6)
+    assert g.max() == pytest.approx(climb, abs=1e-9) and (g <= climb + 1e-12).all()
+    ramp = int(math.ceil(climb / (V * dt / R)))
+    assert g[ramp - 1] == pytest.approx(climb, abs=1e-9) and g[ramp - 2] < climb
+
+
+def test_fixed_wing_climbing_turn_keeps_the_3d_radius():
+    """Heading reversal while climbing to the limit: every step turns the direction by at most
+    V dt / R (the 3D curvature of the flown path is <= 1 / R)."""
+    R, V, dt, climb = 30.0, 15.0, 0.1, math.radians(25)
+    lim = [np.array([x]) for x in (10.0, 20.0, 2.0, R, climb)]
+    v = np.array([[V, 0.0, 0.0]])
+    cmd = np.array([[-V * math.cos(climb), 1e-3, V * math.sin(climb)]])
+    worst = 0.0
+    for _ in range(200):
+        v1 = limit_fixed_wing(v, cmd, *lim, dt)
+        worst = max(worst, float(_angle(v, v1)[0]) / (V * dt / R))
+        v = v1
+    assert worst <= 1.0 + 1e-9 and worst > 0.99
+    np.testing.assert_allclose(v[0] / np.linalg.norm(v[0]), cmd[0] / np.linalg.norm(cmd[0]), atol=1e-6)
 
 
 def test_fixed_wing_never_stalls_on_a_stop_command():
@@ -203,9 +243,13 @@ def test_fixed_wing_limits_hold_in_a_simulated_run():
     assert s.min() >= 8 - 1e-5 and s.max() <= 16 + 1e-5
     gamma = np.degrees(np.arcsin(np.clip(v[:, 2] / s, -1, 1)))
     assert np.abs(gamma).max() <= 15 + 1e-4
-    dpsi = np.abs(_wrap(_heading(v[1:]) - _heading(v[:-1])))
-    turning = dpsi > 1e-6
+    turn = _angle(v[1:], v[:-1])
+    turning = turn > 1e-6
     assert turning.sum() > 10, "the run should include turns"
-    r_est = s[1:][turning] * w.dt / dpsi[turning]
+    # 3D radius of every step pair: heading and flight-path angle turn within one budget.
+    r_est = np.minimum(s[1:], s[:-1])[turning] * w.dt / turn[turning]
     assert r_est.min() >= 25 * (1 - 1e-4)
+    # The flight-path angle changes by at most what that radius allows, too.
+    dgamma = np.abs(np.diff(np.radians(gamma)))
+    assert (dgamma <= np.minimum(s[1:], s[:-1]) * w.dt / 25 * (1 + 1e-4)).all()
     assert summary["agents"][0]["arrived"], "the fixed wing should turn around and reach its goal"

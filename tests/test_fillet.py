@@ -201,3 +201,28 @@ def test_paper_004_world_flies_filleted_routes_within_its_curvature_limit(tmp_pa
     rec.summary["agents"][0]["curvature_limit"] = 0.1
     problems, _ = compare_with_summary(rec, metrics)
     assert any("cusps" in p for p in problems) and any("curvature_limit" in p for p in problems)
+
+
+def test_a_stop_then_a_turn_is_a_cusp_in_both_curvature_implementations():
+    """Flown path: east, a stop (two equal samples), then north-east: the 45 degree turn at the
+    stop has no radius (the velocity passed through zero), so it counts as a cusp, not as a
+    curvature of 45 deg / step; the same turn without the stop is a curvature."""
+    import math
+
+    from swarmplan.geometry.polyline import curvature_with_cusps
+    from swarmplan.replay.metrics import curvature_cusps
+
+    d = 0.5
+    ne = d / math.sqrt(2)
+    stop = np.array(
+        [[0, 0, 0], [d, 0, 0], [2 * d, 0, 0], [2 * d, 0, 0], [2 * d + ne, ne, 0], [2 * d + 2 * ne, 2 * ne, 0]]
+    )
+    flowing = np.delete(stop, 3, axis=0)
+    t = 0.1 * np.arange(len(stop))
+    for pts, times, cusps in ((stop, t, 1), (flowing, t[:-1], 0)):
+        curv, cusp = curvature_with_cusps(pts)
+        _, curv_r, cusp_r = curvature_cusps(pts.astype(float), times)
+        assert int(cusp.sum()) == int(cusp_r.sum()) == cusps
+        np.testing.assert_allclose(curv, curv_r)
+    curv, cusp = curvature_with_cusps(flowing)
+    assert curv.max() == pytest.approx(math.radians(45) / d)

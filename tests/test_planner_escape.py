@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world
 
-from swarmplan.core import PlannedSegment
+from swarmplan.core import Mode, PlannedSegment
 from swarmplan.planner import RefinementPlanner
 from swarmplan.planner.escape import EscapePlanner, choose_subgoal
 from swarmplan.planner.segment_cost import SegmentCost, SegmentEncoding
@@ -135,9 +135,17 @@ def test_fcl_rejection_triggers_a_retry_with_a_larger_horizon_and_budget(monkeyp
     assert sim.metrics.optimizer_runs[0] == len(widths)
 
 
-def test_every_attempt_rejected_gives_failed(monkeypatch):
+def test_every_attempt_rejected_holds_then_searches_wider(monkeypatch):
     sim, planner = _pocket_sim()
     monkeypatch.setattr(EscapePlanner, "segment_hit", lambda *a: "back")
+    widths = []
+    real_opt = EscapePlanner.optimize_segment
+
+    def spy_opt(self, sim, i, end, purpose, width, budget_factor=1.0, *a, **k):
+        widths.append((width, budget_factor))
+        return real_opt(self, sim, i, end, purpose, width, budget_factor, *a, **k)
+
+    monkeypatch.setattr(EscapePlanner, "optimize_segment", spy_opt)
     rounds = planner.escape.cfg["rounds"]
     attempts = 1 + planner.escape.cfg["retries"]
     # Each round but the last defers (the agent holds on under APF and is asked again) ...
@@ -147,9 +155,30 @@ def test_every_attempt_rejected_gives_failed(monkeypatch):
             "escape_deferred",
             {"round": r, "attempts": attempts},
         )
-    # ... and the last declares the agent failed.
-    assert planner.on_stuck(sim, 0) == "failed"
+    # ... and the last does not give up: the multirotor hovers where it is, and says why.
+    out = planner.on_stuck(sim, 0)
+    assert isinstance(out, PlannedSegment) and out.mode == Mode.ESCAPE
+    np.testing.assert_allclose(out.waypoints, [sim.state.position[0]])
+    kind, detail = [(e.kind, e.detail) for e in sim._events][-1]
+    assert kind == "hold" and detail["possible"] and detail["round"] == 1
+    assert f"in {rounds} rounds" in detail["reason"]
     assert sim.metrics.optimizer_runs[0] == rounds * attempts
+    # Asked again after holding, it searches wider (horizon and budget times growth).
+    before = len(widths)
+    assert planner.on_stuck(sim, 0) is None
+    growth = planner.escape.cfg["growth"]
+    assert widths[before][1] == pytest.approx(growth * widths[0][1])
+
+
+def test_a_fixed_wing_with_no_room_to_loiter_is_failed_with_the_reason(monkeypatch):
+    sim, planner = _pocket_sim()
+    monkeypatch.setattr(EscapePlanner, "segment_hit", lambda *a: "back")
+    sim.params.fixed_wing[0] = True  # every loiter circle is 'blocked' too
+    for _ in range(planner.escape.cfg["rounds"] - 1):
+        assert planner.on_stuck(sim, 0) is None
+    assert planner.on_stuck(sim, 0) == "failed"
+    kind, detail = [(e.kind, e.detail) for e in sim._events][-1]
+    assert kind == "hold" and detail["possible"] is False
 
 
 def test_same_seed_same_run():

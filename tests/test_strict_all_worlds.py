@@ -41,6 +41,12 @@ def test_replay_strict_agrees_on_shipped_world(world: Path, tmp_path: Path) -> N
         rc = replay_main([str(log), "--strict"])
     assert rc == 0, out.getvalue()
     assert "agreement with /summary: OK" in out.getvalue()
+    # Every agent flew within its model's turn limit: a fixed wing's curvature within 1.05 / R_min,
+    # a multirotor's lateral acceleration within 1.05 max_accel (stops and reversals counted apart).
+    from swarmplan.replay import load
+
+    broken = [a["id"] for a in load(log).summary["agents"] if a.get("curvature_violation")]
+    assert broken == [], f"turn limit broken by {broken}"
 
 
 def test_min_distance_is_exact_beyond_the_mesh_grid() -> None:

@@ -379,13 +379,14 @@ def test_parse_tracker_collects_every_problem_under_the_given_path():
 def two_agent_log(tmp_path_factory):
     d = tmp_path_factory.mktemp("track")
     a = line_positions(120, [0, 0, 10], [40, 20, 15], 1.0, 9.0)
-    b = line_positions(120, [0, 40, 20], [40, 60, 20], 2.0, 10.0)
+    # A fixed wing at a constant 5 m/s (it never hovers).
+    b = np.array([0.0, 40.0, 20.0]) + DT * np.arange(120)[:, None] * np.array([5.0, 0.0, 0.0])
     return make_log(
         d / "two.mcap", np.stack([a, b]), ids=["quad", "plane"], models=["multirotor", "fixed_wing"]
     )
 
 
-def test_cli_json_reports_every_agent_and_skips_fixed_wings(two_agent_log):
+def test_cli_json_reports_every_agent_with_its_own_vehicle_model(two_agent_log):
     r = run_cli(two_agent_log, "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
@@ -394,7 +395,9 @@ def test_cli_json_reports_every_agent_and_skips_fixed_wings(two_agent_log):
     assert quad["skipped"] is None
     assert 0 < quad["max_error_m"] < 0.2 and 0 < quad["rms_error_m"] <= quad["max_error_m"]
     assert 0 < quad["max_tilt_deg"] < 30 and quad["max_thrust_n"] > 0
-    assert plane["max_error_m"] is None and "fixed_wing" in plane["skipped"]
+    assert quad["model"] == "multirotor" and plane["model"] == "fixed_wing"
+    assert plane["skipped"] is None and 0 <= plane["max_error_m"] < 0.05
+    assert plane["max_bank_deg"] < 1.0 and plane["within_error_limit"]
 
 
 def test_cli_table_and_single_agent(two_agent_log, capsys):
@@ -418,7 +421,8 @@ def test_cli_out_is_a_contract_log_with_the_tracking_channel(two_agent_log, tmp_
     rec = load(out)
     src = load(two_agent_log)
     assert rec.n_steps == src.n_steps
-    np.testing.assert_array_equal(rec.positions[1], src.positions[1])  # the fixed wing as recorded
+    # The fixed wing as flown by the aircraft model (a straight line: on it within centimetres).
+    assert np.abs(rec.positions[1] - src.positions[1]).max() < 0.05
     assert 0 < np.abs(rec.positions[0] - src.positions[0]).max() < 0.2  # the quadrotor as flown
     assert rec.world["tracker"] == TrackerConfig().to_dict()
 
@@ -527,3 +531,10 @@ def test_the_world_files_tracker_section_reaches_the_tracker(tmp_path, capsys):
     default = track(load(log), TrackerConfig())
     for aid, m in out.items():
         assert m["max_tilt_deg"] <= 12.5 < default.agents[aid].max_tilt_deg
+
+
+def test_cli_tracks_a_fixed_wing_alone(two_agent_log, capsys):
+    r = run_main(capsys, two_agent_log, "--agent", "plane", "--json")
+    assert r.returncode == 0, r.stderr
+    plane = json.loads(r.stdout)["agents"]["plane"]
+    assert plane["model"] == "fixed_wing" and plane["within_error_limit"]

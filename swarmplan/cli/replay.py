@@ -195,7 +195,8 @@ def describe(rec: Recording) -> list[str]:
 def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
     head = (
         f"{'agent':<10} {'arrived':>7} {'t_arr':>8} {'path_m':>9} {'min_clear':>9} {'closest':<12}"
-        f" {'max_curv':>8} {'limit':>7} {'cusps':>5} {'coll':>4} {'esc':>3} {'stuck':>5}"
+        f" {'max_curv':>8} {'limit':>7} {'lat_acc':>7} {'a_max':>5}"
+        f" {'cusps':>5} {'coll':>4} {'esc':>3} {'stuck':>5}"
     )
     threats = any(m.threat_time is not None for m in metrics)
     if threats:
@@ -205,14 +206,16 @@ def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
         out.append(
             f"{m.id:<10} {('yes' if m.arrived else 'no'):>7} {_f(m.arrival_time):>8} {m.path_length:>9.2f}"
             f" {_f(m.min_clearance, '{:.3f}'):>9} {str(m.closest_body or '-'):<12} {m.max_curvature:>8.4f}"
-            f" {_f(m.curvature_limit, '{:.4f}'):>7} {m.cusps:>5}"
-            f" {m.collisions:>4} {m.escapes:>3} {m.stuck_events:>5}"
+            f" {_f(m.curvature_limit, '{:.4f}'):>7} {m.max_lateral_accel:>7.2f}"
+            f" {_f(m.lateral_accel_limit, '{:.2f}'):>5}"
+            f" {m.cusps:>5} {m.collisions:>4} {m.escapes:>3} {m.stuck_events:>5}"
             + (
                 f" {_f(m.threat_time, '{:.1f}'):>8} {_f(m.threat_core_time, '{:.1f}'):>6}"
                 f" {_f(m.threat_closest, '{:.1f}'):>7}"
                 if threats
                 else ""
             )
+            + ("  TURN LIMIT BROKEN" if m.curvature_violation else "")
         )
         if m.collisions:
             out.append(f"{'':<10} collided with: {', '.join(m.collision_bodies)}")

@@ -59,6 +59,14 @@ def check_writable(path: Path, label: str) -> None:
         ) from None
 
 
+def _lateral(a: dict[str, Any]) -> str:
+    """Max lateral acceleration beside the multirotor's max_accel; '!' marks a broken turn limit."""
+    flag = " !" if a.get("curvature_violation") else ""
+    if a.get("lateral_accel_limit") is None:  # fixed wing: its limit is the curvature
+        return ("-" if a.get("max_lateral_accel") is None else f"{a['max_lateral_accel']:.2f}") + flag
+    return f"{a['max_lateral_accel']:.2f}/{a['lateral_accel_limit']:.2f}{flag}"
+
+
 def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
     """The per-agent table printed at the end of a run."""
     head = (
@@ -70,6 +78,7 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
         "min clear m",
         "max curv 1/m",
         "limit 1/m",
+        "lat acc m/s2",
         "cusps",
         "collisions",
         "stuck",
@@ -85,8 +94,9 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
                 f"{a['path_length']:.1f}",
                 "-" if a["length_ratio"] is None else f"{a['length_ratio']:.3f}",
                 "-" if a["min_clearance"] is None else f"{a['min_clearance']:.2f}",
-                f"{a['max_curvature']:.3f}",
-                "-" if a.get("curvature_limit") is None else f"{a['curvature_limit']:.3f}",
+                f"{a['max_curvature']:.3g}",
+                "-" if a.get("curvature_limit") is None else f"{a['curvature_limit']:.3g}",
+                _lateral(a),
                 str(a.get("cusps", 0)),
                 str(a["collisions"]),
                 str(a["stuck_events"]),
@@ -102,6 +112,12 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
     widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(head)]
     line = lambda cells: "  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True))  # noqa: E731
     out = [line(head), line(["-" * w for w in widths])] + [line(r) for r in rows]
+    broken = [a["id"] for a in summary["agents"] if a.get("curvature_violation")]
+    if broken:
+        out.append(
+            f"TURN LIMIT BROKEN (!): {', '.join(broken)} (fixed wing: curvature over 1.05 / min_turn_radius; "
+            "multirotor: lateral acceleration over 1.05 max_accel)"
+        )
     out += exposure_warnings(summary)
     verdict = "SUCCESS" if summary["success"] else ("INTERRUPTED" if summary["interrupted"] else "FAILED")
     out.append("")

@@ -2,7 +2,10 @@
 
 Flies each multirotor agent's recorded trajectory with a quadrotor model under paper 004's
 cascaded PID and prints, per agent, the max and RMS tracking error, the peak tilt and thrust,
-and whether the reference was flyable (every infeasible stretch is reported). The vehicle and
+and whether the reference was flyable (every infeasible stretch is reported). Fixed-wing agents
+are flown by a coordinated-turn aircraft (bank limit, airspeed dynamics) under L1 guidance and
+an energy loop: max and RMS error, peak bank, and whether the error stays within
+max(5 m, 0.05 R_min). The vehicle and
 gains come from the ``tracker:`` section of the log's /world message when it has one, else the
 documented defaults (``swarmplan/world/tracker_config.py``).
 
@@ -35,8 +38,9 @@ class InputError(Exception):
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="python -m swarmplan.track",
-        description="Fly the recorded multirotor trajectories of a run log with a quadrotor model "
-        "and a cascaded PID (paper 004) and report the tracking error.",
+        description="Fly the recorded trajectories of a run log with a vehicle model (multirotors: "
+        "a quadrotor under a cascaded PID, paper 004; fixed wings: a coordinated-turn aircraft under "
+        "L1 guidance and an energy loop) and report the tracking error.",
         formatter_class=HelpFormatter,
     )
     ap.add_argument("log", help="run log (.mcap) written by python -m swarmplan.run")
@@ -85,16 +89,30 @@ def tracker_config(world: dict) -> TrackerConfig:
 
 
 def _fmt_table(result, wall: float) -> list[str]:
-    lines = [
-        f"{'agent':<10} {'max err m':>9} {'rms err m':>9} {'at t s':>7} {'tilt deg':>8} "
-        f"{'thrust N':>8} {'T/W':>5} {'sat s':>6} {'ref ok':>6}"
-    ]
+    lines = []
+    if result.ids:
+        lines.append(
+            f"{'agent':<10} {'max err m':>9} {'rms err m':>9} {'at t s':>7} {'tilt deg':>8} "
+            f"{'thrust N':>8} {'T/W':>5} {'sat s':>6} {'ref ok':>6}"
+        )
     for aid in result.ids:
         m = result.agents[aid]
         lines.append(
             f"{aid:<10} {m.max_error_m:9.3f} {m.rms_error_m:9.3f} {m.time_of_max_error_s:7.2f} "
             f"{m.max_tilt_deg:8.1f} {m.max_thrust_n:8.2f} {m.max_thrust_to_weight:5.2f} "
             f"{m.saturated_s:6.2f} {'yes' if m.reference_feasible else 'NO':>6}"
+        )
+    if result.fixed_wing:
+        lines.append(
+            f"{'agent':<10} {'max err m':>9} {'rms err m':>9} {'at t s':>7} {'bank deg':>8} "
+            f"{'limit m':>8} {'within':>6}  (fixed wing: coordinated turn, L1 + energy loop)"
+        )
+    for aid, f in result.fixed_wing.items():
+        j = f.to_json()
+        within = "yes" if j["within_error_limit"] else "NO"
+        lines.append(
+            f"{aid:<10} {j['max_error_m']:9.3f} {j['rms_error_m']:9.3f} {j['time_of_max_error_s']:7.2f} "
+            f"{j['max_bank_deg']:8.1f} {j['error_limit_m']:8.2f} {within:>6}"
         )
     for aid, reason in result.skipped.items():
         lines.append(f"{aid:<10} skipped: {reason}")
@@ -111,6 +129,9 @@ def _fmt_table(result, wall: float) -> list[str]:
                 f"away from those instants: {'-' if away is None else f'{away:.3f} m'}"
             )
     cfg = result.cfg
+    if not result.ids:
+        lines.append(f"wall {wall:.2f} s")
+        return lines
     lines.append(
         f"vehicle: {cfg.mass:g} kg, T/W {cfg.thrust_to_weight:g}, tilt <= {cfg.max_tilt_deg:g} deg, "
         f"drag {cfg.drag:g} N s^2/m^2; PID pos {cfg.position.kp:g}/{cfg.position.ki:g}/{cfg.position.kd:g}, "
@@ -153,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     result = track(rec, cfg, args.agent)
     wall = time.perf_counter() - start
-    if not result.ids:  # nothing to fly: no plot, log or table of nothing
+    if not result.ids and not result.fixed_wing:  # nothing to fly: no plot, log or table of nothing
         reasons = "; ".join(f"{aid}: {why}" for aid, why in result.skipped.items())
         print(f"track: no agent of {args.log} can be tracked ({reasons})", file=sys.stderr)
         return 2
@@ -166,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
         plot(
             result,
             args.plot,
-            title=f"{rec.world.get('name', '')}: quadrotor tracking ({Path(args.log).name})",
+            title=f"{rec.world.get('name', '')}: tracking ({Path(args.log).name})",
             rec=rec,
         )
     if args.json:

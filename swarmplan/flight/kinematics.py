@@ -1,8 +1,11 @@
 """Kinematic models, vectorized over agents: commanded velocity in, limited velocity out.
 
 - ``multirotor``: point mass; |v| <= speed.max and |v1 - v0| <= max_accel * dt per step.
-- ``fixed_wing``: speed in [speed.min, speed.max] changing by at most max_accel * dt; heading
-  rate <= V / min_turn_radius; flight-path angle within ±max_climb_angle.
+- ``fixed_wing`` (a Dubins-airplane model): speed in [speed.min, speed.max] changing by at most
+  max_accel * dt; flight-path angle within ±max_climb_angle; heading and flight-path angle turn
+  together, so that the direction of flight turns by at most V * dt / min_turn_radius per step
+  (V the slower of the step's two speeds): the 3D curvature of the flown path, turning angle
+  over distance, stays <= 1 / min_turn_radius at every speed.
 Positions advance with the new velocity (semi-implicit Euler), so the recorded velocity
 is exactly the step's displacement over dt.
 """
@@ -82,6 +85,26 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
+def direction_angles(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Heading and flight-path angle (rad) of velocities ``v`` (n, 3)."""
+    return np.arctan2(v[:, 1], v[:, 0]), np.arctan2(v[:, 2], np.hypot(v[:, 0], v[:, 1]))
+
+
+def turn_budget(dpsi: np.ndarray, gamma0: np.ndarray, gamma1: np.ndarray, budget: np.ndarray) -> np.ndarray:
+    """Fraction in [0, 1] of a heading change ``dpsi`` and a flight-path angle change
+    ``gamma0 -> gamma1`` that turns the direction of flight by at most ``budget`` (rad).
+
+    Both angles move together along the straight line in (heading, flight-path angle); the
+    direction then sweeps an arc on the unit sphere of length at most
+    ``sqrt(dgamma^2 + (c dpsi)^2)``, ``c`` the largest cos(gamma) on the way, which bounds the
+    angle between the two directions."""
+    dg = gamma1 - gamma0
+    crosses = np.sign(gamma0) * np.sign(gamma1) <= 0
+    c = np.where(crosses, 1.0, np.cos(np.minimum(np.abs(gamma0), np.abs(gamma1))))
+    need = np.sqrt(dg**2 + (c * dpsi) ** 2)
+    return np.clip(budget / np.maximum(need, 1e-15), 0.0, 1.0)
+
+
 def limit_fixed_wing(
     v0: np.ndarray,
     v_cmd: np.ndarray,
@@ -92,19 +115,33 @@ def limit_fixed_wing(
     climb: np.ndarray,
     dt: float,
 ) -> np.ndarray:
-    """New velocity of fixed wings from speed, heading and flight-path angle limits."""
-    speed0 = np.linalg.norm(v0, axis=1)
-    psi0 = np.arctan2(v0[:, 1], v0[:, 0])
-    speed_cmd = np.clip(np.linalg.norm(v_cmd, axis=1), vmin, vmax)
-    psi_cmd = np.arctan2(v_cmd[:, 1], v_cmd[:, 0])
-    hxy = np.linalg.norm(v_cmd[:, :2], axis=1)
-    gamma_cmd = np.arctan2(v_cmd[:, 2], np.maximum(hxy, 1e-12))
-    gamma_cmd = np.where(hxy < 1e-9, np.sign(v_cmd[:, 2]) * climb, gamma_cmd)
+    """New velocity of fixed wings: speed within [vmin, vmax] by at most amax * dt a step,
+    |flight-path angle| <= climb, and the direction of flight turned towards the command's
+    by at most ``min(V0, V1) * dt / turn_radius`` (heading and flight-path angle together).
+
+    A command of (near) zero keeps the direction; a vertical one keeps the heading and asks
+    for the full climb or dive."""
+    speed0 = norm3(v0)
+    psi0, gamma0 = direction_angles(v0)
+    gamma0 = np.clip(gamma0, -climb, climb)
+    s_cmd = norm3(v_cmd)
+    speed_cmd = np.clip(s_cmd, vmin, vmax)
+    psi_cmd, gamma_cmd = direction_angles(v_cmd)
+    hxy = np.hypot(v_cmd[:, 0], v_cmd[:, 1])
+    vertical = hxy < 1e-9 * np.maximum(s_cmd, 1e-12)
+    psi_cmd = np.where(vertical, psi0, psi_cmd)
+    gamma_cmd = np.where(vertical, np.sign(v_cmd[:, 2]) * climb, gamma_cmd)
+    still = s_cmd < 1e-12
+    psi_cmd = np.where(still, psi0, psi_cmd)
+    gamma_cmd = np.clip(np.where(still, gamma0, gamma_cmd), -climb, climb)
     speed1 = np.clip(speed0 + np.clip(speed_cmd - speed0, -amax * dt, amax * dt), vmin, vmax)
-    # Turn rate V / R_min at the slower of the two speeds keeps the radius >= R_min.
-    max_turn = np.minimum(speed0, speed1) / turn_radius * dt
-    psi1 = psi0 + np.clip(_wrap(psi_cmd - psi0), -max_turn, max_turn)
-    gamma1 = np.clip(gamma_cmd, -climb, climb)
+    # At the slower of the two speeds, the turn keeps the radius >= turn_radius (a hair inside,
+    # so rounding never crosses it).
+    budget = np.minimum(speed0, speed1) / turn_radius * dt * (1.0 - 1e-9)
+    dpsi = _wrap(psi_cmd - psi0)
+    f = turn_budget(dpsi, gamma0, gamma_cmd, budget)
+    psi1 = psi0 + f * dpsi
+    gamma1 = gamma0 + f * (gamma_cmd - gamma0)
     c = np.cos(gamma1)
     return speed1[:, None] * np.stack([c * np.cos(psi1), c * np.sin(psi1), np.sin(gamma1)], axis=1)
 

@@ -4,7 +4,7 @@ A multirotor can brake, so the one-step safety filter of the simulation is enoug
 fixed wing cannot stop: by the time one step would touch a wall, no command avoids it. The
 potential field does not know this either (its influence distance may be shorter than the
 turn radius). So, each step, for every fixed wing that has something within reach, the
-guard predicts, for the time of a half turn plus a second, the sustained manoeuvres — hard
+guard predicts, for the time of a full turn plus a second, the sustained manoeuvres — hard
 left/right turns and straight flight, each level, climbing and diving — and measures the
 clearance of every predicted position to the obstacles (moving ones at their predicted
 poses), the terrain and the bounds. The field's command stands if, after one step of it, at
@@ -14,9 +14,11 @@ the safe manoeuvre closest to the field's command, or, when none is safe, the on
 the most clearance. Flying the field's command until the last step that keeps a way out
 leaves the field in charge everywhere but where it would corner the aircraft.
 
-The predictions are closed-form arcs and helices of the model (constant speed, heading rate
-V / R_min, flight-path angle set at once, as ``swarmplan.flight.kinematics.limit_fixed_wing`` flies
-them), so all candidates and all times are measured in one batched distance query.
+The predictions fly the model itself (``swarmplan.flight.kinematics.limit_fixed_wing``, step by
+step, at constant speed: the flight-path angle ramps within the same turn budget as the
+heading), all candidates at once, and all candidates and all times are measured in one batched
+distance query. (:func:`predicted_positions` gives the closed-form arcs and helices of a
+heading rate V / R_min with the flight-path angle set at once, the level-turn limit of it.)
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from swarmplan.flight.kinematics import AgentParams, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, limit_fixed_wing, limit_velocity
 
 ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 """``clearance(points (P, 3), radii (P,), times (P,)) -> (P,)`` distance from each body to the
@@ -37,9 +39,12 @@ _MANOEUVRES = tuple((turn, climb) for turn in (-1, 0, 1) for climb in (0, 1, -1)
 
 
 def horizon_steps(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: float) -> int:
-    """Steps needed to turn through 180 degrees at the minimum radius, plus one second."""
+    """Steps needed to fly a full circle at the minimum radius, plus one second: a turn that
+    stays clear that long is a loiter the aircraft can keep up among static obstacles (half a
+    circle let moving ones close the rest of it: a 2 km-radius aircraft was cornered between
+    two movers and a no-fly zone)."""
     v = np.maximum(speed, 1e-6)
-    t = np.pi * params.min_turn_radius[idx] / v + 1.0
+    t = 2.0 * np.pi * params.min_turn_radius[idx] / v + 1.0
     return int(np.ceil(float(np.max(t)) / dt))
 
 
@@ -88,21 +93,54 @@ def predicted_positions(
     return pos[:, None, None, :] + np.stack([x, y, z], axis=-1)
 
 
+def rollout_manoeuvres(
+    params: AgentParams, idx: np.ndarray, pos: np.ndarray, vel: np.ndarray, steps: int, dt: float
+) -> np.ndarray:
+    """Positions (n, C, steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` flying each sustained
+    manoeuvre for ``steps`` steps of the model at constant speed (the commands are re-formed
+    from the current heading each step, as the guard flies them)."""
+    n, c = len(idx), len(_MANOEUVRES)
+    rows = np.repeat(idx, c)
+    speed = np.repeat(np.linalg.norm(vel, axis=1), c)
+    climb = params.max_climb[rows]
+    radius = params.min_turn_radius[rows]
+    amax = params.max_accel[rows]
+    v = np.repeat(vel, c, axis=0)
+    p = np.repeat(pos, c, axis=0)
+    out = np.empty((steps, n * c, 3))
+    for k in range(steps):
+        cmd = _sustained_commands(v, climb, n, c)
+        v = limit_fixed_wing(v, cmd, speed, speed, amax, radius, climb, dt)
+        p = p + v * dt
+        out[k] = p
+    return out.transpose(1, 0, 2).reshape(n, c, steps, 3)
+
+
+def _sustained_commands(v: np.ndarray, climb: np.ndarray, n: int, c: int) -> np.ndarray:
+    """The manoeuvres' commands (n * C, 3) from the current velocities ``v`` (n * C, 3), row
+    ``i * C + j`` manoeuvre j."""
+    speed = np.linalg.norm(v, axis=1)
+    psi = np.arctan2(v[:, 1], v[:, 0])
+    turn = np.tile(np.array([m[0] for m in _MANOEUVRES], dtype=float), n)
+    up = np.tile(np.array([m[1] for m in _MANOEUVRES], dtype=float), n)
+    a = psi + turn * (np.pi / 2)
+    g = up * climb
+    cg = np.cos(g)
+    return speed[:, None] * np.stack([cg * np.cos(a), cg * np.sin(a), np.sin(g)], axis=-1)
+
+
 def _manoeuvre_clearance(
     params: AgentParams,
     idx: np.ndarray,
     pos: np.ndarray,
     vel: np.ndarray,
     times: np.ndarray,
+    dt: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Predicted positions (n, C, H, 3) of the sustained manoeuvres from ``pos``/``vel``, and the
     matching body radii (n, C, H)."""
     n, c = len(idx), len(_MANOEUVRES)
-    turn = np.broadcast_to(np.array([m[0] for m in _MANOEUVRES], dtype=float), (n, c))
-    climb = np.array([m[1] for m in _MANOEUVRES], dtype=float)[None, :] * params.max_climb[idx][:, None]
-    points = predicted_positions(
-        pos, vel, turn, np.full((n, c), np.inf), climb, params.min_turn_radius[idx], times
-    )
+    points = rollout_manoeuvres(params, idx, pos, vel, len(times), dt)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
     return points, radii
 
@@ -137,9 +175,9 @@ def guard_commands(
     # After one step of the field's command ...
     v_next = limit_velocity(params, vel, v_cmd, dt, idx)
     p_next = pos + v_next * dt
-    after, r_after = _manoeuvre_clearance(params, idx, p_next, v_next, times)
+    after, r_after = _manoeuvre_clearance(params, idx, p_next, v_next, times, dt)
     # ... and from where the agent is now.
-    now, r_now = _manoeuvre_clearance(params, idx, pos, vel, times)
+    now, r_now = _manoeuvre_clearance(params, idx, pos, vel, times, dt)
     points = np.concatenate([after.reshape(-1, 3), now.reshape(-1, 3), p_next])
     radii = np.concatenate([r_after.reshape(-1), r_now.reshape(-1), params.radius[idx]])
     when = np.concatenate([np.tile(t0 + dt + times, n * c), np.tile(t0 + times, n * c), np.full(n, t0 + dt)])

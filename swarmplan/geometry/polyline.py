@@ -187,29 +187,123 @@ CUSP_ANGLE_DEG = 150.0
 
 
 def curvature_with_cusps(
-    points: np.ndarray, min_step: float = 1e-3, cusp_angle_deg: float = CUSP_ANGLE_DEG
-) -> tuple[np.ndarray, np.ndarray]:
+    points: np.ndarray,
+    min_step: float = 1e-3,
+    cusp_angle_deg: float = CUSP_ANGLE_DEG,
+    with_steps: bool = False,
+) -> tuple[np.ndarray, ...]:
     """(curvature, cusp mask) at the interior vertices of a flown path.
 
     Points closer than ``min_step`` to the last kept one are dropped first (hovering, a stop),
     so a stop-and-reverse shows as two consecutive steps in opposite directions. Curvature is
     the turning angle over the mean length of the two steps; a vertex turning by more than
     ``cusp_angle_deg`` is a **cusp** (stop and reverse: no circle of any radius passes there,
-    its "curvature" is only 1/step length). Report cusps as a count and the max curvature
-    over the other vertices (``curv[~cusp]``).
+    its "curvature" is only 1/step length), and so is a vertex where the agent stood still for
+    a step or more (points dropped after it) and then left in another direction: a stop and
+    turn, where the velocity passed through zero and no turn radius applies. Report cusps as
+    a count and the max curvature over the other vertices (``curv[~cusp]``). With
+    ``with_steps``, also the mean length of the two steps at each vertex (the curvature's
+    denominator).
     """
     pts = np.asarray(points, dtype=float)
     pts = pts[np.isfinite(pts).all(axis=1)]
+    empty = (np.zeros(0), np.zeros(0, dtype=bool)) + ((np.zeros(0),) if with_steps else ())
     if len(pts) < 3:
-        return np.zeros(0), np.zeros(0, dtype=bool)
+        return empty
     keep = [0]
     for k in range(1, len(pts)):
         if np.linalg.norm(pts[k] - pts[keep[-1]]) >= min_step:
             keep.append(k)
     p = pts[keep]
     if len(p) < 3:
-        return np.zeros(0), np.zeros(0, dtype=bool)
+        return empty
     a, b = p[1:-1] - p[:-2], p[2:] - p[1:-1]
     la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", a, b) / (la * lb), -1.0, 1.0))
-    return angle / (0.5 * (la + lb)), angle > math.radians(cusp_angle_deg)
+    mean = 0.5 * (la + lb)
+    kept = np.asarray(keep)
+    stopped = (np.diff(kept)[1:] > 1) & (angle > 1e-9)
+    out = (angle / mean, (angle > math.radians(cusp_angle_deg)) | stopped)
+    return out + ((mean,) if with_steps else ())
+
+
+def turn_then_straight(
+    start: np.ndarray, heading: np.ndarray, target: np.ndarray, rho: float, max_step_deg: float = 10.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The shorter Dubins "turn, then straight" path in the horizontal plane from ``start`` (3,)
+    flying ``heading`` (3,) to ``target`` (3,): an arc of radius ``rho`` to the left or right,
+    then the tangent line to the target. Height changes linearly with the distance flown.
+
+    Returns the path's points after ``start`` (arc points at most ``max_step_deg`` apart, the
+    tangent point, the target) and the unit heading on arrival. The two turning circles touch
+    at ``start``, so the target lies outside at least one of them: such a path always exists.
+    """
+    p, q = np.asarray(start, float), np.asarray(target, float)
+    h = np.array([heading[0], heading[1]], float)
+    nh = float(np.hypot(h[0], h[1]))
+    d_xy = q[:2] - p[:2]
+    if nh < _EPS:
+        nd = float(np.hypot(*d_xy))
+        h = d_xy / nd if nd > _EPS else np.array([1.0, 0.0])
+    else:
+        h = h / nh
+    left = np.array([-h[1], h[0]])
+    best = None
+    for side in (1.0, -1.0):
+        c = p[:2] + side * rho * left
+        d = q[:2] - c
+        dist = float(np.hypot(d[0], d[1]))
+        if dist < rho * (1.0 + 1e-9):
+            continue
+        alpha = math.acos(rho / dist)
+        theta_t = math.atan2(d[1], d[0]) - side * alpha
+        theta0 = math.atan2(p[1] - c[1], p[0] - c[0])
+        sweep = ((theta_t - theta0) * side) % (2.0 * math.pi)
+        if sweep > 2.0 * math.pi - 1e-9:
+            sweep = 0.0
+        length = rho * sweep + math.sqrt(max(dist**2 - rho**2, 0.0))
+        if best is None or length < best[0]:
+            best = (length, side, c, theta0, sweep)
+    if best is None:  # degenerate (target on the start): go straight there
+        u = q - p
+        n = float(np.linalg.norm(u[:2]))
+        return q[None].copy(), np.array([*(u[:2] / n if n > _EPS else h), 0.0])
+    length, side, c, theta0, sweep = best
+    n = max(1, math.ceil(math.degrees(sweep) / max_step_deg - 1e-9)) if sweep > 1e-9 else 0
+    ang = theta0 + side * sweep * np.arange(1, n + 1) / max(n, 1)
+    arc = np.stack([c[0] + rho * np.cos(ang), c[1] + rho * np.sin(ang)], axis=1) if n else np.zeros((0, 2))
+    pts_xy = np.vstack([arc, q[None, :2]])
+    flown = np.concatenate([rho * sweep * np.arange(1, n + 1) / max(n, 1), [length]])
+    z = p[2] + (q[2] - p[2]) * flown / max(length, _EPS)
+    pts = np.column_stack([pts_xy, z])
+    pts[-1] = q
+    last = pts[-2, :2] if n else p[:2]
+    out_dir = q[:2] - last
+    nd = float(np.hypot(*out_dir))
+    if nd < _EPS:  # the target is the tangent point: heading along the circle there
+        a = theta0 + side * sweep
+        out_dir = side * np.array([-math.sin(a), math.cos(a)])
+        nd = 1.0
+    return pts, np.array([out_dir[0] / nd, out_dir[1] / nd, 0.0])
+
+
+def dubins_chain(
+    start: np.ndarray,
+    heading: np.ndarray,
+    waypoints: np.ndarray,
+    rho: float,
+    max_step_deg: float = 10.0,
+) -> np.ndarray:
+    """A path through ``waypoints`` (K, 3) that a vehicle at ``start`` flying ``heading``, with
+    turn radius ``rho``, can fly: from each pose a :func:`turn_then_straight` to the next
+    waypoint, arriving with the heading of its straight leg. Curvature <= 1 / rho everywhere
+    in the horizontal plane and the heading is continuous. Returns ``start`` then the points."""
+    out = [np.asarray(start, float)[None]]
+    p, h = np.asarray(start, float), np.asarray(heading, float)
+    for q in np.asarray(waypoints, float):
+        if float(np.linalg.norm(q - p)) < _EPS:
+            continue
+        pts, h = turn_then_straight(p, h, q, rho, max_step_deg)
+        out.append(pts)
+        p = q
+    return np.concatenate(out)

@@ -12,11 +12,11 @@ When the simulation reports an agent stuck (``Planner.on_stuck``):
    (:mod:`swarmplan.planner.segment_cost`) scores the whole population in one call;
 3. the best segment is **validated with FCL**: every leg swept with the agent radius plus
    a margin against the static obstacles, terrain and bounds; if it touches something
-   the search is retried with a larger horizon and budget (``retries`` times) before
-   giving up (``"failed"``);
+   the search is retried with a larger horizon and budget (``retries`` times);
 4. the valid segment is shortcut (FCL) and its corners are turned into paper 004's arcs
    (§6, radius v²/a at cruise or the fixed wing's minimum turn radius); a corner whose arc
-   does not fit or touches something keeps its corner (004's "special broken point").
+   does not fit or touches something keeps its corner (004's "special broken point"); a
+   fixed wing's is made a Dubins chain from its own pose (``EscapePlanner.fillet``).
 
 Deadlocks between agents (two stuck agents close together, e.g. at a narrow gap) are
 resolved by priority: the agent with the higher index steps aside (a yield segment to a
@@ -27,10 +27,13 @@ Every optimizer run is logged with ``sim.record_optimizer(i, "escape", name, res
 Settings (``planner.escape``, all optional): ``waypoints`` (K, 4), ``horizon`` (m, default
 2 × apf influence, at least 15), ``margin`` (m of clearance beyond the radius, 1.0),
 ``fcl_margin`` (m, 0.3), ``retries`` (2), ``growth`` (1.5, horizon and budget factor per
-retry), ``max_escapes`` (per agent before giving up, 25), ``rounds`` (3: planning rounds in a
-row, each with its retries, that find no valid segment before the agent is declared
-``failed``; between rounds the agent holds on under APF — other agents and moving obstacles
-move on, so a later round may find a way — and an ``escape_deferred`` event is logged).
+retry), ``max_escapes`` (per agent before it holds, 25), ``rounds`` (3: planning rounds in a
+row, each with its retries, that find no valid segment before the agent holds; between
+rounds the agent holds on under APF — other agents and moving obstacles move on, so a later
+round may find a way — and an ``escape_deferred`` event is logged).
+
+No giving up: after ``rounds`` failed rounds, or ``max_escapes`` escapes, the agent holds
+(:mod:`swarmplan.planner.hold`) and plans again wider; ``failed`` only with no room to hold.
 """
 
 from __future__ import annotations
@@ -49,7 +52,8 @@ from swarmplan.core import (
     StuckOutcome,
 )
 from swarmplan.flight.apf import current_reach, stopping_reach
-from swarmplan.geometry.polyline import fillet_path
+from swarmplan.geometry.polyline import dubins_chain, fillet_path
+from swarmplan.planner.hold import hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 from swarmplan.world.motion import poses_at
@@ -67,6 +71,8 @@ def model_turn_radius(sim: PlanningContext, i: int) -> float:
         return float(p.min_turn_radius[i])
     return float(p.speed_cruise[i]) ** 2 / max(float(p.max_accel[i]), 1e-9)
 
+
+CHAIN_RADIUS_FACTOR = 1.25  # a fixed wing's segments turn at this x its minimum radius (fillet)
 
 #: Flying agents within the reach of the field's agent term from which a stuck agent is in a
 #: crowd: it plans no escape of its own (doorway, 64 agents: escapes of single agents through
@@ -183,6 +189,7 @@ class EscapePlanner:
         self.escapes: dict[int, int] = {}
         self.pending: dict[int, object] = {}  # yield segments planned for other agents
         self.failures: dict[int, int] = {}  # planning rounds in a row without a valid segment
+        self.holds: dict[int, int] = {}  # holding patterns flown, per agent (each widens the search)
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
 
     # ------------------------------------------------------------------ validation
@@ -238,7 +245,23 @@ class EscapePlanner:
     def fillet(self, sim: PlanningContext, i: int, poly: np.ndarray) -> np.ndarray:
         """``poly`` (from the agent) with its corners turned into arcs of the agent's turn radius
         (paper 004 §6, :func:`~swarmplan.geometry.polyline.fillet_path`). An arc that FCL finds
-        within radius + ``fcl_margin`` of something, or that does not fit, keeps its corner."""
+        within radius + ``fcl_margin`` of something, or that does not fit, keeps its corner.
+
+        A fixed wing cannot stop at a corner: it gets a Dubins chain (:func:`dubins_chain`) from
+        its pose straight to the end, or else through every point: the first FCL finds clear."""
+        out = self._fillet(sim, i, poly)
+        if not sim.params.fixed_wing[i] or len(out) < 2:
+            return out
+        # Wider than R_min: the waypoint follower has room to correct a lag.
+        R = CHAIN_RADIUS_FACTOR * model_turn_radius(sim, i)
+        start_clear = float(static_clearance(sim, out[0], float(sim.params.radius[i]))[0])
+        v = sim.state.velocity[i]
+        for chain in (dubins_chain(out[0], v, out[-1:], R), dubins_chain(out[0], v, out[1:], R)):
+            if self.segment_hit(sim, i, chain, start_clear) is None:
+                return chain
+        return out
+
+    def _fillet(self, sim: PlanningContext, i: int, poly: np.ndarray) -> np.ndarray:
         col = sim.collision
         m = float(self.cfg["fcl_margin"])
         rr = float(sim.params.radius[i]) + m
@@ -367,8 +390,11 @@ class EscapePlanner:
         r = float(sim.params.radius[i])
         start_clear = float(static_clearance(sim, sim.state.position[i], r)[0])
         costs = []
+        # Each hold widens the next searches (up to the flight volume's size).
+        extent = float(np.linalg.norm(sim.world.bounds_max - sim.world.bounds_min)) / max(horizon, 1e-9)
+        widen = min(float(cfg["growth"]) ** self.holds.get(i, 0), max(1.0, extent))
         for attempt in range(int(cfg["retries"]) + 1):
-            grow = float(cfg["growth"]) ** attempt
+            grow = float(cfg["growth"]) ** attempt * widen
             end = end_fn(horizon * grow)
             L = float(np.linalg.norm(end - sim.state.position[i]))
             width = 1.25 * max(L, horizon * grow, 10.0)
@@ -477,7 +503,8 @@ class EscapePlanner:
             return None
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
-            return FAILED
+            self.escapes[i] = 0  # after holding, escapes are tried again (with wider searches)
+            return self.hold(sim, i, f"{n_done} escapes without getting free")
         self.escapes[i] = n_done + 1
         r = float(sim.params.radius[i])
         need = r + float(self.cfg["margin"]) + 1.0
@@ -505,11 +532,32 @@ class EscapePlanner:
             failures = self.failures.get(i, 0) + 1
             self.failures[i] = failures
             if failures >= int(self.cfg["rounds"]):
-                return FAILED
+                self.failures[i] = 0
+                return self.hold(sim, i, f"no valid escape segment in {failures} rounds")
             sim.note_event(i, "escape_deferred", {"round": failures, "attempts": out.attempts})
             return None
         self.failures[i] = 0
         return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
+
+    def hold(self, sim: PlanningContext, i: int, reason: str) -> StuckOutcome:
+        """A holding pattern (:mod:`swarmplan.planner.hold`) instead of giving up; later searches
+        are ``growth`` times wider per hold. ``FAILED`` only when no holding pattern is free."""
+        rounds = self.holds.get(i, 0) + 1
+        self.holds[i] = rounds
+        s = sim.state
+        start_clear = float(static_clearance(sim, s.position[i], float(sim.params.radius[i]))[0])
+        pts = hold_waypoints(
+            s.position[i],
+            s.velocity[i],
+            bool(sim.params.fixed_wing[i]),
+            model_turn_radius(sim, i),
+            lambda poly: self.segment_hit(sim, i, poly, start_clear) is not None,
+        )
+        if pts is None:
+            sim.note_event(i, "hold", {"reason": reason, "round": rounds, "possible": False})
+            return FAILED
+        sim.note_event(i, "hold", {"reason": reason, "round": rounds, "possible": True})
+        return PlannedSegment(pts, mode=Mode.ESCAPE)
 
     def take_pending(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
         """Yield segments planned for other agents, to start now (``Planner.on_step``)."""

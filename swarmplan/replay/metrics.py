@@ -17,9 +17,18 @@ Conventions
   agent: centre distance minus both radii. ``min_clearance`` is the minimum of both.
 * Curvature: turning angle between consecutive steps divided by the mean length of the
   two steps, after dropping steps shorter than 1 mm. A vertex turning by more than 150°
-  is a *cusp* (stop and reverse): counted in ``cusps`` and left out of ``max_curvature``.
+  is a *cusp* (stop and reverse), and so is a turning vertex where the agent stood still
+  for a step or more (a dropped step right after it: stop and turn): counted in ``cusps``
+  and left out of ``max_curvature``.
   ``curvature_limit`` is the model's, from ``/world``: max_accel / cruise² (multirotor,
   paper 004 eq 34 at cruise) or 1 / min_turn_radius (fixed wing).
+* Lateral acceleration: ``v² κ`` at the same vertices (cusps left out), in its one-step form
+  ``2 v sin(θ/2) / dt`` (θ the turn, ``v`` the mean length of the two steps over ``dt``: the
+  velocity change the turn needs, equal to ``v² κ`` for small turns); a multirotor's limit
+  is ``max_accel`` at any speed (a slow turn may be tighter than ``curvature_limit`` and
+  still legal). ``curvature_violation``: a fixed
+  wing's max curvature above 1.05 / min_turn_radius, or a multirotor's max lateral
+  acceleration above 1.05 max_accel.
 * Collisions: number of contact episodes (maximal runs of consecutive active steps with
   penetration deeper than ``contact_tol``) per agent and body (obstacle, other agent,
   terrain), plus episodes of mode ``collided`` that start without a geometric contact.
@@ -39,6 +48,7 @@ from .recording import Recording
 MIN_STEP = 1e-3  # m: steps shorter than this are ignored for curvature
 CUSP_DEG = 150.0  # a turn sharper than this between consecutive steps is a cusp
 CONTACT_TOL = 1e-3  # m: penetration deeper than this is a contact
+VIOLATION_FACTOR = 1.05  # a curvature / lateral acceleration this far over its limit breaks the model
 
 
 @dataclass
@@ -56,6 +66,9 @@ class AgentMetrics:
     collisions: int
     cusps: int = 0
     curvature_limit: float | None = None
+    max_lateral_accel: float = 0.0
+    lateral_accel_limit: float | None = None
+    curvature_violation: bool = False
     collision_bodies: list[str] = field(default_factory=list)
     escapes: int = 0
     stuck_events: int = 0
@@ -77,6 +90,8 @@ class Tolerances:
     clearance_rel: float = 0.02
     curvature_abs: float = 1e-3  # 1/m
     curvature_rel: float = 0.10
+    lateral_accel_abs: float = 0.05  # m/s^2
+    lateral_accel_rel: float = 0.10
 
 
 # ---------------------------------------------------------------------- helpers
@@ -133,24 +148,48 @@ def curvature_cusps(
     points: np.ndarray, times: np.ndarray, min_step: float = MIN_STEP
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(times, curvature, cusp mask) at the interior points of the path, sub-``min_step`` steps dropped."""
+    t, curv, cusp, _ = _turns(points, times, min_step)
+    return t, curv, cusp
+
+
+def lateral_accel(points: np.ndarray, times: np.ndarray, dt: float, min_step: float = MIN_STEP) -> float:
+    """Max lateral acceleration (m/s²) over the non-cusp vertices: ``v² κ`` in its one-step
+    form ``2 v sin(θ / 2) / dt`` (θ the turn, ``v`` = mean length of the two steps / ``dt``)."""
+    _, curv, cusp, mean = _turns(points, times, min_step)
+    ok = ~cusp
+    if not ok.any():
+        return 0.0
+    # One-step form of v^2 kappa: the velocity change 2 v sin(theta / 2) a turn by theta needs.
+    theta = curv[ok] * mean[ok]
+    return float((2.0 * (mean[ok] / dt) * np.sin(0.5 * theta) / dt).max())
+
+
+def _turns(
+    points: np.ndarray, times: np.ndarray, min_step: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(times, curvature, cusp mask, mean step length) at the interior points of the path."""
     ok = np.isfinite(points[:, 0])
     p, t = points[ok], times[ok]
+    empty = (np.zeros(0), np.zeros(0), np.zeros(0, bool), np.zeros(0))
     if len(p) < 3:
-        return np.zeros(0), np.zeros(0), np.zeros(0, bool)
+        return empty
     keep = [0]
     for k in range(1, len(p)):
         if np.linalg.norm(p[k] - p[keep[-1]]) >= min_step:
             keep.append(k)
     p, t = p[keep], t[keep]
     if len(p) < 3:
-        return np.zeros(0), np.zeros(0), np.zeros(0, bool)
+        return empty
     a = p[1:-1] - p[:-2]
     b = p[2:] - p[1:-1]
     la = np.linalg.norm(a, axis=1)
     lb = np.linalg.norm(b, axis=1)
     cos = np.einsum("ij,ij->i", a, b) / (la * lb)
     angle = np.arccos(np.clip(cos, -1.0, 1.0))
-    return t[1:-1], angle / ((la + lb) / 2.0), angle > math.radians(CUSP_DEG)
+    mean = (la + lb) / 2.0
+    # Stood still after the vertex (a dropped step): a stop, then a turn of any size.
+    still = (np.diff(np.asarray(keep))[1:] > 1) & (angle > 1e-9)
+    return t[1:-1], angle / mean, (angle > math.radians(CUSP_DEG)) | still, mean
 
 
 def obstacle_distances(rec: Recording, mesh_cache: dict | None = None) -> dict[str, np.ndarray]:
@@ -285,6 +324,14 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
 
         pts = np.where(act[:, None], rec.positions[i], np.nan)
         _, curv, cusp = curvature_cusps(pts, rec.times)
+        max_curv = float(curv[~cusp].max()) if (~cusp).any() else 0.0
+        lat = lateral_accel(pts, rec.times, rec.dt)
+        limit = _curvature_limit(rec, i)
+        lat_limit = _lateral_accel_limit(rec, i)
+        if lat_limit is None:
+            violation = limit is not None and max_curv > VIOLATION_FACTOR * limit
+        else:
+            violation = lat > VIOLATION_FACTOR * lat_limit
         clear_vals = [v for v in (best_obst, ac) if math.isfinite(v)]
         min_clear = min(clear_vals) if clear_vals else None
         closest = None
@@ -306,10 +353,13 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
                 min_agent_clearance=ac if math.isfinite(ac) else None,
                 closest_body=closest,
                 min_terrain_clearance=min_terr,
-                max_curvature=float(curv[~cusp].max()) if (~cusp).any() else 0.0,
+                max_curvature=max_curv,
                 collisions=int(n_coll),
                 cusps=int(cusp.sum()),
-                curvature_limit=_curvature_limit(rec, i),
+                curvature_limit=limit,
+                max_lateral_accel=lat,
+                lateral_accel_limit=lat_limit,
+                curvature_violation=bool(violation),
                 collision_bodies=bodies,
                 escapes=int(escapes),
                 stuck_events=int(event_counts.get((aid, "stuck"), 0)),
@@ -359,6 +409,19 @@ def _curvature_limit(rec: Recording, i: int) -> float | None:
             return 1.0 / float(a["min_turn_radius"])
         return float(a["max_accel"]) / float(a["speed"]["cruise"]) ** 2
     except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        return None
+
+
+def _lateral_accel_limit(rec: Recording, i: int) -> float | None:
+    """A multirotor's lateral acceleration limit (its max_accel); None for a fixed wing (its
+    limit is the curvature) or when the entry lacks the field."""
+    by_id = {str(a.get("id")): a for a in rec.world.get("agents") or [] if isinstance(a, dict)}
+    a = by_id.get(rec.agent_ids[i], {})
+    if a.get("model") == "fixed_wing":
+        return None
+    try:
+        return float(a["max_accel"])
+    except (KeyError, TypeError, ValueError):
         return None
 
 
@@ -430,6 +493,14 @@ def compare_with_summary(
                 row.get("curvature_limit"),
                 (1e-6, 1e-6),
             ),
+            (
+                "max_lateral_accel",
+                m.max_lateral_accel,
+                row.get("max_lateral_accel"),
+                (tol.lateral_accel_abs, tol.lateral_accel_rel),
+            ),
+            ("lateral_accel_limit", m.lateral_accel_limit, row.get("lateral_accel_limit"), (1e-6, 1e-6)),
+            ("curvature_violation", m.curvature_violation, row.get("curvature_violation"), None),
             ("collisions", m.collisions, row.get("collisions"), None),
             ("escapes", m.escapes, row.get("escapes"), None),
             ("stuck_events", m.stuck_events, row.get("stuck_events"), None),

@@ -18,6 +18,9 @@ from swarmplan.world.motion import poses_at
 CRASH_DEPTH = 0.02
 """Metres a crashed agent is recorded past its first contact (see :func:`crash_point`)."""
 
+CONTACT_TOL = 1e-3
+"""Metres of penetration that make a contact (the replay's audit uses the same)."""
+
 
 def crash_point(
     scene: Scene, radius: np.float64, p0: np.ndarray, p1: np.ndarray, t0: float, dt: float
@@ -64,6 +67,19 @@ def collide(s: SwarmState, ids: tuple[str, ...], i: int, other: str, t1: float) 
         counts=(("collisions", i),),
         contacts=((i, other),),
     )
+
+
+def parked_contacts(
+    s: SwarmState, ids: tuple[str, ...], clearance: np.ndarray, nearest: list[str], t1: float
+) -> Tally:
+    """Failed agents (they stay where they gave up, in the air) touched by an obstacle at the
+    committed step: ``clearance`` (N,) is every agent's obstacle clearance at its position,
+    ``nearest`` the id of the obstacle nearest each agent. Such a contact is a collision, as the
+    replay's audit counts it (a penetration deeper than 1 mm at a recorded step)."""
+    out = NOTHING
+    for i in np.flatnonzero((s.mode == Mode.FAILED) & (clearance < -CONTACT_TOL)).tolist():
+        out += collide(s, ids, i, nearest[i], t1)
+    return out
 
 
 def arrivals(

@@ -39,7 +39,7 @@ from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_vel
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.planner import make_planner
-from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point
+from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point, parked_contacts
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.navigation import Navigator, distance_to_go
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
@@ -218,6 +218,9 @@ class Simulation:
         mv = self.moving_mask
         active = s.active
         idx = np.flatnonzero(active)
+        # Failed and collided agents are still measured where they stay (the audit measures every
+        # agent up to its arrival): a mover may pass them.
+        measured = s.mode != Mode.ARRIVED
 
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
         if self.planner is not None and len(idx):
@@ -289,9 +292,15 @@ class Simulation:
         if len(self.world.obstacles):
             # Exact for meshes too (the grid in the cache is approximate, a lower bound beyond it).
             obst_clear = self.field.min_distance(pos1, q1, self._field_cache[0]) - self.params.radius
+            failed = s.mode == Mode.FAILED
+            if failed.any():
+                # A failed agent stays in the air: an obstacle moving through it is a collision.
+                ids = [o.id for o in self.world.obstacles]
+                nearest = [ids[int(k)] for k in np.argmin(self._field_cache[0], axis=1)]
+                self._merge(parked_contacts(s, self.ids, obst_clear, nearest, t1))
         agent_clear = self.scene.agent_clearance(pos1)
         terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
-        self.metrics.add_step(pos0, pos1, active, obst_clear, agent_clear, terr_clear)
+        self.metrics.add_step(pos0, pos1, measured, obst_clear, agent_clear, terr_clear)
         self._merge(self.near_misses.update(pos1, active, t1))
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1

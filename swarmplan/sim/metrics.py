@@ -5,6 +5,12 @@ Curvature is honest at cusps: a stop-and-reverse point (the flown direction turn
 than 150° between consecutive steps, after dropping steps under 1 mm) is counted in
 ``cusps`` and left out of ``max_curvature`` / ``mean_curvature`` (its discrete "curvature"
 is only 1/step length). ``curvature_limit`` is the model's (see :func:`curvature_limit`).
+
+A multirotor may turn more tightly the slower it flies: what its model bounds is the lateral
+acceleration ``v^2 kappa`` (``max_lateral_accel``, with ``v`` the mean speed of the two steps
+at a vertex, cusps left out), reported beside ``max_accel``. ``curvature_violation`` flags a
+real breach of the model: a fixed wing's curvature over 1.05 / min_turn_radius, a multirotor's
+lateral acceleration over 1.05 max_accel.
 """
 
 from __future__ import annotations
@@ -125,6 +131,24 @@ class RunMetrics:
         pts = np.array([p[i] for p in self.positions[:until]])
         return curvature_with_cusps(pts)
 
+    def lateral_accel(self, i: int, dt: float) -> float:
+        """Max lateral acceleration (m/s^2) over agent ``i``'s non-cusp vertices (see
+        :func:`lateral_accel_of`)."""
+        pts = np.array([p[i] for p in self.positions])
+        curv, cusp, mean_step = curvature_with_cusps(pts, with_steps=True)
+        if not (~cusp).any():
+            return 0.0
+        return float(lateral_accel_of(curv[~cusp], mean_step[~cusp], dt).max())
+
+
+def lateral_accel_of(curv: np.ndarray, mean_step: np.ndarray, dt: float) -> np.ndarray:
+    """Lateral acceleration at vertices of curvature ``curv`` between steps of mean length
+    ``mean_step``: ``v^2 kappa`` in its one-step form ``2 v sin(theta / 2) / dt``, the velocity
+    change a turn by ``theta = kappa * mean_step`` at speed ``v = mean_step / dt`` needs (the
+    two agree for small turns; for a sharp turn at low speed ``v^2 kappa`` overstates it)."""
+    v = mean_step / dt
+    return 2.0 * v * np.sin(0.5 * curv * mean_step) / dt
+
 
 def curvature_limit(agent) -> float:
     """The model's curvature limit (1/m): 1/ρ with ρ = v²/a at cruise for a multirotor (paper 004
@@ -132,6 +156,19 @@ def curvature_limit(agent) -> float:
     if agent.model == "fixed_wing":
         return 1.0 / max(float(agent.min_turn_radius), 1e-9)
     return float(agent.max_accel) / max(float(agent.speed_cruise), 1e-9) ** 2
+
+
+VIOLATION_MARGIN = 1.05
+"""A curvature (fixed wing) or lateral acceleration (multirotor) counts as a breach of the model
+above this factor of its limit."""
+
+
+def curvature_violation(agent, max_curvature: float, max_lateral_accel: float) -> bool:
+    """Whether the flown path breaks the model: a fixed wing turning tighter than its minimum
+    radius, a multirotor turning with more lateral acceleration than ``max_accel`` (+5 %)."""
+    if agent.model == "fixed_wing":
+        return bool(max_curvature > VIOLATION_MARGIN * curvature_limit(agent))
+    return bool(max_lateral_accel > VIOLATION_MARGIN * float(agent.max_accel))
 
 
 def summary_report(
@@ -151,6 +188,10 @@ def summary_report(
     for i, aid in enumerate(m.ids):
         curv, cusp = m.curvature(i)
         curv = curv[~cusp]  # a cusp has no finite curvature: counted apart
+        agent = world.agents[i]
+        max_curv = float(curv.max()) if len(curv) else 0.0
+        lateral = m.lateral_accel(i, world.dt)
+        violation = curvature_violation(agent, max_curv, lateral)
         start = world.agents[i].start
         straight = float(np.linalg.norm(world.agents[i].goal - start))
         agents.append(
@@ -169,7 +210,12 @@ def summary_report(
                 "max_curvature": round(float(curv.max()), 6) if len(curv) else 0.0,
                 "mean_curvature": round(float(curv.mean()), 6) if len(curv) else 0.0,
                 "cusps": int(cusp.sum()),
-                "curvature_limit": round(curvature_limit(world.agents[i]), 6),
+                "curvature_limit": round(curvature_limit(agent), 6),
+                "max_lateral_accel": round(lateral, 6),
+                "lateral_accel_limit": None
+                if agent.model == "fixed_wing"
+                else round(float(agent.max_accel), 6),
+                "curvature_violation": violation,
                 "collisions": int(m.collisions[i]),
                 "collided_with": m.collided_with[i],
                 "escapes": int(m.escapes[i]),

@@ -159,7 +159,7 @@ class Navigator:
             out += Tally(events=tuple(reported))
             if outcome == FAILED:
                 s.mode[i] = Mode.FAILED
-                failed = Event(s.t, self.params.ids[i], "failed", {"reason": "no valid escape segment"})
+                failed = Event(s.t, self.params.ids[i], "failed", {"reason": failure_reason(reported)})
                 out += Tally(events=(failed,))
             elif outcome is not None:
                 out += self.start_segment(s, i, outcome)
@@ -193,6 +193,16 @@ class Navigator:
         self.segment_ref.pop(i, None)
         rejoin_route(s, i)
         return Tally(events=(Event(s.t, self.params.ids[i], kind, {"abandoned": True, "waypoint": k}),))
+
+
+def failure_reason(reported: tuple[Event, ...]) -> str:
+    """Why the planner gave an agent up, from the events it reported with that answer: a
+    ``hold`` that was not possible says why no escape was found and that no holding pattern
+    was free."""
+    for e in reversed(reported):
+        if e.kind == "hold" and not e.detail.get("possible", True):
+            return f"{e.detail.get('reason', 'no way out')}; no free holding pattern"
+    return "no valid escape segment"
 
 
 def distance_to_go(s: SwarmState) -> np.ndarray:

@@ -1,8 +1,10 @@
-"""Fly the multirotor agents of a recorded run with the quadrotor model and measure the tracking error."""
+"""Fly the agents of a recorded run with a vehicle model and measure the tracking error: multirotors
+with the quadrotor model (``quadrotor.py``), fixed wings with the coordinated-turn aircraft
+(``fixed_wing.py``)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -10,6 +12,7 @@ import numpy as np
 from swarmplan.replay import Recording
 from swarmplan.world.tracker_config import G, TrackerConfig
 
+from .fixed_wing import FixedWingConfig, FixedWingFlight, aircraft_of, fly
 from .quadrotor import Flight, simulate
 from .reference import Reference, build_reference, feasibility, fill_gaps
 
@@ -72,9 +75,12 @@ class TrackResult:
     error: np.ndarray  # (A, K) m
     agents: dict[str, AgentTrack]
     record_end: float  # last recorded time (the settle hold follows it)
+    fixed_wing: dict[str, FixedWingFlight] = field(default_factory=dict)  # agent id -> tracked flight
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {aid: self.agents[aid].to_json() for aid in self.ids}
+        out: dict[str, Any] = {aid: {"model": "multirotor", **self.agents[aid].to_json()} for aid in self.ids}
+        for aid, f in self.fixed_wing.items():
+            out[aid] = f.to_json()
         for aid, reason in self.skipped.items():
             out[aid] = {"max_error_m": None, "rms_error_m": None, "max_tilt_deg": None, "skipped": reason}
         return {"agents": out}
@@ -112,8 +118,23 @@ def _stretch_starts(mask: np.ndarray, times: np.ndarray, gap: float = 0.5) -> tu
     return tuple(float(x) for x in t[keep])
 
 
-def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> TrackResult:
-    """Fly every multirotor agent of ``rec`` (or only ``agent``) along its recorded trajectory.
+def _fixed_wing_window(rec: Recording, i: int) -> tuple[int, int]:
+    """First and last recorded step of fixed wing ``i`` in flight: up to the step before its
+    arrival or its end (an arrived or collided agent's last step has zero velocity)."""
+    ok = np.flatnonzero(np.isfinite(rec.positions[i]).all(axis=1))
+    first, last = int(ok[0]), int(ok[-1])
+    modes = rec.modes[i]
+    done = np.flatnonzero(np.isin(modes.astype(str), ("arrived", "collided", "failed")))
+    if len(done):
+        last = min(last, int(done[0]) - 1)
+    return first, last
+
+
+def track(
+    rec: Recording, cfg: TrackerConfig, agent: str | None = None, fixed_cfg: FixedWingConfig | None = None
+) -> TrackResult:
+    """Fly every agent of ``rec`` (or only ``agent``) along its recorded trajectory: multirotors
+    with the quadrotor, fixed wings with the coordinated-turn aircraft (``fixed_cfg``).
 
     Raises ``KeyError`` for an unknown ``agent`` and ``ValueError`` when the log has fewer
     than two steps.
@@ -121,17 +142,30 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
     ids = list(rec.agent_ids) if agent is None else [rec.agent_ids[rec.agent_index(agent)]]
     skipped: dict[str, str] = {}
     chosen: list[int] = []
+    fixed: list[int] = []
     for aid in ids:
         model = agent_model(rec.world, aid)
         i = rec.agent_index(aid)
-        if model != "multirotor":
-            skipped[aid] = f"{model} agent: the tracker models a quadrotor (multirotor agents only)"
-        elif not np.isfinite(rec.positions[i]).all(axis=1).any():
+        if not np.isfinite(rec.positions[i]).all(axis=1).any():
             skipped[aid] = "no recorded position"
+        elif model == "fixed_wing":
+            fixed.append(i)
+        elif model != "multirotor":
+            skipped[aid] = f"{model} agent: no vehicle model for it"
         else:
             chosen.append(i)
     if rec.n_steps < 2:
         raise ValueError(f"{rec.file}: the log has {rec.n_steps} step(s); tracking needs at least two")
+    fixed_cfg = FixedWingConfig() if fixed_cfg is None else fixed_cfg
+    flights: dict[str, FixedWingFlight] = {}
+    for i in fixed:
+        aid = rec.agent_ids[i]
+        a, b = _fixed_wing_window(rec, i)
+        if b - a < 2:
+            skipped[aid] = "fewer than three recorded steps in flight"
+            continue
+        t_rec = np.asarray(rec.times, float)[a : b + 1]
+        flights[aid] = fly(t_rec, rec.positions[i, a : b + 1], aircraft_of(rec.world, aid), fixed_cfg, rec.dt)
     times = np.asarray(rec.times, float)
     pos = fill_gaps(times, rec.positions[chosen])
     vel = np.nan_to_num(rec.velocities[chosen][:, [0, -1]])
@@ -208,4 +242,5 @@ def track(rec: Recording, cfg: TrackerConfig, agent: str | None = None) -> Track
         error=error,
         agents=agents,
         record_end=float(rec.times[-1]),
+        fixed_wing=flights,
     )

@@ -12,7 +12,8 @@ flight), plus:
 
 States are written at the recorded step times only (obstacle poses are not known beyond
 them), so the settle hover after the log's end is in the metrics and the plot, not in the file.
-Fixed-wing (skipped) agents keep their recorded states.
+Fixed-wing agents are written with their tracked states while in flight (the recorded ones
+before and after); agents without a vehicle model (skipped) keep their recorded states.
 """
 
 from __future__ import annotations
@@ -130,7 +131,11 @@ def write_mcap(result: TrackResult, rec: Recording, path: str | Path, source: st
             agents = []
             for i, aid in enumerate(rec.agent_ids):
                 a = idx.get(aid)
-                if a is None:  # skipped: the recorded state as it was
+                f = result.fixed_wing.get(aid)
+                if a is None and f is not None and f.times[0] <= t <= f.times[-1]:
+                    position = [float(np.interp(t, f.times, f.pos[:, j])) for j in range(3)]
+                    velocity = [float(np.interp(t, f.times, f.vel[:, j])) for j in range(3)]
+                elif a is None:  # skipped: the recorded state as it was
                     p = rec.positions[i, k]
                     if not np.isfinite(p).all():
                         continue
@@ -184,7 +189,9 @@ def write_mcap(result: TrackResult, rec: Recording, path: str | Path, source: st
         for i, aid in enumerate(rec.agent_ids):
             final = str(rec.modes[i, -1])
             entry: dict[str, Any] = {"id": aid, "arrived": final == "arrived"}
-            if aid in idx:
+            if aid in result.fixed_wing:
+                entry.update(result.fixed_wing[aid].to_json())
+            elif aid in idx:
                 entry.update(result.agents[aid].to_json())
                 p = tp[idx[aid]]
                 entry["path_length"] = float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
@@ -234,7 +241,24 @@ def plot(result: TrackResult, path: str | Path, title: str = "", rec: Recording 
         )
         if len(bad):
             ax2.scatter(t[bad], result.error[a, bad], color=c, marker="x", s=12)
-    ax2.axhline(1.2, color="k", ls=":", lw=1, label="1.2 m (paper 004)")
+    for b, (aid, f) in enumerate(result.fixed_wing.items()):
+        c = cmap((len(result.ids) + b) % 10)
+        step_f = max(1, len(f.times) // 3000)
+        r, p = f.ref_pos[::step_f], f.pos[::step_f]
+        ax3.plot(r[:, 0], r[:, 1], r[:, 2], "--", color=c, lw=1.0, alpha=0.8)
+        ax3.plot(p[:, 0], p[:, 1], p[:, 2], "-", color=c, lw=1.6, alpha=0.9, label=f"{aid} (fixed wing)")
+        j = f.to_json()
+        ax2.plot(
+            f.times[::step_f],
+            f.error[::step_f],
+            color=c,
+            lw=1.2,
+            label=f"{aid} (max {j['max_error_m']:.2f} m, bank {j['max_bank_deg']:.0f} deg)",
+        )
+    if result.ids:
+        ax2.axhline(1.2, color="k", ls=":", lw=1, label="1.2 m (paper 004)")
+    for lim in sorted({round(f.error_limit_m, 3) for f in result.fixed_wing.values()}):
+        ax2.axhline(lim, color="0.4", ls="-.", lw=1, label=f"{lim:g} m (fixed-wing limit)")
     if result.record_end < t[-1]:
         ax2.axvspan(result.record_end, t[-1], color="0.9", label="settle hover")
     if rec is not None:
@@ -249,7 +273,7 @@ def plot(result: TrackResult, path: str | Path, title: str = "", rec: Recording 
     ax2.set_ylabel("tracking error [m]")
     ax2.set_title("error over time")
     ax2.grid(alpha=0.3)
-    if result.ids:
+    if result.ids or result.fixed_wing:
         ax3.legend(loc="upper left", fontsize=8)
         ax2.legend(loc="upper right", fontsize=8)
     if title:

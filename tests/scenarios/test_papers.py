@@ -73,9 +73,11 @@ def _check_paper_run(path: Path, seed: int | None, tmp_path: Path) -> None:
         else:
             assert speed[1:].min() >= a.speed_min - 1e-3
             assert np.abs(np.diff(speed)).max() <= a.max_accel * dt + 1e-3
-            psi = np.arctan2(v[:, 1], v[:, 0])
-            dpsi = np.abs((np.diff(psi) + np.pi) % (2 * np.pi) - np.pi)
-            rate_max = np.minimum(speed[:-1], speed[1:]) / a.min_turn_radius * dt
-            assert np.all(dpsi <= rate_max + 1e-4), "turn radius below the minimum"
+            # The direction of flight (heading and flight-path angle together) turns by at most
+            # V dt / R_min a step: the 3D curvature stays <= 1 / R_min.
+            u = v / speed[:, None]
+            turn = np.arccos(np.clip(np.einsum("ij,ij->i", u[1:], u[:-1]), -1.0, 1.0))
+            turn_max = np.minimum(speed[:-1], speed[1:]) / a.min_turn_radius * dt
+            assert np.all(turn <= turn_max + 1e-4), "turn radius below the minimum"
             gamma = np.arctan2(v[:, 2], np.hypot(v[:, 0], v[:, 1]))
             assert np.abs(gamma).max() <= a.max_climb_angle + 1e-4

@@ -1,0 +1,56 @@
+"""Holding patterns: where an agent waits when no escape can be planned, before trying again.
+
+A multirotor hovers where it is (its potential field still pushes it away from moving
+obstacles and other agents while it waits). A fixed wing cannot hover: it flies a loiter
+circle, tangent to its current heading so it can enter it at once, of radius at least its
+minimum turn radius, on whichever side (and at the smallest radius of 1.2, 1.6, 2.4 x R_min)
+the swept check finds clear of static obstacles, terrain and the bounds; the circle's points
+are spaced at most 10 degrees apart. None fits: holding is impossible there.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+LOITER_FACTORS = (1.2, 1.6, 2.4)
+"""Loiter radii tried, in multiples of the minimum turn radius."""
+
+
+def loiter_circle(position: np.ndarray, velocity: np.ndarray, radius: float, side: float) -> np.ndarray:
+    """One full level circle of ``radius`` through ``position``, tangent to the horizontal part
+    of ``velocity``, turning left (``side`` = 1) or right (-1): its points after ``position``,
+    ending back at it."""
+    h = np.array([velocity[0], velocity[1]], float)
+    n = float(np.hypot(*h))
+    h = h / n if n > 1e-9 else np.array([1.0, 0.0])
+    left = np.array([-h[1], h[0]])
+    c = position[:2] + side * radius * left
+    theta0 = math.atan2(position[1] - c[1], position[0] - c[0])
+    k = 36
+    ang = theta0 + side * 2.0 * math.pi * np.arange(1, k + 1) / k
+    pts = np.column_stack([c[0] + radius * np.cos(ang), c[1] + radius * np.sin(ang), np.full(k, position[2])])
+    pts[-1] = position
+    return pts
+
+
+def hold_waypoints(
+    position: np.ndarray,
+    velocity: np.ndarray,
+    fixed_wing: bool,
+    min_turn_radius: float,
+    blocked: Callable[[np.ndarray], bool],
+) -> np.ndarray | None:
+    """Waypoints (after ``position``) of the agent's holding pattern, or None when every
+    candidate is ``blocked`` (``blocked(polyline from position)``)."""
+    p = np.asarray(position, float)
+    if not fixed_wing:
+        return p[None].copy()
+    for factor in LOITER_FACTORS:
+        for side in (1.0, -1.0):
+            pts = loiter_circle(p, velocity, factor * min_turn_radius, side)
+            if not blocked(np.vstack([p[None], pts])):
+                return pts
+    return None
