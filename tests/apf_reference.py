@@ -148,7 +148,13 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     q = dp / scale
     e = norm3(q)
     grad = _unit(q / scale)
-    e0 = 1.0 + np.minimum(reach[idx][:, None] + reach[None, :], g.influence) / scale.max(axis=-1)
+    parked = np.zeros(n_all, dtype=bool) if swarm.parked is None else swarm.parked
+    # A parked agent is at rest: the pair's reach is the flyer's braking from its speed.
+    speed = norm3(vel)
+    now = speed * world.dt + speed * speed / (2.0 * np.maximum(params.max_accel[idx], _EPS))
+    stops = parked[None, :] & ~params.fixed_wing[idx][:, None]
+    pair = np.where(stops, now[:, None], reach[idx][:, None] + reach[None, :])
+    e0 = 1.0 + np.minimum(pair, g.influence) / scale.max(axis=-1)
     mag = np.where(others & (e < e0), g.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     dvw = vel[:, None, :] - all_vel[None, :, :]
     dv = dvw / scale
@@ -159,7 +165,6 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     urgency = 1.0 - tau / (g.horizon + _EPS)
     live = others & (es < e0) & (tau > 0)
     mag_p = np.where(live, g.k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
-    parked = np.zeros(n_all, dtype=bool) if swarm.parked is None else swarm.parked
     farther = np.zeros((len(idx), n_all), dtype=bool)
     if swarm.goal_distance is not None:
         farther = norm3(flyers.goal - pos)[:, None] <= swarm.goal_distance[None, :]

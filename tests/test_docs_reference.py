@@ -199,16 +199,19 @@ def documented_topics() -> set[str]:
 
 
 def test_every_topic_a_log_contains_is_documented(tmp_path):
-    """A short run of the quickstart world (movers, an escape, events, Foxglove channels on):
-    every topic of its log is a row of a channel table in docs/log-format.md."""
+    """Short runs of the quickstart world (movers, events, Foxglove channels on) and of the
+    concave wall (an escape): every topic of their logs is a row of a channel table in
+    docs/log-format.md."""
     from helpers import default_planner, read_log
 
-    raw = yaml.safe_load((ROOT / "worlds" / "quickstart.yaml").read_text(encoding="utf-8"))
-    raw["sim"]["max_time"] = 12
-    world = make_world(raw, base_dir=ROOT / "worlds")
-    log = tmp_path / "q.mcap"
-    run_to_end(world, log_path=log, planner=default_planner(world), foxglove=True)
-    topics = set(read_log(log))
+    topics: set[str] = set()
+    for name, max_time in (("quickstart.yaml", 12), ("traps/concave_wall.yaml", 30)):
+        raw = yaml.safe_load((ROOT / "worlds" / name).read_text(encoding="utf-8"))
+        raw["sim"]["max_time"] = max_time
+        world = make_world(raw, base_dir=(ROOT / "worlds" / name).parent)
+        log = tmp_path / f"{len(topics)}.mcap"
+        run_to_end(world, log_path=log, planner=default_planner(world), foxglove=True)
+        topics |= set(read_log(log))
     expected = {"/agents/speed", "/events/log", "/scene/paths/overview", "/tf", "/optimizer"}
     expected.add("/obstacles/state")
     assert expected <= topics, f"the run no longer writes {sorted(expected - topics)}"

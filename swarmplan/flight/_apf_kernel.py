@@ -116,14 +116,15 @@ def _over(x, y, z):  # noqa: ANN001, ANN202
 def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noqa: ANN001, ANN201, PLR0915
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
 
-    ``flyers``: (pos, vel, goal, target, static_scale, idx) of the agents computed;
+    ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed) of
+    the agents computed;
     ``agents``: per agent of the world (radius, separation, min_altitude, stopping reach,
     can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
     terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
     velocities, parked, distance to the goal) of every agent; ``gains``: (k_att, k_rep, influence, k_agent,
     quadratic_radius, goal_power, k_moving, horizon)."""
-    pos, vel, goal, target, static_scale, idx = flyers
+    pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
@@ -276,7 +277,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                 cz = max(separation[ia, 2], separation[b, 2]) + rr
                 qx, qy, qz = dpx / cx, dpy / cy, dpz / cz
                 e = math.sqrt(qx * qx + qy * qy + qz * qz)
-                e0 = 1.0 + min(stop_reach[ia] + stop_reach[b], rho0) / max(cx, cy, cz)
+                # A parked agent is at rest: only the flyer's braking from its speed counts
+                # (for one that can stop; a fixed wing keeps the full range).
+                pair_reach = stop_reach[ia] + stop_reach[b]
+                if parked[b] and can_stop[ia]:
+                    pair_reach = reach_now[i]
+                e0 = 1.0 + min(pair_reach, rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz
                 tau = min(max(-(qx * dvx + qy * dvy + qz * dvz) / max(aa, _EPS), 0.0), horizon)

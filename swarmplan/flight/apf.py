@@ -15,6 +15,10 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   neighbour is no threat, and a longer range only pushes a dense swarm apart and holds
   agents off goals that sit close together. Head-on and many-way encounters are broken by a
   right-hand component about the relative velocity;
+- parked agents: at rest they need no room to brake, so their repulsion reaches only the
+  flyer's own braking distance at its current speed (:func:`reach_at_speed`) beyond the
+  separation ellipsoid: a slow agent closing in on its goal beside a parked neighbour is
+  not held off by a range sized for two agents at cruise;
 - priority near goals: arrived (parked) agents, and agents farther from their goals than the
   agent itself, repel as static bodies do, with its goal factor, for agents that can stop
   (multirotors): near its goal an agent goes on through the crowd and the others give way
@@ -86,6 +90,20 @@ class Swarm:
     goal_distance: np.ndarray | None = None
 
 
+def reach_at_speed(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:
+    """Per agent ``idx[i]`` flying at ``vel[i]``: the distance it needs to be out of a parked
+    agent's way from its *current* speed ``v``, one step of reaction and then braking to a
+    stop (``v dt + v^2 / (2 a)``) for a multirotor; a fixed wing (which cannot stop, and
+    keeps the full range of parked agents) its :func:`stopping_reach` from cruise speed.
+    A parked agent needs no room of its own (it is at rest), so the pair's repulsion reaches
+    this far beyond the separation ellipsoid and no farther: an agent closing in slowly on
+    its goal beside a parked neighbour is not held off by a range sized for two agents at
+    cruise speed."""
+    v = norm3(vel)
+    stop = v * dt + v * v / (2.0 * np.maximum(params.max_accel[idx], _EPS))
+    return np.where(params.fixed_wing[idx], stopping_reach(params, dt)[idx], stop)
+
+
 def stopping_reach(params: AgentParams, dt: float) -> np.ndarray:
     """Per agent: the distance it covers from cruise speed until it is out of another's way,
     one step of reaction and then, for a multirotor, braking to a stop at ``max_accel``
@@ -142,8 +160,9 @@ class ApfField:
         goal_dist = (
             np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         )
+        reach_now = np.ascontiguousarray(reach_at_speed(p, flyers.idx, flyers.vel, w.dt))
         kernel_module("swarmplan.flight._apf_kernel").apf_forces(
-            (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64)),
+            (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              field.obstacle_center, field.obstacle_velocity, field.obstacle_radius),

@@ -53,6 +53,7 @@ from swarmplan.core import (
 )
 from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
+from swarmplan.planner.escape_gates import CROWD, queued, under_way
 from swarmplan.planner.hold import hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
@@ -73,11 +74,6 @@ def model_turn_radius(sim: PlanningContext, i: int) -> float:
 
 
 CHAIN_RADIUS_FACTOR = 1.25  # a fixed wing's segments turn at this x its minimum radius (fillet)
-
-#: Flying agents within the reach of the field's agent term from which a stuck agent is in a
-#: crowd: it plans no escape of its own (doorway, 64 agents: escapes of single agents through
-#: the crowd at the gap took arrivals from 36 to 32 and the real-time factor from 11x to 3x).
-CROWD = 3
 
 # An escape around a blocker is about this many times longer than the straight ray to the
 # sub-goal: movers are looked at until the agent would get there on such a detour.
@@ -191,6 +187,7 @@ class EscapePlanner:
         self.failures: dict[int, int] = {}  # planning rounds in a row without a valid segment
         self.holds: dict[int, int] = {}  # holding patterns flown, per agent (each widens the search)
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
+        self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
 
     # ------------------------------------------------------------------ validation
 
@@ -496,9 +493,11 @@ class EscapePlanner:
         return bool(pull + float(push @ along) < 0.5 * pull)
 
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
-
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
+        start = self._escaped_at.get(i)  # cheapest test first (same answers in any order)
+        if under_way(sim, i) or (start is not None and queued(sim, i, start, self.agents_near(sim, i))):
+            return None
         if self.only_agents_around(sim, i):
             return None
         n_done = self.escapes.get(i, 0)
@@ -506,6 +505,7 @@ class EscapePlanner:
             self.escapes[i] = 0  # after holding, escapes are tried again (with wider searches)
             return self.hold(sim, i, f"{n_done} escapes without getting free")
         self.escapes[i] = n_done + 1
+        self._escaped_at[i] = float(np.linalg.norm(sim.state.goal[i] - sim.state.position[i]))
         r = float(sim.params.radius[i])
         need = r + float(self.cfg["margin"]) + 1.0
         s = sim.state

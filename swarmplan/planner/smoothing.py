@@ -57,6 +57,10 @@ class CurvatureSmoother:
         if speed < 0.5 * float(sim.params.speed_cruise[i]):
             return None
         R = model_turn_radius(sim, i)
+        if not sim.params.fixed_wing[i]:
+            # A multirotor turns at speed v on a radius of v^2/a, and slows down near its
+            # target (``commanded_velocity``): its turning circles are those of its speed now.
+            R = min(R, speed * speed / max(float(sim.params.max_accel[i]), 1e-9))
         target, after, k = self._target(sim, i)
         to_t = target - p
         dist = float(np.linalg.norm(to_t))
@@ -93,6 +97,8 @@ class CurvatureSmoother:
             if s.mode[i] != Mode.APF or s.t < self.next_check.get(i, 0.0):
                 continue
             self.next_check[i] = s.t + self.check_interval
+            if np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i]):
+                continue  # too slow to need a turn wider than it can fly (``check``'s first test)
             if self.ep.agents_near(sim, i).any():
                 continue  # among other agents the way is theirs to shape: no segment to smooth
             found = self.check(sim, i)
