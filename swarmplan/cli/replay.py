@@ -23,6 +23,7 @@ import numpy as np
 from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout
 from swarmplan.replay.metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
 from swarmplan.replay.recording import Recording, RecordingError, load
+from swarmplan.runtime.paths import output_file_problem
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -63,31 +64,6 @@ def _image_extensions() -> list[str]:
     return sorted("." + e for e in FigureCanvasBase.get_supported_filetypes())
 
 
-def _check_writable(option: str, path: str) -> str | None:
-    """Why ``path`` cannot be written as an output file, or None. Leaves nothing behind: the
-    first existing folder on its way is probed with a temporary entry (permissions alone do
-    not tell, e.g. for root under /proc)."""
-    import tempfile
-
-    p = Path(path)
-    if p.is_dir():
-        return f"{option} {path}: is a directory, not a file"
-    parent = p.parent
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        return f"{option} {path}: {parent} is not a directory"
-    try:
-        if parent == p.parent:
-            with tempfile.NamedTemporaryFile(dir=parent, prefix=".swarmplan-probe-"):
-                pass
-        else:  # the missing folders will be created there
-            os.rmdir(tempfile.mkdtemp(dir=parent, prefix=".swarmplan-probe-"))
-    except OSError as exc:
-        return f"{option} {path}: cannot write in {parent} ({exc.strerror or exc})"
-    return None
-
-
 def check_arguments(args: argparse.Namespace) -> str | None:
     """The first problem with the command line's outputs and numbers, as one line, or None."""
     for dest in IMAGE_OPTIONS:
@@ -103,7 +79,7 @@ def check_arguments(args: argparse.Namespace) -> str | None:
                 f"{_option(dest)} {path}: unsupported image type {ext or '(no extension)'!r};"
                 f" use one of {', '.join(known)}"
             )
-        problem = _check_writable(_option(dest), path)
+        problem = output_file_problem(_option(dest), path)
         if problem:
             return problem
     if args.animate is not None:
@@ -115,7 +91,7 @@ def check_arguments(args: argparse.Namespace) -> str | None:
                 f"--animate {args.animate}: unsupported animation type {ext or '(no extension)'!r};"
                 " use .gif or .mp4"
             )
-        problem = _check_writable("--animate", args.animate)
+        problem = output_file_problem("--animate", args.animate)
         if problem:
             return problem
     if not (math.isfinite(args.fps) and args.fps > 0):
