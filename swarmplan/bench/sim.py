@@ -14,7 +14,6 @@ also generate the worlds of ``python -m swarmplan.bench scale``.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -185,11 +184,6 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
 
 
 def main(args: argparse.Namespace) -> int:
-    problems = check_arguments(args)
-    if problems:
-        for p in problems:
-            print(f"error: {p}", file=sys.stderr)
-        return 2
     if args.worlds:
         return _time_worlds()
     from swarmplan.io.recording import McapRecorder

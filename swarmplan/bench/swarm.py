@@ -26,7 +26,6 @@ import argparse
 import csv
 import importlib.util
 import math
-import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass
@@ -236,11 +235,6 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
 
 
 def main(args: argparse.Namespace) -> int:
-    problems = check_arguments(args)
-    if problems:
-        for p in problems:
-            print(f"error: {p}", file=sys.stderr)
-        return 2
     sizes = [16] if args.quick else _parse_sizes(args.sizes)
     seeds = 1 if args.quick else args.seeds
     scenarios = args.scenarios.split(",")

@@ -1,6 +1,7 @@
 """``python -m swarmplan.bench SUBCOMMAND ...``: an argparse dispatcher over the benchmarks.
 
-Each subcommand is a module with ``add_arguments(parser)`` and ``main(args) -> int``. To add
+Each subcommand is a module with ``add_arguments(parser)`` and ``main(args) -> int``, and may have
+``check_arguments(args) -> list[str]`` (every problem, printed here before any work). To add
 one (e.g. ``sim``), write the module and add a line to :data:`SUBCOMMANDS`.
 """
 
@@ -41,13 +42,19 @@ def build_parser() -> argparse.ArgumentParser:
         )
         module.add_arguments(p)
         p.formatter_class = HelpFormatter  # every subcommand's help alike: each default once
-        p.set_defaults(_main=module.main)
+        p.set_defaults(_main=module.main, _check=getattr(module, "check_arguments", None))
     return parser
 
 
 @quiet_on_closed_stdout
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # a subcommand's check_arguments (where it has one) names every problem before any work
+    problems = args._check(args) if args._check is not None else []
+    if problems:
+        for problem in problems:
+            print(f"error: {problem}", file=sys.stderr)
+        return 2
     limit_blas_threads()
     return int(args._main(args) or 0)
 
