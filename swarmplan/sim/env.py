@@ -35,6 +35,7 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
+from swarmplan.flight.guide import make_guide
 from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -73,6 +74,8 @@ class Simulation:
         self.params = AgentParams.from_world(world)
         self.apf = ApfField(world, self.params)
         self.scene = Scene(world, self.params)
+        # The way round static obstacles for agents whose straight line is blocked (None without any).
+        self.guide = make_guide(world, self.params)
         self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
@@ -121,6 +124,8 @@ class Simulation:
         self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
         self.metrics.positions.append(start.copy())
         self.navigator.reset(self.state)
+        if self.guide is not None:
+            self.guide.reset()
         self.near_misses = NearMisses(self.params)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.wall_start = time.perf_counter()
@@ -243,6 +248,8 @@ class Simulation:
                 inputs = with_cores(inputs, pos0[idx], self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
+            if self.guide is not None:
+                target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
             flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
             to_go = np.linalg.norm(s.goal - pos0, axis=1)

@@ -1,0 +1,306 @@
+"""Geodesic guidance around static obstacles: the way to the goal when the straight line is blocked.
+
+The potential field pulls each agent straight at its goal. Behind a static body with the goal
+straight beyond it (a flat wall with one gap, a pillar dead ahead) the pull and the body's push
+cancel: a local minimum, the classic failure of APF (Koren & Borenstein 1991). A navigation
+function has no such minima (Rimon & Koditschek 1992); its discrete form, the distance to the
+goal over a grid of the free space, is what grid planners descend (Barraquand & Latombe 1991).
+
+:class:`StaticGuide` keeps one voxel grid over the flight volume (at most ``MAX_CELLS`` cells)
+with the clearance of every cell centre to the static obstacles and the ground, less the
+largest agent radius. Per goal cell it computes once, on first need, the shortest way from every
+cell to the goal (Dijkstra over the 26 neighbours, scipy's compiled one): free cells only enter
+free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
+times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
+middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
+direction, so that in a passage two opposing flows keep to their own right-hand halves instead
+of meeting head-on (the right-hand rule the field applies between agents).
+
+Each step an agent whose straight line to its goal runs through a static obstacle (inflated by
+its radius; checked every ``RECHECK`` steps, a fifth of the agents each step) is *guided*: its
+point of attraction is the cell ``HOPS`` legs ahead on its way (or the goal itself once that is
+within reach). Every other agent flies at its goal as before: in worlds without static obstacles
+nothing is built and nothing changes. An agent following a segment or a global route keeps it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from swarmplan.core import SEGMENT_REPULSION_SCALE
+from swarmplan.geometry.batch import ShapeBatch
+
+if TYPE_CHECKING:
+    from swarmplan.flight.kinematics import AgentParams
+    from swarmplan.world.model import World
+
+MAX_CELLS = 40_000  # cells of the grid (~10 ms per goal for scipy's Dijkstra)
+MIN_CELL = 1.0  # m: finest cell (small worlds)
+NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
+RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
+SAME = 0.2  # extra cost per metre through a cell per way already through it (near surfaces)
+ONCOMING = 1.0  # the same per way through it in the opposite direction
+HOPS = 3  # legs ahead on the way: the point of attraction
+RECHECK = 5  # steps between two line-of-sight checks of an agent
+_CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
+
+
+def _offsets() -> np.ndarray:
+    o = np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)])
+    return o[np.abs(o).sum(axis=1) > 0]
+
+
+class StaticGuide:
+    """The grid and the ways to the goals of one world (see the module's description)."""
+
+    def __init__(self, world: World, params: AgentParams):
+        from scipy.sparse import csr_matrix
+
+        self.world = world
+        self.radius = float(np.max(params.radius))
+        self.floor = float(np.min(params.min_altitude))
+        lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
+        size = np.maximum(hi - lo, 1e-6)
+        h = max((float(np.prod(size)) / MAX_CELLS) ** (1.0 / 3.0), MIN_CELL)
+        self.shape = np.maximum(np.ceil(size / h).astype(np.int64), 1)
+        self.cell = size / self.shape
+        self.lo = lo
+        nx, ny, nz = (int(v) for v in self.shape)
+        self.n_cells = nx * ny * nz
+        ii, jj, kk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+        self.ijk = np.column_stack([ii.ravel(), jj.ravel(), kk.ravel()])
+        self.centres = lo + (self.ijk + 0.5) * self.cell
+        self.clear, normal = self._clearance(self.centres)
+        self.free = self.clear > 0.0
+        # The clearance a point may lose against its cell's centre (the distance is 1-Lipschitz).
+        self.half_diagonal = 0.5 * float(np.linalg.norm(self.cell))
+        c0 = max(2.0 * float(self.cell.max()), 4.0)
+        prox = np.clip(1.0 - self.clear / c0, 0.0, 1.0)
+        rows, cols, cost = [], [], []
+        flat = np.arange(self.n_cells).reshape(nx, ny, nz)
+        for o in _offsets():
+            src = flat[
+                max(0, -o[0]) : nx - max(0, o[0]),
+                max(0, -o[1]) : ny - max(0, o[1]),
+                max(0, -o[2]) : nz - max(0, o[2]),
+            ].ravel()
+            dst = src + (o[0] * ny + o[1]) * nz + o[2]
+            # Free cells lead only into free cells; a cell inside the inflated obstacles leads out.
+            keep = self.free[dst] | ~self.free[src]
+            src, dst = src[keep], dst[keep]
+            step = o * self.cell
+            length = float(np.linalg.norm(step))
+            e = step / length
+            right = np.array([e[1], -e[0], 0.0])
+            nr = float(np.linalg.norm(right))
+            side = np.zeros(len(dst))
+            if nr > 0.2:
+                side = np.maximum(normal[dst] @ (right / nr), 0.0)
+            w = length * (1.0 + prox[dst] * (NEAR + RIGHT * side))
+            w = np.where(self.free[dst], w, 10.0 * length)
+            rows.append(src)
+            cols.append(dst)
+            cost.append(w)
+        g = csr_matrix(
+            (np.concatenate(cost), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(self.n_cells, self.n_cells),
+        )
+        self._reverse = g.T.tocsr()  # searches run from the goal over reversed legs
+        self._base = self._reverse.data.copy()
+        self.near = prox > 0.0
+        self._flow = np.zeros((self.n_cells, 3))  # directions of the ways through each cell
+        self._row: dict[int, int] = {}  # goal cell -> row of the tables below
+        self._next = np.empty((0, self.n_cells), dtype=np.int32)
+        self._dist = np.empty((0, self.n_cells), dtype=np.float32)
+        self._source = np.empty(0, dtype=np.int64)
+        self.guided = np.zeros(len(world.agents), dtype=bool)
+
+    # ------------------------------------------------------------------ geometry
+
+    def _clearance(self, pts: np.ndarray, faces: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
+        obstacles, the ground (less the lowest altitude the field keeps agents above) and with
+        ``faces`` the faces of the bounds, and the outward normal of the nearest of them."""
+        w = self.world
+        clear = pts[:, 2] - w.terrain_height(pts[:, :2]) - self.floor
+        gh = w.terrain_gradient(pts[:, :2])
+        normal = np.column_stack([-gh[:, 0], -gh[:, 1], np.ones(len(pts))])
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        if faces:
+            to_face = np.column_stack([pts - w.bounds_min, w.bounds_max - pts])
+            to_face[:, 2] = np.inf  # the floor is the ground's
+            k = np.argmin(to_face, axis=1)
+            closer = to_face[np.arange(len(pts)), k] < clear
+            clear = np.where(closer, to_face[np.arange(len(pts)), k], clear)
+            face_normal = np.vstack([np.eye(3), -np.eye(3)])[k]
+            normal[closer] = face_normal[closer]
+        static = w.static_obstacles
+        if static:
+            batch = ShapeBatch(static)
+            for a in range(0, len(pts), _CHUNK):
+                d, g = batch.query(pts[a : a + _CHUNK])
+                j = np.argmin(d, axis=1)
+                rows = np.arange(len(j))
+                dj = d[rows, j]
+                closer = dj < clear[a : a + _CHUNK]
+                clear[a : a + _CHUNK][closer] = dj[closer]
+                normal[a : a + _CHUNK][closer] = g[rows, j][closer]
+        return clear - self.radius, normal
+
+    def cell_of(self, pts: np.ndarray) -> np.ndarray:
+        """Index of the cell holding each of ``pts`` (points outside: the nearest cell)."""
+        ijk = np.floor((np.asarray(pts, dtype=float) - self.lo) / self.cell).astype(np.int64)
+        ijk = np.clip(ijk, 0, self.shape - 1)
+        return (ijk[:, 0] * self.shape[1] + ijk[:, 1]) * self.shape[2] + ijk[:, 2]
+
+    def blocked(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
+        obstacle or the ground inflated by the largest agent radius (exact distances where the
+        grid cannot tell)."""
+        start, end = np.atleast_2d(start), np.atleast_2d(end)
+        n = len(start)
+        out = np.zeros(n, dtype=bool)
+        if n == 0:
+            return out
+        length = np.linalg.norm(end - start, axis=1)
+        step = 0.5 * float(self.cell.min())
+        samples = int(min(max(np.ceil(length.max() / step), 1), 4000))
+        t = np.linspace(0.0, 1.0, samples + 1)
+        pts = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]
+        flat = pts.reshape(-1, 3)
+        cand = np.flatnonzero(self.clear[self.cell_of(flat)] < self.half_diagonal)
+        if not len(cand):
+            return out
+        exact, _ = self._clearance(flat[cand], faces=False)
+        hit = cand[exact < 0.0] // (samples + 1)
+        out[np.unique(hit)] = True
+        return out
+
+    # ------------------------------------------------------------------ ways to the goals
+
+    def _rows_for(self, goal_cells: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """Table rows of the ways to ``goal_cells`` from ``starts`` (n, 3), computing the missing
+        ones in order: each new way (from its agent's position) then loads the cells near
+        surfaces it runs through (negotiated congestion, as routers of wires spread nets over a
+        chip's channels: McMurchie & Ebeling 1995): a later way pays ``SAME`` per way already
+        there and ``ONCOMING`` per way there in the opposite direction, so the ways spread over
+        a passage's width and height and opposing flows take separate lanes."""
+        from scipy.sparse.csgraph import dijkstra
+
+        for c, p in zip(goal_cells.tolist(), starts, strict=True):
+            if c in self._row:
+                continue
+            source = self._source_of(c)
+            dist, pred = dijkstra(self._reverse, directed=True, indices=source, return_predecessors=True)
+            self._row[c] = len(self._source)
+            self._next = np.vstack([self._next, np.where(pred < 0, -1, pred).astype(np.int32)[None]])
+            self._dist = np.vstack([self._dist, dist.astype(np.float32)[None]])
+            self._source = np.append(self._source, source)
+            self._load(self._way(self._row[c], int(self.cell_of(p[None])[0])))
+        return np.array([self._row[c] for c in goal_cells.tolist()], dtype=np.int64)
+
+    def _way(self, row: int, cell: int) -> list[int]:
+        """The cells of the way of table ``row`` from ``cell`` to its goal."""
+        way = [cell]
+        if not np.isfinite(self._dist[row, cell]):
+            return way
+        for _ in range(self.n_cells):
+            nxt = int(self._next[row, way[-1]])
+            if nxt < 0:
+                break
+            way.append(nxt)
+        return way
+
+    def _load(self, way: list[int]) -> None:
+        """Add a way's directions to the cells near surfaces along it and around them, and
+        re-price the legs into those cells."""
+        if len(way) < 2:
+            return
+        a, b = np.array(way[:-1]), np.array(way[1:])
+        d = self.centres[b] - self.centres[a]
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        nb = (self.ijk[b][:, None, :] + np.vstack([[0, 0, 0], _offsets()])[None]).reshape(-1, 3)
+        ok = ((nb >= 0) & (nb < self.shape)).all(axis=1)
+        cells = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
+        dirs = np.repeat(d, 27, axis=0)
+        ok &= self.near[np.where(ok, cells, 0)]
+        if not ok.any():
+            return
+        np.add.at(self._flow, cells[ok], dirs[ok])
+        g = self._reverse
+        for v in np.unique(cells[ok]).tolist():
+            lo, hi = g.indptr[v], g.indptr[v + 1]
+            e = self.centres[v] - self.centres[g.indices[lo:hi]]
+            e /= np.linalg.norm(e, axis=1, keepdims=True)
+            f = self._flow[v]
+            g.data[lo:hi] = self._base[lo:hi] * (
+                1.0 + SAME * float(np.linalg.norm(f)) + ONCOMING * np.maximum(-(e @ f), 0.0)
+            )
+
+    def _source_of(self, cell: int) -> int:
+        """The search's source for a goal in ``cell``: the cell, or the free neighbour with the
+        most clearance when the goal's own cell is not free."""
+        if self.free[cell]:
+            return cell
+        nb = self.ijk[cell] + _offsets()
+        nb = nb[((nb >= 0) & (nb < self.shape)).all(axis=1)]
+        flat = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
+        return int(flat[np.argmax(self.clear[flat])])
+
+    def reset(self) -> None:
+        """Forget which agents are guided (the ways to goals stay: they depend on the world only)."""
+        self.guided[:] = False
+
+    def targets(
+        self,
+        step: int,
+        idx: np.ndarray,
+        pos: np.ndarray,
+        goal: np.ndarray,
+        target: np.ndarray,
+        scale: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Points of attraction of agents ``idx`` at ``pos`` (n, 3) and the scale of their static
+        repulsion: ``target`` and ``scale`` where the target is not the goal (a segment or route),
+        else for a guided agent the point ``HOPS`` legs ahead on the way and the repulsion of a
+        segment (``SEGMENT_REPULSION_SCALE``: the way keeps its clearance on the grid, and at
+        full strength the two edges of a narrow gap push back harder than the pull, a local
+        minimum in front of the gap). Agents whose turn it is (``step``) have their line of
+        sight checked."""
+        to_goal = (target == goal).all(axis=1)
+        due = to_goal & ((idx + step) % RECHECK == 0)
+        if due.any():
+            self.guided[idx[due]] = self.blocked(pos[due], goal[due])
+        rows = np.flatnonzero(to_goal & self.guided[idx])
+        if not len(rows):
+            return target, scale
+        out = target.copy()
+        scale = scale.copy()
+        scale[rows] = np.minimum(scale[rows], SEGMENT_REPULSION_SCALE)
+        table = self._rows_for(self.cell_of(goal[rows]), pos[rows])
+        cell = self.cell_of(pos[rows])
+        lost = ~np.isfinite(self._dist[table, cell])
+        for _ in range(HOPS):
+            nxt = self._next[table, cell]
+            cell = np.where(nxt >= 0, nxt, cell)
+        home = (cell == self._source[table]) | lost
+        out[rows] = np.where(home[:, None], goal[rows], self.centres[cell])
+        return out, scale
+
+    def way_length(self, pos: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """Length of the way from ``pos`` to ``goal`` (n, 3) on the grid (inf where there is none)."""
+        table = self._rows_for(self.cell_of(goal), pos)
+        cell = self.cell_of(pos)
+        return self._dist[table, cell].astype(float) + np.linalg.norm(self.centres[cell] - pos, axis=1)
+
+
+def make_guide(world: World, params: AgentParams) -> StaticGuide | None:
+    """The guide of ``world``, or None when it has no static obstacle (nothing to go round)."""
+    if not world.static_obstacles:
+        return None
+    if math.prod(float(v) for v in np.asarray(world.bounds_max) - np.asarray(world.bounds_min)) <= 0:
+        return None
+    return StaticGuide(world, params)
