@@ -42,8 +42,9 @@ MIN_CELL = 1.0  # m: finest cell (small worlds)
 NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
 RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
 SAME = 0.2  # extra cost per metre through a cell per way already through it (near surfaces)
-ONCOMING = 1.0  # the same per way through it in the opposite direction
-HOPS = 3  # legs ahead on the way: the point of attraction
+ONCOMING = 3.0  # the same per way through it in the opposite direction
+HOPS = 2  # legs ahead on the way: the point of attraction
+SQUEEZE = 1.0  # m: a line closer than this to a surface (beyond the radius) counts as blocked
 RECHECK = 5  # steps between two line-of-sight checks of an agent
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
 
@@ -61,7 +62,7 @@ class StaticGuide:
 
         self.world = world
         self.radius = float(np.max(params.radius))
-        self.floor = float(np.min(params.min_altitude))
+        self.floor = float(np.min(params.min_altitude)) if len(params.min_altitude) else 0.0
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
         size = np.maximum(hi - lo, 1e-6)
         h = max((float(np.prod(size)) / MAX_CELLS) ** (1.0 / 3.0), MIN_CELL)
@@ -120,23 +121,15 @@ class StaticGuide:
 
     # ------------------------------------------------------------------ geometry
 
-    def _clearance(self, pts: np.ndarray, faces: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
-        obstacles, the ground (less the lowest altitude the field keeps agents above) and with
-        ``faces`` the faces of the bounds, and the outward normal of the nearest of them."""
+        obstacles and the ground (less the lowest altitude the field keeps agents above), and
+        the outward normal of the nearest of them."""
         w = self.world
         clear = pts[:, 2] - w.terrain_height(pts[:, :2]) - self.floor
         gh = w.terrain_gradient(pts[:, :2])
         normal = np.column_stack([-gh[:, 0], -gh[:, 1], np.ones(len(pts))])
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        if faces:
-            to_face = np.column_stack([pts - w.bounds_min, w.bounds_max - pts])
-            to_face[:, 2] = np.inf  # the floor is the ground's
-            k = np.argmin(to_face, axis=1)
-            closer = to_face[np.arange(len(pts)), k] < clear
-            clear = np.where(closer, to_face[np.arange(len(pts)), k], clear)
-            face_normal = np.vstack([np.eye(3), -np.eye(3)])[k]
-            normal[closer] = face_normal[closer]
         static = w.static_obstacles
         if static:
             batch = ShapeBatch(static)
@@ -158,8 +151,9 @@ class StaticGuide:
 
     def blocked(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
-        obstacle or the ground inflated by the largest agent radius (exact distances where the
-        grid cannot tell)."""
+        obstacle or the ground inflated by the largest agent radius plus ``SQUEEZE`` (exact
+        distances where the grid cannot tell): also a line through a narrow gap, in front of
+        which the full repulsion of its two edges outweighs the pull (a local minimum)."""
         start, end = np.atleast_2d(start), np.atleast_2d(end)
         n = len(start)
         out = np.zeros(n, dtype=bool)
@@ -171,11 +165,11 @@ class StaticGuide:
         t = np.linspace(0.0, 1.0, samples + 1)
         pts = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]
         flat = pts.reshape(-1, 3)
-        cand = np.flatnonzero(self.clear[self.cell_of(flat)] < self.half_diagonal)
+        cand = np.flatnonzero(self.clear[self.cell_of(flat)] < self.half_diagonal + SQUEEZE)
         if not len(cand):
             return out
-        exact, _ = self._clearance(flat[cand], faces=False)
-        hit = cand[exact < 0.0] // (samples + 1)
+        exact, _ = self._clearance(flat[cand])
+        hit = cand[exact < SQUEEZE] // (samples + 1)
         out[np.unique(hit)] = True
         return out
 
