@@ -84,7 +84,7 @@ class Simulation:
         self.n = len(world.agents)
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.scene)
-        self.navigator = Navigator(world, self.params)
+        self.navigator = Navigator(world, self.params, self.guide)
         self.state: SwarmState | None = None
         self.seed: int | None = None
         self._streams: dict[tuple[str, int | None], np.random.Generator] = {}

@@ -19,6 +19,7 @@ from swarmplan.core import (
     StuckOutcome,
     SwarmState,
 )
+from swarmplan.flight.guide import StaticGuide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.world.model import World
@@ -27,9 +28,10 @@ from swarmplan.world.model import World
 class Navigator:
     """Per-agent progress bookkeeping over a run (reset with :meth:`reset`)."""
 
-    def __init__(self, world: World, params: AgentParams):
+    def __init__(self, world: World, params: AgentParams, guide: StaticGuide | None = None):
         self.world = world
         self.params = params
+        self.guide = guide
         n = len(params.ids)
         self.progress_ref = np.zeros(n)
         self.progress_t = np.zeros(n)
@@ -37,9 +39,20 @@ class Navigator:
 
     def reset(self, s: SwarmState) -> None:
         """Progress is measured from here on (call again once global routes are known)."""
-        self.progress_ref = distance_to_go(s)
+        self.progress_ref = self.to_go(s)
         self.progress_t = np.zeros(len(self.params.ids))
         self.segment_ref = {}
+
+    def to_go(self, s: SwarmState) -> np.ndarray:
+        """:func:`distance_to_go`, along the guide's way round static obstacles for the agents it
+        guides (flying along a wall to its gap is progress, though the goal gets no nearer)."""
+        dg = distance_to_go(s)
+        if self.guide is not None:
+            rows = np.flatnonzero(self.guide.guided & s.active)
+            rows = [i for i in rows.tolist() if s.route[i] is None]
+            if rows:
+                dg[rows] = self.guide.way_length(s.position[rows], s.goal[rows])
+        return dg
 
     def attraction_targets(self, s: SwarmState, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, Tally]:
         """Point each agent is attracted to (segment waypoint, route waypoint or goal), the scale
@@ -129,7 +142,7 @@ class Navigator:
         out = NOTHING
         window = self.world.planner_config.stuck.window
         min_progress = self.world.planner_config.stuck.min_progress
-        dg = distance_to_go(s)
+        dg = self.to_go(s)
         # Only agents following a segment or whose window has run out need work this step.
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
         due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
