@@ -32,6 +32,7 @@ ones only): what holds it is other agents.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import TYPE_CHECKING
 
@@ -41,7 +42,7 @@ from swarmplan.geometry.batch import ShapeBatch
 
 if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
-    from swarmplan.world.model import World
+    from swarmplan.world.model import Obstacle, World
 
 MAX_CELLS = 40_000  # cells of the grid (~10 ms per goal for scipy's Dijkstra)
 MIN_CELL = 1.0  # m: finest cell (small worlds)
@@ -64,10 +65,11 @@ def _offsets() -> np.ndarray:
 class StaticGuide:
     """The grid and the ways to the goals of one world (see the module's description)."""
 
-    def __init__(self, world: World, params: AgentParams):
+    def __init__(self, world: World, params: AgentParams, bodies: tuple[Obstacle, ...] | None = None):
         from scipy.sparse import csr_matrix
 
         self.world = world
+        self.bodies = world.static_obstacles if bodies is None else bodies
         self.radius = float(np.max(params.radius))
         self.floor = float(np.min(params.min_altitude)) if len(params.min_altitude) else 0.0
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
@@ -137,9 +139,8 @@ class StaticGuide:
         gh = w.terrain_gradient(pts[:, :2])
         normal = np.column_stack([-gh[:, 0], -gh[:, 1], np.ones(len(pts))])
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-        static = w.static_obstacles
-        if static:
-            batch = ShapeBatch(static)
+        if self.bodies:
+            batch = ShapeBatch(self.bodies)
             for a in range(0, len(pts), _CHUNK):
                 d, g = batch.query(pts[a : a + _CHUNK])
                 j = np.argmin(d, axis=1)
@@ -318,10 +319,41 @@ class StaticGuide:
         return self._dist[table, cell].astype(float) + np.linalg.norm(self.centres[cell] - pos, axis=1)
 
 
-def make_guide(world: World, params: AgentParams) -> StaticGuide | None:
-    """The guide of ``world``, or None when it has no static obstacle (nothing to go round)."""
-    if not world.static_obstacles:
+def parks_at(o: Obstacle) -> float | None:
+    """When moving obstacle ``o`` comes to rest for good (waypoints without ``loop``: at its last
+    waypoint), else None."""
+    m = o.motion
+    if m is None or m.type != "waypoints" or m.loop or m.speed <= 0:
+        return None
+    pts = np.vstack([o.position, *m.waypoints])
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()) / float(m.speed)
+
+
+def resting_bodies(world: World, t: float) -> tuple[Obstacle, ...]:
+    """The obstacles at rest for good at time ``t``: the static ones and the movers parked by
+    then (as static bodies at their last waypoint)."""
+    out = list(world.static_obstacles)
+    for o in world.moving_obstacles:
+        park = parks_at(o)
+        if park is not None and park <= t:
+            out.append(
+                dataclasses.replace(o, position=np.asarray(o.motion.waypoints[-1], dtype=float), motion=None)
+            )
+    return tuple(out)
+
+
+def next_rest(world: World, t: float) -> float:
+    """The first time after ``t`` at which a mover comes to rest for good (inf when none does)."""
+    times = [p for p in (parks_at(o) for o in world.moving_obstacles) if p is not None and p > t]
+    return min(times, default=math.inf)
+
+
+def make_guide(world: World, params: AgentParams, t: float = 0.0) -> StaticGuide | None:
+    """The guide of ``world`` round the obstacles at rest for good at ``t``, or None when there
+    are none (nothing to go round)."""
+    bodies = resting_bodies(world, t)
+    if not bodies:
         return None
     if math.prod(float(v) for v in np.asarray(world.bounds_max) - np.asarray(world.bounds_min)) <= 0:
         return None
-    return StaticGuide(world, params)
+    return StaticGuide(world, params, bodies)

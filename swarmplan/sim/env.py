@@ -35,7 +35,7 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
-from swarmplan.flight.guide import make_guide
+from swarmplan.flight.guide import make_guide, next_rest
 from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -76,6 +76,7 @@ class Simulation:
         self.scene = Scene(world, self.params)
         # The way round static obstacles for agents whose straight line is blocked (None without any).
         self.guide = make_guide(world, self.params)
+        self._guide_at = 0.0  # the time the guide's bodies are at rest for good from
         self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
@@ -124,6 +125,9 @@ class Simulation:
         self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
         self.metrics.positions.append(start.copy())
         self.navigator.reset(self.state)
+        if self._guide_at > 0.0:  # a mover parked in the last run: back to the bodies at rest at 0
+            self.guide, self._guide_at = make_guide(self.world, self.params), 0.0
+            self.navigator.guide = self.guide
         if self.guide is not None:
             self.guide.reset()
         self.near_misses = NearMisses(self.params)
@@ -248,6 +252,10 @@ class Simulation:
                 inputs = with_cores(inputs, pos0[idx], self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
+            if next_rest(w, self._guide_at) <= t0:  # a mover parked for good: go round it too
+                self._guide_at = t0
+                self.guide = make_guide(w, self.params, t0)
+                self.navigator.guide = self.guide
             if self.guide is not None:
                 target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
