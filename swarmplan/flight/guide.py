@@ -313,7 +313,8 @@ class StaticGuide:
         return np.asarray(goal, dtype=float).copy() if k >= len(run) - 1 else pts[k + 1]
 
     def way_length(self, pos: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """Length of the way from ``pos`` to ``goal`` (n, 3) on the grid (inf where there is none)."""
+        """Cost of the way from ``pos`` to ``goal`` (n, 3) on the grid: its length, more near
+        surfaces (the legs' cost; inf where there is no way)."""
         table = self._rows_for(self.cell_of(goal), pos)
         cell = self.cell_of(pos)
         return self._dist[table, cell].astype(float) + np.linalg.norm(self.centres[cell] - pos, axis=1)
