@@ -24,7 +24,8 @@ Each step an agent whose straight line to its goal runs through a static obstacl
 agents each step) is *guided*: its point of attraction is the cell ``HOPS`` legs ahead on its
 way (or the goal itself once that is within reach), and its static repulsion is scaled by
 ``REPULSION``. Every other agent flies at its goal as before: in worlds without static obstacles
-nothing is built and nothing changes. An agent following a segment or a global route keeps it.
+nothing is built and nothing changes. An agent following a segment or a global route keeps it,
+and fixed wings (which cannot fly a way that hugs corners) are never guided.
 Stuck detection measures a guided agent's progress along its way, and the escape planner plans
 no escape for an agent the guide leads (unless a moving obstacle is near; the guide sees static
 ones only): what holds it is other agents.
@@ -72,6 +73,9 @@ class StaticGuide:
         self.bodies = world.static_obstacles if bodies is None else bodies
         self.radius = float(np.max(params.radius))
         self.floor = float(np.min(params.min_altitude)) if len(params.min_altitude) else 0.0
+        # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
+        # to fly (their escapes are Dubins chains from their own pose).
+        self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
         size = np.maximum(hi - lo, 1e-6)
         h = max((float(np.prod(size)) / MAX_CELLS) ** (1.0 / 3.0), MIN_CELL)
@@ -274,7 +278,7 @@ class StaticGuide:
         the queue passed: doorway, 64 agents, 185/192 arrived over 3 seeds, 192/192 at 0.15).
         Agents whose turn it is (``step``) have their line of sight checked."""
         to_goal = (target == goal).all(axis=1)
-        due = to_goal & ((idx + step) % RECHECK == 0)
+        due = to_goal & ((idx + step) % RECHECK == 0) & self.can_stop[idx]
         if due.any():
             self.guided[idx[due]] = self.blocked(pos[due], goal[due])
         rows = np.flatnonzero(to_goal & self.guided[idx])
