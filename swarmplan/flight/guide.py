@@ -71,6 +71,7 @@ class StaticGuide:
 
         self.world = world
         self.bodies = world.static_obstacles if bodies is None else bodies
+        self._batch = ShapeBatch(self.bodies)
         self.radius = float(np.max(params.radius))
         self.floor = float(np.min(params.min_altitude)) if len(params.min_altitude) else 0.0
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
@@ -144,7 +145,7 @@ class StaticGuide:
         normal = np.column_stack([-gh[:, 0], -gh[:, 1], np.ones(len(pts))])
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
         if self.bodies:
-            batch = ShapeBatch(self.bodies)
+            batch = self._batch
             for a in range(0, len(pts), _CHUNK):
                 d, g = batch.query(pts[a : a + _CHUNK])
                 j = np.argmin(d, axis=1)
@@ -180,7 +181,11 @@ class StaticGuide:
         cand = np.flatnonzero(self.clear[self.cell_of(flat)] < self.half_diagonal + SQUEEZE)
         if not len(cand):
             return out
-        exact, _ = self._clearance(flat[cand])
+        p = flat[cand]
+        exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
+        if self.bodies:
+            exact = np.minimum(exact, self._batch.distance(p).min(axis=1))
+        exact -= self.radius
         hit = cand[exact < SQUEEZE] // (samples + 1)
         out[np.unique(hit)] = True
         return out
@@ -201,9 +206,14 @@ class StaticGuide:
                 continue
             source = self._source_of(c)
             dist, pred = dijkstra(self._reverse, directed=True, indices=source, return_predecessors=True)
-            self._row[c] = len(self._source)
-            self._next = np.vstack([self._next, np.where(pred < 0, -1, pred).astype(np.int32)[None]])
-            self._dist = np.vstack([self._dist, dist.astype(np.float32)[None]])
+            row = len(self._source)
+            if row == len(self._next):  # room for twice as many ways (no copy per new goal)
+                grow = max(8, 2 * row)
+                self._next = np.vstack([self._next, np.empty((grow - row, self.n_cells), dtype=np.int32)])
+                self._dist = np.vstack([self._dist, np.empty((grow - row, self.n_cells), dtype=np.float32)])
+            self._next[row] = np.where(pred < 0, -1, pred)
+            self._dist[row] = dist
+            self._row[c] = row
             self._source = np.append(self._source, source)
             self._load(self._way(self._row[c], int(self.cell_of(p[None])[0])))
         return np.array([self._row[c] for c in goal_cells.tolist()], dtype=np.int64)
@@ -256,9 +266,18 @@ class StaticGuide:
         flat = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
         return int(flat[np.argmax(self.clear[flat])])
 
-    def reset(self) -> None:
-        """Forget which agents are guided (the ways to goals stay: they depend on the world only)."""
+    def reset(self, pos: np.ndarray | None = None, goal: np.ndarray | None = None) -> None:
+        """Forget which agents are guided (the ways to goals already found stay: they depend on
+        the world only); with the agents' positions and goals (N, 3), guide those whose line is
+        blocked from here and find their ways now, before flight (in the agents' order)."""
         self.guided[:] = False
+        if pos is None or goal is None:
+            return
+        rows = np.flatnonzero(self.can_stop[: len(pos)])
+        if len(rows):
+            self.guided[rows] = self.blocked(pos[rows], goal[rows])
+            rows = rows[self.guided[rows]]
+            self._rows_for(self.cell_of(goal[rows]), pos[rows])
 
     def targets(
         self,

@@ -124,12 +124,12 @@ class Simulation:
         )
         self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
         self.metrics.positions.append(start.copy())
-        self.navigator.reset(self.state)
         if self._guide_at > 0.0:  # a mover parked in the last run: back to the bodies at rest at 0
             self.guide, self._guide_at = make_guide(self.world, self.params), 0.0
             self.navigator.guide = self.guide
         if self.guide is not None:
-            self.guide.reset()
+            self.guide.reset(start, goal)
+        self.navigator.reset(self.state)
         self.near_misses = NearMisses(self.params)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.wall_start = time.perf_counter()
