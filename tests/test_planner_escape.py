@@ -86,7 +86,8 @@ def _pocket_sim(optimizer="de"):
 
     world = load_world(TRAPS / "u_pocket.yaml")
     planner = RefinementPlanner(world, optimizer)
-    sim = Simulation(world, planner=planner)
+    with without_guide():  # the bare field: the guide would lead the agent out of the pocket
+        sim = Simulation(world, planner=planner)
     sim.reset(seed=3)
     sim.state.position[0] = np.array([54.0, 40.0, 15.0])  # deep in the pocket
     sim.state.velocity[0] = np.zeros(3)
