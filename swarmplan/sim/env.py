@@ -124,6 +124,7 @@ class Simulation:
         )
         self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
         self.metrics.positions.append(start.copy())
+        self._measure_start(start)
         if self._guide_at > 0.0:  # a mover parked in the last run: back to the bodies at rest at 0
             self.guide, self._guide_at = make_guide(self.world, self.params), 0.0
             self.navigator.guide = self.guide
@@ -146,6 +147,17 @@ class Simulation:
             self.navigator.reset(self.state)
         agents, obstacles = self._agent_states(), self._obstacle_states(0.0)
         return ResetResult(self.state, world_message, records, agents, obstacles)
+
+    def _measure_start(self, start: np.ndarray) -> None:
+        """The clearances at the start count too (a log's replay measures every sample from
+        t = 0: an agent that starts nearer to something than it ever flies was reported farther)."""
+        m, r = self.metrics, self.params.radius
+        if len(self.world.obstacles):
+            q0 = self.scene.poses(0.0)[0]
+            m.min_clearance = np.minimum(m.min_clearance, self.field.min_distance(start, q0) - r)
+        m.min_agent_clearance = np.minimum(m.min_agent_clearance, self.scene.agent_clearance(start))
+        terrain = start[:, 2] - self.world.terrain_height(start[:, :2]) - r
+        m.min_terrain_clearance = np.minimum(m.min_terrain_clearance, terrain)
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
         """The random stream of one purpose (e.g. 'escape') for one agent, seeded from the run's
