@@ -54,6 +54,7 @@ ONCOMING = 3.0  # the same per way through it in the opposite direction
 HOPS = 2  # legs ahead on the way: the point of attraction
 SQUEEZE = 1.0  # m: a line closer than this to a surface (beyond the radius) counts as blocked
 REPULSION = 0.15  # scale of a guided agent's static repulsion (half a segment's)
+AHEAD = 2.0  # influence distances of a line an unguided agent checks in flight
 RECHECK = 5  # steps between two line-of-sight checks of an agent
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
 
@@ -77,6 +78,7 @@ class StaticGuide:
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
         # to fly (their escapes are Dubins chains from their own pose).
         self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
+        self.ahead = AHEAD * float(world.planner_config.apf.influence)
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
         size = np.maximum(hi - lo, 1e-6)
         h = max((float(np.prod(size)) / MAX_CELLS) ** (1.0 / 3.0), MIN_CELL)
@@ -162,7 +164,7 @@ class StaticGuide:
         ijk = np.clip(ijk, 0, self.shape - 1)
         return (ijk[:, 0] * self.shape[1] + ijk[:, 1]) * self.shape[2] + ijk[:, 2]
 
-    def blocked(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    def blocked(self, start: np.ndarray, end: np.ndarray, reach: np.ndarray | float = np.inf) -> np.ndarray:
         """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
         obstacle or the ground inflated by the largest agent radius plus ``SQUEEZE`` (exact
         distances where the grid cannot tell): also a line through a narrow gap, in front of
@@ -173,6 +175,9 @@ class StaticGuide:
         if n == 0:
             return out
         length = np.linalg.norm(end - start, axis=1)
+        cut = np.minimum(length, reach)  # only the first ``reach`` m of each line
+        end = start + (end - start) * (cut / np.maximum(length, 1e-12))[:, None]
+        length = cut
         step = 0.5 * float(self.cell.min())
         samples = int(min(max(np.ceil(length.max() / step), 1), 4000))
         t = np.linspace(0.0, 1.0, samples + 1)
@@ -299,7 +304,12 @@ class StaticGuide:
         to_goal = (target == goal).all(axis=1)
         due = to_goal & ((idx + step) % RECHECK == 0) & self.can_stop[idx]
         if due.any():
-            self.guided[idx[due]] = self.blocked(pos[due], goal[due])
+            # An agent not guided yet looks only as far ahead as the static repulsion reaches
+            # (the local minimum forms there; farther, the crowd may still move it off the
+            # line), one guided keeps its way while the whole line is blocked.
+            who = idx[due]
+            reach = np.where(self.guided[who], np.inf, self.ahead)
+            self.guided[who] = self.blocked(pos[due], goal[due], reach)
         rows = np.flatnonzero(to_goal & self.guided[idx])
         if not len(rows):
             return target, scale
