@@ -6,7 +6,7 @@ cancel: a local minimum, the classic failure of APF (Koren & Borenstein 1991). A
 function has no such minima (Rimon & Koditschek 1992); its discrete form, the distance to the
 goal over a grid of the free space, is what grid planners descend (Barraquand & Latombe 1991).
 
-:class:`StaticGuide` keeps one voxel grid over the flight volume (at most ``MAX_CELLS`` cells)
+:class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
 with the clearance of every cell centre to the static obstacles and the ground, less the
 largest agent radius. Per goal cell it computes once, on first need, the shortest way from every
 cell to the goal (Dijkstra over the 26 neighbours, scipy's compiled one): free cells only enter
@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
-MAX_CELLS = 40_000  # cells of the grid (~10 ms per goal for scipy's Dijkstra)
+MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~10 ms per goal for scipy's Dijkstra)
 MIN_CELL = 1.0  # m: finest cell (small worlds)
 NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
 RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
@@ -81,7 +81,9 @@ class StaticGuide:
         self.ahead = AHEAD * float(world.planner_config.apf.influence)
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
         size = np.maximum(hi - lo, 1e-6)
-        h = max((float(np.prod(size)) / MAX_CELLS) ** (1.0 / 3.0), MIN_CELL)
+        # A way per goal: with many agents the grid is coarser (the searches cost in proportion).
+        cells = MAX_CELLS * min(1.0, math.sqrt(64.0 / max(len(world.agents), 1)))
+        h = max((float(np.prod(size)) / cells) ** (1.0 / 3.0), MIN_CELL)
         self.shape = np.maximum(np.ceil(size / h).astype(np.int64), 1)
         self.cell = size / self.shape
         self.lo = lo
