@@ -23,6 +23,7 @@ from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
@@ -179,6 +180,10 @@ class SafetyFilter:
         dt = self.world.dt
         k = np.flatnonzero(mr)
         rows = idx[k]
+        if use_compiled_checks(len(p.ids)) and not self.world.peaks:
+            fused = self._braking_margin_compiled(k, rows, pos0, vel0, v_cmd, q0, q1, goal)
+            if fused is not None:
+                return fused
         amax = p.max_accel[rows]
         cap = np.full(len(k), np.inf)
         if goal is not None:
@@ -219,6 +224,42 @@ class SafetyFilter:
         brake = vel0[rows] * _shrink(s0, cap)
         out[k] = np.where(too_fast[:, None], brake, capped)
         return out
+
+    def _braking_margin_compiled(
+        self,
+        k: np.ndarray,
+        rows: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        v_cmd: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        goal: np.ndarray | None,
+    ) -> np.ndarray | None:
+        """:meth:`braking_margin` for the multirotor rows ``k`` (agents ``rows``) in one compiled
+        call (the same bits); None when a sweep needs FCL's decision (then the numpy path runs)."""
+        p = self.params
+        mv = self.scene.moving_mask
+        cw = self.scene.collision
+        dt = self.world.dt
+        all_rows = len(k) == len(v_cmd)
+        out, decided = step_kernels().braking_margin(
+            np.ascontiguousarray(pos0[rows]),
+            np.ascontiguousarray(vel0[rows]),
+            np.ascontiguousarray(v_cmd if all_rows else v_cmd[k], dtype=float),
+            np.ascontiguousarray(pos0[rows] if goal is None else goal[k], dtype=float),
+            goal is not None,
+            p.max_accel[rows], p.speed_max[rows], p.radius[rows] + self.margin(rows),
+            dt, dt**2, float(self.world.goal_tolerance), self._bounds[0], self._bounds[1],
+            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
+        )  # fmt: skip
+        if not decided:
+            return None
+        if all_rows:
+            return out
+        full = v_cmd.copy()
+        full[k] = out
+        return full
 
     def _free_distances(
         self,
@@ -397,6 +438,11 @@ class SafetyFilter:
         cmds = np.array(cmds)
         v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, np.full(len(cmds), i))
         return list(v)
+
+
+def step_kernels():  # noqa: ANN201
+    """:mod:`swarmplan.sim._step_kernels` (numba loads with it at the first call)."""
+    return kernel_module("swarmplan.sim._step_kernels")
 
 
 def _stoppable_speed(room: np.ndarray, amax: np.ndarray, dt: float) -> np.ndarray:

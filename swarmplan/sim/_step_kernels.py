@@ -1,0 +1,145 @@
+"""Compiled (numba) phases of the simulation step, one call over all flying agents each.
+
+The braking margin (``SafetyFilter.braking_margin``) ran ~40 numpy operations on arrays of a
+swarm's rows plus a kernel call for the bisection, each paying numpy's per-call cost. Here it
+is one loop over the rows. Every quantity is the numpy path's formula with its operations in
+the same order (``norm3`` is ``sqrt((x*x + y*y) + z*z)``, ``np.minimum``/``np.maximum`` the
+comparisons below, ``x ** 2`` numpy's ``x * x``), and no fast-math, so both paths give the
+same bits (tests/test_step_kernels.py). Loaded with numba at the first call, like every kernel
+(``swarmplan.runtime.compiled``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from swarmplan.geometry.sweep_kernels import HIT, UNDECIDED, _touches
+
+
+@njit(cache=True, inline="always")
+def _norm(x: float, y: float, z: float) -> float:
+    return math.sqrt(x * x + y * y + z * z)
+
+
+@njit(cache=True, inline="always")
+def _min(a: float, b: float) -> float:
+    return a if a <= b else b
+
+
+@njit(cache=True, inline="always")
+def _max(a: float, b: float) -> float:
+    return a if a >= b else b
+
+
+@njit(cache=True)
+def _limit(v0: np.ndarray, c: np.ndarray, vmax: float, amax_dt: float, out: np.ndarray) -> None:
+    """``kinematics.limit_multirotor`` for one row: ``c`` clipped to ``vmax``, reached from
+    ``v0`` with at most ``amax_dt`` of change (into ``out``)."""
+    s = _norm(c[0], c[1], c[2])
+    f = _min(1.0, vmax / _max(s, 1e-12))
+    d0, d1, d2 = c[0] * f - v0[0], c[1] * f - v0[1], c[2] * f - v0[2]
+    g = _min(1.0, amax_dt / _max(_norm(d0, d1, d2), 1e-12))
+    out[0] = v0[0] + d0 * g
+    out[1] = v0[1] + d1 * g
+    out[2] = v0[2] + d2 * g
+
+
+@njit(cache=True)
+def braking_margin(
+    pos0: np.ndarray,
+    vel0: np.ndarray,
+    v_cmd: np.ndarray,
+    goal: np.ndarray,
+    use_goal: bool,
+    amax: np.ndarray,
+    vmax: np.ndarray,
+    radii: np.ndarray,
+    dt: float,
+    dt2: float,
+    tolerance: float,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+    halvings: int,
+) -> tuple[np.ndarray, bool]:
+    """``SafetyFilter.braking_margin`` for multirotor rows (all arrays by row; ``radii`` with
+    the filter's margin; ``dt2`` is Python's ``dt ** 2``): the new commands, and False when a
+    sweep was undecided (a body within ``BAND`` of contact or a mesh: the caller then runs the
+    numpy path, where FCL decides)."""
+    n = len(pos0)
+    out = np.empty((n, 3))
+    v1 = np.empty(3)
+    c = np.empty(3)
+    u = np.empty(3)
+    for i in range(n):
+        a = amax[i]
+        a_dt = a * dt
+        cap = np.inf
+        if use_goal:
+            to_goal = _norm(goal[i, 0] - pos0[i, 0], goal[i, 1] - pos0[i, 1], goal[i, 2] - pos0[i, 2])
+            room = _max(to_goal - tolerance, 0.0)
+            cap = _max(a_dt, a * (math.sqrt(dt2 + 2.0 * room / a) - dt))
+        s_cmd = _norm(v_cmd[i, 0], v_cmd[i, 1], v_cmd[i, 2])
+        f = _min(1.0, cap / _max(s_cmd, 1e-12))
+        for k in range(3):
+            c[k] = v_cmd[i, k] * f
+        _limit(vel0[i], c, vmax[i], a_dt, v1)
+        speed = _norm(v1[0], v1[1], v1[2])
+        swept = False
+        if speed > a_dt:
+            for k in range(3):
+                u[k] = v1[k] / speed
+            reach = speed * speed / (2.0 * a) + speed * dt
+            h = _touches(
+                pos0[i], u, reach, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
+                q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+            )  # fmt: skip
+            if h == UNDECIDED:
+                return out, False
+            if h == HIT:
+                lo, hi = 0.0, reach
+                for _ in range(halvings):
+                    mid = 0.5 * (lo + hi)
+                    h = _touches(
+                        pos0[i], u, mid, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
+                        q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+                    )  # fmt: skip
+                    if h == UNDECIDED:
+                        return out, False
+                    if h == HIT:
+                        hi = mid
+                    else:
+                        lo = mid
+                cap = _min(cap, a * (math.sqrt(dt2 + 2.0 * lo / a) - dt))
+                swept = True
+        if cap == np.inf:
+            for k in range(3):
+                out[i, k] = v_cmd[i, k]
+            continue
+        f = _min(1.0, cap / _max(s_cmd, 1e-12))
+        for k in range(3):
+            c[k] = v_cmd[i, k] * f
+        if swept:
+            _limit(vel0[i], c, vmax[i], a_dt, v1)
+        if _norm(v1[0], v1[1], v1[2]) > cap + 1e-9:
+            f0 = _min(1.0, cap / _max(_norm(vel0[i, 0], vel0[i, 1], vel0[i, 2]), 1e-12))
+            for k in range(3):
+                out[i, k] = vel0[i, k] * f0
+        else:
+            for k in range(3):
+                out[i, k] = c[k]
+    return out, True
