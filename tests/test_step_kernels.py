@@ -71,3 +71,25 @@ def test_the_compiled_braking_margin_runs_in_swarm_worlds(sim, monkeypatch):
     for _ in range(3):
         s.step()
     assert calls and all(calls)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_steps_free_answers_as_first_hits(sim, seed):
+    """``SafetyFilter.steps_free`` (one compiled call, FCL for what it leaves undecided) says
+    free exactly where ``first_hits_fcl`` finds nothing: steps at bodies, movers, the ground and
+    the bounds, grazing ones included."""
+    from swarmplan.geometry.collision import first_hits_fcl
+
+    rng = np.random.default_rng(seed)
+    q0, q1 = sim.scene.poses(2.0)[0], sim.scene.poses(2.1)[0]
+    n = 600
+    pos, _, cmd, _ = _states(rng, sim, n)
+    end = pos + cmd * rng.choice([0.1, 0.5, 2.0], (n, 1))
+    radii = rng.uniform(0.5, 1.5, n)
+    free = sim.safety.steps_free(pos, end, radii, q0, q1)
+    mv = sim.scene.moving_mask
+    truth = np.array(
+        [h is None for h in first_hits_fcl(sim.scene.collision, pos, end, radii, q0[mv], q1[mv])]
+    )
+    assert 50 < (~truth).sum() < n - 50
+    np.testing.assert_array_equal(free, truth)

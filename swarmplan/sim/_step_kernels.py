@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from swarmplan.geometry.sweep_kernels import HIT, UNDECIDED, _touches
+from swarmplan.geometry.sweep_kernels import HIT, NO, UNDECIDED, _touches, sweep_one
 
 
 @njit(cache=True, inline="always")
@@ -143,3 +143,45 @@ def braking_margin(
             for k in range(3):
                 out[i, k] = c[k]
     return out, True
+
+
+@njit(cache=True)
+def touches_many(
+    p0: np.ndarray,
+    p1: np.ndarray,
+    radii: np.ndarray,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+) -> np.ndarray:
+    """Per step ``p0 -> p1`` over flat ground: whether it touches something (``first_hits``'
+    bounds, ground and bodies as a yes/no question): NO, HIT or UNDECIDED (FCL must decide)."""
+    n = len(p0)
+    out = np.empty(n, np.int64)
+    for i in range(n):
+        a, b, r = p0[i], p1[i], radii[i]
+        status = NO
+        for c in range(3):
+            if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
+                status = HIT
+        if status == NO and min(a[2], b[2]) < r - 1e-9:
+            status = HIT
+        if status == NO:
+            kind, _ = sweep_one(
+                a, b, r, s_center, s_radius, s_code, s_rot, s_dims,
+                q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
+            )  # fmt: skip
+            status = UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
+        out[i] = status
+    return out

@@ -18,7 +18,7 @@ import numpy as np
 from swarmplan.core import Event, Mode
 from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
-from swarmplan.geometry.collision import SLACK, first_hits, segment_segment_min_distance
+from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl, segment_segment_min_distance
 from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
@@ -81,6 +81,8 @@ class SafetyFilter:
             np.ascontiguousarray(world.bounds_min, dtype=float),
             np.ascontiguousarray(world.bounds_max, dtype=float),
         )
+        # Swarm-sized worlds over flat ground check many steps in one compiled call.
+        self._batched = use_compiled_checks(len(params.ids)) and not world.peaks
 
     def guard_fixed_wings(
         self,
@@ -322,6 +324,28 @@ class SafetyFilter:
             is None
         )
 
+    def steps_free(
+        self, p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, q0: np.ndarray, q1: np.ndarray
+    ) -> np.ndarray:
+        """Per step ``p0 -> p1`` (swept radius ``radii``, obstacles at ``q0`` -> ``q1``, all
+        obstacles' rows): whether it touches nothing (``first_hits`` is None). At swarm size over
+        flat ground one compiled call answers, FCL the steps it leaves undecided."""
+        mv = self.scene.moving_mask
+        cw = self.scene.collision
+        if not self._batched:
+            return np.array([h is None for h in first_hits(cw, p0, p1, radii, q0[mv], q1[mv])], dtype=bool)
+        status = step_kernels().touches_many(
+            np.ascontiguousarray(p0, dtype=float), np.ascontiguousarray(p1, dtype=float),
+            np.ascontiguousarray(radii, dtype=float), self._bounds[0], self._bounds[1],
+            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK,
+        )  # fmt: skip
+        free = status == 0
+        undecided = np.flatnonzero(status == 2)
+        if len(undecided):
+            hits = first_hits_fcl(cw, p0[undecided], p1[undecided], radii[undecided], q0[mv], q1[mv])
+            free[undecided] = [h is None for h in hits]
+        return free
+
     def filter(
         self, commands: Commands, start: AgentMotion, end: AgentMotion, window: StepWindow, mode: np.ndarray
     ) -> Filtered:
@@ -336,23 +360,29 @@ class SafetyFilter:
         pos1, vel1 = end.position.copy(), end.velocity.copy()
         q0, q1, t1 = window.q0, window.q1, window.t1
         events: list[Event] = []
-        counts: list[tuple[str, int]] = []
         dt = self.world.dt
         ids = self.params.ids
-        mv = self.scene.moving_mask
-        hits = first_hits(
-            self.scene.collision,
-            pos0[idx],
-            pos1[idx],
-            self.params.radius[idx] + self.margin(idx),
-            q0[mv],
-            q1[mv],
-        )
-        validated = np.array([h is None for h in hits], dtype=bool)
-        for k in np.flatnonzero(~validated):
+        radii = self.params.radius[idx] + self.margin(idx)
+        validated = self.steps_free(pos0[idx], pos1[idx], radii, q0, q1)
+        unsafe = np.flatnonzero(~validated)
+        alternatives: list[list[np.ndarray]] = []
+        free: list[np.ndarray] = []
+        if len(unsafe) and self._batched:
+            # Every alternative of every such agent in one check (the same yes/no per step).
+            alternatives = [self.alternative_velocities(idx[k], vel0[idx[k]]) for k in unsafe]
+            sizes = [len(c) for c in alternatives]
+            rows = np.repeat(idx[unsafe], sizes)
+            ends = pos0[rows] + np.array([v for c in alternatives for v in c]) * dt
+            ok = self.steps_free(pos0[rows], ends, np.repeat(radii[unsafe], sizes), q0, q1)
+            free = np.split(ok, np.cumsum(sizes)[:-1])
+        counts: list[tuple[str, int]] = []
+        for n_k, k in enumerate(unsafe):
             i = idx[k]
-            cands = self.alternative_velocities(i, vel0[i])
-            safe = [v for v in cands if self.step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
+            if self._batched:
+                safe = [v for v, f in zip(alternatives[n_k], free[n_k], strict=True) if f]
+            else:
+                cands = self.alternative_velocities(i, vel0[i])
+                safe = [v for v in cands if self.step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
             if safe:
                 best = min(safe, key=lambda v: float(np.linalg.norm(v - v_cmd[k])))
                 vel1[i] = best
