@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from swarmplan.bench.sim import swarm_world
+from swarmplan.flight.kinematics import limit_velocity
 from swarmplan.sim import Simulation
 from swarmplan.world import parse_world
 
@@ -51,6 +52,11 @@ def test_compiled_braking_margin_equals_the_numpy_path(sim, seed, monkeypatch):
                 m.setattr(type(sim.safety), "_braking_margin_compiled", lambda *a, **k: None)
                 reference = sim.safety.braking_margin(idx, pos, vel, cmd[idx].copy(), q0, q1, g)
             np.testing.assert_array_equal(compiled, reference)
+            if g is not None:  # the velocities the step flies, from the same call
+                command, velocity = sim.safety.brake_and_limit(idx, pos, vel, cmd[idx].copy(), q0, q1, g)
+                expected = limit_velocity(sim.params, vel[idx], reference, sim.world.dt, idx)
+                np.testing.assert_array_equal(command, reference)
+                np.testing.assert_array_equal(velocity, expected)
             changed += int((reference != cmd[idx]).any(axis=1).sum())
     assert changed > 100  # the margin capped many commands: the test exercised it
 

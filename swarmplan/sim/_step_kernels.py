@@ -75,13 +75,15 @@ def braking_margin(
     m_dims: np.ndarray,
     slack: float,
     halvings: int,
-) -> tuple[np.ndarray, bool]:
+) -> tuple[np.ndarray, np.ndarray, bool]:
     """``SafetyFilter.braking_margin`` for multirotor rows (all arrays by row; ``radii`` with
-    the filter's margin; ``dt2`` is Python's ``dt ** 2``): the new commands, and False when a
-    sweep was undecided (a body within ``BAND`` of contact or a mesh: the caller then runs the
-    numpy path, where FCL decides)."""
+    the filter's margin; ``dt2`` is Python's ``dt ** 2``): the new commands, the velocities
+    they lead to (``kinematics.limit_multirotor``), and False when a sweep was undecided (a
+    body within ``BAND`` of contact or a mesh: the caller then runs the numpy path, where FCL
+    decides)."""
     n = len(pos0)
     out = np.empty((n, 3))
+    vel1 = np.empty((n, 3))
     v1 = np.empty(3)
     c = np.empty(3)
     u = np.empty(3)
@@ -109,7 +111,7 @@ def braking_margin(
                 q0, q1, m_radius, m_code, m_rot, m_dims, slack,
             )  # fmt: skip
             if h == UNDECIDED:
-                return out, False
+                return out, vel1, False
             if h == HIT:
                 lo, hi = 0.0, reach
                 for _ in range(halvings):
@@ -119,7 +121,7 @@ def braking_margin(
                         q0, q1, m_radius, m_code, m_rot, m_dims, slack,
                     )  # fmt: skip
                     if h == UNDECIDED:
-                        return out, False
+                        return out, vel1, False
                     if h == HIT:
                         hi = mid
                     else:
@@ -129,6 +131,7 @@ def braking_margin(
         if cap == np.inf:
             for k in range(3):
                 out[i, k] = v_cmd[i, k]
+            _limit(vel0[i], out[i], vmax[i], a_dt, vel1[i])
             continue
         f = _min(1.0, cap / _max(s_cmd, 1e-12))
         for k in range(3):
@@ -142,7 +145,8 @@ def braking_margin(
         else:
             for k in range(3):
                 out[i, k] = c[k]
-    return out, True
+        _limit(vel0[i], out[i], vmax[i], a_dt, vel1[i])
+    return out, vel1, True
 
 
 @njit(cache=True)

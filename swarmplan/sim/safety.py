@@ -182,10 +182,10 @@ class SafetyFilter:
         dt = self.world.dt
         k = np.flatnonzero(mr)
         rows = idx[k]
-        if use_compiled_checks(len(p.ids)) and not self.world.peaks:
+        if self._batched:
             fused = self._braking_margin_compiled(k, rows, pos0, vel0, v_cmd, q0, q1, goal)
             if fused is not None:
-                return fused
+                return fused[0]
         amax = p.max_accel[rows]
         cap = np.full(len(k), np.inf)
         if goal is not None:
@@ -227,6 +227,28 @@ class SafetyFilter:
         out[k] = np.where(too_fast[:, None], brake, capped)
         return out
 
+    def brake_and_limit(
+        self,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        v_cmd: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        goal: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`braking_margin`'s commands (rows of ``idx``) and the velocities they lead to
+        within the kinematic limits (``kinematics.limit_velocity``): in swarm worlds of
+        multirotors both from one compiled call."""
+        p = self.params
+        if self._batched and not p.fixed_wing[idx].any():
+            k = np.arange(len(idx))
+            fused = self._braking_margin_compiled(k, idx, pos0, vel0, v_cmd, q0, q1, goal)
+            if fused is not None:
+                return fused
+        v_cmd = self.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, goal)
+        return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx)
+
     def _braking_margin_compiled(
         self,
         k: np.ndarray,
@@ -237,15 +259,17 @@ class SafetyFilter:
         q0: np.ndarray,
         q1: np.ndarray,
         goal: np.ndarray | None,
-    ) -> np.ndarray | None:
+    ) -> tuple[np.ndarray, np.ndarray | None] | None:
         """:meth:`braking_margin` for the multirotor rows ``k`` (agents ``rows``) in one compiled
-        call (the same bits); None when a sweep needs FCL's decision (then the numpy path runs)."""
+        call (the same bits), with the velocities the commands lead to when every row is a
+        multirotor (else None); None when a sweep needs FCL's decision (then the numpy path
+        runs)."""
         p = self.params
         mv = self.scene.moving_mask
         cw = self.scene.collision
         dt = self.world.dt
         all_rows = len(k) == len(v_cmd)
-        out, decided = step_kernels().braking_margin(
+        out, vel1, decided = step_kernels().braking_margin(
             np.ascontiguousarray(pos0[rows]),
             np.ascontiguousarray(vel0[rows]),
             np.ascontiguousarray(v_cmd if all_rows else v_cmd[k], dtype=float),
@@ -258,10 +282,10 @@ class SafetyFilter:
         if not decided:
             return None
         if all_rows:
-            return out
+            return out, vel1
         full = v_cmd.copy()
         full[k] = out
-        return full
+        return full, None
 
     def _free_distances(
         self,
