@@ -42,7 +42,7 @@ def test_compiled_braking_margin_equals_the_numpy_path(sim, seed, monkeypatch):
     rng = np.random.default_rng(seed)
     n = len(sim.params.ids)
     q0, q1 = sim.scene.poses(1.0)[0], sim.scene.poses(1.1)[0]
-    changed = 0
+    changed = checked = 0
     for _ in range(10):
         pos, vel, cmd, goal = _states(rng, sim, n)
         idx = np.sort(rng.choice(n, size=int(rng.integers(1, n + 1)), replace=False))
@@ -53,12 +53,20 @@ def test_compiled_braking_margin_equals_the_numpy_path(sim, seed, monkeypatch):
                 reference = sim.safety.braking_margin(idx, pos, vel, cmd[idx].copy(), q0, q1, g)
             np.testing.assert_array_equal(compiled, reference)
             if g is not None:  # the velocities the step flies, from the same call
-                command, velocity = sim.safety.brake_and_limit(idx, pos, vel, cmd[idx].copy(), q0, q1, g)
+                command, velocity, free = sim.safety.brake_and_limit(
+                    idx, pos, vel, cmd[idx].copy(), q0, q1, g
+                )
                 expected = limit_velocity(sim.params, vel[idx], reference, sim.world.dt, idx)
                 np.testing.assert_array_equal(command, reference)
                 np.testing.assert_array_equal(velocity, expected)
+                if free is not None:  # None: a braking sweep went to FCL, the numpy path ran
+                    radii = sim.params.radius[idx] + sim.safety.margin(idx)
+                    end = pos[idx] + expected * sim.world.dt
+                    np.testing.assert_array_equal(free, sim.safety.steps_free(pos[idx], end, radii, q0, q1))
+                    checked += 1
             changed += int((reference != cmd[idx]).any(axis=1).sum())
     assert changed > 100  # the margin capped many commands: the test exercised it
+    assert checked >= 3
 
 
 def test_the_compiled_braking_margin_runs_in_swarm_worlds(sim, monkeypatch):

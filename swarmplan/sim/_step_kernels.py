@@ -75,15 +75,19 @@ def braking_margin(
     m_dims: np.ndarray,
     slack: float,
     halvings: int,
-) -> tuple[np.ndarray, np.ndarray, bool]:
+    check_step: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
     """``SafetyFilter.braking_margin`` for multirotor rows (all arrays by row; ``radii`` with
     the filter's margin; ``dt2`` is Python's ``dt ** 2``): the new commands, the velocities
     they lead to (``kinematics.limit_multirotor``), and False when a sweep was undecided (a
     body within ``BAND`` of contact or a mesh: the caller then runs the numpy path, where FCL
-    decides)."""
+    decides). With ``check_step``, also :func:`touches_many`'s answer for each row's step
+    ``pos0 -> pos0 + vel1 dt`` (the safety filter's first check, same radii)."""
     n = len(pos0)
     out = np.empty((n, 3))
     vel1 = np.empty((n, 3))
+    status = np.zeros(n, np.int64)
+    end = np.empty(3)
     v1 = np.empty(3)
     c = np.empty(3)
     u = np.empty(3)
@@ -111,7 +115,7 @@ def braking_margin(
                 q0, q1, m_radius, m_code, m_rot, m_dims, slack,
             )  # fmt: skip
             if h == UNDECIDED:
-                return out, vel1, False
+                return out, vel1, status, False
             if h == HIT:
                 lo, hi = 0.0, reach
                 for _ in range(halvings):
@@ -121,7 +125,7 @@ def braking_margin(
                         q0, q1, m_radius, m_code, m_rot, m_dims, slack,
                     )  # fmt: skip
                     if h == UNDECIDED:
-                        return out, vel1, False
+                        return out, vel1, status, False
                     if h == HIT:
                         hi = mid
                     else:
@@ -132,21 +136,28 @@ def braking_margin(
             for k in range(3):
                 out[i, k] = v_cmd[i, k]
             _limit(vel0[i], out[i], vmax[i], a_dt, vel1[i])
-            continue
-        f = _min(1.0, cap / _max(s_cmd, 1e-12))
-        for k in range(3):
-            c[k] = v_cmd[i, k] * f
-        if swept:
-            _limit(vel0[i], c, vmax[i], a_dt, v1)
-        if _norm(v1[0], v1[1], v1[2]) > cap + 1e-9:
-            f0 = _min(1.0, cap / _max(_norm(vel0[i, 0], vel0[i, 1], vel0[i, 2]), 1e-12))
-            for k in range(3):
-                out[i, k] = vel0[i, k] * f0
         else:
+            f = _min(1.0, cap / _max(s_cmd, 1e-12))
             for k in range(3):
-                out[i, k] = c[k]
-        _limit(vel0[i], out[i], vmax[i], a_dt, vel1[i])
-    return out, vel1, True
+                c[k] = v_cmd[i, k] * f
+            if swept:
+                _limit(vel0[i], c, vmax[i], a_dt, v1)
+            if _norm(v1[0], v1[1], v1[2]) > cap + 1e-9:
+                f0 = _min(1.0, cap / _max(_norm(vel0[i, 0], vel0[i, 1], vel0[i, 2]), 1e-12))
+                for k in range(3):
+                    out[i, k] = vel0[i, k] * f0
+            else:
+                for k in range(3):
+                    out[i, k] = c[k]
+            _limit(vel0[i], out[i], vmax[i], a_dt, vel1[i])
+        if check_step:
+            for k in range(3):
+                end[k] = pos0[i, k] + vel1[i, k] * dt
+            status[i] = _step_status(
+                pos0[i], end, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
+                q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+            )  # fmt: skip
+    return out, vel1, status, True
 
 
 @njit(cache=True)
@@ -174,18 +185,41 @@ def touches_many(
     n = len(p0)
     out = np.empty(n, np.int64)
     for i in range(n):
-        a, b, r = p0[i], p1[i], radii[i]
-        status = NO
-        for c in range(3):
-            if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
-                status = HIT
-        if status == NO and min(a[2], b[2]) < r - 1e-9:
-            status = HIT
-        if status == NO:
-            kind, _ = sweep_one(
-                a, b, r, s_center, s_radius, s_code, s_rot, s_dims,
-                q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
-            )  # fmt: skip
-            status = UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
-        out[i] = status
+        out[i] = _step_status(
+            p0[i], p1[i], radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
+            q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+        )  # fmt: skip
     return out
+
+
+@njit(cache=True)
+def _step_status(
+    a: np.ndarray,
+    b: np.ndarray,
+    r: float,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+) -> int:
+    """One step of :func:`touches_many`: NO, HIT or UNDECIDED."""
+    for c in range(3):
+        if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
+            return HIT
+    if min(a[2], b[2]) < r - 1e-9:
+        return HIT
+    kind, _ = sweep_one(
+        a, b, r, s_center, s_radius, s_code, s_rot, s_dims,
+        q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
+    )  # fmt: skip
+    return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)

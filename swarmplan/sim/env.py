@@ -254,7 +254,7 @@ class Simulation:
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             self._merge(guarded)
-            v_cmd, vel1[idx] = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
+            v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
                 Commands(idx, v_cmd),
@@ -262,6 +262,7 @@ class Simulation:
                 AgentMotion(pos1, vel1),
                 StepWindow(t0, t1, q0, q1),
                 s.mode,
+                free,
             )
             pos1, vel1, validated = filtered.end.position, filtered.end.velocity, filtered.validated
             self._merge(filtered.tally)

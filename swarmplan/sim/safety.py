@@ -236,18 +236,30 @@ class SafetyFilter:
         q0: np.ndarray,
         q1: np.ndarray,
         goal: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`braking_margin`'s commands (rows of ``idx``) and the velocities they lead to
-        within the kinematic limits (``kinematics.limit_velocity``): in swarm worlds of
-        multirotors both from one compiled call."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`braking_margin`'s commands (rows of ``idx``), the velocities they lead to
+        within the kinematic limits (``kinematics.limit_velocity``) and, when at hand, per row
+        whether the step at that velocity touches nothing (:meth:`steps_free` with the filter's
+        radii, the first check of :meth:`filter`): in swarm worlds of multirotors all three
+        from one compiled call; else the third is None."""
         p = self.params
         if self._batched and not p.fixed_wing[idx].any():
             k = np.arange(len(idx))
-            fused = self._braking_margin_compiled(k, idx, pos0, vel0, v_cmd, q0, q1, goal)
+            fused = self._braking_margin_compiled(k, idx, pos0, vel0, v_cmd, q0, q1, goal, check_step=True)
             if fused is not None:
-                return fused
+                out, vel1, status = fused
+                free = status == 0
+                undecided = np.flatnonzero(status == 2)
+                if len(undecided):
+                    rows = idx[undecided]
+                    ends = pos0[rows] + vel1[undecided] * self.world.dt
+                    radii = p.radius[rows] + self.margin(rows)
+                    mv = self.scene.moving_mask
+                    hits = first_hits_fcl(self.scene.collision, pos0[rows], ends, radii, q0[mv], q1[mv])
+                    free[undecided] = [h is None for h in hits]
+                return out, vel1, free
         v_cmd = self.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, goal)
-        return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx)
+        return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx), None
 
     def _braking_margin_compiled(
         self,
@@ -259,17 +271,19 @@ class SafetyFilter:
         q0: np.ndarray,
         q1: np.ndarray,
         goal: np.ndarray | None,
-    ) -> tuple[np.ndarray, np.ndarray | None] | None:
+        check_step: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray] | None:
         """:meth:`braking_margin` for the multirotor rows ``k`` (agents ``rows``) in one compiled
         call (the same bits), with the velocities the commands lead to when every row is a
-        multirotor (else None); None when a sweep needs FCL's decision (then the numpy path
-        runs)."""
+        multirotor (else None) and, with ``check_step``, the kernel's answer for each row's step
+        at that velocity (0 free, 1 touches, 2 FCL must decide); None when a braking sweep
+        needs FCL's decision (then the numpy path runs)."""
         p = self.params
         mv = self.scene.moving_mask
         cw = self.scene.collision
         dt = self.world.dt
         all_rows = len(k) == len(v_cmd)
-        out, vel1, decided = step_kernels().braking_margin(
+        out, vel1, status, decided = step_kernels().braking_margin(
             np.ascontiguousarray(pos0[rows]),
             np.ascontiguousarray(vel0[rows]),
             np.ascontiguousarray(v_cmd if all_rows else v_cmd[k], dtype=float),
@@ -277,15 +291,15 @@ class SafetyFilter:
             goal is not None,
             p.max_accel[rows], p.speed_max[rows], p.radius[rows] + self.margin(rows),
             dt, dt**2, float(self.world.goal_tolerance), self._bounds[0], self._bounds[1],
-            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
+            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6, check_step and all_rows,
         )  # fmt: skip
         if not decided:
             return None
         if all_rows:
-            return out, vel1
+            return out, vel1, status
         full = v_cmd.copy()
         full[k] = out
-        return full, None
+        return full, None, status
 
     def _free_distances(
         self,
@@ -371,13 +385,21 @@ class SafetyFilter:
         return free
 
     def filter(
-        self, commands: Commands, start: AgentMotion, end: AgentMotion, window: StepWindow, mode: np.ndarray
+        self,
+        commands: Commands,
+        start: AgentMotion,
+        end: AgentMotion,
+        window: StepWindow,
+        mode: np.ndarray,
+        free: np.ndarray | None = None,
     ) -> Filtered:
         """Replace steps that would touch an obstacle by the closest safe feasible alternative.
 
         ``end`` is where the commands lead (within the kinematic limits), ``mode`` every agent's
-        mode. Returns the filtered end of the step, per agent of ``commands.idx`` whether its
-        final step was cleared with the safety margin, and the stops made.
+        mode, ``free`` (optional, rows of ``commands.idx``) :meth:`steps_free`'s answer for
+        those steps when already known (:meth:`brake_and_limit`). Returns the filtered end of
+        the step, per agent of ``commands.idx`` whether its final step was cleared with the
+        safety margin, and the stops made.
         """
         idx, v_cmd = commands.idx, commands.velocity
         pos0, vel0 = start.position, start.velocity
@@ -387,7 +409,7 @@ class SafetyFilter:
         dt = self.world.dt
         ids = self.params.ids
         radii = self.params.radius[idx] + self.margin(idx)
-        validated = self.steps_free(pos0[idx], pos1[idx], radii, q0, q1)
+        validated = self.steps_free(pos0[idx], pos1[idx], radii, q0, q1) if free is None else free.copy()
         unsafe = np.flatnonzero(~validated)
         alternatives: list[list[np.ndarray]] = []
         free: list[np.ndarray] = []
