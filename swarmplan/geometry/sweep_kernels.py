@@ -495,21 +495,28 @@ def separation_keys(
     ``|dp / (max(sep_i, sep_j) + r_i + r_j)| < 1`` per axis, one of them active: the pairs of
     ``neighbours.separation_violations``, with its arithmetic term for term.
 
-    Sweep and prune on x: a pair inside has ``|dx| < max(sep_x) + 2 max(r)``."""
+    Sweep and prune on the diagonal ``w = x + y`` (swarms starting on lines of equal x or y
+    would pile up on one axis): a pair inside has ``|dx| < max(sep_x) + 2 max(r)`` and
+    ``|dy| < max(sep_y) + 2 max(r)``, so ``|dw|`` is below their sum."""
     n = len(pos)
-    reach = 0.0
+    reach_x = 0.0
+    reach_y = 0.0
     r_max = 0.0
+    w_max = 0.0
     for i in range(n):
-        reach = max(reach, separation[i, 0])
+        reach_x = max(reach_x, separation[i, 0])
+        reach_y = max(reach_y, separation[i, 1])
         r_max = max(r_max, radius[i])
-    reach = (reach + 2.0 * r_max) * (1.0 + 1e-9) + 1e-9
-    order = np.argsort(pos[:, 0])
+        w_max = max(w_max, abs(pos[i, 0]) + abs(pos[i, 1]))
+    reach = (reach_x + reach_y + 4.0 * r_max) * (1.0 + 1e-9) + 1e-9 * (1.0 + w_max)
+    w = pos[:, 0] + pos[:, 1]
+    order = np.argsort(w)
     found = []
     for oi in range(n):
         i = order[oi]
         for oj in range(oi + 1, n):
             j = order[oj]
-            if pos[j, 0] - pos[i, 0] > reach:
+            if w[j] - w[i] > reach:
                 break
             a, b = (i, j) if i < j else (j, i)
             if not (active[a] or active[b]):
