@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from swarmplan.geometry.sweep_kernels import HIT, NO, UNDECIDED, _touches, sweep_one
+from swarmplan.geometry.sweep_kernels import HIT, NO, UNDECIDED, sweep_one
 
 
 @njit(cache=True, inline="always")
@@ -88,6 +88,7 @@ def braking_margin(
     vel1 = np.empty((n, 3))
     status = np.zeros(n, np.int64)
     end = np.empty(3)
+    bodies = len(s_radius) + len(m_radius) > 0
     v1 = np.empty(3)
     c = np.empty(3)
     u = np.empty(3)
@@ -110,9 +111,9 @@ def braking_margin(
             for k in range(3):
                 u[k] = v1[k] / speed
             reach = speed * speed / (2.0 * a) + speed * dt
-            h = _touches(
-                pos0[i], u, reach, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
-                q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+            h = _probe(
+                pos0[i], u, reach, radii[i], lo_b, hi_b, bodies, end, s_center, s_radius, s_code, s_rot,
+                s_dims, q0, q1, m_radius, m_code, m_rot, m_dims, slack,
             )  # fmt: skip
             if h == UNDECIDED:
                 return out, vel1, status, False
@@ -120,9 +121,9 @@ def braking_margin(
                 lo, hi = 0.0, reach
                 for _ in range(halvings):
                     mid = 0.5 * (lo + hi)
-                    h = _touches(
-                        pos0[i], u, mid, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
-                        q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+                    h = _probe(
+                        pos0[i], u, mid, radii[i], lo_b, hi_b, bodies, end, s_center, s_radius, s_code,
+                        s_rot, s_dims, q0, q1, m_radius, m_code, m_rot, m_dims, slack,
                     )  # fmt: skip
                     if h == UNDECIDED:
                         return out, vel1, status, False
@@ -154,7 +155,7 @@ def braking_margin(
             for k in range(3):
                 end[k] = pos0[i, k] + vel1[i, k] * dt
             status[i] = _step_status(
-                pos0[i], end, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
+                pos0[i], end, radii[i], lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
                 q0, q1, m_radius, m_code, m_rot, m_dims, slack,
             )  # fmt: skip
     return out, vel1, status, True
@@ -184,9 +185,10 @@ def touches_many(
     bounds, ground and bodies as a yes/no question): NO, HIT or UNDECIDED (FCL must decide)."""
     n = len(p0)
     out = np.empty(n, np.int64)
+    bodies = len(s_radius) + len(m_radius) > 0
     for i in range(n):
         out[i] = _step_status(
-            p0[i], p1[i], radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
+            p0[i], p1[i], radii[i], lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
             q0, q1, m_radius, m_code, m_rot, m_dims, slack,
         )  # fmt: skip
     return out
@@ -199,6 +201,7 @@ def _step_status(
     r: float,
     lo_b: np.ndarray,
     hi_b: np.ndarray,
+    bodies: bool,
     s_center: np.ndarray,
     s_radius: np.ndarray,
     s_code: np.ndarray,
@@ -212,14 +215,50 @@ def _step_status(
     m_dims: np.ndarray,
     slack: float,
 ) -> int:
-    """One step of :func:`touches_many`: NO, HIT or UNDECIDED."""
+    """One step of :func:`touches_many`: NO, HIT or UNDECIDED (``bodies``: the world has
+    obstacles; without, the bodies' check is skipped, its answer being NO)."""
     for c in range(3):
         if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
             return HIT
     if min(a[2], b[2]) < r - 1e-9:
         return HIT
+    if not bodies:
+        return NO
     kind, _ = sweep_one(
         a, b, r, s_center, s_radius, s_code, s_rot, s_dims,
         q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
     )  # fmt: skip
     return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
+
+
+@njit(cache=True)
+def _probe(
+    start: np.ndarray,
+    u: np.ndarray,
+    length: float,
+    r: float,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    bodies: bool,
+    end: np.ndarray,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+) -> int:
+    """``sweep_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
+    UNDECIDED) with the end point in the caller's buffer ``end``, through :func:`_step_status`."""
+    for c in range(3):
+        end[c] = start[c] + u[c] * length
+    return _step_status(
+        start, end, r, lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
+        q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+    )  # fmt: skip
