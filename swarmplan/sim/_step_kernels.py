@@ -34,7 +34,7 @@ def _max(a: float, b: float) -> float:
     return a if a >= b else b
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _limit(v0: np.ndarray, c: np.ndarray, vmax: float, amax_dt: float, out: np.ndarray) -> None:
     """``kinematics.limit_multirotor`` for one row: ``c`` clipped to ``vmax``, reached from
     ``v0`` with at most ``amax_dt`` of change (into ``out``)."""
@@ -194,7 +194,7 @@ def touches_many(
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _step_status(
     a: np.ndarray,
     b: np.ndarray,
@@ -231,7 +231,7 @@ def _step_status(
     return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _probe(
     start: np.ndarray,
     u: np.ndarray,
