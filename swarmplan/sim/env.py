@@ -35,8 +35,12 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
+<<<<<<< HEAD
 from swarmplan.flight.guide import make_guide, next_rest
 from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
+=======
+from swarmplan.flight.kinematics import AgentParams, initial_velocity
+>>>>>>> main
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.planner import make_planner
@@ -281,8 +285,7 @@ class Simulation:
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
             v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             self._merge(guarded)
-            v_cmd = self.safety.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
-            vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
+            v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
                 Commands(idx, v_cmd),
@@ -290,6 +293,7 @@ class Simulation:
                 AgentMotion(pos1, vel1),
                 StepWindow(t0, t1, q0, q1),
                 s.mode,
+                free,
             )
             pos1, vel1, validated = filtered.end.position, filtered.end.velocity, filtered.validated
             self._merge(filtered.tally)

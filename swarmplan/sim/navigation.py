@@ -43,15 +43,21 @@ class Navigator:
         self.progress_t = np.zeros(len(self.params.ids))
         self.segment_ref = {}
 
-    def to_go(self, s: SwarmState) -> np.ndarray:
-        """:func:`distance_to_go`, along the guide's way round static obstacles for the agents it
-        guides (flying along a wall to its gap is progress, though the goal gets no nearer)."""
-        dg = distance_to_go(s)
+    def to_go(self, s: SwarmState, rows: np.ndarray | None = None) -> np.ndarray:
+        """:func:`distance_to_go` (of ``rows``, default all), along the guide's way round static
+        obstacles for the agents it guides (flying along a wall to its gap is progress, though
+        the goal gets no nearer)."""
+        rows = np.arange(len(s.route)) if rows is None else np.asarray(rows)
+        dg = distance_to_go(s, rows)
         if self.guide is not None:
-            rows = np.flatnonzero(self.guide.guided & s.active)
-            rows = [i for i in rows.tolist() if s.route[i] is None]
-            if rows:
-                dg[rows] = self.guide.way_length(s.position[rows], s.goal[rows])
+            led = [
+                k
+                for k, i in enumerate(rows.tolist())
+                if self.guide.guided[i] and s.active[i] and s.route[i] is None
+            ]
+            if led:
+                i = rows[led]
+                dg[led] = self.guide.way_length(s.position[i], s.goal[i])
         return dg
 
     def attraction_targets(self, s: SwarmState, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, Tally]:
@@ -142,11 +148,14 @@ class Navigator:
         out = NOTHING
         window = self.world.planner_config.stuck.window
         min_progress = self.world.planner_config.stuck.min_progress
-        dg = self.to_go(s)
         # Only agents following a segment or whose window has run out need work this step.
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
-        due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
-        for i in np.flatnonzero(due).tolist():
+        rows = np.flatnonzero(s.active & (~apf | (s.t - self.progress_t >= window - 1e-9)))
+        if not len(rows):
+            return out
+        dg = np.empty(len(s.mode))
+        dg[rows] = self.to_go(s, rows)
+        for i in rows.tolist():
             if s.mode[i] != Mode.APF:
                 self.progress_ref[i], self.progress_t[i] = dg[i], s.t
                 out += self.segment_watchdog(s, i, window, min_progress)
@@ -218,15 +227,22 @@ def failure_reason(reported: tuple[Event, ...]) -> str:
     return "no valid escape segment"
 
 
-def distance_to_go(s: SwarmState) -> np.ndarray:
-    """Per agent: straight to the goal, or along the rest of its global route when it has one."""
-    dg = np.linalg.norm(s.goal - s.position, axis=1)
-    for i, route in enumerate(s.route):
+def distance_to_go(s: SwarmState, rows: np.ndarray | None = None) -> np.ndarray:
+    """Per agent (of ``rows``, default all): straight to the goal, or along the rest of its
+    global route when it has one."""
+    if rows is None:
+        rows = np.arange(len(s.route))
+    dg = np.linalg.norm(s.goal[rows] - s.position[rows], axis=1)
+    route_of = s.route
+    for r, i in enumerate(rows.tolist()):
+        route = route_of[i]
+        if route is None:
+            continue
         k = int(s.route_index[i])
-        if route is not None and k < len(route):
+        if k < len(route):
             rest = np.vstack([route[k:], s.goal[i]])
             legs = np.linalg.norm(np.diff(rest, axis=0), axis=1).sum()
-            dg[i] = np.linalg.norm(route[k] - s.position[i]) + legs
+            dg[r] = np.linalg.norm(route[k] - s.position[i]) + legs
     return dg
 
 
