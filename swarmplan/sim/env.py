@@ -35,12 +35,8 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
-<<<<<<< HEAD
 from swarmplan.flight.guide import make_guide, next_rest
-from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
-=======
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
->>>>>>> main
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.planner import make_planner
