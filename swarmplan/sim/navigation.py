@@ -117,6 +117,7 @@ class Navigator:
         self,
         s: SwarmState,
         on_stuck: Callable[[int], tuple[StuckOutcome, Sequence[Event]]] | None,
+        exempt: np.ndarray | None = None,
     ) -> Tally:
         """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
 
@@ -133,6 +134,8 @@ class Navigator:
         # Only agents following a segment or whose window has run out need work this step.
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
         due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
+        if exempt is not None:
+            due &= ~exempt
         for i in np.flatnonzero(due).tolist():
             if s.mode[i] != Mode.APF:
                 self.progress_ref[i], self.progress_t[i] = dg[i], s.t

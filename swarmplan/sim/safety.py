@@ -183,6 +183,7 @@ class SafetyFilter:
         cap = np.full(len(k), np.inf)
         if goal is not None:
             room = np.maximum(norm3(goal[k] - pos0[rows]) - self.world.goal_tolerance, 0.0)
+            room = np.where(np.isnan(room), np.inf, room)  # a NaN goal row: no goal braking
             cap = np.maximum(amax * dt, _stoppable_speed(room, amax, dt))
         s_cmd = norm3(v_cmd[k])
         # Multirotors only: limit_velocity's own model, row by row.
