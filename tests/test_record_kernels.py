@@ -21,6 +21,7 @@ def _values(seed: int) -> np.ndarray:
     y = np.round(y, 6) if seed % 2 == 0 else np.round(y, int(rng.integers(0, 10)))
     special = [0.0, -0.0, 1.0, -3.0, 1e-4, -1e-4, 9.9e-5, 5e-06, 1e-06, 0.1, 0.5, 123456.000001, 100.0]
     special += [2.0**33 - 2.0**-20, -(2.0**33) + 0.5, 8589934591.999999, 1000000.0, 0.000100]
+    special += [0.000101, -0.010203, 10.000001, 99.99, 100.01, 999999.9, 1234567890.5]  # digit pairs
     y[: len(special)] = special
     return y
 

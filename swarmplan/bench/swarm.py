@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from swarmplan.bench.swarm_scenarios import MAX_AGENTS, OBSTACLE_FREE, SCENARIOS, scenario_world
+from swarmplan.geometry.compiled import COMPILED_FROM
 
 SYSTEMS = ("planner", "apf", "orca")
 
@@ -242,9 +243,10 @@ def main(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     # Start-up out of the figures: every compiled kernel a run may call (field, checks, escape
-    # and smoothing costs, movers) loaded once, by small runs whose rows are not kept.
+    # and smoothing costs, movers) loaded once, by runs whose rows are not kept, at the swarm
+    # size from which the step's geometry runs compiled (smaller worlds never load it).
     for warm in ("sphere_pillars", "forest"):
-        run_swarmplan(warm, 16, 0, "planner")
+        run_swarmplan(warm, COMPILED_FROM, 0, "planner")
     rows: list[Row] = []
     pictures: dict[str, tuple[int, np.ndarray]] = {}
     print(

@@ -161,26 +161,30 @@ def nearest_surface(d, g, static, r, pz, h, gh, clear, normal):  # noqa: ANN001,
 def agent_clearance(pos, radius, out):  # noqa: ANN001, ANN201
     """``out[i]`` = min over j != i of |p_i - p_j| - (r_i + r_j) (inf alone), exactly.
 
-    A sweep along x: the others are visited outwards from ``i`` in x order and the walk stops
-    once the x gap alone exceeds the best value found plus the largest radii (any farther
-    agent is provably worse; a 1e-9 m margin covers rounding). Each pair's value is computed
-    as numpy does, so the minimum is the all-pairs one bit for bit."""
+    A sweep along the diagonal ``w = x + y``: the others are visited outwards from ``i`` in
+    ``w`` order and the walk stops once the ``w`` gap alone exceeds sqrt(2) x (the best value
+    found plus the largest radii) (``|dw| <= sqrt(2) |dp|``: any farther agent is provably worse;
+    a 1e-9 m margin covers rounding). The diagonal, not x: swarms that start on lines of equal x
+    (or y) would pile up in one stretch of a single axis. Each pair's value is computed as numpy
+    does, so the minimum is the all-pairs one bit for bit."""
     n = pos.shape[0]
-    order = np.argsort(pos[:, 0])
-    xs = pos[order, 0]
+    w = pos[:, 0] + pos[:, 1]
+    order = np.argsort(w)
+    xs = w[order]
     rmax = 0.0
     for i in range(n):
         rmax = max(rmax, radius[i])
     for s in range(n):
         i = order[s]
         xi, yi, zi, ri = pos[i, 0], pos[i, 1], pos[i, 2], radius[i]
+        xi_w = xs[s]
         best = np.inf
         for direction in (1, -1):
             t = s + direction
             while 0 <= t < n:
                 lim = best + ri + rmax + 1e-9 * (1.0 + abs(best) + ri + rmax)
-                gap = xs[t] - xi if direction > 0 else xi - xs[t]
-                if gap > lim:
+                gap = xs[t] - xi_w if direction > 0 else xi_w - xs[t]
+                if gap > 1.4142135623730951 * lim * (1.0 + 1e-9) + 1e-9 * (1.0 + abs(xi_w)):
                     break
                 j = order[t]
                 dx = xi - pos[j, 0]

@@ -439,7 +439,7 @@ def agent_contacts(
     """Pairs (i, j), i < j in ``np.triu_indices`` order, of agents (one of them active) whose
     swept spheres (inflated by ``margin``) come closer than the sum of their radii + margin.
 
-    Sweep and prune on the step midpoints' x: two points moving along their steps stay within
+    Sweep and prune on the step midpoints' x + y: two points moving along their steps stay within
     half of each step of their midpoints, so a pair can only touch when its midpoints are
     within ``reach`` (both half-steps, both radii and the margin) on every axis. The distance of
     each candidate pair is ``segment_segment_min_distance``'s arithmetic, term for term."""
@@ -455,16 +455,24 @@ def agent_contacts(
             mid[i, c] = 0.5 * (p0[i, c] + p1[i, c])
     # Slightly wider than needed: the rounding of the midpoints cannot drop a pair.
     reach = (2.0 * half_max + 2.0 * r_max + margin) * (1.0 + 1e-9) + 1e-9
-    order = np.argsort(mid[:, 0])
+    # Swept along the diagonal x + y (|dw| < 2 reach for a candidate; swarms that start on lines
+    # of equal x or y would pile up on one axis), the margin covering w's rounding.
+    w = mid[:, 0] + mid[:, 1]
+    w_reach = 2.0 * reach + 1e-9 * (1.0 + np.abs(w).max()) if n else 0.0
+    order = np.argsort(w)
     keys = np.empty(0, np.int64)
     found = []
     for oi in range(n):
         i = order[oi]
         for oj in range(oi + 1, n):
             j = order[oj]
-            if mid[j, 0] - mid[i, 0] > reach:
+            if w[j] - w[i] > w_reach:
                 break
-            if abs(mid[j, 1] - mid[i, 1]) > reach or abs(mid[j, 2] - mid[i, 2]) > reach:
+            if (
+                abs(mid[j, 0] - mid[i, 0]) > reach
+                or abs(mid[j, 1] - mid[i, 1]) > reach
+                or abs(mid[j, 2] - mid[i, 2]) > reach
+            ):
                 continue
             a, b = (i, j) if i < j else (j, i)
             if not (active[a] or active[b]):
@@ -495,21 +503,28 @@ def separation_keys(
     ``|dp / (max(sep_i, sep_j) + r_i + r_j)| < 1`` per axis, one of them active: the pairs of
     ``neighbours.separation_violations``, with its arithmetic term for term.
 
-    Sweep and prune on x: a pair inside has ``|dx| < max(sep_x) + 2 max(r)``."""
+    Sweep and prune on the diagonal ``w = x + y`` (swarms starting on lines of equal x or y
+    would pile up on one axis): a pair inside has ``|dx| < max(sep_x) + 2 max(r)`` and
+    ``|dy| < max(sep_y) + 2 max(r)``, so ``|dw|`` is below their sum."""
     n = len(pos)
-    reach = 0.0
+    reach_x = 0.0
+    reach_y = 0.0
     r_max = 0.0
+    w_max = 0.0
     for i in range(n):
-        reach = max(reach, separation[i, 0])
+        reach_x = max(reach_x, separation[i, 0])
+        reach_y = max(reach_y, separation[i, 1])
         r_max = max(r_max, radius[i])
-    reach = (reach + 2.0 * r_max) * (1.0 + 1e-9) + 1e-9
-    order = np.argsort(pos[:, 0])
+        w_max = max(w_max, abs(pos[i, 0]) + abs(pos[i, 1]))
+    reach = (reach_x + reach_y + 4.0 * r_max) * (1.0 + 1e-9) + 1e-9 * (1.0 + w_max)
+    w = pos[:, 0] + pos[:, 1]
+    order = np.argsort(w)
     found = []
     for oi in range(n):
         i = order[oi]
         for oj in range(oi + 1, n):
             j = order[oj]
-            if pos[j, 0] - pos[i, 0] > reach:
+            if w[j] - w[i] > reach:
                 break
             a, b = (i, j) if i < j else (j, i)
             if not (active[a] or active[b]):

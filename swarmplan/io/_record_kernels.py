@@ -21,6 +21,24 @@ from numba import njit
 _LIMIT = 2.0**33
 _ZERO, _DOT, _MINUS = 48, 46, 45
 _EXP = np.frombuffer(b"e-0", dtype=np.uint8).copy()  # and the exponent's last digit
+_PAIRS = np.frombuffer(b"".join(b"%02d" % v for v in range(100)), dtype=np.uint8).copy()  # "00".."99"
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _digits(out: np.ndarray, end: int, v: int) -> None:
+    """The decimal digits of ``v`` (>= 0) into ``out`` just before ``end``, two at a time."""
+    while v >= 100:
+        q = v // 100
+        r = 2 * (v - 100 * q)
+        out[end - 2] = _PAIRS[r]
+        out[end - 1] = _PAIRS[r + 1]
+        end -= 2
+        v = q
+    if v >= 10:
+        out[end - 2] = _PAIRS[2 * v]
+        out[end - 1] = _PAIRS[2 * v + 1]
+    else:
+        out[end - 1] = _ZERO + v
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -33,9 +51,9 @@ def interleave(
     pos = 0
     for i in range(n + 1):
         s = piece_start[i]
-        for j in range(piece_len[i]):
-            out[pos + j] = pieces[s + j]
-        pos += piece_len[i]
+        m = piece_len[i]
+        out[pos : pos + m] = pieces[s : s + m]
+        pos += m
         if i == n:
             break
         x = values[i]
@@ -46,7 +64,6 @@ def interleave(
         if k / 1e6 != ax:
             return -1
         ki = np.int64(k)
-        whole, frac = ki // 1000000, ki % 1000000
         if math.copysign(1.0, x) < 0.0:
             out[pos] = _MINUS
             pos += 1
@@ -68,15 +85,14 @@ def interleave(
             out[pos + 3] = _ZERO + exp
             pos += 4
             continue
+        whole = ki // 1000000
+        frac = ki - 1000000 * whole
         digits = 1
-        w = whole
-        while w >= 10:
-            w //= 10
+        p = 10
+        while digits < 10 and whole >= p:
+            p *= 10
             digits += 1
-        w = whole
-        for d in range(digits - 1, -1, -1):
-            out[pos + d] = _ZERO + w % 10
-            w //= 10
+        _digits(out, pos + digits, whole)
         pos += digits
         out[pos] = _DOT
         pos += 1
@@ -84,13 +100,13 @@ def interleave(
             out[pos] = _ZERO
             pos += 1
             continue
-        kept = 6
+        kept = 6  # the fraction's digits without its trailing zeros, leading zeros written
         while frac % 10 == 0:
             frac //= 10
             kept -= 1
-        for d in range(kept - 1, -1, -1):
-            out[pos + d] = _ZERO + frac % 10
-            frac //= 10
+        for j in range(kept):
+            out[pos + j] = _ZERO
+        _digits(out, pos + kept, frac)
         pos += kept
     return pos
 

@@ -17,18 +17,22 @@ The entities are assembled in protobuf's wire format from the points encoded all
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 
 from swarmplan.io.foxglove_shapes import FRAME, set_color, set_pose
-from swarmplan.io.wire import varint, vector_fields
+from swarmplan.io.wire import VECTOR_BYTES, length_prefixes, varint, vector_blob, vector_fields
 
 PATH_RGBA = (0.12, 0.47, 0.71, 0.9)
 PATH_THICKNESS = 2.0  # px (scale invariant); the overview is drawn at half of it
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities
 _POINTS_TAG = 0x2A  # LinePrimitive.points: field 5, wire type 2
 _FRAME_FIELD = b"\x12" + varint(len(FRAME)) + FRAME.encode()  # SceneEntity.frame_id
+_ID_TAG = b"\x1a"  # SceneEntity.id
+_LINES_TAG = b"\x5a"  # SceneEntity.lines
 
 
 def _line_fixed_fields(thickness: float) -> tuple[bytes, bytes]:
@@ -46,12 +50,39 @@ _LINE_HEAD, _LINE_COLOR = _line_fixed_fields(PATH_THICKNESS)
 _OVERVIEW_HEAD, _ = _line_fixed_fields(PATH_THICKNESS / 2)
 
 
-def _line_entity(stamp: bytes, eid: bytes, points: bytes, head: bytes) -> bytes:
-    """A ``SceneUpdate.entities`` record: an entity with one line strip of the encoded ``points``."""
-    line_len = len(head) + len(points) + len(_LINE_COLOR)
-    ids = _FRAME_FIELD + b"\x1a" + varint(len(eid)) + eid
-    b = b"".join((stamp, ids, b"\x5a", varint(line_len), head, points, _LINE_COLOR))
-    return _ENTITIES_TAG + varint(len(b)) + b
+def _line_entities(stamp: bytes, eids: list[bytes], points: list[bytes], head: bytes) -> bytes:
+    """``SceneUpdate.entities`` records, one per entity id: an entity with one line strip of
+    its encoded ``points`` (fields: timestamp, frame id, id, lines), all joined at once."""
+    n = len(eids)
+    line_lens = [len(head) + len(p) + len(_LINE_COLOR) for p in points]
+    lines = length_prefixes(_LINES_TAG, line_lens)
+    ids = length_prefixes(_ID_TAG, [len(e) for e in eids])
+    fixed = len(stamp) + len(_FRAME_FIELD)
+    sizes = [
+        fixed + len(i) + len(e) + len(p) + k for i, e, p, k in zip(ids, eids, lines, line_lens, strict=True)
+    ]
+    flat: list[bytes] = [b""] * (9 * n)
+    flat[0::9] = length_prefixes(_ENTITIES_TAG, sizes)
+    flat[1::9] = [stamp] * n
+    flat[2::9] = [_FRAME_FIELD] * n
+    flat[3::9] = ids
+    flat[4::9] = eids
+    flat[5::9] = lines
+    flat[6::9] = [head] * n
+    flat[7::9] = points
+    flat[8::9] = [_LINE_COLOR] * n
+    return b"".join(flat)
+
+
+def _point_groups(xyz: np.ndarray, bounds: list[int]) -> list[bytes]:
+    """The ``LinePrimitive.points`` fields of the rows ``bounds[j]:bounds[j + 1]`` of ``xyz``,
+    per group (slices of one encoding of all rows in the usual case, no coordinate +-0.0)."""
+    blob = vector_blob(_POINTS_TAG, xyz)
+    if blob is not None:
+        size = VECTOR_BYTES
+        return [blob[size * a : size * b] for a, b in itertools.pairwise(bounds)]
+    fields = vector_fields(_POINTS_TAG, xyz)
+    return [b"".join(fields[a:b]) for a, b in itertools.pairwise(bounds)]
 
 
 class PathTrails:
@@ -120,17 +151,15 @@ class PathTrails:
         # a chunk after an agent's first starts at the last point of the one before
         joined = self.chunk_index[moved] > 0
         pts = np.insert(pts, first[joined], self._sent_last[moved[joined]], axis=0)
-        fields = vector_fields(_POINTS_TAG, pts)
         bounds = np.concatenate([[0], np.cumsum(sizes + joined)]).tolist()
-        encoded = {k: b"".join(fields[bounds[j] : bounds[j + 1]]) for j, k in enumerate(moved.tolist())}
-        parts = [
-            _line_entity(stamp, f"path/{aid}/{self.chunk_index[k]}".encode(), encoded[k], _LINE_HEAD)
-            for aid, k in self.order.items()
-            if k in encoded
-        ]
+        encoded = dict(zip(moved.tolist(), _point_groups(pts, bounds), strict=True))
+        order = [(aid, k) for aid, k in self.order.items() if k in encoded]
+        index = self.chunk_index.tolist()
+        eids = [f"path/{aid}/{index[k]}".encode() for aid, k in order]
+        data = _line_entities(stamp, eids, [encoded[k] for _, k in order], _LINE_HEAD)
         self._sent_last[moved] = self.last[moved]
         self.chunk_index[moved] += 1
-        return b"".join(parts)
+        return data
 
     def overview(self, stamp: bytes) -> bytes | None:
         """The ``/scene/paths/overview`` message (None: no path yet)."""
@@ -143,11 +172,7 @@ class PathTrails:
         i = np.arange(m.max())
         idx = (2 * i * (counts - 1)[:, None] + (m - 1)[:, None]) // (2 * np.maximum(m - 1, 1))[:, None]
         valid = i < m[:, None]
-        fields = vector_fields(_POINTS_TAG, self.points[np.repeat(slots, m), idx[valid]])
-        bounds = np.concatenate([[0], np.cumsum(m)])
-        return b"".join(
-            _line_entity(
-                stamp, f"path/{aid}".encode(), b"".join(fields[bounds[j] : bounds[j + 1]]), _OVERVIEW_HEAD
-            )
-            for j, aid in enumerate(self.order)
-        )
+        bounds = np.concatenate([[0], np.cumsum(m)]).tolist()
+        eids = [f"path/{aid}".encode() for aid in self.order]
+        points = _point_groups(self.points[np.repeat(slots, m), idx[valid]], bounds)
+        return _line_entities(stamp, eids, points, _OVERVIEW_HEAD)

@@ -219,6 +219,7 @@ class FoxgloveScene:
         self._next_overview = -math.inf
         self._next_tf = -math.inf
         self._last: tuple[float, list, list] | None = None
+        self._written_at: dict[str, float] = {}  # per throttled channel: the time of its last message
         self.messages_written = 0
         self.compiled = False  # headings by a compiled kernel (the same bits)
 
@@ -237,22 +238,30 @@ class FoxgloveScene:
         self, t: float, agents: Sequence[dict[str, Any]], obstacles: list[dict[str, Any]], force: bool = False
     ) -> None:
         """Record one simulation step (``agents``/``obstacles``: the JSON state entries; ``agents``
-        may be a :class:`~swarmplan.core.AgentStates`, whose arrays are used directly)."""
+        may be a :class:`~swarmplan.core.AgentStates`, whose arrays are used directly).
+        ``force``: write every throttled channel now, except one already written at ``t``."""
         t = float(t)
         eps = 1e-9
         self._last = (t, agents, obstacles)
+        done = self._written_at
+
+        def due(channel: str, next_t: float) -> bool:
+            return t >= next_t - eps or (force and done.get(channel) != t)
+
         rows = None
-        if force or t >= self._next_tf - eps:
+        if due(TF_TOPIC, self._next_tf):
             rows = self._rows(agents)
             self._write_tf(t, rows)
             self._next_tf = t + self.tf_period if self.tf_period > 0 else -math.inf
-        scene_due = force or t >= self._next_scene - eps
+            done[TF_TOPIC] = t
+        scene_due = due(SCENE_TOPIC, self._next_scene)
         if scene_due:
             rows = rows or self._rows(agents)
             self.trails.sample(rows.ids, rows.pos, rows.slots)
             self._write_scene(t, rows, obstacles)
             self._next_scene = t + self.scene_period
-        if force or t >= self._next_path - eps:
+            done[SCENE_TOPIC] = t
+        if due(PATHS_TOPIC, self._next_path):
             if not scene_due:
                 rows = rows or self._rows(agents)
                 self.trails.sample(rows.ids, rows.pos, rows.slots)
@@ -260,14 +269,17 @@ class FoxgloveScene:
             if data is not None:
                 self._write(PATHS_TOPIC, data, t)
             self._next_path = t + self.path_period
-        if force or t >= self._next_overview - eps:
+            done[PATHS_TOPIC] = t
+        if due(OVERVIEW_TOPIC, self._next_overview):
             data = self.trails.overview(timestamp_bytes(t))
             if data is not None:
                 self._write(OVERVIEW_TOPIC, data, t)
             self._next_overview = t + self.overview_period
+            done[OVERVIEW_TOPIC] = t
 
     def finish(self) -> None:
-        """Write the last step seen (unthrottled) so the scene ends in the final state."""
+        """Write the last step seen so the scene ends in the final state: each throttled channel
+        not already written at that step's time (never twice at one time)."""
         if self._last is not None:
             t, agents, obstacles = self._last
             self.write_step(t, agents, obstacles, force=True)

@@ -69,17 +69,21 @@ def varint(n: int) -> bytes:
 
 
 _PREFIX_TABLES: dict[bytes, list[bytes]] = {}
+_TABLE_MAX = 16384  # longer fields (rare: a large mesh entity) get their prefix made each time
 
 
 def length_prefixes(tag: bytes, lengths: list[int]) -> list[bytes]:
     """The tag and varint length of each length-delimited field of ``lengths``."""
-    table = _PREFIX_TABLES.get(tag)
-    if table is None:
-        # Every length below 2**14 once per tag (a few ms, ~1 MB): one list lookup per field.
-        table = _PREFIX_TABLES[tag] = [tag + varint(n) for n in range(16384)]
-    if max(lengths, default=0) < len(table):
-        return list(map(table.__getitem__, lengths))
-    return [tag + varint(n) for n in lengths]
+    table = _PREFIX_TABLES.get(tag, [])
+    top = max(lengths, default=0)
+    if top >= len(table):
+        if top >= _TABLE_MAX:
+            return [tag + varint(n) for n in lengths]
+        # One list lookup per field: the lengths seen so far, up to the next power of two (the
+        # whole table to 2**14 took ~7 ms per tag, at a log's first step).
+        size = max(256, 1 << top.bit_length())
+        table = _PREFIX_TABLES[tag] = table + [tag + varint(n) for n in range(len(table), size)]
+    return list(map(table.__getitem__, lengths))
 
 
 def join_records(
@@ -113,6 +117,20 @@ _XYZ_DTYPE = np.dtype(
 _ZW_DTYPE = np.dtype([("tag", "u1"), ("len", "u1"), ("tz", "u1"), ("z", "<f8"), ("tw", "u1"), ("w", "<f8")])
 
 
+VECTOR_BYTES = _XYZ_DTYPE.itemsize  # a Vector3/Point3 field with x, y and z all non-zero
+
+
+def vector_blob(tag: int, xyz: np.ndarray) -> bytes | None:
+    """The fields ``tag`` of every row of ``xyz`` (n, 3) joined, ``VECTOR_BYTES`` each, when
+    no value is +-0.0 (the usual case); None otherwise (then :func:`vector_fields`)."""
+    if not (xyz != 0.0).all():
+        return None
+    rec = np.empty(len(xyz), dtype=_XYZ_DTYPE)
+    rec["tag"], rec["len"], rec["tx"], rec["ty"], rec["tz"] = tag, 27, 0x09, 0x11, 0x19
+    rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    return rec.tobytes()
+
+
 def vector_fields(tag: int, xyz: np.ndarray) -> list[bytes]:
     """Per row of ``xyz`` (n, 3): the field ``tag`` holding a Vector3/Point3 of it, as
     protobuf writes it (``XYZ`` when x, y and z are all non-zero, else ``vector_bytes``)."""
@@ -121,7 +139,7 @@ def vector_fields(tag: int, xyz: np.ndarray) -> list[bytes]:
     rec["tag"], rec["len"], rec["tx"], rec["ty"], rec["tz"] = tag, 27, 0x09, 0x11, 0x19
     rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
     blob = rec.tobytes()
-    size = _XYZ_DTYPE.itemsize
+    size = VECTOR_BYTES
     out = [blob[k : k + size] for k in range(0, n * size, size)]
     odd = np.flatnonzero(~(xyz != 0.0).all(axis=1))
     if len(odd):

@@ -49,7 +49,7 @@ class RefinementPlanner:
         self.escape.escapes.clear()
         self.escape.pending.clear()
         self.escape.failures.clear()
-        self.smoother.next_check.clear()
+        self.smoother.reset()
         if self.world.planner_config.mode != "global":
             return {}
         # here, not at import: the cost models and encodings are only needed for global plans

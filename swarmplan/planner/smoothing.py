@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from swarmplan.core import Mode, PlannedSegment, PlanningContext
+from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import fillet_corner, fillet_path
 from swarmplan.planner.escape import model_turn_radius, static_clearance
 
@@ -36,7 +37,12 @@ class CurvatureSmoother:
         self.ep = escape_planner
         self.check_interval = check_interval
         self.cooldown = cooldown
-        self.next_check: dict[int, float] = {}
+        self.next_check = np.zeros(0)  # per agent: the time of its next check
+        self._reach: float | None = None  # the field's agent term's reach (``agents_near``)
+
+    def reset(self) -> None:
+        """Every agent is checked at its first step."""
+        self.next_check = np.zeros(0)
 
     def _target(self, sim: PlanningContext, i: int) -> tuple[np.ndarray, np.ndarray | None, int]:
         """Next attraction point, the point after it (route corner) and its route index (-1: goal)."""
@@ -88,19 +94,44 @@ class CurvatureSmoother:
                     return end, k
         return None
 
+    def _crowded(self, sim: PlanningContext, rows: np.ndarray) -> list[bool]:
+        """Per agent of ``rows``: ``EscapePlanner.agents_near(sim, i).any()`` (the same
+        distances, all rows at once)."""
+        s = sim.state
+        if self._reach is None:
+            rho0 = float(sim.world.planner_config.apf.influence)
+            self._reach = current_reach(sim.params, stopping_reach(sim.params, sim.world.dt), rho0)
+        near = (
+            np.linalg.norm(s.position[None, :, :] - s.position[rows, None, :], axis=2) < self._reach
+        ) & s.active
+        near[np.arange(len(rows)), rows] = False
+        return near.any(axis=1).tolist()
+
     def on_step(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
 
         s = sim.state
         out = {}
-        for i in np.flatnonzero(s.active):
-            i = int(i)
-            if s.mode[i] != Mode.APF or s.t < self.next_check.get(i, 0.0):
+        n = len(s.mode)
+        if len(self.next_check) != n:
+            self.next_check = np.zeros(n)
+        apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=n)
+        due = np.flatnonzero(s.active & apf & ~(s.t < self.next_check))
+        if not len(due):
+            return out
+        self.next_check[due] = s.t + self.check_interval
+        # Too slow to need a turn wider than it can fly (``check``'s first test).
+        fast = [
+            i
+            for i in due.tolist()
+            if not np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i])
+        ]
+        if not fast:
+            return out
+        # Among other agents the way is theirs to shape: no segment to smooth.
+        crowded = self._crowded(sim, np.array(fast))
+        for i, busy in zip(fast, crowded, strict=True):
+            if busy:
                 continue
-            self.next_check[i] = s.t + self.check_interval
-            if np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i]):
-                continue  # too slow to need a turn wider than it can fly (``check``'s first test)
-            if self.ep.agents_near(sim, i).any():
-                continue  # among other agents the way is theirs to shape: no segment to smooth
             found = self.check(sim, i)
             if found is None:
                 continue

@@ -36,7 +36,7 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
-from swarmplan.flight.kinematics import AgentParams, initial_velocity, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.planner import make_planner
@@ -48,6 +48,9 @@ from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
+
+FAR_GOAL = np.array([1e9, 0.0, 0.0])
+"""Offset of the goal row an evading agent's braking margin sees: its goal's cap never binds."""
 
 
 class Simulation:
@@ -264,10 +267,10 @@ class Simulation:
             v_cmd = self.guard.commands(idx, v_cmd)
             v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             self._merge(guarded)
-            # An evading agent's goal does not slow it (NaN: no goal braking for that row).
-            brake_goal = np.where(self.guard.evading[idx, None], np.nan, s.goal[idx])
-            v_cmd = self.safety.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
-            vel1[idx] = limit_velocity(self.params, vel0[idx], v_cmd, dt, idx)
+            # An evading agent is not slowed by its goal: its row names a point so far off that
+            # the goal's speed cap never binds.
+            brake_goal = np.where(self.guard.evading[idx, None], pos0[idx] + FAR_GOAL, s.goal[idx])
+            v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
                 Commands(idx, v_cmd),
@@ -275,6 +278,7 @@ class Simulation:
                 AgentMotion(pos1, vel1),
                 StepWindow(t0, t1, q0, q1),
                 s.mode,
+                free,
             )
             pos1, vel1, validated = filtered.end.position, filtered.end.velocity, filtered.validated
             self._merge(filtered.tally)

@@ -130,13 +130,17 @@ class Navigator:
         out = NOTHING
         window = self.world.planner_config.stuck.window
         min_progress = self.world.planner_config.stuck.min_progress
-        dg = distance_to_go(s)
         # Only agents following a segment or whose window has run out need work this step.
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
         due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
         if exempt is not None:
             due &= ~exempt
-        for i in np.flatnonzero(due).tolist():
+        rows = np.flatnonzero(due)
+        if not len(rows):
+            return out
+        dg = np.empty(len(s.mode))
+        dg[rows] = distance_to_go(s, rows)
+        for i in rows.tolist():
             if s.mode[i] != Mode.APF:
                 self.progress_ref[i], self.progress_t[i] = dg[i], s.t
                 out += self.segment_watchdog(s, i, window, min_progress)
@@ -208,15 +212,22 @@ def failure_reason(reported: tuple[Event, ...]) -> str:
     return "no valid escape segment"
 
 
-def distance_to_go(s: SwarmState) -> np.ndarray:
-    """Per agent: straight to the goal, or along the rest of its global route when it has one."""
-    dg = np.linalg.norm(s.goal - s.position, axis=1)
-    for i, route in enumerate(s.route):
+def distance_to_go(s: SwarmState, rows: np.ndarray | None = None) -> np.ndarray:
+    """Per agent (of ``rows``, default all): straight to the goal, or along the rest of its
+    global route when it has one."""
+    if rows is None:
+        rows = np.arange(len(s.route))
+    dg = np.linalg.norm(s.goal[rows] - s.position[rows], axis=1)
+    route_of = s.route
+    for r, i in enumerate(rows.tolist()):
+        route = route_of[i]
+        if route is None:
+            continue
         k = int(s.route_index[i])
-        if route is not None and k < len(route):
+        if k < len(route):
             rest = np.vstack([route[k:], s.goal[i]])
             legs = np.linalg.norm(np.diff(rest, axis=0), axis=1).sum()
-            dg[i] = np.linalg.norm(route[k] - s.position[i]) + legs
+            dg[r] = np.linalg.norm(route[k] - s.position[i]) + legs
     return dg
 
 

@@ -18,11 +18,12 @@ import numpy as np
 from swarmplan.core import Event, Mode
 from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
-from swarmplan.geometry.collision import SLACK, first_hits, segment_segment_min_distance
+from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl, segment_segment_min_distance
 from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
@@ -80,6 +81,8 @@ class SafetyFilter:
             np.ascontiguousarray(world.bounds_min, dtype=float),
             np.ascontiguousarray(world.bounds_max, dtype=float),
         )
+        # Swarm-sized worlds over flat ground check many steps in one compiled call.
+        self._batched = use_compiled_checks(len(params.ids)) and not world.peaks
 
     def guard_fixed_wings(
         self,
@@ -179,11 +182,14 @@ class SafetyFilter:
         dt = self.world.dt
         k = np.flatnonzero(mr)
         rows = idx[k]
+        if self._batched:
+            fused = self._braking_margin_compiled(k, rows, pos0, vel0, v_cmd, q0, q1, goal)
+            if fused is not None:
+                return fused[0]
         amax = p.max_accel[rows]
         cap = np.full(len(k), np.inf)
         if goal is not None:
             room = np.maximum(norm3(goal[k] - pos0[rows]) - self.world.goal_tolerance, 0.0)
-            room = np.where(np.isnan(room), np.inf, room)  # a NaN goal row: no goal braking
             cap = np.maximum(amax * dt, _stoppable_speed(room, amax, dt))
         s_cmd = norm3(v_cmd[k])
         # Multirotors only: limit_velocity's own model, row by row.
@@ -220,6 +226,80 @@ class SafetyFilter:
         brake = vel0[rows] * _shrink(s0, cap)
         out[k] = np.where(too_fast[:, None], brake, capped)
         return out
+
+    def brake_and_limit(
+        self,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        v_cmd: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        goal: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """:meth:`braking_margin`'s commands (rows of ``idx``), the velocities they lead to
+        within the kinematic limits (``kinematics.limit_velocity``) and, when at hand, per row
+        whether the step at that velocity touches nothing (:meth:`steps_free` with the filter's
+        radii, the first check of :meth:`filter`): in swarm worlds of multirotors all three
+        from one compiled call; else the third is None."""
+        p = self.params
+        if self._batched and not p.fixed_wing[idx].any():
+            k = np.arange(len(idx))
+            fused = self._braking_margin_compiled(k, idx, pos0, vel0, v_cmd, q0, q1, goal, check_step=True)
+            if fused is not None:
+                out, vel1, status = fused
+                free = status == 0
+                undecided = np.flatnonzero(status == 2)
+                if len(undecided):
+                    rows = idx[undecided]
+                    ends = pos0[rows] + vel1[undecided] * self.world.dt
+                    radii = p.radius[rows] + self.margin(rows)
+                    mv = self.scene.moving_mask
+                    hits = first_hits_fcl(self.scene.collision, pos0[rows], ends, radii, q0[mv], q1[mv])
+                    free[undecided] = [h is None for h in hits]
+                return out, vel1, free
+        v_cmd = self.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, goal)
+        return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx), None
+
+    def _braking_margin_compiled(
+        self,
+        k: np.ndarray,
+        rows: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        v_cmd: np.ndarray,
+        q0: np.ndarray,
+        q1: np.ndarray,
+        goal: np.ndarray | None,
+        check_step: bool = False,
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray] | None:
+        """:meth:`braking_margin` for the multirotor rows ``k`` (agents ``rows``) in one compiled
+        call (the same bits), with the velocities the commands lead to when every row is a
+        multirotor (else None) and, with ``check_step``, the kernel's answer for each row's step
+        at that velocity (0 free, 1 touches, 2 FCL must decide); None when a braking sweep
+        needs FCL's decision (then the numpy path runs)."""
+        p = self.params
+        mv = self.scene.moving_mask
+        cw = self.scene.collision
+        dt = self.world.dt
+        all_rows = len(k) == len(v_cmd)
+        out, vel1, status, decided = step_kernels().braking_margin(
+            np.ascontiguousarray(pos0[rows]),
+            np.ascontiguousarray(vel0[rows]),
+            np.ascontiguousarray(v_cmd if all_rows else v_cmd[k], dtype=float),
+            np.ascontiguousarray(pos0[rows] if goal is None else goal[k], dtype=float),
+            goal is not None,
+            p.max_accel[rows], p.speed_max[rows], p.radius[rows] + self.margin(rows),
+            dt, dt**2, float(self.world.goal_tolerance), self._bounds[0], self._bounds[1],
+            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6, check_step and all_rows,
+        )  # fmt: skip
+        if not decided:
+            return None
+        if all_rows:
+            return out, vel1, status
+        full = v_cmd.copy()
+        full[k] = out
+        return full, None, status
 
     def _free_distances(
         self,
@@ -282,37 +362,73 @@ class SafetyFilter:
             is None
         )
 
+    def steps_free(
+        self, p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, q0: np.ndarray, q1: np.ndarray
+    ) -> np.ndarray:
+        """Per step ``p0 -> p1`` (swept radius ``radii``, obstacles at ``q0`` -> ``q1``, all
+        obstacles' rows): whether it touches nothing (``first_hits`` is None). At swarm size over
+        flat ground one compiled call answers, FCL the steps it leaves undecided."""
+        mv = self.scene.moving_mask
+        cw = self.scene.collision
+        if not self._batched:
+            return np.array([h is None for h in first_hits(cw, p0, p1, radii, q0[mv], q1[mv])], dtype=bool)
+        status = step_kernels().touches_many(
+            np.ascontiguousarray(p0, dtype=float), np.ascontiguousarray(p1, dtype=float),
+            np.ascontiguousarray(radii, dtype=float), self._bounds[0], self._bounds[1],
+            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK,
+        )  # fmt: skip
+        free = status == 0
+        undecided = np.flatnonzero(status == 2)
+        if len(undecided):
+            hits = first_hits_fcl(cw, p0[undecided], p1[undecided], radii[undecided], q0[mv], q1[mv])
+            free[undecided] = [h is None for h in hits]
+        return free
+
     def filter(
-        self, commands: Commands, start: AgentMotion, end: AgentMotion, window: StepWindow, mode: np.ndarray
+        self,
+        commands: Commands,
+        start: AgentMotion,
+        end: AgentMotion,
+        window: StepWindow,
+        mode: np.ndarray,
+        free: np.ndarray | None = None,
     ) -> Filtered:
         """Replace steps that would touch an obstacle by the closest safe feasible alternative.
 
         ``end`` is where the commands lead (within the kinematic limits), ``mode`` every agent's
-        mode. Returns the filtered end of the step, per agent of ``commands.idx`` whether its
-        final step was cleared with the safety margin, and the stops made.
+        mode, ``free`` (optional, rows of ``commands.idx``) :meth:`steps_free`'s answer for
+        those steps when already known (:meth:`brake_and_limit`). Returns the filtered end of
+        the step, per agent of ``commands.idx`` whether its final step was cleared with the
+        safety margin, and the stops made.
         """
         idx, v_cmd = commands.idx, commands.velocity
         pos0, vel0 = start.position, start.velocity
         pos1, vel1 = end.position.copy(), end.velocity.copy()
         q0, q1, t1 = window.q0, window.q1, window.t1
         events: list[Event] = []
-        counts: list[tuple[str, int]] = []
         dt = self.world.dt
         ids = self.params.ids
-        mv = self.scene.moving_mask
-        hits = first_hits(
-            self.scene.collision,
-            pos0[idx],
-            pos1[idx],
-            self.params.radius[idx] + self.margin(idx),
-            q0[mv],
-            q1[mv],
-        )
-        validated = np.array([h is None for h in hits], dtype=bool)
-        for k in np.flatnonzero(~validated):
+        radii = self.params.radius[idx] + self.margin(idx)
+        validated = self.steps_free(pos0[idx], pos1[idx], radii, q0, q1) if free is None else free.copy()
+        unsafe = np.flatnonzero(~validated)
+        alternatives: list[list[np.ndarray]] = []
+        free: list[np.ndarray] = []
+        if len(unsafe) and self._batched:
+            # Every alternative of every such agent in one check (the same yes/no per step).
+            alternatives = [self.alternative_velocities(idx[k], vel0[idx[k]]) for k in unsafe]
+            sizes = [len(c) for c in alternatives]
+            rows = np.repeat(idx[unsafe], sizes)
+            ends = pos0[rows] + np.array([v for c in alternatives for v in c]) * dt
+            ok = self.steps_free(pos0[rows], ends, np.repeat(radii[unsafe], sizes), q0, q1)
+            free = np.split(ok, np.cumsum(sizes)[:-1])
+        counts: list[tuple[str, int]] = []
+        for n_k, k in enumerate(unsafe):
             i = idx[k]
-            cands = self.alternative_velocities(i, vel0[i])
-            safe = [v for v in cands if self.step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
+            if self._batched:
+                safe = [v for v, f in zip(alternatives[n_k], free[n_k], strict=True) if f]
+            else:
+                cands = self.alternative_velocities(i, vel0[i])
+                safe = [v for v in cands if self.step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
             if safe:
                 best = min(safe, key=lambda v: float(np.linalg.norm(v - v_cmd[k])))
                 vel1[i] = best
@@ -398,6 +514,11 @@ class SafetyFilter:
         cmds = np.array(cmds)
         v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, np.full(len(cmds), i))
         return list(v)
+
+
+def step_kernels():  # noqa: ANN201
+    """:mod:`swarmplan.sim._step_kernels` (numba loads with it at the first call)."""
+    return kernel_module("swarmplan.sim._step_kernels")
 
 
 def _stoppable_speed(room: np.ndarray, amax: np.ndarray, dt: float) -> np.ndarray:

@@ -1,0 +1,264 @@
+"""Compiled (numba) phases of the simulation step, one call over all flying agents each.
+
+The braking margin (``SafetyFilter.braking_margin``) ran ~40 numpy operations on arrays of a
+swarm's rows plus a kernel call for the bisection, each paying numpy's per-call cost. Here it
+is one loop over the rows. Every quantity is the numpy path's formula with its operations in
+the same order (``norm3`` is ``sqrt((x*x + y*y) + z*z)``, ``np.minimum``/``np.maximum`` the
+comparisons below, ``x ** 2`` numpy's ``x * x``), and no fast-math, so both paths give the
+same bits (tests/test_step_kernels.py). Loaded with numba at the first call, like every kernel
+(``swarmplan.runtime.compiled``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from swarmplan.geometry.sweep_kernels import HIT, NO, UNDECIDED, sweep_one
+
+
+@njit(cache=True, inline="always")
+def _norm(x: float, y: float, z: float) -> float:
+    return math.sqrt(x * x + y * y + z * z)
+
+
+@njit(cache=True, inline="always")
+def _min(a: float, b: float) -> float:
+    return a if a <= b else b
+
+
+@njit(cache=True, inline="always")
+def _max(a: float, b: float) -> float:
+    return a if a >= b else b
+
+
+@njit(cache=True, inline="always")
+def _limit(v0: np.ndarray, c: np.ndarray, vmax: float, amax_dt: float, out: np.ndarray) -> None:
+    """``kinematics.limit_multirotor`` for one row: ``c`` clipped to ``vmax``, reached from
+    ``v0`` with at most ``amax_dt`` of change (into ``out``)."""
+    s = _norm(c[0], c[1], c[2])
+    f = _min(1.0, vmax / _max(s, 1e-12))
+    d0, d1, d2 = c[0] * f - v0[0], c[1] * f - v0[1], c[2] * f - v0[2]
+    g = _min(1.0, amax_dt / _max(_norm(d0, d1, d2), 1e-12))
+    out[0] = v0[0] + d0 * g
+    out[1] = v0[1] + d1 * g
+    out[2] = v0[2] + d2 * g
+
+
+@njit(cache=True)
+def braking_margin(
+    pos0: np.ndarray,
+    vel0: np.ndarray,
+    v_cmd: np.ndarray,
+    goal: np.ndarray,
+    use_goal: bool,
+    amax: np.ndarray,
+    vmax: np.ndarray,
+    radii: np.ndarray,
+    dt: float,
+    dt2: float,
+    tolerance: float,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+    halvings: int,
+    check_step: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """``SafetyFilter.braking_margin`` for multirotor rows (all arrays by row; ``radii`` with
+    the filter's margin; ``dt2`` is Python's ``dt ** 2``): the new commands, the velocities
+    they lead to (``kinematics.limit_multirotor``), and False when a sweep was undecided (a
+    body within ``BAND`` of contact or a mesh: the caller then runs the numpy path, where FCL
+    decides). With ``check_step``, also :func:`touches_many`'s answer for each row's step
+    ``pos0 -> pos0 + vel1 dt`` (the safety filter's first check, same radii)."""
+    n = len(pos0)
+    out = np.empty((n, 3))
+    vel1 = np.empty((n, 3))
+    status = np.zeros(n, np.int64)
+    end = np.empty(3)
+    bodies = len(s_radius) + len(m_radius) > 0
+    v1 = np.empty(3)
+    c = np.empty(3)
+    u = np.empty(3)
+    for i in range(n):
+        a = amax[i]
+        a_dt = a * dt
+        cap = np.inf
+        if use_goal:
+            to_goal = _norm(goal[i, 0] - pos0[i, 0], goal[i, 1] - pos0[i, 1], goal[i, 2] - pos0[i, 2])
+            room = _max(to_goal - tolerance, 0.0)
+            cap = _max(a_dt, a * (math.sqrt(dt2 + 2.0 * room / a) - dt))
+        s_cmd = _norm(v_cmd[i, 0], v_cmd[i, 1], v_cmd[i, 2])
+        f = _min(1.0, cap / _max(s_cmd, 1e-12))
+        for k in range(3):
+            c[k] = v_cmd[i, k] * f
+        _limit(vel0[i], c, vmax[i], a_dt, v1)
+        speed = _norm(v1[0], v1[1], v1[2])
+        swept = False
+        if speed > a_dt:
+            for k in range(3):
+                u[k] = v1[k] / speed
+            reach = speed * speed / (2.0 * a) + speed * dt
+            h = _probe(
+                pos0[i], u, reach, radii[i], lo_b, hi_b, bodies, end, s_center, s_radius, s_code, s_rot,
+                s_dims, q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+            )  # fmt: skip
+            if h == UNDECIDED:
+                return out, vel1, status, False
+            if h == HIT:
+                lo, hi = 0.0, reach
+                for _ in range(halvings):
+                    mid = 0.5 * (lo + hi)
+                    h = _probe(
+                        pos0[i], u, mid, radii[i], lo_b, hi_b, bodies, end, s_center, s_radius, s_code,
+                        s_rot, s_dims, q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+                    )  # fmt: skip
+                    if h == UNDECIDED:
+                        return out, vel1, status, False
+                    if h == HIT:
+                        hi = mid
+                    else:
+                        lo = mid
+                cap = _min(cap, a * (math.sqrt(dt2 + 2.0 * lo / a) - dt))
+                swept = True
+        if cap == np.inf:
+            for k in range(3):
+                out[i, k] = v_cmd[i, k]
+            _limit(vel0[i], out[i], vmax[i], a_dt, vel1[i])
+        else:
+            f = _min(1.0, cap / _max(s_cmd, 1e-12))
+            for k in range(3):
+                c[k] = v_cmd[i, k] * f
+            if swept:
+                _limit(vel0[i], c, vmax[i], a_dt, v1)
+            if _norm(v1[0], v1[1], v1[2]) > cap + 1e-9:
+                f0 = _min(1.0, cap / _max(_norm(vel0[i, 0], vel0[i, 1], vel0[i, 2]), 1e-12))
+                for k in range(3):
+                    out[i, k] = vel0[i, k] * f0
+            else:
+                for k in range(3):
+                    out[i, k] = c[k]
+            _limit(vel0[i], out[i], vmax[i], a_dt, vel1[i])
+        if check_step:
+            for k in range(3):
+                end[k] = pos0[i, k] + vel1[i, k] * dt
+            status[i] = _step_status(
+                pos0[i], end, radii[i], lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
+                q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+            )  # fmt: skip
+    return out, vel1, status, True
+
+
+@njit(cache=True)
+def touches_many(
+    p0: np.ndarray,
+    p1: np.ndarray,
+    radii: np.ndarray,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+) -> np.ndarray:
+    """Per step ``p0 -> p1`` over flat ground: whether it touches something (``first_hits``'
+    bounds, ground and bodies as a yes/no question): NO, HIT or UNDECIDED (FCL must decide)."""
+    n = len(p0)
+    out = np.empty(n, np.int64)
+    bodies = len(s_radius) + len(m_radius) > 0
+    for i in range(n):
+        out[i] = _step_status(
+            p0[i], p1[i], radii[i], lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
+            q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+        )  # fmt: skip
+    return out
+
+
+@njit(cache=True, inline="always")
+def _step_status(
+    a: np.ndarray,
+    b: np.ndarray,
+    r: float,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    bodies: bool,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+) -> int:
+    """One step of :func:`touches_many`: NO, HIT or UNDECIDED (``bodies``: the world has
+    obstacles; without, the bodies' check is skipped, its answer being NO)."""
+    for c in range(3):
+        if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
+            return HIT
+    if min(a[2], b[2]) < r - 1e-9:
+        return HIT
+    if not bodies:
+        return NO
+    kind, _ = sweep_one(
+        a, b, r, s_center, s_radius, s_code, s_rot, s_dims,
+        q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
+    )  # fmt: skip
+    return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
+
+
+@njit(cache=True, inline="always")
+def _probe(
+    start: np.ndarray,
+    u: np.ndarray,
+    length: float,
+    r: float,
+    lo_b: np.ndarray,
+    hi_b: np.ndarray,
+    bodies: bool,
+    end: np.ndarray,
+    s_center: np.ndarray,
+    s_radius: np.ndarray,
+    s_code: np.ndarray,
+    s_rot: np.ndarray,
+    s_dims: np.ndarray,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    m_radius: np.ndarray,
+    m_code: np.ndarray,
+    m_rot: np.ndarray,
+    m_dims: np.ndarray,
+    slack: float,
+) -> int:
+    """``sweep_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
+    UNDECIDED) with the end point in the caller's buffer ``end``, through :func:`_step_status`."""
+    for c in range(3):
+        end[c] = start[c] + u[c] * length
+    return _step_status(
+        start, end, r, lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
+        q0, q1, m_radius, m_code, m_rot, m_dims, slack,
+    )  # fmt: skip
