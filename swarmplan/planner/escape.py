@@ -53,6 +53,7 @@ from swarmplan.core import (
 )
 from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
+from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import CROWD, guided, held_by_obstacles, queued, under_way
 from swarmplan.planner.hold import hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
@@ -216,9 +217,9 @@ class EscapePlanner:
 
     def shortcut(self, sim: PlanningContext, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:
         """Greedy shortcutting: from each kept point jump to the farthest later one whose straight
-        leg keeps the full clearance (radius + ``margin``, FCL). Fewer, farther waypoints are
-        also followed more firmly: the field's attraction grows with the target's distance."""
-        col = sim.collision
+        leg keeps the full clearance (radius + ``margin``, FCL) and enters no avoided threat core
+        (:mod:`swarmplan.planner.cores`). Fewer, farther waypoints are also followed more
+        firmly: the field's attraction grows with the target's distance."""
         r = float(sim.params.radius[i])
         m = float(self.cfg["margin"])
         kept = [0]
@@ -229,11 +230,7 @@ class EscapePlanner:
             for k in range(len(poly) - 1, j + 1, -1):
                 rr = r + (min(m, max(0.0, 0.5 * start_clearance)) if j == 0 else m)
                 a, b = poly[j], poly[k]
-                if not (
-                    col.sweep_terrain(a, b, rr)
-                    or col.sweep_static(a, b, rr)
-                    or mover_leg_hit(sim, i, a, b, arc, m)
-                ):
+                if not (static_leg_hit(sim, a, b, rr) or mover_leg_hit(sim, i, a, b, arc, m)):
                     nxt = k
                     break
             kept.append(nxt)
@@ -244,7 +241,8 @@ class EscapePlanner:
     def fillet(self, sim: PlanningContext, i: int, poly: np.ndarray) -> np.ndarray:
         """``poly`` (from the agent) with its corners turned into arcs of the agent's turn radius
         (paper 004 §6, :func:`~swarmplan.geometry.polyline.fillet_path`). An arc that FCL finds
-        within radius + ``fcl_margin`` of something, or that does not fit, keeps its corner.
+        within radius + ``fcl_margin`` of something, that enters an avoided threat core, or that
+        does not fit, keeps its corner.
 
         A fixed wing cannot stop at a corner: it gets a Dubins chain (:func:`dubins_chain`) from
         its pose straight to the end, or else through every point: the first FCL finds clear."""
@@ -253,10 +251,10 @@ class EscapePlanner:
             return out
         # Wider than R_min: the waypoint follower has room to correct a lag.
         R = CHAIN_RADIUS_FACTOR * model_turn_radius(sim, i)
-        start_clear = float(static_clearance(sim, out[0], float(sim.params.radius[i]))[0])
-        v = sim.state.velocity[i]
+        r, v = float(sim.params.radius[i]), sim.state.velocity[i]
+        clear = float(static_clearance(sim, out[0], r)[0])
         for chain in (dubins_chain(out[0], v, out[-1:], R), dubins_chain(out[0], v, out[1:], R)):
-            if self.segment_hit(sim, i, chain, start_clear) is None:
+            if self.segment_hit(sim, i, chain, clear) is None and not polyline_core_hit(sim.world, chain, r):
                 return chain
         return out
 
@@ -274,8 +272,7 @@ class EscapePlanner:
             steps = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(arc, axis=0), axis=1))])
             return any(
                 col.sweep_bounds(b)
-                or col.sweep_terrain(a, b, rr)
-                or col.sweep_static(a, b, rr)
+                or static_leg_hit(sim, a, b, rr)
                 or mover_leg_hit(sim, i, a, b, flown + float(s0), m)
                 for a, b, s0 in zip(arc[:-1], arc[1:], steps[:-1], strict=True)
             )

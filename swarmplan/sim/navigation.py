@@ -136,6 +136,7 @@ class Navigator:
         self,
         s: SwarmState,
         on_stuck: Callable[[int], tuple[StuckOutcome, Sequence[Event]]] | None,
+        exempt: np.ndarray | None = None,
     ) -> Tally:
         """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
 
@@ -150,7 +151,10 @@ class Navigator:
         min_progress = self.world.planner_config.stuck.min_progress
         # Only agents following a segment or whose window has run out need work this step.
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
-        rows = np.flatnonzero(s.active & (~apf | (s.t - self.progress_t >= window - 1e-9)))
+        due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
+        if exempt is not None:
+            due &= ~exempt
+        rows = np.flatnonzero(due)
         if not len(rows):
             return out
         dg = np.empty(len(s.mode))
