@@ -54,11 +54,10 @@ from swarmplan.core import (
 from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
-from swarmplan.planner.escape_gates import CROWD, queued, under_way
+from swarmplan.planner.escape_gates import CROWD, guided, held_by_obstacles, queued, under_way
 from swarmplan.planner.hold import hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
-from swarmplan.world.motion import poses_at
 
 
 def escape_settings(world) -> dict:
@@ -116,6 +115,9 @@ def choose_subgoal(
     as far, plus the timing slack): a parked mover is a blocker like a static one."""
     s = sim.state
     p, g = s.position[i], s.goal[i]
+    guide = getattr(sim, "guide", None)  # guided: the way round static obstacles, not through them
+    if guide is not None and guide.guided[i]:
+        g = guide.way_point(p, g, horizon)
     d = g - p
     dist = float(np.linalg.norm(d))
     if dist <= horizon:
@@ -455,7 +457,7 @@ class EscapePlanner:
             return False
         if near.sum() >= CROWD:
             return True  # in a crowd, obstacles or not: one agent's detour does not dissolve it
-        return not self.held_by_obstacles(sim, i)
+        return not held_by_obstacles(sim, i)
 
     def agents_near(self, sim: PlanningContext, i: int) -> np.ndarray:
         """Mask of the flying agents other than ``i`` within the reach of the field's agent term."""
@@ -467,35 +469,13 @@ class EscapePlanner:
         near[i] = False
         return near
 
-    @staticmethod
-    def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
-        """Whether the obstacles' push (static and moving, at their poses now) along agent
-        ``i``'s pull towards its goal takes more than half of the pull."""
-        w = sim.world
-        if not w.obstacles:
-            return False
-        apf = w.planner_config.apf
-        s = sim.state
-        pos, goal = s.position[i], s.goal[i]
-        to_goal = float(np.linalg.norm(goal - pos))
-        pull = apf.k_att * min(to_goal, apf.quadratic_radius)
-        d, g = sim.field.query(pos[None], poses_at(w.obstacles, s.t)[0])
-        rho = d[0] - float(sim.params.radius[i])
-        near = rho < apf.influence
-        if not near.any():
-            return False
-        gfac = min(1.0, to_goal / apf.influence) ** apf.goal_power
-        push = apf.k_rep * (1.0 / np.maximum(rho[near], 0.05) - 1.0 / apf.influence) * gfac
-        along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
-        return bool(pull + float(push @ along) < 0.5 * pull)
-
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         start = self._escaped_at.get(i)  # cheapest test first (same answers in any order)
         if under_way(sim, i) or (start is not None and queued(sim, i, start, self.agents_near(sim, i))):
             return None
-        if self.only_agents_around(sim, i):
+        if self.only_agents_around(sim, i) or guided(sim, i):
             return None
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):

@@ -36,6 +36,7 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
+from swarmplan.flight.guide import make_guide, next_rest
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -78,6 +79,9 @@ class Simulation:
         self.params = AgentParams.from_world(world)
         self.apf = ApfField(world, self.params)
         self.scene = Scene(world, self.params)
+        # The way round static obstacles for agents whose straight line is blocked (None without any).
+        self.guide = make_guide(world, self.params)
+        self._guide_at = 0.0  # the time the guide's bodies are at rest for good from
         self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
@@ -86,7 +90,7 @@ class Simulation:
         self.n = len(world.agents)
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.scene)
-        self.navigator = Navigator(world, self.params)
+        self.navigator = Navigator(world, self.params, self.guide)
         self.guard = GoalGuard(self.params, world.dt)
         self._mover_ids = tuple(o.id for o in world.obstacles if o.moving)
         self.state: SwarmState | None = None
@@ -127,6 +131,12 @@ class Simulation:
         )
         self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
         self.metrics.positions.append(start.copy())
+        self._measure_start(start)
+        if self._guide_at > 0.0:  # a mover parked in the last run: back to the bodies at rest at 0
+            self.guide, self._guide_at = make_guide(self.world, self.params), 0.0
+            self.navigator.guide = self.guide
+        if self.guide is not None:
+            self.guide.reset(start, goal)
         self.navigator.reset(self.state)
         self.guard.reset()
         self.near_misses = NearMisses(self.params)
@@ -145,6 +155,17 @@ class Simulation:
             self.navigator.reset(self.state)
         agents, obstacles = self._agent_states(), self._obstacle_states(0.0)
         return ResetResult(self.state, world_message, records, agents, obstacles)
+
+    def _measure_start(self, start: np.ndarray) -> None:
+        """The clearances at the start count too (a log's replay measures every sample from
+        t = 0: an agent that starts nearer to something than it ever flies was reported farther)."""
+        m, r = self.metrics, self.params.radius
+        if len(self.world.obstacles):
+            q0 = self.scene.poses(0.0)[0]
+            m.min_clearance = np.minimum(m.min_clearance, self.field.min_distance(start, q0) - r)
+        m.min_agent_clearance = np.minimum(m.min_agent_clearance, self.scene.agent_clearance(start))
+        terrain = start[:, 2] - self.world.terrain_height(start[:, :2]) - r
+        m.min_terrain_clearance = np.minimum(m.min_terrain_clearance, terrain)
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
         """The random stream of one purpose (e.g. 'escape') for one agent, seeded from the run's
@@ -255,6 +276,12 @@ class Simulation:
                 inputs = with_cores(inputs, pos0[idx], self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
+            if next_rest(w, self._guide_at) <= t0:  # a mover parked for good: go round it too
+                self._guide_at = t0
+                self.guide = make_guide(w, self.params, t0)
+                self.navigator.guide = self.guide
+            if self.guide is not None:
+                target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
             flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
             to_go = np.linalg.norm(s.goal - pos0, axis=1)
