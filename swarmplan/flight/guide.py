@@ -131,6 +131,10 @@ class StaticGuide:
         )
         self._reverse = g.T.tocsr()  # searches run from the goal over reversed legs
         self._base = self._reverse.data.copy()
+        # Per leg of the reversed graph (row v: the legs into v), the unit direction of the leg.
+        rev = self._reverse
+        e = self.centres[np.repeat(np.arange(self.n_cells), np.diff(rev.indptr))] - self.centres[rev.indices]
+        self._leg_dir = e / np.linalg.norm(e, axis=1, keepdims=True)
         self.near = prox > 0.0
         self._flow = np.zeros((self.n_cells, 3))  # directions of the ways through each cell
         self._row: dict[int, int] = {}  # goal cell -> row of the tables below
@@ -256,13 +260,14 @@ class StaticGuide:
             return
         np.add.at(self._flow, cells[ok], dirs[ok])
         g = self._reverse
+        # The legs into each touched cell re-priced with the cell's flow (``e @ f``: the same
+        # product, and so the same bits, as when the way was first priced).
         for v in np.unique(cells[ok]).tolist():
             lo, hi = g.indptr[v], g.indptr[v + 1]
-            e = self.centres[v] - self.centres[g.indices[lo:hi]]
-            e /= np.linalg.norm(e, axis=1, keepdims=True)
             f = self._flow[v]
+            same = SAME * float(np.linalg.norm(f)) if SAME else 0.0
             g.data[lo:hi] = self._base[lo:hi] * (
-                1.0 + SAME * float(np.linalg.norm(f)) + ONCOMING * np.maximum(-(e @ f), 0.0)
+                1.0 + same + ONCOMING * np.maximum(-(self._leg_dir[lo:hi] @ f), 0.0)
             )
 
     def _source_of(self, cell: int) -> int:
