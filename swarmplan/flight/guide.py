@@ -142,7 +142,7 @@ class StaticGuide:
         self._leg_dir = np.zeros((len(data), 3))
         self._has_dir = np.zeros(self.n_cells, dtype=bool)
         self._flow = np.zeros((self.n_cells, 3))  # directions of the ways through each cell
-        self._row: dict[int, int] = {}  # goal cell -> row of the tables below
+        self._row_of = np.full(self.n_cells, -1, dtype=np.int64)  # goal cell -> row of the tables below
         self._next = np.empty((0, self.n_cells), dtype=np.int32)
         self._dist = np.empty((0, self.n_cells), dtype=np.float32)
         self._source = np.empty(0, dtype=np.int64)
@@ -217,11 +217,20 @@ class StaticGuide:
         chip's channels: McMurchie & Ebeling 1995): a later way pays ``SAME`` per way already
         there and ``ONCOMING`` per way there in the opposite direction, so the ways spread over
         a passage's width and height and opposing flows take separate lanes."""
+        goal_cells = np.asarray(goal_cells, dtype=np.int64)
+        missing = self._row_of[goal_cells] < 0
+        if missing.any():  # each new goal cell once, in the order of its first row
+            cells, starts = goal_cells[missing], np.asarray(starts)[missing]
+            first = np.sort(np.unique(cells, return_index=True)[1])
+            self._search(cells[first], starts[first])
+        return self._row_of[goal_cells]
+
+    def _search(self, goal_cells: np.ndarray, starts: np.ndarray) -> None:
+        """Find the ways to ``goal_cells`` (new ones, in order), each then loading the way from
+        its start (see :meth:`_rows_for`)."""
         from scipy.sparse.csgraph import dijkstra
 
         for c, p in zip(goal_cells.tolist(), starts, strict=True):
-            if c in self._row:
-                continue
             source = self._source_of(c)
             dist, pred = dijkstra(self._reverse, directed=True, indices=source, return_predecessors=True)
             row = len(self._source)
@@ -231,10 +240,9 @@ class StaticGuide:
                 self._dist = np.vstack([self._dist, np.empty((grow - row, self.n_cells), dtype=np.float32)])
             self._next[row] = np.where(pred < 0, -1, pred)
             self._dist[row] = dist
-            self._row[c] = row
+            self._row_of[c] = row
             self._source = np.append(self._source, source)
-            self._load(self._way(self._row[c], int(self.cell_of(p[None])[0])))
-        return np.array([self._row[c] for c in goal_cells.tolist()], dtype=np.int64)
+            self._load(self._way(row, int(self.cell_of(p[None])[0])))
 
     def _way(self, row: int, cell: int) -> list[int]:
         """The cells of the way of table ``row`` from ``cell`` to its goal."""
