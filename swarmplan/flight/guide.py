@@ -105,7 +105,8 @@ class StaticGuide:
         # into each cell along offset k, the offsets ordered so that their start cells ascend.
         offsets = _offsets()
         delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
-        offsets, delta = offsets[np.argsort(-delta)], np.sort(delta)[::-1]
+        order = np.argsort(-delta, kind="stable")
+        offsets, delta = offsets[order], delta[order]
         weight = np.zeros((self.n_cells, len(offsets)))
         legal = np.zeros((self.n_cells, len(offsets)), dtype=bool)
         flat = np.arange(self.n_cells).reshape(nx, ny, nz)
@@ -281,8 +282,8 @@ class StaticGuide:
             legs = np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
             e = self.centres[np.repeat(fresh, count)] - self.centres[g.indices[legs]]
             self._leg_dir[legs] = e / np.linalg.norm(e, axis=1, keepdims=True)
-        # The legs into each touched cell re-priced with the cell's flow (``e @ f``: the same
-        # product, and so the same bits, as when the way was first priced).
+        # The legs into each touched cell re-priced with the cell's flow, cell by cell: ``e @ f``
+        # per cell is a BLAS product, whose rounding one product over all legs would not repeat.
         for v in touched.tolist():
             lo, hi = g.indptr[v], g.indptr[v + 1]
             f = self._flow[v]
