@@ -125,7 +125,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     velocities, parked, distance to the goal) of every agent; ``gains``: (k_att, k_rep, influence, k_agent,
     quadratic_radius, goal_power, k_moving, horizon)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
-    radius, separation, min_altitude, stop_reach, can_stop = agents
+    radius, separation, min_altitude, stop_reach, can_stop, max_accel, dt_step = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
     all_pos, all_vel, parked, goal_dist = swarm
@@ -282,6 +282,15 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                 pair_reach = stop_reach[ia] + stop_reach[b]
                 if parked[b] and can_stop[ia]:
                     pair_reach = reach_now[i]
+                elif can_stop[ia] and can_stop[b]:
+                    # Two multirotors: the distance they close before both have stopped, at
+                    # their closing speed w along the line of centres (a step of reaction,
+                    # then braking together: w dt + w^2 / (2 (a_i + a_b))); head-on from
+                    # cruise it is the sum of the stopping reaches, never more.
+                    dd = math.sqrt(dpx * dpx + dpy * dpy + dpz * dpz)
+                    w = max(-(dpx * dwx + dpy * dwy + dpz * dwz) / max(dd, _EPS), 0.0)
+                    closing = w * dt_step + w * w / (2.0 * max(max_accel[ia] + max_accel[b], _EPS))
+                    pair_reach = min(pair_reach, closing)
                 e0 = 1.0 + min(pair_reach, rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz

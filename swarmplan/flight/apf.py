@@ -130,6 +130,7 @@ class ApfField:
         self.gains = world.planner_config.apf if gains is None else gains
         self.reach_per_agent = np.ascontiguousarray(stopping_reach(params, world.dt))
         self.can_stop = np.ascontiguousarray(~params.fixed_wing)
+        self.max_accel = np.ascontiguousarray(params.max_accel, dtype=float)
         g = self.gains
         gains_ = (
             g.k_att,
@@ -166,7 +167,8 @@ class ApfField:
         reach_now = np.ascontiguousarray(reach_at_speed(p, flyers.idx, flyers.vel, w.dt))
         kernel_module("swarmplan.flight._apf_kernel").apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
-            (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
+            (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop, self.max_accel,
+             float(w.dt)),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              field.obstacle_center, field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
