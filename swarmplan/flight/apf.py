@@ -130,7 +130,6 @@ class ApfField:
         self.gains = world.planner_config.apf if gains is None else gains
         self.reach_per_agent = np.ascontiguousarray(stopping_reach(params, world.dt))
         self.can_stop = np.ascontiguousarray(~params.fixed_wing)
-        self.max_accel = np.ascontiguousarray(params.max_accel, dtype=float)
         g = self.gains
         gains_ = (
             g.k_att,
@@ -165,14 +164,14 @@ class ApfField:
             np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         )
         reach_now = np.ascontiguousarray(reach_at_speed(p, flyers.idx, flyers.vel, w.dt))
+        reach_all = np.ascontiguousarray(reach_at_speed(p, np.arange(len(swarm.pos)), swarm.vel, w.dt))
         kernel_module("swarmplan.flight._apf_kernel").apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
-            (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop, self.max_accel,
-             float(w.dt)),
+            (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              field.obstacle_center, field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (swarm.pos, swarm.vel, np.asarray(parked, dtype=np.bool_), goal_dist),
+            (swarm.pos, swarm.vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all),
             self._reach * (1.0 + 1e-9) + 1e-9,
             self._gains,
             out,
