@@ -260,6 +260,7 @@ class PlanningContext(Protocol):
     collision: Any  # swarmplan.geometry.collision.CollisionWorld
     field: Any  # swarmplan.geometry.shapes.ObstacleField
     moving_mask: np.ndarray
+    guide: Any  # swarmplan.flight.guide.StaticGuide, None in worlds without static obstacles
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
         """The seeded random stream of one purpose ('global', 'escape', ...) for one agent."""

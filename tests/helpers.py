@@ -11,12 +11,15 @@ checker is a failure, never a skip.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import importlib.util
 import json
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -272,3 +275,12 @@ def describe_failure(summary: dict[str, Any], log_path: Path | None = None) -> s
         final = ", ".join(f"{i}={np.round(p[-1, k], 2).tolist()}" for k, i in enumerate(ids))
         lines.append(f"  final positions: {final}")
     return "\n".join(lines)
+
+
+@contextlib.contextmanager
+def without_guide() -> Iterator[None]:
+    """Runs inside fly the bare potential field, without its guide round static obstacles
+    (``swarmplan.flight.guide``): the field's own local minima (the trap worlds), on which the
+    escape planner is tested. With the guide (the default) pure APF gets out of them itself."""
+    with mock.patch("swarmplan.sim.env.make_guide", lambda *_a, **_k: None):
+        yield

@@ -46,7 +46,8 @@ OPEN = {
     "planner": {"optimizer": {"name": "woa", "population": 8, "iterations": 8}},
     "log": {"foxglove": False},
 }
-#: A U-shaped pocket in front of the goal: pure APF gets stuck, the optimizer plans escapes.
+#: A U-shaped pocket in front of the goal: the bare field gets stuck there; the field's guide
+#: leads the agent round it (not within the 12 s of the run).
 POCKET = {
     "name": "pocket",
     "seed": 1,
@@ -126,9 +127,10 @@ def test_sixteen_rows_and_sixteen_valid_logs(full):
     assert list(csv_rows[0]) == engine.columns([POP])
     logs = sorted(out.glob("runs/*"))
     assert len(logs) == 16 and {out / r["log"] for r in rows} == set(logs)  # no leftover .part files
-    # The open world flies through without escapes; the pocket needs them under every optimizer.
+    # The open world flies through; the pocket's way round is the field's guide (no escape),
+    # longer than the pocket's 12 s.
     for r in rows:
-        assert (r["escapes"] > 0) == (r["world"] == "pocket.yaml"), r
+        assert r["escapes"] == 0, r
         assert r["success"] == (r["world"] == "open.yaml") and r["arrived"] == (2 if r["success"] else 0)
     for r in rows:
         rec = load(out / r["log"])

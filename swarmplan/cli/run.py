@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from swarmplan import optimizers
-from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout
+from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout, write_failure, writer_messages
 from swarmplan.io.runner import LiveView, apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sim.threats import exposure_warnings
@@ -223,17 +223,23 @@ def main(argv: list[str] | None = None) -> int:
         for p in exc.problems:
             print(f"  {p}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    complaints = None
     try:
-        summary = simulate(
-            world,
-            seed,
-            log_path,
-            progress=not args.quiet and sys.stderr.isatty(),
-            stop_on_signals=True,
-            live=live,
-            notices=not args.quiet,
-        )
-    except RuntimeError as exc:
+        with writer_messages() as complaints:
+            summary = simulate(
+                world,
+                seed,
+                log_path,
+                progress=not args.quiet and sys.stderr.isatty(),
+                stop_on_signals=True,
+                live=live,
+                notices=not args.quiet,
+            )
+    except (RuntimeError, OSError) as exc:
+        reason = write_failure(exc, complaints)
+        if reason is not None:  # e.g. no space left: the log ends where writing failed
+            print(f"error: {log_path}: cannot write the log ({reason})", file=sys.stderr)
+            return EXIT_BAD_INPUT
         if live is None or "bind" not in str(exc):
             raise
         print(f"error: command line: invalid input\n  --port: cannot serve: {exc}", file=sys.stderr)

@@ -25,7 +25,13 @@ import sys
 import time
 from pathlib import Path
 
-from swarmplan.cli.common import HelpFormatter, output_file_problem, quiet_on_closed_stdout
+from swarmplan.cli.common import (
+    HelpFormatter,
+    output_file_problem,
+    quiet_on_closed_stdout,
+    write_failure,
+    writer_messages,
+)
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.track.output import PLOT_FORMATS
 from swarmplan.world.tracker_config import TrackerConfig, parse_tracker
@@ -181,15 +187,24 @@ def main(argv: list[str] | None = None) -> int:
     for path in (args.out, args.plot):
         if path:  # missing folders are created, as run and replay do
             Path(path).parent.mkdir(parents=True, exist_ok=True)
-    if args.out:
-        write_mcap(result, rec, args.out, source=str(args.log))
-    if args.plot:
-        plot(
-            result,
-            args.plot,
-            title=f"{rec.world.get('name', '')}: tracking ({Path(args.log).name})",
-            rec=rec,
-        )
+    complaints = None
+    try:
+        with writer_messages() as complaints:
+            if args.out:
+                write_mcap(result, rec, args.out, source=str(args.log))
+        if args.plot:
+            plot(
+                result,
+                args.plot,
+                title=f"{rec.world.get('name', '')}: tracking ({Path(args.log).name})",
+                rec=rec,
+            )
+    except (RuntimeError, OSError) as exc:
+        reason = write_failure(exc, complaints)
+        if reason is None:
+            raise
+        print(f"track: cannot write {args.out if args.out else args.plot}: {reason}", file=sys.stderr)
+        return 2
     if args.json:
         print(json.dumps(result.to_json()))
     else:

@@ -25,6 +25,9 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   (without it, neighbours hovering by their own goals hold each other off for good). Fixed
   wings keep the full repulsion (they cannot stop, so the standstill the factor resolves does
   not arise).
+The point of attraction (``Flyers.target``) is the goal, or a segment's or route's waypoint, or
+for an agent whose straight line is blocked by a static obstacle the point ahead on its way
+round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static repulsion).
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
 so the agent can still brake before the goal and before any obstacle surface ahead.
 

@@ -17,7 +17,10 @@ leaves the field in charge everywhere but where it would corner the aircraft.
 The predictions fly the model itself (``swarmplan.flight.kinematics.limit_fixed_wing``, step by
 step, at constant speed: the flight-path angle ramps within the same turn budget as the
 heading), all candidates at once, and all candidates and all times are measured in one batched
-distance query. (:func:`predicted_positions` gives the closed-form arcs and helices of a
+distance query. The manoeuvres from where the aircraft is now are only needed where the field's
+command would corner it: they are flown for those aircraft alone (every row of a rollout and of
+a clearance query is computed on its own, so the answers are those of flying them all).
+(:func:`predicted_positions` gives the closed-form arcs and helices of a
 heading rate V / R_min with the flight-path angle set at once, the level-turn limit of it.)
 """
 
@@ -108,23 +111,23 @@ def rollout_manoeuvres(
     v = np.repeat(vel, c, axis=0)
     p = np.repeat(pos, c, axis=0)
     out = np.empty((steps, n * c, 3))
+    turn = np.tile(np.array([m[0] for m in _MANOEUVRES], dtype=float), n)
+    up = np.tile(np.array([m[1] for m in _MANOEUVRES], dtype=float), n) * climb
     for k in range(steps):
-        cmd = _sustained_commands(v, climb, n, c)
+        cmd = _sustained_commands(v, turn, up)
         v = limit_fixed_wing(v, cmd, speed, speed, amax, radius, climb, dt)
         p = p + v * dt
         out[k] = p
     return out.transpose(1, 0, 2).reshape(n, c, steps, 3)
 
 
-def _sustained_commands(v: np.ndarray, climb: np.ndarray, n: int, c: int) -> np.ndarray:
+def _sustained_commands(v: np.ndarray, turn: np.ndarray, g: np.ndarray) -> np.ndarray:
     """The manoeuvres' commands (n * C, 3) from the current velocities ``v`` (n * C, 3), row
-    ``i * C + j`` manoeuvre j."""
+    ``i * C + j`` manoeuvre j: its turn (-1, 0, 1) in ``turn`` and its flight-path angle
+    (the climb limit times -1, 0 or 1) in ``g`` (n * C each)."""
     speed = np.linalg.norm(v, axis=1)
     psi = np.arctan2(v[:, 1], v[:, 0])
-    turn = np.tile(np.array([m[0] for m in _MANOEUVRES], dtype=float), n)
-    up = np.tile(np.array([m[1] for m in _MANOEUVRES], dtype=float), n)
     a = psi + turn * (np.pi / 2)
-    g = up * climb
     cg = np.cos(g)
     return speed[:, None] * np.stack([cg * np.cos(a), cg * np.sin(a), np.sin(g)], axis=-1)
 
@@ -176,19 +179,24 @@ def guard_commands(
     v_next = limit_velocity(params, vel, v_cmd, dt, idx)
     p_next = pos + v_next * dt
     after, r_after = _manoeuvre_clearance(params, idx, p_next, v_next, times, dt)
-    # ... and from where the agent is now.
-    now, r_now = _manoeuvre_clearance(params, idx, pos, vel, times, dt)
-    points = np.concatenate([after.reshape(-1, 3), now.reshape(-1, 3), p_next])
-    radii = np.concatenate([r_after.reshape(-1), r_now.reshape(-1), params.radius[idx]])
-    when = np.concatenate([np.tile(t0 + dt + times, n * c), np.tile(t0 + times, n * c), np.full(n, t0 + dt)])
+    points = np.concatenate([after.reshape(-1, 3), p_next])
+    radii = np.concatenate([r_after.reshape(-1), params.radius[idx]])
+    when = np.concatenate([np.tile(t0 + dt + times, n * c), np.full(n, t0 + dt)])
     clear = clearance(points, radii, when)
     m = n * c * steps
     worst_after = clear[:m].reshape(n, c, steps).min(axis=2)
-    worst_now = clear[m : 2 * m].reshape(n, c, steps).min(axis=2)
-    step_clear = clear[2 * m :]
+    step_clear = clear[m:]
     keep = (step_clear >= required) & np.any(worst_after >= required[:, None], axis=1)
     if keep.all():
         return out, replaced
+    # ... and, for the agents it would corner, from where they are now (each row of a rollout
+    # and of a clearance is its own: the same values as when every agent is rolled out).
+    rows = np.flatnonzero(~keep)
+    k = len(rows)
+    now, r_now = _manoeuvre_clearance(params, idx[rows], pos[rows], vel[rows], times, dt)
+    clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), np.tile(t0 + times, k * c))
+    worst_now = np.full((n, c), -np.inf)
+    worst_now[rows] = clear_now.reshape(k, c, steps).min(axis=2)
     # What each manoeuvre flies on the next step, under the model itself.
     cmds = _manoeuvre_commands(vel, params.max_climb[idx])
     first = limit_velocity(params, np.repeat(vel, c, axis=0), cmds.reshape(-1, 3), dt, np.repeat(idx, c))

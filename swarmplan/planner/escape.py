@@ -53,11 +53,11 @@ from swarmplan.core import (
 )
 from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
-from swarmplan.planner.escape_gates import CROWD, queued, under_way
+from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
+from swarmplan.planner.escape_gates import CROWD, guided, held_by_obstacles, queued, under_way
 from swarmplan.planner.hold import hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
-from swarmplan.world.motion import poses_at
 
 
 def escape_settings(world) -> dict:
@@ -115,6 +115,9 @@ def choose_subgoal(
     as far, plus the timing slack): a parked mover is a blocker like a static one."""
     s = sim.state
     p, g = s.position[i], s.goal[i]
+    guide = getattr(sim, "guide", None)  # guided: the way round static obstacles, not through them
+    if guide is not None and guide.guided[i]:
+        g = guide.way_point(p, g, horizon)
     d = g - p
     dist = float(np.linalg.norm(d))
     if dist <= horizon:
@@ -214,9 +217,9 @@ class EscapePlanner:
 
     def shortcut(self, sim: PlanningContext, i: int, poly: np.ndarray, start_clearance: float) -> np.ndarray:
         """Greedy shortcutting: from each kept point jump to the farthest later one whose straight
-        leg keeps the full clearance (radius + ``margin``, FCL). Fewer, farther waypoints are
-        also followed more firmly: the field's attraction grows with the target's distance."""
-        col = sim.collision
+        leg keeps the full clearance (radius + ``margin``, FCL) and enters no avoided threat core
+        (:mod:`swarmplan.planner.cores`). Fewer, farther waypoints are also followed more
+        firmly: the field's attraction grows with the target's distance."""
         r = float(sim.params.radius[i])
         m = float(self.cfg["margin"])
         kept = [0]
@@ -227,11 +230,7 @@ class EscapePlanner:
             for k in range(len(poly) - 1, j + 1, -1):
                 rr = r + (min(m, max(0.0, 0.5 * start_clearance)) if j == 0 else m)
                 a, b = poly[j], poly[k]
-                if not (
-                    col.sweep_terrain(a, b, rr)
-                    or col.sweep_static(a, b, rr)
-                    or mover_leg_hit(sim, i, a, b, arc, m)
-                ):
+                if not (static_leg_hit(sim, a, b, rr) or mover_leg_hit(sim, i, a, b, arc, m)):
                     nxt = k
                     break
             kept.append(nxt)
@@ -242,7 +241,8 @@ class EscapePlanner:
     def fillet(self, sim: PlanningContext, i: int, poly: np.ndarray) -> np.ndarray:
         """``poly`` (from the agent) with its corners turned into arcs of the agent's turn radius
         (paper 004 §6, :func:`~swarmplan.geometry.polyline.fillet_path`). An arc that FCL finds
-        within radius + ``fcl_margin`` of something, or that does not fit, keeps its corner.
+        within radius + ``fcl_margin`` of something, that enters an avoided threat core, or that
+        does not fit, keeps its corner.
 
         A fixed wing cannot stop at a corner: it gets a Dubins chain (:func:`dubins_chain`) from
         its pose straight to the end, or else through every point: the first FCL finds clear."""
@@ -251,10 +251,10 @@ class EscapePlanner:
             return out
         # Wider than R_min: the waypoint follower has room to correct a lag.
         R = CHAIN_RADIUS_FACTOR * model_turn_radius(sim, i)
-        start_clear = float(static_clearance(sim, out[0], float(sim.params.radius[i]))[0])
-        v = sim.state.velocity[i]
+        r, v = float(sim.params.radius[i]), sim.state.velocity[i]
+        clear = float(static_clearance(sim, out[0], r)[0])
         for chain in (dubins_chain(out[0], v, out[-1:], R), dubins_chain(out[0], v, out[1:], R)):
-            if self.segment_hit(sim, i, chain, start_clear) is None:
+            if self.segment_hit(sim, i, chain, clear) is None and not polyline_core_hit(sim.world, chain, r):
                 return chain
         return out
 
@@ -272,8 +272,7 @@ class EscapePlanner:
             steps = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(arc, axis=0), axis=1))])
             return any(
                 col.sweep_bounds(b)
-                or col.sweep_terrain(a, b, rr)
-                or col.sweep_static(a, b, rr)
+                or static_leg_hit(sim, a, b, rr)
                 or mover_leg_hit(sim, i, a, b, flown + float(s0), m)
                 for a, b, s0 in zip(arc[:-1], arc[1:], steps[:-1], strict=True)
             )
@@ -458,7 +457,7 @@ class EscapePlanner:
             return False
         if near.sum() >= CROWD:
             return True  # in a crowd, obstacles or not: one agent's detour does not dissolve it
-        return not self.held_by_obstacles(sim, i)
+        return not held_by_obstacles(sim, i)
 
     def agents_near(self, sim: PlanningContext, i: int) -> np.ndarray:
         """Mask of the flying agents other than ``i`` within the reach of the field's agent term."""
@@ -470,35 +469,13 @@ class EscapePlanner:
         near[i] = False
         return near
 
-    @staticmethod
-    def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
-        """Whether the obstacles' push (static and moving, at their poses now) along agent
-        ``i``'s pull towards its goal takes more than half of the pull."""
-        w = sim.world
-        if not w.obstacles:
-            return False
-        apf = w.planner_config.apf
-        s = sim.state
-        pos, goal = s.position[i], s.goal[i]
-        to_goal = float(np.linalg.norm(goal - pos))
-        pull = apf.k_att * min(to_goal, apf.quadratic_radius)
-        d, g = sim.field.query(pos[None], poses_at(w.obstacles, s.t)[0])
-        rho = d[0] - float(sim.params.radius[i])
-        near = rho < apf.influence
-        if not near.any():
-            return False
-        gfac = min(1.0, to_goal / apf.influence) ** apf.goal_power
-        push = apf.k_rep * (1.0 / np.maximum(rho[near], 0.05) - 1.0 / apf.influence) * gfac
-        along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
-        return bool(pull + float(push @ along) < 0.5 * pull)
-
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         start = self._escaped_at.get(i)  # cheapest test first (same answers in any order)
         if under_way(sim, i) or (start is not None and queued(sim, i, start, self.agents_near(sim, i))):
             return None
-        if self.only_agents_around(sim, i):
+        if self.only_agents_around(sim, i) or guided(sim, i):
             return None
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):

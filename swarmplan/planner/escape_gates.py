@@ -1,11 +1,13 @@
 """When a stuck agent plans no escape of its own (tests of :meth:`EscapePlanner.on_stuck`
-besides its crowd and obstacle tests): the field is still carrying it, or it waits in a queue."""
+besides its crowd and obstacle tests): the field is still carrying it, the guide round static
+obstacles leads it, or it waits in a queue."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from swarmplan.core import PlanningContext
+from swarmplan.world.motion import poses_at
 
 #: Flying agents within the reach of the field's agent term from which a stuck agent is in a
 #: crowd: it plans no escape of its own (doorway, 64 agents: escapes of single agents through
@@ -24,6 +26,26 @@ def under_way(sim: PlanningContext, i: int) -> bool:
     return bool(np.linalg.norm(sim.state.velocity[i]) >= 0.5 * p.speed_cruise[i])
 
 
+def guided(sim: PlanningContext, i: int) -> bool:
+    """Whether the guide round static obstacles (``swarmplan.flight.guide``) leads agent ``i``
+    and no moving obstacle is within the field's influence: the guide's way has no local
+    minima of the static obstacles, so what holds the agent is other agents (a queue at a
+    gap), whose progress dissolves it; an escape through them only adds a detour (doorway, 64
+    agents: an escape took an agent from the queue at the gap to the wall beside it, where it
+    stayed until the horizon)."""
+    guide = getattr(sim, "guide", None)
+    s = sim.state
+    if guide is None or not guide.leads(i, s.position[i], s.goal[i]):
+        return False
+    movers = sim.world.moving_obstacles
+    if movers:
+        centres, _ = poses_at(movers, s.t)
+        reach = sim.world.planner_config.apf.influence + np.array([o.bounding_radius for o in movers])
+        if (np.linalg.norm(centres - s.position[i], axis=1) < reach).any():
+            return False
+    return True
+
+
 def queued(sim: PlanningContext, i: int, escaped_at: float, near: np.ndarray) -> bool:
     """Whether agent ``i`` waits in a queue: other agents are near (``near``, a mask), and its
     last escape (or attempt at one), started ``escaped_at`` m from its goal, left it no nearer
@@ -34,3 +56,25 @@ def queued(sim: PlanningContext, i: int, escaped_at: float, near: np.ndarray) ->
     s = sim.state
     progress = escaped_at - float(np.linalg.norm(s.goal[i] - s.position[i]))
     return progress < sim.world.planner_config.stuck.min_progress
+
+
+def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
+    """Whether the obstacles' push (static and moving, at their poses now) along agent
+    ``i``'s pull towards its goal takes more than half of the pull."""
+    w = sim.world
+    if not w.obstacles:
+        return False
+    apf = w.planner_config.apf
+    s = sim.state
+    pos, goal = s.position[i], s.goal[i]
+    to_goal = float(np.linalg.norm(goal - pos))
+    pull = apf.k_att * min(to_goal, apf.quadratic_radius)
+    d, g = sim.field.query(pos[None], poses_at(w.obstacles, s.t)[0])
+    rho = d[0] - float(sim.params.radius[i])
+    near = rho < apf.influence
+    if not near.any():
+        return False
+    gfac = min(1.0, to_goal / apf.influence) ** apf.goal_power
+    push = apf.k_rep * (1.0 / np.maximum(rho[near], 0.05) - 1.0 / apf.influence) * gfac
+    along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
+    return bool(pull + float(push @ along) < 0.5 * pull)

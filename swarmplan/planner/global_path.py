@@ -49,6 +49,7 @@ import numpy as np
 from swarmplan import optimizers
 from swarmplan.core import PlanningContext
 from swarmplan.geometry.polyline import Fillet, densify, fillet_path
+from swarmplan.planner.cores import static_leg_hit
 from swarmplan.planner.cost_models import PathContext, make_cost
 from swarmplan.planner.encodings import PlaneEncoding, SplineEncoding
 from swarmplan.planner.escape import model_turn_radius, static_clearance
@@ -126,7 +127,8 @@ def validate_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float
 
 def shortcut_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float) -> np.ndarray:
     """Greedy pruning of a valid path: from each kept vertex, jump to the farthest later one whose
-    straight leg FCL finds clear (radius + ``inflate``) and whose climb angle the agent can fly.
+    straight leg FCL finds clear (radius + ``inflate``), that enters no avoided threat core
+    (:mod:`swarmplan.planner.cores`) and whose climb angle the agent can fly.
 
     The metaheuristics' best paths at a planning budget often keep detours the cost barely
     penalizes (a zig-zag across free space); pruning them is the usual post-processing of
@@ -146,7 +148,7 @@ def shortcut_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float
             if climb > max_climb:
                 continue
             a, b = path[j], path[k]
-            if not (sim.collision.sweep_terrain(a, b, r) or sim.collision.sweep_static(a, b, r)):
+            if not static_leg_hit(sim, a, b, r):
                 nxt = k
                 break
         kept.append(nxt)
@@ -157,15 +159,16 @@ def shortcut_path(sim: PlanningContext, i: int, path: np.ndarray, inflate: float
 def fillet_route(sim: PlanningContext, i: int, path: np.ndarray, inflate: float) -> Fillet:
     """``path`` with its corners turned into arcs of the agent's turn radius (paper 004 §6:
     ρ = v²/a at cruise for a multirotor, eq 34; the minimum turn radius for a fixed wing).
-    An arc that FCL finds touching something (the same sweep as :func:`validate_path`) keeps
-    its corner, as does one that does not fit between the neighbouring corners."""
+    An arc that FCL finds touching something (the same sweep as :func:`validate_path`) or that
+    enters an avoided threat core keeps its corner, as does one that does not fit between the
+    neighbouring corners."""
     r = float(sim.params.radius[i]) + inflate
 
     def hits(arc: np.ndarray) -> bool:
         for a, b in zip(arc[:-1], arc[1:], strict=True):
             if sim.collision.sweep_bounds(b):
                 return True
-            if sim.collision.sweep_terrain(a, b, r) or sim.collision.sweep_static(a, b, r):
+            if static_leg_hit(sim, a, b, r):
                 return True
         return False
 

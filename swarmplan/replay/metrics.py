@@ -6,11 +6,12 @@ of the recorded ``/summary``.
 
 Conventions
 -----------
-* An agent is *active* from the first step up to and including its arrival step (all
-  steps if it never arrives). Path length, clearance, curvature and collisions only use
-  active steps; agent-agent clearance only uses steps where both agents are active.
+* An agent is measured at every recorded step, whatever its mode: an arrived one hovers at
+  its goal (and may leave it to get out of a mover's way), a failed or collided one stays where
+  it stopped. Path length, clearance, curvature and collisions use every step; a contact
+  with an arrived agent is a collision as any other.
 * Arrival: first step whose mode is ``arrived`` or whose position is within
-  ``sim.goal_tolerance`` of the goal.
+  ``sim.goal_tolerance`` of the goal (``arrived``: the agent reached its goal).
 * Clearance to an obstacle: analytic signed distance to its surface (sphere, box,
   cylinder, capsule, with rotation and the recorded pose of moving obstacles; meshes by
   trimesh proximity on the inlined vertices/faces) minus the agent radius. To another
@@ -123,9 +124,8 @@ def active_end(rec: Recording) -> tuple[np.ndarray, np.ndarray]:
 
 
 def active_mask(rec: Recording) -> np.ndarray:
-    _, end = active_end(rec)
-    k = np.arange(rec.n_steps)
-    return (k[None, :] <= end[:, None]) & np.isfinite(rec.positions[:, :, 0])
+    """The steps at which each agent is measured (A, T): every recorded one."""
+    return np.isfinite(rec.positions[:, :, 0])
 
 
 def path_length(points: np.ndarray) -> float:
@@ -246,14 +246,14 @@ def obstacle_distances(rec: Recording, mesh_cache: dict | None = None) -> dict[s
 
 def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[AgentMetrics]:
     A, T = rec.n_agents, rec.n_steps
-    arrival, end = active_end(rec)
+    arrival, _end = active_end(rec)
     active = active_mask(rec)
     radii = rec.radii
     obst_d = obstacle_distances(rec)
 
-    # agent-agent distances minus radii while agent i flies, to every other agent: one that has
+    # agent-agent distances minus radii at every step, to every other agent: one that has
     # arrived (or stopped) still hovers where it is, as in the simulation's own metrics
-    # (Simulation.step: Scene.agent_clearance over all agents, contacts if either one flies)
+    # (Simulation.step: Scene.agent_clearance over all agents)
     agent_clear = np.full((A, T), np.inf)
     agent_closest = np.full((A, T), -1, int)
     contacts: dict[int, dict[str, np.ndarray]] = {i: {} for i in range(A)}

@@ -72,12 +72,14 @@ def collide(s: SwarmState, ids: tuple[str, ...], i: int, other: str, t1: float) 
 def parked_contacts(
     s: SwarmState, ids: tuple[str, ...], clearance: np.ndarray, nearest: list[str], t1: float
 ) -> Tally:
-    """Failed agents (they stay where they gave up, in the air) touched by an obstacle at the
-    committed step: ``clearance`` (N,) is every agent's obstacle clearance at its position,
-    ``nearest`` the id of the obstacle nearest each agent. Such a contact is a collision, as the
-    replay's audit counts it (a penetration deeper than 1 mm at a recorded step)."""
+    """Agents that no longer fly, failed ones (they stay where they gave up, in the air) and
+    arrived ones (they hover at their goals), touched by an obstacle at the committed step:
+    ``clearance`` (N,) is every agent's obstacle clearance at its position, ``nearest`` the id of
+    the obstacle nearest each agent. Such a contact is a collision, as the replay's audit counts
+    it (a penetration deeper than 1 mm at a recorded step)."""
     out = NOTHING
-    for i in np.flatnonzero((s.mode == Mode.FAILED) & (clearance < -CONTACT_TOL)).tolist():
+    parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
+    for i in np.flatnonzero(parked & (clearance < -CONTACT_TOL)).tolist():
         out += collide(s, ids, i, nearest[i], t1)
     return out
 

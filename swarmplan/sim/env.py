@@ -11,7 +11,8 @@ arrived, collided or failed; ``truncated`` means the world's ``sim.max_time`` ra
 This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.scene`
 (obstacles, distances), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection),
 :mod:`~swarmplan.sim.safety` (safety filter, deconfliction, fixed-wing guard),
-:mod:`~swarmplan.sim.contacts` (collisions, crash point, arrival, near misses).
+:mod:`~swarmplan.sim.contacts` (collisions, crash point, arrival, near misses),
+:mod:`~swarmplan.sim.guard` (arrived multirotors out of a mover's way and back).
 """
 
 from __future__ import annotations
@@ -35,17 +36,22 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
+from swarmplan.flight.guide import make_guide, next_rest
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point, parked_contacts
+from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.navigation import Navigator, distance_to_go
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
+
+FAR_GOAL = np.array([1e9, 0.0, 0.0])
+"""Offset of the goal row an evading agent's braking margin sees: its goal's cap never binds."""
 
 
 class Simulation:
@@ -73,6 +79,9 @@ class Simulation:
         self.params = AgentParams.from_world(world)
         self.apf = ApfField(world, self.params)
         self.scene = Scene(world, self.params)
+        # The way round static obstacles for agents whose straight line is blocked (None without any).
+        self.guide = make_guide(world, self.params)
+        self._guide_at = 0.0  # the time the guide's bodies are at rest for good from
         self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
@@ -81,7 +90,9 @@ class Simulation:
         self.n = len(world.agents)
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.scene)
-        self.navigator = Navigator(world, self.params)
+        self.navigator = Navigator(world, self.params, self.guide)
+        self.guard = GoalGuard(self.params, world.dt)
+        self._mover_ids = tuple(o.id for o in world.obstacles if o.moving)
         self.state: SwarmState | None = None
         self.seed: int | None = None
         self._streams: dict[tuple[str, int | None], np.random.Generator] = {}
@@ -120,7 +131,14 @@ class Simulation:
         )
         self.metrics = RunMetrics(self.ids, len(self.world.obstacles))
         self.metrics.positions.append(start.copy())
+        self._measure_start(start)
+        if self._guide_at > 0.0:  # a mover parked in the last run: back to the bodies at rest at 0
+            self.guide, self._guide_at = make_guide(self.world, self.params), 0.0
+            self.navigator.guide = self.guide
+        if self.guide is not None:
+            self.guide.reset(start, goal)
         self.navigator.reset(self.state)
+        self.guard.reset()
         self.near_misses = NearMisses(self.params)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.wall_start = time.perf_counter()
@@ -137,6 +155,17 @@ class Simulation:
             self.navigator.reset(self.state)
         agents, obstacles = self._agent_states(), self._obstacle_states(0.0)
         return ResetResult(self.state, world_message, records, agents, obstacles)
+
+    def _measure_start(self, start: np.ndarray) -> None:
+        """The clearances at the start count too (a log's replay measures every sample from
+        t = 0: an agent that starts nearer to something than it ever flies was reported farther)."""
+        m, r = self.metrics, self.params.radius
+        if len(self.world.obstacles):
+            q0 = self.scene.poses(0.0)[0]
+            m.min_clearance = np.minimum(m.min_clearance, self.field.min_distance(start, q0) - r)
+        m.min_agent_clearance = np.minimum(m.min_agent_clearance, self.scene.agent_clearance(start))
+        terrain = start[:, 2] - self.world.terrain_height(start[:, :2]) - r
+        m.min_terrain_clearance = np.minimum(m.min_terrain_clearance, terrain)
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
         """The random stream of one purpose (e.g. 'escape') for one agent, seeded from the run's
@@ -216,16 +245,20 @@ class Simulation:
         q0, qv0 = self.scene.poses(t0)
         q1, _ = self.scene.poses(t1)
         mv = self.moving_mask
+        # Arrived multirotors under threat take off again (mode apf) to get out of its way.
+        flying_before = s.mode != Mode.ARRIVED
+        if self.guard.guarding.any():
+            self._merge(self._guard_goals(s, q0, qv0))
         active = s.active
         idx = np.flatnonzero(active)
-        # Failed and collided agents are still measured where they stay (the audit measures every
-        # agent up to its arrival): a mover may pass them.
-        measured = s.mode != Mode.ARRIVED
+        # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
+        # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
+        measured = np.ones(self.n, dtype=bool)
 
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
         if self.planner is not None and len(idx):
             for i, seg in self.planner.on_step(self).items():
-                if s.mode[i] == Mode.APF:
+                if s.mode[i] == Mode.APF and not self.guard.guarding[i]:
                     self._merge(nav.start_segment(s, i, seg))
 
         pos0 = s.position.copy()
@@ -243,6 +276,12 @@ class Simulation:
                 inputs = with_cores(inputs, pos0[idx], self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
+            if next_rest(w, self._guide_at) <= t0:  # a mover parked for good: go round it too
+                self._guide_at = t0
+                self.guide = make_guide(w, self.params, t0)
+                self.navigator.guide = self.guide
+            if self.guide is not None:
+                target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
             flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
             to_go = np.linalg.norm(s.goal - pos0, axis=1)
@@ -252,9 +291,13 @@ class Simulation:
                 cores, radius = self._threat_cores, self.params.radius[idx]
                 clearance, normal = nearest_with_cores(clearance, normal, pos0[idx], radius, cores)
             v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
+            v_cmd = self.guard.commands(idx, v_cmd)
             v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             self._merge(guarded)
-            v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, s.goal[idx])
+            # An evading agent is not slowed by its goal: its row names a point so far off that
+            # the goal's speed cap never binds.
+            brake_goal = np.where(self.guard.evading[idx, None], pos0[idx] + FAR_GOAL, s.goal[idx])
+            v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
                 Commands(idx, v_cmd),
@@ -280,31 +323,35 @@ class Simulation:
                         vel1[i] = 0.0
         for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
-                if s.mode[a] not in (Mode.ARRIVED, Mode.COLLIDED):
+                if s.mode[a] != Mode.COLLIDED:  # an arrived agent touched is a collision too
                     self._merge(collide(s, self.ids, a, self.ids[b], t1))
 
         # Arrival (and its stop) only at a speed a one-step stop can take within max_accel.
+        # Agents out of a threat's way cannot arrive; one back at its goal ends its evasion.
         stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * dt)
-        self._merge(arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed))
+        stop_speed = self.guard.stop_speeds(stop_speed)
+        arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed)
+        self._merge(self.guard.arrived(arrived, s))
 
         # Clearances at the committed positions (also the next step's distances).
         self._field_cache = self.field.query(pos1, q1)
         if len(self.world.obstacles):
             # Exact for meshes too (the grid in the cache is approximate, a lower bound beyond it).
             obst_clear = self.field.min_distance(pos1, q1, self._field_cache[0]) - self.params.radius
-            failed = s.mode == Mode.FAILED
-            if failed.any():
-                # A failed agent stays in the air: an obstacle moving through it is a collision.
+            parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
+            if parked.any():
+                # Arrived and failed agents stay in the air: an obstacle moving through one is a collision.
                 ids = [o.id for o in self.world.obstacles]
                 nearest = [ids[int(k)] for k in np.argmin(self._field_cache[0], axis=1)]
                 self._merge(parked_contacts(s, self.ids, obst_clear, nearest, t1))
         agent_clear = self.scene.agent_clearance(pos1)
         terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
-        self.metrics.add_step(pos0, pos1, measured, obst_clear, agent_clear, terr_clear)
+        self.metrics.add_step(pos0, pos1, measured, obst_clear, agent_clear, terr_clear, flying_before)
         self._merge(self.near_misses.update(pos1, active, t1))
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
-        self._merge(nav.detect_stuck(s, None if self.planner is None else self._ask_planner))
+        on_stuck = None if self.planner is None else self._ask_planner
+        self._merge(nav.detect_stuck(s, on_stuck, exempt=self.guard.guarding))
 
         terminated = not s.active.any()
         truncated = (not terminated) and t1 >= w.max_time - 1e-9
@@ -316,6 +363,23 @@ class Simulation:
         runs, self._optimizer_runs = self._optimizer_runs, []
         agents, obstacles = self._agent_states(), self._obstacle_states(t1)
         return StepResult(s, events, terminated, truncated, agents, obstacles, runs)
+
+    def _guard_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
+        """The goal guard's threat test at the step's start (``swarmplan.sim.guard``); an agent
+        that takes off flies straight back to its goal afterwards (the rest of its route is done)."""
+        if self._field_cache is None:
+            self._field_cache = self.field.query(s.position, q0)
+        cache, mv = self._field_cache, self.moving_mask
+        movers = (q0[mv], qv0[mv], self.scene.bounding_radius[mv], self._mover_ids)
+
+        def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return self.scene.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])
+
+        tally = self.guard.update(s, movers, surface)
+        for _, i in tally.counts:  # the take-offs
+            if s.route[i] is not None:
+                s.route_index[i] = len(s.route[i])
+        return tally
 
     # ------------------------------------------------------------------ reports
 

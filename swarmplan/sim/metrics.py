@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from swarmplan.core import Event, Mode, SwarmState
+from swarmplan.core import Event, SwarmState
 from swarmplan.geometry.polyline import curvature_with_cusps, curvatures_with_cusps
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.threats import exposure
@@ -38,6 +38,7 @@ COUNTERS = (
     "emergency_stops",
     "hard_stops",
     "guard_steps",
+    "evasions",
 )
 """The per-agent event counters of :class:`RunMetrics` a :class:`Tally` may add to."""
 
@@ -90,6 +91,7 @@ class RunMetrics:
         self.emergency_stops = np.zeros(n, dtype=int)
         self.hard_stops = np.zeros(n, dtype=int)  # stops within one step beyond max_accel (sim/safety.py)
         self.guard_steps = np.zeros(n, dtype=int)  # fixed-wing steps flown by the turn-ahead guard
+        self.evasions = np.zeros(n, dtype=int)  # take-offs from a reached goal out of a threat's way
         self.positions: list[np.ndarray] = []  # per step (N, 3), for curvature
         self.flying: list[np.ndarray] = []  # per step (N,): who flew it (threat exposure)
 
@@ -101,7 +103,11 @@ class RunMetrics:
         obstacle_clearance: np.ndarray,
         agent_clearance: np.ndarray,
         terrain_clearance: np.ndarray,
+        flying: np.ndarray | None = None,
     ) -> None:
+        """One step of every agent from ``pos0`` to ``pos1``: path length and clearances of the
+        ``active`` (measured) agents; ``flying`` (default ``active``) marks those that flew it
+        (not yet arrived), for the threat exposure."""
         self.path_length += np.where(active, norm3(pos1 - pos0), 0.0)
         self.min_clearance = np.where(
             active, np.minimum(self.min_clearance, obstacle_clearance), self.min_clearance
@@ -113,7 +119,7 @@ class RunMetrics:
             active, np.minimum(self.min_terrain_clearance, terrain_clearance), self.min_terrain_clearance
         )
         self.positions.append(pos1.copy())
-        self.flying.append(active.copy())
+        self.flying.append((active if flying is None else flying).copy())
 
     def merge(self, tally: Tally) -> None:
         """Add what one part of a step counted (its events go to the step, not here)."""
@@ -207,7 +213,7 @@ def summary_report(
         agents.append(
             {
                 "id": aid,
-                "arrived": bool(s.mode[i] == Mode.ARRIVED),
+                "arrived": not math.isnan(m.arrival_time[i]),
                 "final_mode": str(s.mode[i]),
                 "arrival_time": None if math.isnan(m.arrival_time[i]) else round(float(m.arrival_time[i]), 9),
                 "path_length": round(float(m.path_length[i]), 6),
@@ -235,6 +241,7 @@ def summary_report(
                 "emergency_stops": int(m.emergency_stops[i]),
                 "hard_stops": int(m.hard_stops[i]),
                 "guard_steps": int(m.guard_steps[i]),
+                "evasions": int(m.evasions[i]),
             }
         )
     if m.flying:  # threat exposure, in worlds with threats (sim/threats.py)

@@ -19,6 +19,7 @@ from swarmplan.core import (
     StuckOutcome,
     SwarmState,
 )
+from swarmplan.flight.guide import StaticGuide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.world.model import World
@@ -27,9 +28,10 @@ from swarmplan.world.model import World
 class Navigator:
     """Per-agent progress bookkeeping over a run (reset with :meth:`reset`)."""
 
-    def __init__(self, world: World, params: AgentParams):
+    def __init__(self, world: World, params: AgentParams, guide: StaticGuide | None = None):
         self.world = world
         self.params = params
+        self.guide = guide
         n = len(params.ids)
         self.progress_ref = np.zeros(n)
         self.progress_t = np.zeros(n)
@@ -37,9 +39,26 @@ class Navigator:
 
     def reset(self, s: SwarmState) -> None:
         """Progress is measured from here on (call again once global routes are known)."""
-        self.progress_ref = distance_to_go(s)
+        self.progress_ref = self.to_go(s)
         self.progress_t = np.zeros(len(self.params.ids))
         self.segment_ref = {}
+
+    def to_go(self, s: SwarmState, rows: np.ndarray | None = None) -> np.ndarray:
+        """:func:`distance_to_go` (of ``rows``, default all), along the guide's way round static
+        obstacles for the agents it guides (flying along a wall to its gap is progress, though
+        the goal gets no nearer)."""
+        rows = np.arange(len(s.route)) if rows is None else np.asarray(rows)
+        dg = distance_to_go(s, rows)
+        if self.guide is not None:
+            led = [
+                k
+                for k, i in enumerate(rows.tolist())
+                if self.guide.guided[i] and s.active[i] and s.route[i] is None
+            ]
+            if led:
+                i = rows[led]
+                dg[led] = self.guide.way_length(s.position[i], s.goal[i])
+        return dg
 
     def attraction_targets(self, s: SwarmState, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, Tally]:
         """Point each agent is attracted to (segment waypoint, route waypoint or goal), the scale
@@ -117,6 +136,7 @@ class Navigator:
         self,
         s: SwarmState,
         on_stuck: Callable[[int], tuple[StuckOutcome, Sequence[Event]]] | None,
+        exempt: np.ndarray | None = None,
     ) -> Tally:
         """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
 
@@ -131,11 +151,14 @@ class Navigator:
         min_progress = self.world.planner_config.stuck.min_progress
         # Only agents following a segment or whose window has run out need work this step.
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
-        rows = np.flatnonzero(s.active & (~apf | (s.t - self.progress_t >= window - 1e-9)))
+        due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
+        if exempt is not None:
+            due &= ~exempt
+        rows = np.flatnonzero(due)
         if not len(rows):
             return out
         dg = np.empty(len(s.mode))
-        dg[rows] = distance_to_go(s, rows)
+        dg[rows] = self.to_go(s, rows)
         for i in rows.tolist():
             if s.mode[i] != Mode.APF:
                 self.progress_ref[i], self.progress_t[i] = dg[i], s.t

@@ -17,17 +17,17 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from swarmplan.flight.apf import FieldInputs
+from swarmplan.planner.cores import avoided_cores
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
 
 
 def threat_cores(world: World) -> tuple[np.ndarray, np.ndarray] | None:
-    """(centres (K, 3), radii (K,)) of the cores local flight keeps out of, or None."""
-    cores = [t for t in world.threats if t.avoid and t.r_min > 0]
-    if not cores:
-        return None
-    return np.array([t.position for t in cores], float), np.array([t.r_min for t in cores], float)
+    """(centres (K, 3), radii (K,)) of the cores local flight keeps out of, or None (the
+    planners' pruning keeps out of the same ones: :func:`swarmplan.planner.cores.avoided_cores`)."""
+    cores = avoided_cores(world)
+    return None if cores is None else (cores[0], cores[1])
 
 
 def with_cores(inputs: FieldInputs, pos: np.ndarray, cores: tuple[np.ndarray, np.ndarray]) -> FieldInputs:

@@ -1,8 +1,11 @@
 """Moving obstacles that force the planner to escape: the shipped worlds
 ``worlds/scenarios/parked_mover_corridor.yaml`` (a mover parks across the far mouth of the
 corridor the agent is in) and ``closing_gap.yaml`` (two movers close the only gap of a wall
-in front of two agents). Pure APF stays trapped in both; the planner must detect the stuck
-agents and escape. Every run is audited from its log (replay, plus check_log where found).
+in front of two agents). On the bare potential field (without its guide round obstacles at
+rest) pure APF stays trapped in both; the planner must detect the stuck agents and escape.
+Both movers park for good, and the guide (the default) then goes round them as round static
+bodies: every agent arrives, with or without the planner. Every run is audited from its log
+(replay, plus check_log where found).
 
 These worlds found that escape planning ignored parked movers: it placed its sub-goal past
 *static* blockers only, so the sub-goal landed just behind the mover (closing_gap seed 2:
@@ -19,7 +22,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from helpers import audit, describe_failure, events_of, make_world
+from helpers import audit, describe_failure, events_of, make_world, without_guide
 
 from swarmplan.io.runner import simulate
 
@@ -36,18 +39,23 @@ def _raw(name: str) -> dict:
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """Each world run once with its own seed and optimizer: name -> (summary, log)."""
+    """Each world run once with its own seed and optimizer, on the bare field unless ``guide``:
+    (name, optimizer, guide) -> (summary, log)."""
     cache: dict[str, tuple[dict, Path]] = {}
 
-    def get(name: str, optimizer: str | None = None) -> tuple[dict, Path]:
-        key = f"{name}-{optimizer or 'default'}"
+    def get(name: str, optimizer: str | None = None, guide: bool = False) -> tuple[dict, Path]:
+        key = f"{name}-{optimizer or 'default'}-{'guided' if guide else 'bare'}"
         if key not in cache:
             raw = _raw(name)
             if optimizer is not None:
                 raw["planner"]["optimizer"]["name"] = optimizer
             world = make_world(raw)
             log = tmp_path_factory.mktemp(key) / "run.mcap"
-            cache[key] = (simulate(world, world.seed, log), log)
+            if guide:
+                cache[key] = (simulate(world, world.seed, log), log)
+            else:
+                with without_guide():
+                    cache[key] = (simulate(world, world.seed, log), log)
         return cache[key]
 
     return get
@@ -90,6 +98,17 @@ def test_the_planner_escapes_and_every_agent_arrives(name, runs):
     assert stats["arrived"] == stats["agents"] == len(_raw(name)["agents"]) and summary["success"], why
 
 
+@pytest.mark.parametrize("optimizer", [None, "none"])
+@pytest.mark.parametrize("name", NAMES)
+def test_the_guide_goes_round_the_parked_movers(name, optimizer, runs):
+    """With the guide (the default) every agent arrives, the default planner and pure APF alike."""
+    summary, log = runs(name, optimizer, guide=True)
+    why = describe_failure(summary, log)
+    problems, _notes, stats = audit(log)
+    assert problems == [], f"{problems}\n{why}"
+    assert stats["arrived"] == stats["agents"] and stats["collisions"] == 0 and summary["success"], why
+
+
 def test_the_corridor_with_a_static_plug_is_solved_by_one_escape(tmp_path):
     """Control: the same pocket with the plug static from the start."""
     raw = _raw("parked_mover_corridor")
@@ -98,7 +117,8 @@ def test_the_corridor_with_a_static_plug_is_solved_by_one_escape(tmp_path):
     del plug["motion"]
     world = make_world(raw)
     log = tmp_path / "static.mcap"
-    summary = simulate(world, world.seed, log)
+    with without_guide():
+        summary = simulate(world, world.seed, log)
     why = describe_failure(summary, log)
     problems, _notes, stats = audit(log)
     assert problems == [], f"{problems}\n{why}"

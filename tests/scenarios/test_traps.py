@@ -1,10 +1,13 @@
-"""Trap worlds (``worlds/traps``): pure APF gets trapped (but in the ones the field now solves
-by itself); the refinement planner escapes.
+"""Trap worlds (``worlds/traps``): local minima of the bare potential field, which the
+refinement planner escapes; with its guide round static obstacles (the default,
+``swarmplan.flight.guide``) the field gets out of every one by itself.
 
 Each world is run through the real ``simulate`` path and the log is audited independently
-with ``check_log.py``. The default suite runs each trap with ``none`` (must fail) and with
-two optimizers over two seeds (every agent arrives, zero collisions, log audit clean);
-the slow suite runs every registered optimizer over ten seeds.
+with ``check_log.py``. The default suite runs each trap with ``none`` on the bare field
+(must fail), with ``none`` guided (every agent arrives, no escape), and with two optimizers
+over two seeds on the bare field (every agent arrives after at least one escape, zero
+collisions, log audit clean) and guided (every agent arrives); the slow suite runs every
+registered optimizer over ten seeds on the bare field.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from helpers import audit
+from helpers import audit, without_guide
 
 from swarmplan import optimizers
 from swarmplan.io.runner import apply_overrides, simulate
@@ -28,11 +31,15 @@ SOLVED_BY_FIELD = {"narrow_gap_swap"}
 TRAPPING = [w for w in WORLDS if w not in SOLVED_BY_FIELD]
 
 
-def run_trap(name: str, optimizer: str, seed: int, tmp_path: Path) -> tuple[dict, Path]:
+def run_trap(name: str, optimizer: str, seed: int, tmp_path: Path, guide: bool = False) -> tuple[dict, Path]:
+    """One run of a trap, on the bare field (the trap) unless ``guide``."""
     world = load_world(TRAPS / f"{name}.yaml", optimizers.available())
     world = apply_overrides(world, optimizer, None)
-    log = tmp_path / f"{name}-{optimizer}-{seed}.mcap"
-    return simulate(world, seed, log), log
+    log = tmp_path / f"{name}-{optimizer}-{seed}-{'guided' if guide else 'bare'}.mcap"
+    if guide:
+        return simulate(world, seed, log), log
+    with without_guide():
+        return simulate(world, seed, log), log
 
 
 def test_there_are_four_traps():
@@ -42,6 +49,25 @@ def test_there_are_four_traps():
 @pytest.mark.parametrize("name", sorted(SOLVED_BY_FIELD))
 def test_pure_apf_gets_out_by_itself(name, tmp_path):
     summary, log = run_trap(name, "none", 0, tmp_path)
+    assert summary["success"] and summary["collisions"] == 0
+    problems, _, _ = audit(log)
+    assert problems == []
+
+
+@pytest.mark.parametrize("name", WORLDS)
+def test_the_guided_field_gets_out_of_every_trap_by_itself(name, tmp_path):
+    """Pure APF with the guide round static obstacles: every agent arrives, no escape exists."""
+    summary, log = run_trap(name, "none", 0, tmp_path, guide=True)
+    assert summary["success"] and summary["collisions"] == 0
+    problems, _, _ = audit(log)
+    assert problems == []
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("name", WORLDS)
+def test_guided_refinement_arrives(name, seed, tmp_path):
+    """The default planner with the guide: every agent arrives (escapes are not needed)."""
+    summary, log = run_trap(name, "pso", seed, tmp_path, guide=True)
     assert summary["success"] and summary["collisions"] == 0
     problems, _, _ = audit(log)
     assert problems == []

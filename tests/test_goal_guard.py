@@ -1,0 +1,133 @@
+"""An agent that has arrived keeps itself safe: a multirotor hovering at its goal gets out of
+the way of a mover whose path crosses its goal and comes back, and a contact with an arrived
+agent is a collision for the simulator's ``/summary`` exactly as for the replay's audit."""
+
+from __future__ import annotations
+
+import numpy as np
+from helpers import audit, base_world, check_log_module, events_of, make_world, replay_audit, run_to_end
+
+GOAL = np.array([30.0, 50.0, 20.0])
+
+
+def _world(mover: dict, model: str = "multirotor"):
+    """Agent 'a' hops 10 m to GOAL (arrives after about 3 s); agent 'b' flies 80 m far away, so
+    the run goes on while ``mover`` comes through."""
+    a = {"id": "a", "start": [20, 50, 20], "goal": GOAL.tolist()}
+    if model == "fixed_wing":
+        a.update(
+            model="fixed_wing",
+            start=[0, 50, 20],
+            speed={"min": 4, "max": 12, "cruise": 8},
+            min_turn_radius=10,
+            max_climb_angle=20,
+        )
+    raw = base_world(
+        sim={"dt": 0.1, "max_time": 40, "goal_tolerance": 1.0},
+        obstacles=[{"id": "truck", "shape": "sphere", "radius": 2.0, **mover}],
+        agents=[
+            a,
+            {"id": "b", "start": [10, 90, 20], "goal": [90, 90, 20], "speed": {"max": 3, "cruise": 3}},
+        ],
+    )
+    return make_world(raw)
+
+
+def _crossing(speed: float, at: float) -> dict:
+    """A mover on the line x = 30 heading +y that crosses the goal at time ``at``."""
+    return {
+        "position": [30.0, 50.0 - speed * at, 20.0],
+        "motion": {"type": "linear", "velocity": [0.0, speed, 0.0]},
+    }
+
+
+def test_an_arrived_agent_dodges_a_mover_through_its_goal_and_comes_back(tmp_path):
+    for speed in (3.0, 30.0):  # a slow truck and one that covers the horizon in 0.1 s steps
+        log = tmp_path / f"dodge-{speed}.mcap"
+        _, summary, pos = run_to_end(_world(_crossing(speed, at=8.0)), log_path=log)
+        a = summary["agents"][0]
+        assert a["arrived"] and a["final_mode"] == "arrived", a
+        assert a["collisions"] == 0 and summary["collisions"] == 0, summary
+        assert a["evasions"] == 1, a
+        # It was at its goal before the truck came, left it, and is back within tolerance.
+        (arrived,) = events_of(log, "arrived")[:1]
+        (start,) = events_of(log, "evade_start")
+        (end,) = events_of(log, "evade_end")
+        assert arrived["agent"] == start["agent"] == end["agent"] == "a"
+        assert arrived["t"] < start["t"] < 8.0 < end["t"], (arrived, start, end)
+        assert start["detail"]["threat"] == "truck"
+        assert a["arrival_time"] == arrived["t"]  # the first arrival stays the arrival
+        track = np.array(pos)[int(round(arrived["t"] / 0.1)) :, 0]
+        away = np.linalg.norm(track - GOAL, axis=1)
+        assert away.max() > 2.0  # it did move out of the way (the truck is 2 m + its 1 m body)
+        assert away.max() < 6.0  # and no farther than the dodge needs (4 m from the truck's axis)
+        assert away[-1] <= 1.0 + 1e-9
+        # Its clearance to the truck: the dodge keeps GUARD_MARGIN (0.5 m) and more.
+        assert a["min_obstacle_clearance"] > 0.5, a
+        problems, _notes, stats = audit(log)
+        assert not problems, problems
+        assert stats["collisions"] == 0
+
+
+def test_without_a_mover_an_arrived_agent_stays_put(tmp_path):
+    far = {"position": [80.0, 10.0, 20.0], "motion": {"type": "linear", "velocity": [0.0, 0.5, 0.0]}}
+    log = tmp_path / "calm.mcap"
+    _, summary, pos = run_to_end(_world(far), log_path=log)
+    a = summary["agents"][0]
+    assert a["evasions"] == 0 and not events_of(log, "evade_start")
+    track = np.array(pos)[:, 0]
+    k = int(round(a["arrival_time"] / 0.1))
+    assert np.ptp(track[k:], axis=0).max() == 0.0  # hovering, not drifting
+
+
+def test_a_contact_after_arrival_is_a_collision_for_summary_and_replay(tmp_path):
+    # The truck runs north along x = 60, 30 m beside the goal (no threat on that line), then
+    # turns west at 30 m/s straight through it: under 1 s to reach the agent, which needs
+    # about 1.9 s to get 3.5 m out of the way from rest.
+    sudden = {
+        "position": [60.0, -200.0, 20.0],
+        "motion": {
+            "type": "waypoints",
+            "waypoints": [[60, -200, 20], [60, 50, 20], [0, 50, 20]],
+            "speed": 30.0,
+        },
+    }
+    log = tmp_path / "sudden.mcap"
+    _, summary, _ = run_to_end(_world(sudden), log_path=log)
+    a = summary["agents"][0]
+    assert a["arrived"] and a["final_mode"] == "collided", a
+    assert a["collisions"] == 1 and a["collided_with"] == ["truck"], a
+    assert summary["collisions"] == 1 and not summary["success"]
+    (hit,) = events_of(log, "collision")
+    assert hit["agent"] == "a" and hit["t"] > a["arrival_time"]
+    problems, _notes, stats = replay_audit(log, allow_failure=True)
+    assert stats["collisions"] == 1, stats
+    assert not [p for p in problems if "vs recorded" in p], problems
+    # It had taken off (mode apf) when struck: the independent checker audits such steps too.
+    mod = check_log_module(required=False)
+    if mod is not None:
+        c_problems, _, c_stats = mod.check(str(log), True)
+        assert c_stats["collisions"] == 1, c_problems
+
+
+def test_a_mover_through_an_arrived_fixed_wing_is_a_collision(tmp_path):
+    # A fixed wing cannot hover: at its goal its flight ends and it does not dodge, but what
+    # comes through it there is a collision as for any agent.
+    log = tmp_path / "fw.mcap"
+    _, summary, _ = run_to_end(_world(_crossing(3.0, at=12.0), model="fixed_wing"), log_path=log)
+    a = summary["agents"][0]
+    assert a["arrived"] and a["arrival_time"] < 10.0, a
+    assert a["evasions"] == 0 and a["final_mode"] == "collided", a
+    assert a["collisions"] == 1 and a["collided_with"] == ["truck"], a
+    problems, _notes, stats = replay_audit(log, allow_failure=True)
+    assert stats["collisions"] == 1, stats
+    assert not [p for p in problems if "vs recorded" in p], problems
+
+
+def test_the_dodge_is_deterministic(tmp_path):
+    logs = []
+    for k in range(2):
+        log = tmp_path / f"d{k}.mcap"
+        run_to_end(_world(_crossing(3.0, at=8.0)), seed=3, log_path=log)
+        logs.append([(e["t"], e["kind"], e["detail"]) for e in events_of(log)])
+    assert logs[0] == logs[1]

@@ -1,0 +1,134 @@
+"""The guide round static obstacles (swarmplan.flight.guide): exact answers on simple geometry
+(a wall with one gap, an open field), its lanes, movers that park for good, and the swarm
+scenarios it exists for (every agent of a doorway swap and of the sphere with pillars home,
+the default planner and pure APF alike)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import base_world, make_world
+from test_swarm_scenarios import _assert_home
+
+from swarmplan.flight import guide as G
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.sim import Simulation
+
+# A wall across the field at x = 50 (1 m thick, taller than the bounds) with one gap 6 m wide
+# at y = 47..53; the agent starts west of it, its goal straight east behind the wall.
+WALL = [
+    {"id": "south", "shape": "box", "size": [1, 47, 60], "position": [50, 23.5, 25]},
+    {"id": "north", "shape": "box", "size": [1, 47, 60], "position": [50, 76.5, 25]},
+]
+
+
+def wall_world(start=(30.0, 20.0, 20.0), goal=(70.0, 20.0, 20.0), agents=None, **top):
+    agents = agents or [{"id": "a", "start": list(start), "goal": list(goal)}]
+    return make_world(base_world(obstacles=WALL, agents=agents, **top))
+
+
+def test_no_static_obstacle_no_guide():
+    world = make_world(base_world())
+    assert G.make_guide(world, AgentParams.from_world(world)) is None
+    assert Simulation(world).guide is None
+
+
+def test_a_line_through_the_wall_is_blocked_and_through_the_gap_or_open_field_not():
+    world = wall_world()
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    start = np.array([[30.0, 20.0, 20.0], [30.0, 50.0, 20.0], [10.0, 20.0, 20.0], [30.0, 46.0, 20.0]])
+    end = np.array([[70.0, 20.0, 20.0], [70.0, 50.0, 20.0], [40.0, 20.0, 20.0], [70.0, 46.0, 20.0]])
+    # through the wall; through the gap's middle (3 m from each edge, 2 m clearance); short of
+    # the wall; through the gap 1 m from its edge (0 m clearance beyond the radius: a squeeze)
+    assert guide.blocked(start, end).tolist() == [True, False, False, True]
+
+
+def test_behind_the_wall_the_way_leads_to_the_gap_and_through_it():
+    world = wall_world()
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    pos = np.array([[40.0, 20.0, 20.0]])
+    goal = np.array([[70.0, 20.0, 20.0]])
+    target, scale = guide.targets(0, np.array([0]), pos, goal, goal.copy(), np.ones(1))
+    assert guide.guided[0] and scale[0] == G.REPULSION
+    d = target[0] - pos[0]
+    # towards the gap (north, up the y axis), not at the wall (east) beyond what the way allows
+    assert d[1] > abs(d[0]) and abs(d[2]) < 1e-6 + guide.cell[2]
+    # the way runs through the gap, about as long as the detour round the wall's edge (its
+    # cost at least that: legs near surfaces cost more than their length)
+    row = int(guide._rows_for(guide.cell_of(goal), pos)[0])
+    way = np.vstack([pos, guide.centres[guide._way(row, int(guide.cell_of(pos)[0]))[1:]]])
+    length = np.linalg.norm(np.diff(way, axis=0), axis=1).sum()
+    detour = np.hypot(10.0, 28.0) + np.hypot(20.0, 28.0)  # via the gap's edge at (50, 48)
+    assert detour - 1.0 < length < 1.15 * detour + 2.0 * guide.cell.max()
+    assert guide.way_length(pos, goal)[0] >= length - guide.cell.max()
+    crossing = way[np.argmin(np.abs(way[:, 0] - 50.0))]
+    assert 47.5 < crossing[1] < 52.5
+
+
+def test_an_agent_with_a_clear_line_flies_at_its_goal():
+    world = wall_world()
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    pos = np.array([[10.0, 20.0, 20.0]])
+    goal = np.array([[40.0, 20.0, 20.0]])
+    target, scale = guide.targets(0, np.array([0]), pos, goal, goal.copy(), np.ones(1))
+    assert not guide.guided[0]
+    np.testing.assert_array_equal(target, goal)
+    assert scale[0] == 1.0
+
+
+def test_opposing_ways_through_a_gap_take_separate_lanes():
+    """Two flows through the gap in opposite directions: their ways cross the wall apart."""
+    world = wall_world()
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    east = guide._rows_for(guide.cell_of(np.array([[70.0, 50.0, 20.0]])), np.array([[30.0, 50.0, 20.0]]))
+    west = guide._rows_for(guide.cell_of(np.array([[30.0, 50.0, 20.0]])), np.array([[70.0, 50.0, 20.0]]))
+
+    def crossing(row, start):
+        way = guide.centres[guide._way(int(row[0]), int(guide.cell_of(np.array([start]))[0]))]
+        return way[np.argmin(np.abs(way[:, 0] - 50.0))]
+
+    a, b = crossing(east, [30.0, 50.0, 20.0]), crossing(west, [70.0, 50.0, 20.0])
+    assert np.linalg.norm(a[1:] - b[1:]) >= min(guide.cell[1:]) - 1e-9
+
+
+def test_a_mover_parked_for_good_joins_the_bodies_at_rest():
+    plug = {
+        "id": "plug",
+        "shape": "box",
+        "size": [2, 8, 60],
+        "position": [50, 90, 25],
+        "motion": {"type": "waypoints", "waypoints": [[50, 50, 25]], "speed": 8, "loop": False},
+    }
+    world = make_world(base_world(obstacles=WALL + [plug]))
+    (mover,) = world.moving_obstacles
+    assert G.parks_at(mover) == pytest.approx(40.0 / 8.0)
+    assert [o.id for o in G.resting_bodies(world, 4.9)] == ["south", "north"]
+    rest = G.resting_bodies(world, 5.0)
+    assert [o.id for o in rest] == ["south", "north", "plug"] and rest[-1].motion is None
+    np.testing.assert_allclose(rest[-1].position, [50, 50, 25])
+    assert G.next_rest(world, 0.0) == pytest.approx(5.0) and G.next_rest(world, 5.0) == np.inf
+
+
+def test_pure_apf_goes_round_the_wall_through_the_gap():
+    """The agent behind the wall (a local minimum of the bare field) arrives, without contact."""
+    world = wall_world(start=(30.0, 20.0, 20.0), goal=(70.0, 20.0, 20.0))
+    sim = Simulation(world, planner="none")
+    sim.reset(seed=0)
+    while True:
+        r = sim.step()
+        if r.terminated or r.truncated:
+            break
+    s = sim.summary()
+    assert s["success"] and s["collisions"] == 0
+
+
+@pytest.mark.parametrize("planner", ["world", "none"])
+def test_doorway_swap_every_agent_home(planner):
+    _assert_home("doorway", 16, planner)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("planner", ["world", "none"])
+@pytest.mark.parametrize("name", ["doorway", "sphere_pillars"])
+def test_static_obstacle_scenarios_every_agent_home_at_64(name, planner):
+    _assert_home(name, 64, planner)
