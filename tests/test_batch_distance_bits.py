@@ -45,3 +45,19 @@ def test_distances_equal_the_reductions_bit_for_bit(seed):
         assert got.tobytes() == want.tobytes()
     # inside and outside both present
     assert (batch._dist_box(p, half) < 0).any() and (batch._dist_box(p, half) > 0).any()
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (37, 3), (2000, 8), (500, 17)])
+def test_rotated_points_equal_einsum_bit_for_bit(shape):
+    from scipy.spatial.transform import Rotation
+
+    n, m = shape
+    rng = np.random.default_rng(n + m)
+    rel = rng.normal(0, 10, (n, m, 3)) * rng.choice([1e-3, 1.0, 100.0], (n, m, 1))
+    rel[rng.random((n, m, 3)) < 0.03] = -0.0
+    rotation = Rotation.random(m, random_state=m).as_matrix()
+    rotation[0] = np.eye(3)
+    got = batch.rotate_rows(rel, rotation)
+    want = np.einsum("nmk,mkl->nml", rel, rotation)
+    assert got.shape == want.shape
+    assert got.tobytes() == want.tobytes()

@@ -67,6 +67,19 @@ def _dist_capsule(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) ->
     return np.sqrt(x * x + y * y + dz * dz) - radius
 
 
+def rotate_rows(rel: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """``np.einsum("nmk,mkl->nml", rel, rotation)``: each point ``rel[n, m]`` times the matrix
+    ``rotation[m]``, written per output coordinate (``(r0 R0l + r1 R1l) + r2 R2l``, the sum
+    einsum makes, in its order, from +0.0: the same bits, tests/test_batch_distance_bits.py) at
+    ~1/3 of einsum's time for a few obstacles and thousands of points."""
+    out = np.empty(rel.shape)
+    r0, r1, r2 = rel[..., 0], rel[..., 1], rel[..., 2]
+    for col in range(3):
+        out[..., col] = r0 * rotation[:, 0, col] + r1 * rotation[:, 1, col] + r2 * rotation[:, 2, col]
+    out += 0.0  # einsum's sums start from +0.0: a zero is never -0.0
+    return out
+
+
 class ShapeBatch:
     """The obstacles grouped by shape; ``query``/``distance`` give ``(N, M)`` in input order."""
 
@@ -128,7 +141,7 @@ class ShapeBatch:
         rel = points[:, None, :] - centers[idx][None]
         if self.identity[idx].all():
             return rel
-        return np.einsum("nmk,mkl->nml", rel, self.rotation[idx])
+        return rotate_rows(rel, self.rotation[idx])
 
     def _local_exact(self, points: np.ndarray, idx: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """Points in each obstacle's frame, (len(idx), N, 3), computed as
