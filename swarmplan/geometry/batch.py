@@ -72,8 +72,11 @@ def rotate_rows(rel: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     ``rotation[m]``, written per output coordinate (``(r0 R0l + r1 R1l) + r2 R2l``, the sum
     einsum makes, in its order, from +0.0: the same bits, tests/test_batch_distance_bits.py) at
     ~1/3 of einsum's time for a few obstacles and thousands of points."""
-    out = np.empty(rel.shape)
-    r0, r1, r2 = rel[..., 0], rel[..., 1], rel[..., 2]
+    return _rotate(rel[..., 0], rel[..., 1], rel[..., 2], rotation)
+
+
+def _rotate(r0: np.ndarray, r1: np.ndarray, r2: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    out = np.empty(r0.shape + (3,))
     for col in range(3):
         out[..., col] = r0 * rotation[:, 0, col] + r1 * rotation[:, 1, col] + r2 * rotation[:, 2, col]
     out += 0.0  # einsum's sums start from +0.0: a zero is never -0.0
@@ -138,10 +141,11 @@ class ShapeBatch:
 
     def _local(self, points: np.ndarray, idx: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """Points in each obstacle's frame: (N, len(idx), 3)."""
-        rel = points[:, None, :] - centers[idx][None]
         if self.identity[idx].all():
-            return rel
-        return rotate_rows(rel, self.rotation[idx])
+            return points[:, None, :] - centers[idx][None]
+        c = centers[idx]  # the offsets' coordinates, each as the whole subtraction gives it
+        rel = [points[:, None, k] - c[None, :, k] for k in range(3)]
+        return _rotate(*rel, self.rotation[idx])
 
     def _local_exact(self, points: np.ndarray, idx: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """Points in each obstacle's frame, (len(idx), N, 3), computed as
