@@ -311,10 +311,14 @@ def summary_table(rows: list[Row]) -> str:
     for (name, n, system), g in _groups(rows).items():
         arrived = sum(r.arrived for r in g)
         last = [r.last_arrival for r in g if math.isfinite(r.last_arrival)]
+        ratios = [r.path_ratio for r in g if math.isfinite(r.path_ratio)]
+        # Path over straight line and the last arrival exist only where someone arrived.
+        ratio_text = f"{np.mean(ratios):.3f}" if ratios else "none arrived"
+        last_text = f"{max(last):.1f}" if last else "none arrived"
         lines.append(
             f"| {name} | {n} | {system} | {arrived}/{n * len(g)} | {sum(r.collisions for r in g)} | "
-            f"{min(r.min_separation for r in g):.2f} | {np.nanmean([r.path_ratio for r in g]):.3f} | "
-            f"{(max(last) if last else math.nan):.1f} | {np.mean([r.rtf for r in g]):.1f} | "
+            f"{min(r.min_separation for r in g):.2f} | {ratio_text} | "
+            f"{last_text} | {np.mean([r.rtf for r in g]):.1f} | "
             f"{sum(r.escapes for r in g)} |"
         )
     return "\n".join(lines)
