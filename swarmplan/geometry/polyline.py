@@ -207,24 +207,68 @@ def curvature_with_cusps(
     """
     pts = np.asarray(points, dtype=float)
     pts = pts[np.isfinite(pts).all(axis=1)]
-    empty = (np.zeros(0), np.zeros(0, dtype=bool)) + ((np.zeros(0),) if with_steps else ())
     if len(pts) < 3:
-        return empty
+        return _no_vertices(with_steps)
     keep = [0]
     for k in range(1, len(pts)):
         if np.linalg.norm(pts[k] - pts[keep[-1]]) >= min_step:
             keep.append(k)
-    p = pts[keep]
+    return _vertex_curvature(pts[keep], np.asarray(keep), cusp_angle_deg, with_steps)
+
+
+def _no_vertices(with_steps: bool) -> tuple[np.ndarray, ...]:
+    return (np.zeros(0), np.zeros(0, dtype=bool)) + ((np.zeros(0),) if with_steps else ())
+
+
+def _vertex_curvature(
+    p: np.ndarray, kept: np.ndarray, cusp_angle_deg: float, with_steps: bool
+) -> tuple[np.ndarray, ...]:
+    """:func:`curvature_with_cusps` of the kept points ``p`` (their indices ``kept``)."""
     if len(p) < 3:
-        return empty
+        return _no_vertices(with_steps)
     a, b = p[1:-1] - p[:-2], p[2:] - p[1:-1]
     la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", a, b) / (la * lb), -1.0, 1.0))
     mean = 0.5 * (la + lb)
-    kept = np.asarray(keep)
     stopped = (np.diff(kept)[1:] > 1) & (angle > 1e-9)
     out = (angle / mean, (angle > math.radians(cusp_angle_deg)) | stopped)
     return out + ((mean,) if with_steps else ())
+
+
+def curvatures_with_cusps(
+    paths: np.ndarray, min_step: float = 1e-3, cusp_angle_deg: float = CUSP_ANGLE_DEG
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`curvature_with_cusps` (``with_steps``) of every path of ``paths`` (T, N, 3): per
+    path (the second axis) its (curvature, cusp mask, mean step), the same arrays.
+
+    The points to keep are chosen for all paths at once, step by step (a point is kept when it
+    lies ``min_step`` or more from its path's last kept one); a distance within rounding of
+    ``min_step`` is measured again as the one-path loop measures it, so every choice is its."""
+    P = np.asarray(paths, dtype=float)
+    if P.ndim != 3 or P.shape[2] != 3:
+        raise ValueError(f"paths: expected an array (T, N, 3), got shape {P.shape}")
+    steps, n = P.shape[:2]
+    finite = np.isfinite(P).all(axis=(0, 2))
+    keep = np.zeros((steps, n), dtype=bool)
+    if steps:
+        keep[0] = True
+        last = P[0].copy()
+        for k in range(1, steps):
+            diff = P[k] - last
+            d = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+            take = d >= min_step
+            for i in np.flatnonzero(np.abs(d - min_step) <= 1e-9 * min_step).tolist():
+                take[i] = np.linalg.norm(P[k, i] - last[i]) >= min_step
+            keep[k] = take
+            last[take] = P[k, take]
+    out = []
+    for i in range(n):
+        if not finite[i]:  # rows with a non-finite value are dropped first: the one-path way
+            out.append(curvature_with_cusps(P[:, i], min_step, cusp_angle_deg, with_steps=True))
+            continue
+        kept = np.flatnonzero(keep[:, i])
+        out.append(_vertex_curvature(P[kept, i], kept, cusp_angle_deg, True))
+    return out
 
 
 def turn_then_straight(

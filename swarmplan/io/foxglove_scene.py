@@ -61,7 +61,6 @@ from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
-from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 
@@ -71,13 +70,15 @@ from swarmplan.io.foxglove_shapes import (
     FRAME,
     MOVING_RGBA,
     ONE_PRIMITIVE,
+    entity_record,
+    mover_template,
     obstacle_entity,
     rest_orientation,
     world_entities,
 )
 from swarmplan.io.json_floats import Interleaved, record_kernels
 from swarmplan.io.wire import (
-    DOUBLE,
+    VECTOR_BYTES,
     Patched,
     file_descriptor_set,
     join_records,
@@ -213,7 +214,9 @@ class FoxgloveScene:
         self._tf_templates: dict[int, Patched] = {}  # per timestamp length (_write_tf)
         self._scene_ids: tuple[str, ...] | None = None
         self._scene_modes: list = []
-        self._scene_templates: dict[int, Patched] = {}  # per timestamp length (_write_scene)
+        # per timestamp length (_write_scene): the agents' records, where each record's part
+        # before its position starts, and each agent's parts (_sphere_parts)
+        self._scene_templates: dict[int, tuple[Patched, list[int], list]] = {}
         self._next_scene = -math.inf
         self._next_path = -math.inf
         self._next_overview = -math.inf
@@ -415,15 +418,17 @@ class FoxgloveScene:
         # sphere: timestamp, frame and entity ids, pose, size, colour), the bytes protobuf's
         # serializer gives (tests/test_foxglove_tf_bytes.py); obstacles go through the API.
         stamp = timestamp_bytes(t)
-        if rows.ids != self._scene_ids or rows.modes != self._scene_modes:
+        if rows.ids != self._scene_ids:
             self._scene_ids, self._scene_modes = rows.ids, list(rows.modes)
             self._scene_templates = {}
+        elif rows.modes != self._scene_modes:
+            self._recolor(rows)
         # As in _write_tf: with no coordinate equal to +-0.0 the agents' records keep the
         # layout of the last such step (same ids, modes and timestamp length).
         usual = bool((rows.pos != 0.0).all())
         template = self._scene_templates.get(len(stamp)) if usual else None
         if template is not None:
-            agents = template.fill(stamp, rows.pos, self._kernels())
+            agents = template[0].fill(stamp, rows.pos, self._kernels())
         else:
             agents = self._scene_agents(stamp, rows, usual)
         self._write(SCENE_TOPIC, agents + self._movers_bytes(t, stamp, obstacles or []), t)
@@ -477,10 +482,29 @@ class FoxgloveScene:
         if keep and n:
             stamp_at = record_starts(lengths)
             position_at = stamp_at + len(stamp) + np.array([len(p[0]) for p in parts])
-            self._scene_templates[len(stamp)] = Patched(
-                agents, stamp_at, len(stamp), position_at[:, None] + np.array([3, 12, 21])
-            )
+            patched = Patched(agents, stamp_at, len(stamp), position_at[:, None] + np.array([3, 12, 21]))
+            self._scene_templates[len(stamp)] = (patched, (stamp_at + len(stamp)).tolist(), parts)
         return agents
+
+    def _recolor(self, rows: _Rows) -> None:
+        """The agents' records of the kept templates in the modes of ``rows``: an agent whose mode
+        changed gets its parts around the position written in place when they keep their
+        lengths (the colours: four non-zero numbers each); otherwise the template is made again."""
+        changed = [
+            i for i, (m, was) in enumerate(zip(rows.modes, self._scene_modes, strict=True)) if m != was
+        ]
+        self._scene_modes = list(rows.modes)
+        cache = self._sphere_cache
+        for size, (patched, before_at, parts) in list(self._scene_templates.items()):
+            for i in changed:
+                key = (rows.ids[i], rows.modes[i], VECTOR_BYTES)
+                new, old = cache.get(key) or self._sphere_parts(key), parts[i]
+                if len(new[0]) != len(old[0]) or len(new[1]) != len(old[1]):
+                    del self._scene_templates[size]
+                    break
+                patched.write(before_at[i], new[0])
+                patched.write(before_at[i] + len(new[0]) + VECTOR_BYTES, new[1])
+                parts[i] = new
 
     def _movers_bytes(
         self, t: float, stamp: bytes, obstacles: list[dict[str, Any]] | ObstacleStates
@@ -517,7 +541,7 @@ class FoxgloveScene:
                 values = np.array(rows, dtype=float) if all(len(r) == 7 for r in rows) else None
             if values is None:
                 return b"".join(
-                    _entity_record(obstacle_entity(obst, t, o["position"], o.get("orientation"), MOVING_RGBA))
+                    entity_record(obstacle_entity(obst, t, o["position"], o.get("orientation"), MOVING_RGBA))
                     for o, obst in known
                 )
         if not known:
@@ -526,10 +550,10 @@ class FoxgloveScene:
         key = (len(stamp), present.tobytes())
         template = self._mover_templates.get(key)
         if template is None:
-            template = self._mover_templates[key] = _mover_template(known, stamp, present)
+            template = self._mover_templates[key] = mover_template(known, stamp, present)
         if template is False:  # a marker value was not unique: the protobuf API
             return b"".join(
-                _entity_record(obstacle_entity(obst, t, list(v[:3]), list(v[3:]), MOVING_RGBA))
+                entity_record(obstacle_entity(obst, t, list(v[:3]), list(v[3:]), MOVING_RGBA))
                 for (_, obst), v in zip(known, values.tolist(), strict=True)
             )
         return template.fill(stamp, values[present], self._kernels())
@@ -537,36 +561,7 @@ class FoxgloveScene:
     def write_world(self, t: float = 0.0) -> None:
         """Static obstacles, bounds, terrain and goals on ``/scene/world`` at time ``t``."""
         entities = world_entities(self.world, list(self._obstacles.values()), t)
-        self._write(WORLD_TOPIC, b"".join(map(_entity_record, entities)), t)
-
-
-def _entity_record(e: SceneEntity) -> bytes:
-    """A serialized entity as a ``SceneUpdate.entities`` field."""
-    b = e.SerializeToString()
-    return _ENTITIES_TAG + varint(len(b)) + b
-
-
-def _mover_template(known: list[tuple[dict, dict]], stamp: bytes, present: np.ndarray) -> Patched | bool:
-    """The /scene records of one-primitive movers with the pose components ``present`` (m, 7)
-    (x, y, z, qx, qy, qz, qw) and a timestamp of ``len(stamp)`` bytes: each entity is serialized
-    once by protobuf (without its timestamp, field 1, which goes in front) with distinct marker
-    values in the pose, whose places the numbers then take. False when a marker is not unique."""
-    bodies, places = [], []
-    for (_, obst), mask in zip(known, present.tolist(), strict=True):
-        marks = [1.5e-300 * (k + 1) if m else 0.0 for k, m in enumerate(mask)]
-        body = obstacle_entity(obst, None, marks[:3], marks[3:], MOVING_RGBA).SerializeToString()
-        found = [body.find(DOUBLE(v)) for v, m in zip(marks, mask, strict=True) if m]
-        if any(body.count(DOUBLE(v)) != 1 for v, m in zip(marks, mask, strict=True) if m):
-            return False
-        bodies.append(body)
-        places.append(found)
-    lengths = [len(stamp) + len(b) for b in bodies]
-    data = join_records(_ENTITIES_TAG, lengths, stamp, [b""] * len(bodies), bodies)
-    stamp_at = record_starts(lengths)
-    at = np.concatenate(
-        [s + len(stamp) + np.asarray(p, dtype=np.intp) for s, p in zip(stamp_at, places, strict=True)]
-    )
-    return Patched(data, stamp_at, len(stamp), at)
+        self._write(WORLD_TOPIC, b"".join(map(entity_record, entities)), t)
 
 
 class _Rows(NamedTuple):

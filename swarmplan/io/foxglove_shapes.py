@@ -11,6 +11,7 @@ from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 
 from swarmplan.geometry.rotation import euler_to_quaternion, rotate
+from swarmplan.io.wire import DOUBLE, Patched, join_records, record_starts, varint
 
 FRAME = "world"
 OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
@@ -162,3 +163,35 @@ def terrain_entity(world: dict[str, Any], lo, hi, t: float, n: int = 32) -> Scen
     tri.indices.extend(idx)
     set_color(tri.color, (0.45, 0.6, 0.35, 0.5))
     return e
+
+
+_ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
+
+
+def entity_record(e: SceneEntity) -> bytes:
+    """A serialized entity as a ``SceneUpdate.entities`` field."""
+    b = e.SerializeToString()
+    return _ENTITIES_TAG + varint(len(b)) + b
+
+
+def mover_template(known: list[tuple[dict, dict]], stamp: bytes, present: np.ndarray) -> Patched | bool:
+    """The /scene records of one-primitive movers with the pose components ``present`` (m, 7)
+    (x, y, z, qx, qy, qz, qw) and a timestamp of ``len(stamp)`` bytes: each entity is serialized
+    once by protobuf (without its timestamp, field 1, which goes in front) with distinct marker
+    values in the pose, whose places the numbers then take. False when a marker is not unique."""
+    bodies, places = [], []
+    for (_, obst), mask in zip(known, present.tolist(), strict=True):
+        marks = [1.5e-300 * (k + 1) if m else 0.0 for k, m in enumerate(mask)]
+        body = obstacle_entity(obst, None, marks[:3], marks[3:], MOVING_RGBA).SerializeToString()
+        found = [body.find(DOUBLE(v)) for v, m in zip(marks, mask, strict=True) if m]
+        if any(body.count(DOUBLE(v)) != 1 for v, m in zip(marks, mask, strict=True) if m):
+            return False
+        bodies.append(body)
+        places.append(found)
+    lengths = [len(stamp) + len(b) for b in bodies]
+    data = join_records(_ENTITIES_TAG, lengths, stamp, [b""] * len(bodies), bodies)
+    stamp_at = record_starts(lengths)
+    at = np.concatenate(
+        [s + len(stamp) + np.asarray(p, dtype=np.intp) for s, p in zip(stamp_at, places, strict=True)]
+    )
+    return Patched(data, stamp_at, len(stamp), at)

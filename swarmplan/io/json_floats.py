@@ -95,17 +95,21 @@ class Interleaved:
     def __init__(self, pieces: list[bytes], compiled: bool = False):
         n = self._n = len(pieces) - 1
         self._pieces = np.frombuffer(b"".join(pieces), dtype=np.uint8)
-        piece_len = self._piece_len = np.array([len(p) for p in pieces], dtype=np.intp)
+        piece_len = self._piece_len = np.fromiter(map(len, pieces), dtype=np.intp, count=n + 1)
         self._out = np.empty(len(self._pieces) + 18 * n, dtype=np.uint8)
         self.compiled = compiled
+        self._piece_start = np.cumsum(piece_len) - piece_len
+        self._seg_len = self._src = self._counter = None  # the numpy path's, at its first use
+
+    def _numpy_path(self) -> None:
+        """Where each segment's text is in [rows of the numbers, pieces] (the numpy path)."""
+        n, piece_len = self._n, self._piece_len
         self._seg_len = np.empty(2 * n + 1, dtype=np.intp)
         self._seg_len[0::2] = piece_len
-        # where each segment's text is in [rows of the numbers, pieces]
         self._src = np.empty(2 * n + 1, dtype=np.intp)
-        self._src[0::2] = n * _WIDTH + np.cumsum(piece_len) - piece_len
+        self._src[0::2] = n * _WIDTH + self._piece_start
         self._src[1::2] = np.arange(n) * _WIDTH
         self._counter = np.arange(len(self._pieces) + n * _WIDTH, dtype=np.intp)
-        self._piece_start = np.cumsum(piece_len) - piece_len
 
     def fill_compiled(self, values: np.ndarray) -> bytes | None:
         """The text by the compiled pass; None when a value is not in its fast form (more than
@@ -128,6 +132,8 @@ class Interleaved:
             if out is not None:
                 return out
         chars, start, length = float_chars(values)
+        if self._seg_len is None:
+            self._numpy_path()
         seg_len = self._seg_len
         seg_len[1::2] = length
         src = self._src.copy()

@@ -160,10 +160,35 @@ class _StateEncoder:
     def __init__(self) -> None:
         self.compiled = False  # write the numbers in one compiled pass (same bytes)
         self._key: tuple[tuple[str, ...], bytes] | None = None
-        self._heads: list[str] = []  # per agent: '{"id":..,"position":['
+        self._pieces: list[bytes] = []  # the text around the numbers (1 + 6 per agent + 1)
+        self._tails: list[dict] = []  # per agent and mode: the piece after its last number
         self._goals: list[str] = []  # per agent: ',"goal":[..]}'
+        self._nexts: list[str] = []  # per agent: what follows its goal up to the next number
         self._modes: list | None = None
         self._text: Interleaved | str = ""  # the numbers' fixed text (a %-format for few agents)
+
+    def _tail(self, i: int, mode: object) -> bytes:
+        """Agent ``i``'s piece after its velocity in ``mode``: '],"mode":..,"goal":[..]}' and
+        what follows up to the next agent's first number (or the message's end)."""
+        tail = self._tails[i].get(mode)
+        if tail is None:
+            mode_json = _MODE_JSON.get(mode) or json.dumps(str(mode))
+            tail = self._tails[i][mode] = f'],"mode":{mode_json}{self._goals[i]}{self._nexts[i]}'.encode()
+        return tail
+
+    def _layout(self, agents: AgentStates, goal: np.ndarray) -> None:
+        """The pieces that depend on the ids and goals only (the modes' pieces follow)."""
+        heads = [f'{{"id":{json.dumps(aid)},"position":[' for aid in agents.ids]
+        self._goals = [
+            f',"goal":{json.dumps(g, separators=(",", ":"), allow_nan=False)}}}' for g in goal.tolist()
+        ]
+        self._nexts = ["," + h for h in heads[1:]] + ["]}"]
+        self._tails = [{} for _ in heads]
+        # the text before each number: t first, then x, y, z, vx, vy, vz of every agent
+        pieces = [b'{"t":', (',"agents":[' + heads[0]).encode() if heads else b',"agents":[]}']
+        for _ in heads:
+            pieces += [b",", b",", b'],"velocity":[', b",", b",", b""]
+        self._pieces = pieces
 
     def encode(self, t: float, agents: AgentStates) -> bytes | None:
         """The message's bytes, or None when a value is not finite (the caller then goes
@@ -174,28 +199,23 @@ class _StateEncoder:
         goal = np.ascontiguousarray(agents.goal, dtype=float)
         key = (agents.ids, goal.tobytes())
         if key != self._key:
-            self._heads = [f'{{"id":{json.dumps(aid)},"position":[' for aid in agents.ids]
-            self._goals = [
-                f',"goal":{json.dumps(g, separators=(",", ":"), allow_nan=False)}}}' for g in goal.tolist()
-            ]
+            self._layout(agents, goal)
             self._key, self._modes = key, None
         modes = agents.mode.tolist()
         if self.compiled and not (isinstance(self._text, Interleaved) and self._text.compiled):
             self._modes = None
         if modes != self._modes:
-            # the text before each number: t first, then x, y, z, vx, vy, vz of every agent
-            text = ['{"t":', ',"agents":[']
-            for i, (head, goal, m) in enumerate(zip(self._heads, self._goals, modes, strict=True)):
-                text[-1] += head
-                text += [",", ",", '],"velocity":[', ",", ","]
-                text.append('],"mode":' + (_MODE_JSON.get(m) or json.dumps(str(m))) + goal)
-                text[-1] += "," if i < len(modes) - 1 else ""
-            text[-1] += "]}"
+            # only the pieces of agents whose mode changed are made again
+            old = self._modes if self._modes is not None else [None] * len(modes)
+            pieces = self._pieces
+            for i, (m, was) in enumerate(zip(modes, old, strict=True)):
+                if m != was or self._modes is None:
+                    pieces[7 + 6 * i] = self._tail(i, m)
             self._modes = modes
-            if self.compiled or len(text) - 1 >= _NUMPY_FROM:
-                self._text = Interleaved([p.encode() for p in text], compiled=self.compiled)
+            if self.compiled or len(pieces) - 1 >= _NUMPY_FROM:
+                self._text = Interleaved(pieces, compiled=self.compiled)
             else:
-                self._text = "%r".join(p.replace("%", "%%") for p in text)
+                self._text = "%r".join(p.decode().replace("%", "%%") for p in pieces)
         n = len(agents.ids)
         values = np.empty(1 + 6 * n)
         values[0] = round(t, 9)

@@ -191,6 +191,10 @@ class Patched:
         self._stamp_idx = self._stamp_at[:, None] + np.arange(stamp_len)
         self._value_idx = (self._double_at[:, None] + np.arange(8)).ravel()
 
+    def write(self, at: int, data: bytes) -> None:
+        """``data`` in place at ``at`` (a part of the message that changed, same length)."""
+        self._buf[at : at + len(data)] = np.frombuffer(data, dtype=np.uint8)
+
     def fill(self, stamp: bytes, values: np.ndarray, kernels: ModuleType | None = None) -> bytes:
         """The message with ``stamp`` and ``values`` (as little-endian doubles) in place; with
         ``kernels`` (``swarmplan.io._record_kernels``) written by its compiled ``patch``."""

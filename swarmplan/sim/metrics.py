@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from swarmplan.core import Event, SwarmState
-from swarmplan.geometry.polyline import curvature_with_cusps
+from swarmplan.geometry.polyline import curvature_with_cusps, curvatures_with_cusps
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.threats import exposure
 
@@ -141,10 +141,21 @@ class RunMetrics:
         """Max lateral acceleration (m/s^2) over agent ``i``'s non-cusp vertices (see
         :func:`lateral_accel_of`)."""
         pts = np.array([p[i] for p in self.positions])
-        curv, cusp, mean_step = curvature_with_cusps(pts, with_steps=True)
-        if not (~cusp).any():
-            return 0.0
-        return float(lateral_accel_of(curv[~cusp], mean_step[~cusp], dt).max())
+        return max_lateral_accel(*curvature_with_cusps(pts, with_steps=True), dt)
+
+    def curvatures(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per agent: (curvature, cusp mask, mean step) of its flown path, all agents at once
+        (``curvatures_with_cusps``; what :meth:`curvature` gives, with the steps)."""
+        if not self.positions:
+            return curvatures_with_cusps(np.zeros((0, len(self.ids), 3)))
+        return curvatures_with_cusps(np.array(self.positions))
+
+
+def max_lateral_accel(curv: np.ndarray, cusp: np.ndarray, mean_step: np.ndarray, dt: float) -> float:
+    """The largest lateral acceleration over the non-cusp vertices (0 without any)."""
+    if not (~cusp).any():
+        return 0.0
+    return float(lateral_accel_of(curv[~cusp], mean_step[~cusp], dt).max())
 
 
 def lateral_accel_of(curv: np.ndarray, mean_step: np.ndarray, dt: float) -> np.ndarray:
@@ -191,12 +202,11 @@ def summary_report(
     m = metrics
     n = len(m.ids)
     agents = []
-    for i, aid in enumerate(m.ids):
-        curv, cusp = m.curvature(i)
-        curv = curv[~cusp]  # a cusp has no finite curvature: counted apart
+    for i, (aid, (all_curv, cusp, mean_step)) in enumerate(zip(m.ids, m.curvatures(), strict=True)):
+        curv = all_curv[~cusp]  # a cusp has no finite curvature: counted apart
         agent = world.agents[i]
         max_curv = float(curv.max()) if len(curv) else 0.0
-        lateral = m.lateral_accel(i, world.dt)
+        lateral = max_lateral_accel(all_curv, cusp, mean_step, world.dt)
         violation = curvature_violation(agent, max_curv, lateral)
         start = world.agents[i].start
         straight = float(np.linalg.norm(world.agents[i].goal - start))
