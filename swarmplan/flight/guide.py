@@ -148,8 +148,33 @@ class StaticGuide:
         self._dist = np.empty((0, self.n_cells), dtype=np.float32)
         self._source = np.empty(0, dtype=np.int64)
         self.guided = np.zeros(len(world.agents), dtype=bool)
+        self._sight_bounds()
 
     # ------------------------------------------------------------------ geometry
+
+    def _sight_bounds(self) -> None:
+        """Tables that let :meth:`blocked` pass over a line no sample of which can land in a
+        cell near a surface (``self.clear`` below ``half_diagonal + SQUEEZE``, the first test a
+        sample must fail to count): ``_low`` is the lowest layer of cells (z index) above every
+        such cell near the ground, and ``_gap[c]`` the distance from cell c's box to the nearest
+        box of a cell near a surface in the layers from ``_low`` up (inf when there is none)."""
+        from scipy.ndimage import binary_dilation, distance_transform_edt
+
+        limit = self.half_diagonal + SQUEEZE
+        c = self.centres
+        ground = (c[:, 2] - self.world.terrain_height(c[:, :2]) - self.floor) - self.radius < limit
+        self._low = int(self.ijk[ground, 2].max()) + 1 if ground.any() else 0
+        near = ((self.clear < limit) & (self.ijk[:, 2] >= self._low)).reshape(
+            tuple(int(v) for v in self.shape)
+        )
+        if not near.any():
+            self._gap = np.full(self.n_cells, np.inf)
+            return
+        # The box-to-box distance from cell c to the nearest such cell is the centre-to-centre
+        # distance from c to the nearest cell of that set grown by its 26 neighbours (the
+        # neighbour one step towards c along every axis that differs).
+        grown = binary_dilation(near, structure=np.ones((3, 3, 3), dtype=bool))
+        self._gap = distance_transform_edt(~grown, sampling=self.cell).ravel()
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
@@ -193,7 +218,11 @@ class StaticGuide:
         end = start + (end - start) * (cut / np.maximum(length, 1e-12))[:, None]
         length = cut
         step = 0.5 * float(self.cell.min())
-        samples = int(min(max(np.ceil(length.max() / step), 1), 4000))
+        samples = int(min(max(np.ceil(length.max() / step), 1), 4000))  # of all rows: kept as is
+        rows = self._may_block(start, end, length)
+        if not len(rows):
+            return out
+        start, end = start[rows], end[rows]
         t = np.linspace(0.0, 1.0, samples + 1)
         pts = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]
         flat = pts.reshape(-1, 3)
@@ -206,8 +235,26 @@ class StaticGuide:
             exact = np.minimum(exact, self._batch.distance(p).min(axis=1))
         exact -= self.radius
         hit = cand[exact < SQUEEZE] // (samples + 1)
-        out[np.unique(hit)] = True
+        out[rows[np.unique(hit)]] = True
         return out
+
+    def _may_block(self, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """Rows of the lines ``start`` -> ``end`` (n, 3) of ``length`` (n,) a sample of which may
+        land in a cell near a surface; :meth:`blocked` finds every other one clear. Why no sample
+        of another line can: its samples ``start + t (end - start)``, t in [0, 1], have heights
+        monotone in t (rounding is monotone), so between those of its two ends, whose layers are
+        at least ``_low``: no sample is in a cell near the ground. The cell of a sample holds the
+        sample's nearest point in the grid's box (the index is clipped), which is no farther
+        from the start's nearest point than the sample from the start (projection onto a box
+        does not stretch distances): at most ``length``. So that cell's box is within
+        ``length`` of the start's cell's box, and ``_gap`` there beyond ``length`` (with a
+        margin for rounding) leaves no cell near a body within reach."""
+        kz = np.floor(
+            (np.column_stack([start[:, 2], (start + (end - start))[:, 2]]) - self.lo[2]) / self.cell[2]
+        )
+        kz = np.clip(kz, 0, self.shape[2] - 1).min(axis=1)
+        far = self._gap[self.cell_of(start)] > length * (1.0 + 1e-9) + 1e-6
+        return np.flatnonzero(~(far & (kz >= self._low)))
 
     # ------------------------------------------------------------------ ways to the goals
 
