@@ -1,7 +1,9 @@
 """The guide's line-of-sight check (swarmplan.flight.guide.StaticGuide.blocked) passes over lines
-that cannot land a sample in a cell near a surface: on random lines among boxes, cylinders and
-spheres, over flat ground and over terrain, its answers equal those of the check of every
-line, and the lines passed over are most of those far from everything."""
+that cannot land a sample in a cell near a surface and measures a sample's distances only near
+a body's bounding box: on random lines among boxes, cylinders, capsules and spheres, over flat
+ground and over terrain, its answers equal those of measuring every sample of every line; the
+bounding boxes hold the bodies (no distance below the box's), and the gap table is the
+distance between cell boxes."""
 
 from __future__ import annotations
 
@@ -16,6 +18,22 @@ OBSTACLES = [
     {"id": "box", "shape": "box", "size": [10, 10, 30], "position": [30, 30, 15], "rotation": [0, 0, 30]},
     {"id": "pillar", "shape": "cylinder", "radius": 3.0, "height": 25.0, "position": [70, 60, 12.5]},
     {"id": "ball", "shape": "sphere", "radius": 5.0, "position": [60, 25, 30]},
+    {
+        "id": "beam",
+        "shape": "capsule",
+        "radius": 2.0,
+        "height": 20.0,
+        "position": [40, 75, 20],
+        "rotation": [40, 30, 0],
+    },
+    {
+        "id": "log",
+        "shape": "cylinder",
+        "radius": 2.5,
+        "height": 15.0,
+        "position": [80, 20, 10],
+        "rotation": [0, 70, 20],
+    },
 ]
 PEAKS = {"peaks": [{"center": [20, 80], "height": 12.0, "spread": [10, 10]}]}
 
@@ -51,6 +69,7 @@ def test_passing_over_lines_changes_no_answer(
         kept = len(guide._may_block(*_cut(start, end, reach)))
         with monkeypatch.context() as m:
             m.setattr(guide, "_may_block", lambda s, e, length: np.arange(len(s)))
+            m.setattr(guide, "_reach", np.ones_like(guide._reach))  # every body measured
             slow = guide.blocked(start, end, reach)
         np.testing.assert_array_equal(fast, slow)
         passed += n - kept
@@ -71,3 +90,14 @@ def test_gap_is_the_distance_between_cell_boxes() -> None:
     for c in rng.integers(0, guide.n_cells, 40):
         d = np.maximum(np.abs(guide.ijk[near] - guide.ijk[c]) - 1, 0) * guide.cell
         np.testing.assert_allclose(guide._gap[c], np.sqrt((d**2).sum(axis=1)).min(), rtol=1e-12)
+
+
+def test_bounding_boxes_bound_the_distances() -> None:
+    guide = _guide(False, 1)
+    rng = np.random.default_rng(5)
+    p = rng.uniform([-10, -10, -5], [110, 110, 60], (20000, 3))
+    gap = np.maximum(np.abs(p[:, None, :] - guide._batch.position[None]) - guide._box_half[None], 0.0)
+    below = np.sqrt((gap * gap).sum(axis=2))
+    d = guide._batch.distance(p)
+    assert (d[below > 0] >= below[below > 0] - 1e-9).all()  # inside a box: any distance
+    assert (np.abs(d - below) < 0.5).any(axis=0).all()  # and not loosely: some points come close

@@ -149,6 +149,7 @@ class StaticGuide:
         self._source = np.empty(0, dtype=np.int64)
         self.guided = np.zeros(len(world.agents), dtype=bool)
         self._sight_bounds()
+        self._reach_bodies()
 
     # ------------------------------------------------------------------ geometry
 
@@ -226,17 +227,52 @@ class StaticGuide:
         t = np.linspace(0.0, 1.0, samples + 1)
         pts = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]
         flat = pts.reshape(-1, 3)
-        cand = np.flatnonzero(self.clear[self.cell_of(flat)] < self.half_diagonal + SQUEEZE)
+        flat_cells = self.cell_of(flat)
+        cand = np.flatnonzero(self.clear[flat_cells] < self.half_diagonal + SQUEEZE)
         if not len(cand):
             return out
         p = flat[cand]
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
-        if self.bodies:
-            exact = np.minimum(exact, self._batch.distance(p).min(axis=1))
+        near = self._bodies_near(p, flat_cells[cand]) if self.bodies else np.empty(0, dtype=np.int64)
+        if near is None or len(near):
+            exact = np.minimum(exact, self._batch.distance(p, subset=near).min(axis=1))
         exact -= self.radius
         hit = cand[exact < SQUEEZE] // (samples + 1)
         out[rows[np.unique(hit)]] = True
         return out
+
+    def _reach_bodies(self) -> None:
+        """``_reach[c, b]``: whether a point of cell c's box lies within the largest agent radius
+        plus ``SQUEEZE`` (and a margin for rounding) of body b's bounding box (in the world's
+        axes). A body's exact distance is at least that to its bounding box, so a sample in the
+        grid measures only the bodies its cell reaches: the others cannot bring it under
+        ``SQUEEZE``. With a mesh among the bodies (distances from a grid) every cell reaches all."""
+        b = self._batch
+        self._box_half = None
+        if not self.bodies or b.meshes:
+            self._reach = np.ones((self.n_cells, len(self.bodies)), dtype=bool)
+            return
+        local = np.column_stack([b.prm[:, 0], b.prm[:, 0], b.prm[:, 0]])
+        local[b.code == 1] = b.prm[b.code == 1]  # box: its half sizes
+        local[b.code >= 2, 2] = b.prm[b.code >= 2, 1]  # cylinder, capsule: half height
+        local[b.code == 3, 2] += b.prm[b.code == 3, 0]  # capsule: and its caps
+        # local = (p - centre) @ R, so |p - centre| <= |R| @ local half-extents per world axis.
+        self._box_half = np.einsum("mjk,mk->mj", np.abs(b.rotation), local) * (1.0 + 1e-9) + 1e-9
+        lo = self.lo + self.ijk * self.cell
+        hi = lo + self.cell
+        self._reach = np.zeros((self.n_cells, len(self.bodies)), dtype=bool)
+        for k in range(len(self.bodies)):
+            c, e = b.position[k], self._box_half[k]
+            gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
+            self._reach[:, k] = np.sqrt((gap * gap).sum(axis=1)) < self.radius + SQUEEZE + 1e-6
+
+    def _bodies_near(self, p: np.ndarray, cells: np.ndarray) -> np.ndarray | None:
+        """The bodies the samples ``p`` in ``cells`` may come within ``SQUEEZE`` of (all of them,
+        None, when a sample lies outside the grid: its cell's box does not hold it)."""
+        margin = 1e-6
+        if ((p < self.lo + margin) | (p > self.lo + self.shape * self.cell - margin)).any():
+            return None
+        return np.flatnonzero(self._reach[cells].any(axis=0))
 
     def _may_block(self, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
         """Rows of the lines ``start`` -> ``end`` (n, 3) of ``length`` (n,) a sample of which may
