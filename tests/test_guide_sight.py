@@ -69,7 +69,7 @@ def test_passing_over_lines_changes_no_answer(
         kept = len(guide._may_block(*_cut(start, end, reach)))
         with monkeypatch.context() as m:
             m.setattr(guide, "_may_block", lambda s, e, length: np.arange(len(s)))
-            m.setattr(guide, "_reach", np.ones_like(guide._reach))  # every body measured
+            m.setattr(guide, "_body_distance", lambda p, cells: guide._batch.distance(p).min(axis=1))
             slow = guide.blocked(start, end, reach)
         np.testing.assert_array_equal(fast, slow)
         passed += n - kept
@@ -101,3 +101,13 @@ def test_bounding_boxes_bound_the_distances() -> None:
     d = guide._batch.distance(p)
     assert (d[below > 0] >= below[below > 0] - 1e-9).all()  # inside a box: any distance
     assert (np.abs(d - below) < 0.5).any(axis=0).all()  # and not loosely: some points come close
+
+
+def test_pairs_measure_the_bits_of_every_body() -> None:
+    guide = _guide(False, 1)
+    rng = np.random.default_rng(9)
+    p = rng.uniform([1, 1, 1], [99, 99, 49], (5000, 3))
+    guide._reach = np.ones_like(guide._reach)
+    np.testing.assert_array_equal(
+        guide._body_distance(p, guide.cell_of(p)), guide._batch.distance(p).min(axis=1)
+    )

@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.geometry.batch import ShapeBatch
+from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
 
 if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
@@ -233,9 +233,8 @@ class StaticGuide:
             return out
         p = flat[cand]
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
-        near = self._bodies_near(p, flat_cells[cand]) if self.bodies else np.empty(0, dtype=np.int64)
-        if near is None or len(near):
-            exact = np.minimum(exact, self._batch.distance(p, subset=near).min(axis=1))
+        if self.bodies:
+            exact = np.minimum(exact, self._body_distance(p, flat_cells[cand]))
         exact -= self.radius
         hit = cand[exact < SQUEEZE] // (samples + 1)
         out[rows[np.unique(hit)]] = True
@@ -266,13 +265,29 @@ class StaticGuide:
             gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
             self._reach[:, k] = np.sqrt((gap * gap).sum(axis=1)) < self.radius + SQUEEZE + 1e-6
 
-    def _bodies_near(self, p: np.ndarray, cells: np.ndarray) -> np.ndarray | None:
-        """The bodies the samples ``p`` in ``cells`` may come within ``SQUEEZE`` of (all of them,
-        None, when a sample lies outside the grid: its cell's box does not hold it)."""
+    def _body_distance(self, p: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """The distance from each of the samples ``p`` in ``cells`` to the nearest body its cell
+        reaches (inf when none does), each computed as ``ShapeBatch.distance`` computes it (the
+        same operations on the same numbers, element by element: the same bits): below
+        ``SQUEEZE`` plus the radius exactly where the nearest of all bodies is. A sample outside
+        the grid (its cell's box does not hold it) is measured against every body."""
+        b = self._batch
         margin = 1e-6
         if ((p < self.lo + margin) | (p > self.lo + self.shape * self.cell - margin)).any():
-            return None
-        return np.flatnonzero(self._reach[cells].any(axis=0))
+            return b.distance(p).min(axis=1)
+        pt, body = np.nonzero(self._reach[cells])
+        out = np.full(len(p), np.inf)
+        if not len(pt):
+            return out
+        c = b.position[body]
+        local = rotate_rows_of(*(p[pt, k] - c[:, k] for k in range(3)), b.rotation[body])
+        d = np.empty(len(pt))
+        for code, shape in enumerate(("sphere", "box", "cylinder", "capsule")):
+            sel = np.flatnonzero(b.code[body] == code)
+            if len(sel):
+                d[sel] = SHAPE_DISTANCE[shape](local[sel], *(v[body[sel]] for v in b.by_obstacle[shape]))
+        np.minimum.at(out, pt, d)
+        return out
 
     def _may_block(self, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
         """Rows of the lines ``start`` -> ``end`` (n, 3) of ``length`` (n,) a sample of which may
