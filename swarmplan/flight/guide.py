@@ -170,12 +170,14 @@ class StaticGuide:
         )
         if not near.any():
             self._gap = np.full(self.n_cells, np.inf)
+            self._gap_max = np.inf
             return
         # The box-to-box distance from cell c to the nearest such cell is the centre-to-centre
         # distance from c to the nearest cell of that set grown by its 26 neighbours (the
         # neighbour one step towards c along every axis that differs).
         grown = binary_dilation(near, structure=np.ones((3, 3, 3), dtype=bool))
         self._gap = distance_transform_edt(~grown, sampling=self.cell).ravel()
+        self._gap_max = float(self._gap.max())
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
@@ -286,7 +288,8 @@ class StaticGuide:
             sel = np.flatnonzero(b.code[body] == code)
             if len(sel):
                 d[sel] = SHAPE_DISTANCE[shape](local[sel], *(v[body[sel]] for v in b.by_obstacle[shape]))
-        np.minimum.at(out, pt, d)
+        first = np.flatnonzero(np.diff(pt, prepend=-1))  # pairs come row by row
+        out[pt[first]] = np.minimum.reduceat(d, first)
         return out
 
     def _may_block(self, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -300,12 +303,16 @@ class StaticGuide:
         does not stretch distances): at most ``length``. So that cell's box is within
         ``length`` of the start's cell's box, and ``_gap`` there beyond ``length`` (with a
         margin for rounding) leaves no cell near a body within reach."""
-        kz = np.floor(
-            (np.column_stack([start[:, 2], (start + (end - start))[:, 2]]) - self.lo[2]) / self.cell[2]
-        )
+        reach = length * (1.0 + 1e-9) + 1e-6
+        maybe = np.flatnonzero(reach < self._gap_max)  # the others reach a cell near a body anyway
+        if not len(maybe):
+            return np.arange(len(start))
+        s, e = start[maybe], end[maybe]
+        kz = np.floor((np.column_stack([s[:, 2], (s + (e - s))[:, 2]]) - self.lo[2]) / self.cell[2])
         kz = np.clip(kz, 0, self.shape[2] - 1).min(axis=1)
-        far = self._gap[self.cell_of(start)] > length * (1.0 + 1e-9) + 1e-6
-        return np.flatnonzero(~(far & (kz >= self._low)))
+        keep = np.ones(len(start), dtype=bool)
+        keep[maybe] = ~((self._gap[self.cell_of(s)] > reach[maybe]) & (kz >= self._low))
+        return np.flatnonzero(keep)
 
     # ------------------------------------------------------------------ ways to the goals
 
