@@ -1,15 +1,18 @@
 """The goal guard's threat pairs from the compiled sweep (only pairs within a threat's reach get
 the exact test) are the all-pairs numpy test's, bit for bit: random configurations, pairs
-exactly at the bound and a run whose guard takes the compiled path."""
+exactly at the bound and a run whose guard takes the compiled path; and the near misses
+found by binary search on the sorted pair keys are the entries into the separation ellipsoids."""
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from helpers import events_of, run_to_end
 from test_goal_guard import _crossing, _world
 
-from swarmplan.sim import guard
+from swarmplan.sim import contacts, guard
 from swarmplan.sim.guard import threat_pairs
 
 
@@ -104,3 +107,37 @@ def test_a_run_with_the_compiled_pairs_is_the_same_run(tmp_path, monkeypatch, sp
     np.testing.assert_array_equal(np.array(base[2]), np.array(swept[2]))
     for kind in ("evade_start", "evade_end", "arrived"):
         assert events_of(tmp_path / "dense.mcap", kind) == events_of(tmp_path / "swept.mcap", kind)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_near_misses_are_the_entries_into_the_separation_ellipsoid(monkeypatch, compiled):
+    # A random walk of 60 agents in a small box: each step's near misses are the pairs inside
+    # now that were not inside at the step before (all pairs, by hand), in row-major order.
+    monkeypatch.setattr(contacts, "use_compiled_checks", lambda n: compiled)
+    rng = np.random.default_rng(3)
+    n = 60
+    params = SimpleNamespace(
+        ids=tuple(f"a{i}" for i in range(n)),
+        separation=rng.uniform(0.5, 2.0, (n, 3)),
+        radius=rng.uniform(0.1, 0.4, n),
+    )
+    near = contacts.NearMisses(params)
+    pos = rng.uniform(0.0, 15.0, (n, 3))
+    before: set = set()
+    seen = 0
+    for step in range(40):
+        pos = pos + rng.normal(0.0, 0.4, (n, 3))
+        active = rng.random(n) < 0.8
+        tally = near.update(pos, active, 0.1 * step)
+        scale = (
+            np.maximum(params.separation[:, None], params.separation[None])
+            + (params.radius[:, None] + params.radius[None])[..., None]
+        )
+        inside = np.linalg.norm((pos[:, None] - pos[None]) / scale, axis=-1) < 1.0
+        inside &= active[:, None] | active[None]
+        now = {(i, j) for i, j in zip(*np.nonzero(np.triu(inside, 1)), strict=True)}
+        got = [(e.agent, e.detail["other"]) for e in tally.events]
+        assert got == [(f"a{i}", f"a{j}") for i, j in sorted(now - before)]
+        seen += len(got)
+        before = now
+    assert seen > 20
