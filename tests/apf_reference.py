@@ -153,7 +153,13 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     speed = norm3(vel)
     now = speed * world.dt + speed * speed / (2.0 * np.maximum(params.max_accel[idx], _EPS))
     stops = parked[None, :] & ~params.fixed_wing[idx][:, None]
-    pair = np.where(stops, now[:, None], reach[idx][:, None] + reach[None, :])
+    pair = reach[idx][:, None] + reach[None, :]
+    # Two multirotors: each one's braking from its current speed (at most the cruise sum).
+    other = norm3(all_vel)
+    now_b = other * world.dt + other * other / (2.0 * np.maximum(params.max_accel, _EPS))
+    both = ~params.fixed_wing[idx][:, None] & ~params.fixed_wing[None, :]
+    pair = np.where(both, np.minimum(pair, now[:, None] + now_b[None, :]), pair)
+    pair = np.where(stops, now[:, None], pair)
     e0 = 1.0 + np.minimum(pair, g.influence) / scale.max(axis=-1)
     mag = np.where(others & (e < e0), g.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     dvw = vel[:, None, :] - all_vel[None, :, :]

@@ -194,12 +194,15 @@ def test_pairs_at_the_edge_of_the_reach():
     assert edge == 26.0
     assert current_reach(params, stopping_reach(params, world.dt), gains.influence) == pytest.approx(edge)
     horizon = gains.horizon
+    # At cruise (10 m/s) each agent's braking from its speed is its whole stopping reach, so
+    # the pair's range is the full one the bound is built from (slower pairs reach less).
+    v = 10.0
     pairs = []  # (x gap, lateral offset, closing speed per agent)
     for rel in (1 - 1e-6, 1 + 1e-6, 1 - 1e-12, 1 + 1e-12):
-        pairs.append((5.0 * horizon, edge * rel, 5.0))  # closest approach at half the horizon
+        pairs.append((v * horizon, edge * rel, v))  # closest approach at half the horizon
         # Still approaching at the horizon: closest at its end, gap 10 m along x then.
         gap_end = 10.0
-        pairs.append((gap_end + 2 * 5.0 * horizon, np.sqrt((edge * rel) ** 2 - gap_end**2), 5.0))
+        pairs.append((gap_end + 2 * v * horizon, np.sqrt((edge * rel) ** 2 - gap_end**2), v))
     pos, vel = [], []
     for k, (gap, lateral, v) in enumerate(pairs):
         row = 100.0 * k  # rows far apart: agents of different rows never interact
@@ -223,17 +226,21 @@ def test_pairs_at_the_edge_of_the_reach():
 
 
 def test_range_of_agents_comes_from_their_stopping_distance():
-    """Two agents at rest along an axis repel each other out to the separation semi-axis plus
-    both stopping reaches (v dt + v^2 / 2a each), and not a metre beyond (the influence
-    distance, longer here, only caps it)."""
+    """Two agents along an axis, both flying across it (no closing speed: only the current
+    term acts), repel each other out to the separation semi-axis plus both braking distances
+    from their speeds (v dt + v^2 / 2a each), at most both stopping reaches from cruise, and
+    not a metre beyond (the influence distance, longer here, only caps it); at rest, only
+    inside the separation ellipsoid."""
     world = _world(False, {"influence": 100.0})
     params = AgentParams.from_world(world)
     reach = 10.0 * world.dt + 10.0**2 / (2 * 5.0)  # cruise 10 m/s, 5 m/s^2
     np.testing.assert_allclose(stopping_reach(params, world.dt), reach)
-    edge = 6.0 + 2.0 * reach  # semi-axis along y: separation 4 + radii 2
     field = ApfField(world, params)
-    for gap, repels in ((edge - 1e-3, True), (edge + 1e-3, False)):
-        pos = np.array([[150.0, 100.0, 40.0], [150.0, 100.0 + gap, 40.0]])
-        flyers = Flyers(np.array([0]), pos[:1], np.zeros((1, 3)), pos[:1])  # at its goal: no pull
-        f = field.forces(flyers, _no_obstacles(1), Swarm(pos, np.zeros((2, 3))))
-        assert (f[0, 1] < 0) == repels and (f[0, 1] == 0) != repels
+    for speed, own in ((10.0, reach), (12.0, reach), (4.0, 0.4 + 1.6), (0.0, 0.0)):
+        edge = 6.0 + 2.0 * own  # semi-axis along y: separation 4 + radii 2
+        vel = np.array([[speed, 0.0, 0.0], [speed, 0.0, 0.0]])
+        for gap, repels in ((edge - 1e-3, True), (edge + 1e-3, False)):
+            pos = np.array([[150.0, 100.0, 40.0], [150.0, 100.0 + gap, 40.0]])
+            flyers = Flyers(np.array([0]), pos[:1], vel[:1], pos[:1])  # at its goal: no pull
+            f = field.forces(flyers, _no_obstacles(1), Swarm(pos, vel))
+            assert (f[0, 1] < 0) == repels and (f[0, 1] == 0) != repels, (speed, gap)

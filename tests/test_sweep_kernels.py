@@ -407,7 +407,9 @@ def test_a_crowded_run_is_identical_on_both_paths(monkeypatch):
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 
-    raw = swap_world(24, 1, 0, 20.0)
+    # World seed 1: with the agents' range from their current speeds, seed 0's crowd no longer
+    # stalls long enough for an escape; seed 1's still has every kind of event.
+    raw = swap_world(24, 1, 1, 20.0)
     raw["agent_defaults"]["separation"] = [10, 10, 5]
 
     def run() -> tuple[list, list]:

@@ -122,13 +122,13 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
     terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
-    velocities, parked, distance to the goal) of every agent; ``gains``: (k_att, k_rep, influence, k_agent,
-    quadratic_radius, goal_power, k_moving, horizon)."""
+    velocities, parked, distance to the goal, reach at the current speed) of every agent;
+    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    all_pos, all_vel, parked, goal_dist = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all = swarm
     k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
     m = dist.shape[1]
@@ -277,11 +277,16 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
                 cz = max(separation[ia, 2], separation[b, 2]) + rr
                 qx, qy, qz = dpx / cx, dpy / cy, dpz / cz
                 e = math.sqrt(qx * qx + qy * qy + qz * qz)
-                # A parked agent is at rest: only the flyer's braking from its speed counts
-                # (for one that can stop; a fixed wing keeps the full range).
+                # Each agent of the pair needs its braking distance from its *current* speed
+                # (a step of reaction, then a stop) to be out of the other's way: two agents
+                # that can stop reach the sum of the two, at most the sum from cruise speed; a
+                # parked agent is at rest, only the flyer's braking counts. A fixed wing (it
+                # cannot stop) keeps the full range from cruise speed.
                 pair_reach = stop_reach[ia] + stop_reach[b]
                 if parked[b] and can_stop[ia]:
                     pair_reach = reach_now[i]
+                elif can_stop[ia] and can_stop[b]:
+                    pair_reach = min(pair_reach, reach_now[i] + reach_all[b])
                 e0 = 1.0 + min(pair_reach, rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz

@@ -100,15 +100,23 @@ class StaticGuide:
         self.half_diagonal = 0.5 * float(np.linalg.norm(self.cell))
         c0 = max(2.0 * float(self.cell.max()), 4.0)
         prox = np.clip(1.0 - self.clear / c0, 0.0, 1.0)
-        rows, cols, cost = [], [], []
+        # The reversed graph in CSR form (row v: the legs into v, by their start cell, ascending):
+        # searches run from the goal over reversed legs. Column k of ``weight`` holds the legs
+        # into each cell along offset k, the offsets ordered so that their start cells ascend.
+        offsets = _offsets()
+        delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
+        order = np.argsort(-delta, kind="stable")
+        offsets, delta = offsets[order], delta[order]
+        weight = np.zeros((self.n_cells, len(offsets)))
+        legal = np.zeros((self.n_cells, len(offsets)), dtype=bool)
         flat = np.arange(self.n_cells).reshape(nx, ny, nz)
-        for o in _offsets():
+        for k, o in enumerate(offsets):
             src = flat[
                 max(0, -o[0]) : nx - max(0, o[0]),
                 max(0, -o[1]) : ny - max(0, o[1]),
                 max(0, -o[2]) : nz - max(0, o[2]),
             ].ravel()
-            dst = src + (o[0] * ny + o[1]) * nz + o[2]
+            dst = src + delta[k]
             # Free cells lead only into free cells; a cell inside the inflated obstacles leads out.
             keep = self.free[dst] | ~self.free[src]
             src, dst = src[keep], dst[keep]
@@ -121,19 +129,21 @@ class StaticGuide:
             if nr > 0.2:
                 side = np.maximum(normal[dst] @ (right / nr), 0.0)
             w = length * (1.0 + prox[dst] * (NEAR + RIGHT * side))
-            w = np.where(self.free[dst], w, 10.0 * length)
-            rows.append(src)
-            cols.append(dst)
-            cost.append(w)
-        g = csr_matrix(
-            (np.concatenate(cost), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(self.n_cells, self.n_cells),
-        )
-        self._reverse = g.T.tocsr()  # searches run from the goal over reversed legs
-        self._base = self._reverse.data.copy()
+            weight[dst, k] = np.where(self.free[dst], w, 10.0 * length)
+            legal[dst, k] = True
+        indptr = np.zeros(self.n_cells + 1, dtype=np.int32)
+        np.cumsum(legal.sum(axis=1), out=indptr[1:])
+        start = (np.arange(self.n_cells, dtype=np.int32)[:, None] - delta[None, :].astype(np.int32))[legal]
+        data = weight[legal]
+        self._reverse = csr_matrix((data, start, indptr), shape=(self.n_cells,) * 2)
+        self._base = data.copy()
         self.near = prox > 0.0
+        # Unit directions of the legs into cells near surfaces (the only ones a way re-prices),
+        # found at a cell's first re-pricing.
+        self._leg_dir = np.zeros((len(data), 3))
+        self._has_dir = np.zeros(self.n_cells, dtype=bool)
         self._flow = np.zeros((self.n_cells, 3))  # directions of the ways through each cell
-        self._row: dict[int, int] = {}  # goal cell -> row of the tables below
+        self._row_of = np.full(self.n_cells, -1, dtype=np.int64)  # goal cell -> row of the tables below
         self._next = np.empty((0, self.n_cells), dtype=np.int32)
         self._dist = np.empty((0, self.n_cells), dtype=np.float32)
         self._source = np.empty(0, dtype=np.int64)
@@ -208,24 +218,32 @@ class StaticGuide:
         chip's channels: McMurchie & Ebeling 1995): a later way pays ``SAME`` per way already
         there and ``ONCOMING`` per way there in the opposite direction, so the ways spread over
         a passage's width and height and opposing flows take separate lanes."""
+        goal_cells = np.asarray(goal_cells, dtype=np.int64)
+        missing = self._row_of[goal_cells] < 0
+        if missing.any():  # each new goal cell once, in the order of its first row
+            cells, starts = goal_cells[missing], np.asarray(starts)[missing]
+            first = np.sort(np.unique(cells, return_index=True)[1])
+            self._search(cells[first], starts[first])
+        return self._row_of[goal_cells]
+
+    def _search(self, goal_cells: np.ndarray, starts: np.ndarray) -> None:
+        """Find the ways to ``goal_cells`` (new ones, in order), each then loading the way from
+        its start (see :meth:`_rows_for`)."""
         from scipy.sparse.csgraph import dijkstra
 
         for c, p in zip(goal_cells.tolist(), starts, strict=True):
-            if c in self._row:
-                continue
             source = self._source_of(c)
             dist, pred = dijkstra(self._reverse, directed=True, indices=source, return_predecessors=True)
             row = len(self._source)
-            if row == len(self._next):  # room for twice as many ways (no copy per new goal)
-                grow = max(8, 2 * row)
+            if row == len(self._next):  # room for a way per agent, then twice as many ways
+                grow = max(8, len(self.guided), 2 * row)
                 self._next = np.vstack([self._next, np.empty((grow - row, self.n_cells), dtype=np.int32)])
                 self._dist = np.vstack([self._dist, np.empty((grow - row, self.n_cells), dtype=np.float32)])
             self._next[row] = np.where(pred < 0, -1, pred)
             self._dist[row] = dist
-            self._row[c] = row
+            self._row_of[c] = row
             self._source = np.append(self._source, source)
-            self._load(self._way(self._row[c], int(self.cell_of(p[None])[0])))
-        return np.array([self._row[c] for c in goal_cells.tolist()], dtype=np.int64)
+            self._load(self._way(row, int(self.cell_of(p[None])[0])))
 
     def _way(self, row: int, cell: int) -> list[int]:
         """The cells of the way of table ``row`` from ``cell`` to its goal."""
@@ -256,13 +274,22 @@ class StaticGuide:
             return
         np.add.at(self._flow, cells[ok], dirs[ok])
         g = self._reverse
-        for v in np.unique(cells[ok]).tolist():
+        touched = np.unique(cells[ok])
+        fresh = touched[~self._has_dir[touched]]
+        if len(fresh):
+            self._has_dir[fresh] = True
+            lo, count = g.indptr[fresh], np.diff(g.indptr)[fresh]
+            legs = np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+            e = self.centres[np.repeat(fresh, count)] - self.centres[g.indices[legs]]
+            self._leg_dir[legs] = e / np.linalg.norm(e, axis=1, keepdims=True)
+        # The legs into each touched cell re-priced with the cell's flow, cell by cell: ``e @ f``
+        # per cell is a BLAS product, whose rounding one product over all legs would not repeat.
+        for v in touched.tolist():
             lo, hi = g.indptr[v], g.indptr[v + 1]
-            e = self.centres[v] - self.centres[g.indices[lo:hi]]
-            e /= np.linalg.norm(e, axis=1, keepdims=True)
             f = self._flow[v]
+            same = SAME * float(np.linalg.norm(f)) if SAME else 0.0
             g.data[lo:hi] = self._base[lo:hi] * (
-                1.0 + SAME * float(np.linalg.norm(f)) + ONCOMING * np.maximum(-(e @ f), 0.0)
+                1.0 + same + ONCOMING * np.maximum(-(self._leg_dir[lo:hi] @ f), 0.0)
             )
 
     def _source_of(self, cell: int) -> int:

@@ -1,0 +1,99 @@
+"""The guide's graph (swarmplan.flight.guide) against a plain construction of it: the reversed
+graph built in place equals, to the bit, the one scipy builds from the list of legs and
+transposes, and re-pricing a way's cells gives the legs the costs computed cell by cell from
+the cells' centres. The searches run on these arrays, so equal arrays mean equal ways."""
+
+from __future__ import annotations
+
+import numpy as np
+from helpers import base_world, make_world
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from swarmplan.flight import guide as G
+from swarmplan.flight.kinematics import AgentParams
+
+# A wall with one gap and a pillar: free cells, cells inside the inflated obstacles, cells near
+# surfaces on every side.
+OBSTACLES = [
+    {"id": "south", "shape": "box", "size": [1, 47, 60], "position": [50, 23.5, 25]},
+    {"id": "north", "shape": "box", "size": [1, 47, 60], "position": [50, 76.5, 25]},
+    {"id": "pillar", "shape": "cylinder", "radius": 2.0, "height": 30.0, "position": [70, 40, 15]},
+]
+
+
+def _guide(agents: int = 1) -> G.StaticGuide:
+    agents = [
+        {"id": f"a{k}", "start": [30.0, 20.0 + 5 * k, 20.0], "goal": [80.0, 60.0 - 5 * k, 20.0]}
+        for k in range(agents)
+    ]
+    world = make_world(base_world(obstacles=OBSTACLES, agents=agents))
+    return G.make_guide(world, AgentParams.from_world(world))
+
+
+def _reference_graph(guide: G.StaticGuide) -> csr_matrix:
+    """The legs listed offset by offset, assembled by scipy and transposed (row v: legs into v)."""
+    nx, ny, nz = (int(v) for v in guide.shape)
+    clear, normal = guide._clearance(guide.centres)
+    prox = np.clip(1.0 - clear / max(2.0 * float(guide.cell.max()), 4.0), 0.0, 1.0)
+    free = clear > 0.0
+    flat = np.arange(guide.n_cells).reshape(nx, ny, nz)
+    rows, cols, cost = [], [], []
+    for o in G._offsets():
+        src = flat[
+            max(0, -o[0]) : nx - max(0, o[0]),
+            max(0, -o[1]) : ny - max(0, o[1]),
+            max(0, -o[2]) : nz - max(0, o[2]),
+        ].ravel()
+        dst = src + (o[0] * ny + o[1]) * nz + o[2]
+        keep = free[dst] | ~free[src]
+        src, dst = src[keep], dst[keep]
+        step = o * guide.cell
+        length = float(np.linalg.norm(step))
+        e = step / length
+        right = np.array([e[1], -e[0], 0.0])
+        nr = float(np.linalg.norm(right))
+        side = np.maximum(normal[dst] @ (right / nr), 0.0) if nr > 0.2 else np.zeros(len(dst))
+        w = length * (1.0 + prox[dst] * (G.NEAR + G.RIGHT * side))
+        rows.append(src)
+        cols.append(dst)
+        cost.append(np.where(free[dst], w, 10.0 * length))
+    g = csr_matrix(
+        (np.concatenate(cost), (np.concatenate(rows), np.concatenate(cols))), shape=(guide.n_cells,) * 2
+    )
+    return g.T.tocsr()
+
+
+def test_the_graph_built_in_place_is_the_one_scipy_assembles():
+    guide = _guide()
+    ref, got = _reference_graph(guide), guide._reverse
+    assert np.array_equal(got.indptr, ref.indptr)
+    assert np.array_equal(got.indices, ref.indices)
+    assert np.array_equal(got.data.view(np.int64), ref.data.view(np.int64))
+    # and so the same search: distances and next cells, from a goal behind the wall
+    goal = int(guide.cell_of(np.array([[80.0, 60.0, 20.0]]))[0])
+    d0, p0 = dijkstra(ref, directed=True, indices=goal, return_predecessors=True)
+    d1, p1 = dijkstra(got, directed=True, indices=goal, return_predecessors=True)
+    assert np.array_equal(d0, d1) and np.array_equal(p0, p1)
+
+
+def test_re_pricing_gives_each_leg_the_cost_computed_cell_by_cell():
+    guide = _guide(agents=4)
+    pos = np.array([[30.0, 20.0 + 5 * k, 20.0] for k in range(4)])
+    goal = np.array([[80.0, 60.0 - 5 * k, 20.0] for k in range(4)])
+    guide.reset(pos, goal)
+    flow = guide._flow
+    loaded = np.flatnonzero(np.abs(flow).sum(axis=1) > 0)
+    assert len(loaded) > 0  # the ways pass the gap: cells near its edges carry them
+    g = guide._reverse
+    expect = guide._base.copy()
+    for v in loaded.tolist():
+        lo, hi = g.indptr[v], g.indptr[v + 1]
+        e = guide.centres[v] - guide.centres[g.indices[lo:hi]]
+        e /= np.linalg.norm(e, axis=1, keepdims=True)
+        f = flow[v]
+        expect[lo:hi] = guide._base[lo:hi] * (
+            1.0 + G.SAME * float(np.linalg.norm(f)) + G.ONCOMING * np.maximum(-(e @ f), 0.0)
+        )
+    assert np.array_equal(g.data.view(np.int64), expect.view(np.int64))
+    assert (g.data != guide._base).any()  # the loads did re-price legs
