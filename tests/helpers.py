@@ -11,15 +11,12 @@ checker is a failure, never a skip.
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import importlib.util
 import json
 import os
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
-from unittest import mock
 
 import numpy as np
 import pytest
@@ -277,10 +274,11 @@ def describe_failure(summary: dict[str, Any], log_path: Path | None = None) -> s
     return "\n".join(lines)
 
 
-@contextlib.contextmanager
-def without_guide() -> Iterator[None]:
-    """Runs inside fly the bare potential field, without its guide round static obstacles
-    (``swarmplan.flight.guide``): the field's own local minima (the trap worlds), on which the
-    escape planner is tested. With the guide (the default) pure APF gets out of them itself."""
-    with mock.patch("swarmplan.sim.env.make_guide", lambda *_a, **_k: None):
-        yield
+def without_guide(world: World) -> World:
+    """``world`` flying the bare potential field (``planner.apf.guide: false``), without its
+    guide round static obstacles (``swarmplan.flight.guide``): the field's own local minima
+    (the trap worlds), on which the escape planner is tested. With the guide (the default)
+    pure APF gets out of them itself."""
+    from swarmplan.io.runner import apply_overrides
+
+    return apply_overrides(world, None, None, guide=False)

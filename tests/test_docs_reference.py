@@ -210,8 +210,8 @@ def test_every_topic_a_log_contains_is_documented(tmp_path):
         raw["sim"]["max_time"] = max_time
         world = make_world(raw, base_dir=(ROOT / "worlds" / name).parent)
         log = tmp_path / f"{len(topics)}.mcap"
-        with without_guide():
-            run_to_end(world, log_path=log, planner=default_planner(world), foxglove=True)
+        world = without_guide(world)
+        run_to_end(world, log_path=log, planner=default_planner(world), foxglove=True)
         topics |= set(read_log(log))
     expected = {"/agents/speed", "/events/log", "/scene/paths/overview", "/tf", "/optimizer"}
     expected.add("/obstacles/state")

@@ -195,8 +195,7 @@ def escape_histories(seed: int, tmp_path: Path) -> list[list[float]]:
     on the bare field (the guide round static obstacles leads the agent out of the pocket)."""
     world = apply_overrides(load_world(ROOT / "worlds" / "traps" / "u_pocket.yaml"), None, 12.0)
     log = tmp_path / f"seed{seed}.mcap"
-    with without_guide():
-        simulate(world, seed, log)
+    simulate(without_guide(world), seed, log)
     runs = [d for _, d in read_log(log).get("/optimizer", []) if d["purpose"] == "escape"]
     return [r["convergence"] for r in runs]
 
@@ -222,8 +221,8 @@ def test_the_command_line_seed_reaches_the_escape_optimizer(tmp_path):
     first = {}
     for seed in (1, 2):
         log = tmp_path / f"cli{seed}.mcap"
-        with without_guide():
-            run_main([str(world), "--seed", str(seed), "--out", str(log), "--max-time", "12", "--quiet"])
+        args = ["--seed", str(seed), "--out", str(log), "--max-time", "12", "--no-guide", "--quiet"]
+        run_main([str(world), *args])
         runs = [d for _, d in read_log(log).get("/optimizer", []) if d["purpose"] == "escape"]
         assert runs, f"seed {seed}: no escape in 12 s"
         first[seed] = runs[0]

@@ -84,10 +84,9 @@ def test_moving_obstacle_is_avoided_at_its_predicted_position():
 def _pocket_sim(optimizer="de"):
     from swarmplan.world import load_world
 
-    world = load_world(TRAPS / "u_pocket.yaml")
+    world = without_guide(load_world(TRAPS / "u_pocket.yaml"))  # the guide would lead it out
     planner = RefinementPlanner(world, optimizer)
-    with without_guide():  # the bare field: the guide would lead the agent out of the pocket
-        sim = Simulation(world, planner=planner)
+    sim = Simulation(world, planner=planner)
     sim.reset(seed=3)
     sim.state.position[0] = np.array([54.0, 40.0, 15.0])  # deep in the pocket
     sim.state.velocity[0] = np.zeros(3)
@@ -185,11 +184,10 @@ def test_a_fixed_wing_with_no_room_to_loiter_is_failed_with_the_reason(monkeypat
 def test_same_seed_same_run():
     from swarmplan.world import load_world
 
-    world = load_world(TRAPS / "goal_beside_obstacle.yaml")
+    world = without_guide(load_world(TRAPS / "goal_beside_obstacle.yaml"))  # with it: no escape
 
-    def run(seed):  # the bare field: with its guide the agent needs no escape here
-        with without_guide():
-            sim = Simulation(world, planner=RefinementPlanner(world, "pso"))
+    def run(seed):
+        sim = Simulation(world, planner=RefinementPlanner(world, "pso"))
         sim.reset(seed=seed)
         traj = []
         while True:

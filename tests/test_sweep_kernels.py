@@ -413,8 +413,7 @@ def test_a_crowded_run_is_identical_on_both_paths(monkeypatch):
     raw["agent_defaults"]["separation"] = [10, 10, 5]
 
     def run() -> tuple[list, list]:
-        with without_guide():  # the bare field: its escapes are part of what is compared
-            sim = Simulation(parse_world(raw))
+        sim = Simulation(without_guide(parse_world(raw)))  # the bare field: its escapes are compared
         sim.reset(seed=1)
         events, states = [], []
         while True:

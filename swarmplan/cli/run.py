@@ -1,5 +1,5 @@
-"""``python -m swarmplan.run WORLD [--seed N] [--out PATH] [--optimizer NAME] [--max-time S] [--quiet]
-[--live [--port N] [--speed X]]``.
+"""``python -m swarmplan.run WORLD [--seed N] [--out PATH] [--optimizer NAME] [--no-guide] [--max-time S]
+[--quiet] [--live [--port N] [--speed X]]``.
 
 ``--live`` serves the run on 127.0.0.1 (Foxglove WebSocket protocol) while it is logged, paced
 to real time (``--speed``: a multiple of it, 0 as fast as it runs).
@@ -153,6 +153,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="escape/smoothing optimizer, or 'none' for pure APF; unset: the world's",
     )
+    p.add_argument(
+        "--no-guide",
+        action="store_true",
+        help="fly the bare potential field: no guide round static obstacles "
+        "(planner.apf.guide: false); unset: the world's",
+    )
     p.add_argument("--max-time", type=float, default=None, help="override the world's sim.max_time (s)")
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.add_argument(
@@ -214,7 +220,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.seed is not None and args.seed < 0:
             raise WorldError([f"--seed: must be >= 0, got {args.seed}"], "command line")
         live = live_view(args)
-        world = apply_overrides(load_world(args.world, names), args.optimizer, args.max_time)
+        world = apply_overrides(
+            load_world(args.world, names), args.optimizer, args.max_time, False if args.no_guide else None
+        )
         seed = world.seed if args.seed is None else args.seed
         log_path = log_path_for(world, seed, world.planner_config.optimizer.name, args.out)
         check_writable(log_path, "--out" if args.out is not None else "log.path")

@@ -520,7 +520,9 @@ def next_rest(world: World, t: float) -> float:
 
 def make_guide(world: World, params: AgentParams, t: float = 0.0) -> StaticGuide | None:
     """The guide of ``world`` round the obstacles at rest for good at ``t``, or None when there
-    are none (nothing to go round)."""
+    are none (nothing to go round) or the world turns it off (``planner.apf.guide: false``)."""
+    if not world.planner_config.apf.guide:
+        return None
     bodies = resting_bodies(world, t)
     if not bodies:
         return None

@@ -147,18 +147,26 @@ class Pacer:
             time.sleep(min(left, 0.05))
 
 
-def apply_overrides(world: World, optimizer: str | None, max_time: float | None) -> World:
+def apply_overrides(
+    world: World, optimizer: str | None, max_time: float | None, guide: bool | None = None
+) -> World:
+    """``world`` with the command line's choices: the optimizer (``none``: pure APF),
+    ``sim.max_time`` and ``planner.apf.guide`` (False: the bare potential field); None keeps
+    the world's."""
     changes: dict[str, Any] = {}
     if max_time is not None:
         changes["max_time"] = float(max_time)
+    planner = world.planner
     if optimizer is not None:
-        planner = dict(world.planner)
         opt = dict(planner["optimizer"], name=optimizer)
         if optimizer != world.planner_config.optimizer.name:
             # The world's params are settings of its own algorithm (e.g. rscdwoa's beta): another
             # algorithm runs with its papers' defaults.
             opt["params"] = {}
         planner["optimizer"] = opt
+        changes["planner"] = planner
+    if guide is not None:
+        planner["apf"] = dict(planner["apf"], guide=bool(guide))
         changes["planner"] = planner
     return world.with_overrides(**changes) if changes else world
 

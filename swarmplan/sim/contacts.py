@@ -162,11 +162,20 @@ class NearMisses:
                 self._radius,
                 np.ascontiguousarray(active, dtype=bool),
             )
-        new = ~np.isin(keys, self._near, assume_unique=True)
+        # Both key arrays are sorted and unique: membership by binary search.
+        near = self._near
         self._near = keys
+        if len(near):
+            at = np.searchsorted(near, keys)
+            new = near[np.minimum(at, len(near) - 1)] != keys
+            if not new.any():
+                return NOTHING
+            keys = keys[new]
+        if not len(keys):
+            return NOTHING
         pi, pj = keys // self._n, keys % self._n
         events, counts = [], []
-        for i, j in zip(pi[new].tolist(), pj[new].tolist(), strict=True):
+        for i, j in zip(pi.tolist(), pj.tolist(), strict=True):
             dist = float(np.linalg.norm(pos[i] - pos[j]))
             counts += [("near_misses", i), ("near_misses", j)]
             events.append(

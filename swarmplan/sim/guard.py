@@ -33,7 +33,9 @@ import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.vec3 import dot3, norm3
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.safety import AGENT_MARGIN
 
@@ -67,6 +69,68 @@ def sideways_time(distance: np.ndarray, amax: np.ndarray, vmax: np.ndarray) -> n
     return np.where(d <= v * v / a, 2.0 * np.sqrt(d / a), d / v + v / a)
 
 
+Pairs = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""Threat pairs: keys ``k * T + j`` (sorted), times (P, 2) and misses (P, 2) of the closest
+approach to the agent and to its goal, the threat's offset then from the agent (P, 3)."""
+
+
+def threat_pairs_dense(
+    c: np.ndarray,
+    u: np.ndarray,
+    margin: np.ndarray,
+    who: np.ndarray,
+    rows: np.ndarray,
+    radius: np.ndarray,
+    position: np.ndarray,
+    goal: np.ndarray,
+    horizon: np.ndarray,
+) -> Pairs:
+    """Every threat ``j`` (centres ``c``, velocities ``u``, ``margin``, agent index ``who`` or -1)
+    against every guarding agent ``k`` (index ``rows``, ``radius``, ``position``, ``goal``,
+    ``horizon``): the pairs whose closest approach to the agent or its goal is below
+    ``margin[j] + radius[k]``, the agent itself left out."""
+    t_star, closest, miss = _approach(c, u, position, horizon)
+    t_goal, _, miss_goal = _approach(c, u, goal, horizon)
+    need = margin[None, :] + radius[:, None]
+    sel = ((miss < need) | (miss_goal < need)) & (who[None, :] != rows[:, None])
+    kk, jj = np.nonzero(sel)
+    times = np.stack([t_star[sel], t_goal[sel]], axis=1)
+    misses = np.stack([miss[sel], miss_goal[sel]], axis=1)
+    return kk.astype(np.int64) * len(c) + jj, times, misses, closest[sel]
+
+
+def threat_pairs(
+    c: np.ndarray,
+    u: np.ndarray,
+    margin: np.ndarray,
+    who: np.ndarray,
+    rows: np.ndarray,
+    radius: np.ndarray,
+    position: np.ndarray,
+    goal: np.ndarray,
+    horizon: np.ndarray,
+    compiled: bool,
+) -> Pairs:
+    """:func:`threat_pairs_dense`'s pairs; ``compiled``: from a sweep along x that tests only the
+    pairs within a threat's reach (its speed times the horizon plus its need), the same bits."""
+    if not compiled:
+        return threat_pairs_dense(c, u, margin, who, rows, radius, position, goal, horizon)
+    f = np.ascontiguousarray
+    return kernel_module("swarmplan.geometry._approach_kernel").threat_pairs(
+        f(c, dtype=float),
+        f(u, dtype=float),
+        f(margin, dtype=float),
+        f(who, dtype=np.int64),
+        f(rows, dtype=np.int64),
+        f(radius, dtype=float),
+        f(position, dtype=float),
+        f(goal, dtype=float),
+        f(horizon, dtype=float),
+        # numpy's clip keeps a -0.0 time when both its bounds broadcast as scalars (one agent).
+        len(rows) == 1 and len(c) > 1,
+    )
+
+
 class GoalGuard:
     """Which agents guard their goal (arrived multirotors, for the rest of the run) and which of
     them are out of a threat's way this step (reset with :meth:`reset`)."""
@@ -78,6 +142,7 @@ class GoalGuard:
         self.guarding = np.zeros(n, dtype=bool)
         self.evading = np.zeros(n, dtype=bool)
         self._command = np.zeros((n, 3))
+        self._compiled = use_compiled_checks(n)
 
     def reset(self) -> None:
         self.guarding[:] = False
@@ -107,39 +172,42 @@ class GoalGuard:
         u = np.vstack([velocities, s.velocity[flying]])
         margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + AGENT_MARGIN])
         who = np.concatenate([np.full(len(centres), -1), flying])
-        names = tuple(ids) + tuple(p.ids[k] for k in flying.tolist())
         if not len(c):
             return NOTHING
-        need = margin[None, :] + p.radius[rows, None]  # (R, T)
+        radius = p.radius[rows]
         amax, vmax = p.max_accel[rows], p.speed_max[rows]
-        horizon = HORIZON_FACTOR * sideways_time(need.max(axis=1), amax, vmax) + 3.0 * self.dt
-        others = who[None, :] != rows[:, None]
+        # The largest need of each agent: max_j (margin_j + r) is max(margin) + r (rounding keeps order).
+        horizon = HORIZON_FACTOR * sideways_time(margin.max() + radius, amax, vmax) + 3.0 * self.dt
         # Each threat's own motion against the agent held where it is (its evasion is what it
         # controls), and against its goal: it stays out until the goal is clear again.
-        t_star, closest, miss = _approach(c, u, s.position[rows], horizon)
-        t_goal, _, miss_goal = _approach(c, u, s.goal[rows], horizon)
-        threat = (miss < need) & others
-        at_goal = (miss_goal < need) & others
+        pairs = threat_pairs(
+            c, u, margin, who, rows, radius, s.position[rows], s.goal[rows], horizon, self._compiled
+        )
+        key, times, misses, offsets = pairs
         self._command[rows] = 0.0
-        events, counts = [], []
-        under = np.flatnonzero((threat | at_goal).any(axis=1))
-        if not len(under):
+        if not len(key):
             return NOTHING
+        events, counts = [], []
+        k_of, j_of = key // len(c), key % len(c)
+        under, starts = np.unique(k_of, return_index=True)
         clearance, normal = surface(rows[under])
+        bounds = np.append(starts, len(key))
         for n, k in enumerate(under.tolist()):
             i = int(rows[k])
+            sl = slice(int(bounds[n]), int(bounds[n + 1]))
+            js = j_of[sl]
+            threat = misses[sl, 0] < margin[js] + radius[k]
             self.evading[i] = True
             side = (float(clearance[n]), normal[n])
             # Clear of every threat where it is: it hovers there until its goal is clear.
-            self._command[i] = self._evasion(i, threat[k], closest[k], u, need[k], side)
+            self._command[i] = self._evasion(i, threat, offsets[sl], u[js], margin[js] + radius[k], side)
             if s.mode[i] == Mode.ARRIVED:
-                j = int(np.argmin(np.where(threat[k] | at_goal[k], np.minimum(t_star[k], t_goal[k]), np.inf)))
+                m = sl.start + int(np.argmin(np.minimum(times[sl, 0], times[sl, 1])))
                 s.mode[i] = Mode.APF
-                miss_j, in_j = (
-                    round(float(min(miss[k, j], miss_goal[k, j])), 6),
-                    round(float(t_star[k, j]), 6),
-                )
-                detail = {"threat": names[j], "miss": miss_j, "in": in_j}
+                miss_j, in_j = round(float(min(misses[m, 0], misses[m, 1])), 6), round(float(times[m, 0]), 6)
+                j = int(j_of[m])
+                name = ids[j] if j < len(centres) else p.ids[int(who[j])]
+                detail = {"threat": name, "miss": miss_j, "in": in_j}
                 events.append(Event(s.t, p.ids[i], "evade_start", detail))
                 counts.append(("evasions", i))
         return Tally(events=tuple(events), counts=tuple(counts)) if events else NOTHING

@@ -193,6 +193,9 @@ class ApfConfig:
     goal_power: float
     k_moving: float
     horizon: float
+    guide: bool = True
+    """Whether agents whose straight line is blocked are led round static obstacles
+    (``swarmplan.flight.guide``); false flies the bare field, with its local minima."""
 
 
 @dataclass(frozen=True)

@@ -59,6 +59,7 @@ PLANNER_DEFAULTS: dict[str, Any] = {
         "goal_power": 2.0,  # n of the goal-distance factor rho_goal^n in the repulsion
         "k_moving": 2.0,  # weight of the relative-velocity term for moving obstacles
         "horizon": 4.0,  # s: how far ahead moving obstacles and agents are predicted
+        "guide": True,  # lead agents round static obstacles (swarmplan.flight.guide); false: bare field
     },
     "stuck": {"window": 3.0, "min_progress": 0.5},
     "optimizer": {"name": "rscdwoa", "population": 30, "iterations": 100, "params": {}},
@@ -97,7 +98,10 @@ def _resolve_planner(c: Checker, raw: Any, optimizer_names: list[str] | None) ->
             for k, dv in PLANNER_DEFAULTS[section].items():
                 if dv is None and node.get(k) is None:
                     continue  # derived from the agents once they are known
-                planner[section][k] = c.number(node, k, f"planner.{section}", dv, positive=True)
+                if isinstance(dv, bool):
+                    planner[section][k] = c.boolean(node, k, f"planner.{section}", dv)
+                else:
+                    planner[section][k] = c.number(node, k, f"planner.{section}", dv, positive=True)
     opt = raw.get("optimizer")
     if opt is not None and c.keys(opt, "planner.optimizer", ["name", "population", "iterations", "params"]):
         names = optimizer_names or []

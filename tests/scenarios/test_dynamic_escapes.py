@@ -51,11 +51,7 @@ def runs(tmp_path_factory):
                 raw["planner"]["optimizer"]["name"] = optimizer
             world = make_world(raw)
             log = tmp_path_factory.mktemp(key) / "run.mcap"
-            if guide:
-                cache[key] = (simulate(world, world.seed, log), log)
-            else:
-                with without_guide():
-                    cache[key] = (simulate(world, world.seed, log), log)
+            cache[key] = (simulate(world if guide else without_guide(world), world.seed, log), log)
         return cache[key]
 
     return get
@@ -117,8 +113,7 @@ def test_the_corridor_with_a_static_plug_is_solved_by_one_escape(tmp_path):
     del plug["motion"]
     world = make_world(raw)
     log = tmp_path / "static.mcap"
-    with without_guide():
-        summary = simulate(world, world.seed, log)
+    summary = simulate(without_guide(world), world.seed, log)
     why = describe_failure(summary, log)
     problems, _notes, stats = audit(log)
     assert problems == [], f"{problems}\n{why}"

@@ -1,6 +1,6 @@
-"""Trap worlds (``worlds/traps``): local minima of the bare potential field, which the
-refinement planner escapes; with its guide round static obstacles (the default,
-``swarmplan.flight.guide``) the field gets out of every one by itself.
+"""Trap worlds (``worlds/traps``): local minima of the bare potential field (each sets
+``planner.apf.guide: false``), which the refinement planner escapes; with its guide round
+static obstacles on (``swarmplan.flight.guide``) the field gets out of every one by itself.
 
 Each world is run through the real ``simulate`` path and the log is audited independently
 with ``check_log.py``. The default suite runs each trap with ``none`` on the bare field
@@ -15,7 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from helpers import audit, without_guide
+from helpers import audit
 
 from swarmplan import optimizers
 from swarmplan.io.runner import apply_overrides, simulate
@@ -32,14 +32,11 @@ TRAPPING = [w for w in WORLDS if w not in SOLVED_BY_FIELD]
 
 
 def run_trap(name: str, optimizer: str, seed: int, tmp_path: Path, guide: bool = False) -> tuple[dict, Path]:
-    """One run of a trap, on the bare field (the trap) unless ``guide``."""
+    """One run of a trap, on the bare field (the trap) unless ``guide`` (``planner.apf.guide``)."""
     world = load_world(TRAPS / f"{name}.yaml", optimizers.available())
-    world = apply_overrides(world, optimizer, None)
+    world = apply_overrides(world, optimizer, None, guide)
     log = tmp_path / f"{name}-{optimizer}-{seed}-{'guided' if guide else 'bare'}.mcap"
-    if guide:
-        return simulate(world, seed, log), log
-    with without_guide():
-        return simulate(world, seed, log), log
+    return simulate(world, seed, log), log
 
 
 def test_there_are_four_traps():
