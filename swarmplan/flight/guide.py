@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.geometry.batch import ShapeBatch
+from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
 
 if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
@@ -148,8 +148,36 @@ class StaticGuide:
         self._dist = np.empty((0, self.n_cells), dtype=np.float32)
         self._source = np.empty(0, dtype=np.int64)
         self.guided = np.zeros(len(world.agents), dtype=bool)
+        self._sight_bounds()
+        self._reach_bodies()
 
     # ------------------------------------------------------------------ geometry
+
+    def _sight_bounds(self) -> None:
+        """Tables that let :meth:`blocked` pass over a line no sample of which can land in a
+        cell near a surface (``self.clear`` below ``half_diagonal + SQUEEZE``, the first test a
+        sample must fail to count): ``_low`` is the lowest layer of cells (z index) above every
+        such cell near the ground, and ``_gap[c]`` the distance from cell c's box to the nearest
+        box of a cell near a surface in the layers from ``_low`` up (inf when there is none)."""
+        from scipy.ndimage import binary_dilation, distance_transform_edt
+
+        limit = self.half_diagonal + SQUEEZE
+        c = self.centres
+        ground = (c[:, 2] - self.world.terrain_height(c[:, :2]) - self.floor) - self.radius < limit
+        self._low = int(self.ijk[ground, 2].max()) + 1 if ground.any() else 0
+        near = ((self.clear < limit) & (self.ijk[:, 2] >= self._low)).reshape(
+            tuple(int(v) for v in self.shape)
+        )
+        if not near.any():
+            self._gap = np.full(self.n_cells, np.inf)
+            self._gap_max = np.inf
+            return
+        # The box-to-box distance from cell c to the nearest such cell is the centre-to-centre
+        # distance from c to the nearest cell of that set grown by its 26 neighbours (the
+        # neighbour one step towards c along every axis that differs).
+        grown = binary_dilation(near, structure=np.ones((3, 3, 3), dtype=bool))
+        self._gap = distance_transform_edt(~grown, sampling=self.cell).ravel()
+        self._gap_max = float(self._gap.max())
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
@@ -193,21 +221,98 @@ class StaticGuide:
         end = start + (end - start) * (cut / np.maximum(length, 1e-12))[:, None]
         length = cut
         step = 0.5 * float(self.cell.min())
-        samples = int(min(max(np.ceil(length.max() / step), 1), 4000))
+        samples = int(min(max(np.ceil(length.max() / step), 1), 4000))  # of all rows: kept as is
+        rows = self._may_block(start, end, length)
+        if not len(rows):
+            return out
+        start, end = start[rows], end[rows]
         t = np.linspace(0.0, 1.0, samples + 1)
         pts = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]
         flat = pts.reshape(-1, 3)
-        cand = np.flatnonzero(self.clear[self.cell_of(flat)] < self.half_diagonal + SQUEEZE)
+        flat_cells = self.cell_of(flat)
+        cand = np.flatnonzero(self.clear[flat_cells] < self.half_diagonal + SQUEEZE)
         if not len(cand):
             return out
         p = flat[cand]
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
         if self.bodies:
-            exact = np.minimum(exact, self._batch.distance(p).min(axis=1))
+            exact = np.minimum(exact, self._body_distance(p, flat_cells[cand]))
         exact -= self.radius
         hit = cand[exact < SQUEEZE] // (samples + 1)
-        out[np.unique(hit)] = True
+        out[rows[np.unique(hit)]] = True
         return out
+
+    def _reach_bodies(self) -> None:
+        """``_reach[c, b]``: whether a point of cell c's box lies within the largest agent radius
+        plus ``SQUEEZE`` (and a margin for rounding) of body b's bounding box (in the world's
+        axes). A body's exact distance is at least that to its bounding box, so a sample in the
+        grid measures only the bodies its cell reaches: the others cannot bring it under
+        ``SQUEEZE``. With a mesh among the bodies (distances from a grid) every cell reaches all."""
+        b = self._batch
+        self._box_half = None
+        if not self.bodies or b.meshes:
+            self._reach = np.ones((self.n_cells, len(self.bodies)), dtype=bool)
+            return
+        local = np.column_stack([b.prm[:, 0], b.prm[:, 0], b.prm[:, 0]])
+        local[b.code == 1] = b.prm[b.code == 1]  # box: its half sizes
+        local[b.code >= 2, 2] = b.prm[b.code >= 2, 1]  # cylinder, capsule: half height
+        local[b.code == 3, 2] += b.prm[b.code == 3, 0]  # capsule: and its caps
+        # local = (p - centre) @ R, so |p - centre| <= |R| @ local half-extents per world axis.
+        self._box_half = np.einsum("mjk,mk->mj", np.abs(b.rotation), local) * (1.0 + 1e-9) + 1e-9
+        lo = self.lo + self.ijk * self.cell
+        hi = lo + self.cell
+        self._reach = np.zeros((self.n_cells, len(self.bodies)), dtype=bool)
+        for k in range(len(self.bodies)):
+            c, e = b.position[k], self._box_half[k]
+            gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
+            self._reach[:, k] = np.sqrt((gap * gap).sum(axis=1)) < self.radius + SQUEEZE + 1e-6
+
+    def _body_distance(self, p: np.ndarray, cells: np.ndarray) -> np.ndarray:
+        """The distance from each of the samples ``p`` in ``cells`` to the nearest body its cell
+        reaches (inf when none does), each computed as ``ShapeBatch.distance`` computes it (the
+        same operations on the same numbers, element by element: the same bits): below
+        ``SQUEEZE`` plus the radius exactly where the nearest of all bodies is. A sample outside
+        the grid (its cell's box does not hold it) is measured against every body."""
+        b = self._batch
+        margin = 1e-6
+        if ((p < self.lo + margin) | (p > self.lo + self.shape * self.cell - margin)).any():
+            return b.distance(p).min(axis=1)
+        pt, body = np.nonzero(self._reach[cells])
+        out = np.full(len(p), np.inf)
+        if not len(pt):
+            return out
+        c = b.position[body]
+        local = rotate_rows_of(*(p[pt, k] - c[:, k] for k in range(3)), b.rotation[body])
+        d = np.empty(len(pt))
+        for code, shape in enumerate(("sphere", "box", "cylinder", "capsule")):
+            sel = np.flatnonzero(b.code[body] == code)
+            if len(sel):
+                d[sel] = SHAPE_DISTANCE[shape](local[sel], *(v[body[sel]] for v in b.by_obstacle[shape]))
+        first = np.flatnonzero(np.diff(pt, prepend=-1))  # pairs come row by row
+        out[pt[first]] = np.minimum.reduceat(d, first)
+        return out
+
+    def _may_block(self, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """Rows of the lines ``start`` -> ``end`` (n, 3) of ``length`` (n,) a sample of which may
+        land in a cell near a surface; :meth:`blocked` finds every other one clear. Why no sample
+        of another line can: its samples ``start + t (end - start)``, t in [0, 1], have heights
+        monotone in t (rounding is monotone), so between those of its two ends, whose layers are
+        at least ``_low``: no sample is in a cell near the ground. The cell of a sample holds the
+        sample's nearest point in the grid's box (the index is clipped), which is no farther
+        from the start's nearest point than the sample from the start (projection onto a box
+        does not stretch distances): at most ``length``. So that cell's box is within
+        ``length`` of the start's cell's box, and ``_gap`` there beyond ``length`` (with a
+        margin for rounding) leaves no cell near a body within reach."""
+        reach = length * (1.0 + 1e-9) + 1e-6
+        maybe = np.flatnonzero(reach < self._gap_max)  # the others reach a cell near a body anyway
+        if not len(maybe):
+            return np.arange(len(start))
+        s, e = start[maybe], end[maybe]
+        kz = np.floor((np.column_stack([s[:, 2], (s + (e - s))[:, 2]]) - self.lo[2]) / self.cell[2])
+        kz = np.clip(kz, 0, self.shape[2] - 1).min(axis=1)
+        keep = np.ones(len(start), dtype=bool)
+        keep[maybe] = ~((self._gap[self.cell_of(s)] > reach[maybe]) & (kz >= self._low))
+        return np.flatnonzero(keep)
 
     # ------------------------------------------------------------------ ways to the goals
 

@@ -67,6 +67,21 @@ def _dist_capsule(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) ->
     return np.sqrt(x * x + y * y + dz * dz) - radius
 
 
+SHAPE_DISTANCE = {
+    "sphere": _dist_sphere,
+    "box": _dist_box,
+    "cylinder": _dist_cylinder,
+    "capsule": _dist_capsule,
+}
+
+
+def rotate_rows_of(r0: np.ndarray, r1: np.ndarray, r2: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Points ``(r0, r1, r2)`` (offsets from their obstacles' centres, coordinate by coordinate)
+    in their obstacles' frames (``rotation``: one matrix per point, or per column), as ``ShapeBatch``
+    turns them: the same bits as its distances per pair of a point and an obstacle."""
+    return _rotate(r0, r1, r2, rotation)
+
+
 def rotate_rows(rel: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """``np.einsum("nmk,mkl->nml", rel, rotation)``: each point ``rel[n, m]`` times the matrix
     ``rotation[m]``, written per output coordinate (``(r0 R0l + r1 R1l) + r2 R2l``, the sum

@@ -1,0 +1,113 @@
+"""The guide's line-of-sight check (swarmplan.flight.guide.StaticGuide.blocked) passes over lines
+that cannot land a sample in a cell near a surface and measures a sample's distances only near
+a body's bounding box: on random lines among boxes, cylinders, capsules and spheres, over flat
+ground and over terrain, its answers equal those of measuring every sample of every line; the
+bounding boxes hold the bodies (no distance below the box's), and the gap table is the
+distance between cell boxes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import base_world, make_world
+
+from swarmplan.flight import guide as G
+from swarmplan.flight.kinematics import AgentParams
+
+OBSTACLES = [
+    {"id": "box", "shape": "box", "size": [10, 10, 30], "position": [30, 30, 15], "rotation": [0, 0, 30]},
+    {"id": "pillar", "shape": "cylinder", "radius": 3.0, "height": 25.0, "position": [70, 60, 12.5]},
+    {"id": "ball", "shape": "sphere", "radius": 5.0, "position": [60, 25, 30]},
+    {
+        "id": "beam",
+        "shape": "capsule",
+        "radius": 2.0,
+        "height": 20.0,
+        "position": [40, 75, 20],
+        "rotation": [40, 30, 0],
+    },
+    {
+        "id": "log",
+        "shape": "cylinder",
+        "radius": 2.5,
+        "height": 15.0,
+        "position": [80, 20, 10],
+        "rotation": [0, 70, 20],
+    },
+]
+PEAKS = {"peaks": [{"center": [20, 80], "height": 12.0, "spread": [10, 10]}]}
+
+
+def _guide(terrain: bool, agents: int) -> G.StaticGuide:
+    raw = base_world(
+        obstacles=OBSTACLES,
+        agents=[
+            {"id": f"a{k}", "start": [5.0, 5.0 + 0.4 * k, 40.0], "goal": [95.0, 95.0 - 0.4 * k, 40.0]}
+            for k in range(agents)
+        ],
+    )
+    if terrain:
+        raw["terrain"] = PEAKS
+    world = make_world(raw)
+    return G.make_guide(world, AgentParams.from_world(world))
+
+
+@pytest.mark.parametrize(("terrain", "agents"), [(False, 1), (True, 1), (False, 200)])
+def test_passing_over_lines_changes_no_answer(
+    monkeypatch: pytest.MonkeyPatch, terrain: bool, agents: int
+) -> None:
+    guide = _guide(terrain, agents)  # 200 agents: a coarser grid
+    rng = np.random.default_rng(7 + agents)
+    lo, hi = np.array([-5.0, -5.0, 0.0]), np.array([105.0, 105.0, 55.0])
+    passed = far = 0
+    for trial in range(30):
+        n = 300
+        start = rng.uniform(lo, hi, (n, 3))
+        end = start + rng.normal(size=(n, 3)) * rng.choice([2.0, 10.0, 40.0])
+        reach = rng.choice([np.inf, 5.0, 20.0], n) if trial % 2 else np.inf
+        fast = guide.blocked(start, end, reach)
+        kept = len(guide._may_block(*_cut(start, end, reach)))
+        with monkeypatch.context() as m:
+            m.setattr(guide, "_may_block", lambda s, e, length: np.arange(len(s)))
+            m.setattr(guide, "_body_distance", lambda p, cells: guide._batch.distance(p).min(axis=1))
+            slow = guide.blocked(start, end, reach)
+        np.testing.assert_array_equal(fast, slow)
+        passed += n - kept
+        far += int((~slow).sum())
+    assert 0 < passed <= far
+
+
+def _cut(start: np.ndarray, end: np.ndarray, reach: np.ndarray | float) -> tuple[np.ndarray, ...]:
+    length = np.linalg.norm(end - start, axis=1)
+    cut = np.minimum(length, reach)
+    return start, start + (end - start) * (cut / np.maximum(length, 1e-12))[:, None], cut
+
+
+def test_gap_is_the_distance_between_cell_boxes() -> None:
+    guide = _guide(False, 1)
+    near = (guide.clear < guide.half_diagonal + G.SQUEEZE) & (guide.ijk[:, 2] >= guide._low)
+    rng = np.random.default_rng(3)
+    for c in rng.integers(0, guide.n_cells, 40):
+        d = np.maximum(np.abs(guide.ijk[near] - guide.ijk[c]) - 1, 0) * guide.cell
+        np.testing.assert_allclose(guide._gap[c], np.sqrt((d**2).sum(axis=1)).min(), rtol=1e-12)
+
+
+def test_bounding_boxes_bound_the_distances() -> None:
+    guide = _guide(False, 1)
+    rng = np.random.default_rng(5)
+    p = rng.uniform([-10, -10, -5], [110, 110, 60], (20000, 3))
+    gap = np.maximum(np.abs(p[:, None, :] - guide._batch.position[None]) - guide._box_half[None], 0.0)
+    below = np.sqrt((gap * gap).sum(axis=2))
+    d = guide._batch.distance(p)
+    assert (d[below > 0] >= below[below > 0] - 1e-9).all()  # inside a box: any distance
+    assert (np.abs(d - below) < 0.5).any(axis=0).all()  # and not loosely: some points come close
+
+
+def test_pairs_measure_the_bits_of_every_body() -> None:
+    guide = _guide(False, 1)
+    rng = np.random.default_rng(9)
+    p = rng.uniform([1, 1, 1], [99, 99, 49], (5000, 3))
+    guide._reach = np.ones_like(guide._reach)
+    np.testing.assert_array_equal(
+        guide._body_distance(p, guide.cell_of(p)), guide._batch.distance(p).min(axis=1)
+    )
