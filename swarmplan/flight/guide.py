@@ -159,8 +159,6 @@ class StaticGuide:
         sample must fail to count): ``_low`` is the lowest layer of cells (z index) above every
         such cell near the ground, and ``_gap[c]`` the distance from cell c's box to the nearest
         box of a cell near a surface in the layers from ``_low`` up (inf when there is none)."""
-        from scipy.ndimage import binary_dilation, distance_transform_edt
-
         limit = self.half_diagonal + SQUEEZE
         c = self.centres
         ground = (c[:, 2] - self.world.terrain_height(c[:, :2]) - self.floor) - self.radius < limit
@@ -172,11 +170,18 @@ class StaticGuide:
             self._gap = np.full(self.n_cells, np.inf)
             self._gap_max = np.inf
             return
-        # The box-to-box distance from cell c to the nearest such cell is the centre-to-centre
-        # distance from c to the nearest cell of that set grown by its 26 neighbours (the
-        # neighbour one step towards c along every axis that differs).
-        grown = binary_dilation(near, structure=np.ones((3, 3, 3), dtype=bool))
-        self._gap = distance_transform_edt(~grown, sampling=self.cell).ravel()
+        # The box-to-box distance between cells (i, j, k) and (i', j', k') is the root of the sum
+        # over the axes of ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum
+        # over the near cells is taken one axis after the other (a min-plus product with the
+        # table of the terms along that axis), exactly, in (cells x cells along the axis) work.
+        sq = np.where(near, 0.0, np.inf)
+        for axis in range(3):
+            n = int(self.shape[axis])
+            d = np.arange(n)
+            term = (np.maximum(np.abs(d[:, None] - d[None, :]) - 1, 0) * self.cell[axis]) ** 2
+            moved = np.moveaxis(sq, axis, -1)
+            sq = np.moveaxis((moved[..., None, :] + term).min(axis=-1), -1, axis)
+        self._gap = np.sqrt(sq).ravel()
         self._gap_max = float(self._gap.max())
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
