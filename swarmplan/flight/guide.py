@@ -173,14 +173,16 @@ class StaticGuide:
         # The box-to-box distance between cells (i, j, k) and (i', j', k') is the root of the sum
         # over the axes of ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum
         # over the near cells is taken one axis after the other (a min-plus product with the
-        # table of the terms along that axis), exactly, in (cells x cells along the axis) work.
+        # term of that axis), exactly, in (cells x cells along the axis) work: shift by shift.
         sq = np.where(near, 0.0, np.inf)
         for axis in range(3):
-            n = int(self.shape[axis])
-            d = np.arange(n)
-            term = (np.maximum(np.abs(d[:, None] - d[None, :]) - 1, 0) * self.cell[axis]) ** 2
-            moved = np.moveaxis(sq, axis, -1)
-            sq = np.moveaxis((moved[..., None, :] + term).min(axis=-1), -1, axis)
+            src = np.moveaxis(sq, axis, 0)
+            out = src.copy()
+            for s in range(1, int(self.shape[axis])):
+                term = (max(s - 1, 0) * self.cell[axis]) ** 2
+                np.minimum(out[s:], src[:-s] + term, out=out[s:])
+                np.minimum(out[:-s], src[s:] + term, out=out[:-s])
+            sq = np.moveaxis(out, 0, axis)
         self._gap = np.sqrt(sq).ravel()
         self._gap_max = float(self._gap.max())
 
