@@ -107,8 +107,8 @@ class StaticGuide:
         delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
         order = np.argsort(-delta, kind="stable")
         offsets, delta = offsets[order], delta[order]
-        weight = np.zeros((self.n_cells, len(offsets)))
-        legal = np.zeros((self.n_cells, len(offsets)), dtype=bool)
+        weight = np.zeros((self.n_cells, len(offsets)), order="F")  # written column by column
+        legal = np.zeros((self.n_cells, len(offsets)), dtype=bool, order="F")
         flat = np.arange(self.n_cells).reshape(nx, ny, nz)
         for k, o in enumerate(offsets):
             src = flat[
