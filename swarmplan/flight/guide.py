@@ -107,8 +107,8 @@ class StaticGuide:
         delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
         order = np.argsort(-delta, kind="stable")
         offsets, delta = offsets[order], delta[order]
-        weight = np.zeros((self.n_cells, len(offsets)))
-        legal = np.zeros((self.n_cells, len(offsets)), dtype=bool)
+        weight = np.zeros((self.n_cells, len(offsets)), order="F")  # written column by column
+        legal = np.zeros((self.n_cells, len(offsets)), dtype=bool, order="F")
         flat = np.arange(self.n_cells).reshape(nx, ny, nz)
         for k, o in enumerate(offsets):
             src = flat[
@@ -159,8 +159,6 @@ class StaticGuide:
         sample must fail to count): ``_low`` is the lowest layer of cells (z index) above every
         such cell near the ground, and ``_gap[c]`` the distance from cell c's box to the nearest
         box of a cell near a surface in the layers from ``_low`` up (inf when there is none)."""
-        from scipy.ndimage import binary_dilation, distance_transform_edt
-
         limit = self.half_diagonal + SQUEEZE
         c = self.centres
         ground = (c[:, 2] - self.world.terrain_height(c[:, :2]) - self.floor) - self.radius < limit
@@ -172,11 +170,20 @@ class StaticGuide:
             self._gap = np.full(self.n_cells, np.inf)
             self._gap_max = np.inf
             return
-        # The box-to-box distance from cell c to the nearest such cell is the centre-to-centre
-        # distance from c to the nearest cell of that set grown by its 26 neighbours (the
-        # neighbour one step towards c along every axis that differs).
-        grown = binary_dilation(near, structure=np.ones((3, 3, 3), dtype=bool))
-        self._gap = distance_transform_edt(~grown, sampling=self.cell).ravel()
+        # The box-to-box distance between cells (i, j, k) and (i', j', k') is the root of the sum
+        # over the axes of ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum
+        # over the near cells is taken one axis after the other (a min-plus product with the
+        # term of that axis), exactly, in (cells x cells along the axis) work: shift by shift.
+        sq = np.where(near, 0.0, np.inf)
+        for axis in range(3):
+            src = np.moveaxis(sq, axis, 0)
+            out = src.copy()
+            for s in range(1, int(self.shape[axis])):
+                term = (max(s - 1, 0) * self.cell[axis]) ** 2
+                np.minimum(out[s:], src[:-s] + term, out=out[s:])
+                np.minimum(out[:-s], src[s:] + term, out=out[:-s])
+            sq = np.moveaxis(out, 0, axis)
+        self._gap = np.sqrt(sq).ravel()
         self._gap_max = float(self._gap.max())
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
