@@ -151,6 +151,18 @@ class ApfField:
         self._gains = tuple(float(v) for v in gains_)
         self._floor = float(world.terrain_clearance) if world.peaks else 0.0
         self._reach = current_reach(params, self.reach_per_agent, self.gains.influence)
+        # reach_at_speed's constant parts, computed once: the same floats in the same order.
+        self._brake_denominator = 2.0 * np.maximum(params.max_accel, _EPS)
+        self._any_fixed_wing = bool(params.fixed_wing.any())
+
+    def _reach_at_speed(self, idx: np.ndarray | None, vel: np.ndarray) -> np.ndarray:
+        """:func:`reach_at_speed` of agents ``idx`` (None: the first ``len(vel)``, in order)."""
+        if self._any_fixed_wing:
+            idx = np.arange(len(vel)) if idx is None else idx
+            return np.ascontiguousarray(reach_at_speed(self.params, idx, vel, self.world.dt))
+        v = norm3(vel)
+        denominator = self._brake_denominator[: len(vel)] if idx is None else self._brake_denominator[idx]
+        return np.ascontiguousarray(v * self.world.dt + v * v / denominator)
 
     def forces(self, flyers: Flyers, field: FieldInputs, swarm: Swarm) -> np.ndarray:
         n = len(flyers.idx)
@@ -170,8 +182,8 @@ class ApfField:
         goal_dist = (
             np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         )
-        reach_now = np.ascontiguousarray(reach_at_speed(p, flyers.idx, flyers.vel, w.dt))
-        reach_all = np.ascontiguousarray(reach_at_speed(p, np.arange(len(swarm.pos)), swarm.vel, w.dt))
+        reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
+        reach_all = self._reach_at_speed(None, swarm.vel)
         kernel_module("swarmplan.flight._apf_kernel").apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),

@@ -92,6 +92,9 @@ class Simulation:
         self.safety = SafetyFilter(world, self.params, self.scene)
         self.navigator = Navigator(world, self.params, self.guide)
         self.guard = GoalGuard(self.params, world.dt)
+        # The speed a one-step stop can take within max_accel (fixed wings: any), read every step.
+        self._stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * world.dt)
+        self._stop_speed.setflags(write=False)
         self._mover_ids = tuple(o.id for o in world.obstacles if o.moving)
         self.state: SwarmState | None = None
         self.seed: int | None = None
@@ -296,7 +299,12 @@ class Simulation:
             self._merge(guarded)
             # An evading agent is not slowed by its goal: its row names a point so far off that
             # the goal's speed cap never binds.
-            brake_goal = np.where(self.guard.evading[idx, None], pos0[idx] + FAR_GOAL, s.goal[idx])
+            evading = self.guard.evading[idx]
+            brake_goal = (
+                np.where(evading[:, None], pos0[idx] + FAR_GOAL, s.goal[idx])
+                if evading.any()
+                else s.goal[idx]
+            )
             v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
@@ -328,8 +336,7 @@ class Simulation:
 
         # Arrival (and its stop) only at a speed a one-step stop can take within max_accel.
         # Agents out of a threat's way cannot arrive; one back at its goal ends its evasion.
-        stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * dt)
-        stop_speed = self.guard.stop_speeds(stop_speed)
+        stop_speed = self.guard.stop_speeds(self._stop_speed)
         arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed)
         self._merge(self.guard.arrived(arrived, s))
 

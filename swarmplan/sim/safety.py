@@ -83,6 +83,9 @@ class SafetyFilter:
         )
         # Swarm-sized worlds over flat ground check many steps in one compiled call.
         self._batched = use_compiled_checks(len(params.ids)) and not world.peaks
+        # Every agent's radius with its safety margin (radius + margin), read every step.
+        self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
+        self._checked_radius.setflags(write=False)
 
     def guard_fixed_wings(
         self,
@@ -289,7 +292,7 @@ class SafetyFilter:
             np.ascontiguousarray(v_cmd if all_rows else v_cmd[k], dtype=float),
             np.ascontiguousarray(pos0[rows] if goal is None else goal[k], dtype=float),
             goal is not None,
-            p.max_accel[rows], p.speed_max[rows], p.radius[rows] + self.margin(rows),
+            p.max_accel[rows], p.speed_max[rows], self._checked_radius[rows],
             dt, dt**2, float(self.world.goal_tolerance), self._bounds[0], self._bounds[1],
             *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6, check_step and all_rows,
         )  # fmt: skip
@@ -408,7 +411,7 @@ class SafetyFilter:
         events: list[Event] = []
         dt = self.world.dt
         ids = self.params.ids
-        radii = self.params.radius[idx] + self.margin(idx)
+        radii = self._checked_radius[idx]
         validated = self.steps_free(pos0[idx], pos1[idx], radii, q0, q1) if free is None else free.copy()
         unsafe = np.flatnonzero(~validated)
         alternatives: list[list[np.ndarray]] = []
