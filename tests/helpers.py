@@ -162,6 +162,27 @@ def base_world(**top: Any) -> dict[str, Any]:
     return raw
 
 
+def crossing_with_drone(max_time: float = 3.0) -> dict[str, Any]:
+    """Two agents crossing while a drone (a sphere on a straight line) cuts between them: the
+    smallest world with a mover, every per-step channel and a few seconds of log."""
+    return base_world(
+        sim={"dt": 0.1, "max_time": max_time, "goal_tolerance": 2.0},
+        obstacles=[
+            {
+                "id": "drone",
+                "shape": "sphere",
+                "radius": 2,
+                "position": [70, 90, 20],
+                "motion": {"type": "linear", "velocity": [0, -5, 0]},
+            }
+        ],
+        agents=[
+            {"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]},
+            {"id": "b", "start": [50, 10, 20], "goal": [50, 90, 25]},
+        ],
+    )
+
+
 def obstacles_of(
     raw: list[dict[str, Any]], start: tuple[float, float, float], goal: tuple[float, float, float]
 ) -> list:

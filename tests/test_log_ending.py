@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections import Counter
 
 import pytest
-from helpers import base_world, make_world, read_log, run_to_end
+from helpers import crossing_with_drone, make_world, read_log, run_to_end
 
 # Written with every step, or with every scene update: at most one message per time each.
 PER_STEP = ("/agents/state", "/obstacles/state", "/tf", "/scene", "/agents/speed")
@@ -14,22 +14,7 @@ THROTTLED = ("/tf", "/scene", "/agents/speed", "/scene/paths", "/scene/paths/ove
 
 
 def _log(tmp_path, max_time: float):
-    raw = base_world(
-        sim={"dt": 0.1, "max_time": max_time, "goal_tolerance": 2.0},
-        obstacles=[
-            {
-                "id": "drone",
-                "shape": "sphere",
-                "radius": 2,
-                "position": [70, 90, 20],
-                "motion": {"type": "linear", "velocity": [0, -5, 0]},
-            }
-        ],
-        agents=[
-            {"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]},
-            {"id": "b", "start": [50, 10, 20], "goal": [50, 90, 25]},
-        ],
-    )
+    raw = crossing_with_drone(max_time)
     path = tmp_path / f"end-{max_time}.mcap"
     _, summary, _ = run_to_end(make_world(raw), seed=0, log_path=path, foxglove=True)
     return summary, read_log(path)

@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 
 import pytest
-from helpers import base_world, make_world
+from helpers import crossing_with_drone, make_world
 
 import swarmplan.sim
 from swarmplan.io.runner import RecordingObserver, run_episode
@@ -43,24 +43,7 @@ class _Calls:
 
 
 def _world(max_time: float = 3.0):
-    return make_world(
-        base_world(
-            sim={"dt": 0.1, "max_time": max_time, "goal_tolerance": 2.0},
-            obstacles=[
-                {
-                    "id": "drone",
-                    "shape": "sphere",
-                    "radius": 2,
-                    "position": [70, 90, 20],
-                    "motion": {"type": "linear", "velocity": [0, -5, 0]},
-                }
-            ],
-            agents=[
-                {"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]},
-                {"id": "b", "start": [50, 10, 20], "goal": [50, 90, 25]},
-            ],
-        )
-    )
+    return make_world(crossing_with_drone(max_time))
 
 
 def test_the_simulation_names_no_recorder():
