@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
+from swarmplan.runtime.compiled import kernel_module
 
 if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
@@ -61,6 +62,15 @@ RECHECK = 5  # steps between two line-of-sight checks of an agent
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
 
 
+@dataclasses.dataclass
+class _Graph:
+    """A graph over the cells in CSR form (row v: the legs into v, by their start cell)."""
+
+    indptr: np.ndarray  # int32, (cells + 1,)
+    indices: np.ndarray  # int32: the legs' start cells
+    data: np.ndarray  # float64: the legs' costs
+
+
 def _offsets() -> np.ndarray:
     o = np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)])
     return o[np.abs(o).sum(axis=1) > 0]
@@ -70,8 +80,6 @@ class StaticGuide:
     """The grid and the ways to the goals of one world (see the module's description)."""
 
     def __init__(self, world: World, params: AgentParams, bodies: tuple[Obstacle, ...] | None = None):
-        from scipy.sparse import csr_matrix
-
         self.world = world
         self.bodies = world.static_obstacles if bodies is None else bodies
         self._batch = ShapeBatch(self.bodies)
@@ -135,7 +143,7 @@ class StaticGuide:
         np.cumsum(legal.sum(axis=1), out=indptr[1:])
         start = (np.arange(self.n_cells, dtype=np.int32)[:, None] - delta[None, :].astype(np.int32))[legal]
         data = weight[legal]
-        self._reverse = csr_matrix((data, start, indptr), shape=(self.n_cells,) * 2)
+        self._reverse = _Graph(indptr, start, data)
         self._base = data.copy()
         self.near = prox > 0.0
         # Unit directions of the legs into cells near surfaces (the only ones a way re-prices),
@@ -341,11 +349,11 @@ class StaticGuide:
     def _search(self, goal_cells: np.ndarray, starts: np.ndarray) -> None:
         """Find the ways to ``goal_cells`` (new ones, in order), each then loading the way from
         its start (see :meth:`_rows_for`)."""
-        from scipy.sparse.csgraph import dijkstra
-
+        dijkstra = kernel_module("swarmplan.flight._guide_kernel").dijkstra
+        g = self._reverse
         for c, p in zip(goal_cells.tolist(), starts, strict=True):
             source = self._source_of(c)
-            dist, pred = dijkstra(self._reverse, directed=True, indices=source, return_predecessors=True)
+            dist, pred = dijkstra(g.indptr, g.indices, g.data, source)
             row = len(self._source)
             if row == len(self._next):  # room for a way per agent, then twice as many ways
                 grow = max(8, len(self.guided), 2 * row)
