@@ -1,7 +1,9 @@
 """The guide's graph (swarmplan.flight.guide) against a plain construction of it: the reversed
 graph built in place equals, to the bit, the one scipy builds from the list of legs and
 transposes, and re-pricing a way's cells gives the legs the costs computed cell by cell from
-the cells' centres. The searches run on these arrays, so equal arrays mean equal ways."""
+the cells' centres. The searches run on these arrays, so equal arrays mean equal ways; and the
+compiled search finds scipy's distances and predecessors to the bit, on the guide's graph and
+on small graphs with random costs (ties among equal distances included)."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ from helpers import base_world, make_world
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from swarmplan.flight import _guide_kernel as K
 from swarmplan.flight import guide as G
 from swarmplan.flight.kinematics import AgentParams
 
@@ -70,11 +73,41 @@ def test_the_graph_built_in_place_is_the_one_scipy_assembles():
     assert np.array_equal(got.indptr, ref.indptr)
     assert np.array_equal(got.indices, ref.indices)
     assert np.array_equal(got.data.view(np.int64), ref.data.view(np.int64))
-    # and so the same search: distances and next cells, from a goal behind the wall
-    goal = int(guide.cell_of(np.array([[80.0, 60.0, 20.0]]))[0])
-    d0, p0 = dijkstra(ref, directed=True, indices=goal, return_predecessors=True)
-    d1, p1 = dijkstra(got, directed=True, indices=goal, return_predecessors=True)
-    assert np.array_equal(d0, d1) and np.array_equal(p0, p1)
+    # and so the same search: distances and next cells, from a goal behind the wall and from
+    # cells all over the grid, scipy's on scipy's graph and the compiled one on the guide's
+    cells = [int(guide.cell_of(np.array([[80.0, 60.0, 20.0]]))[0])]
+    cells += np.random.default_rng(2).choice(guide.n_cells, 5, replace=False).tolist()
+    for source in cells:
+        d0, p0 = dijkstra(ref, directed=True, indices=source, return_predecessors=True)
+        d1, p1 = K.dijkstra(got.indptr, got.indices, got.data, source)
+        assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
+        assert np.array_equal(p0, p1)
+        assert np.isfinite(d1).sum() > guide.n_cells // 2  # the free space is reached
+
+
+def test_the_compiled_search_is_scipys_on_random_graphs():
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        n = int(rng.integers(2, 300))
+        nnz = int(rng.integers(1, 8 * n))
+        rows, cols = rng.integers(0, n, nnz), rng.integers(0, n, nnz)
+        # costs from a few values: many ways of equal length, where only the order of the
+        # search decides the predecessor
+        cost = (
+            rng.choice([0.5, 1.0, 1.5, 2.0, np.sqrt(2.0)], nnz) if trial % 2 else rng.uniform(0.1, 5.0, nnz)
+        )
+        g = csr_matrix((cost, (rows, cols)), shape=(n, n))
+        g.sum_duplicates()
+        g.data = np.maximum(g.data, 1e-3)  # no zero cost (scipy drops explicit zeros)
+        source = int(rng.integers(0, n))
+        d0, p0 = dijkstra(g, directed=True, indices=source, return_predecessors=True)
+        d1, p1 = K.dijkstra(g.indptr.astype(np.int32), g.indices.astype(np.int32), g.data, source)
+        assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
+        assert np.array_equal(p0, p1)
+    # and on a line of three vertices, by hand: 0 -> 1 -> 2 at 1 + 2, 0 -> 2 directly at 4
+    g = csr_matrix(([1.0, 4.0, 2.0], ([0, 0, 1], [1, 2, 2])), shape=(3, 3))
+    d, p = K.dijkstra(g.indptr, g.indices, g.data, 0)
+    assert d.tolist() == [0.0, 1.0, 3.0] and p.tolist() == [K.NO_WAY, 0, 1]
 
 
 def test_re_pricing_gives_each_leg_the_cost_computed_cell_by_cell():

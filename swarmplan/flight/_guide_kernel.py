@@ -88,3 +88,143 @@ def dijkstra(
                 hv[i] = w
                 at[w] = i
     return dist, pred
+
+
+@njit(cache=True)
+def _cell(x: float, y: float, z: float, lo: np.ndarray, cell: np.ndarray, shape: np.ndarray) -> int:
+    """The flat index of the cell holding (x, y, z), as ``StaticGuide.cell_of`` computes it."""
+    i = min(max(int(np.floor((x - lo[0]) / cell[0])), 0), shape[0] - 1)
+    j = min(max(int(np.floor((y - lo[1]) / cell[1])), 0), shape[1] - 1)
+    k = min(max(int(np.floor((z - lo[2]) / cell[2])), 0), shape[2] - 1)
+    return (i * shape[1] + j) * shape[2] + k
+
+
+@njit(cache=True)
+def sight_samples(
+    start: np.ndarray,
+    end: np.ndarray,
+    length: np.ndarray,
+    t: np.ndarray,
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    limit: float,
+    squeeze: float,
+    gap: np.ndarray,
+    gap_max: float,
+    low: int,
+    bounded: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The samples ``start + t (end - start)`` of the lines (n, 3) that need their exact
+    distances, row by row (their rows, points and cells), and the rows found blocked without
+    them. ``grid``: the grid's corner, cell sizes, shape, cell centres and their clearance.
+
+    A sample counts only in a cell whose centre's clearance is below ``limit`` (the clearance
+    is 1-Lipschitz: no sample elsewhere comes within ``squeeze``), and a line whose start cell's
+    ``gap`` exceeds its ``length`` (with a margin for rounding) and whose ends lie in layers from
+    ``low`` up has none there (``StaticGuide.blocked`` says why). With ``bounded`` (the
+    clearance is 1-Lipschitz everywhere: flat ground, bodies with exact distances) the
+    sample's own distance to its cell's centre bounds its clearance both ways: a line with a
+    sample surely within ``squeeze`` is blocked whatever its other samples, and a sample
+    surely beyond it needs no exact distance. Each number as numpy's expressions give it."""
+    lo, cell, shape, centres, clear = grid
+    n = len(start)
+    m = len(t)
+    keep = np.ones(n, dtype=np.bool_)
+    hit = np.zeros(n, dtype=np.bool_)
+    top = shape[2] - 1
+    for r in range(n):
+        reach = length[r] * (1.0 + 1e-9) + 1e-6
+        if reach < gap_max:
+            sx, sy, sz = start[r, 0], start[r, 1], start[r, 2]
+            ez = sz + (end[r, 2] - sz)
+            ks = min(max(np.floor((sz - lo[2]) / cell[2]), 0.0), top)
+            ke = min(max(np.floor((ez - lo[2]) / cell[2]), 0.0), top)
+            if gap[_cell(sx, sy, sz, lo, cell, shape)] > reach and min(ks, ke) >= low:
+                keep[r] = False
+    margin = 1e-6  # m: far beyond the rounding of the distances
+    need = np.zeros(n * m, dtype=np.int64)  # sample r * m + q: 1 + its cell when it needs measuring
+    count = 0
+    for r in range(n):
+        if not keep[r]:
+            continue
+        first = count
+        dx, dy, dz = end[r, 0] - start[r, 0], end[r, 1] - start[r, 1], end[r, 2] - start[r, 2]
+        for q in range(m):
+            x, y, z = start[r, 0] + t[q] * dx, start[r, 1] + t[q] * dy, start[r, 2] + t[q] * dz
+            c = _cell(x, y, z, lo, cell, shape)
+            if clear[c] >= limit:
+                continue
+            if bounded:
+                off = np.sqrt((x - centres[c, 0]) ** 2 + (y - centres[c, 1]) ** 2 + (z - centres[c, 2]) ** 2)
+                if clear[c] + off < squeeze - margin:
+                    hit[r] = True
+                    break
+                if clear[c] - off > squeeze + margin:
+                    continue
+            need[r * m + q] = c + 1
+            count += 1
+        if hit[r]:  # its samples measured so far are not needed
+            for q in range(m):
+                need[r * m + q] = 0
+            count = first
+    rows = np.empty(count, dtype=np.int64)
+    pts = np.empty((count, 3))
+    cells = np.empty(count, dtype=np.int64)
+    k = 0
+    for f in range(n * m):
+        if need[f]:
+            r, q = f // m, f % m
+            rows[k] = r
+            for a in range(3):
+                pts[k, a] = start[r, a] + t[q] * (end[r, a] - start[r, a])
+            cells[k] = need[f] - 1
+            k += 1
+    return rows, pts, cells, hit
+
+
+@njit(cache=True)
+def body_distance(
+    p: np.ndarray,
+    cells: np.ndarray,
+    reach: np.ndarray,
+    every: bool,
+    position: np.ndarray,
+    rotation: np.ndarray,
+    code: np.ndarray,
+    prm: np.ndarray,
+) -> np.ndarray:
+    """The distance from each point ``p`` (n, 3) in ``cells`` to the nearest body its cell
+    ``reach``-es (every body with ``every``; inf when none), for spheres, boxes, cylinders and
+    capsules (``code`` 0-3; ``prm``: radius, half sizes, or radius and half height): per pair
+    the operations of ``rotate_rows_of`` and ``SHAPE_DISTANCE`` on the same numbers, in their
+    order (the same bits as ``StaticGuide._body_distance``'s numpy)."""
+    n, m = len(p), len(position)
+    out = np.full(n, np.inf)
+    for i in range(n):
+        best = np.inf
+        for b in range(m):
+            if not every and not reach[cells[i], b]:
+                continue
+            r0, r1, r2 = p[i, 0] - position[b, 0], p[i, 1] - position[b, 1], p[i, 2] - position[b, 2]
+            rot = rotation[b]
+            x = r0 * rot[0, 0] + r1 * rot[1, 0] + r2 * rot[2, 0] + 0.0
+            y = r0 * rot[0, 1] + r1 * rot[1, 1] + r2 * rot[2, 1] + 0.0
+            z = r0 * rot[0, 2] + r1 * rot[1, 2] + r2 * rot[2, 2] + 0.0
+            c = code[b]
+            if c == 0:
+                d = np.sqrt(x * x + y * y + z * z) - prm[b, 0]
+            elif c == 1:
+                qx, qy, qz = abs(x) - prm[b, 0], abs(y) - prm[b, 1], abs(z) - prm[b, 2]
+                ux, uy, uz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
+                d = np.sqrt(ux * ux + uy * uy + uz * uz) + min(max(max(qx, qy), qz), 0.0)
+            elif c == 2:
+                dr = np.sqrt(x * x + y * y) - prm[b, 0]
+                dz = abs(z) - prm[b, 1]
+                d = np.hypot(max(dr, 0.0), max(dz, 0.0)) + min(max(dr, dz), 0.0)
+            else:
+                h = prm[b, 1]
+                dz = z - min(max(z, -h), h)
+                d = np.sqrt(x * x + y * y + dz * dz) - prm[b, 0]
+            if d < best:
+                best = d
+        out[i] = best
+    return out

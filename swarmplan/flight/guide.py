@@ -97,6 +97,7 @@ class StaticGuide:
         self.shape = np.maximum(np.ceil(size / h).astype(np.int64), 1)
         self.cell = size / self.shape
         self.lo = lo
+        self._top = self.shape - 1  # the last cell along each axis
         nx, ny, nz = (int(v) for v in self.shape)
         self.n_cells = nx * ny * nz
         ii, jj, kk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
@@ -157,6 +158,8 @@ class StaticGuide:
         self._source = np.empty(0, dtype=np.int64)
         self.guided = np.zeros(len(world.agents), dtype=bool)
         self._sight_bounds()
+        # The clearance is 1-Lipschitz everywhere (flat ground, exact distances to the bodies).
+        self._lipschitz = not world.peaks and not self._batch.meshes
         self._reach_bodies()
 
     # ------------------------------------------------------------------ geometry
@@ -218,15 +221,29 @@ class StaticGuide:
     def cell_of(self, pts: np.ndarray) -> np.ndarray:
         """Index of the cell holding each of ``pts`` (points outside: the nearest cell)."""
         ijk = np.floor((np.asarray(pts, dtype=float) - self.lo) / self.cell).astype(np.int64)
-        ijk = np.clip(ijk, 0, self.shape - 1)
+        np.maximum(ijk, 0, out=ijk)
+        np.minimum(ijk, self._top, out=ijk)
         return (ijk[:, 0] * self.shape[1] + ijk[:, 1]) * self.shape[2] + ijk[:, 2]
 
     def blocked(self, start: np.ndarray, end: np.ndarray, reach: np.ndarray | float = np.inf) -> np.ndarray:
         """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
         obstacle or the ground inflated by the largest agent radius plus ``SQUEEZE`` (exact
         distances where the grid cannot tell): also a line through a narrow gap, in front of
-        which the full repulsion of its two edges outweighs the pull (a local minimum)."""
-        start, end = np.atleast_2d(start), np.atleast_2d(end)
+        which the full repulsion of its two edges outweighs the pull (a local minimum).
+
+        The samples ``start + t (end - start)`` (t in [0, 1], as many per row as the longest
+        line needs) are measured exactly only where the grid cannot tell (the compiled
+        ``sight_samples``). A line passes unmeasured when no sample of it can land in a cell
+        near a surface: its samples have heights monotone in t (rounding is monotone), so
+        between those of its two ends, whose layers are at least ``_low``: no sample is in a
+        cell near the ground. The cell of a sample holds the sample's nearest point in the
+        grid's box (the index is clipped), which is no farther from the start's nearest point
+        than the sample from the start (projection onto a box does not stretch distances): at
+        most the line's length. So that cell's box is within the length of the start's cell's
+        box, and ``_gap`` there beyond the length (with a margin for rounding) leaves no cell
+        near a body within reach."""
+        start = np.ascontiguousarray(np.atleast_2d(start), dtype=float)
+        end = np.atleast_2d(np.asarray(end, dtype=float))
         n = len(start)
         out = np.zeros(n, dtype=bool)
         if n == 0:
@@ -237,24 +254,20 @@ class StaticGuide:
         length = cut
         step = 0.5 * float(self.cell.min())
         samples = int(min(max(np.ceil(length.max() / step), 1), 4000))  # of all rows: kept as is
-        rows = self._may_block(start, end, length)
-        if not len(rows):
-            return out
-        start, end = start[rows], end[rows]
         t = np.linspace(0.0, 1.0, samples + 1)
-        pts = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]
-        flat = pts.reshape(-1, 3)
-        flat_cells = self.cell_of(flat)
-        cand = np.flatnonzero(self.clear[flat_cells] < self.half_diagonal + SQUEEZE)
-        if not len(cand):
+        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        grid = (self.lo, self.cell, self.shape, self.centres, self.clear)
+        row, p, cells, out = kernels.sight_samples(
+            start, end, length, t, grid, self.half_diagonal + SQUEEZE, SQUEEZE,
+            self._gap, self._gap_max, self._low, self._lipschitz,
+        )  # fmt: skip
+        if not len(row):
             return out
-        p = flat[cand]
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
         if self.bodies:
-            exact = np.minimum(exact, self._body_distance(p, flat_cells[cand]))
+            exact = np.minimum(exact, self._body_distance(p, cells))
         exact -= self.radius
-        hit = cand[exact < SQUEEZE] // (samples + 1)
-        out[rows[np.unique(hit)]] = True
+        out[row[exact < SQUEEZE]] = True
         return out
 
     def _reach_bodies(self) -> None:
@@ -290,7 +303,11 @@ class StaticGuide:
         the grid (its cell's box does not hold it) is measured against every body."""
         b = self._batch
         margin = 1e-6
-        if ((p < self.lo + margin) | (p > self.lo + self.shape * self.cell - margin)).any():
+        every = bool(((p < self.lo + margin) | (p > self.lo + self.shape * self.cell - margin)).any())
+        if not b.meshes:
+            kernels = kernel_module("swarmplan.flight._guide_kernel")
+            return kernels.body_distance(p, cells, self._reach, every, b.position, b.rotation, b.code, b.prm)
+        if every:
             return b.distance(p).min(axis=1)
         pt, body = np.nonzero(self._reach[cells])
         out = np.full(len(p), np.inf)
@@ -306,28 +323,6 @@ class StaticGuide:
         first = np.flatnonzero(np.diff(pt, prepend=-1))  # pairs come row by row
         out[pt[first]] = np.minimum.reduceat(d, first)
         return out
-
-    def _may_block(self, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
-        """Rows of the lines ``start`` -> ``end`` (n, 3) of ``length`` (n,) a sample of which may
-        land in a cell near a surface; :meth:`blocked` finds every other one clear. Why no sample
-        of another line can: its samples ``start + t (end - start)``, t in [0, 1], have heights
-        monotone in t (rounding is monotone), so between those of its two ends, whose layers are
-        at least ``_low``: no sample is in a cell near the ground. The cell of a sample holds the
-        sample's nearest point in the grid's box (the index is clipped), which is no farther
-        from the start's nearest point than the sample from the start (projection onto a box
-        does not stretch distances): at most ``length``. So that cell's box is within
-        ``length`` of the start's cell's box, and ``_gap`` there beyond ``length`` (with a
-        margin for rounding) leaves no cell near a body within reach."""
-        reach = length * (1.0 + 1e-9) + 1e-6
-        maybe = np.flatnonzero(reach < self._gap_max)  # the others reach a cell near a body anyway
-        if not len(maybe):
-            return np.arange(len(start))
-        s, e = start[maybe], end[maybe]
-        kz = np.floor((np.column_stack([s[:, 2], (s + (e - s))[:, 2]]) - self.lo[2]) / self.cell[2])
-        kz = np.clip(kz, 0, self.shape[2] - 1).min(axis=1)
-        keep = np.ones(len(start), dtype=bool)
-        keep[maybe] = ~((self._gap[self.cell_of(s)] > reach[maybe]) & (kz >= self._low))
-        return np.flatnonzero(keep)
 
     # ------------------------------------------------------------------ ways to the goals
 
