@@ -15,6 +15,7 @@ from scipy.sparse.csgraph import dijkstra
 from swarmplan.flight import _guide_kernel as K
 from swarmplan.flight import guide as G
 from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.batch import ShapeBatch
 
 # A wall with one gap and a pillar: free cells, cells inside the inflated obstacles, cells near
 # surfaces on every side.
@@ -130,3 +131,14 @@ def test_re_pricing_gives_each_leg_the_cost_computed_cell_by_cell():
         )
     assert np.array_equal(g.data.view(np.int64), expect.view(np.int64))
     assert (g.data != guide._base).any()  # the loads did re-price legs
+
+
+def test_the_cells_clearance_from_the_compiled_query_is_numpys():
+    guide = _guide()
+    assert guide._batch.compiled
+    clear, normal = guide._clearance(guide.centres)
+    guide._batch = ShapeBatch(guide.bodies)  # numpy's query
+    ref_clear, ref_normal = guide._clearance(guide.centres)
+    assert np.array_equal(clear.view(np.int64), ref_clear.view(np.int64))
+    assert np.array_equal(normal.view(np.int64), ref_normal.view(np.int64))
+    assert (clear < 0).any() and (clear > 5).any()  # inside the wall and the pillar, and far out

@@ -114,44 +114,59 @@ def sight_samples(
     bounded: bool,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The samples ``start + t (end - start)`` of the lines (n, 3) that need their exact
-    distances, row by row (their rows, points and cells), and the rows found blocked without
-    them. ``grid``: the grid's corner, cell sizes, shape, cell centres and their clearance.
+        distances, row by row (their rows, points and cells), and the rows found blocked without
+        them. ``grid``: the grid's corner, cell sizes, shape, cell centres and their clearance.
 
-    A sample counts only in a cell whose centre's clearance is below ``limit`` (the clearance
-    is 1-Lipschitz: no sample elsewhere comes within ``squeeze``), and a line whose start cell's
-    ``gap`` exceeds its ``length`` (with a margin for rounding) and whose ends lie in layers from
-    ``low`` up has none there (``StaticGuide.blocked`` says why). With ``bounded`` (the
-    clearance is 1-Lipschitz everywhere: flat ground, bodies with exact distances) the
-    sample's own distance to its cell's centre bounds its clearance both ways: a line with a
-    sample surely within ``squeeze`` is blocked whatever its other samples, and a sample
-    surely beyond it needs no exact distance. Each number as numpy's expressions give it."""
+        A sample counts only in a cell whose centre's clearance is below ``limit`` (the clearance
+        is 1-Lipschitz: no sample elsewhere comes within ``squeeze``), and a line whose start cell's
+        ``gap`` exceeds its ``length`` (with a margin for rounding) and whose ends lie in layers from
+        ``low`` up has none there (``StaticGuide.blocked`` says why); on such a line neither has any
+    sample closer to a sample than the ``gap`` of the latter's cell. With ``bounded`` (the
+        clearance is 1-Lipschitz everywhere: flat ground, bodies with exact distances) the
+        sample's own distance to its cell's centre bounds its clearance both ways: a line with a
+        sample surely within ``squeeze`` is blocked whatever its other samples, and a sample
+        surely beyond it needs no exact distance. Each number as numpy's expressions give it."""
     lo, cell, shape, centres, clear = grid
     n = len(start)
     m = len(t)
     keep = np.ones(n, dtype=np.bool_)
+    high = np.zeros(n, dtype=np.bool_)  # both ends in layers from ``low`` up: so every sample
     hit = np.zeros(n, dtype=np.bool_)
     top = shape[2] - 1
     for r in range(n):
+        sz = start[r, 2]
+        ez = sz + (end[r, 2] - sz)
+        ks = min(max(np.floor((sz - lo[2]) / cell[2]), 0.0), top)
+        ke = min(max(np.floor((ez - lo[2]) / cell[2]), 0.0), top)
+        high[r] = min(ks, ke) >= low
         reach = length[r] * (1.0 + 1e-9) + 1e-6
-        if reach < gap_max:
-            sx, sy, sz = start[r, 0], start[r, 1], start[r, 2]
-            ez = sz + (end[r, 2] - sz)
-            ks = min(max(np.floor((sz - lo[2]) / cell[2]), 0.0), top)
-            ke = min(max(np.floor((ez - lo[2]) / cell[2]), 0.0), top)
-            if gap[_cell(sx, sy, sz, lo, cell, shape)] > reach and min(ks, ke) >= low:
-                keep[r] = False
+        if reach < gap_max and high[r] and gap[_cell(start[r, 0], start[r, 1], sz, lo, cell, shape)] > reach:
+            keep[r] = False
     margin = 1e-6  # m: far beyond the rounding of the distances
-    need = np.zeros(n * m, dtype=np.int64)  # sample r * m + q: 1 + its cell when it needs measuring
+    at = np.empty(1024, dtype=np.int64)  # the samples to measure: r * m + q, and their cells
+    of = np.empty(1024, dtype=np.int64)
     count = 0
     for r in range(n):
         if not keep[r]:
             continue
         first = count
         dx, dy, dz = end[r, 0] - start[r, 0], end[r, 1] - start[r, 1], end[r, 2] - start[r, 2]
-        for q in range(m):
+        span = length[r] * (1.0 + 1e-9)
+        q = 0
+        while q < m:
             x, y, z = start[r, 0] + t[q] * dx, start[r, 1] + t[q] * dy, start[r, 2] + t[q] * dz
             c = _cell(x, y, z, lo, cell, shape)
             if clear[c] >= limit:
+                if high[r]:
+                    # The samples closer to this one than its cell's gap lie in cells whose
+                    # boxes are closer than that to this cell's box: none near a surface.
+                    g = gap[c] - margin
+                    tq = t[q]
+                    q += 1
+                    while q < m and (t[q] - tq) * span < g:
+                        q += 1
+                else:
+                    q += 1
                 continue
             if bounded:
                 off = np.sqrt((x - centres[c, 0]) ** 2 + (y - centres[c, 1]) ** 2 + (z - centres[c, 2]) ** 2)
@@ -159,25 +174,25 @@ def sight_samples(
                     hit[r] = True
                     break
                 if clear[c] - off > squeeze + margin:
+                    q += 1
                     continue
-            need[r * m + q] = c + 1
+            if count == len(at):
+                at = np.concatenate((at, np.empty(len(at), dtype=np.int64)))
+                of = np.concatenate((of, np.empty(len(of), dtype=np.int64)))
+            at[count] = r * m + q
+            of[count] = c
             count += 1
-        if hit[r]:  # its samples measured so far are not needed
-            for q in range(m):
-                need[r * m + q] = 0
+            q += 1
+        if hit[r]:  # its samples kept so far need no measuring
             count = first
     rows = np.empty(count, dtype=np.int64)
     pts = np.empty((count, 3))
-    cells = np.empty(count, dtype=np.int64)
-    k = 0
-    for f in range(n * m):
-        if need[f]:
-            r, q = f // m, f % m
-            rows[k] = r
-            for a in range(3):
-                pts[k, a] = start[r, a] + t[q] * (end[r, a] - start[r, a])
-            cells[k] = need[f] - 1
-            k += 1
+    for k in range(count):
+        r, q = at[k] // m, at[k] % m
+        rows[k] = r
+        for a in range(3):
+            pts[k, a] = start[r, a] + t[q] * (end[r, a] - start[r, a])
+    cells = of[:count].copy()
     return rows, pts, cells, hit
 
 
