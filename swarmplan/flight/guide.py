@@ -159,6 +159,7 @@ class StaticGuide:
         self._dist = np.empty((0, self.n_cells), dtype=np.float32)
         self._source = np.empty(0, dtype=np.int64)
         self.guided = np.zeros(len(world.agents), dtype=bool)
+        self._t: dict[int, np.ndarray] = {}  # the samples' parameters along a line, by their count
         self._sight_bounds()
         # The clearance is 1-Lipschitz everywhere (flat ground, exact distances to the bodies).
         self._lipschitz = not world.peaks and not self._batch.meshes
@@ -256,7 +257,9 @@ class StaticGuide:
         length = cut
         step = 0.5 * float(self.cell.min())
         samples = int(min(max(np.ceil(length.max() / step), 1), 4000))  # of all rows: kept as is
-        t = np.linspace(0.0, 1.0, samples + 1)
+        t = self._t.get(samples)
+        if t is None:
+            t = self._t[samples] = np.linspace(0.0, 1.0, samples + 1)
         kernels = kernel_module("swarmplan.flight._guide_kernel")
         grid = (self.lo, self.cell, self.shape, self.centres, self.clear)
         row, p, cells, out = kernels.sight_samples(
