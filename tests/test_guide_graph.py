@@ -38,7 +38,7 @@ def _guide(agents: int = 1) -> G.StaticGuide:
 def _reference_graph(guide: G.StaticGuide) -> csr_matrix:
     """The legs listed offset by offset, assembled by scipy and transposed (row v: legs into v)."""
     nx, ny, nz = (int(v) for v in guide.shape)
-    clear, normal = guide._clearance(guide.centres)
+    clear, normal, _ = guide._clearance(guide.centres)
     prox = np.clip(1.0 - clear / max(2.0 * float(guide.cell.max()), 4.0), 0.0, 1.0)
     free = clear > 0.0
     flat = np.arange(guide.n_cells).reshape(nx, ny, nz)
@@ -136,9 +136,9 @@ def test_re_pricing_gives_each_leg_the_cost_computed_cell_by_cell():
 def test_the_cells_clearance_from_the_compiled_query_is_numpys():
     guide = _guide()
     assert guide._batch.compiled
-    clear, normal = guide._clearance(guide.centres)
+    clear, normal, _ = guide._clearance(guide.centres)
     guide._batch = ShapeBatch(guide.bodies)  # numpy's query
-    ref_clear, ref_normal = guide._clearance(guide.centres)
+    ref_clear, ref_normal, _ = guide._clearance(guide.centres)
     assert np.array_equal(clear.view(np.int64), ref_clear.view(np.int64))
     assert np.array_equal(normal.view(np.int64), ref_normal.view(np.int64))
     assert (clear < 0).any() and (clear > 5).any()  # inside the wall and the pillar, and far out

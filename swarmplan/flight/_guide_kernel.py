@@ -19,6 +19,9 @@ from numba import njit
 NO_WAY = -9999
 """The predecessor of a vertex with no way to it (and of the source), as scipy writes it."""
 
+_MARGIN = 1e-6
+"""m: the margin of the bounds the line-of-sight samples are judged by, far beyond rounding."""
+
 
 @njit(cache=True)
 def dijkstra(
@@ -100,14 +103,47 @@ def _cell(x: float, y: float, z: float, lo: np.ndarray, cell: np.ndarray, shape:
 
 
 @njit(cache=True)
+def _inside(
+    x: float,
+    y: float,
+    z: float,
+    dx: float,
+    dy: float,
+    dz: float,
+    lo: np.ndarray,
+    cell: np.ndarray,
+    shape: np.ndarray,
+) -> float:
+    """How far (in units of ``(dx, dy, dz)``) the point (x, y, z) can move along that direction
+    and stay in the box of its cell shrunk by ``_MARGIN`` on every side (so that every point
+    there has that cell's index whatever the rounding): 0 for a point not in the shrunk box
+    (outside the grid too), inf for no direction."""
+    out = np.inf
+    p = (x, y, z)
+    d = (dx, dy, dz)
+    for a in range(3):
+        f = (p[a] - lo[a]) / cell[a]
+        if not 0.0 <= f < shape[a]:
+            return 0.0
+        i = np.floor(f)
+        low, high = lo[a] + i * cell[a] + _MARGIN, lo[a] + (i + 1.0) * cell[a] - _MARGIN
+        if not low <= p[a] <= high:
+            return 0.0
+        if d[a] > 0.0:
+            out = min(out, (high - p[a]) / d[a])
+        elif d[a] < 0.0:
+            out = min(out, (low - p[a]) / d[a])
+    return out
+
+
+@njit(cache=True)
 def sight_samples(
     start: np.ndarray,
     end: np.ndarray,
     length: np.ndarray,
     t: np.ndarray,
-    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    limit: float,
-    squeeze: float,
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    levels: tuple[float, float, float, float],
     gap: np.ndarray,
     gap_max: float,
     low: int,
@@ -115,7 +151,9 @@ def sight_samples(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The samples ``start + t (end - start)`` of the lines (n, 3) that need their exact
         distances, row by row (their rows, points and cells), and the rows found blocked without
-        them. ``grid``: the grid's corner, cell sizes, shape, cell centres and their clearance.
+        them. ``grid``: the grid's corner, cell sizes, shape, cell centres, their clearance and
+    their clearance to the obstacles alone; ``levels``: ``limit``, ``squeeze``, and the floor
+    and radius the ground's clearance is measured with.
 
         A sample counts only in a cell whose centre's clearance is below ``limit`` (the clearance
         is 1-Lipschitz: no sample elsewhere comes within ``squeeze``), and a line whose start cell's
@@ -126,7 +164,8 @@ def sight_samples(
         sample's own distance to its cell's centre bounds its clearance both ways: a line with a
         sample surely within ``squeeze`` is blocked whatever its other samples, and a sample
         surely beyond it needs no exact distance. Each number as numpy's expressions give it."""
-    lo, cell, shape, centres, clear = grid
+    lo, cell, shape, centres, clear, body_clear = grid
+    limit, squeeze, floor, radius = levels
     n = len(start)
     m = len(t)
     keep = np.ones(n, dtype=np.bool_)
@@ -142,7 +181,7 @@ def sight_samples(
         reach = length[r] * (1.0 + 1e-9) + 1e-6
         if reach < gap_max and high[r] and gap[_cell(start[r, 0], start[r, 1], sz, lo, cell, shape)] > reach:
             keep[r] = False
-    margin = 1e-6  # m: far beyond the rounding of the distances
+    margin = _MARGIN
     at = np.empty(1024, dtype=np.int64)  # the samples to measure: r * m + q, and their cells
     of = np.empty(1024, dtype=np.int64)
     count = 0
@@ -157,15 +196,17 @@ def sight_samples(
             x, y, z = start[r, 0] + t[q] * dx, start[r, 1] + t[q] * dy, start[r, 2] + t[q] * dz
             c = _cell(x, y, z, lo, cell, shape)
             if clear[c] >= limit:
+                # Samples on until the line leaves this cell's box (less a margin) are in it,
+                # and on a line in the layers of the gap table those within the cell's gap of
+                # the box are in cells whose boxes are that close to it: none near a surface.
+                ahead = _inside(x, y, z, dx, dy, dz, lo, cell, shape)
+                if ahead == np.inf:  # a line of length 0: every sample is this one
+                    break
                 if high[r]:
-                    # The samples closer to this one than its cell's gap lie in cells whose
-                    # boxes are closer than that to this cell's box: none near a surface.
-                    g = gap[c] - margin
-                    tq = t[q]
-                    q += 1
-                    while q < m and (t[q] - tq) * span < g:
-                        q += 1
-                else:
+                    ahead += max(gap[c] - margin, 0.0) / span
+                tq = t[q]
+                q += 1
+                while q < m and t[q] - tq < ahead:
                     q += 1
                 continue
             if bounded:
@@ -174,6 +215,14 @@ def sight_samples(
                     hit[r] = True
                     break
                 if clear[c] - off > squeeze + margin:
+                    q += 1
+                    continue
+                # Flat ground: the sample's height above it as numpy's ``blocked`` computes it
+                # decides for the ground, and the obstacles alone may be out of reach.
+                if (z - 0.0) - floor - radius < squeeze:
+                    hit[r] = True
+                    break
+                if body_clear[c] - off > squeeze + margin:
                     q += 1
                     continue
             if count == len(at):

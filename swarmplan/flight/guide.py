@@ -9,7 +9,7 @@ goal over a grid of the free space, is what grid planners descend (Barraquand & 
 :class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
 with the clearance of every cell centre to the static obstacles and the ground, less the
 largest agent radius. Per goal cell it computes once, on first need, the shortest way from every
-cell to the goal (Dijkstra over the 26 neighbours, scipy's compiled one): free cells only enter
+cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
 free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
 times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
 middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
@@ -48,7 +48,7 @@ if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
-MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~10 ms per goal for scipy's Dijkstra)
+MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~10 ms per goal for a search)
 MIN_CELL = 1.0  # m: finest cell (small worlds)
 NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
 RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
@@ -105,7 +105,7 @@ class StaticGuide:
         ii, jj, kk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
         self.ijk = np.column_stack([ii.ravel(), jj.ravel(), kk.ravel()])
         self.centres = lo + (self.ijk + 0.5) * self.cell
-        self.clear, normal = self._clearance(self.centres)
+        self.clear, normal, self._body_clear = self._clearance(self.centres)
         self.free = self.clear > 0.0
         # The clearance a point may lose against its cell's centre (the distance is 1-Lipschitz).
         self.half_diagonal = 0.5 * float(np.linalg.norm(self.cell))
@@ -200,15 +200,16 @@ class StaticGuide:
         self._gap = np.sqrt(sq).ravel()
         self._gap_max = float(self._gap.max())
 
-    def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
-        obstacles and the ground (less the lowest altitude the field keeps agents above), and
-        the outward normal of the nearest of them."""
+        obstacles and the ground (less the lowest altitude the field keeps agents above), the
+        outward normal of the nearest of them, and the clearance to the obstacles alone."""
         w = self.world
         clear = pts[:, 2] - w.terrain_height(pts[:, :2]) - self.floor
         gh = w.terrain_gradient(pts[:, :2])
         normal = np.column_stack([-gh[:, 0], -gh[:, 1], np.ones(len(pts))])
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        body = np.full(len(pts), np.inf)
         if self.bodies:
             batch = self._batch
             for a in range(0, len(pts), _CHUNK):
@@ -216,10 +217,11 @@ class StaticGuide:
                 j = np.argmin(d, axis=1)
                 rows = np.arange(len(j))
                 dj = d[rows, j]
+                body[a : a + _CHUNK] = dj
                 closer = dj < clear[a : a + _CHUNK]
                 clear[a : a + _CHUNK][closer] = dj[closer]
                 normal[a : a + _CHUNK][closer] = g[rows, j][closer]
-        return clear - self.radius, normal
+        return clear - self.radius, normal, body - self.radius
 
     def cell_of(self, pts: np.ndarray) -> np.ndarray:
         """Index of the cell holding each of ``pts`` (points outside: the nearest cell)."""
@@ -261,11 +263,11 @@ class StaticGuide:
         if t is None:
             t = self._t[samples] = np.linspace(0.0, 1.0, samples + 1)
         kernels = kernel_module("swarmplan.flight._guide_kernel")
-        grid = (self.lo, self.cell, self.shape, self.centres, self.clear)
+        grid = (self.lo, self.cell, self.shape, self.centres, self.clear, self._body_clear)
+        levels = (self.half_diagonal + SQUEEZE, SQUEEZE, self.floor, self.radius)
         row, p, cells, out = kernels.sight_samples(
-            start, end, length, t, grid, self.half_diagonal + SQUEEZE, SQUEEZE,
-            self._gap, self._gap_max, self._low, self._lipschitz,
-        )  # fmt: skip
+            start, end, length, t, grid, levels, self._gap, self._gap_max, self._low, self._lipschitz
+        )
         if not len(row):
             return out
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
