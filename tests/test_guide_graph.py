@@ -142,3 +142,28 @@ def test_the_cells_clearance_from_the_compiled_query_is_numpys():
     assert np.array_equal(clear.view(np.int64), ref_clear.view(np.int64))
     assert np.array_equal(normal.view(np.int64), ref_normal.view(np.int64))
     assert (clear < 0).any() and (clear > 5).any()  # inside the wall and the pillar, and far out
+
+
+def test_the_points_of_attraction_follow_the_tables():
+    """The compiled way points against the tables read in numpy: the cell two legs on from
+    the agent's cell, or the goal at the way's end or where no way leads from the cell."""
+    guide = _guide(agents=4)
+    pos = np.array([[30.0, 20.0 + 5 * k, 20.0] for k in range(4)])
+    goal = np.array([[80.0, 60.0 - 5 * k, 20.0] for k in range(4)])
+    guide.reset(pos, goal)
+    rng = np.random.default_rng(4)
+    p = rng.uniform(guide.lo - 5.0, guide.lo + guide.shape * guide.cell + 5.0, (400, 3))
+    p[:10] = goal[0] + rng.normal(size=(10, 3))  # at the end of a way
+    g = goal[rng.integers(0, 4, 400)]
+    table = guide._rows_for(guide.cell_of(g), p)
+    cell = guide.cell_of(p)
+    lost = ~np.isfinite(guide._dist[table, cell])
+    for _ in range(G.HOPS):
+        nxt = guide._next[table, cell]
+        cell = np.where(nxt >= 0, nxt, cell)
+    home = (cell == guide._source[table]) | lost
+    expect = np.where(home[:, None], g, guide.centres[cell])
+    grid = (guide.lo, guide.cell, guide.shape, guide.centres)
+    got = K.way_points(p, g, table, grid, (guide._next, guide._dist, guide._source), G.HOPS)
+    assert np.array_equal(got, expect)
+    assert 0 < home.sum() < len(p)  # goals reached and cells on the way

@@ -292,3 +292,34 @@ def body_distance(
                 best = d
         out[i] = best
     return out
+
+
+@njit(cache=True)
+def way_points(
+    pos: np.ndarray,
+    goal: np.ndarray,
+    table: np.ndarray,
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    ways: tuple[np.ndarray, np.ndarray, np.ndarray],
+    hops: int,
+) -> np.ndarray:
+    """The points of attraction of agents at ``pos`` (n, 3) on the ways of ``table`` (n,) to
+    ``goal``: the centre of the cell ``hops`` legs on from the agent's cell, or the goal where
+    that is the way's end or no way leads from the agent's cell. ``grid``: the grid's corner,
+    cell sizes, shape and cell centres; ``ways``: the next cells, distances and end cells of
+    the tables (``StaticGuide.targets``)."""
+    lo, cell, shape, centres = grid
+    nxt, dist, source = ways
+    out = np.empty((len(pos), 3))
+    for r in range(len(pos)):
+        row = table[r]
+        c = _cell(pos[r, 0], pos[r, 1], pos[r, 2], lo, cell, shape)
+        lost = not np.isfinite(dist[row, c])
+        for _ in range(hops):
+            if nxt[row, c] >= 0:
+                c = nxt[row, c]
+        if lost or c == source[row]:
+            out[r] = goal[r]
+        else:
+            out[r] = centres[c]
+    return out

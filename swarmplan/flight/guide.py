@@ -469,14 +469,11 @@ class StaticGuide:
         out = target.copy()
         scale = scale.copy()
         scale[rows] = np.minimum(scale[rows], REPULSION)
-        table = self._rows_for(self.cell_of(goal[rows]), pos[rows])
-        cell = self.cell_of(pos[rows])
-        lost = ~np.isfinite(self._dist[table, cell])
-        for _ in range(HOPS):
-            nxt = self._next[table, cell]
-            cell = np.where(nxt >= 0, nxt, cell)
-        home = (cell == self._source[table]) | lost
-        out[rows] = np.where(home[:, None], goal[rows], self.centres[cell])
+        p, g = pos[rows], goal[rows]
+        table = self._rows_for(self.cell_of(g), p)
+        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        grid = (self.lo, self.cell, self.shape, self.centres)
+        out[rows] = kernels.way_points(p, g, table, grid, (self._next, self._dist, self._source), HOPS)
         return out, scale
 
     def leads(self, i: int, pos: np.ndarray, goal: np.ndarray) -> bool:
