@@ -323,3 +323,34 @@ def way_points(
         else:
             out[r] = centres[c]
     return out
+
+
+@njit(cache=True)
+def flat_hits(
+    p: np.ndarray,
+    rows: np.ndarray,
+    cells: np.ndarray,
+    out: np.ndarray,
+    inner: tuple[np.ndarray, np.ndarray],
+    bodies: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    levels: tuple[float, float, float],
+) -> None:
+    """Mark ``out[rows[k]]`` where sample ``p[k]`` (in ``cells[k]``) comes within ``squeeze``
+    of flat ground or a body (``levels``: squeeze, floor, radius), the samples measured as
+    ``StaticGuide.blocked`` measures them in numpy: the height above the ground, the distance
+    to the bodies the sample's cell reaches (to every body when a sample lies outside
+    ``inner``, the grid's box less a margin: ``bodies`` = reach table, positions, rotations,
+    codes, parameters), the lesser, less the radius."""
+    squeeze, floor, radius = levels
+    lo, hi = inner
+    every = False
+    for k in range(len(p)):
+        for a in range(3):
+            if p[k, a] < lo[a] or p[k, a] > hi[a]:
+                every = True
+    reach, position, rotation, code, prm = bodies
+    d = body_distance(p, cells, reach, every, position, rotation, code, prm)
+    for k in range(len(p)):
+        e = min((p[k, 2] - 0.0) - floor, d[k]) - radius
+        if e < squeeze:
+            out[rows[k]] = True

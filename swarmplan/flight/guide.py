@@ -163,6 +163,8 @@ class StaticGuide:
         self._sight_bounds()
         # The clearance is 1-Lipschitz everywhere (flat ground, exact distances to the bodies).
         self._lipschitz = not world.peaks and not self._batch.meshes
+        # The grid's box less a margin: a sample beyond it is measured against every body.
+        self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
         self._reach_bodies()
 
     # ------------------------------------------------------------------ geometry
@@ -270,6 +272,11 @@ class StaticGuide:
         )
         if not len(row):
             return out
+        if self._lipschitz:  # flat ground, primitive bodies: all in one compiled pass
+            b = self._batch
+            bodies = (self._reach, b.position, b.rotation, b.code, b.prm)
+            kernels.flat_hits(p, row, cells, out, self._inner, bodies, (SQUEEZE, self.floor, self.radius))
+            return out
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
         if self.bodies:
             exact = np.minimum(exact, self._body_distance(p, cells))
@@ -309,8 +316,7 @@ class StaticGuide:
         ``SQUEEZE`` plus the radius exactly where the nearest of all bodies is. A sample outside
         the grid (its cell's box does not hold it) is measured against every body."""
         b = self._batch
-        margin = 1e-6
-        every = bool(((p < self.lo + margin) | (p > self.lo + self.shape * self.cell - margin)).any())
+        every = bool(((p < self._inner[0]) | (p > self._inner[1])).any())
         if not b.meshes:
             kernels = kernel_module("swarmplan.flight._guide_kernel")
             return kernels.body_distance(p, cells, self._reach, every, b.position, b.rotation, b.code, b.prm)
