@@ -137,3 +137,15 @@ def test_pairs_measure_the_bits_of_every_body() -> None:
         )  # fmt: skip
         np.testing.assert_array_equal(one, b.distance(p)[:, j])
     assert (got < 0).any() and (got > 5).any()  # inside bodies and far from them
+
+
+def test_cell_of_is_the_clipped_floor_of_the_grid_coordinates() -> None:
+    guide = _guide(False, 1)
+    rng = np.random.default_rng(12)
+    size = guide.shape * guide.cell
+    p = guide.lo + rng.uniform(-0.2, 1.2, (5000, 3)) * size
+    p[:300] = guide.lo + rng.integers(0, guide.shape + 1, (300, 3)) * guide.cell  # on cell faces
+    ijk = np.clip(np.floor((p - guide.lo) / guide.cell).astype(np.int64), 0, guide.shape - 1)
+    expect = (ijk[:, 0] * guide.shape[1] + ijk[:, 1]) * guide.shape[2] + ijk[:, 2]
+    np.testing.assert_array_equal(guide.cell_of(p), expect)
+    assert guide.cell_of(guide.centres[[0, 7, guide.n_cells - 1]]).tolist() == [0, 7, guide.n_cells - 1]

@@ -354,3 +354,12 @@ def flat_hits(
         e = min((p[k, 2] - 0.0) - floor, d[k]) - radius
         if e < squeeze:
             out[rows[k]] = True
+
+
+@njit(cache=True)
+def cells_of(pts: np.ndarray, lo: np.ndarray, cell: np.ndarray, shape: np.ndarray) -> np.ndarray:
+    """The flat index of the cell holding each of ``pts`` (n, 3) (``StaticGuide.cell_of``)."""
+    out = np.empty(len(pts), dtype=np.int64)
+    for k in range(len(pts)):
+        out[k] = _cell(pts[k, 0], pts[k, 1], pts[k, 2], lo, cell, shape)
+    return out
