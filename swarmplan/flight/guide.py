@@ -28,6 +28,9 @@ way (or the goal itself once that is within reach), and its static repulsion is 
 ``REPULSION``. Every other agent flies at its goal as before: in worlds without static obstacles
 nothing is built and nothing changes. An agent following a segment or a global route keeps it,
 and fixed wings (which cannot fly a way that hugs corners) are never guided.
+The searches, the line-of-sight samples and the points on the ways run compiled
+(``_guide_kernel``), each giving the numbers its numpy or scipy formulation gives (the same
+ways, the same decisions).
 Stuck detection measures a guided agent's progress along its way, and the escape planner plans
 no escape for an agent the guide leads (unless a moving obstacle is near; the guide sees static
 ones only): what holds it is other agents.
