@@ -32,7 +32,6 @@ def dijkstra(
     n = len(indptr) - 1
     dist = np.full(n, np.inf)
     pred = np.full(n, NO_WAY, dtype=np.int32)
-    done = np.zeros(n, dtype=np.bool_)
     at = np.full(n, -1, dtype=np.int64)  # a vertex's place in the heap (-1: not in it)
     hd = np.empty(n)  # the heap: keys (distance, vertex) ...
     hv = np.empty(n, dtype=np.int64)
@@ -44,7 +43,6 @@ def dijkstra(
     while size > 0:
         u = hv[0]
         du = hd[0]
-        done[u] = True
         at[u] = -1
         size -= 1
         if size > 0:  # the last entry sifts down from the root
@@ -68,8 +66,6 @@ def dijkstra(
             at[kv] = i
         for j in range(indptr[u], indptr[u + 1]):
             w = indices[j]
-            if done[w]:
-                continue
             nd = du + data[j]
             if dist[w] > nd:
                 dist[w] = nd
