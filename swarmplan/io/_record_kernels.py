@@ -22,6 +22,11 @@ _LIMIT = 2.0**33
 _ZERO, _DOT, _MINUS = 48, 46, 45
 _EXP = np.frombuffer(b"e-0", dtype=np.uint8).copy()  # and the exponent's last digit
 _PAIRS = np.frombuffer(b"".join(b"%02d" % v for v in range(100)), dtype=np.uint8).copy()  # "00".."99"
+_DIGITS4 = np.frombuffer(b"".join(b"%04d" % v for v in range(10000)), dtype=np.uint8).copy()  # "0000".."9999"
+_LEN4 = np.array([len(str(v)) for v in range(10000)], dtype=np.int64)  # digits of 0..9999
+_KEPT4 = np.array([len((b"%04d" % v).rstrip(b"0")) for v in range(10000)], dtype=np.int64)  # without
+# trailing zeros: the digits kept of a fraction's last four (and of its first two, at least one)
+_KEPT2 = np.array([max(len((b"%02d" % v).rstrip(b"0")), 1) for v in range(100)], dtype=np.int64)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -46,13 +51,16 @@ def interleave(
     pieces: np.ndarray, piece_start: np.ndarray, piece_len: np.ndarray, values: np.ndarray, out: np.ndarray
 ) -> int:
     """``p0 v0 p1 v1 ... pn`` into ``out`` (uint8, room for the pieces and 18 bytes per value):
-    its length, or -1 when a value does not have the fast form."""
+    its length, or -1 when a value does not have the fast form. A value's whole part below
+    10**4 and its six fraction digits are written from the four-digit table (every value
+    writes its 18 bytes at most; the text that follows overwrites what is past its end)."""
     n = len(values)
     pos = 0
     for i in range(n + 1):
         s = piece_start[i]
         m = piece_len[i]
-        out[pos : pos + m] = pieces[s : s + m]
+        for j in range(m):
+            out[pos + j] = pieces[s + j]
         pos += m
         if i == n:
             break
@@ -64,9 +72,8 @@ def interleave(
         if k / 1e6 != ax:
             return -1
         ki = np.int64(k)
-        if math.copysign(1.0, x) < 0.0:
-            out[pos] = _MINUS
-            pos += 1
+        out[pos] = _MINUS  # kept for a negative value (no branch on the sign)
+        pos += np.int64(math.copysign(1.0, x) < 0.0)
         if 0 < ki < 100:  # below 1e-4 repr writes an exponent: d e-06, d e-05 or d.d e-05
             if ki < 10:
                 out[pos] = _ZERO + ki
@@ -85,29 +92,38 @@ def interleave(
             out[pos + 3] = _ZERO + exp
             pos += 4
             continue
-        whole = ki // 1000000
-        frac = ki - 1000000 * whole
-        digits = 1
-        p = 10
-        while digits < 10 and whole >= p:
-            p *= 10
-            digits += 1
-        _digits(out, pos + digits, whole)
+        whole = np.int64(ax)  # ax's whole part (ax is ki / 10**6 rounded): the integer division
+        frac = ki - 1000000 * whole  # below, without its sign checks
+        if frac < 0:
+            whole -= 1
+            frac += 1000000
+        elif frac >= 1000000:
+            whole += 1
+            frac -= 1000000
+        if whole < 10000:
+            digits = _LEN4[whole]
+            at = 4 * whole + 4 - digits
+            for j in range(4):  # past the digits: overwritten by the point and the fraction
+                out[pos + j] = _DIGITS4[at + j]
+        else:
+            digits = 5
+            p = 100000
+            while digits < 10 and whole >= p:
+                p *= 10
+                digits += 1
+            _digits(out, pos + digits, whole)
         pos += digits
         out[pos] = _DOT
-        pos += 1
-        if frac == 0:
-            out[pos] = _ZERO
-            pos += 1
-            continue
-        kept = 6  # the fraction's digits without its trailing zeros, leading zeros written
-        while frac % 10 == 0:
-            frac //= 10
-            kept -= 1
-        for j in range(kept):
-            out[pos + j] = _ZERO
-        _digits(out, pos + kept, frac)
-        pos += kept
+        high = (frac * 429497) >> 32  # frac // 10000 (exact below 10**6): its first two digits
+        low = frac - 10000 * high
+        out[pos + 1] = _PAIRS[2 * high]
+        out[pos + 2] = _PAIRS[2 * high + 1]
+        for j in range(4):
+            out[pos + 3 + j] = _DIGITS4[4 * low + j]
+        if low:
+            pos += 3 + _KEPT4[low]
+        else:
+            pos += 1 + _KEPT2[high]
     return pos
 
 
