@@ -59,8 +59,11 @@ def interleave(
     for i in range(n + 1):
         s = piece_start[i]
         m = piece_len[i]
-        for j in range(m):
-            out[pos + j] = pieces[s + j]
+        if m > 8:
+            out[pos : pos + m] = pieces[s : s + m]
+        else:
+            for j in range(m):
+                out[pos + j] = pieces[s + j]
         pos += m
         if i == n:
             break
