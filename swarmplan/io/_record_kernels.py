@@ -157,3 +157,112 @@ def patch(
         at = double_at[i]
         for j in range(8):
             buf[at + j] = raw[8 * i + j]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _varint_len(n: int) -> int:
+    size = 1
+    while n >= 128:
+        n >>= 7
+        size += 1
+    return size
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _put_varint(out: np.ndarray, pos: int, n: int) -> int:
+    while n >= 128:
+        out[pos] = (n & 0x7F) | 0x80
+        n >>= 7
+        pos += 1
+    out[pos] = n
+    return pos + 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _index_digits(k: int) -> int:
+    digits = 1
+    while k >= 10:
+        k //= 10
+        digits += 1
+    return digits
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _point_len(pts: np.ndarray, r: int) -> int:
+    """A Point3's encoded length: 9 bytes per coordinate that is not +0.0."""
+    size = 0
+    for c in range(3):
+        v = pts[r, c]
+        if v != 0.0 or math.copysign(1.0, v) < 0.0:
+            size += 9
+    return size
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def line_entities(
+    stamp: np.ndarray,
+    fixed: np.ndarray,
+    head: np.ndarray,
+    color: np.ndarray,
+    prefix: np.ndarray,
+    prefix_at: np.ndarray,
+    entity_slot: np.ndarray,
+    index: np.ndarray,
+    pts: np.ndarray,
+    slot_start: np.ndarray,
+    slot_end: np.ndarray,
+    out: np.ndarray,
+) -> int:
+    """``SceneUpdate.entities`` records of line-strip entities into ``out``, as
+    ``swarmplan.io.foxglove_paths`` joins them: per entity e (of slot s = entity_slot[e]) the
+    timestamp ``stamp``, the frame id field ``fixed``, the id ``prefix[prefix_at[s]:
+    prefix_at[s + 1]]`` followed by the decimal ``index[s]`` (none when negative), and one line
+    primitive: ``head``, the points ``pts[slot_start[s]:slot_end[s]]`` (field 5, a Point3 each,
+    +0.0 coordinates left out as proto3 does), then ``color``. Returns the bytes written
+    (``out`` must hold them; ``pts`` C-contiguous)."""
+    raw = pts.reshape(-1).view(np.uint8)
+    pos = 0
+    for e in range(len(entity_slot)):
+        s = entity_slot[e]
+        points = 0
+        for r in range(slot_start[s], slot_end[s]):
+            inner = _point_len(pts, r)
+            points += 1 + _varint_len(inner) + inner
+        line = len(head) + points + len(color)
+        k = index[s]
+        eid = prefix_at[s + 1] - prefix_at[s] + (_index_digits(k) if k >= 0 else 0)
+        size = len(stamp) + len(fixed) + 1 + _varint_len(eid) + eid + 1 + _varint_len(line) + line
+        out[pos] = 0x12
+        pos = _put_varint(out, pos + 1, size)
+        out[pos : pos + len(stamp)] = stamp
+        pos += len(stamp)
+        out[pos : pos + len(fixed)] = fixed
+        pos += len(fixed)
+        out[pos] = 0x1A
+        pos = _put_varint(out, pos + 1, eid)
+        a, b = prefix_at[s], prefix_at[s + 1]
+        out[pos : pos + b - a] = prefix[a:b]
+        pos += b - a
+        if k >= 0:
+            digits = _index_digits(k)
+            _digits(out, pos + digits, k)
+            pos += digits
+        out[pos] = 0x5A
+        pos = _put_varint(out, pos + 1, line)
+        out[pos : pos + len(head)] = head
+        pos += len(head)
+        for r in range(slot_start[s], slot_end[s]):
+            inner = _point_len(pts, r)
+            out[pos] = 0x2A
+            pos = _put_varint(out, pos + 1, inner)
+            for c in range(3):
+                v = pts[r, c]
+                if v != 0.0 or math.copysign(1.0, v) < 0.0:
+                    out[pos] = 0x09 + 8 * c
+                    at = 24 * r + 8 * c
+                    for j in range(8):
+                        out[pos + 1 + j] = raw[at + j]
+                    pos += 9
+        out[pos : pos + len(color)] = color
+        pos += len(color)
+    return pos

@@ -18,6 +18,7 @@ The entities are assembled in protobuf's wire format from the points encoded all
 from __future__ import annotations
 
 import itertools
+from types import ModuleType
 
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
@@ -48,6 +49,8 @@ def _line_fixed_fields(thickness: float) -> tuple[bytes, bytes]:
 
 _LINE_HEAD, _LINE_COLOR = _line_fixed_fields(PATH_THICKNESS)
 _OVERVIEW_HEAD, _ = _line_fixed_fields(PATH_THICKNESS / 2)
+_U8 = {k: np.frombuffer(v, dtype=np.uint8) for k, v in (("frame", _FRAME_FIELD), ("line", _LINE_HEAD),
+       ("overview", _OVERVIEW_HEAD), ("color", _LINE_COLOR))}  # fmt: skip
 
 
 def _line_entities(stamp: bytes, eids: list[bytes], points: list[bytes], head: bytes) -> bytes:
@@ -100,6 +103,12 @@ class PathTrails:
         self.chunk_index = np.zeros(0, dtype=np.intp)
         self._sent_last = np.zeros((0, 3))  # per slot: the last point of its last chunk
         self._pending: list[tuple[np.ndarray, np.ndarray]] = []  # (slots, points) since the last chunks
+        # for the compiled writer (line_entities): the slots in path order, and per slot the
+        # entity ids' bytes ("path/<id>/" of the chunks, "path/<id>" of the overview)
+        self._ids_for = -1  # len(order) they were made for
+        self._order_slots = np.zeros(0, dtype=np.intp)
+        self._chunk_ids: tuple[np.ndarray, np.ndarray] | None = None
+        self._overview_ids: tuple[np.ndarray, np.ndarray] | None = None
 
     def grow(self, k: int) -> None:
         """Room for ``k`` more slots."""
@@ -136,8 +145,49 @@ class PathTrails:
             self.points[k, : len(kept)] = kept
             self.count[k] = len(kept)
 
-    def chunks(self, stamp: bytes) -> bytes | None:
-        """The ``/scene/paths`` message: per agent with new points, its next chunk (None: none new)."""
+    def _slot_ids(self) -> None:
+        """The per-slot entity ids (bytes) of the paths started so far, for the compiled writer."""
+        if self._ids_for == len(self.order):
+            return
+        self._ids_for = len(self.order)
+        self._order_slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
+        n = len(self.count)
+        names = [b""] * n
+        for aid, k in self.order.items():
+            names[k] = f"path/{aid}".encode()
+        for which, tail in (("_overview_ids", b""), ("_chunk_ids", b"/")):
+            ids = [name + tail if name else b"" for name in names]
+            at = np.zeros(n + 1, dtype=np.intp)
+            np.cumsum([len(i) for i in ids], out=at[1:])
+            setattr(self, which, (np.frombuffer(b"".join(ids) or b"\0", dtype=np.uint8), at))
+
+    def _compiled_entities(
+        self,
+        kernels: ModuleType,
+        stamp: bytes,
+        head: str,
+        ids: tuple[np.ndarray, np.ndarray],
+        entity_slot: np.ndarray,
+        index: np.ndarray,
+        pts: np.ndarray,
+        start: np.ndarray,
+        end: np.ndarray,
+    ) -> bytes:
+        """The entities' records by ``kernels.line_entities`` (the bytes of :func:`_line_entities`)."""
+        prefix, prefix_at = ids
+        stamp_u8 = np.frombuffer(stamp, dtype=np.uint8)
+        per_entity = 40 + len(stamp) + len(_FRAME_FIELD) + len(_LINE_HEAD) + len(_LINE_COLOR)
+        room = len(entity_slot) * per_entity + int(prefix_at[-1]) + 29 * len(pts)
+        out = np.empty(room, dtype=np.uint8)
+        size = kernels.line_entities(
+            stamp_u8, _U8["frame"], _U8[head], _U8["color"], prefix, prefix_at, entity_slot, index,
+            np.ascontiguousarray(pts, dtype=float), start, end, out,
+        )  # fmt: skip
+        return out[:size].tobytes()
+
+    def chunks(self, stamp: bytes, kernels: ModuleType | None = None) -> bytes | None:
+        """The ``/scene/paths`` message: per agent with new points, its next chunk (None: none new).
+        ``kernels``: written by the compiled writer (the same bytes)."""
         if not self._pending:
             return None
         slots = np.concatenate([s for s, _ in self._pending])
@@ -151,6 +201,21 @@ class PathTrails:
         # a chunk after an agent's first starts at the last point of the one before
         joined = self.chunk_index[moved] > 0
         pts = np.insert(pts, first[joined], self._sent_last[moved[joined]], axis=0)
+        if kernels is not None:
+            self._slot_ids()
+            start = np.zeros(len(self.count), dtype=np.intp)
+            end = np.zeros(len(self.count), dtype=np.intp)
+            end[moved] = np.cumsum(sizes + joined)
+            start[moved] = end[moved] - (sizes + joined)
+            has = np.zeros(len(self.count), dtype=bool)
+            has[moved] = True
+            entity_slot = self._order_slots[has[self._order_slots]]
+            data = self._compiled_entities(
+                kernels, stamp, "line", self._chunk_ids, entity_slot, self.chunk_index, pts, start, end
+            )
+            self._sent_last[moved] = self.last[moved]
+            self.chunk_index[moved] += 1
+            return data
         bounds = np.concatenate([[0], np.cumsum(sizes + joined)]).tolist()
         encoded = dict(zip(moved.tolist(), _point_groups(pts, bounds), strict=True))
         order = [(aid, k) for aid, k in self.order.items() if k in encoded]
@@ -161,8 +226,8 @@ class PathTrails:
         self.chunk_index[moved] += 1
         return data
 
-    def overview(self, stamp: bytes) -> bytes | None:
-        """The ``/scene/paths/overview`` message (None: no path yet)."""
+    def overview(self, stamp: bytes, kernels: ModuleType | None = None) -> bytes | None:
+        """The ``/scene/paths/overview`` message (None: no path yet); ``kernels`` as in :meth:`chunks`."""
         if not self.order:
             return None
         slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
@@ -172,7 +237,18 @@ class PathTrails:
         i = np.arange(m.max())
         idx = (2 * i * (counts - 1)[:, None] + (m - 1)[:, None]) // (2 * np.maximum(m - 1, 1))[:, None]
         valid = i < m[:, None]
+        pts = self.points[np.repeat(slots, m), idx[valid]]
+        if kernels is not None:
+            self._slot_ids()
+            start = np.zeros(len(self.count), dtype=np.intp)
+            end = np.zeros(len(self.count), dtype=np.intp)
+            end[slots] = np.cumsum(m)
+            start[slots] = end[slots] - m
+            none = np.full(len(self.count), -1, dtype=np.intp)
+            return self._compiled_entities(
+                kernels, stamp, "overview", self._overview_ids, slots, none, pts, start, end
+            )
         bounds = np.concatenate([[0], np.cumsum(m)]).tolist()
         eids = [f"path/{aid}".encode() for aid in self.order]
-        points = _point_groups(self.points[np.repeat(slots, m), idx[valid]], bounds)
+        points = _point_groups(pts, bounds)
         return _line_entities(stamp, eids, points, _OVERVIEW_HEAD)

@@ -268,13 +268,13 @@ class FoxgloveScene:
             if not scene_due:
                 rows = rows or self._rows(agents)
                 self.trails.sample(rows.ids, rows.pos, rows.slots)
-            data = self.trails.chunks(timestamp_bytes(t))
+            data = self.trails.chunks(timestamp_bytes(t), self._kernels())
             if data is not None:
                 self._write(PATHS_TOPIC, data, t)
             self._next_path = t + self.path_period
             done[PATHS_TOPIC] = t
         if due(OVERVIEW_TOPIC, self._next_overview):
-            data = self.trails.overview(timestamp_bytes(t))
+            data = self.trails.overview(timestamp_bytes(t), self._kernels())
             if data is not None:
                 self._write(OVERVIEW_TOPIC, data, t)
             self._next_overview = t + self.overview_period

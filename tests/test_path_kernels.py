@@ -1,0 +1,53 @@
+"""The compiled writer of the flown paths (``line_entities``) gives the bytes of the numpy
+path: chunks and overviews of random paths, with coordinates equal to +0.0 and -0.0 (proto3
+leaves out the former only), ids of many lengths (one- and two-byte varint lengths) and chunk
+numbers of several digits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarmplan.io.foxglove_paths import PathTrails
+from swarmplan.io.json_floats import record_kernels
+from swarmplan.io.wire import timestamp_bytes
+
+
+def _trails_pair(seed: int, max_points: int = 16) -> tuple[PathTrails, PathTrails, list]:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 40))
+    ids = tuple(("x" * int(rng.integers(0, 150))) + f"a{i}" for i in rng.permutation(n))
+    pair = (PathTrails(max_points, 5), PathTrails(max_points, 5))
+    for trails in pair:
+        trails.grow(n + 3)  # slots beyond the agents' stay unused
+    slots = rng.permutation(n + 3)[:n].astype(np.intp)
+    pos = rng.normal(0, 50, (n, 3))
+    steps = []
+    for _ in range(60):
+        pos = pos + rng.normal(0, 1, (n, 3)) * (rng.random((n, 1)) < 0.7)  # some agents stand
+        pos[rng.random((n, 3)) < 0.05] = 0.0
+        pos[rng.random((n, 3)) < 0.05] = -0.0
+        steps.append(pos.copy())
+    return pair, (ids, slots), steps
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_paths_equal_the_numpy_ones(seed):
+    (compiled, plain), (ids, slots), steps = _trails_pair(seed)
+    kernels = record_kernels()
+    rng = np.random.default_rng(100 + seed)
+    order = rng.permutation(len(ids))  # agents may come in another order at each sample
+    for k, pos in enumerate(steps):
+        t = 0.1 * (k + 1) + (1e-9 if k % 7 == 0 else 0.0)
+        sel = order if k % 2 else np.arange(len(ids))
+        step_ids = tuple(ids[i] for i in sel)
+        for trails in (compiled, plain):
+            trails.sample(step_ids, pos[sel], slots[sel])
+        if k % 3 == 2:
+            stamp = timestamp_bytes(t)
+            assert compiled.chunks(stamp, kernels) == plain.chunks(stamp)
+        if k % 11 == 5:
+            stamp = timestamp_bytes(t)
+            assert compiled.overview(stamp, kernels) == plain.overview(stamp)
+    assert compiled.chunk_index.max() >= 10  # chunk numbers of two digits were written
+    assert compiled.chunks(timestamp_bytes(9.0), kernels) == plain.chunks(timestamp_bytes(9.0))
