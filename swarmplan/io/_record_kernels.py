@@ -189,13 +189,30 @@ def _index_digits(k: int) -> int:
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _point_len(pts: np.ndarray, r: int) -> int:
-    """A Point3's encoded length: 9 bytes per coordinate that is not +0.0."""
+    """A Point3 field's length (tag and length byte, 9 bytes per coordinate not +0.0)."""
     size = 0
     for c in range(3):
         v = pts[r, c]
         if v != 0.0 or math.copysign(1.0, v) < 0.0:
             size += 9
-    return size
+    return 2 + size
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _put_point(out: np.ndarray, pos: int, pts: np.ndarray, raw: np.ndarray, r: int) -> int:
+    """Row ``r`` of ``pts`` (its bytes: ``raw``) as a ``LinePrimitive.points`` field at ``pos``."""
+    out[pos] = 0x2A
+    out[pos + 1] = _point_len(pts, r) - 2
+    pos += 2
+    for c in range(3):
+        v = pts[r, c]
+        if v != 0.0 or math.copysign(1.0, v) < 0.0:
+            out[pos] = 0x09 + 8 * c
+            at = 24 * r + 8 * c
+            for j in range(8):
+                out[pos + 1 + j] = raw[at + j]
+            pos += 9
+    return pos
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -208,6 +225,7 @@ def line_entities(
     prefix_at: np.ndarray,
     entity_slot: np.ndarray,
     index: np.ndarray,
+    join: np.ndarray,
     pts: np.ndarray,
     slot_start: np.ndarray,
     slot_end: np.ndarray,
@@ -217,19 +235,20 @@ def line_entities(
     ``swarmplan.io.foxglove_paths`` joins them: per entity e (of slot s = entity_slot[e]) the
     timestamp ``stamp``, the frame id field ``fixed``, the id ``prefix[prefix_at[s]:
     prefix_at[s + 1]]`` followed by the decimal ``index[s]`` (none when negative), and one line
-    primitive: ``head``, the points ``pts[slot_start[s]:slot_end[s]]`` (field 5, a Point3 each,
-    +0.0 coordinates left out as proto3 does), then ``color``. Returns the bytes written
-    (``out`` must hold them; ``pts`` C-contiguous)."""
+    primitive: ``head``, its points (a Point3 field each, +0.0 coordinates left out as proto3
+    does: ``join[s]`` first when ``index[s] > 0``, then ``pts[slot_start[s]:slot_end[s]]``),
+    then ``color``. Returns the bytes written (``out`` must hold them; ``pts`` and ``join``
+    C-contiguous)."""
     raw = pts.reshape(-1).view(np.uint8)
+    join_raw = join.reshape(-1).view(np.uint8)
     pos = 0
     for e in range(len(entity_slot)):
         s = entity_slot[e]
-        points = 0
-        for r in range(slot_start[s], slot_end[s]):
-            inner = _point_len(pts, r)
-            points += 1 + _varint_len(inner) + inner
-        line = len(head) + points + len(color)
         k = index[s]
+        points = _point_len(join, s) if k > 0 else 0
+        for r in range(slot_start[s], slot_end[s]):
+            points += _point_len(pts, r)
+        line = len(head) + points + len(color)
         eid = prefix_at[s + 1] - prefix_at[s] + (_index_digits(k) if k >= 0 else 0)
         size = len(stamp) + len(fixed) + 1 + _varint_len(eid) + eid + 1 + _varint_len(line) + line
         out[pos] = 0x12
@@ -251,18 +270,10 @@ def line_entities(
         pos = _put_varint(out, pos + 1, line)
         out[pos : pos + len(head)] = head
         pos += len(head)
+        if k > 0:
+            pos = _put_point(out, pos, join, join_raw, s)
         for r in range(slot_start[s], slot_end[s]):
-            inner = _point_len(pts, r)
-            out[pos] = 0x2A
-            pos = _put_varint(out, pos + 1, inner)
-            for c in range(3):
-                v = pts[r, c]
-                if v != 0.0 or math.copysign(1.0, v) < 0.0:
-                    out[pos] = 0x09 + 8 * c
-                    at = 24 * r + 8 * c
-                    for j in range(8):
-                        out[pos + 1 + j] = raw[at + j]
-                    pos += 9
+            pos = _put_point(out, pos, pts, raw, r)
         out[pos : pos + len(color)] = color
         pos += len(color)
     return pos

@@ -170,18 +170,19 @@ class PathTrails:
         entity_slot: np.ndarray,
         index: np.ndarray,
         pts: np.ndarray,
-        start: np.ndarray,
-        end: np.ndarray,
+        counts: np.ndarray,
     ) -> bytes:
-        """The entities' records by ``kernels.line_entities`` (the bytes of :func:`_line_entities`)."""
+        """The entities' records by ``kernels.line_entities`` (the bytes of :func:`_line_entities`):
+        per slot ``counts`` of the rows of ``pts`` (in slot order), after its chunk's first point
+        (the last sent) when ``index`` says it is not the first chunk."""
         prefix, prefix_at = ids
-        stamp_u8 = np.frombuffer(stamp, dtype=np.uint8)
-        per_entity = 40 + len(stamp) + len(_FRAME_FIELD) + len(_LINE_HEAD) + len(_LINE_COLOR)
-        room = len(entity_slot) * per_entity + int(prefix_at[-1]) + 29 * len(pts)
-        out = np.empty(room, dtype=np.uint8)
+        end = np.cumsum(counts)
+        per_entity = 72 + len(stamp) + len(_FRAME_FIELD) + len(_LINE_HEAD) + len(_LINE_COLOR)
+        out = np.empty(len(entity_slot) * per_entity + int(prefix_at[-1]) + 29 * len(pts), dtype=np.uint8)
         size = kernels.line_entities(
-            stamp_u8, _U8["frame"], _U8[head], _U8["color"], prefix, prefix_at, entity_slot, index,
-            np.ascontiguousarray(pts, dtype=float), start, end, out,
+            np.frombuffer(stamp, dtype=np.uint8), _U8["frame"], _U8[head], _U8["color"], prefix,
+            prefix_at, entity_slot, index, self._sent_last, np.ascontiguousarray(pts, dtype=float),
+            end - counts, end, out,
         )  # fmt: skip
         return out[:size].tobytes()
 
@@ -195,27 +196,23 @@ class PathTrails:
         self._pending = []
         by_slot = np.argsort(slots, kind="stable")  # each slot's points in the order they came
         slots, pts = slots[by_slot], pts[by_slot]
+        if kernels is not None:
+            self._slot_ids()
+            counts = np.bincount(slots, minlength=len(self.count))
+            entity_slot = self._order_slots[counts[self._order_slots] > 0]
+            data = self._compiled_entities(
+                kernels, stamp, "line", self._chunk_ids, entity_slot, self.chunk_index, pts, counts
+            )
+            moved = counts > 0
+            self._sent_last[moved] = self.last[moved]
+            self.chunk_index[moved] += 1
+            return data
         first = np.flatnonzero(np.diff(slots, prepend=-1))
         moved = slots[first]
         sizes = np.diff(first, append=len(slots))
         # a chunk after an agent's first starts at the last point of the one before
         joined = self.chunk_index[moved] > 0
         pts = np.insert(pts, first[joined], self._sent_last[moved[joined]], axis=0)
-        if kernels is not None:
-            self._slot_ids()
-            start = np.zeros(len(self.count), dtype=np.intp)
-            end = np.zeros(len(self.count), dtype=np.intp)
-            end[moved] = np.cumsum(sizes + joined)
-            start[moved] = end[moved] - (sizes + joined)
-            has = np.zeros(len(self.count), dtype=bool)
-            has[moved] = True
-            entity_slot = self._order_slots[has[self._order_slots]]
-            data = self._compiled_entities(
-                kernels, stamp, "line", self._chunk_ids, entity_slot, self.chunk_index, pts, start, end
-            )
-            self._sent_last[moved] = self.last[moved]
-            self.chunk_index[moved] += 1
-            return data
         bounds = np.concatenate([[0], np.cumsum(sizes + joined)]).tolist()
         encoded = dict(zip(moved.tolist(), _point_groups(pts, bounds), strict=True))
         order = [(aid, k) for aid, k in self.order.items() if k in encoded]
@@ -230,7 +227,9 @@ class PathTrails:
         """The ``/scene/paths/overview`` message (None: no path yet); ``kernels`` as in :meth:`chunks`."""
         if not self.order:
             return None
-        slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
+        paths = slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
+        if kernels is not None:
+            slots = np.sort(paths)  # the compiled writer takes the points in slot order
         counts = self.count[slots]
         m = np.minimum(counts, self.overview_points)
         # per path: m evenly spaced indices over its kept points (all of them when few)
@@ -240,13 +239,11 @@ class PathTrails:
         pts = self.points[np.repeat(slots, m), idx[valid]]
         if kernels is not None:
             self._slot_ids()
-            start = np.zeros(len(self.count), dtype=np.intp)
-            end = np.zeros(len(self.count), dtype=np.intp)
-            end[slots] = np.cumsum(m)
-            start[slots] = end[slots] - m
+            per_slot = np.zeros(len(self.count), dtype=np.intp)
+            per_slot[slots] = m
             none = np.full(len(self.count), -1, dtype=np.intp)
             return self._compiled_entities(
-                kernels, stamp, "overview", self._overview_ids, slots, none, pts, start, end
+                kernels, stamp, "overview", self._overview_ids, paths, none, pts, per_slot
             )
         bounds = np.concatenate([[0], np.cumsum(m)]).tolist()
         eids = [f"path/{aid}".encode() for aid in self.order]
