@@ -51,3 +51,57 @@ def test_compiled_paths_equal_the_numpy_ones(seed):
             assert compiled.overview(stamp, kernels) == plain.overview(stamp)
     assert compiled.chunk_index.max() >= 10  # chunk numbers of two digits were written
     assert compiled.chunks(timestamp_bytes(9.0), kernels) == plain.chunks(timestamp_bytes(9.0))
+
+
+class _Messages:
+    """The writer slice FoxgloveScene uses, keeping every message."""
+
+    def __init__(self) -> None:
+        self.topics: list[str] = []
+        self.messages: list[tuple[str, int, bytes]] = []
+
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int:
+        return 1
+
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int) -> int:
+        self.topics.append(topic)
+        return len(self.topics)
+
+    def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int = 0) -> None:
+        self.messages.append((self.topics[channel_id - 1], log_time, data))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_scene_steps_equal_the_numpy_ones(seed):
+    """/tf, /scene and paths of random steps, compiled or not: the same messages, also on steps
+    with a coordinate, a velocity or a heading component equal to +-0.0 (another layout)."""
+    from swarmplan.core import AgentStates, Mode
+    from swarmplan.io.foxglove_scene import FoxgloveScene
+
+    rng = np.random.default_rng(seed)
+    n = 20
+    ids = tuple(f"u{i}" for i in range(n))
+    world = {"agents": [{"id": a, "radius": 0.3 + 0.01 * i} for i, a in enumerate(ids)], "obstacles": []}
+    modes = list(Mode)
+    runs = []
+    for compiled in (True, False):
+        out = _Messages()
+        scene = FoxgloveScene(out, world, scene_period=0.1, tf_period=0.1, path_period=0.3)
+        scene.compiled = compiled
+        rng = np.random.default_rng(seed)
+        pos = rng.normal(0, 20, (n, 3))
+        mode = np.array([Mode.APF] * n, dtype=object)
+        for k in range(40):
+            vel = np.round(rng.normal(0, 2, (n, 3)), 6)
+            vel[rng.random(n) < 0.1, :2] = 0.0  # no horizontal motion: the last heading stays
+            pos = np.round(pos + 0.1 * vel, 6)
+            if k % 5 == 3:
+                pos[rng.integers(n), rng.integers(3)] = 0.0 if k % 2 else -0.0
+            if k % 4 == 1:
+                mode[rng.integers(n)] = modes[rng.integers(len(modes))]
+            agents = AgentStates(ids, pos.copy(), vel, mode.copy(), np.ones((n, 3)))
+            scene.write_step(round(0.1 * (k + 1), 9), agents, [])
+        scene.finish()
+        runs.append(out.messages)
+    assert len(runs[0]) > 100
+    assert runs[0] == runs[1]

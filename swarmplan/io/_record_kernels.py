@@ -160,6 +160,51 @@ def patch(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def patch_nonzero(
+    buf: np.ndarray, stamp_at: np.ndarray, stamp: np.ndarray, double_at: np.ndarray, values: np.ndarray
+) -> bool:
+    """:func:`patch` with ``values`` (C-contiguous, any shape) when none is +-0.0; False and
+    nothing written otherwise (proto3 would leave a +0.0 out: another layout)."""
+    flat = values.reshape(-1)
+    for i in range(len(flat)):
+        if flat[i] == 0.0:
+            return False
+    patch(buf, stamp_at, stamp, double_at, flat)
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def patch_poses(
+    buf: np.ndarray,
+    stamp_at: np.ndarray,
+    stamp: np.ndarray,
+    double_at: np.ndarray,
+    vel: np.ndarray,
+    slots: np.ndarray,
+    qz: np.ndarray,
+    qw: np.ndarray,
+    pos: np.ndarray,
+) -> bool:
+    """:func:`headings`, then :func:`patch` with x, y, z, qz, qw per agent (``pos`` and the
+    headings at ``slots``) when none is +-0.0; False and nothing patched otherwise."""
+    headings(vel, slots, qz, qw)
+    n = len(slots)
+    for i in range(n):
+        k = slots[i]
+        if pos[i, 0] == 0.0 or pos[i, 1] == 0.0 or pos[i, 2] == 0.0 or qz[k] == 0.0 or qw[k] == 0.0:
+            return False
+    values = np.empty((n, 5))
+    for i in range(n):
+        values[i, 0] = pos[i, 0]
+        values[i, 1] = pos[i, 1]
+        values[i, 2] = pos[i, 2]
+        values[i, 3] = qz[slots[i]]
+        values[i, 4] = qw[slots[i]]
+    patch(buf, stamp_at, stamp, double_at, values.reshape(-1))
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _varint_len(n: int) -> int:
     size = 1
     while n >= 128:

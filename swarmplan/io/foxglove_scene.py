@@ -334,12 +334,25 @@ class FoxgloveScene:
         # velocity; without horizontal motion the last heading, none yet: identity). The
         # numbers are packed for all agents at once (pose_fields) and the message is one join.
         stamp = timestamp_bytes(t)
+        if rows.ids != self._tf_ids:
+            self._tf_ids = rows.ids
+            self._tf_heads = [self._tf_head(aid) for aid in rows.ids]
+            self._tf_head_len = [len(h) + len(stamp) for h in self._tf_heads]
+            self._tf_stamp_len = len(stamp)
+            self._tf_templates = {}
+        vel = np.ascontiguousarray(rows.vel, dtype=float)
+        template = self._tf_templates.get(len(stamp)) if self.compiled else None
+        if template is not None:
+            # headings, the usual-step check and the numbers in one compiled call
+            pos = np.ascontiguousarray(rows.pos, dtype=float)
+            data = template.fill_poses(stamp, record_kernels(), vel, rows.slots, self._qz, self._qw, pos)
+            if data is not None:
+                self._write(TF_TOPIC, data, t)
+                return
         vx, vy = rows.vel[:, 0], rows.vel[:, 1]
         turning = () if self.compiled else np.flatnonzero((vx != 0.0) | (vy != 0.0))
         if self.compiled:
-            record_kernels().headings(
-                np.ascontiguousarray(rows.vel, dtype=float), rows.slots, self._qz, self._qw
-            )
+            record_kernels().headings(vel, rows.slots, self._qz, self._qw)  # (again: the same)
         elif len(turning):
             # math's functions, as the per-agent encoder used them (numpy's may round otherwise).
             half = np.array(list(map(math.atan2, vy[turning].tolist(), vx[turning].tolist()))) / 2.0
@@ -347,12 +360,6 @@ class FoxgloveScene:
             self._qz[slots] = list(map(math.sin, half.tolist()))
             self._qw[slots] = list(map(math.cos, half.tolist()))
         qz, qw = self._qz[rows.slots], self._qw[rows.slots]
-        if rows.ids != self._tf_ids:
-            self._tf_ids = rows.ids
-            self._tf_heads = [self._tf_head(aid) for aid in rows.ids]
-            self._tf_head_len = [len(h) + len(stamp) for h in self._tf_heads]
-            self._tf_stamp_len = len(stamp)
-            self._tf_templates = {}
         # The usual step (no coordinate or rotation component equal to +-0.0, which proto3
         # writes differently): every record has the same layout as the last such step with a
         # timestamp of this length, so only the numbers and the timestamp are written into it.
@@ -425,12 +432,18 @@ class FoxgloveScene:
             self._recolor(rows)
         # As in _write_tf: with no coordinate equal to +-0.0 the agents' records keep the
         # layout of the last such step (same ids, modes and timestamp length).
-        usual = bool((rows.pos != 0.0).all())
-        template = self._scene_templates.get(len(stamp)) if usual else None
-        if template is not None:
-            agents = template[0].fill(stamp, rows.pos, self._kernels())
-        else:
-            agents = self._scene_agents(stamp, rows, usual)
+        template = self._scene_templates.get(len(stamp))
+        agents = None
+        if template is not None and self.compiled:  # the check and the numbers compiled
+            agents = template[0].fill_nonzero(
+                stamp, np.ascontiguousarray(rows.pos, dtype=float), record_kernels()
+            )
+        if agents is None:
+            usual = bool((rows.pos != 0.0).all())
+            if usual and template is not None:
+                agents = template[0].fill(stamp, rows.pos, self._kernels())
+            else:
+                agents = self._scene_agents(stamp, rows, usual)
         self._write(SCENE_TOPIC, agents + self._movers_bytes(t, stamp, obstacles or []), t)
         self._write_speeds(t, rows)
 
