@@ -105,3 +105,20 @@ def test_compiled_scene_steps_equal_the_numpy_ones(seed):
         runs.append(out.messages)
     assert len(runs[0]) > 100
     assert runs[0] == runs[1]
+
+
+def test_compiled_speeds_have_numpys_bits():
+    """Speeds rounded as np.round(np.sqrt(...), 6), their sum as numpy's pairwise sum (sizes
+    around its blocks of 8 and 128) and their maximum."""
+    rng = np.random.default_rng(7)
+    kernels = record_kernels()
+    for n in [*range(1, 140), 255, 256, 257, 511, 512, 513, 1100]:
+        vel = rng.normal(0, 3, (n, 3)) * 10 ** rng.uniform(-4, 2, (n, 1))
+        vel[rng.random(n) < 0.1] = 0.0
+        out = np.empty(n)
+        total, top = kernels.speeds(vel, out)
+        want = np.round(np.sqrt((vel * vel).sum(axis=1)), 6)
+        assert out.tobytes() == want.tobytes()
+        assert (total / n, top) == (float(want.mean()), float(want.max()))
+    vel[3, 1] = np.nan
+    assert np.isnan(kernels.speeds(vel, np.empty(len(vel)))[1])

@@ -205,6 +205,45 @@ def patch_poses(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's sum of ``a[lo:lo + n]`` (its pairwise summation: eight partial sums in blocks up
+    to 128, halves above), so that the mean has numpy's bits."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    if n <= 128:
+        r = a[lo : lo + 8].copy()
+        m = n - n % 8
+        for i in range(8, m, 8):
+            for j in range(8):
+                r[j] += a[lo + i + j]
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+        for i in range(m, n):
+            res += a[lo + i]
+        return res
+    half = n // 2
+    half -= half % 8
+    return _pairwise_sum(a, lo, half) + _pairwise_sum(a, lo + half, n - half)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def speeds(vel: np.ndarray, out: np.ndarray) -> tuple[float, float]:
+    """``out[i]`` = |vel[i]| rounded to 6 decimals as ``np.round(np.sqrt((vel * vel).sum(axis=1)),
+    6)`` gives it; returns their sum (numpy's) and maximum (NaN when one is NaN)."""
+    top = -np.inf
+    for i in range(len(out)):
+        x, y, z = vel[i, 0], vel[i, 1], vel[i, 2]
+        v = np.rint(math.sqrt(x * x + y * y + z * z) * 1e6) / 1e6
+        out[i] = v
+        if v > top or v != v:
+            if top == top:
+                top = v
+    return _pairwise_sum(out, 0, len(out)), top
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _varint_len(n: int) -> int:
     size = 1
     while n >= 128:
