@@ -205,27 +205,60 @@ def patch_poses(
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:
-    """numpy's sum of ``a[lo:lo + n]`` (its pairwise summation: eight partial sums in blocks up
-    to 128, halves above), so that the mean has numpy's bits."""
+def _block_sum(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise sum of ``a[lo:lo + n]`` for n <= 128: eight partial sums."""
     if n < 8:
         res = 0.0
         for i in range(n):
             res += a[lo + i]
         return res
-    if n <= 128:
-        r = a[lo : lo + 8].copy()
-        m = n - n % 8
-        for i in range(8, m, 8):
-            for j in range(8):
-                r[j] += a[lo + i + j]
-        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
-        for i in range(m, n):
-            res += a[lo + i]
-        return res
-    half = n // 2
-    half -= half % 8
-    return _pairwise_sum(a, lo, half) + _pairwise_sum(a, lo + half, n - half)
+    r = a[lo : lo + 8].copy()
+    m = n - n % 8
+    for i in range(8, m, 8):
+        for j in range(8):
+            r[j] += a[lo + i + j]
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    for i in range(m, n):
+        res += a[lo + i]
+    return res
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pairwise_sum(a: np.ndarray) -> float:
+    """numpy's sum of ``a`` (its pairwise summation: blocks up to 128, halves above, each
+    half's length a multiple of 8), so that a mean has numpy's bits. The halving is walked
+    with a stack (a cached recursive kernel is not safe to load)."""
+    if len(a) <= 128:
+        return _block_sum(a, 0, len(a))
+    lo = np.empty(128, dtype=np.int64)
+    size = np.empty(128, dtype=np.int64)
+    stage = np.empty(128, dtype=np.int64)
+    sums = np.empty(128)
+    lo[0], size[0], stage[0] = 0, len(a), 0
+    top, done = 1, 0
+    while top > 0:
+        k = top - 1
+        n = size[k]
+        if n <= 128:
+            sums[done] = _block_sum(a, lo[k], n)
+            done += 1
+            top -= 1
+            continue
+        half = n // 2
+        half -= half % 8
+        if stage[k] == 0:  # the first half
+            stage[k] = 1
+            lo[top], size[top], stage[top] = lo[k], half, 0
+            top += 1
+        elif stage[k] == 1:  # then the second
+            stage[k] = 2
+            lo[top], size[top], stage[top] = lo[k] + half, n - half, 0
+            top += 1
+        else:  # both: their sum
+            done -= 1
+            sums[done - 1] = sums[done - 1] + sums[done]
+            top -= 1
+    return sums[0]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -240,7 +273,7 @@ def speeds(vel: np.ndarray, out: np.ndarray) -> tuple[float, float]:
         if v > top or v != v:
             if top == top:
                 top = v
-    return _pairwise_sum(out, 0, len(out)), top
+    return _pairwise_sum(out), top
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
