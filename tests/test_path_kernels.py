@@ -1,5 +1,5 @@
-"""The compiled writer of the flown paths (``line_entities``) gives the bytes of the numpy
-path: chunks and overviews of random paths, with coordinates equal to +0.0 and -0.0 (proto3
+"""The compiled writer of the flown paths (``sample_paths``, ``line_entities``) gives the
+bytes of the numpy path: chunks and overviews of random paths, with coordinates equal to +0.0 and -0.0 (proto3
 leaves out the former only), ids of many lengths (one- and two-byte varint lengths) and chunk
 numbers of several digits."""
 
@@ -41,8 +41,11 @@ def test_compiled_paths_equal_the_numpy_ones(seed):
         t = 0.1 * (k + 1) + (1e-9 if k % 7 == 0 else 0.0)
         sel = order if k % 2 else np.arange(len(ids))
         step_ids = tuple(ids[i] for i in sel)
-        for trails in (compiled, plain):
-            trails.sample(step_ids, pos[sel], slots[sel])
+        compiled.sample(step_ids, pos[sel], slots[sel], kernels)
+        plain.sample(step_ids, pos[sel], slots[sel])
+        assert list(compiled.order.items()) == list(plain.order.items())
+        assert (compiled.count == plain.count).all()
+        assert compiled.points.tobytes() == plain.points.tobytes()
         if k % 3 == 2:
             stamp = timestamp_bytes(t)
             assert compiled.chunks(stamp, kernels) == plain.chunks(stamp)

@@ -394,3 +394,48 @@ def line_entities(
         out[pos : pos + len(color)] = color
         pos += len(color)
     return pos
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sample_paths(
+    pos: np.ndarray,
+    slots: np.ndarray,
+    has: np.ndarray,
+    last: np.ndarray,
+    points: np.ndarray,
+    count: np.ndarray,
+    max_points: int,
+    new: np.ndarray,
+    first: np.ndarray,
+) -> tuple[int, int]:
+    """``PathTrails.sample`` on its arrays: each agent i not standing on its slot's last point
+    appends ``pos[i]`` to its path (a full path keeps every other of its older points and its
+    newest); the agents that added a point go to ``new``, those whose path starts to ``first``
+    (in agent order); returns how many of each."""
+    n_new = 0
+    n_first = 0
+    for i in range(len(slots)):
+        k = slots[i]
+        x, y, z = pos[i, 0], pos[i, 1], pos[i, 2]
+        if has[k] and last[k, 0] == x and last[k, 1] == y and last[k, 2] == z:
+            continue
+        new[n_new] = i
+        n_new += 1
+        if not has[k]:
+            first[n_first] = i
+            n_first += 1
+        has[k] = True
+        last[k, 0], last[k, 1], last[k, 2] = x, y, z
+        c = count[k]
+        points[k, c, 0], points[k, c, 1], points[k, c, 2] = x, y, z
+        c += 1
+        if c > max_points:
+            older = (max_points + 1) // 2  # points[k, 0:max_points:2], then the newest
+            for j in range(1, older):
+                for d in range(3):
+                    points[k, j, d] = points[k, 2 * j, d]
+            for d in range(3):
+                points[k, older, d] = points[k, max_points, d]
+            c = older + 1
+        count[k] = c
+    return n_new, n_first

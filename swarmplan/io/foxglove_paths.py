@@ -119,8 +119,24 @@ class PathTrails:
         self.chunk_index = np.concatenate([self.chunk_index, np.zeros(k, dtype=np.intp)])
         self._sent_last = np.concatenate([self._sent_last, np.zeros((k, 3))])
 
-    def sample(self, ids: tuple[str, ...], pos: np.ndarray, slots: np.ndarray) -> None:
-        """Append the agents' positions to their paths; an agent standing on its last point adds none."""
+    def sample(
+        self, ids: tuple[str, ...], pos: np.ndarray, slots: np.ndarray, kernels: ModuleType | None = None
+    ) -> None:
+        """Append the agents' positions to their paths; an agent standing on its last point adds
+        none. ``kernels``: by the compiled ``sample_paths`` (the same arrays)."""
+        if kernels is not None and self.points.shape[1] == self.max_points + 1:
+            pos = np.ascontiguousarray(pos, dtype=float)
+            new = np.empty(len(slots), dtype=np.intp)
+            first = np.empty(len(slots), dtype=np.intp)
+            n_new, n_first = kernels.sample_paths(
+                pos, slots, self.has, self.last, self.points, self.count, self.max_points, new, first
+            )
+            for i in first[:n_first].tolist():  # first points: paths start (message order)
+                self.order[ids[i]] = int(slots[i])
+            if n_new:
+                new = new[:n_new]
+                self._pending.append((slots[new], pos[new]))
+            return
         same = self.has[slots] & (self.last[slots] == pos).all(axis=1)
         new = np.flatnonzero(~same)
         if not len(new):

@@ -128,6 +128,7 @@ MODE_COLORS = {
     Mode.FAILED: (0.5, 0.5, 0.5, 1.0),
 }
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
+_DETAIL_JSON = json.JSONEncoder(separators=(",", ":"), default=str)  # json.dumps's, made once
 _TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
 
 
@@ -260,14 +261,14 @@ class FoxgloveScene:
         scene_due = due(SCENE_TOPIC, self._next_scene)
         if scene_due:
             rows = rows or self._rows(agents)
-            self.trails.sample(rows.ids, rows.pos, rows.slots)
+            self.trails.sample(rows.ids, rows.pos, rows.slots, self._kernels())
             self._write_scene(t, rows, obstacles)
             self._next_scene = t + self.scene_period
             done[SCENE_TOPIC] = t
         if due(PATHS_TOPIC, self._next_path):
             if not scene_due:
                 rows = rows or self._rows(agents)
-                self.trails.sample(rows.ids, rows.pos, rows.slots)
+                self.trails.sample(rows.ids, rows.pos, rows.slots, self._kernels())
             data = self.trails.chunks(timestamp_bytes(t), self._kernels())
             if data is not None:
                 self._write(PATHS_TOPIC, data, t)
@@ -454,7 +455,7 @@ class FoxgloveScene:
         ns = int(round(t * 1e9))
         entry = Log(
             level=_EVENT_LEVELS.get(event["kind"], Log.INFO),
-            message=f"{event['kind']} {json.dumps(event['detail'], separators=(',', ':'), default=str)}",
+            message=f"{event['kind']} {_DETAIL_JSON.encode(event['detail'])}",
             name=event["agent"] or "run",
         )
         entry.timestamp.seconds, entry.timestamp.nanos = divmod(ns, 1_000_000_000)

@@ -140,6 +140,9 @@ SCHEMAS: dict[str, dict[str, Any]] = {
 
 
 _MODE_JSON = {m: json.dumps(str(m)) for m in Mode}
+# json.dumps(..., separators=(",", ":"), allow_nan=False), its encoder made once (json.dumps
+# makes one per call when given options)
+_COMPACT = json.JSONEncoder(separators=(",", ":"), allow_nan=False)
 
 
 # From this many numbers on, Interleaved's ~40 numpy calls cost less than a %r per number
@@ -340,7 +343,7 @@ class McapRecorder:
 
     def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
         # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
-        data = json.dumps(_clean(msg) if clean else msg, separators=(",", ":"), allow_nan=False).encode()
+        data = _COMPACT.encode(_clean(msg) if clean else msg).encode()
         self.write_bytes(topic, t, data)
 
     def write_world(self, world: dict[str, Any]) -> None:
