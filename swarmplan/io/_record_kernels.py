@@ -46,87 +46,123 @@ def _digits(out: np.ndarray, end: int, v: int) -> None:
         out[end - 1] = _ZERO + v
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _number(out: np.ndarray, pos: int, x: float) -> int:
+    """``x`` as ``repr`` writes it at ``pos``: the position after it, or -1 when it does not
+    have the fast form. A whole part below 10**4 and the six fraction digits are written from
+    the four-digit table (at most 18 bytes are written; the text that follows overwrites
+    what is past the number's end)."""
+    ax = abs(x)
+    if not ax < _LIMIT:  # NaN too
+        return -1
+    k = np.rint(ax * 1e6)
+    if k / 1e6 != ax:
+        return -1
+    ki = np.int64(k)
+    out[pos] = _MINUS  # kept for a negative value (no branch on the sign)
+    pos += np.int64(math.copysign(1.0, x) < 0.0)
+    if 0 < ki < 100:  # below 1e-4 repr writes an exponent: d e-06, d e-05 or d.d e-05
+        if ki < 10:
+            out[pos] = _ZERO + ki
+            pos += 1
+            exp = 6
+        else:
+            out[pos] = _ZERO + ki // 10
+            pos += 1
+            if ki % 10:
+                out[pos] = _DOT
+                out[pos + 1] = _ZERO + ki % 10
+                pos += 2
+            exp = 5
+        for j in range(3):
+            out[pos + j] = _EXP[j]
+        out[pos + 3] = _ZERO + exp
+        return pos + 4
+    whole = np.int64(ax)  # ax's whole part (ax is ki / 10**6 rounded): the integer division
+    frac = ki - 1000000 * whole  # below, without its sign checks
+    if frac < 0:
+        whole -= 1
+        frac += 1000000
+    elif frac >= 1000000:
+        whole += 1
+        frac -= 1000000
+    if whole < 10000:
+        digits = _LEN4[whole]
+        at = 4 * whole + 4 - digits
+        for j in range(4):  # past the digits: overwritten by the point and the fraction
+            out[pos + j] = _DIGITS4[at + j]
+    else:
+        digits = 5
+        p = 100000
+        while digits < 10 and whole >= p:
+            p *= 10
+            digits += 1
+        _digits(out, pos + digits, whole)
+    pos += digits
+    out[pos] = _DOT
+    high = (frac * 429497) >> 32  # frac // 10000 (exact below 10**6): its first two digits
+    low = frac - 10000 * high
+    out[pos + 1] = _PAIRS[2 * high]
+    out[pos + 2] = _PAIRS[2 * high + 1]
+    for j in range(4):
+        out[pos + 3 + j] = _DIGITS4[4 * low + j]
+    if low:
+        return pos + 3 + _KEPT4[low]
+    return pos + 1 + _KEPT2[high]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _piece(out: np.ndarray, pos: int, pieces: np.ndarray, s: int, m: int) -> int:
+    if m > 8:
+        out[pos : pos + m] = pieces[s : s + m]
+    else:
+        for j in range(m):
+            out[pos + j] = pieces[s + j]
+    return pos + m
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def interleave(
     pieces: np.ndarray, piece_start: np.ndarray, piece_len: np.ndarray, values: np.ndarray, out: np.ndarray
 ) -> int:
     """``p0 v0 p1 v1 ... pn`` into ``out`` (uint8, room for the pieces and 18 bytes per value):
-    its length, or -1 when a value does not have the fast form. A value's whole part below
-    10**4 and its six fraction digits are written from the four-digit table (every value
-    writes its 18 bytes at most; the text that follows overwrites what is past its end)."""
+    its length, or -1 when a value does not have the fast form."""
     n = len(values)
-    pos = 0
-    for i in range(n + 1):
-        s = piece_start[i]
-        m = piece_len[i]
-        if m > 8:
-            out[pos : pos + m] = pieces[s : s + m]
-        else:
-            for j in range(m):
-                out[pos + j] = pieces[s + j]
-        pos += m
-        if i == n:
-            break
-        x = values[i]
-        ax = abs(x)
-        if not ax < _LIMIT:  # NaN too
+    pos = _piece(out, 0, pieces, piece_start[0], piece_len[0])
+    for i in range(n):
+        pos = _number(out, pos, values[i])
+        if pos < 0:
             return -1
-        k = np.rint(ax * 1e6)
-        if k / 1e6 != ax:
-            return -1
-        ki = np.int64(k)
-        out[pos] = _MINUS  # kept for a negative value (no branch on the sign)
-        pos += np.int64(math.copysign(1.0, x) < 0.0)
-        if 0 < ki < 100:  # below 1e-4 repr writes an exponent: d e-06, d e-05 or d.d e-05
-            if ki < 10:
-                out[pos] = _ZERO + ki
-                pos += 1
-                exp = 6
-            else:
-                out[pos] = _ZERO + ki // 10
-                pos += 1
-                if ki % 10:
-                    out[pos] = _DOT
-                    out[pos + 1] = _ZERO + ki % 10
-                    pos += 2
-                exp = 5
-            for j in range(3):
-                out[pos + j] = _EXP[j]
-            out[pos + 3] = _ZERO + exp
-            pos += 4
-            continue
-        whole = np.int64(ax)  # ax's whole part (ax is ki / 10**6 rounded): the integer division
-        frac = ki - 1000000 * whole  # below, without its sign checks
-        if frac < 0:
-            whole -= 1
-            frac += 1000000
-        elif frac >= 1000000:
-            whole += 1
-            frac -= 1000000
-        if whole < 10000:
-            digits = _LEN4[whole]
-            at = 4 * whole + 4 - digits
-            for j in range(4):  # past the digits: overwritten by the point and the fraction
-                out[pos + j] = _DIGITS4[at + j]
-        else:
-            digits = 5
-            p = 100000
-            while digits < 10 and whole >= p:
-                p *= 10
-                digits += 1
-            _digits(out, pos + digits, whole)
-        pos += digits
-        out[pos] = _DOT
-        high = (frac * 429497) >> 32  # frac // 10000 (exact below 10**6): its first two digits
-        low = frac - 10000 * high
-        out[pos + 1] = _PAIRS[2 * high]
-        out[pos + 2] = _PAIRS[2 * high + 1]
-        for j in range(4):
-            out[pos + 3 + j] = _DIGITS4[4 * low + j]
-        if low:
-            pos += 3 + _KEPT4[low]
-        else:
-            pos += 1 + _KEPT2[high]
+        pos = _piece(out, pos, pieces, piece_start[i + 1], piece_len[i + 1])
+    return pos
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def interleave_rows(
+    pieces: np.ndarray,
+    piece_start: np.ndarray,
+    piece_len: np.ndarray,
+    first: float,
+    a: np.ndarray,
+    b: np.ndarray,
+    out: np.ndarray,
+) -> int:
+    """:func:`interleave` of the values ``first``, then per row i ``a[i, 0..2]``, ``b[i, 0..2]``
+    (an ``/agents/state`` or ``/obstacles/state`` message: t, then positions and velocities)."""
+    pos = _piece(out, 0, pieces, piece_start[0], piece_len[0])
+    pos = _number(out, pos, first)
+    if pos < 0:
+        return -1
+    pos = _piece(out, pos, pieces, piece_start[1], piece_len[1])
+    p = 2
+    for i in range(len(a)):
+        for j in range(6):
+            x = a[i, j] if j < 3 else b[i, j - 3]
+            pos = _number(out, pos, x)
+            if pos < 0:
+                return -1
+            pos = _piece(out, pos, pieces, piece_start[p], piece_len[p])
+            p += 1
     return pos
 
 

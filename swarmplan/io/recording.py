@@ -219,6 +219,10 @@ class _StateEncoder:
                 self._text = Interleaved(pieces, compiled=self.compiled)
             else:
                 self._text = "%r".join(p.decode().replace("%", "%%") for p in pieces)
+        if not isinstance(self._text, str) and self._text.compiled:
+            data = self._text.fill_rows(round(t, 9), pos, vel)  # read in place, compiled
+            if data is not None:
+                return data
         n = len(agents.ids)
         values = np.empty(1 + 6 * n)
         values[0] = round(t, 9)
@@ -226,12 +230,8 @@ class _StateEncoder:
         rows[:, 0:3], rows[:, 3:6] = pos, vel
         if isinstance(self._text, str):
             return (self._text % tuple(values.tolist())).encode()
-        if self._text.compiled:
-            data = self._text.fill_compiled(values)
-            if data is not None:
-                return data
-            if not np.isfinite(values).all():
-                return None
+        if self._text.compiled and not np.isfinite(values).all():
+            return None
         return self._text.fill(values)
 
 
@@ -260,6 +260,10 @@ class _ObstacleEncoder:
             text[-1] += "]}"
             self._text = Interleaved([p.encode() for p in text], compiled=self.compiled)
             self._key = key
+        if self.compiled:
+            data = self._text.fill_rows(round(t, 9), pos, vel)  # read in place, compiled
+            if data is not None:
+                return data
         n = len(obstacles.ids)
         values = np.empty(1 + 6 * n)
         values[0] = round(t, 9)
