@@ -89,17 +89,35 @@ class Interleaved:
         "_piece_len",
         "_piece_start",
         "_out",
+        "_list",
         "compiled",
     )
 
     def __init__(self, pieces: list[bytes], compiled: bool = False):
         n = self._n = len(pieces) - 1
+        self._list = list(pieces)
         self._pieces = np.frombuffer(b"".join(pieces), dtype=np.uint8)
         piece_len = self._piece_len = np.fromiter(map(len, pieces), dtype=np.intp, count=n + 1)
         self._out = np.empty(len(self._pieces) + 18 * n, dtype=np.uint8)
         self.compiled = compiled
         self._piece_start = np.cumsum(piece_len) - piece_len
         self._seg_len = self._src = self._counter = None  # the numpy path's, at its first use
+
+    def replace(self, which: list[int], pieces: list[bytes]) -> None:
+        """Pieces ``which`` replaced by those of ``pieces`` (the whole new list; the others are
+        the same as before): the text's layout made again from the changed lengths only."""
+        if len(pieces) != self._n + 1:
+            raise ValueError(f"{self._n + 1} pieces expected, got {len(pieces)}")
+        for k in which:
+            self._list[k] = pieces[k]
+            self._piece_len[k] = len(pieces[k])
+        self._pieces = np.frombuffer(b"".join(self._list), dtype=np.uint8)
+        np.cumsum(self._piece_len, out=self._piece_start)
+        self._piece_start -= self._piece_len
+        need = len(self._pieces) + 18 * self._n
+        if len(self._out) < need:
+            self._out = np.empty(need + need // 4, dtype=np.uint8)  # room for longer pieces
+        self._seg_len = self._src = self._counter = None  # the numpy path's, remade at its next use
 
     def _numpy_path(self) -> None:
         """Where each segment's text is in [rows of the numbers, pieces] (the numpy path)."""

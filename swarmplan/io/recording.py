@@ -211,11 +211,14 @@ class _StateEncoder:
             # only the pieces of agents whose mode changed are made again
             old = self._modes if self._modes is not None else [None] * len(modes)
             pieces = self._pieces
-            for i, (m, was) in enumerate(zip(modes, old, strict=True)):
-                if m != was or self._modes is None:
-                    pieces[7 + 6 * i] = self._tail(i, m)
+            changed = [i for i, (m, was) in enumerate(zip(modes, old, strict=True)) if m != was]
+            for i in changed if self._modes is not None else range(len(modes)):
+                pieces[7 + 6 * i] = self._tail(i, modes[i])
+            known = self._modes is not None and isinstance(self._text, Interleaved)
             self._modes = modes
-            if self.compiled or len(pieces) - 1 >= _NUMPY_FROM:
+            if known and self._text.compiled == self.compiled:
+                self._text.replace([7 + 6 * i for i in changed], pieces)  # the same layout otherwise
+            elif self.compiled or len(pieces) - 1 >= _NUMPY_FROM:
                 self._text = Interleaved(pieces, compiled=self.compiled)
             else:
                 self._text = "%r".join(p.decode().replace("%", "%%") for p in pieces)
