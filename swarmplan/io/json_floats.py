@@ -141,14 +141,15 @@ class Interleaved:
         return self._out[:size].tobytes() if size >= 0 else None
 
     def fill_rows(self, first: float, a: np.ndarray, b: np.ndarray) -> bytes | None:
-        """:meth:`fill_compiled` of ``first``, then per row i ``a[i]`` and ``b[i]`` (both (n, 3)),
+        """:meth:`fill_compiled` of ``first``, then per row i ``a[i]`` and ``b[i]`` (rows of 3),
         read in place by the compiled pass (no array of the values made)."""
-        if 1 + 6 * len(a) != self._n or a.shape != b.shape or a.shape[1:] != (3,):
-            raise ValueError(f"{self._n} numbers expected, got 1 + {a.shape} + {b.shape}")
+        a = np.ascontiguousarray(a, dtype=float).reshape(-1, 3)
+        b = np.ascontiguousarray(b, dtype=float).reshape(-1, 3)
+        if 1 + 6 * len(a) != self._n or len(b) != len(a):
+            raise ValueError(f"{self._n} numbers expected, got 1 + 3 * {len(a)} + 3 * {len(b)}")
         size = record_kernels().interleave_rows(
-            self._pieces, self._piece_start, self._piece_len, first,
-            np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float), self._out,
-        )  # fmt: skip
+            self._pieces, self._piece_start, self._piece_len, first, a, b, self._out
+        )
         return self._out[:size].tobytes() if size >= 0 else None
 
     def fill(self, values: np.ndarray) -> bytes:

@@ -250,8 +250,8 @@ class _ObstacleEncoder:
 
     def encode(self, t: float, obstacles: ObstacleStates) -> bytes | None:
         pos, vel = obstacles.position, obstacles.velocity
-        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
-            return None
+        if not self.compiled and not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            return None  # (compiled: the numbers' pass refuses them, then the check below)
         key = (obstacles.ids, self.compiled)
         if key != self._key or self._text is None:
             text = ['{"t":', ',"obstacles":[']
@@ -267,6 +267,8 @@ class _ObstacleEncoder:
             data = self._text.fill_rows(round(t, 9), pos, vel)  # read in place, compiled
             if data is not None:
                 return data
+            if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+                return None
         n = len(obstacles.ids)
         values = np.empty(1 + 6 * n)
         values[0] = round(t, 9)
