@@ -76,7 +76,8 @@ from swarmplan.io.foxglove_shapes import (
     rest_orientation,
     world_entities,
 )
-from swarmplan.io.json_floats import Interleaved, record_kernels
+from swarmplan.io.json_floats import record_kernels
+from swarmplan.io.speeds import SPEED_SCHEMA, SPEED_TOPIC, SpeedText
 from swarmplan.io.wire import (
     VECTOR_BYTES,
     Patched,
@@ -93,28 +94,12 @@ from swarmplan.io.wire import (
 SCENE_TOPIC = "/scene"
 WORLD_TOPIC = "/scene/world"
 PATHS_TOPIC = "/scene/paths"
-SPEED_TOPIC = "/agents/speed"
 LOG_TOPIC = "/events/log"
 _EVENT_LEVELS = {
     "collision": Log.ERROR,
     "near_miss": Log.WARNING,
     "stuck": Log.WARNING,
     "timeout": Log.WARNING,
-}
-SPEED_SCHEMA = {
-    "title": "swarmplan.AgentSpeeds",
-    "type": "object",
-    "required": ["t", "mean", "max", "speed"],
-    "properties": {
-        "t": {"type": "number"},
-        "mean": {"type": "number"},
-        "max": {"type": "number"},
-        "speed": {
-            "type": "array",
-            "items": {"type": "number"},
-            "description": "per agent, /agents/state order",
-        },
-    },
 }
 OVERVIEW_TOPIC = "/scene/paths/overview"
 TF_TOPIC = "/tf"
@@ -185,7 +170,7 @@ class FoxgloveScene:
         self._channels[SPEED_TOPIC] = writer.register_channel(
             topic=SPEED_TOPIC, message_encoding="json", schema_id=speed_schema
         )
-        self._speed_text: tuple[int, bool, Interleaved] | None = None
+        self._speeds = SpeedText()
         defaults = world.get("agent_defaults") or {}
         self._radius = {
             str(a["id"]): float(a.get("radius", defaults.get("radius", 0.5)) or 0.5)
@@ -462,28 +447,10 @@ class FoxgloveScene:
         self._write(LOG_TOPIC, entry.SerializeToString(), t)
 
     def _write_speeds(self, t: float, rows: _Rows) -> None:
-        """``/agents/speed``: every agent's speed (m/s, 6 decimals) and their mean and maximum,
-        for plots (Foxglove's Plot panel: ``/agents/speed.max``, ``/agents/speed.speed[:]``)."""
-        n = len(rows.ids)
-        if not n:
-            return
-        if self._speed_text is None or self._speed_text[:2] != (n, self.compiled):
-            pieces = [b'{"t":', b',"mean":', b',"max":', b',"speed":['] + [b","] * (n - 1) + [b"]}"]
-            self._speed_text = (n, self.compiled, Interleaved(pieces, compiled=self.compiled))
-        if self.compiled:  # the speeds, their sum and maximum, then the text: compiled
-            values = np.empty(n + 3)
-            total, top = record_kernels().speeds(np.ascontiguousarray(rows.vel, dtype=float), values[3:])
-            values[0], values[1], values[2] = round(t, 9), round(total / n, 6), top
-            data = self._speed_text[2].fill_compiled(values)
-            if data is not None:
-                self._write(SPEED_TOPIC, data, t)
-                return
-            speed = values[3:]
-        else:
-            speed = np.round(np.sqrt((rows.vel * rows.vel).sum(axis=1)), 6)
-        values = np.concatenate(([round(t, 9), round(float(speed.mean()), 6), speed.max()], speed))
-        if np.isfinite(values).all():
-            self._write(SPEED_TOPIC, self._speed_text[2].fill(values), t)
+        """``/agents/speed`` (``swarmplan.io.speeds``)."""
+        data = self._speeds.encode(t, rows.vel, self.compiled)
+        if data is not None:
+            self._write(SPEED_TOPIC, data, t)
 
     def _scene_agents(self, stamp: bytes, rows: _Rows, keep: bool) -> bytes:
         """The agents' entities of a /scene message (``keep``: store them as the template
