@@ -184,6 +184,7 @@ class FoxgloveScene:
         self._mover_known: list[dict | None] = []
         self._mover_rest: list[tuple[float, ...]] = []
         self._mover_templates: dict[tuple[int, bytes], Patched | bool] = {}
+        self._mover_pairs: list[tuple[None, dict]] | None = None
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
         # Per agent slot (_rows): last heading as a quaternion's z and w; its path (trails).
         self._slot: dict[str, int] = {}
@@ -513,8 +514,10 @@ class FoxgloveScene:
             self._mover_simple = all(obst.get("shape") in ONE_PRIMITIVE for obst in known)
             self._mover_rest = [rest_orientation(obst) for obst in known]
             self._mover_templates = {}
-        if arrays and self._mover_simple and all(o is not None for o in self._mover_known):
-            known = [(None, obst) for obst in self._mover_known]
+            every = len(known) == len(ids)  # every mover is one of the world's (the usual case)
+            self._mover_pairs = [(None, obst) for obst in known] if every else None
+        if arrays and self._mover_simple and self._mover_pairs is not None:
+            known = self._mover_pairs
             values = np.empty((len(ids), 7))
             values[:, :3] = obstacles.position
             values[:, 3:] = obstacles.orientation
