@@ -117,6 +117,19 @@ def test_bounding_boxes_bound_the_distances() -> None:
     assert (np.abs(d - below) < 0.5).any(axis=0).all()  # and not loosely: some points come close
 
 
+def test_the_compiled_reach_table_is_numpys() -> None:
+    guide = _guide(False, 1)
+    lo = guide.lo + guide.ijk * guide.cell
+    hi = lo + guide.cell
+    b = guide._batch
+    for k in range(len(guide.bodies)):
+        c, e = b.position[k], guide._box_half[k]
+        gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
+        expect = np.sqrt((gap * gap).sum(axis=1)) < guide.radius + G.SQUEEZE + 1e-6
+        np.testing.assert_array_equal(guide._reach[:, k], expect)
+        assert expect.any() and not expect.all()  # cells round the body, and cells away from it
+
+
 def test_pairs_measure_the_bits_of_every_body() -> None:
     guide = _guide(False, 1)
     rng = np.random.default_rng(9)

@@ -448,3 +448,31 @@ def reverse_graph(
                         indptr[v + 1] = count
                     v += 1
     return indptr, indices, data, mask
+
+
+@njit(cache=True)
+def reach_table(
+    lo: np.ndarray, cell: np.ndarray, shape: np.ndarray, near: np.ndarray, far: np.ndarray, limit: float
+) -> np.ndarray:
+    """Per cell of the grid (corner ``lo``, cell sizes ``cell``, ``shape``) and per body with
+    the box ``near`` to ``far`` (m, 3): whether the distance between the cell's box and the
+    body's box is below ``limit`` (``StaticGuide._reach_bodies``: numpy's operations in its
+    order, the squares summed from the first axis on)."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    m = len(near)
+    out = np.zeros((nx * ny * nz, m), dtype=np.bool_)
+    v = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                a0 = lo[0] + i * cell[0]
+                a1 = lo[1] + j * cell[1]
+                a2 = lo[2] + k * cell[2]
+                b0, b1, b2 = a0 + cell[0], a1 + cell[1], a2 + cell[2]
+                for b in range(m):
+                    g0 = max(max(a0 - far[b, 0], near[b, 0] - b0), 0.0)
+                    g1 = max(max(a1 - far[b, 1], near[b, 1] - b1), 0.0)
+                    g2 = max(max(a2 - far[b, 2], near[b, 2] - b2), 0.0)
+                    out[v, b] = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2) < limit
+                v += 1
+    return out

@@ -308,13 +308,15 @@ class StaticGuide:
         local[b.code == 3, 2] += b.prm[b.code == 3, 0]  # capsule: and its caps
         # local = (p - centre) @ R, so |p - centre| <= |R| @ local half-extents per world axis.
         self._box_half = np.einsum("mjk,mk->mj", np.abs(b.rotation), local) * (1.0 + 1e-9) + 1e-9
-        lo = self.lo + self.ijk * self.cell
-        hi = lo + self.cell
-        self._reach = np.zeros((self.n_cells, len(self.bodies)), dtype=bool)
-        for k in range(len(self.bodies)):
-            c, e = b.position[k], self._box_half[k]
-            gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
-            self._reach[:, k] = np.sqrt((gap * gap).sum(axis=1)) < self.radius + SQUEEZE + 1e-6
+        # The distance between the boxes below the radius plus ``SQUEEZE``, compiled.
+        self._reach = kernel_module("swarmplan.flight._guide_kernel").reach_table(
+            self.lo,
+            self.cell,
+            self.shape,
+            b.position - self._box_half,
+            b.position + self._box_half,
+            self.radius + SQUEEZE + 1e-6,
+        )
 
     def _body_distance(self, p: np.ndarray, cells: np.ndarray) -> np.ndarray:
         """The distance from each of the samples ``p`` in ``cells`` to the nearest body its cell
