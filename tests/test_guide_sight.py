@@ -106,6 +106,24 @@ def test_gap_is_the_distance_between_cell_boxes() -> None:
         np.testing.assert_allclose(guide._gap[c], np.sqrt((d**2).sum(axis=1)).min(), rtol=1e-12)
 
 
+def test_the_compiled_gap_table_is_numpys_shift_by_shift() -> None:
+    for terrain, agents in ((False, 1), (True, 64)):
+        guide = _guide(terrain, agents)
+        near = (guide.clear < guide.half_diagonal + G.SQUEEZE) & (guide.ijk[:, 2] >= guide._low)
+        sq = np.where(near.reshape(tuple(int(v) for v in guide.shape)), 0.0, np.inf)
+        for axis in range(3):
+            src = np.moveaxis(sq, axis, 0)
+            out = src.copy()
+            for s in range(1, int(guide.shape[axis])):
+                term = (max(s - 1, 0) * guide.cell[axis]) ** 2
+                np.minimum(out[s:], src[:-s] + term, out=out[s:])
+                np.minimum(out[:-s], src[s:] + term, out=out[:-s])
+            sq = np.moveaxis(out, 0, axis)
+        expect = np.sqrt(sq).ravel()
+        assert np.array_equal(guide._gap.view(np.int64), expect.view(np.int64))
+        assert guide._gap_max == expect.max() and 0 < (guide._gap > 0).sum() < guide.n_cells
+
+
 def test_bounding_boxes_bound_the_distances() -> None:
     guide = _guide(False, 1)
     rng = np.random.default_rng(5)

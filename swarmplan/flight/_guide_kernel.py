@@ -476,3 +476,65 @@ def reach_table(
                     out[v, b] = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2) < limit
                 v += 1
     return out
+
+
+@njit(cache=True)
+def _line_min_plus(
+    src: np.ndarray, out: np.ndarray, start: int, stride: int, size: int, term: np.ndarray
+) -> None:
+    """``out`` on one line of the grid (``size`` cells from ``start``, ``stride`` apart): per
+    cell the least ``src`` of a cell s cells away plus ``term[s]`` (``src`` >= 0, ``term``
+    non-decreasing: the candidates past a ``term`` no less than the least so far cannot be less)."""
+    for p in range(size):
+        v = start + p * stride
+        best = src[v] + term[0]
+        for s in range(1, size):
+            t = term[s]
+            if t >= best:
+                break
+            if s <= p:
+                best = min(best, src[v - s * stride] + t)
+            if p + s < size:
+                best = min(best, src[v + s * stride] + t)
+        out[v] = best
+
+
+@njit(cache=True)
+def gap_squares(
+    near: np.ndarray, shape: np.ndarray, terms: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """Per cell of the grid (flat, of ``shape``) the least sum over the axes, in their order, of
+    ``terms[axis][s]`` (s: the cells between it and a ``near`` cell along that axis) over the
+    near cells: the minimum one axis after the other, each the same sums as numpy's shift by
+    shift (``StaticGuide._sight_bounds``). Along the first axis the sources are 0 or inf, so
+    the least is the term of the distance to the nearest near cell on the line."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    t0, t1, t2 = terms
+    first = np.full(len(near), np.inf)
+    for j in range(ny):
+        for k in range(nz):
+            start = j * nz + k
+            stride = ny * nz
+            last = -1  # the nearest near cell before, then after
+            for i in range(nx):
+                v = start + i * stride
+                if near[v]:
+                    last = i
+                if last >= 0:
+                    first[v] = 0.0 + t0[i - last]
+            last = -1
+            for i in range(nx - 1, -1, -1):
+                v = start + i * stride
+                if near[v]:
+                    last = i
+                if last >= 0:
+                    first[v] = min(first[v], 0.0 + t0[last - i])
+    second = np.empty(len(near))
+    for i in range(nx):
+        for k in range(nz):
+            _line_min_plus(first, second, i * ny * nz + k, nz, ny, t1)
+    third = np.empty(len(near))
+    for i in range(nx):
+        for j in range(ny):
+            _line_min_plus(second, third, (i * ny + j) * nz, 1, nz, t2)
+    return third

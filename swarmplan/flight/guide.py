@@ -198,17 +198,13 @@ class StaticGuide:
         # The box-to-box distance between cells (i, j, k) and (i', j', k') is the root of the sum
         # over the axes of ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum
         # over the near cells is taken one axis after the other (a min-plus product with the
-        # term of that axis), exactly, in (cells x cells along the axis) work: shift by shift.
-        sq = np.where(near, 0.0, np.inf)
-        for axis in range(3):
-            src = np.moveaxis(sq, axis, 0)
-            out = src.copy()
-            for s in range(1, int(self.shape[axis])):
-                term = (max(s - 1, 0) * self.cell[axis]) ** 2
-                np.minimum(out[s:], src[:-s] + term, out=out[s:])
-                np.minimum(out[:-s], src[s:] + term, out=out[:-s])
-            sq = np.moveaxis(out, 0, axis)
-        self._gap = np.sqrt(sq).ravel()
+        # term of that axis), exactly (compiled: ``gap_squares``).
+        terms = tuple(
+            np.array([(max(s - 1, 0) * self.cell[axis]) ** 2 for s in range(int(self.shape[axis]))])
+            for axis in range(3)
+        )
+        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        self._gap = np.sqrt(kernels.gap_squares(near.ravel(), self.shape, terms))
         self._gap_max = float(self._gap.max())
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
