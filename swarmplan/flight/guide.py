@@ -83,11 +83,15 @@ def _offsets() -> np.ndarray:
     return o[np.abs(o).sum(axis=1) > 0]
 
 
+_OFFSETS = _offsets()  # the 26 neighbours' offsets
+_AROUND = np.vstack([np.zeros((1, 3), dtype=_OFFSETS.dtype), _OFFSETS])  # and the cell itself
+
+
 def _legs(shape: np.ndarray, cell: np.ndarray) -> tuple[np.ndarray, ...]:
     """The 26 offsets ordered so that the start cells of the legs into a cell ascend, their flat
     deltas and lengths, per offset its row among the unit vectors to the right of the legs not
     vertical (-1 for a vertical one), and those vectors."""
-    offsets = _offsets()
+    offsets = _OFFSETS
     ny, nz = int(shape[1]), int(shape[2])
     delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
     order = np.argsort(-delta, kind="stable")
@@ -398,7 +402,7 @@ class StaticGuide:
         a, b = np.array(way[:-1]), np.array(way[1:])
         d = self.centres[b] - self.centres[a]
         d /= np.linalg.norm(d, axis=1, keepdims=True)
-        nb = (self.ijk[b][:, None, :] + np.vstack([[0, 0, 0], _offsets()])[None]).reshape(-1, 3)
+        nb = (self.ijk[b][:, None, :] + _AROUND[None]).reshape(-1, 3)
         ok = ((nb >= 0) & (nb < self.shape)).all(axis=1)
         cells = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
         dirs = np.repeat(d, 27, axis=0)
@@ -430,7 +434,7 @@ class StaticGuide:
         most clearance when the goal's own cell is not free."""
         if self.free[cell]:
             return cell
-        nb = self.ijk[cell] + _offsets()
+        nb = self.ijk[cell] + _OFFSETS
         nb = nb[((nb >= 0) & (nb < self.shape)).all(axis=1)]
         flat = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
         return int(flat[np.argmax(self.clear[flat])])
