@@ -1,6 +1,7 @@
 """The guide's graph (swarmplan.flight.guide) against a plain construction of it: the reversed
-graph built in one compiled pass equals, to the bit, the one scipy builds from the list of legs
-and transposes, and re-pricing a way's cells gives the legs the costs computed cell by cell from
+graph built in one compiled pass (the rows of the cells near surfaces, the other cells' legs
+implied by their offsets) equals, to the bit, the one scipy builds from the list of legs and
+transposes, and re-pricing a way's cells gives the legs the costs computed cell by cell from
 the cells' centres. The searches run on these arrays, so equal arrays mean equal ways; and the
 compiled search finds scipy's distances and predecessors to the bit, on the guide's graph and
 on small grids with random costs (ties among equal distances included), reading the legs'
@@ -69,21 +70,29 @@ def _reference_graph(guide: G.StaticGuide) -> csr_matrix:
     return g.T.tocsr()
 
 
+def _expand(indptr, indices, data, grid) -> csr_matrix:
+    """The whole graph: the stored rows, and the legs of the other cells from their offsets (their
+    start cells the cell less the offset's delta, their costs its length)."""
+    mask, read, delta, length = grid
+    bits = ((mask[:, None] >> np.arange(len(delta), dtype=np.uint32)) & 1).astype(bool)
+    v, q = np.nonzero(bits)  # cell by cell, offset by offset
+    cost = length[q].copy()
+    cost[read[v]] = data
+    stored = np.repeat(np.arange(len(mask)), np.diff(indptr))
+    assert np.array_equal(stored, v[read[v]]) and np.array_equal(indices, (v - delta[q])[read[v]])
+    full = np.concatenate([[0], np.cumsum(bits.sum(axis=1))]).astype(np.int32)
+    return csr_matrix((cost, (v - delta[q]).astype(np.int32), full), shape=(len(mask),) * 2)
+
+
 def test_the_graph_built_in_place_is_the_one_scipy_assembles():
     guide = _guide()
     ref, got = _reference_graph(guide), guide._reverse
-    assert np.array_equal(got.indptr, ref.indptr)
-    assert np.array_equal(got.indices, ref.indices)
-    assert np.array_equal(got.data.view(np.int64), ref.data.view(np.int64))
-    # the search's implicit legs: a row's offsets and, away from surfaces, their lengths
-    mask, read, delta, length = got.grid
-    for v in range(guide.n_cells):
-        q = [k for k in range(len(delta)) if mask[v] >> k & 1]
-        lo, hi = got.indptr[v], got.indptr[v + 1]
-        assert np.array_equal(got.indices[lo:hi], v - delta[q])
-        if not read[v]:
-            assert np.array_equal(got.data[lo:hi], length[q])
-    assert read.any() and not read.all()
+    full = _expand(got.indptr, got.indices, got.data, got.grid)
+    assert np.array_equal(full.indptr, ref.indptr)
+    assert np.array_equal(full.indices, ref.indices)
+    assert np.array_equal(full.data.view(np.int64), ref.data.view(np.int64))
+    read = got.grid[1]
+    assert read.any() and not read.all() and len(got.data) < len(ref.data)  # rows near surfaces
     # and so the same search: distances and next cells, from a goal behind the wall and from
     # cells all over the grid, scipy's on scipy's graph and the compiled one on the guide's
     cells = [int(guide.cell_of(np.array([[80.0, 60.0, 20.0]]))[0])]
@@ -110,28 +119,27 @@ def test_the_compiled_search_is_scipys_on_random_grids():
             free, prox, side, (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT)
         )
         read = prox > 0.0
-        # the legs into cells that are read: costs from a few values (many ways of equal length,
+        # the legs stored (into cells near surfaces): costs from a few values (many ways of equal length,
         # where only the order of the search decides the predecessor) or random ones
-        legs = np.repeat(read, np.diff(indptr))
         if trial % 2:
-            data[legs] = rng.choice([0.5, 1.0, 1.5, 2.0, np.sqrt(2.0)], int(legs.sum()))
+            data[:] = rng.choice([0.5, 1.0, 1.5, 2.0, np.sqrt(2.0)], len(data))
         else:
-            data[legs] = rng.uniform(0.1, 5.0, int(legs.sum()))
-        g = csr_matrix((data, indices, indptr), shape=(n, n))
+            data[:] = rng.uniform(0.1, 5.0, len(data))
+        g = _expand(indptr, indices, data, (mask, read, delta, length))
         for source in rng.choice(n, 3, replace=False).tolist():
             d0, p0 = dijkstra(g, directed=True, indices=source, return_predecessors=True)
             d1, p1 = K.dijkstra(indptr, data, (mask, read, delta, length), source)
             assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
             assert np.array_equal(p0, p1)
     # and on a line of three cells, by hand: legs of length 1, those into the middle cell
-    # (near a surface: its costs read) 3 = 1 + 1 * NEAR; the ways to the top cell
+    # (near a surface: its row stored) 3 = 1 + 1 * NEAR; the ways to the top cell
     shape = np.array([1, 1, 3])
     offsets, delta, length, row, rights = G._legs(shape, np.ones(3))
     free, prox = np.ones(3, dtype=bool), np.array([0.0, 1.0, 0.0])
     indptr, indices, data, mask = K.reverse_graph(
         free, prox, np.zeros((len(rights), 3)), (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT)
     )
-    assert data.tolist() == [1.0, 3.0, 3.0, 1.0]
+    assert indptr.tolist() == [0, 0, 2, 2] and indices.tolist() == [0, 2] and data.tolist() == [3.0, 3.0]
     d, p = K.dijkstra(indptr, data, (mask, prox > 0.0, delta, length), 2)
     assert d.tolist() == [4.0, 1.0, 0.0] and p.tolist() == [1, 2, K.NO_WAY]
 

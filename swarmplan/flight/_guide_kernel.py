@@ -10,8 +10,8 @@ predecessors follow from that order alone, so any queue that pops the vertices i
 same tables: here a binary heap holding each vertex once (its key lowered in place), smaller
 than scipy's, and no per-call checks and copies of the graph (nor scipy.sparse at start-up).
 The graph is the guide's grid of 26 neighbours (:func:`reverse_graph` builds it): a leg's start
-cell and, away from surfaces, its cost follow from its offset, so the search reads the stored
-legs only of the cells near surfaces.
+cell and, away from surfaces, its cost follow from its offset, so only the legs into cells near
+surfaces are stored (and re-priced by the ways' loads).
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ def dijkstra(
     """Distances (float64) and predecessors (int32, ``NO_WAY`` where none) from ``source``
     over the guide's reversed graph (``reverse_graph``: CSR ``indptr`` and ``data``; its
     ``indices`` are implicit). ``grid``: per cell the bits of its legs (``mask``: bit q set
-    when the leg along offset q is in the row) and whether the row's costs are to be read
-    (``read``: elsewhere the leg along offset q costs ``length[q]``, which the row holds),
-    and per offset its flat ``delta`` and ``length``. The leg's start cell is the row's cell
-    less ``delta[q]``, so a cell far from surfaces touches neither ``indices`` nor ``data``."""
+    for a leg along offset q) and whether its row holds their costs (``read``: elsewhere the
+    leg along offset q costs ``length[q]``), and per offset its flat ``delta`` and ``length``.
+    The leg's start cell is the cell less ``delta[q]``: a search reads the stored legs of the
+    cells near surfaces only."""
     mask, read, delta, length = grid
     n = len(indptr) - 1
     m = len(delta)
@@ -397,7 +397,9 @@ def reverse_graph(
     costs: tuple[float, float],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The guide's reversed graph in CSR form (``StaticGuide``: row v holds the legs into cell v,
-    by their start cells, ascending), in two passes over the cells: count, then fill. ``legs``:
+    by their start cells, ascending), rows only for the cells near surfaces (``prox`` > 0: the
+    legs into any other cell cost their lengths, see :func:`dijkstra`), in two passes over the
+    cells: count, then fill. ``legs``:
     the 26 offsets (sorted so that their start cells ascend), their flat deltas, their lengths
     and, per offset, the row of ``side`` (the cells' normals on the leg's right-hand side, as
     numpy's product computes them) or -1 for a vertical leg; ``costs``: ``NEAR`` and ``RIGHT``.
@@ -434,7 +436,7 @@ def reverse_graph(
                             continue
                         if pass_ == 0:
                             mask[v] |= np.uint32(1) << np.uint32(q)
-                        else:
+                        elif prox[v] > 0.0:
                             indices[at + count] = u
                             if free[v]:
                                 s = 0.0
@@ -444,7 +446,7 @@ def reverse_graph(
                             else:
                                 data[at + count] = 10.0 * length[q]
                         count += 1
-                    if pass_ == 0:
+                    if pass_ == 0 and prox[v] > 0.0:
                         indptr[v + 1] = count
                     v += 1
     return indptr, indices, data, mask

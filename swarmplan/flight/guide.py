@@ -67,14 +67,15 @@ _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacl
 
 @dataclasses.dataclass
 class _Graph:
-    """A graph over the cells in CSR form (row v: the legs into v, by their start cell)."""
+    """A graph over the cells in CSR form (row v: the legs into v, by their start cell; rows
+    only for the cells near surfaces: the legs into any other cell cost their lengths)."""
 
     indptr: np.ndarray  # int32, (cells + 1,)
     indices: np.ndarray  # int32: the legs' start cells
     data: np.ndarray  # float64: the legs' costs
     # What the search needs besides (``_guide_kernel.dijkstra``): per cell the bits of the
-    # offsets of its legs and whether its costs are read (near surfaces; elsewhere a leg costs
-    # its length), per offset the flat delta and the length.
+    # offsets of its legs and whether it has a row (near surfaces), per offset the flat delta
+    # and the length.
     grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
@@ -157,8 +158,8 @@ class StaticGuide:
         indptr, start, data, mask = kernels.reverse_graph(
             self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT)
         )
-        # A cell with no proximity (all free) has legs that cost their lengths: ``1 + 0 * x``
-        # is 1 (and the loads re-price only cells near surfaces).
+        # A cell with no proximity (free) has legs that cost their lengths (``1 + 0 * x`` is 1,
+        # and the loads re-price only cells near surfaces): it has no row.
         self.near = prox > 0.0
         self._reverse = _Graph(indptr, start, data, (mask, self.near, delta, length))
         self._base = data.copy()
