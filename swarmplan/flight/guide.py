@@ -51,7 +51,7 @@ if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
-MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~10 ms per goal for a search)
+MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~6 ms per goal for a search)
 MIN_CELL = 1.0  # m: finest cell (small worlds)
 NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
 RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
