@@ -3,6 +3,8 @@ misses between agents."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
@@ -70,17 +72,18 @@ def collide(s: SwarmState, ids: tuple[str, ...], i: int, other: str, t1: float) 
 
 
 def parked_contacts(
-    s: SwarmState, ids: tuple[str, ...], clearance: np.ndarray, nearest: list[str], t1: float
+    s: SwarmState, ids: tuple[str, ...], clearance: np.ndarray, nearest: Callable[[int], str], t1: float
 ) -> Tally:
     """Agents that no longer fly, failed ones (they stay where they gave up, in the air) and
     arrived ones (they hover at their goals), touched by an obstacle at the committed step:
-    ``clearance`` (N,) is every agent's obstacle clearance at its position, ``nearest`` the id of
-    the obstacle nearest each agent. Such a contact is a collision, as the replay's audit counts
-    it (a penetration deeper than 1 mm at a recorded step)."""
+    ``clearance`` (N,) is every agent's obstacle clearance at its position, ``nearest(i)`` the
+    id of the obstacle nearest agent ``i`` (asked only of the agents touched). Such a contact
+    is a collision, as the replay's audit counts it (a penetration deeper than 1 mm at a
+    recorded step)."""
     out = NOTHING
     parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
     for i in np.flatnonzero(parked & (clearance < -CONTACT_TOL)).tolist():
-        out += collide(s, ids, i, nearest[i], t1)
+        out += collide(s, ids, i, nearest(i), t1)
     return out
 
 

@@ -40,6 +40,7 @@ from swarmplan.flight.guide import make_guide, next_rest
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point, parked_contacts
 from swarmplan.sim.guard import GoalGuard
@@ -82,6 +83,7 @@ class Simulation:
         # The way round static obstacles for agents whose straight line is blocked (None without any).
         self.guide = make_guide(world, self.params)
         self._guide_at = 0.0  # the time the guide's bodies are at rest for good from
+        self._next_rest = next_rest(world, 0.0)  # next_rest(world, _guide_at), kept with it
         self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
@@ -137,6 +139,7 @@ class Simulation:
         self._measure_start(start)
         if self._guide_at > 0.0:  # a mover parked in the last run: back to the bodies at rest at 0
             self.guide, self._guide_at = make_guide(self.world, self.params), 0.0
+            self._next_rest = next_rest(self.world, 0.0)
             self.navigator.guide = self.guide
         if self.guide is not None:
             self.guide.reset(start, goal)
@@ -279,15 +282,16 @@ class Simulation:
                 inputs = with_cores(inputs, pos0[idx], self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
-            if next_rest(w, self._guide_at) <= t0:  # a mover parked for good: go round it too
+            if self._next_rest <= t0:  # a mover parked for good: go round it too
                 self._guide_at = t0
+                self._next_rest = next_rest(w, t0)
                 self.guide = make_guide(w, self.params, t0)
                 self.navigator.guide = self.guide
             if self.guide is not None:
                 target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
             flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
-            to_go = np.linalg.norm(s.goal - pos0, axis=1)
+            to_go = norm3(s.goal - pos0)
             force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
             clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
             if self._threat_cores is not None:
@@ -348,9 +352,7 @@ class Simulation:
             parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
             if parked.any():
                 # Arrived and failed agents stay in the air: an obstacle moving through one is a collision.
-                ids = [o.id for o in self.world.obstacles]
-                nearest = [ids[int(k)] for k in np.argmin(self._field_cache[0], axis=1)]
-                self._merge(parked_contacts(s, self.ids, obst_clear, nearest, t1))
+                self._merge(parked_contacts(s, self.ids, obst_clear, self._nearest_obstacle, t1))
         agent_clear = self.scene.agent_clearance(pos1)
         terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
         self.metrics.add_step(pos0, pos1, measured, obst_clear, agent_clear, terr_clear, flying_before)
@@ -370,6 +372,10 @@ class Simulation:
         runs, self._optimizer_runs = self._optimizer_runs, []
         agents, obstacles = self._agent_states(), self._obstacle_states(t1)
         return StepResult(s, events, terminated, truncated, agents, obstacles, runs)
+
+    def _nearest_obstacle(self, i: int) -> str:
+        """The id of the obstacle nearest to agent ``i`` at the step's end."""
+        return self.world.obstacles[int(np.argmin(self._field_cache[0][i]))].id
 
     def _guard_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
         """The goal guard's threat test at the step's start (``swarmplan.sim.guard``); an agent

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from itertools import repeat
+from operator import is_not
 
 import numpy as np
 
@@ -69,7 +71,10 @@ class Navigator:
         scale = np.ones(len(idx))
         # Agents with neither a segment nor a route fly at their goal: nothing to do for them.
         seg, route = s.segment, s.route
-        planned = [k for k, i in enumerate(idx.tolist()) if seg[i] is not None or route[i] is not None]
+        if not any(map(is_not, seg, repeat(None))) and not any(map(is_not, route, repeat(None))):
+            planned = []  # no agent has either (one pass over the lists, no per-agent test)
+        else:
+            planned = [k for k, i in enumerate(idx.tolist()) if seg[i] is not None or route[i] is not None]
         for k in planned:
             i = idx[k]
             if s.mode[i] in SEGMENT_MODES and s.segment[i] is not None:
