@@ -9,11 +9,7 @@ The agent term visits every other agent, but a pair is dismissed with a few prod
 division) when the closest approach of the two centres within the prediction horizon stays
 beyond ``reach``, the distance past which both of its terms are provably zero
 (``apf.current_reach``): the scaled distances are at least the unscaled ones over the largest
-semi-axis. With ``window`` (``apf.WINDOW_FROM`` agents on) a flyer tests only the agents whose x lies within
-``reach + horizon * (its speed + the swarm's top speed) + 1 m`` of its own (sorted once per
-call): the others' relative motion cannot bring them within ``reach`` along x alone, so the
-test above dismisses them anyway, with a metre to spare against rounding. The agents tested
-are visited in index order, so the forces are summed in the same order, to the same bits.
+semi-axis.
 
 Loaded at the first step through ``runtime.compiled.kernel_module``; every compiled function of the field is
 in this file (numba's cache does not see changes of callees in other files).
@@ -96,40 +92,6 @@ def _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near):  #
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _window(xs, order, px, half, out):  # noqa: ANN001, ANN202
-    """The agents whose x lies within ``half`` of ``px`` (``xs``: the swarm's x sorted, ``order``
-    its permutation), written to ``out`` in index order; their count."""
-    lo = np.searchsorted(xs, px - half, side="left")
-    hi = np.searchsorted(xs, px + half, side="right")
-    k = hi - lo
-    out[:k] = order[lo:hi]
-    out[:k].sort()
-    return k
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _near_rows(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, rows, k, near):  # noqa: ANN001, ANN202
-    """:func:`_near` for the agents ``rows[:k]`` only (the same operations per agent)."""
-    r2 = reach * reach
-    r2_end = r2 * (1.0 + 1e-9)
-    for c in range(k):
-        b = rows[c]
-        dx, dy, dz = px - X[b], py - Y[b], pz - Z[b]
-        wx, wy, wz = vx - VX[b], vy - VY[b], vz - VZ[b]
-        dd = dx * dx + dy * dy + dz * dz
-        bb = dx * wx + dy * wy + dz * wz
-        a = wx * wx + wy * wy + wz * wz
-        ex, ey, ez = dx + horizon * wx, dy + horizon * wy, dz + horizon * wz
-        ee = ex * ex + ey * ey + ez * ez
-        to_end = -bb >= a * horizon
-        inside = -bb < a * horizon
-        far = (dd >= r2) & (
-            (bb >= 0.0) | (to_end & (ee >= r2_end)) | (inside & (dd * a - bb * bb >= r2 * a + 1e-9 * dd * a))
-        )
-        near[c] = not far
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _right(x, y, z):  # noqa: ANN001, ANN202
     """Unit vector to the right of the relative velocity (x, y, z): horizontal (z up) while the
     motion has a horizontal part of at least a fifth of its speed, else about the x axis (the
@@ -151,7 +113,7 @@ def _over(x, y, z):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=False):  # noqa: ANN001, ANN201, PLR0915
+def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noqa: ANN001, ANN201, PLR0915
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
 
     ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed) of
@@ -161,8 +123,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
     terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
     velocities, parked, distance to the goal, reach at the current speed) of every agent;
-    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
-    ``window``: test only the agents within each flyer's window along x (the same forces)."""
+    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
@@ -186,19 +147,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
     VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
     near = np.empty(n_all, dtype=np.bool_)
-    # Pairs far apart along x cannot be near (see :func:`_window`): each flyer tests only the
-    # agents within its window, in index order (the same terms, summed in the same order).
-    rows = np.empty(n_all, dtype=np.int64)
-    v_all = 0.0
-    for b in range(n_all):
-        v_all = max(v_all, math.sqrt(VX[b] * VX[b] + VY[b] * VY[b] + VZ[b] * VZ[b]))
-    finite = math.isfinite(v_all) and math.isfinite(horizon) and horizon >= 0.0 and math.isfinite(reach)
-    for b in range(n_all):
-        finite = finite and math.isfinite(X[b]) and math.isfinite(Y[b]) and math.isfinite(Z[b])
-    windowed = window and finite
-    if windowed:
-        order = np.argsort(X)
-        xs = X[order]
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
@@ -317,19 +265,9 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         if n_all >= 2:
             ia = idx[i]
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
-            speed = math.sqrt(vx * vx + vy * vy + vz * vz)
-            half = (reach + horizon * (speed + v_all) + 1.0) * (1.0 + 1e-6)
-            if windowed and math.isfinite(half) and math.isfinite(px):
-                k = _window(xs, order, px, half, rows)
-                _near_rows(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, rows, k, near)
-            else:
-                k = n_all
-                for b in range(n_all):
-                    rows[b] = b
-                _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
-            for c in range(k):
-                b = rows[c]
-                if b == ia or not near[c]:
+            _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
+            for b in range(n_all):
+                if b == ia or not near[b]:
                     continue
                 dpx, dpy, dpz = px - all_pos[b, 0], py - all_pos[b, 1], pz - all_pos[b, 2]
                 dwx, dwy, dwz = vx - all_vel[b, 0], vy - all_vel[b, 1], vz - all_vel[b, 2]

@@ -14,6 +14,7 @@ from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.metrics import NOTHING, Tally
+from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.scene import Scene
 from swarmplan.world.motion import poses_at
 
@@ -81,7 +82,7 @@ def parked_contacts(
     is a collision, as the replay's audit counts it (a penetration deeper than 1 mm at a
     recorded step)."""
     out = NOTHING
-    parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
+    parked = mode_in(s.mode, PARKED)
     for i in np.flatnonzero(parked & (clearance < -CONTACT_TOL)).tolist():
         out += collide(s, ids, i, nearest(i), t1)
     return out

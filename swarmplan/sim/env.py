@@ -45,6 +45,7 @@ from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point, parked_contacts
 from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
+from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import Navigator, distance_to_go
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
@@ -276,10 +277,15 @@ class Simulation:
             # The previous step already measured every agent's distances at this position and time.
             if self._field_cache is None:
                 self._field_cache = self.field.query(pos0, q0)
-            d, g = self._field_cache[0][idx], self._field_cache[1][idx]
+            if len(idx) == self.n:  # every agent flies: the rows are the cache's (read only)
+                d, g = self._field_cache
+                p_idx, v_idx, goal_idx = pos0, vel0, s.goal.copy()
+            else:
+                d, g = self._field_cache[0][idx], self._field_cache[1][idx]
+                p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
             if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
-                inputs = with_cores(inputs, pos0[idx], self._threat_cores)
+                inputs = with_cores(inputs, p_idx, self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
             if self._next_rest <= t0:  # a mover parked for good: go round it too
@@ -290,25 +296,21 @@ class Simulation:
             if self.guide is not None:
                 target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
-            flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
+            flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
             to_go = norm3(s.goal - pos0)
             force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
-            clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
+            clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
             if self._threat_cores is not None:
                 cores, radius = self._threat_cores, self.params.radius[idx]
-                clearance, normal = nearest_with_cores(clearance, normal, pos0[idx], radius, cores)
-            v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
+                clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
+            v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
             v_cmd = self.guard.commands(idx, v_cmd)
             v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             self._merge(guarded)
             # An evading agent is not slowed by its goal: its row names a point so far off that
             # the goal's speed cap never binds.
             evading = self.guard.evading[idx]
-            brake_goal = (
-                np.where(evading[:, None], pos0[idx] + FAR_GOAL, s.goal[idx])
-                if evading.any()
-                else s.goal[idx]
-            )
+            brake_goal = np.where(evading[:, None], p_idx + FAR_GOAL, goal_idx) if evading.any() else goal_idx
             v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
             pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
@@ -349,7 +351,7 @@ class Simulation:
         if len(self.world.obstacles):
             # Exact for meshes too (the grid in the cache is approximate, a lower bound beyond it).
             obst_clear = self.field.min_distance(pos1, q1, self._field_cache[0]) - self.params.radius
-            parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
+            parked = mode_in(s.mode, PARKED)
             if parked.any():
                 # Arrived and failed agents stay in the air: an obstacle moving through one is a collision.
                 self._merge(parked_contacts(s, self.ids, obst_clear, self._nearest_obstacle, t1))

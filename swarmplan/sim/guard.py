@@ -37,6 +37,7 @@ from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim.metrics import NOTHING, Tally
+from swarmplan.sim.modes import mode_in
 from swarmplan.sim.safety import AGENT_MARGIN
 
 GUARD_MARGIN = 0.5
@@ -46,6 +47,7 @@ HORIZON_FACTOR = 1.5
 """The threat horizon over the time a sideways move by the needed distance takes."""
 
 _EPS = 1e-9
+_GUARDED = frozenset((Mode.ARRIVED, Mode.APF))  # the guard's agents: at their goals or back in the field
 
 
 def _approach(
@@ -161,7 +163,7 @@ class GoalGuard:
         under threat take off (mode ``apf``, an ``evade_start`` event and an ``evasions`` count);
         agents already away stay evading while threatened. Returns the take-offs."""
         self.evading[:] = False
-        rows = np.flatnonzero(self.guarding & ((s.mode == Mode.ARRIVED) | (s.mode == Mode.APF)))
+        rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED))
         if not len(rows):
             return NOTHING
         p = self.params
