@@ -116,3 +116,21 @@ def test_metrics_step_with_every_agent_measured_equals_the_selection(seed):
             ref[name] = np.where(active, np.minimum(ref[name], c), ref[name])
     for name, value in ref.items():
         np.testing.assert_array_equal(_bits(getattr(m, name)), _bits(value))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_rounding_equals_numpy(seed):
+    """Both arrays of an ``/agents/state`` message rounded in one compiled call: numpy's bits,
+    ties at the sixth decimal, negative zeros, large and tiny values included."""
+    from swarmplan.sim.safety import step_kernels
+
+    rng = np.random.default_rng(seed)
+    a = rng.normal(0, 100.0, (300, 3)) * rng.choice([1e-9, 1e-3, 1.0, 1e4], (300, 1))
+    b = rng.normal(0, 10.0, (300, 3))
+    a[:40] = np.round(a[:40], 7) + 5e-7  # ties and near-ties at the sixth decimal
+    b[:40] = (rng.integers(-(10**7), 10**7, (40, 3)) + 0.5) / 1e6
+    b[40:50] = -0.0
+    a[50:60] = -1e-8
+    ra, rb = step_kernels().round6(a, b)
+    np.testing.assert_array_equal(_bits(ra), _bits(np.round(a, 6)))
+    np.testing.assert_array_equal(_bits(rb), _bits(np.round(b, 6)))

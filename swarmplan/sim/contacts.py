@@ -97,6 +97,7 @@ def arrivals(
     tolerance: float,
     t1: float,
     stop_speed: np.ndarray,
+    active: np.ndarray | None = None,
 ) -> Tally:
     """Agents whose step passed within ``tolerance`` of their goal, slowly enough to stop there,
     have arrived (and stop: their mode and their row of ``vel1`` change). Returns the arrivals.
@@ -108,11 +109,13 @@ def arrivals(
     the tolerance at that speed, so they arrive where they first enter it (the replay's audit
     convention); should one enter faster, it keeps flying under the goal attraction, whose
     speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.flight.apf.commanded_velocity``)
-    brings it to rest at the goal, and arrives once slow enough.
+    brings it to rest at the goal, and arrives once slow enough. ``active``: ``s.active`` when
+    the caller has it at hand.
     """
+    active = s.active if active is None else active
     if not use_compiled_checks(len(ids)):
         # Below swarm size: numpy (the same answers as the kernel).
-        flying = np.flatnonzero(s.active)
+        flying = np.flatnonzero(active)
         d = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
         arrive = (d <= tolerance) & (norm3(vel1[flying]) <= stop_speed[flying] * (1.0 + 1e-9))
         rows, dmins = flying[arrive], d[arrive]
@@ -123,7 +126,7 @@ def arrivals(
             np.ascontiguousarray(pos1, dtype=float),
             np.ascontiguousarray(s.goal, dtype=float),
             np.ascontiguousarray(vel1, dtype=float),
-            np.ascontiguousarray(s.active, dtype=bool),
+            np.ascontiguousarray(active, dtype=bool),
             np.ascontiguousarray(stop_speed, dtype=float),
             float(tolerance),
         )

@@ -24,6 +24,7 @@ from typing import Any, Literal
 import numpy as np
 
 from swarmplan.core import (
+    DONE_MODES,
     AgentStates,
     Event,
     Mode,
@@ -39,6 +40,7 @@ from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded
 from swarmplan.flight.guide import make_guide, next_rest
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.geometry.collision import first_hits
+from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.planner import make_planner
@@ -47,7 +49,7 @@ from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import Navigator, distance_to_go
-from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
+from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow, step_kernels
 from swarmplan.sim.scene import Scene
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
@@ -93,6 +95,7 @@ class Simulation:
         self.n = len(world.agents)
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.scene)
+        self._compiled = use_compiled_checks(self.n)  # swarm size: compiled per-step helpers
         self.navigator = Navigator(world, self.params, self.guide)
         self.guard = GoalGuard(self.params, world.dt)
         # The speed a one-step stop can take within max_accel (fixed wings: any), read every step.
@@ -261,11 +264,13 @@ class Simulation:
         # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
         # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
         measured = np.ones(self.n, dtype=bool)
+        touched = False  # whether a mode set this step ended an agent (a collision)
 
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
         if self.planner is not None and len(idx):
             for i, seg in self.planner.on_step(self).items():
                 if s.mode[i] == Mode.APF and not self.guard.guarding[i]:
+                    touched |= seg.mode in DONE_MODES  # not a segment's mode: ask the modes again
                     self._merge(nav.start_segment(s, i, seg))
 
         pos0 = s.position.copy()
@@ -311,8 +316,13 @@ class Simulation:
             # the goal's speed cap never binds.
             evading = self.guard.evading[idx]
             brake_goal = np.where(evading[:, None], p_idx + FAR_GOAL, goal_idx) if evading.any() else goal_idx
-            v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
-            pos1[idx] = pos0[idx] + vel1[idx] * dt
+            v_cmd, v_new, free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
+            if len(idx) == self.n:  # every row (the same values as through idx)
+                vel1[:] = v_new
+                pos1 = pos0 + vel1 * dt
+            else:
+                vel1[idx] = v_new
+                pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
                 Commands(idx, v_cmd),
                 AgentMotion(pos0, vel0),
@@ -332,18 +342,24 @@ class Simulation:
                 )
                 for i, hit in zip(check, hits, strict=True):
                     if hit is not None:
+                        touched = True
                         self._merge(collide(s, self.ids, i, hit, t1))
                         pos1[i] = crash_point(self.scene, self.params.radius[i], pos0[i], pos1[i], t0, dt)
                         vel1[i] = 0.0
         for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] != Mode.COLLIDED:  # an arrived agent touched is a collision too
+                    touched = True
                     self._merge(collide(s, self.ids, a, self.ids[b], t1))
 
         # Arrival (and its stop) only at a speed a one-step stop can take within max_accel.
         # Agents out of a threat's way cannot arrive; one back at its goal ends its evasion.
         stop_speed = self.guard.stop_speeds(self._stop_speed)
-        arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed)
+        # Only a collision ends an agent between the step's start and here (segments, their ends
+        # and the guard's take-offs keep agents flying): who still flies is known without
+        # asking every mode again.
+        flying = s.active if touched else active
+        arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying)
         self._merge(self.guard.arrived(arrived, s))
 
         # Clearances at the committed positions (also the next step's distances).
@@ -405,7 +421,11 @@ class Simulation:
     def _agent_states(self) -> AgentStates:
         """The ``/agents/state`` entries, as arrays (no dict per agent: a log encodes them directly)."""
         s = self.state
-        return AgentStates(self.ids, np.round(s.position, 6), np.round(s.velocity, 6), s.mode.copy(), s.goal)
+        if self._compiled:  # both roundings in one compiled call (the same bits)
+            position, velocity = step_kernels().round6(s.position, s.velocity)
+        else:
+            position, velocity = np.round(s.position, 6), np.round(s.velocity, 6)
+        return AgentStates(self.ids, position, velocity, s.mode.copy(), s.goal)
 
     def _obstacle_states(self, t: float) -> ObstacleStates | None:
         """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
