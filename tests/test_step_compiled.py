@@ -134,3 +134,26 @@ def test_compiled_rounding_equals_numpy(seed):
     ra, rb = step_kernels().round6(a, b)
     np.testing.assert_array_equal(_bits(ra), _bits(np.round(a, 6)))
     np.testing.assert_array_equal(_bits(rb), _bits(np.round(b, 6)))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_guard_horizons_equal_numpy(seed):
+    """The goal guard's horizons (``HORIZON_FACTOR * sideways_time(...) + 3 dt``) in one
+    compiled pass: numpy's bits, on both sides of the top-speed switch and at zero distance."""
+    from swarmplan.runtime.compiled import kernel_module
+    from swarmplan.sim.guard import HORIZON_FACTOR, sideways_time
+
+    rng = np.random.default_rng(seed)
+    n = 400
+    radius = rng.uniform(0.0, 3.0, n)
+    radius[:5] = 0.0
+    amax = rng.uniform(0.0, 10.0, n)
+    amax[5:10] = 0.0
+    vmax = rng.uniform(0.0, 20.0, n) * rng.choice([1e-3, 1.0], n)
+    need = float(rng.choice([0.0, 0.7, 5.0, 40.0]))
+    dt = float(rng.choice([0.05, 0.1, 0.2]))
+    got = kernel_module("swarmplan.geometry._approach_kernel").horizons(
+        need, radius, amax, vmax, HORIZON_FACTOR, 3.0 * dt
+    )
+    ref = HORIZON_FACTOR * sideways_time(np.float64(need) + radius, amax, vmax) + 3.0 * dt
+    np.testing.assert_array_equal(_bits(got), _bits(ref))

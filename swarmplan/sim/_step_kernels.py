@@ -266,7 +266,7 @@ def _probe(
 
 @njit(cache=True)
 def round6(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``np.round(a, 6), np.round(b, 6)`` of two (n, 3) arrays in one call: numpy's own steps
+    """``np.round(a, 6), np.round(b, 6)`` of two (n, 3) arrays (one shape) in one call: numpy's own steps
     (times 1e6, to the nearest integer with ties to even, divided by 1e6), so the same bits."""
     ra = np.empty(a.shape)
     rb = np.empty(b.shape)

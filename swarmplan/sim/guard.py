@@ -179,7 +179,12 @@ class GoalGuard:
         radius = p.radius[rows]
         amax, vmax = p.max_accel[rows], p.speed_max[rows]
         # The largest need of each agent: max_j (margin_j + r) is max(margin) + r (rounding keeps order).
-        horizon = HORIZON_FACTOR * sideways_time(margin.max() + radius, amax, vmax) + 3.0 * self.dt
+        if self._compiled:  # one compiled pass, the same bits
+            horizon = kernel_module("swarmplan.geometry._approach_kernel").horizons(
+                float(margin.max()), radius, amax, vmax, HORIZON_FACTOR, 3.0 * self.dt
+            )
+        else:
+            horizon = HORIZON_FACTOR * sideways_time(margin.max() + radius, amax, vmax) + 3.0 * self.dt
         # Each threat's own motion against the agent held where it is (its evasion is what it
         # controls), and against its goal: it stays out until the goal is clear again.
         pairs = threat_pairs(

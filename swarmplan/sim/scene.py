@@ -12,6 +12,7 @@ from swarmplan.geometry.collision import CollisionWorld
 from swarmplan.geometry.compiled import field_kernels, use_compiled
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.world.model import World
 from swarmplan.world.motion import max_speed, poses_at
 
@@ -101,4 +102,7 @@ class Scene:
             return None
         pos, vel = self.poses(t)
         pos, vel = pos[self._moving_idx], vel[self._moving_idx]
+        if self.compiled:  # both roundings in one compiled call (the same bits)
+            pos, vel = kernel_module("swarmplan.sim._step_kernels").round6(pos, vel)
+            return ObstacleStates(self._moving_ids, pos, self.moving_quat, vel)
         return ObstacleStates(self._moving_ids, np.round(pos, 6), self.moving_quat, np.round(vel, 6))
