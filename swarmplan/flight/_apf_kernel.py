@@ -10,6 +10,9 @@ division) when the closest approach of the two centres within the prediction hor
 beyond ``reach``, the distance past which both of its terms are provably zero
 (``apf.current_reach``): the scaled distances are at least the unscaled ones over the largest
 semi-axis.
+A moving body is dismissed the same way before its closest approach is computed (two
+divisions and a root per pair): when the centres are farther apart than the influence, both
+radii and both speeds over the horizon, plus a metre, its term is provably zero.
 
 Loaded at the first step through ``runtime.compiled.kernel_module``; every compiled function of the field is
 in this file (numba's cache does not see changes of callees in other files).
@@ -134,9 +137,13 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     m = dist.shape[1]
     n_all = all_pos.shape[0]
     any_moving = False
+    m_speed = np.zeros(m)  # each mover's speed (the bound that dismisses far movers)
     for j in range(m):
         if moving[j]:
             any_moving = True
+            m_speed[j] = math.sqrt(
+                o_vel[j, 0] * o_vel[j, 0] + o_vel[j, 1] * o_vel[j, 1] + o_vel[j, 2] * o_vel[j, 2]
+            )
     fmax = -np.inf
     for i in range(n):
         fmax = max(fmax, max(min_altitude[idx[i]], terrain_floor))
@@ -220,10 +227,17 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
             if any_moving:
                 # Predicted closest approach to each mover, right-hand bias on collision course.
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
+                speed = math.sqrt(vx * vx + vy * vy + vz * vz)
                 for j in range(m):
                     if not moving[j]:
                         continue
                     dpx, dpy, dpz = px - o_center[j, 0], py - o_center[j, 1], pz - o_center[j, 2]
+                    # A mover farther than the influence, both radii and both motions over the
+                    # horizon (plus a metre against rounding) cannot come within the influence
+                    # (its term is zero): dismissed before the divisions.
+                    far = rho0 + o_radius[j] + ri + horizon * (speed + m_speed[j]) + 1.0
+                    if dpx * dpx + dpy * dpy + dpz * dpz > far * far * (1.0 + 1e-9):
+                        continue
                     dvx, dvy, dvz = vx - o_vel[j, 0], vy - o_vel[j, 1], vz - o_vel[j, 2]
                     a = dvx * dvx + dvy * dvy + dvz * dvz
                     tau = min(max(-(dpx * dvx + dpy * dvy + dpz * dvz) / max(a, _EPS), 0.0), horizon)
