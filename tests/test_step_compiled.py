@@ -1,6 +1,8 @@
 """The compiled paths of the step give the bits of the paths they replace, on random inputs:
-the commanded velocity and the reach at speed against their numpy formulas, and the metrics'
-step with every agent measured against the general selection."""
+the field's agent term over a window along x against every agent, the commanded velocity and
+the reach at speed against their numpy formulas, the roundings of the messages, the goal
+guard's horizons, and the metrics' step with every agent measured against the general
+selection."""
 
 from __future__ import annotations
 
@@ -10,8 +12,12 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world
 
+import swarmplan.flight.apf as apf
 from swarmplan.flight.apf import (
     ApfField,
+    FieldInputs,
+    Flyers,
+    Swarm,
     commanded_velocity,
     commanded_velocity_numpy,
 )
@@ -28,7 +34,7 @@ def _swarm_world(n: int):
         {"id": f"a{i}", "start": [5.0 + i, 5.0, 30.0], "goal": [5.0 + i, 590.0, 30.0]} for i in range(n)
     ]
     raw = base_world(
-        bounds={"min": [0, 0, 0], "max": [600, 600, 80]},
+        bounds={"min": [0, 0, 0], "max": [3000, 600, 80]},
         agents=agents,
         agent_defaults={"radius": 1.0, "separation": [4, 4, 2], "min_altitude": 3.0},
         obstacles=[
@@ -42,6 +48,47 @@ def _swarm_world(n: int):
         ],
     )
     return make_world(raw)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_windowed_agent_term_equals_every_agent(monkeypatch, seed):
+    """A dense cluster (more near agents than the short sort takes), lines across and along x,
+    fast and resting agents, parked ones, several kinds of agent and fixed wings: the force on
+    every flyer has the same bits with the window along x as with every agent tested."""
+    n = 300
+    world = _swarm_world(n)
+    rng = np.random.default_rng(seed)
+    params = dataclasses.replace(
+        AgentParams.from_world(world),
+        radius=rng.choice([0.5, 1.0, 1.5], n),
+        separation=rng.choice([2.0, 4.0, 6.0], (n, 3)),
+        speed_cruise=rng.choice([4.0, 8.0, 10.0], n),
+        fixed_wing=rng.random(n) < (0.2 if seed % 2 else 0.0),
+    )
+    pos = rng.uniform([1, 1, 1], [2999, 599, 79], (n, 3))
+    pos[:90] = pos[0] + rng.normal(0, 5.0, (90, 3))  # a dense cluster
+    pos[90:150, 0] = pos[90, 0] + rng.normal(0, 0.5, 60)  # a line across x (one window)
+    pos[150:210, 1] = pos[150, 1]  # a line along x
+    pos = np.clip(pos, 1.0, [2999, 599, 79])
+    vel = rng.normal(0, 6.0, (n, 3))
+    vel[::7] = 0.0
+    vel[1::11] *= 1.0 + seed  # faster than any cruise
+    goal = rng.uniform([5, 5, 5], [2995, 595, 75], (n, 3))
+    idx = np.arange(n) if seed < 2 else np.sort(rng.choice(n, n - 40, replace=False))
+    q = np.array([[300.0, 300.0, 30.0]])
+    rel = pos[idx] - q
+    d = np.linalg.norm(rel, axis=1)[:, None] - 5.0
+    g = (rel / np.linalg.norm(rel, axis=1)[:, None])[:, None, :]
+    inputs = FieldInputs(d, g, np.array([[3.0, 1.0, 0.0]]), np.array([True]), np.array([5.0]), q)
+    flyers = Flyers(idx, pos[idx], vel[idx], goal[idx])
+    swarm = Swarm(pos, vel, rng.random(n) < 0.2, np.linalg.norm(goal - pos, axis=1))
+    field = ApfField(world, params)
+    monkeypatch.setattr(apf, "WINDOW_FROM", 10**9)
+    every = field.forces(flyers, inputs, swarm)
+    monkeypatch.setattr(apf, "WINDOW_FROM", 2)
+    windowed = field.forces(flyers, inputs, swarm)
+    assert (np.linalg.norm(every, axis=1) > 0).all()
+    np.testing.assert_array_equal(_bits(windowed), _bits(every))
 
 
 def _reach_numpy(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:

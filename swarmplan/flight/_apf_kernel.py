@@ -9,8 +9,12 @@ The agent term visits every other agent, but a pair is dismissed with a few prod
 division) when the closest approach of the two centres within the prediction horizon stays
 beyond ``reach``, the distance past which both of its terms are provably zero
 (``apf.current_reach``): the scaled distances are at least the unscaled ones over the largest
-semi-axis.
-A moving body is dismissed the same way before its closest approach is computed (two
+semi-axis. With ``window`` (``apf.WINDOW_FROM`` agents on) a flyer tests only the agents
+whose x lies within ``reach + horizon * (its speed + the swarm's top speed) + 1 m`` of its own
+(the swarm sorted along x once per call): the others' relative motion cannot bring them within
+``reach`` along x alone, so the test dismisses them anyway, with a metre to spare against
+rounding; the agents kept are visited in index order, so the forces are summed in the same
+order, to the same bits. A moving body is dismissed the same way before its closest approach is computed (two
 divisions and a root per pair): when the centres are farther apart than the influence, both
 radii and both speeds over the horizon, plus a metre, its term is provably zero.
 
@@ -95,6 +99,22 @@ def _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near):  #
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _index_order(rows, k):  # noqa: ANN001, ANN202
+    """``rows[:k]`` sorted in place: by insertion while short (a flyer's near agents, a few
+    tens), else by numpy's sort."""
+    if k > 64:
+        rows[:k].sort()
+        return
+    for c in range(1, k):
+        b = rows[c]
+        t = c
+        while t > 0 and rows[t - 1] > b:
+            rows[t] = rows[t - 1]
+            t -= 1
+        rows[t] = b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _right(x, y, z):  # noqa: ANN001, ANN202
     """Unit vector to the right of the relative velocity (x, y, z): horizontal (z up) while the
     motion has a horizontal part of at least a fifth of its speed, else about the x axis (the
@@ -116,7 +136,7 @@ def _over(x, y, z):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noqa: ANN001, ANN201, PLR0915
+def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=False):  # noqa: ANN001, ANN201, PLR0915
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
 
     ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed) of
@@ -126,7 +146,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
     terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
     velocities, parked, distance to the goal, reach at the current speed) of every agent;
-    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon)."""
+    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
+    ``window``: test only the agents within each flyer's window along x (the same forces)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
@@ -154,6 +175,17 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
     VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
     near = np.empty(n_all, dtype=np.bool_)
+    rows = np.empty(n_all, dtype=np.int64)
+    # With ``window``: the swarm sorted along x, and its top speed, for each flyer's window.
+    v_all = 0.0
+    finite = True  # a NaN anywhere: every agent is tested, as without the window
+    for b in range(n_all):
+        v_all = max(v_all, math.sqrt(VX[b] * VX[b] + VY[b] * VY[b] + VZ[b] * VZ[b]))
+        finite = finite and math.isfinite(X[b] + Y[b] + Z[b] + VX[b] + VY[b] + VZ[b])
+    window = window and n_all >= 2 and finite and math.isfinite(v_all) and 0.0 <= horizon < np.inf
+    order = np.argsort(X) if window else np.arange(n_all)
+    XS, YS, ZS = X[order], Y[order], Z[order]
+    VXS, VYS, VZS = VX[order], VY[order], VZ[order]
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
@@ -279,9 +311,29 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
         if n_all >= 2:
             ia = idx[i]
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
-            _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
-            for b in range(n_all):
-                if b == ia or not near[b]:
+            k = 0
+            half = (reach + horizon * (math.sqrt(vx * vx + vy * vy + vz * vz) + v_all) + 1.0) * (1.0 + 1e-6)
+            if window and math.isfinite(half) and math.isfinite(px):
+                w_lo = np.searchsorted(XS, px - half, side="left")
+                w_hi = np.searchsorted(XS, px + half, side="right")
+                w = w_hi - w_lo
+                sl = slice(w_lo, w_hi)
+                _near(px, py, pz, vx, vy, vz, XS[sl], YS[sl], ZS[sl], VXS[sl], VYS[sl], VZS[sl],
+                      horizon, reach, near)  # fmt: skip
+                for c in range(w):
+                    if near[c]:
+                        rows[k] = order[w_lo + c]
+                        k += 1
+                _index_order(rows, k)  # the full scan's order of the sums
+            else:
+                _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
+                for b in range(n_all):
+                    if near[b]:
+                        rows[k] = b
+                        k += 1
+            for c in range(k):
+                b = rows[c]
+                if b == ia:
                     continue
                 dpx, dpy, dpz = px - all_pos[b, 0], py - all_pos[b, 1], pz - all_pos[b, 2]
                 dwx, dwy, dwz = vx - all_vel[b, 0], vy - all_vel[b, 1], vz - all_vel[b, 2]
