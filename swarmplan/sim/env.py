@@ -102,6 +102,7 @@ class Simulation:
         self._stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * world.dt)
         self._stop_speed.setflags(write=False)
         self._mover_ids = tuple(o.id for o in world.obstacles if o.moving)
+        self._mover_radii = self.scene.bounding_radius[self.moving_mask]  # read every guarded step
         self.state: SwarmState | None = None
         self.seed: int | None = None
         self._streams: dict[tuple[str, int | None], np.random.Generator] = {}
@@ -401,7 +402,7 @@ class Simulation:
         if self._field_cache is None:
             self._field_cache = self.field.query(s.position, q0)
         cache, mv = self._field_cache, self.moving_mask
-        movers = (q0[mv], qv0[mv], self.scene.bounding_radius[mv], self._mover_ids)
+        movers = (q0[mv], qv0[mv], self._mover_radii, self._mover_ids)
 
         def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             return self.scene.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])

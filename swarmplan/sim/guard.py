@@ -170,8 +170,8 @@ class GoalGuard:
         centres, velocities, radii, ids = threats
         # Flying agents are threats too (an agent on its way, or another one evading).
         flying = np.flatnonzero(s.active)
-        c = np.vstack([centres, s.position[flying]])
-        u = np.vstack([velocities, s.velocity[flying]])
+        c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
+        u = np.concatenate((velocities, s.velocity[flying]))
         margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + AGENT_MARGIN])
         who = np.concatenate([np.full(len(centres), -1), flying])
         if not len(c):
