@@ -204,3 +204,19 @@ def test_compiled_guard_horizons_equal_numpy(seed):
     )
     ref = HORIZON_FACTOR * sideways_time(np.float64(need) + radius, amax, vmax) + 3.0 * dt
     np.testing.assert_array_equal(_bits(got), _bits(ref))
+
+
+def test_mode_masks_equal_the_comparisons():
+    """One pass over the modes gives the masks of ``(mode == a) | (mode == b)``; a value that is
+    not a mode is an error, as for ``SwarmState.active``."""
+    from swarmplan.core import Mode
+    from swarmplan.sim.modes import PARKED, mode_in, mode_table
+
+    rng = np.random.default_rng(0)
+    mode = np.array(rng.choice(list(Mode), 200).tolist(), dtype=object)
+    np.testing.assert_array_equal(mode_in(mode, PARKED), (mode == Mode.ARRIVED) | (mode == Mode.FAILED))
+    table = mode_table(Mode.APF, Mode.ARRIVED)
+    np.testing.assert_array_equal(mode_in(mode, table), (mode == Mode.APF) | (mode == Mode.ARRIVED))
+    mode[3] = None
+    with pytest.raises(KeyError):
+        mode_in(mode, PARKED)

@@ -37,7 +37,7 @@ from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim.metrics import NOTHING, Tally
-from swarmplan.sim.modes import mode_in
+from swarmplan.sim.modes import mode_in, mode_table
 from swarmplan.sim.safety import AGENT_MARGIN
 
 GUARD_MARGIN = 0.5
@@ -47,7 +47,7 @@ HORIZON_FACTOR = 1.5
 """The threat horizon over the time a sideways move by the needed distance takes."""
 
 _EPS = 1e-9
-_GUARDED = frozenset((Mode.ARRIVED, Mode.APF))  # the guard's agents: at their goals or back in the field
+_GUARDED = mode_table(Mode.ARRIVED, Mode.APF)  # the guard's agents: at their goals or in the field
 
 
 def _approach(
