@@ -94,6 +94,22 @@ class CurvatureSmoother:
                     return end, k
         return None
 
+    @staticmethod
+    def _fast(sim: PlanningContext, rows: np.ndarray) -> list[int]:
+        """The agents of ``rows`` flying at least half their cruise speed, by ``check``'s own
+        test (``np.linalg.norm`` of each velocity). The speeds of all rows at once decide every
+        row but those within rounding of the threshold, which are measured again one by one."""
+        s = sim.state
+        v = s.velocity[rows]
+        half = 0.5 * sim.params.speed_cruise[rows]
+        speed = np.sqrt((v * v).sum(axis=1))
+        unsure = np.abs(speed - half) <= 1e-9 * (np.abs(half) + 1.0)
+        keep = ~(speed < half)
+        for j in np.flatnonzero(unsure).tolist():
+            i = int(rows[j])
+            keep[j] = not np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i])
+        return rows[keep].tolist()
+
     def _crowded(self, sim: PlanningContext, rows: np.ndarray) -> list[bool]:
         """Per agent of ``rows``: ``EscapePlanner.agents_near(sim, i).any()`` (the same
         distances, all rows at once)."""
@@ -114,17 +130,16 @@ class CurvatureSmoother:
         n = len(s.mode)
         if len(self.next_check) != n:
             self.next_check = np.zeros(n)
+        ready = ~(s.t < self.next_check)
+        if not ready.any():  # most steps: no agent's check is due
+            return out
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=n)
-        due = np.flatnonzero(s.active & apf & ~(s.t < self.next_check))
+        due = np.flatnonzero(s.active & apf & ready)
         if not len(due):
             return out
         self.next_check[due] = s.t + self.check_interval
         # Too slow to need a turn wider than it can fly (``check``'s first test).
-        fast = [
-            i
-            for i in due.tolist()
-            if not np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i])
-        ]
+        fast = self._fast(sim, due)
         if not fast:
             return out
         # Among other agents the way is theirs to shape: no segment to smooth.
