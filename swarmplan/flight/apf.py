@@ -36,8 +36,10 @@ round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static r
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
 so the agent can still brake before the goal and before any obstacle surface ahead.
 
-There is one implementation of the field, the compiled one, for every world (the numpy
-reference the tests compare it with lives in tests/apf_reference.py).
+The field has two implementations with the same bits, chosen by the world's size
+(``swarmplan.geometry.compiled.use_compiled``): the compiled kernel at swarm size, numpy
+(:mod:`swarmplan.flight._apf_numpy`, no numba to load) below it. The numpy reference the tests
+compare both with, sums in another order, lives in tests/apf_reference.py.
 """
 
 from __future__ import annotations
@@ -47,7 +49,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from swarmplan.flight import _apf_numpy
 from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.compiled import use_compiled
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module
 
@@ -154,6 +158,7 @@ class ApfField:
         # reach_at_speed's constant parts, computed once: the same floats in the same order.
         self._brake_denominator = 2.0 * np.maximum(params.max_accel, _EPS)
         self._any_fixed_wing = bool(params.fixed_wing.any())
+        self._compiled = use_compiled(len(world.agents))
 
     def _reach_at_speed(self, idx: np.ndarray | None, vel: np.ndarray) -> np.ndarray:
         """:func:`reach_at_speed` of agents ``idx`` (None: the first ``len(vel)``, in order)."""
@@ -184,7 +189,11 @@ class ApfField:
         )
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach_all = self._reach_at_speed(None, swarm.vel)
-        kernel_module("swarmplan.flight._apf_kernel").apf_forces(
+        if self._compiled:
+            apf_forces = kernel_module("swarmplan.flight._apf_kernel").apf_forces
+        else:
+            apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
+        apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,

@@ -1,0 +1,93 @@
+"""The numpy field (worlds below swarm size) writes the same bits as the compiled kernel on
+the random swarms of tests/test_apf_compiled.py (edge cases included: coincident agents, agents
+inside bodies and at their surface, at their goals, head-on with movers, parked agents, fixed
+wings, several goal powers), and a world chooses its implementation by its size only."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import base_world, make_world
+from test_apf_compiled import N, _inputs, _world
+
+from swarmplan.flight import _apf_numpy
+from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.compiled import COMPILED_FROM
+from swarmplan.runtime.compiled import kernel_module
+
+
+def _both(
+    field: ApfField, flyers: Flyers, inputs: FieldInputs, swarm: Swarm
+) -> tuple[np.ndarray, np.ndarray]:
+    """The field's force through each implementation (ApfField.forces with its choice forced)."""
+    out = []
+    for compiled in (True, False):
+        field._compiled = compiled
+        out.append(field.forces(flyers, inputs, swarm))
+    return out[0], out[1]
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> None:
+    assert a.shape == b.shape
+    np.testing.assert_array_equal(a.view(np.int64), b.view(np.int64))
+
+
+@pytest.mark.parametrize("peaks", [False, True])
+@pytest.mark.parametrize("power", [2.0, 1.5, 3.0, 1.0])
+def test_numpy_field_has_the_kernels_bits(peaks, power):
+    world = _world(peaks, {"goal_power": power})
+    params, pos, vel, goal, f, rng = _inputs(world, int(power * 10) + peaks)
+    field = ApfField(world, params)
+    touched = 0
+    for case in range(5):
+        idx = np.arange(N) if case == 0 else np.sort(rng.choice(N, N - 17, replace=False))
+        target = None if case < 2 else goal[idx] + rng.normal(0, 5.0, (len(idx), 3))
+        if case >= 3:
+            target[::3] = goal[idx][::3]
+        scale = None if case < 3 else rng.uniform(0.2, 1.0, len(idx))
+        if case == 4:  # goals beyond the bodies, so their push holds agents and turns them
+            target = None
+            goal = pos + np.array([0.0, 60.0, 0.0])
+        inputs = FieldInputs(f[0][idx], f[1][idx], *f[2:])
+        parked = None if case < 2 else rng.random(N) < 0.3
+        to_go = None if case < 2 else np.linalg.norm(goal - pos, axis=1)
+        flyers = Flyers(idx, pos[idx], vel[idx], goal[idx], target, scale)
+        compiled, plain = _both(field, flyers, inputs, Swarm(pos, vel, parked, to_go))
+        assert np.all(np.isfinite(compiled))
+        _same_bits(plain, compiled)
+        touched += int(np.abs(compiled).sum() > 0)
+    assert touched == 5
+
+
+def test_numpy_field_on_degenerate_inputs():
+    """No flyer, no body, a single agent: the kernel's answers, bit for bit."""
+    world = _world(False)
+    params, pos, vel, goal, f, _ = _inputs(world, 7)
+    field = ApfField(world, params)
+    empty = FieldInputs(np.zeros((N, 0)), np.zeros((N, 0, 3)), np.zeros((0, 3)), np.zeros(0, bool),
+                        np.zeros(0), np.zeros((0, 3)))  # fmt: skip
+    idx = np.arange(N)
+    compiled, plain = _both(field, Flyers(idx, pos, vel, goal), empty, Swarm(pos, vel))
+    _same_bits(plain, compiled)
+    one = Flyers(idx[:1], pos[:1], vel[:1], goal[:1])
+    inputs = FieldInputs(f[0][:1], f[1][:1], *f[2:])
+    compiled, plain = _both(field, one, inputs, Swarm(pos[:1], vel[:1]))
+    _same_bits(plain, compiled)
+    none = Flyers(idx[:0], pos[:0], vel[:0], goal[:0])
+    inputs = FieldInputs(f[0][:0], f[1][:0], *f[2:])
+    assert _both(field, none, inputs, Swarm(pos, vel))[1].shape == (0, 3)
+
+
+def test_world_size_chooses_the_implementation():
+    """Below swarm size the field runs numpy (numba is never needed for it), from it compiled."""
+    swarm = _world(False)
+    assert len(swarm.agents) >= COMPILED_FROM  # the random-swarm world is at swarm size
+    assert ApfField(swarm, _inputs(swarm, 0)[0])._compiled
+    agents = [
+        {"id": f"a{i}", "start": [10.0 + 3 * i, 10, 30], "goal": [10.0 + 3 * i, 90, 30]}
+        for i in range(COMPILED_FROM - 1)
+    ]
+    few = make_world(base_world(bounds={"min": [0, 0, 0], "max": [300, 100, 60]}, agents=agents))
+    assert not ApfField(few, AgentParams.from_world(few))._compiled
+    assert _apf_numpy.apf_forces is not kernel_module("swarmplan.flight._apf_kernel").apf_forces
