@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import yaml
-
 from swarmplan.world.model import World, WorldError
 from swarmplan.world.schema import parse_world
 
 
 def load_world(path: str | Path, optimizer_names: list[str] | None = None) -> World:
     """Read, validate and resolve the world file at ``path``; raise :class:`WorldError` on any problem."""
+    import yaml  # here: worlds built in code (parse_world) never need the YAML parser
+
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
