@@ -10,7 +10,9 @@ numpy's formulas and order of sums, rotations stay with numpy's BLAS; the swept 
 decide exactly what FCL decides), so a world runs identically either way
 (tests/test_field_kernels.py, tests/test_sweep_kernels.py, tests/test_geometry_neighbours.py).
 The choice depends on the world only, never on what a process has loaded before. The
-potential field has one implementation, compiled, for every world (``flight.apf``).
+potential field follows the same rule (``flight.apf``: its compiled kernel from
+``COMPILED_FROM`` agents, the same bits in numpy below), so a world below it never loads numba
+for its steps (its escapes' optimizers still load their kernels when they run).
 """
 
 from __future__ import annotations
