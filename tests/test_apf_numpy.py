@@ -1,9 +1,13 @@
-"""The numpy field (worlds below swarm size) writes the same bits as the compiled kernel on
-the random swarms of tests/test_apf_compiled.py (edge cases included: coincident agents, agents
-inside bodies and at their surface, at their goals, head-on with movers, parked agents, fixed
-wings, several goal powers), and a world chooses its implementation by its size only."""
+"""The numpy field (the first calls of worlds below swarm size) writes the same bits as the
+compiled kernel on the random swarms of tests/test_apf_compiled.py (edge cases included:
+coincident agents, agents inside bodies and at their surface, at their goals, head-on with
+movers, parked agents, fixed wings, several goal powers) and over a whole small run; the
+world's size and the field's count of calls choose the implementation."""
 
 from __future__ import annotations
+
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -13,7 +17,7 @@ from test_apf_compiled import N, _inputs, _world
 from swarmplan.flight import _apf_numpy
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.geometry.compiled import COMPILED_FROM
+from swarmplan.geometry.compiled import COMPILED_FROM, FIELD_NUMPY_CALLS
 from swarmplan.runtime.compiled import kernel_module
 
 
@@ -23,7 +27,7 @@ def _both(
     """The field's force through each implementation (ApfField.forces with its choice forced)."""
     out = []
     for compiled in (True, False):
-        field._compiled = compiled
+        field._numpy_calls = 0 if compiled else 1
         out.append(field.forces(flyers, inputs, swarm))
     return out[0], out[1]
 
@@ -79,18 +83,53 @@ def test_numpy_field_on_degenerate_inputs():
     assert _both(field, none, inputs, Swarm(pos, vel))[1].shape == (0, 3)
 
 
-def test_world_size_chooses_the_implementation():
-    """Below swarm size the field runs numpy (numba is never needed for it), from it compiled."""
+def test_world_size_and_calls_choose_the_implementation(monkeypatch):
+    """At swarm size the field runs compiled from its first call; below it, its first
+    ``FIELD_NUMPY_CALLS`` calls run numpy and the later ones compiled."""
     swarm = _world(False)
     assert len(swarm.agents) >= COMPILED_FROM  # the random-swarm world is at swarm size
-    assert ApfField(swarm, _inputs(swarm, 0)[0])._compiled
+    assert ApfField(swarm, _inputs(swarm, 0)[0])._numpy_calls == 0
     agents = [
         {"id": f"a{i}", "start": [10.0 + 3 * i, 10, 30], "goal": [10.0 + 3 * i, 90, 30]}
         for i in range(COMPILED_FROM - 1)
     ]
     few = make_world(base_world(bounds={"min": [0, 0, 0], "max": [300, 100, 60]}, agents=agents))
-    assert not ApfField(few, AgentParams.from_world(few))._compiled
-    assert _apf_numpy.apf_forces is not kernel_module("swarmplan.flight._apf_kernel").apf_forces
+    field = ApfField(few, AgentParams.from_world(few))
+    calls = []
+    kernel = kernel_module("swarmplan.flight._apf_kernel")
+    for module, name in ((_apf_numpy, "numpy"), (kernel, "compiled")):
+        real = module.apf_forces
+        monkeypatch.setattr(module, "apf_forces", lambda *a, _r=real, _n=name: calls.append(_n) or _r(*a))
+    n = len(agents)
+    pos = np.array([a["start"] for a in agents], float)
+    vel = np.zeros_like(pos)
+    goal = np.array([a["goal"] for a in agents], float)
+    empty = FieldInputs(np.zeros((n, 0)), np.zeros((n, 0, 3)), np.zeros((0, 3)), np.zeros(0, bool),
+                        np.zeros(0), np.zeros((0, 3)))  # fmt: skip
+    results = [
+        field.forces(Flyers(np.arange(n), pos, vel, goal), empty, Swarm(pos, vel))
+        for _ in range(FIELD_NUMPY_CALLS + 2)
+    ]
+    assert calls == ["numpy"] * FIELD_NUMPY_CALLS + ["compiled"] * 2
+    _same_bits(results[0], results[-1])
+
+
+def test_a_small_world_starts_without_numba():
+    """A fresh interpreter builds, resets and steps the 16-agent start-up world (movers and
+    static bodies) without importing numba or scipy.spatial."""
+    code = (
+        "import sys\n"
+        "from swarmplan.bench.sim import swarm_world\n"
+        "from swarmplan.planner import make_planner\n"
+        "from swarmplan.sim import Simulation\n"
+        "from swarmplan.world import parse_world\n"
+        "w = parse_world(swarm_world(16, 4, 8))\n"
+        "s = Simulation(w, planner=make_planner(w))\n"
+        "s.reset(seed=0); s.step(); s.step()\n"
+        "print(sorted(m for m in ('numba', 'llvmlite', 'scipy.spatial', 'yaml') if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
 
 
 def test_a_small_swarm_flies_the_same_on_both_fields():
@@ -105,7 +144,7 @@ def test_a_small_swarm_flies_the_same_on_both_fields():
     runs = []
     for compiled in (True, False):
         sim = Simulation(world, planner=make_planner(world))
-        sim.apf._compiled = compiled
+        sim.apf._numpy_calls = 0 if compiled else 10**9
         sim.reset(seed=0)
         steps = []
         for _ in range(120):

@@ -36,9 +36,9 @@ round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static r
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
 so the agent can still brake before the goal and before any obstacle surface ahead.
 
-The field has two implementations with the same bits, chosen by the world's size
-(``swarmplan.geometry.compiled.use_compiled``): the compiled kernel at swarm size, numpy
-(:mod:`swarmplan.flight._apf_numpy`, no numba to load) below it. The numpy reference the tests
+The field has two implementations with the same bits: the compiled kernel, and numpy
+(:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below
+swarm size (``swarmplan.geometry.compiled.field_numpy_calls``). The numpy reference the tests
 compare both with, sums in another order, lives in tests/apf_reference.py.
 """
 
@@ -51,7 +51,7 @@ import numpy as np
 
 from swarmplan.flight import _apf_numpy
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.geometry.compiled import use_compiled
+from swarmplan.geometry.compiled import field_numpy_calls
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module
 
@@ -158,7 +158,7 @@ class ApfField:
         # reach_at_speed's constant parts, computed once: the same floats in the same order.
         self._brake_denominator = 2.0 * np.maximum(params.max_accel, _EPS)
         self._any_fixed_wing = bool(params.fixed_wing.any())
-        self._compiled = use_compiled(len(world.agents))
+        self._numpy_calls = field_numpy_calls(len(world.agents))  # then the compiled kernel
 
     def _reach_at_speed(self, idx: np.ndarray | None, vel: np.ndarray) -> np.ndarray:
         """:func:`reach_at_speed` of agents ``idx`` (None: the first ``len(vel)``, in order)."""
@@ -189,10 +189,11 @@ class ApfField:
         )
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach_all = self._reach_at_speed(None, swarm.vel)
-        if self._compiled:
-            apf_forces = kernel_module("swarmplan.flight._apf_kernel").apf_forces
-        else:
+        if self._numpy_calls > 0:
+            self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
+        else:
+            apf_forces = kernel_module("swarmplan.flight._apf_kernel").apf_forces
         apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
