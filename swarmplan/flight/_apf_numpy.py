@@ -92,12 +92,17 @@ def _sum_in_order(first: np.ndarray, terms: np.ndarray) -> np.ndarray:
     return np.add.accumulate(np.concatenate([first[:, None], terms], axis=1), axis=1)[:, -1]
 
 
-def _face(
-    offset: np.ndarray, sign: float, r: np.ndarray, rb0: float, k_rep: float, gfac: np.ndarray
-) -> np.ndarray:
-    rho_b = sign * offset - r
+def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: float, k_rep: float,
+           gfac: np.ndarray) -> np.ndarray:  # fmt: skip
+    """The kernel's ``_face`` terms, (n, 2, 3): row 0 the low faces (x, y; the floor is the
+    ground's, a ``-0.0``), row 1 the high ones."""
+    sign = np.array([[1.0], [-1.0]])
+    offset = np.stack([pos - lo, pos - hi], axis=1)
+    rho_b = sign * offset - r[:, None, None]
     mag = np.where(rho_b < rb0, k_rep * (1.0 / np.maximum(rho_b, 0.05) - 1.0 / rb0), 0.0)
-    return sign * mag * gfac
+    terms = sign * mag * gfac[:, None, None]
+    terms[:, 0, 2] = _SKIP
+    return terms
 
 
 def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out) -> None:  # noqa: ANN001
@@ -146,11 +151,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out) -> None
     f = f + mag[:, None] * normal
 
     # Faces of the flight volume (the floor is the ground's).
-    f[:, 0] = f[:, 0] + _face(pos[:, 0] - lo[0], 1.0, ri, rb0, k_rep, gfac)
-    f[:, 0] = f[:, 0] + _face(pos[:, 0] - hi[0], -1.0, ri, rb0, k_rep, gfac)
-    f[:, 1] = f[:, 1] + _face(pos[:, 1] - lo[1], 1.0, ri, rb0, k_rep, gfac)
-    f[:, 1] = f[:, 1] + _face(pos[:, 1] - hi[1], -1.0, ri, rb0, k_rep, gfac)
-    f[:, 2] = f[:, 2] + _face(pos[:, 2] - hi[2], -1.0, ri, rb0, k_rep, gfac)
+    faces = _faces(pos, lo, hi, ri, rb0, k_rep, gfac)
+    f = f + faces[:, 0] + faces[:, 1]  # per axis: the low face, then the high one
 
     # Other agents.
     if swarm[0].shape[0] >= 2:
