@@ -105,9 +105,10 @@ def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: 
     return terms
 
 
-def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out) -> None:  # noqa: ANN001
+def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=False) -> None:  # noqa: ANN001, ARG001
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``; the arguments of
-    ``_apf_kernel.apf_forces``."""
+    ``_apf_kernel.apf_forces`` (``window``, a way of the kernel to skip pair tests without
+    changing the forces, changes nothing here: every pair is tested)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     h, gh, h_goal, terrain_floor, lo, hi = ground
