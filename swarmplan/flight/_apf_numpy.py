@@ -1,6 +1,6 @@
-"""The potential field of ``swarmplan.flight.apf`` in numpy, for worlds below swarm size
-(``swarmplan.geometry.compiled.use_compiled``): :func:`apf_forces` takes the arguments of
-``swarmplan.flight._apf_kernel.apf_forces`` and writes the same bits.
+"""The potential field of ``swarmplan.flight.apf`` in numpy, for the first calls of a world
+below swarm size (``swarmplan.geometry.compiled.field_numpy_calls``): :func:`apf_forces` takes
+the arguments of ``swarmplan.flight._apf_kernel.apf_forces`` and writes the same bits.
 
 Why a second implementation: the compiled one needs numba, whose import and the loading of the
 kernel's cached machine code cost ~0.3 s of CPU per process, more than a small world's first
