@@ -1,7 +1,9 @@
 """The guide's graph (swarmplan.flight.guide) against a plain construction of it: the reversed
 graph built in place equals, to the bit, the one scipy builds from the list of legs and
 transposes, and re-pricing a way's cells gives the legs the costs computed cell by cell from
-the cells' centres. The searches run on these arrays, so equal arrays mean equal ways."""
+the cells' centres. The searches run on these arrays, so equal arrays mean equal ways; and the
+compiled search finds scipy's distances and predecessors to the bit, on the guide's graph and
+on small graphs with random costs (ties among equal distances included)."""
 
 from __future__ import annotations
 
@@ -10,8 +12,10 @@ from helpers import base_world, make_world
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from swarmplan.flight import _guide_kernel as K
 from swarmplan.flight import guide as G
 from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.batch import ShapeBatch
 
 # A wall with one gap and a pillar: free cells, cells inside the inflated obstacles, cells near
 # surfaces on every side.
@@ -34,7 +38,7 @@ def _guide(agents: int = 1) -> G.StaticGuide:
 def _reference_graph(guide: G.StaticGuide) -> csr_matrix:
     """The legs listed offset by offset, assembled by scipy and transposed (row v: legs into v)."""
     nx, ny, nz = (int(v) for v in guide.shape)
-    clear, normal = guide._clearance(guide.centres)
+    clear, normal, _ = guide._clearance(guide.centres)
     prox = np.clip(1.0 - clear / max(2.0 * float(guide.cell.max()), 4.0), 0.0, 1.0)
     free = clear > 0.0
     flat = np.arange(guide.n_cells).reshape(nx, ny, nz)
@@ -70,11 +74,41 @@ def test_the_graph_built_in_place_is_the_one_scipy_assembles():
     assert np.array_equal(got.indptr, ref.indptr)
     assert np.array_equal(got.indices, ref.indices)
     assert np.array_equal(got.data.view(np.int64), ref.data.view(np.int64))
-    # and so the same search: distances and next cells, from a goal behind the wall
-    goal = int(guide.cell_of(np.array([[80.0, 60.0, 20.0]]))[0])
-    d0, p0 = dijkstra(ref, directed=True, indices=goal, return_predecessors=True)
-    d1, p1 = dijkstra(got, directed=True, indices=goal, return_predecessors=True)
-    assert np.array_equal(d0, d1) and np.array_equal(p0, p1)
+    # and so the same search: distances and next cells, from a goal behind the wall and from
+    # cells all over the grid, scipy's on scipy's graph and the compiled one on the guide's
+    cells = [int(guide.cell_of(np.array([[80.0, 60.0, 20.0]]))[0])]
+    cells += np.random.default_rng(2).choice(guide.n_cells, 5, replace=False).tolist()
+    for source in cells:
+        d0, p0 = dijkstra(ref, directed=True, indices=source, return_predecessors=True)
+        d1, p1 = K.dijkstra(got.indptr, got.indices, got.data, source)
+        assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
+        assert np.array_equal(p0, p1)
+        assert np.isfinite(d1).sum() > guide.n_cells // 2  # the free space is reached
+
+
+def test_the_compiled_search_is_scipys_on_random_graphs():
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        n = int(rng.integers(2, 300))
+        nnz = int(rng.integers(1, 8 * n))
+        rows, cols = rng.integers(0, n, nnz), rng.integers(0, n, nnz)
+        # costs from a few values: many ways of equal length, where only the order of the
+        # search decides the predecessor
+        cost = (
+            rng.choice([0.5, 1.0, 1.5, 2.0, np.sqrt(2.0)], nnz) if trial % 2 else rng.uniform(0.1, 5.0, nnz)
+        )
+        g = csr_matrix((cost, (rows, cols)), shape=(n, n))
+        g.sum_duplicates()
+        g.data = np.maximum(g.data, 1e-3)  # no zero cost (scipy drops explicit zeros)
+        source = int(rng.integers(0, n))
+        d0, p0 = dijkstra(g, directed=True, indices=source, return_predecessors=True)
+        d1, p1 = K.dijkstra(g.indptr.astype(np.int32), g.indices.astype(np.int32), g.data, source)
+        assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
+        assert np.array_equal(p0, p1)
+    # and on a line of three vertices, by hand: 0 -> 1 -> 2 at 1 + 2, 0 -> 2 directly at 4
+    g = csr_matrix(([1.0, 4.0, 2.0], ([0, 0, 1], [1, 2, 2])), shape=(3, 3))
+    d, p = K.dijkstra(g.indptr, g.indices, g.data, 0)
+    assert d.tolist() == [0.0, 1.0, 3.0] and p.tolist() == [K.NO_WAY, 0, 1]
 
 
 def test_re_pricing_gives_each_leg_the_cost_computed_cell_by_cell():
@@ -97,3 +131,39 @@ def test_re_pricing_gives_each_leg_the_cost_computed_cell_by_cell():
         )
     assert np.array_equal(g.data.view(np.int64), expect.view(np.int64))
     assert (g.data != guide._base).any()  # the loads did re-price legs
+
+
+def test_the_cells_clearance_from_the_compiled_query_is_numpys():
+    guide = _guide()
+    assert guide._batch.compiled
+    clear, normal, _ = guide._clearance(guide.centres)
+    guide._batch = ShapeBatch(guide.bodies)  # numpy's query
+    ref_clear, ref_normal, _ = guide._clearance(guide.centres)
+    assert np.array_equal(clear.view(np.int64), ref_clear.view(np.int64))
+    assert np.array_equal(normal.view(np.int64), ref_normal.view(np.int64))
+    assert (clear < 0).any() and (clear > 5).any()  # inside the wall and the pillar, and far out
+
+
+def test_the_points_of_attraction_follow_the_tables():
+    """The compiled way points against the tables read in numpy: the cell two legs on from
+    the agent's cell, or the goal at the way's end or where no way leads from the cell."""
+    guide = _guide(agents=4)
+    pos = np.array([[30.0, 20.0 + 5 * k, 20.0] for k in range(4)])
+    goal = np.array([[80.0, 60.0 - 5 * k, 20.0] for k in range(4)])
+    guide.reset(pos, goal)
+    rng = np.random.default_rng(4)
+    p = rng.uniform(guide.lo - 5.0, guide.lo + guide.shape * guide.cell + 5.0, (400, 3))
+    p[:10] = goal[0] + rng.normal(size=(10, 3))  # at the end of a way
+    g = goal[rng.integers(0, 4, 400)]
+    table = guide._rows_for(guide.cell_of(g), p)
+    cell = guide.cell_of(p)
+    lost = ~np.isfinite(guide._dist[table, cell])
+    for _ in range(G.HOPS):
+        nxt = guide._next[table, cell]
+        cell = np.where(nxt >= 0, nxt, cell)
+    home = (cell == guide._source[table]) | lost
+    expect = np.where(home[:, None], g, guide.centres[cell])
+    grid = (guide.lo, guide.cell, guide.shape, guide.centres)
+    got = K.way_points(p, g, table, grid, (guide._next, guide._dist, guide._source), G.HOPS)
+    assert np.array_equal(got, expect)
+    assert 0 < home.sum() < len(p)  # goals reached and cells on the way

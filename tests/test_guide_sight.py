@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world
 
+from swarmplan.flight import _guide_kernel as K
 from swarmplan.flight import guide as G
 from swarmplan.flight.kinematics import AgentParams
 
@@ -53,10 +54,9 @@ def _guide(terrain: bool, agents: int) -> G.StaticGuide:
 
 
 @pytest.mark.parametrize(("terrain", "agents"), [(False, 1), (True, 1), (False, 200)])
-def test_passing_over_lines_changes_no_answer(
-    monkeypatch: pytest.MonkeyPatch, terrain: bool, agents: int
-) -> None:
+def test_passing_over_lines_changes_no_answer(terrain: bool, agents: int) -> None:
     guide = _guide(terrain, agents)  # 200 agents: a coarser grid
+    assert guide._lipschitz is not terrain  # over terrain no sample is decided by its cell alone
     rng = np.random.default_rng(7 + agents)
     lo, hi = np.array([-5.0, -5.0, 0.0]), np.array([105.0, 105.0, 55.0])
     passed = far = 0
@@ -66,13 +66,9 @@ def test_passing_over_lines_changes_no_answer(
         end = start + rng.normal(size=(n, 3)) * rng.choice([2.0, 10.0, 40.0])
         reach = rng.choice([np.inf, 5.0, 20.0], n) if trial % 2 else np.inf
         fast = guide.blocked(start, end, reach)
-        kept = len(guide._may_block(*_cut(start, end, reach)))
-        with monkeypatch.context() as m:
-            m.setattr(guide, "_may_block", lambda s, e, length: np.arange(len(s)))
-            m.setattr(guide, "_body_distance", lambda p, cells: guide._batch.distance(p).min(axis=1))
-            slow = guide.blocked(start, end, reach)
+        slow = _every_sample(guide, *_cut(start, end, reach))
         np.testing.assert_array_equal(fast, slow)
-        passed += n - kept
+        passed += int(_passed_over(guide, *_cut(start, end, reach)).sum())
         far += int((~slow).sum())
     assert 0 < passed <= far
 
@@ -81,6 +77,24 @@ def _cut(start: np.ndarray, end: np.ndarray, reach: np.ndarray | float) -> tuple
     length = np.linalg.norm(end - start, axis=1)
     cut = np.minimum(length, reach)
     return start, start + (end - start) * (cut / np.maximum(length, 1e-12))[:, None], cut
+
+
+def _every_sample(guide: G.StaticGuide, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Whether a sample of each line comes within SQUEEZE: every sample measured to every body."""
+    samples = int(min(max(np.ceil(length.max() / (0.5 * float(guide.cell.min()))), 1), 4000))
+    t = np.linspace(0.0, 1.0, samples + 1)
+    p = (start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]).reshape(-1, 3)
+    exact = p[:, 2] - guide.world.terrain_height(p[:, :2]) - guide.floor
+    exact = np.minimum(exact, guide._batch.distance(p).min(axis=1)) - guide.radius
+    return (exact < G.SQUEEZE).reshape(len(start), -1).any(axis=1)
+
+
+def _passed_over(guide: G.StaticGuide, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """The lines the gap table passes over (start cell's gap beyond the length, ends high enough)."""
+    reach = length * (1.0 + 1e-9) + 1e-6
+    kz = np.floor((np.column_stack([start[:, 2], end[:, 2]]) - guide.lo[2]) / guide.cell[2])
+    kz = np.clip(kz, 0, guide.shape[2] - 1).min(axis=1)
+    return (guide._gap[guide.cell_of(start)] > reach) & (kz >= guide._low)
 
 
 def test_gap_is_the_distance_between_cell_boxes() -> None:
@@ -106,8 +120,32 @@ def test_bounding_boxes_bound_the_distances() -> None:
 def test_pairs_measure_the_bits_of_every_body() -> None:
     guide = _guide(False, 1)
     rng = np.random.default_rng(9)
+    b = guide._batch
     p = rng.uniform([1, 1, 1], [99, 99, 49], (5000, 3))
-    guide._reach = np.ones_like(guide._reach)
-    np.testing.assert_array_equal(
-        guide._body_distance(p, guide.cell_of(p)), guide._batch.distance(p).min(axis=1)
+    near = b.position[rng.integers(0, len(b), 5000)] + rng.normal(size=(5000, 3)) * rng.choice(
+        [0.5, 3.0], (5000, 1)
     )
+    p = np.vstack([p, np.clip(near, 1, 49)])  # in the grid, inside and around every body
+    guide._reach = np.ones_like(guide._reach)
+    got = guide._body_distance(p, guide.cell_of(p))
+    np.testing.assert_array_equal(got, b.distance(p).min(axis=1))
+    # and body by body, as numpy's formulas give them (spheres too, of every shape)
+    for j in range(len(b)):
+        one = K.body_distance(
+            p, np.zeros(len(p), dtype=np.int64), np.ones((1, 1), dtype=bool), False,
+            b.position[j : j + 1], b.rotation[j : j + 1], b.code[j : j + 1], b.prm[j : j + 1],
+        )  # fmt: skip
+        np.testing.assert_array_equal(one, b.distance(p)[:, j])
+    assert (got < 0).any() and (got > 5).any()  # inside bodies and far from them
+
+
+def test_cell_of_is_the_clipped_floor_of_the_grid_coordinates() -> None:
+    guide = _guide(False, 1)
+    rng = np.random.default_rng(12)
+    size = guide.shape * guide.cell
+    p = guide.lo + rng.uniform(-0.2, 1.2, (5000, 3)) * size
+    p[:300] = guide.lo + rng.integers(0, guide.shape + 1, (300, 3)) * guide.cell  # on cell faces
+    ijk = np.clip(np.floor((p - guide.lo) / guide.cell).astype(np.int64), 0, guide.shape - 1)
+    expect = (ijk[:, 0] * guide.shape[1] + ijk[:, 1]) * guide.shape[2] + ijk[:, 2]
+    np.testing.assert_array_equal(guide.cell_of(p), expect)
+    assert guide.cell_of(guide.centres[[0, 7, guide.n_cells - 1]]).tolist() == [0, 7, guide.n_cells - 1]

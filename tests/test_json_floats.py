@@ -44,3 +44,22 @@ def test_interleaved_equals_json(seed):
 def test_no_numbers():
     assert Interleaved([b"[]"]).fill(np.zeros(0)) == b"[]"
     assert float_chars(np.zeros(0))[0].shape == (0, 24)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_replaced_pieces_write_the_text_of_new_pieces(compiled):
+    """Interleaved.replace (pieces of other lengths, some longer) writes what an Interleaved
+    made from the new pieces writes, compiled or not, and again after a second replacement."""
+    rng = np.random.default_rng(3)
+    n = 50
+    pieces = [b"[" + b"x" * int(k) + b"," for k in rng.integers(0, 12, n)] + [b"]"]
+    values = np.round(rng.normal(0, 100, n), 6)
+    text = Interleaved(pieces, compiled=compiled)
+    text.fill(values)
+    for _ in range(2):
+        which = sorted(rng.choice(n + 1, 7, replace=False).tolist())
+        pieces = list(pieces)
+        for k in which:
+            pieces[k] = b'"%s"' % (b"y" * int(rng.integers(0, 40)))
+        text.replace(which, pieces)
+        assert text.fill(values) == Interleaved(pieces, compiled=compiled).fill(values)

@@ -106,3 +106,15 @@ def test_a_state_that_is_not_finite_is_refused_compiled_or_not(tmp_path: Path):
         with pytest.raises(ValueError, match="JSON compliant"):
             rec.write_state(0.1, agents, None)
         rec.close()
+
+
+def test_compiled_numbers_at_the_digit_tables_edges():
+    """Whole parts around 10**4 (the four-digit table's end) and fractions with zeros in either
+    of their parts (two and four digits), both signs: json's text from the compiled pass alone."""
+    wholes = [0, 1, 9, 10, 99, 100, 999, 1000, 9999, 10000, 10001, 99999, 123456789, 2**33 - 1]
+    fracs = [0, 1, 9, 10, 100, 1000, 9999, 10000, 10001, 99000, 100000, 120000, 500000, 999999]
+    y = np.array([(w * 10**6 + f) / 1e6 for w in wholes for f in fracs if w or f >= 100])
+    y = np.concatenate([y, -y])
+    pieces = [b"["] + [b","] * (len(y) - 1) + [b"]"]
+    got = Interleaved(pieces, compiled=True).fill_compiled(y)
+    assert got == json.dumps(y.tolist(), separators=(",", ":")).encode()

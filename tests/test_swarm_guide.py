@@ -109,6 +109,30 @@ def test_a_mover_parked_for_good_joins_the_bodies_at_rest():
     assert G.next_rest(world, 0.0) == pytest.approx(5.0) and G.next_rest(world, 5.0) == np.inf
 
 
+def test_the_simulation_goes_round_a_mover_from_the_step_it_parks():
+    plug = {
+        "id": "plug",
+        "shape": "box",
+        "size": [2, 8, 60],
+        "position": [50, 90, 25],
+        "motion": {"type": "waypoints", "waypoints": [[50, 50, 25]], "speed": 8, "loop": False},
+    }
+    world = make_world(
+        base_world(obstacles=WALL + [plug], agents=[{"id": "a", "start": [30, 20, 20], "goal": [70, 20, 20]}])
+    )
+    sim = Simulation(world, planner="none")
+    for run in range(2):  # a second run starts again from the bodies at rest at 0
+        sim.reset(seed=0)
+        seen = []
+        while sim.state.t < 5.35:
+            seen.append((round(sim.state.t, 6), len(sim.guide.bodies)))
+            sim.step()
+        before = [n for t, n in seen if t < 5.0 - 1e-9]
+        after = [n for t, n in seen if t > 5.0 + 1e-9]
+        assert set(before) == {2} and set(after) == {3}, run  # the plug joins when it parks
+        assert sim.navigator.guide is sim.guide
+
+
 def test_pure_apf_goes_round_the_wall_through_the_gap():
     """The agent behind the wall (a local minimum of the bare field) arrives, without contact."""
     world = wall_world(start=(30.0, 20.0, 20.0), goal=(70.0, 20.0, 20.0))

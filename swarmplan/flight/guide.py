@@ -9,7 +9,7 @@ goal over a grid of the free space, is what grid planners descend (Barraquand & 
 :class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
 with the clearance of every cell centre to the static obstacles and the ground, less the
 largest agent radius. Per goal cell it computes once, on first need, the shortest way from every
-cell to the goal (Dijkstra over the 26 neighbours, scipy's compiled one): free cells only enter
+cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
 free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
 times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
 middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
@@ -28,6 +28,9 @@ way (or the goal itself once that is within reach), and its static repulsion is 
 ``REPULSION``. Every other agent flies at its goal as before: in worlds without static obstacles
 nothing is built and nothing changes. An agent following a segment or a global route keeps it,
 and fixed wings (which cannot fly a way that hugs corners) are never guided.
+The searches, the line-of-sight samples and the points on the ways run compiled
+(``_guide_kernel``), each giving the numbers its numpy or scipy formulation gives (the same
+ways, the same decisions).
 Stuck detection measures a guided agent's progress along its way, and the escape planner plans
 no escape for an agent the guide leads (unless a moving obstacle is near; the guide sees static
 ones only): what holds it is other agents.
@@ -42,12 +45,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
+from swarmplan.runtime.compiled import kernel_module
 
 if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
-MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~10 ms per goal for scipy's Dijkstra)
+MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~10 ms per goal for a search)
 MIN_CELL = 1.0  # m: finest cell (small worlds)
 NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
 RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
@@ -61,6 +65,15 @@ RECHECK = 5  # steps between two line-of-sight checks of an agent
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
 
 
+@dataclasses.dataclass
+class _Graph:
+    """A graph over the cells in CSR form (row v: the legs into v, by their start cell)."""
+
+    indptr: np.ndarray  # int32, (cells + 1,)
+    indices: np.ndarray  # int32: the legs' start cells
+    data: np.ndarray  # float64: the legs' costs
+
+
 def _offsets() -> np.ndarray:
     o = np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)])
     return o[np.abs(o).sum(axis=1) > 0]
@@ -70,11 +83,11 @@ class StaticGuide:
     """The grid and the ways to the goals of one world (see the module's description)."""
 
     def __init__(self, world: World, params: AgentParams, bodies: tuple[Obstacle, ...] | None = None):
-        from scipy.sparse import csr_matrix
-
         self.world = world
         self.bodies = world.static_obstacles if bodies is None else bodies
-        self._batch = ShapeBatch(self.bodies)
+        # The clearance of the grid's cells by the compiled query (numpy's bits, a fraction of
+        # its time): the grid is the guide's cost at start-up.
+        self._batch = ShapeBatch(self.bodies, compiled=True)
         self.radius = float(np.max(params.radius))
         self.floor = float(np.min(params.min_altitude)) if len(params.min_altitude) else 0.0
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
@@ -94,7 +107,7 @@ class StaticGuide:
         ii, jj, kk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
         self.ijk = np.column_stack([ii.ravel(), jj.ravel(), kk.ravel()])
         self.centres = lo + (self.ijk + 0.5) * self.cell
-        self.clear, normal = self._clearance(self.centres)
+        self.clear, normal, self._body_clear = self._clearance(self.centres)
         self.free = self.clear > 0.0
         # The clearance a point may lose against its cell's centre (the distance is 1-Lipschitz).
         self.half_diagonal = 0.5 * float(np.linalg.norm(self.cell))
@@ -135,7 +148,7 @@ class StaticGuide:
         np.cumsum(legal.sum(axis=1), out=indptr[1:])
         start = (np.arange(self.n_cells, dtype=np.int32)[:, None] - delta[None, :].astype(np.int32))[legal]
         data = weight[legal]
-        self._reverse = csr_matrix((data, start, indptr), shape=(self.n_cells,) * 2)
+        self._reverse = _Graph(indptr, start, data)
         self._base = data.copy()
         self.near = prox > 0.0
         # Unit directions of the legs into cells near surfaces (the only ones a way re-prices),
@@ -148,7 +161,12 @@ class StaticGuide:
         self._dist = np.empty((0, self.n_cells), dtype=np.float32)
         self._source = np.empty(0, dtype=np.int64)
         self.guided = np.zeros(len(world.agents), dtype=bool)
+        self._t: dict[int, np.ndarray] = {}  # the samples' parameters along a line, by their count
         self._sight_bounds()
+        # The clearance is 1-Lipschitz everywhere (flat ground, exact distances to the bodies).
+        self._lipschitz = not world.peaks and not self._batch.meshes
+        # The grid's box less a margin: a sample beyond it is measured against every body.
+        self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
         self._reach_bodies()
 
     # ------------------------------------------------------------------ geometry
@@ -186,15 +204,16 @@ class StaticGuide:
         self._gap = np.sqrt(sq).ravel()
         self._gap_max = float(self._gap.max())
 
-    def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
-        obstacles and the ground (less the lowest altitude the field keeps agents above), and
-        the outward normal of the nearest of them."""
+        obstacles and the ground (less the lowest altitude the field keeps agents above), the
+        outward normal of the nearest of them, and the clearance to the obstacles alone."""
         w = self.world
         clear = pts[:, 2] - w.terrain_height(pts[:, :2]) - self.floor
         gh = w.terrain_gradient(pts[:, :2])
         normal = np.column_stack([-gh[:, 0], -gh[:, 1], np.ones(len(pts))])
         normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        body = np.full(len(pts), np.inf)
         if self.bodies:
             batch = self._batch
             for a in range(0, len(pts), _CHUNK):
@@ -202,23 +221,36 @@ class StaticGuide:
                 j = np.argmin(d, axis=1)
                 rows = np.arange(len(j))
                 dj = d[rows, j]
+                body[a : a + _CHUNK] = dj
                 closer = dj < clear[a : a + _CHUNK]
                 clear[a : a + _CHUNK][closer] = dj[closer]
                 normal[a : a + _CHUNK][closer] = g[rows, j][closer]
-        return clear - self.radius, normal
+        return clear - self.radius, normal, body - self.radius
 
     def cell_of(self, pts: np.ndarray) -> np.ndarray:
         """Index of the cell holding each of ``pts`` (points outside: the nearest cell)."""
-        ijk = np.floor((np.asarray(pts, dtype=float) - self.lo) / self.cell).astype(np.int64)
-        ijk = np.clip(ijk, 0, self.shape - 1)
-        return (ijk[:, 0] * self.shape[1] + ijk[:, 1]) * self.shape[2] + ijk[:, 2]
+        pts = np.ascontiguousarray(pts, dtype=float).reshape(-1, 3)
+        return kernel_module("swarmplan.flight._guide_kernel").cells_of(pts, self.lo, self.cell, self.shape)
 
     def blocked(self, start: np.ndarray, end: np.ndarray, reach: np.ndarray | float = np.inf) -> np.ndarray:
         """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
         obstacle or the ground inflated by the largest agent radius plus ``SQUEEZE`` (exact
         distances where the grid cannot tell): also a line through a narrow gap, in front of
-        which the full repulsion of its two edges outweighs the pull (a local minimum)."""
-        start, end = np.atleast_2d(start), np.atleast_2d(end)
+        which the full repulsion of its two edges outweighs the pull (a local minimum).
+
+        The samples ``start + t (end - start)`` (t in [0, 1], as many per row as the longest
+        line needs) are measured exactly only where the grid cannot tell (the compiled
+        ``sight_samples``). A line passes unmeasured when no sample of it can land in a cell
+        near a surface: its samples have heights monotone in t (rounding is monotone), so
+        between those of its two ends, whose layers are at least ``_low``: no sample is in a
+        cell near the ground. The cell of a sample holds the sample's nearest point in the
+        grid's box (the index is clipped), which is no farther from the start's nearest point
+        than the sample from the start (projection onto a box does not stretch distances): at
+        most the line's length. So that cell's box is within the length of the start's cell's
+        box, and ``_gap`` there beyond the length (with a margin for rounding) leaves no cell
+        near a body within reach."""
+        start = np.ascontiguousarray(np.atleast_2d(start), dtype=float)
+        end = np.atleast_2d(np.asarray(end, dtype=float))
         n = len(start)
         out = np.zeros(n, dtype=bool)
         if n == 0:
@@ -229,24 +261,27 @@ class StaticGuide:
         length = cut
         step = 0.5 * float(self.cell.min())
         samples = int(min(max(np.ceil(length.max() / step), 1), 4000))  # of all rows: kept as is
-        rows = self._may_block(start, end, length)
-        if not len(rows):
+        t = self._t.get(samples)
+        if t is None:
+            t = self._t[samples] = np.linspace(0.0, 1.0, samples + 1)
+        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        grid = (self.lo, self.cell, self.shape, self.centres, self.clear, self._body_clear)
+        levels = (self.half_diagonal + SQUEEZE, SQUEEZE, self.floor, self.radius)
+        row, p, cells, out = kernels.sight_samples(
+            start, end, length, t, grid, levels, self._gap, self._gap_max, self._low, self._lipschitz
+        )
+        if not len(row):
             return out
-        start, end = start[rows], end[rows]
-        t = np.linspace(0.0, 1.0, samples + 1)
-        pts = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]
-        flat = pts.reshape(-1, 3)
-        flat_cells = self.cell_of(flat)
-        cand = np.flatnonzero(self.clear[flat_cells] < self.half_diagonal + SQUEEZE)
-        if not len(cand):
+        if self._lipschitz:  # flat ground, primitive bodies: all in one compiled pass
+            b = self._batch
+            bodies = (self._reach, b.position, b.rotation, b.code, b.prm)
+            kernels.flat_hits(p, row, cells, out, self._inner, bodies, (SQUEEZE, self.floor, self.radius))
             return out
-        p = flat[cand]
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
         if self.bodies:
-            exact = np.minimum(exact, self._body_distance(p, flat_cells[cand]))
+            exact = np.minimum(exact, self._body_distance(p, cells))
         exact -= self.radius
-        hit = cand[exact < SQUEEZE] // (samples + 1)
-        out[rows[np.unique(hit)]] = True
+        out[row[exact < SQUEEZE]] = True
         return out
 
     def _reach_bodies(self) -> None:
@@ -281,8 +316,11 @@ class StaticGuide:
         ``SQUEEZE`` plus the radius exactly where the nearest of all bodies is. A sample outside
         the grid (its cell's box does not hold it) is measured against every body."""
         b = self._batch
-        margin = 1e-6
-        if ((p < self.lo + margin) | (p > self.lo + self.shape * self.cell - margin)).any():
+        every = bool(((p < self._inner[0]) | (p > self._inner[1])).any())
+        if not b.meshes:
+            kernels = kernel_module("swarmplan.flight._guide_kernel")
+            return kernels.body_distance(p, cells, self._reach, every, b.position, b.rotation, b.code, b.prm)
+        if every:
             return b.distance(p).min(axis=1)
         pt, body = np.nonzero(self._reach[cells])
         out = np.full(len(p), np.inf)
@@ -298,28 +336,6 @@ class StaticGuide:
         first = np.flatnonzero(np.diff(pt, prepend=-1))  # pairs come row by row
         out[pt[first]] = np.minimum.reduceat(d, first)
         return out
-
-    def _may_block(self, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
-        """Rows of the lines ``start`` -> ``end`` (n, 3) of ``length`` (n,) a sample of which may
-        land in a cell near a surface; :meth:`blocked` finds every other one clear. Why no sample
-        of another line can: its samples ``start + t (end - start)``, t in [0, 1], have heights
-        monotone in t (rounding is monotone), so between those of its two ends, whose layers are
-        at least ``_low``: no sample is in a cell near the ground. The cell of a sample holds the
-        sample's nearest point in the grid's box (the index is clipped), which is no farther
-        from the start's nearest point than the sample from the start (projection onto a box
-        does not stretch distances): at most ``length``. So that cell's box is within
-        ``length`` of the start's cell's box, and ``_gap`` there beyond ``length`` (with a
-        margin for rounding) leaves no cell near a body within reach."""
-        reach = length * (1.0 + 1e-9) + 1e-6
-        maybe = np.flatnonzero(reach < self._gap_max)  # the others reach a cell near a body anyway
-        if not len(maybe):
-            return np.arange(len(start))
-        s, e = start[maybe], end[maybe]
-        kz = np.floor((np.column_stack([s[:, 2], (s + (e - s))[:, 2]]) - self.lo[2]) / self.cell[2])
-        kz = np.clip(kz, 0, self.shape[2] - 1).min(axis=1)
-        keep = np.ones(len(start), dtype=bool)
-        keep[maybe] = ~((self._gap[self.cell_of(s)] > reach[maybe]) & (kz >= self._low))
-        return np.flatnonzero(keep)
 
     # ------------------------------------------------------------------ ways to the goals
 
@@ -341,11 +357,11 @@ class StaticGuide:
     def _search(self, goal_cells: np.ndarray, starts: np.ndarray) -> None:
         """Find the ways to ``goal_cells`` (new ones, in order), each then loading the way from
         its start (see :meth:`_rows_for`)."""
-        from scipy.sparse.csgraph import dijkstra
-
+        dijkstra = kernel_module("swarmplan.flight._guide_kernel").dijkstra
+        g = self._reverse
         for c, p in zip(goal_cells.tolist(), starts, strict=True):
             source = self._source_of(c)
-            dist, pred = dijkstra(self._reverse, directed=True, indices=source, return_predecessors=True)
+            dist, pred = dijkstra(g.indptr, g.indices, g.data, source)
             row = len(self._source)
             if row == len(self._next):  # room for a way per agent, then twice as many ways
                 grow = max(8, len(self.guided), 2 * row)
@@ -444,7 +460,8 @@ class StaticGuide:
         in front of the gap, and at a segment's 0.3 agents held beside a doorway's edges while
         the queue passed: doorway, 64 agents, 185/192 arrived over 3 seeds, 192/192 at 0.15).
         Agents whose turn it is (``step``) have their line of sight checked."""
-        to_goal = (target == goal).all(axis=1)
+        same = target == goal
+        to_goal = same[:, 0] & same[:, 1] & same[:, 2]
         due = to_goal & ((idx + step) % RECHECK == 0) & self.can_stop[idx]
         if due.any():
             # An agent not guided yet looks only as far ahead as the static repulsion reaches
@@ -459,14 +476,11 @@ class StaticGuide:
         out = target.copy()
         scale = scale.copy()
         scale[rows] = np.minimum(scale[rows], REPULSION)
-        table = self._rows_for(self.cell_of(goal[rows]), pos[rows])
-        cell = self.cell_of(pos[rows])
-        lost = ~np.isfinite(self._dist[table, cell])
-        for _ in range(HOPS):
-            nxt = self._next[table, cell]
-            cell = np.where(nxt >= 0, nxt, cell)
-        home = (cell == self._source[table]) | lost
-        out[rows] = np.where(home[:, None], goal[rows], self.centres[cell])
+        p, g = pos[rows], goal[rows]
+        table = self._rows_for(self.cell_of(g), p)
+        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        grid = (self.lo, self.cell, self.shape, self.centres)
+        out[rows] = kernels.way_points(p, g, table, grid, (self._next, self._dist, self._source), HOPS)
         return out, scale
 
     def leads(self, i: int, pos: np.ndarray, goal: np.ndarray) -> bool:

@@ -18,6 +18,7 @@ The entities are assembled in protobuf's wire format from the points encoded all
 from __future__ import annotations
 
 import itertools
+from types import ModuleType
 
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
@@ -48,6 +49,8 @@ def _line_fixed_fields(thickness: float) -> tuple[bytes, bytes]:
 
 _LINE_HEAD, _LINE_COLOR = _line_fixed_fields(PATH_THICKNESS)
 _OVERVIEW_HEAD, _ = _line_fixed_fields(PATH_THICKNESS / 2)
+_U8 = {k: np.frombuffer(v, dtype=np.uint8) for k, v in (("frame", _FRAME_FIELD), ("line", _LINE_HEAD),
+       ("overview", _OVERVIEW_HEAD), ("color", _LINE_COLOR))}  # fmt: skip
 
 
 def _line_entities(stamp: bytes, eids: list[bytes], points: list[bytes], head: bytes) -> bytes:
@@ -100,6 +103,12 @@ class PathTrails:
         self.chunk_index = np.zeros(0, dtype=np.intp)
         self._sent_last = np.zeros((0, 3))  # per slot: the last point of its last chunk
         self._pending: list[tuple[np.ndarray, np.ndarray]] = []  # (slots, points) since the last chunks
+        # for the compiled writer (line_entities): the slots in path order, and per slot the
+        # entity ids' bytes ("path/<id>/" of the chunks, "path/<id>" of the overview)
+        self._ids_for = -1  # len(order) they were made for
+        self._order_slots = np.zeros(0, dtype=np.intp)
+        self._chunk_ids: tuple[np.ndarray, np.ndarray] | None = None
+        self._overview_ids: tuple[np.ndarray, np.ndarray] | None = None
 
     def grow(self, k: int) -> None:
         """Room for ``k`` more slots."""
@@ -110,8 +119,24 @@ class PathTrails:
         self.chunk_index = np.concatenate([self.chunk_index, np.zeros(k, dtype=np.intp)])
         self._sent_last = np.concatenate([self._sent_last, np.zeros((k, 3))])
 
-    def sample(self, ids: tuple[str, ...], pos: np.ndarray, slots: np.ndarray) -> None:
-        """Append the agents' positions to their paths; an agent standing on its last point adds none."""
+    def sample(
+        self, ids: tuple[str, ...], pos: np.ndarray, slots: np.ndarray, kernels: ModuleType | None = None
+    ) -> None:
+        """Append the agents' positions to their paths; an agent standing on its last point adds
+        none. ``kernels``: by the compiled ``sample_paths`` (the same arrays)."""
+        if kernels is not None and self.points.shape[1] == self.max_points + 1:
+            pos = np.ascontiguousarray(pos, dtype=float)
+            new = np.empty(len(slots), dtype=np.intp)
+            first = np.empty(len(slots), dtype=np.intp)
+            n_new, n_first = kernels.sample_paths(
+                pos, slots, self.has, self.last, self.points, self.count, self.max_points, new, first
+            )
+            for i in first[:n_first].tolist():  # first points: paths start (message order)
+                self.order[ids[i]] = int(slots[i])
+            if n_new:
+                new = new[:n_new]
+                self._pending.append((slots[new], pos[new]))
+            return
         same = self.has[slots] & (self.last[slots] == pos).all(axis=1)
         new = np.flatnonzero(~same)
         if not len(new):
@@ -136,8 +161,50 @@ class PathTrails:
             self.points[k, : len(kept)] = kept
             self.count[k] = len(kept)
 
-    def chunks(self, stamp: bytes) -> bytes | None:
-        """The ``/scene/paths`` message: per agent with new points, its next chunk (None: none new)."""
+    def _slot_ids(self) -> None:
+        """The per-slot entity ids (bytes) of the paths started so far, for the compiled writer."""
+        if self._ids_for == len(self.order):
+            return
+        self._ids_for = len(self.order)
+        self._order_slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
+        n = len(self.count)
+        names = [b""] * n
+        for aid, k in self.order.items():
+            names[k] = f"path/{aid}".encode()
+        for which, tail in (("_overview_ids", b""), ("_chunk_ids", b"/")):
+            ids = [name + tail if name else b"" for name in names]
+            at = np.zeros(n + 1, dtype=np.intp)
+            np.cumsum([len(i) for i in ids], out=at[1:])
+            setattr(self, which, (np.frombuffer(b"".join(ids) or b"\0", dtype=np.uint8), at))
+
+    def _compiled_entities(
+        self,
+        kernels: ModuleType,
+        stamp: bytes,
+        head: str,
+        ids: tuple[np.ndarray, np.ndarray],
+        entity_slot: np.ndarray,
+        index: np.ndarray,
+        pts: np.ndarray,
+        counts: np.ndarray,
+    ) -> bytes:
+        """The entities' records by ``kernels.line_entities`` (the bytes of :func:`_line_entities`):
+        per slot ``counts`` of the rows of ``pts`` (in slot order), after its chunk's first point
+        (the last sent) when ``index`` says it is not the first chunk."""
+        prefix, prefix_at = ids
+        end = np.cumsum(counts)
+        per_entity = 72 + len(stamp) + len(_FRAME_FIELD) + len(_LINE_HEAD) + len(_LINE_COLOR)
+        out = np.empty(len(entity_slot) * per_entity + int(prefix_at[-1]) + 29 * len(pts), dtype=np.uint8)
+        size = kernels.line_entities(
+            np.frombuffer(stamp, dtype=np.uint8), _U8["frame"], _U8[head], _U8["color"], prefix,
+            prefix_at, entity_slot, index, self._sent_last, np.ascontiguousarray(pts, dtype=float),
+            end - counts, end, out,
+        )  # fmt: skip
+        return out[:size].tobytes()
+
+    def chunks(self, stamp: bytes, kernels: ModuleType | None = None) -> bytes | None:
+        """The ``/scene/paths`` message: per agent with new points, its next chunk (None: none new).
+        ``kernels``: written by the compiled writer (the same bytes)."""
         if not self._pending:
             return None
         slots = np.concatenate([s for s, _ in self._pending])
@@ -145,6 +212,17 @@ class PathTrails:
         self._pending = []
         by_slot = np.argsort(slots, kind="stable")  # each slot's points in the order they came
         slots, pts = slots[by_slot], pts[by_slot]
+        if kernels is not None:
+            self._slot_ids()
+            counts = np.bincount(slots, minlength=len(self.count))
+            entity_slot = self._order_slots[counts[self._order_slots] > 0]
+            data = self._compiled_entities(
+                kernels, stamp, "line", self._chunk_ids, entity_slot, self.chunk_index, pts, counts
+            )
+            moved = counts > 0
+            self._sent_last[moved] = self.last[moved]
+            self.chunk_index[moved] += 1
+            return data
         first = np.flatnonzero(np.diff(slots, prepend=-1))
         moved = slots[first]
         sizes = np.diff(first, append=len(slots))
@@ -161,18 +239,29 @@ class PathTrails:
         self.chunk_index[moved] += 1
         return data
 
-    def overview(self, stamp: bytes) -> bytes | None:
-        """The ``/scene/paths/overview`` message (None: no path yet)."""
+    def overview(self, stamp: bytes, kernels: ModuleType | None = None) -> bytes | None:
+        """The ``/scene/paths/overview`` message (None: no path yet); ``kernels`` as in :meth:`chunks`."""
         if not self.order:
             return None
-        slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
+        paths = slots = np.fromiter(self.order.values(), dtype=np.intp, count=len(self.order))
+        if kernels is not None:
+            slots = np.sort(paths)  # the compiled writer takes the points in slot order
         counts = self.count[slots]
         m = np.minimum(counts, self.overview_points)
         # per path: m evenly spaced indices over its kept points (all of them when few)
         i = np.arange(m.max())
         idx = (2 * i * (counts - 1)[:, None] + (m - 1)[:, None]) // (2 * np.maximum(m - 1, 1))[:, None]
         valid = i < m[:, None]
+        pts = self.points[np.repeat(slots, m), idx[valid]]
+        if kernels is not None:
+            self._slot_ids()
+            per_slot = np.zeros(len(self.count), dtype=np.intp)
+            per_slot[slots] = m
+            none = np.full(len(self.count), -1, dtype=np.intp)
+            return self._compiled_entities(
+                kernels, stamp, "overview", self._overview_ids, paths, none, pts, per_slot
+            )
         bounds = np.concatenate([[0], np.cumsum(m)]).tolist()
         eids = [f"path/{aid}".encode() for aid in self.order]
-        points = _point_groups(self.points[np.repeat(slots, m), idx[valid]], bounds)
+        points = _point_groups(pts, bounds)
         return _line_entities(stamp, eids, points, _OVERVIEW_HEAD)

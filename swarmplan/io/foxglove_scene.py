@@ -76,7 +76,8 @@ from swarmplan.io.foxglove_shapes import (
     rest_orientation,
     world_entities,
 )
-from swarmplan.io.json_floats import Interleaved, record_kernels
+from swarmplan.io.json_floats import record_kernels
+from swarmplan.io.speeds import SPEED_SCHEMA, SPEED_TOPIC, SpeedText
 from swarmplan.io.wire import (
     VECTOR_BYTES,
     Patched,
@@ -93,28 +94,12 @@ from swarmplan.io.wire import (
 SCENE_TOPIC = "/scene"
 WORLD_TOPIC = "/scene/world"
 PATHS_TOPIC = "/scene/paths"
-SPEED_TOPIC = "/agents/speed"
 LOG_TOPIC = "/events/log"
 _EVENT_LEVELS = {
     "collision": Log.ERROR,
     "near_miss": Log.WARNING,
     "stuck": Log.WARNING,
     "timeout": Log.WARNING,
-}
-SPEED_SCHEMA = {
-    "title": "swarmplan.AgentSpeeds",
-    "type": "object",
-    "required": ["t", "mean", "max", "speed"],
-    "properties": {
-        "t": {"type": "number"},
-        "mean": {"type": "number"},
-        "max": {"type": "number"},
-        "speed": {
-            "type": "array",
-            "items": {"type": "number"},
-            "description": "per agent, /agents/state order",
-        },
-    },
 }
 OVERVIEW_TOPIC = "/scene/paths/overview"
 TF_TOPIC = "/tf"
@@ -128,6 +113,7 @@ MODE_COLORS = {
     Mode.FAILED: (0.5, 0.5, 0.5, 1.0),
 }
 _ENTITIES_TAG = b"\x12"  # SceneUpdate.entities: field 2, wire type 2
+_DETAIL_JSON = json.JSONEncoder(separators=(",", ":"), default=str)  # json.dumps's, made once
 _TRANSFORMS_TAG = b"\x0a"  # FrameTransforms.transforms: field 1, wire type 2
 
 
@@ -184,7 +170,7 @@ class FoxgloveScene:
         self._channels[SPEED_TOPIC] = writer.register_channel(
             topic=SPEED_TOPIC, message_encoding="json", schema_id=speed_schema
         )
-        self._speed_text: tuple[int, bool, Interleaved] | None = None
+        self._speeds = SpeedText()
         defaults = world.get("agent_defaults") or {}
         self._radius = {
             str(a["id"]): float(a.get("radius", defaults.get("radius", 0.5)) or 0.5)
@@ -198,6 +184,7 @@ class FoxgloveScene:
         self._mover_known: list[dict | None] = []
         self._mover_rest: list[tuple[float, ...]] = []
         self._mover_templates: dict[tuple[int, bytes], Patched | bool] = {}
+        self._mover_pairs: list[tuple[None, dict]] | None = None
         self._tf_prefix: dict[str, bytes] = {}  # per agent: parent and child frame fields
         # Per agent slot (_rows): last heading as a quaternion's z and w; its path (trails).
         self._slot: dict[str, int] = {}
@@ -260,21 +247,21 @@ class FoxgloveScene:
         scene_due = due(SCENE_TOPIC, self._next_scene)
         if scene_due:
             rows = rows or self._rows(agents)
-            self.trails.sample(rows.ids, rows.pos, rows.slots)
+            self.trails.sample(rows.ids, rows.pos, rows.slots, self._kernels())
             self._write_scene(t, rows, obstacles)
             self._next_scene = t + self.scene_period
             done[SCENE_TOPIC] = t
         if due(PATHS_TOPIC, self._next_path):
             if not scene_due:
                 rows = rows or self._rows(agents)
-                self.trails.sample(rows.ids, rows.pos, rows.slots)
-            data = self.trails.chunks(timestamp_bytes(t))
+                self.trails.sample(rows.ids, rows.pos, rows.slots, self._kernels())
+            data = self.trails.chunks(timestamp_bytes(t), self._kernels())
             if data is not None:
                 self._write(PATHS_TOPIC, data, t)
             self._next_path = t + self.path_period
             done[PATHS_TOPIC] = t
         if due(OVERVIEW_TOPIC, self._next_overview):
-            data = self.trails.overview(timestamp_bytes(t))
+            data = self.trails.overview(timestamp_bytes(t), self._kernels())
             if data is not None:
                 self._write(OVERVIEW_TOPIC, data, t)
             self._next_overview = t + self.overview_period
@@ -334,12 +321,25 @@ class FoxgloveScene:
         # velocity; without horizontal motion the last heading, none yet: identity). The
         # numbers are packed for all agents at once (pose_fields) and the message is one join.
         stamp = timestamp_bytes(t)
+        if rows.ids != self._tf_ids:
+            self._tf_ids = rows.ids
+            self._tf_heads = [self._tf_head(aid) for aid in rows.ids]
+            self._tf_head_len = [len(h) + len(stamp) for h in self._tf_heads]
+            self._tf_stamp_len = len(stamp)
+            self._tf_templates = {}
+        vel = np.ascontiguousarray(rows.vel, dtype=float)
+        template = self._tf_templates.get(len(stamp)) if self.compiled else None
+        if template is not None:
+            # headings, the usual-step check and the numbers in one compiled call
+            pos = np.ascontiguousarray(rows.pos, dtype=float)
+            data = template.fill_poses(stamp, record_kernels(), vel, rows.slots, self._qz, self._qw, pos)
+            if data is not None:
+                self._write(TF_TOPIC, data, t)
+                return
         vx, vy = rows.vel[:, 0], rows.vel[:, 1]
         turning = () if self.compiled else np.flatnonzero((vx != 0.0) | (vy != 0.0))
         if self.compiled:
-            record_kernels().headings(
-                np.ascontiguousarray(rows.vel, dtype=float), rows.slots, self._qz, self._qw
-            )
+            record_kernels().headings(vel, rows.slots, self._qz, self._qw)  # (again: the same)
         elif len(turning):
             # math's functions, as the per-agent encoder used them (numpy's may round otherwise).
             half = np.array(list(map(math.atan2, vy[turning].tolist(), vx[turning].tolist()))) / 2.0
@@ -347,12 +347,6 @@ class FoxgloveScene:
             self._qz[slots] = list(map(math.sin, half.tolist()))
             self._qw[slots] = list(map(math.cos, half.tolist()))
         qz, qw = self._qz[rows.slots], self._qw[rows.slots]
-        if rows.ids != self._tf_ids:
-            self._tf_ids = rows.ids
-            self._tf_heads = [self._tf_head(aid) for aid in rows.ids]
-            self._tf_head_len = [len(h) + len(stamp) for h in self._tf_heads]
-            self._tf_stamp_len = len(stamp)
-            self._tf_templates = {}
         # The usual step (no coordinate or rotation component equal to +-0.0, which proto3
         # writes differently): every record has the same layout as the last such step with a
         # timestamp of this length, so only the numbers and the timestamp are written into it.
@@ -425,12 +419,18 @@ class FoxgloveScene:
             self._recolor(rows)
         # As in _write_tf: with no coordinate equal to +-0.0 the agents' records keep the
         # layout of the last such step (same ids, modes and timestamp length).
-        usual = bool((rows.pos != 0.0).all())
-        template = self._scene_templates.get(len(stamp)) if usual else None
-        if template is not None:
-            agents = template[0].fill(stamp, rows.pos, self._kernels())
-        else:
-            agents = self._scene_agents(stamp, rows, usual)
+        template = self._scene_templates.get(len(stamp))
+        agents = None
+        if template is not None and self.compiled:  # the check and the numbers compiled
+            agents = template[0].fill_nonzero(
+                stamp, np.ascontiguousarray(rows.pos, dtype=float), record_kernels()
+            )
+        if agents is None:
+            usual = bool((rows.pos != 0.0).all())
+            if usual and template is not None:
+                agents = template[0].fill(stamp, rows.pos, self._kernels())
+            else:
+                agents = self._scene_agents(stamp, rows, usual)
         self._write(SCENE_TOPIC, agents + self._movers_bytes(t, stamp, obstacles or []), t)
         self._write_speeds(t, rows)
 
@@ -441,25 +441,17 @@ class FoxgloveScene:
         ns = int(round(t * 1e9))
         entry = Log(
             level=_EVENT_LEVELS.get(event["kind"], Log.INFO),
-            message=f"{event['kind']} {json.dumps(event['detail'], separators=(',', ':'), default=str)}",
+            message=f"{event['kind']} {_DETAIL_JSON.encode(event['detail'])}",
             name=event["agent"] or "run",
         )
         entry.timestamp.seconds, entry.timestamp.nanos = divmod(ns, 1_000_000_000)
         self._write(LOG_TOPIC, entry.SerializeToString(), t)
 
     def _write_speeds(self, t: float, rows: _Rows) -> None:
-        """``/agents/speed``: every agent's speed (m/s, 6 decimals) and their mean and maximum,
-        for plots (Foxglove's Plot panel: ``/agents/speed.max``, ``/agents/speed.speed[:]``)."""
-        n = len(rows.ids)
-        if not n:
-            return
-        speed = np.round(np.sqrt((rows.vel * rows.vel).sum(axis=1)), 6)
-        if self._speed_text is None or self._speed_text[:2] != (n, self.compiled):
-            pieces = [b'{"t":', b',"mean":', b',"max":', b',"speed":['] + [b","] * (n - 1) + [b"]}"]
-            self._speed_text = (n, self.compiled, Interleaved(pieces, compiled=self.compiled))
-        values = np.concatenate(([round(t, 9), round(float(speed.mean()), 6), speed.max()], speed))
-        if np.isfinite(values).all():
-            self._write(SPEED_TOPIC, self._speed_text[2].fill(values), t)
+        """``/agents/speed`` (``swarmplan.io.speeds``)."""
+        data = self._speeds.encode(t, rows.vel, self.compiled)
+        if data is not None:
+            self._write(SPEED_TOPIC, data, t)
 
     def _scene_agents(self, stamp: bytes, rows: _Rows, keep: bool) -> bytes:
         """The agents' entities of a /scene message (``keep``: store them as the template
@@ -522,8 +514,10 @@ class FoxgloveScene:
             self._mover_simple = all(obst.get("shape") in ONE_PRIMITIVE for obst in known)
             self._mover_rest = [rest_orientation(obst) for obst in known]
             self._mover_templates = {}
-        if arrays and self._mover_simple and all(o is not None for o in self._mover_known):
-            known = [(None, obst) for obst in self._mover_known]
+            every = len(known) == len(ids)  # every mover is one of the world's (the usual case)
+            self._mover_pairs = [(None, obst) for obst in known] if every else None
+        if arrays and self._mover_simple and self._mover_pairs is not None:
+            known = self._mover_pairs
             values = np.empty((len(ids), 7))
             values[:, :3] = obstacles.position
             values[:, 3:] = obstacles.orientation

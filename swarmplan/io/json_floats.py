@@ -89,17 +89,35 @@ class Interleaved:
         "_piece_len",
         "_piece_start",
         "_out",
+        "_list",
         "compiled",
     )
 
     def __init__(self, pieces: list[bytes], compiled: bool = False):
         n = self._n = len(pieces) - 1
+        self._list = list(pieces)
         self._pieces = np.frombuffer(b"".join(pieces), dtype=np.uint8)
         piece_len = self._piece_len = np.fromiter(map(len, pieces), dtype=np.intp, count=n + 1)
         self._out = np.empty(len(self._pieces) + 18 * n, dtype=np.uint8)
         self.compiled = compiled
         self._piece_start = np.cumsum(piece_len) - piece_len
         self._seg_len = self._src = self._counter = None  # the numpy path's, at its first use
+
+    def replace(self, which: list[int], pieces: list[bytes]) -> None:
+        """Pieces ``which`` replaced by those of ``pieces`` (the whole new list; the others are
+        the same as before): the text's layout made again from the changed lengths only."""
+        if len(pieces) != self._n + 1:
+            raise ValueError(f"{self._n + 1} pieces expected, got {len(pieces)}")
+        for k in which:
+            self._list[k] = pieces[k]
+            self._piece_len[k] = len(pieces[k])
+        self._pieces = np.frombuffer(b"".join(self._list), dtype=np.uint8)
+        np.cumsum(self._piece_len, out=self._piece_start)
+        self._piece_start -= self._piece_len
+        need = len(self._pieces) + 18 * self._n
+        if len(self._out) < need:
+            self._out = np.empty(need + need // 4, dtype=np.uint8)  # room for longer pieces
+        self._seg_len = self._src = self._counter = None  # the numpy path's, remade at its next use
 
     def _numpy_path(self) -> None:
         """Where each segment's text is in [rows of the numbers, pieces] (the numpy path)."""
@@ -119,6 +137,18 @@ class Interleaved:
             raise ValueError(f"{self._n} numbers expected, got {len(values)}")
         size = record_kernels().interleave(
             self._pieces, self._piece_start, self._piece_len, values, self._out
+        )
+        return self._out[:size].tobytes() if size >= 0 else None
+
+    def fill_rows(self, first: float, a: np.ndarray, b: np.ndarray) -> bytes | None:
+        """:meth:`fill_compiled` of ``first``, then per row i ``a[i]`` and ``b[i]`` (rows of 3),
+        read in place by the compiled pass (no array of the values made)."""
+        a = np.ascontiguousarray(a, dtype=float).reshape(-1, 3)
+        b = np.ascontiguousarray(b, dtype=float).reshape(-1, 3)
+        if 1 + 6 * len(a) != self._n or len(b) != len(a):
+            raise ValueError(f"{self._n} numbers expected, got 1 + 3 * {len(a)} + 3 * {len(b)}")
+        size = record_kernels().interleave_rows(
+            self._pieces, self._piece_start, self._piece_len, first, a, b, self._out
         )
         return self._out[:size].tobytes() if size >= 0 else None
 

@@ -140,6 +140,9 @@ SCHEMAS: dict[str, dict[str, Any]] = {
 
 
 _MODE_JSON = {m: json.dumps(str(m)) for m in Mode}
+# json.dumps(..., separators=(",", ":"), allow_nan=False), its encoder made once (json.dumps
+# makes one per call when given options)
+_COMPACT = json.JSONEncoder(separators=(",", ":"), allow_nan=False)
 
 
 # From this many numbers on, Interleaved's ~40 numpy calls cost less than a %r per number
@@ -208,14 +211,21 @@ class _StateEncoder:
             # only the pieces of agents whose mode changed are made again
             old = self._modes if self._modes is not None else [None] * len(modes)
             pieces = self._pieces
-            for i, (m, was) in enumerate(zip(modes, old, strict=True)):
-                if m != was or self._modes is None:
-                    pieces[7 + 6 * i] = self._tail(i, m)
+            changed = [i for i, (m, was) in enumerate(zip(modes, old, strict=True)) if m != was]
+            for i in changed if self._modes is not None else range(len(modes)):
+                pieces[7 + 6 * i] = self._tail(i, modes[i])
+            known = self._modes is not None and isinstance(self._text, Interleaved)
             self._modes = modes
-            if self.compiled or len(pieces) - 1 >= _NUMPY_FROM:
+            if known and self._text.compiled == self.compiled:
+                self._text.replace([7 + 6 * i for i in changed], pieces)  # the same layout otherwise
+            elif self.compiled or len(pieces) - 1 >= _NUMPY_FROM:
                 self._text = Interleaved(pieces, compiled=self.compiled)
             else:
                 self._text = "%r".join(p.decode().replace("%", "%%") for p in pieces)
+        if not isinstance(self._text, str) and self._text.compiled:
+            data = self._text.fill_rows(round(t, 9), pos, vel)  # read in place, compiled
+            if data is not None:
+                return data
         n = len(agents.ids)
         values = np.empty(1 + 6 * n)
         values[0] = round(t, 9)
@@ -223,12 +233,8 @@ class _StateEncoder:
         rows[:, 0:3], rows[:, 3:6] = pos, vel
         if isinstance(self._text, str):
             return (self._text % tuple(values.tolist())).encode()
-        if self._text.compiled:
-            data = self._text.fill_compiled(values)
-            if data is not None:
-                return data
-            if not np.isfinite(values).all():
-                return None
+        if self._text.compiled and not np.isfinite(values).all():
+            return None
         return self._text.fill(values)
 
 
@@ -244,8 +250,8 @@ class _ObstacleEncoder:
 
     def encode(self, t: float, obstacles: ObstacleStates) -> bytes | None:
         pos, vel = obstacles.position, obstacles.velocity
-        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
-            return None
+        if not self.compiled and not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            return None  # (compiled: the numbers' pass refuses them, then the check below)
         key = (obstacles.ids, self.compiled)
         if key != self._key or self._text is None:
             text = ['{"t":', ',"obstacles":[']
@@ -257,6 +263,12 @@ class _ObstacleEncoder:
             text[-1] += "]}"
             self._text = Interleaved([p.encode() for p in text], compiled=self.compiled)
             self._key = key
+        if self.compiled:
+            data = self._text.fill_rows(round(t, 9), pos, vel)  # read in place, compiled
+            if data is not None:
+                return data
+            if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+                return None
         n = len(obstacles.ids)
         values = np.empty(1 + 6 * n)
         values[0] = round(t, 9)
@@ -340,7 +352,7 @@ class McapRecorder:
 
     def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
         # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
-        data = json.dumps(_clean(msg) if clean else msg, separators=(",", ":"), allow_nan=False).encode()
+        data = _COMPACT.encode(_clean(msg) if clean else msg).encode()
         self.write_bytes(topic, t, data)
 
     def write_world(self, world: dict[str, Any]) -> None:

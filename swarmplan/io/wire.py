@@ -182,10 +182,11 @@ class Patched:
     starts, in the order of the values given to :meth:`fill` (e.g. (n, k) for k per record).
     Every byte that can change is overwritten by ``fill``, so the template is filled in place."""
 
-    __slots__ = ("_buf", "_stamp_at", "_double_at", "_stamp_idx", "_value_idx")
+    __slots__ = ("_bytes", "_buf", "_stamp_at", "_double_at", "_stamp_idx", "_value_idx")
 
     def __init__(self, message: bytes, stamp_at: np.ndarray, stamp_len: int, double_at: np.ndarray):
-        self._buf = np.frombuffer(message, dtype=np.uint8).copy()
+        self._bytes = bytearray(message)  # _buf is a view of it (a part written by slicing)
+        self._buf = np.frombuffer(self._bytes, dtype=np.uint8)
         self._stamp_at = np.asarray(stamp_at, dtype=np.intp)
         self._double_at = np.asarray(double_at, dtype=np.intp).ravel()
         self._stamp_idx = self._stamp_at[:, None] + np.arange(stamp_len)
@@ -193,7 +194,34 @@ class Patched:
 
     def write(self, at: int, data: bytes) -> None:
         """``data`` in place at ``at`` (a part of the message that changed, same length)."""
-        self._buf[at : at + len(data)] = np.frombuffer(data, dtype=np.uint8)
+        self._bytes[at : at + len(data)] = data
+
+    def fill_nonzero(self, stamp: bytes, values: np.ndarray, kernels: ModuleType) -> bytes | None:
+        """:meth:`fill` by the compiled writer when no value is +-0.0 (the layout proto3 gives
+        then is the template's); None, nothing written, otherwise. ``values``: C-contiguous."""
+        done = kernels.patch_nonzero(
+            self._buf, self._stamp_at, np.frombuffer(stamp, dtype=np.uint8), self._double_at, values
+        )
+        return bytes(self._bytes) if done else None
+
+    def fill_poses(
+        self,
+        stamp: bytes,
+        kernels: ModuleType,
+        vel: np.ndarray,
+        slots: np.ndarray,
+        qz: np.ndarray,
+        qw: np.ndarray,
+        pos: np.ndarray,
+    ) -> bytes | None:
+        """``/tf``'s compiled step: the headings of ``vel`` into ``qz``, ``qw`` at ``slots``
+        (``headings``), then, when no position or rotation component is +-0.0, the message with
+        ``stamp`` and per record x, y, z, qz, qw in place; None (headings written) otherwise."""
+        done = kernels.patch_poses(
+            self._buf, self._stamp_at, np.frombuffer(stamp, dtype=np.uint8), self._double_at,
+            vel, slots, qz, qw, pos,
+        )  # fmt: skip
+        return bytes(self._bytes) if done else None
 
     def fill(self, stamp: bytes, values: np.ndarray, kernels: ModuleType | None = None) -> bytes:
         """The message with ``stamp`` and ``values`` (as little-endian doubles) in place; with

@@ -82,6 +82,7 @@ class Simulation:
         # The way round static obstacles for agents whose straight line is blocked (None without any).
         self.guide = make_guide(world, self.params)
         self._guide_at = 0.0  # the time the guide's bodies are at rest for good from
+        self._rest_at = next_rest(world, 0.0)  # when the next mover comes to rest for good
         self._threat_cores = threat_cores(world)
         # What planners read (see swarmplan.core.PlanningContext).
         self.collision = self.scene.collision
@@ -137,6 +138,7 @@ class Simulation:
         self._measure_start(start)
         if self._guide_at > 0.0:  # a mover parked in the last run: back to the bodies at rest at 0
             self.guide, self._guide_at = make_guide(self.world, self.params), 0.0
+            self._rest_at = next_rest(self.world, 0.0)
             self.navigator.guide = self.guide
         if self.guide is not None:
             self.guide.reset(start, goal)
@@ -279,8 +281,9 @@ class Simulation:
                 inputs = with_cores(inputs, pos0[idx], self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
-            if next_rest(w, self._guide_at) <= t0:  # a mover parked for good: go round it too
+            if self._rest_at <= t0:  # a mover parked for good: go round it too
                 self._guide_at = t0
+                self._rest_at = next_rest(w, t0)
                 self.guide = make_guide(w, self.params, t0)
                 self.navigator.guide = self.guide
             if self.guide is not None:
