@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
 from helpers import base_world, make_world
 from test_apf_compiled import N, _inputs, _world
 
-from swarmplan.flight import _apf_numpy
+from swarmplan.flight import _apf_numpy, apf
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.compiled import COMPILED_FROM, FIELD_NUMPY_CALLS
@@ -28,8 +30,21 @@ def _both(
     out = []
     for compiled in (True, False):
         field._numpy_calls = 0 if compiled else 1
-        out.append(field.forces(flyers, inputs, swarm))
+        with _numpy_while_numba_loaded():
+            out.append(field.forces(flyers, inputs, swarm))
+    assert field._numpy_calls == 0 or len(flyers.idx) == 0  # the numpy call was made
     return out[0], out[1]
+
+
+@contextmanager
+def _numpy_while_numba_loaded() -> Iterator[None]:
+    """The field's numpy path also in this process, where numba is loaded."""
+    saved = apf.numba_loaded
+    apf.numba_loaded = lambda: False
+    try:
+        yield
+    finally:
+        apf.numba_loaded = saved
 
 
 def _same_bits(a: np.ndarray, b: np.ndarray) -> None:
@@ -85,7 +100,12 @@ def test_numpy_field_on_degenerate_inputs():
 
 def test_world_size_and_calls_choose_the_implementation(monkeypatch):
     """At swarm size the field runs compiled from its first call; below it, its first
-    ``FIELD_NUMPY_CALLS`` calls run numpy and the later ones compiled."""
+    ``FIELD_NUMPY_CALLS`` calls run numpy and the later ones compiled, unless numba is in the
+    process already (then compiled from the first call)."""
+    from swarmplan.flight import apf
+
+    loaded = [False]
+    monkeypatch.setattr(apf, "numba_loaded", lambda: loaded[0])
     swarm = _world(False)
     assert len(swarm.agents) >= COMPILED_FROM  # the random-swarm world is at swarm size
     assert ApfField(swarm, _inputs(swarm, 0)[0])._numpy_calls == 0
@@ -112,6 +132,11 @@ def test_world_size_and_calls_choose_the_implementation(monkeypatch):
     ]
     assert calls == ["numpy"] * FIELD_NUMPY_CALLS + ["compiled"] * 2
     _same_bits(results[0], results[-1])
+    calls.clear()
+    loaded[0] = True
+    field = ApfField(few, AgentParams.from_world(few))
+    _same_bits(field.forces(Flyers(np.arange(n), pos, vel, goal), empty, Swarm(pos, vel)), results[0])
+    assert calls == ["compiled"]
 
 
 def test_a_small_world_steps_without_numba():
@@ -150,13 +175,15 @@ def test_a_small_swarm_flies_the_same_on_both_fields():
         sim.apf._numpy_calls = 0 if compiled else 10**9
         sim.reset(seed=0)
         steps = []
-        for _ in range(120):
-            r = sim.step()
-            steps.append(
-                (r.state.position.copy(), r.state.velocity.copy(), [(e.kind, e.agent) for e in r.events])
-            )
-            if r.terminated or r.truncated:
-                break
+        with _numpy_while_numba_loaded():
+            for _ in range(120):
+                r = sim.step()
+                steps.append(
+                    (r.state.position.copy(), r.state.velocity.copy(), [(e.kind, e.agent) for e in r.events])
+                )
+                if r.terminated or r.truncated:
+                    break
+        assert sim.apf._numpy_calls == (0 if compiled else 10**9 - len(steps))  # the path each run took
         runs.append(steps)
     assert len(runs[0]) == len(runs[1]) > 50
     for (p0, v0, e0), (p1, v1, e1) in zip(*runs, strict=True):

@@ -38,8 +38,11 @@ so the agent can still brake before the goal and before any obstacle surface ahe
 
 The field has two implementations with the same bits: the compiled kernel, and numpy
 (:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below
-swarm size (``swarmplan.geometry.compiled.field_numpy_calls``). The numpy reference the tests
-compare both with, sums in another order, lives in tests/apf_reference.py.
+swarm size (``swarmplan.geometry.compiled.field_numpy_calls``) while numba is not in the
+process (once something else has loaded it, e.g. the guide's kernels, the kernel costs no more
+to load than its own cached code). The bits are the same, so this is a speed choice only.
+The numpy reference the tests compare both with, sums in another order, lives in
+tests/apf_reference.py.
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ from swarmplan.flight import _apf_numpy
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.compiled import field_numpy_calls
 from swarmplan.geometry.vec3 import dot3, norm3
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, numba_loaded
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -189,7 +192,7 @@ class ApfField:
         )
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach_all = self._reach_at_speed(None, swarm.vel)
-        if self._numpy_calls > 0:
+        if self._numpy_calls > 0 and not numba_loaded():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
         else:

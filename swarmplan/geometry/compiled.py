@@ -14,7 +14,8 @@ potential field (``flight.apf``) runs its compiled kernel from ``COMPILED_FROM``
 below, numpy (the same bits) for its first ``FIELD_NUMPY_CALLS`` calls, then the kernel: a
 small world reaches its first step without loading numba, and a long run pays numba's load
 once instead of numpy's per-call overhead for good (the choice reads the world's size and
-the field's own count of calls, so every run of a world takes the same paths).
+the field's own count of calls; and, the bits being the same, the kernel also runs as soon
+as numba is in the process for other work, e.g. the guide's kernels).
 """
 
 from __future__ import annotations
