@@ -9,7 +9,14 @@ The agent term visits every other agent, but a pair is dismissed with a few prod
 division) when the closest approach of the two centres within the prediction horizon stays
 beyond ``reach``, the distance past which both of its terms are provably zero
 (``apf.current_reach``): the scaled distances are at least the unscaled ones over the largest
-semi-axis.
+semi-axis. With ``window`` (``apf.WINDOW_FROM`` agents on) a flyer tests only the agents
+whose x lies within ``reach + horizon * (its speed + the swarm's top speed) + 1 m`` of its own
+(the swarm sorted along x once per call): the others' relative motion cannot bring them within
+``reach`` along x alone, so the test dismisses them anyway, with a metre to spare against
+rounding; the agents kept are visited in index order, so the forces are summed in the same
+order, to the same bits. A moving body is dismissed the same way before its closest approach is computed (two
+divisions and a root per pair): when the centres are farther apart than the influence, both
+radii and both speeds over the horizon, plus a metre, its term is provably zero.
 
 Loaded at the first step through ``runtime.compiled.kernel_module``; every compiled function of the field is
 in this file (numba's cache does not see changes of callees in other files).
@@ -92,6 +99,22 @@ def _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near):  #
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _index_order(rows, k):  # noqa: ANN001, ANN202
+    """``rows[:k]`` sorted in place: by insertion while short (a flyer's near agents, a few
+    tens), else by numpy's sort."""
+    if k > 64:
+        rows[:k].sort()
+        return
+    for c in range(1, k):
+        b = rows[c]
+        t = c
+        while t > 0 and rows[t - 1] > b:
+            rows[t] = rows[t - 1]
+            t -= 1
+        rows[t] = b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _right(x, y, z):  # noqa: ANN001, ANN202
     """Unit vector to the right of the relative velocity (x, y, z): horizontal (z up) while the
     motion has a horizontal part of at least a fifth of its speed, else about the x axis (the
@@ -113,7 +136,7 @@ def _over(x, y, z):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noqa: ANN001, ANN201, PLR0915
+def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=False):  # noqa: ANN001, ANN201, PLR0915
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
 
     ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed) of
@@ -123,7 +146,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
     terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
     velocities, parked, distance to the goal, reach at the current speed) of every agent;
-    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon)."""
+    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
+    ``window``: test only the agents within each flyer's window along x (the same forces)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
@@ -134,9 +158,13 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     m = dist.shape[1]
     n_all = all_pos.shape[0]
     any_moving = False
+    m_speed = np.zeros(m)  # each mover's speed (the bound that dismisses far movers)
     for j in range(m):
         if moving[j]:
             any_moving = True
+            m_speed[j] = math.sqrt(
+                o_vel[j, 0] * o_vel[j, 0] + o_vel[j, 1] * o_vel[j, 1] + o_vel[j, 2] * o_vel[j, 2]
+            )
     fmax = -np.inf
     for i in range(n):
         fmax = max(fmax, max(min_altitude[idx[i]], terrain_floor))
@@ -147,6 +175,17 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
     X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
     VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
     near = np.empty(n_all, dtype=np.bool_)
+    rows = np.empty(n_all, dtype=np.int64)
+    # With ``window``: the swarm sorted along x, and its top speed, for each flyer's window.
+    v_all = 0.0
+    finite = True  # a NaN anywhere: every agent is tested, as without the window
+    for b in range(n_all):
+        v_all = max(v_all, math.sqrt(VX[b] * VX[b] + VY[b] * VY[b] + VZ[b] * VZ[b]))
+        finite = finite and math.isfinite(X[b] + Y[b] + Z[b] + VX[b] + VY[b] + VZ[b])
+    window = window and n_all >= 2 and finite and math.isfinite(v_all) and 0.0 <= horizon < np.inf
+    order = np.argsort(X) if window else np.arange(n_all)
+    XS, YS, ZS = X[order], Y[order], Z[order]
+    VXS, VYS, VZS = VX[order], VY[order], VZ[order]
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
@@ -220,10 +259,17 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
             if any_moving:
                 # Predicted closest approach to each mover, right-hand bias on collision course.
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
+                speed = math.sqrt(vx * vx + vy * vy + vz * vz)
                 for j in range(m):
                     if not moving[j]:
                         continue
                     dpx, dpy, dpz = px - o_center[j, 0], py - o_center[j, 1], pz - o_center[j, 2]
+                    # A mover farther than the influence, both radii and both motions over the
+                    # horizon (plus a metre against rounding) cannot come within the influence
+                    # (its term is zero): dismissed before the divisions.
+                    far = rho0 + o_radius[j] + ri + horizon * (speed + m_speed[j]) + 1.0
+                    if dpx * dpx + dpy * dpy + dpz * dpz > far * far * (1.0 + 1e-9):
+                        continue
                     dvx, dvy, dvz = vx - o_vel[j, 0], vy - o_vel[j, 1], vz - o_vel[j, 2]
                     a = dvx * dvx + dvy * dvy + dvz * dvz
                     tau = min(max(-(dpx * dvx + dpy * dvy + dpz * dvz) / max(a, _EPS), 0.0), horizon)
@@ -265,9 +311,29 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
         if n_all >= 2:
             ia = idx[i]
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
-            _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
-            for b in range(n_all):
-                if b == ia or not near[b]:
+            k = 0
+            half = (reach + horizon * (math.sqrt(vx * vx + vy * vy + vz * vz) + v_all) + 1.0) * (1.0 + 1e-6)
+            if window and math.isfinite(half) and math.isfinite(px):
+                w_lo = np.searchsorted(XS, px - half, side="left")
+                w_hi = np.searchsorted(XS, px + half, side="right")
+                w = w_hi - w_lo
+                sl = slice(w_lo, w_hi)
+                _near(px, py, pz, vx, vy, vz, XS[sl], YS[sl], ZS[sl], VXS[sl], VYS[sl], VZS[sl],
+                      horizon, reach, near)  # fmt: skip
+                for c in range(w):
+                    if near[c]:
+                        rows[k] = order[w_lo + c]
+                        k += 1
+                _index_order(rows, k)  # the full scan's order of the sums
+            else:
+                _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
+                for b in range(n_all):
+                    if near[b]:
+                        rows[k] = b
+                        k += 1
+            for c in range(k):
+                b = rows[c]
+                if b == ia:
                     continue
                 dpx, dpy, dpz = px - all_pos[b, 0], py - all_pos[b, 1], pz - all_pos[b, 2]
                 dwx, dwy, dwz = vx - all_vel[b, 0], vy - all_vel[b, 1], vz - all_vel[b, 2]
@@ -325,3 +391,49 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out):  # noq
         out[i, 0] = fx
         out[i, 1] = fy
         out[i, 2] = fz
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _maximum(a, b):  # noqa: ANN001, ANN202
+    """``np.maximum`` of two values (NaN wins; of two equal values, the second)."""
+    return a if a > b or a != a else b
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _minimum(a, b):  # noqa: ANN001, ANN202
+    """``np.minimum`` of two values (NaN wins; of two equal values, the second)."""
+    return a if a < b or a != a else b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def commanded_velocity(amax, cruise, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
+    """``apf.commanded_velocity_numpy`` row by row into ``out`` (its operations in its order)."""
+    for i in range(force.shape[0]):
+        a = amax[i]
+        gx, gy, gz = goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1], goal[i, 2] - pos[i, 2]
+        dg = math.sqrt(gx * gx + gy * gy + gz * gz)
+        speed = _minimum(cruise[i], math.sqrt(2.0 * 0.8 * a * dg))
+        fx, fy, fz = force[i, 0], force[i, 1], force[i, 2]
+        f = _maximum(math.sqrt(fx * fx + fy * fy + fz * fz), _EPS)
+        vx, vy, vz = fx / f * speed, fy / f * speed, fz / f * speed
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        toward = -(vx * nx + vy * ny + vz * nz)
+        allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - 0.5, 0.0))
+        excess = _maximum(toward - allowed, 0.0)
+        out[i, 0] = vx + excess * nx
+        out[i, 1] = vy + excess * ny
+        out[i, 2] = vz + excess * nz
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def reach_at_speed(vel, idx, denominator, dt, out):  # noqa: ANN001, ANN201
+    """``apf.ApfField._reach_at_speed`` of multirotors (``denominator``: every agent's
+    ``2 max(max_accel, eps)``; ``idx`` the rows of ``vel``'s agents, or empty for the first
+    ``len(vel)`` agents in order): ``v dt + v^2 / denominator`` into ``out``."""
+    for i in range(vel.shape[0]):
+        x, y, z = vel[i, 0], vel[i, 1], vel[i, 2]
+        v = math.sqrt(x * x + y * y + z * z)
+        k = idx[i] if len(idx) else i
+        out[i] = v * dt + v * v / denominator[k]
+    return out

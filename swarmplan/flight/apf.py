@@ -63,6 +63,11 @@ if TYPE_CHECKING:
     from swarmplan.world.planner_config import ApfConfig
 
 _EPS = 1e-9
+_NO_ROWS = np.zeros(0, dtype=np.int64)
+
+WINDOW_FROM = 128
+"""Swarm size from which the field's agent term tests only the agents within a window along x
+of each flyer (``_apf_kernel.apf_forces``: the same forces, fewer pair tests)."""
 
 
 @dataclass(frozen=True)
@@ -168,9 +173,12 @@ class ApfField:
         if self._any_fixed_wing:
             idx = np.arange(len(vel)) if idx is None else idx
             return np.ascontiguousarray(reach_at_speed(self.params, idx, vel, self.world.dt))
-        v = norm3(vel)
-        denominator = self._brake_denominator[: len(vel)] if idx is None else self._brake_denominator[idx]
-        return np.ascontiguousarray(v * self.world.dt + v * v / denominator)
+        rows = _NO_ROWS if idx is None else np.asarray(idx, dtype=np.int64)
+        vel = np.ascontiguousarray(vel, dtype=float)
+        out = np.empty(len(vel))
+        return kernel_module("swarmplan.flight._apf_kernel").reach_at_speed(
+            vel, rows, self._brake_denominator, self.world.dt, out
+        )
 
     def forces(self, flyers: Flyers, field: FieldInputs, swarm: Swarm) -> np.ndarray:
         n = len(flyers.idx)
@@ -207,6 +215,7 @@ class ApfField:
             self._reach * (1.0 + 1e-9) + 1e-9,
             self._gains,
             out,
+            len(swarm.pos) >= WINDOW_FROM,
         )  # fmt: skip
         return out
 
@@ -229,6 +238,25 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def commanded_velocity(
+    params: AgentParams,
+    idx: np.ndarray,
+    force: np.ndarray,
+    pos: np.ndarray,
+    goal: np.ndarray,
+    clearance: np.ndarray,
+    clearance_dir: np.ndarray,
+) -> np.ndarray:
+    """:func:`commanded_velocity_numpy` in one compiled pass over the rows (the same bits,
+    tests/test_apf_compiled.py)."""
+    f = np.ascontiguousarray
+    return kernel_module("swarmplan.flight._apf_kernel").commanded_velocity(
+        params.max_accel[idx], params.speed_cruise[idx], f(force, dtype=float), f(pos, dtype=float),
+        f(goal, dtype=float), f(clearance, dtype=float), f(clearance_dir, dtype=float),
+        np.empty((len(idx), 3)),
+    )  # fmt: skip
+
+
+def commanded_velocity_numpy(
     params: AgentParams,
     idx: np.ndarray,
     force: np.ndarray,

@@ -110,3 +110,25 @@ def threat_pairs(
         off[m, 0], off[m, 1], off[m, 2] = offsets[m]
     s = np.argsort(key, kind="mergesort")
     return key[s], tm[s], ms[s], off[s]
+
+
+@njit(cache=True, inline="always")
+def _maximum(a: float, b: float) -> float:
+    """``np.maximum`` of two values (NaN wins; of two equal values, the second)."""
+    return a if a > b or a != a else b
+
+
+@njit(cache=True)
+def horizons(
+    need: float, radius: np.ndarray, amax: np.ndarray, vmax: np.ndarray, factor: float, extra: float
+) -> np.ndarray:
+    """``factor * guard.sideways_time(need + radius, amax, vmax) + extra`` per row, numpy's
+    operations in numpy's order (the guard's horizon of each guarding agent)."""
+    out = np.empty(len(radius))
+    for k in range(len(radius)):
+        d = _maximum(need + radius[k], 0.0)
+        a = _maximum(amax[k], _EPS)
+        v = _maximum(vmax[k], _EPS)
+        st = 2.0 * math.sqrt(d / a) if d <= v * v / a else d / v + v / a
+        out[k] = factor * st + extra
+    return out

@@ -285,7 +285,9 @@ class ShapeBatch:
         if d is None:
             d = self.distance(points, c)
         best = np.full(len(points), np.inf)
-        if len(self.meshes) < len(self.obstacles):
+        if not len(self.meshes) and len(self.obstacles):
+            best = d.min(axis=1)  # every column a primitive: the same columns, in the same order
+        elif len(self.meshes) < len(self.obstacles):
             best = d[:, self.code >= 0].min(axis=1)
         for j in self.meshes:
             grid = self.mesh_grids[j]

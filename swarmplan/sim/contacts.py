@@ -3,6 +3,8 @@ misses between agents."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
@@ -12,6 +14,7 @@ from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.metrics import NOTHING, Tally
+from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.scene import Scene
 from swarmplan.world.motion import poses_at
 
@@ -70,17 +73,18 @@ def collide(s: SwarmState, ids: tuple[str, ...], i: int, other: str, t1: float) 
 
 
 def parked_contacts(
-    s: SwarmState, ids: tuple[str, ...], clearance: np.ndarray, nearest: list[str], t1: float
+    s: SwarmState, ids: tuple[str, ...], clearance: np.ndarray, nearest: Callable[[int], str], t1: float
 ) -> Tally:
     """Agents that no longer fly, failed ones (they stay where they gave up, in the air) and
     arrived ones (they hover at their goals), touched by an obstacle at the committed step:
-    ``clearance`` (N,) is every agent's obstacle clearance at its position, ``nearest`` the id of
-    the obstacle nearest each agent. Such a contact is a collision, as the replay's audit counts
-    it (a penetration deeper than 1 mm at a recorded step)."""
+    ``clearance`` (N,) is every agent's obstacle clearance at its position, ``nearest(i)`` the
+    id of the obstacle nearest agent ``i`` (asked only of the agents touched). Such a contact
+    is a collision, as the replay's audit counts it (a penetration deeper than 1 mm at a
+    recorded step)."""
     out = NOTHING
-    parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
+    parked = mode_in(s.mode, PARKED)
     for i in np.flatnonzero(parked & (clearance < -CONTACT_TOL)).tolist():
-        out += collide(s, ids, i, nearest[i], t1)
+        out += collide(s, ids, i, nearest(i), t1)
     return out
 
 
@@ -93,6 +97,7 @@ def arrivals(
     tolerance: float,
     t1: float,
     stop_speed: np.ndarray,
+    active: np.ndarray | None = None,
 ) -> Tally:
     """Agents whose step passed within ``tolerance`` of their goal, slowly enough to stop there,
     have arrived (and stop: their mode and their row of ``vel1`` change). Returns the arrivals.
@@ -104,11 +109,13 @@ def arrivals(
     the tolerance at that speed, so they arrive where they first enter it (the replay's audit
     convention); should one enter faster, it keeps flying under the goal attraction, whose
     speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.flight.apf.commanded_velocity``)
-    brings it to rest at the goal, and arrives once slow enough.
+    brings it to rest at the goal, and arrives once slow enough. ``active``: ``s.active`` when
+    the caller has it at hand.
     """
+    active = s.active if active is None else active
     if not use_compiled_checks(len(ids)):
         # Below swarm size: numpy (the same answers as the kernel).
-        flying = np.flatnonzero(s.active)
+        flying = np.flatnonzero(active)
         d = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
         arrive = (d <= tolerance) & (norm3(vel1[flying]) <= stop_speed[flying] * (1.0 + 1e-9))
         rows, dmins = flying[arrive], d[arrive]
@@ -119,7 +126,7 @@ def arrivals(
             np.ascontiguousarray(pos1, dtype=float),
             np.ascontiguousarray(s.goal, dtype=float),
             np.ascontiguousarray(vel1, dtype=float),
-            np.ascontiguousarray(s.active, dtype=bool),
+            np.ascontiguousarray(active, dtype=bool),
             np.ascontiguousarray(stop_speed, dtype=float),
             float(tolerance),
         )

@@ -24,6 +24,7 @@ from typing import Any, Literal
 import numpy as np
 
 from swarmplan.core import (
+    DONE_MODES,
     AgentStates,
     Event,
     Mode,
@@ -39,13 +40,16 @@ from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded
 from swarmplan.flight.guide import make_guide, next_rest
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.geometry.collision import first_hits
+from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point, parked_contacts
 from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
+from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import Navigator, distance_to_go
-from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
+from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow, step_kernels
 from swarmplan.sim.scene import Scene
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
@@ -91,12 +95,14 @@ class Simulation:
         self.n = len(world.agents)
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.scene)
+        self._compiled = use_compiled_checks(self.n)  # swarm size: compiled per-step helpers
         self.navigator = Navigator(world, self.params, self.guide)
         self.guard = GoalGuard(self.params, world.dt)
         # The speed a one-step stop can take within max_accel (fixed wings: any), read every step.
         self._stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * world.dt)
         self._stop_speed.setflags(write=False)
         self._mover_ids = tuple(o.id for o in world.obstacles if o.moving)
+        self._mover_radii = self.scene.bounding_radius[self.moving_mask]  # read every guarded step
         self.state: SwarmState | None = None
         self.seed: int | None = None
         self._streams: dict[tuple[str, int | None], np.random.Generator] = {}
@@ -259,11 +265,13 @@ class Simulation:
         # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
         # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
         measured = np.ones(self.n, dtype=bool)
+        touched = False  # whether a mode set this step ended an agent (a collision)
 
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
         if self.planner is not None and len(idx):
             for i, seg in self.planner.on_step(self).items():
                 if s.mode[i] == Mode.APF and not self.guard.guarding[i]:
+                    touched |= seg.mode in DONE_MODES  # not a segment's mode: ask the modes again
                     self._merge(nav.start_segment(s, i, seg))
 
         pos0 = s.position.copy()
@@ -275,10 +283,15 @@ class Simulation:
             # The previous step already measured every agent's distances at this position and time.
             if self._field_cache is None:
                 self._field_cache = self.field.query(pos0, q0)
-            d, g = self._field_cache[0][idx], self._field_cache[1][idx]
+            if len(idx) == self.n:  # every agent flies: the rows are the cache's (read only)
+                d, g = self._field_cache
+                p_idx, v_idx, goal_idx = pos0, vel0, s.goal.copy()
+            else:
+                d, g = self._field_cache[0][idx], self._field_cache[1][idx]
+                p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
             inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
             if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
-                inputs = with_cores(inputs, pos0[idx], self._threat_cores)
+                inputs = with_cores(inputs, p_idx, self._threat_cores)
             target, rep_scale, ended = nav.attraction_targets(s, idx)
             self._merge(ended)
             if self._rest_at <= t0:  # a mover parked for good: go round it too
@@ -289,27 +302,28 @@ class Simulation:
             if self.guide is not None:
                 target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
             parked = ~active  # modes changed above stay flying ones: arrivals come later
-            flyers = Flyers(idx, pos0[idx], vel0[idx], s.goal[idx], target, rep_scale)
-            to_go = np.linalg.norm(s.goal - pos0, axis=1)
+            flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
+            to_go = norm3(s.goal - pos0)
             force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
-            clearance, normal = self.scene.nearest_surface(idx, pos0[idx], d, g)
+            clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
             if self._threat_cores is not None:
                 cores, radius = self._threat_cores, self.params.radius[idx]
-                clearance, normal = nearest_with_cores(clearance, normal, pos0[idx], radius, cores)
-            v_cmd = commanded_velocity(self.params, idx, force, pos0[idx], s.goal[idx], clearance, normal)
+                clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
+            v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
             v_cmd = self.guard.commands(idx, v_cmd)
             v_cmd, guarded = self.safety.guard_fixed_wings(idx, pos0, vel0, v_cmd, d, clearance, t0)
             self._merge(guarded)
             # An evading agent is not slowed by its goal: its row names a point so far off that
             # the goal's speed cap never binds.
             evading = self.guard.evading[idx]
-            brake_goal = (
-                np.where(evading[:, None], pos0[idx] + FAR_GOAL, s.goal[idx])
-                if evading.any()
-                else s.goal[idx]
-            )
-            v_cmd, vel1[idx], free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
-            pos1[idx] = pos0[idx] + vel1[idx] * dt
+            brake_goal = np.where(evading[:, None], p_idx + FAR_GOAL, goal_idx) if evading.any() else goal_idx
+            v_cmd, v_new, free = self.safety.brake_and_limit(idx, pos0, vel0, v_cmd, q0, q1, brake_goal)
+            if len(idx) == self.n:  # every row (the same values as through idx)
+                vel1[:] = v_new
+                pos1 = pos0 + vel1 * dt
+            else:
+                vel1[idx] = v_new
+                pos1[idx] = pos0[idx] + vel1[idx] * dt
             filtered = self.safety.filter(
                 Commands(idx, v_cmd),
                 AgentMotion(pos0, vel0),
@@ -329,18 +343,24 @@ class Simulation:
                 )
                 for i, hit in zip(check, hits, strict=True):
                     if hit is not None:
+                        touched = True
                         self._merge(collide(s, self.ids, i, hit, t1))
                         pos1[i] = crash_point(self.scene, self.params.radius[i], pos0[i], pos1[i], t0, dt)
                         vel1[i] = 0.0
         for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] != Mode.COLLIDED:  # an arrived agent touched is a collision too
+                    touched = True
                     self._merge(collide(s, self.ids, a, self.ids[b], t1))
 
         # Arrival (and its stop) only at a speed a one-step stop can take within max_accel.
         # Agents out of a threat's way cannot arrive; one back at its goal ends its evasion.
         stop_speed = self.guard.stop_speeds(self._stop_speed)
-        arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed)
+        # Only a collision ends an agent between the step's start and here (segments, their ends
+        # and the guard's take-offs keep agents flying): who still flies is known without
+        # asking every mode again.
+        flying = s.active if touched else active
+        arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying)
         self._merge(self.guard.arrived(arrived, s))
 
         # Clearances at the committed positions (also the next step's distances).
@@ -348,12 +368,10 @@ class Simulation:
         if len(self.world.obstacles):
             # Exact for meshes too (the grid in the cache is approximate, a lower bound beyond it).
             obst_clear = self.field.min_distance(pos1, q1, self._field_cache[0]) - self.params.radius
-            parked = (s.mode == Mode.FAILED) | (s.mode == Mode.ARRIVED)
+            parked = mode_in(s.mode, PARKED)
             if parked.any():
                 # Arrived and failed agents stay in the air: an obstacle moving through one is a collision.
-                ids = [o.id for o in self.world.obstacles]
-                nearest = [ids[int(k)] for k in np.argmin(self._field_cache[0], axis=1)]
-                self._merge(parked_contacts(s, self.ids, obst_clear, nearest, t1))
+                self._merge(parked_contacts(s, self.ids, obst_clear, self._nearest_obstacle, t1))
         agent_clear = self.scene.agent_clearance(pos1)
         terr_clear = pos1[:, 2] - w.terrain_height(pos1[:, :2]) - self.params.radius
         self.metrics.add_step(pos0, pos1, measured, obst_clear, agent_clear, terr_clear, flying_before)
@@ -374,13 +392,17 @@ class Simulation:
         agents, obstacles = self._agent_states(), self._obstacle_states(t1)
         return StepResult(s, events, terminated, truncated, agents, obstacles, runs)
 
+    def _nearest_obstacle(self, i: int) -> str:
+        """The id of the obstacle nearest to agent ``i`` at the step's end."""
+        return self.world.obstacles[int(np.argmin(self._field_cache[0][i]))].id
+
     def _guard_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
         """The goal guard's threat test at the step's start (``swarmplan.sim.guard``); an agent
         that takes off flies straight back to its goal afterwards (the rest of its route is done)."""
         if self._field_cache is None:
             self._field_cache = self.field.query(s.position, q0)
         cache, mv = self._field_cache, self.moving_mask
-        movers = (q0[mv], qv0[mv], self.scene.bounding_radius[mv], self._mover_ids)
+        movers = (q0[mv], qv0[mv], self._mover_radii, self._mover_ids)
 
         def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             return self.scene.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])
@@ -400,7 +422,11 @@ class Simulation:
     def _agent_states(self) -> AgentStates:
         """The ``/agents/state`` entries, as arrays (no dict per agent: a log encodes them directly)."""
         s = self.state
-        return AgentStates(self.ids, np.round(s.position, 6), np.round(s.velocity, 6), s.mode.copy(), s.goal)
+        if self._compiled:  # both roundings in one compiled call (the same bits)
+            position, velocity = step_kernels().round6(s.position, s.velocity)
+        else:
+            position, velocity = np.round(s.position, 6), np.round(s.velocity, 6)
+        return AgentStates(self.ids, position, velocity, s.mode.copy(), s.goal)
 
     def _obstacle_states(self, t: float) -> ObstacleStates | None:
         """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""

@@ -37,6 +37,7 @@ from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim.metrics import NOTHING, Tally
+from swarmplan.sim.modes import mode_in, mode_table
 from swarmplan.sim.safety import AGENT_MARGIN
 
 GUARD_MARGIN = 0.5
@@ -46,6 +47,7 @@ HORIZON_FACTOR = 1.5
 """The threat horizon over the time a sideways move by the needed distance takes."""
 
 _EPS = 1e-9
+_GUARDED = mode_table(Mode.ARRIVED, Mode.APF)  # the guard's agents: at their goals or in the field
 
 
 def _approach(
@@ -161,15 +163,15 @@ class GoalGuard:
         under threat take off (mode ``apf``, an ``evade_start`` event and an ``evasions`` count);
         agents already away stay evading while threatened. Returns the take-offs."""
         self.evading[:] = False
-        rows = np.flatnonzero(self.guarding & ((s.mode == Mode.ARRIVED) | (s.mode == Mode.APF)))
+        rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED))
         if not len(rows):
             return NOTHING
         p = self.params
         centres, velocities, radii, ids = threats
         # Flying agents are threats too (an agent on its way, or another one evading).
         flying = np.flatnonzero(s.active)
-        c = np.vstack([centres, s.position[flying]])
-        u = np.vstack([velocities, s.velocity[flying]])
+        c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
+        u = np.concatenate((velocities, s.velocity[flying]))
         margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + AGENT_MARGIN])
         who = np.concatenate([np.full(len(centres), -1), flying])
         if not len(c):
@@ -177,7 +179,12 @@ class GoalGuard:
         radius = p.radius[rows]
         amax, vmax = p.max_accel[rows], p.speed_max[rows]
         # The largest need of each agent: max_j (margin_j + r) is max(margin) + r (rounding keeps order).
-        horizon = HORIZON_FACTOR * sideways_time(margin.max() + radius, amax, vmax) + 3.0 * self.dt
+        if self._compiled:  # one compiled pass, the same bits
+            horizon = kernel_module("swarmplan.geometry._approach_kernel").horizons(
+                float(margin.max()), radius, amax, vmax, HORIZON_FACTOR, 3.0 * self.dt
+            )
+        else:
+            horizon = HORIZON_FACTOR * sideways_time(margin.max() + radius, amax, vmax) + 3.0 * self.dt
         # Each threat's own motion against the agent held where it is (its evasion is what it
         # controls), and against its goal: it stays out until the goal is clear again.
         pairs = threat_pairs(

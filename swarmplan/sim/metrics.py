@@ -108,16 +108,22 @@ class RunMetrics:
         """One step of every agent from ``pos0`` to ``pos1``: path length and clearances of the
         ``active`` (measured) agents; ``flying`` (default ``active``) marks those that flew it
         (not yet arrived), for the threat exposure."""
-        self.path_length += np.where(active, norm3(pos1 - pos0), 0.0)
-        self.min_clearance = np.where(
-            active, np.minimum(self.min_clearance, obstacle_clearance), self.min_clearance
-        )
-        self.min_agent_clearance = np.where(
-            active, np.minimum(self.min_agent_clearance, agent_clearance), self.min_agent_clearance
-        )
-        self.min_terrain_clearance = np.where(
-            active, np.minimum(self.min_terrain_clearance, terrain_clearance), self.min_terrain_clearance
-        )
+        if active.all():  # every agent measured (the simulation's case): no selection to make
+            self.path_length += norm3(pos1 - pos0)
+            self.min_clearance = np.minimum(self.min_clearance, obstacle_clearance)
+            self.min_agent_clearance = np.minimum(self.min_agent_clearance, agent_clearance)
+            self.min_terrain_clearance = np.minimum(self.min_terrain_clearance, terrain_clearance)
+        else:
+            self.path_length += np.where(active, norm3(pos1 - pos0), 0.0)
+            self.min_clearance = np.where(
+                active, np.minimum(self.min_clearance, obstacle_clearance), self.min_clearance
+            )
+            self.min_agent_clearance = np.where(
+                active, np.minimum(self.min_agent_clearance, agent_clearance), self.min_agent_clearance
+            )
+            self.min_terrain_clearance = np.where(
+                active, np.minimum(self.min_terrain_clearance, terrain_clearance), self.min_terrain_clearance
+            )
         self.positions.append(pos1.copy())
         self.flying.append((active if flying is None else flying).copy())
 

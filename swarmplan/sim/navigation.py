@@ -5,10 +5,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from itertools import repeat
+from operator import is_not
 
 import numpy as np
 
 from swarmplan.core import (
+    DONE_MODES,
     FAILED,
     REACH_STEPS,
     SEGMENT_MODES,
@@ -69,7 +72,10 @@ class Navigator:
         scale = np.ones(len(idx))
         # Agents with neither a segment nor a route fly at their goal: nothing to do for them.
         seg, route = s.segment, s.route
-        planned = [k for k, i in enumerate(idx.tolist()) if seg[i] is not None or route[i] is not None]
+        if not any(map(is_not, seg, repeat(None))) and not any(map(is_not, route, repeat(None))):
+            planned = []  # no agent has either (one pass over the lists, no per-agent test)
+        else:
+            planned = [k for k, i in enumerate(idx.tolist()) if seg[i] is not None or route[i] is not None]
         for k in planned:
             i = idx[k]
             if s.mode[i] in SEGMENT_MODES and s.segment[i] is not None:
@@ -150,8 +156,9 @@ class Navigator:
         window = self.world.planner_config.stuck.window
         min_progress = self.world.planner_config.stuck.min_progress
         # Only agents following a segment or whose window has run out need work this step.
-        apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=len(s.mode))
-        due = s.active & (~apf | (s.t - self.progress_t >= window - 1e-9))
+        # One pass over the modes: 0 done (arrived, collided, failed), 1 apf, 2 on a segment.
+        kind = np.fromiter(map(_STUCK_KIND.__getitem__, s.mode.tolist()), dtype=np.int8, count=len(s.mode))
+        due = np.where(kind == 1, s.t - self.progress_t >= window - 1e-9, kind == 2)
         if exempt is not None:
             due &= ~exempt
         rows = np.flatnonzero(due)
@@ -219,6 +226,11 @@ class Navigator:
         self.segment_ref.pop(i, None)
         rejoin_route(s, i)
         return Tally(events=(Event(s.t, self.params.ids[i], kind, {"abandoned": True, "waypoint": k}),))
+
+
+_STUCK_KIND = {m: 0 if m in DONE_MODES else (1 if m == Mode.APF else 2) for m in Mode}
+"""Per mode, what :meth:`Navigator.detect_stuck` does with an agent: 0 nothing (it no longer
+flies), 1 its progress window (APF), 2 its segment's watchdog."""
 
 
 def failure_reason(reported: tuple[Event, ...]) -> str:

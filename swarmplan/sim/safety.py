@@ -86,6 +86,7 @@ class SafetyFilter:
         # Every agent's radius with its safety margin (radius + margin), read every step.
         self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
+        self._every = np.arange(len(params.radius))  # the rows of a step where every agent flies
 
     def guard_fixed_wings(
         self,
@@ -286,13 +287,19 @@ class SafetyFilter:
         cw = self.scene.collision
         dt = self.world.dt
         all_rows = len(k) == len(v_cmd)
+        every = all_rows and len(rows) == len(pos0) and bool((rows == self._every).all())
+        if every:  # every agent, in order: the arrays themselves
+            start, v0, amax, vmax, radii = pos0, vel0, p.max_accel, p.speed_max, self._checked_radius
+        else:
+            start, v0, amax, vmax = pos0[rows], vel0[rows], p.max_accel[rows], p.speed_max[rows]
+            radii = self._checked_radius[rows]
         out, vel1, status, decided = step_kernels().braking_margin(
-            np.ascontiguousarray(pos0[rows]),
-            np.ascontiguousarray(vel0[rows]),
+            np.ascontiguousarray(start, dtype=float),
+            np.ascontiguousarray(v0, dtype=float),
             np.ascontiguousarray(v_cmd if all_rows else v_cmd[k], dtype=float),
-            np.ascontiguousarray(pos0[rows] if goal is None else goal[k], dtype=float),
+            np.ascontiguousarray(start if goal is None else goal[k], dtype=float),
             goal is not None,
-            p.max_accel[rows], p.speed_max[rows], self._checked_radius[rows],
+            amax, vmax, radii,
             dt, dt**2, float(self.world.goal_tolerance), self._bounds[0], self._bounds[1],
             *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6, check_step and all_rows,
         )  # fmt: skip
@@ -449,10 +456,9 @@ class SafetyFilter:
         active = np.zeros(n, dtype=bool)
         active[idx] = True
         stopped = np.zeros(n, dtype=bool)
+        present = active | (mode == Mode.ARRIVED)  # no mode changes below
         for _ in range(n):
-            pairs = agent_contacts_indexed(
-                pos0, pos1, self.params.radius, active | (mode == Mode.ARRIVED), AGENT_MARGIN
-            )
+            pairs = agent_contacts_indexed(pos0, pos1, self.params.radius, present, AGENT_MARGIN)
             changed = False
             for a, b in pairs:
                 for i in (a, b):
@@ -475,7 +481,9 @@ class SafetyFilter:
             if not changed:
                 break
         tally = Tally(events=tuple(events), counts=tuple(counts)) if events or counts else NOTHING
-        return Filtered(AgentMotion(pos1, vel1), validated & ~stopped[idx], tally)
+        if stopped.any():
+            validated &= ~stopped[idx]
+        return Filtered(AgentMotion(pos1, vel1), validated, tally)
 
     def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]:
         """The counters an emergency stop of agent ``i`` from velocity ``v0`` adds to: always

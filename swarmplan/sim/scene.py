@@ -12,6 +12,7 @@ from swarmplan.geometry.collision import CollisionWorld
 from swarmplan.geometry.compiled import field_kernels, use_compiled
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.world.model import World
 from swarmplan.world.motion import max_speed, poses_at
 
@@ -37,6 +38,7 @@ class Scene:
         self._moving_ids = tuple(o.id for o in self._moving)
         self._static_pos = np.array([o.position for o in world.obstacles], dtype=float).reshape(-1, 3)
         self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._at_rest: tuple[np.ndarray, np.ndarray] | None = None  # the poses when nothing moves
         self.moving_quat = [
             matrix_to_quaternion(o.rotation).round(9).tolist() for o in world.moving_obstacles
         ]
@@ -47,12 +49,17 @@ class Scene:
         A step asks for its start and end time and the log for the end time again, and the
         next step starts there: the last two answers are kept (exact, a function of ``t``), and
         only the moving obstacles are evaluated (one Python call each)."""
+        if not self._moving_idx.size:  # nothing moves: the same poses at every time
+            if self._at_rest is None:
+                pos, vel = self._static_pos.copy(), np.zeros_like(self._static_pos)
+                pos.flags.writeable = vel.flags.writeable = False
+                self._at_rest = (pos, vel)
+            return self._at_rest
         hit = self._poses.get(t)
         if hit is not None:
             return hit
         pos, vel = self._static_pos.copy(), np.zeros_like(self._static_pos)
-        if self._moving_idx.size:
-            pos[self._moving_idx], vel[self._moving_idx] = poses_at(self._moving, t)
+        pos[self._moving_idx], vel[self._moving_idx] = poses_at(self._moving, t)
         pos.flags.writeable = vel.flags.writeable = False
         if len(self._poses) >= 2:
             del self._poses[next(iter(self._poses))]
@@ -95,4 +102,7 @@ class Scene:
             return None
         pos, vel = self.poses(t)
         pos, vel = pos[self._moving_idx], vel[self._moving_idx]
+        if self.compiled:  # both roundings in one compiled call (the same bits)
+            pos, vel = kernel_module("swarmplan.sim._step_kernels").round6(pos, vel)
+            return ObstacleStates(self._moving_ids, pos, self.moving_quat, vel)
         return ObstacleStates(self._moving_ids, np.round(pos, 6), self.moving_quat, np.round(vel, 6))
