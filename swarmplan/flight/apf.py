@@ -173,6 +173,10 @@ class ApfField:
         if self._any_fixed_wing:
             idx = np.arange(len(vel)) if idx is None else idx
             return np.ascontiguousarray(reach_at_speed(self.params, idx, vel, self.world.dt))
+        if not numba_loaded():  # the kernel's formula in numpy (the same bits): numba stays unloaded
+            v = norm3(vel)
+            denominator = self._brake_denominator[: len(vel)] if idx is None else self._brake_denominator[idx]
+            return np.ascontiguousarray(v * self.world.dt + v * v / denominator)
         rows = _NO_ROWS if idx is None else np.asarray(idx, dtype=np.int64)
         vel = np.ascontiguousarray(vel, dtype=float)
         out = np.empty(len(vel))
@@ -247,7 +251,10 @@ def commanded_velocity(
     clearance_dir: np.ndarray,
 ) -> np.ndarray:
     """:func:`commanded_velocity_numpy` in one compiled pass over the rows (the same bits,
-    tests/test_apf_compiled.py)."""
+    tests/test_apf_compiled.py); numpy itself until numba is in the process (a small world's
+    steps never load numba for it)."""
+    if not numba_loaded():
+        return commanded_velocity_numpy(params, idx, force, pos, goal, clearance, clearance_dir)
     f = np.ascontiguousarray
     return kernel_module("swarmplan.flight._apf_kernel").commanded_velocity(
         params.max_accel[idx], params.speed_cruise[idx], f(force, dtype=float), f(pos, dtype=float),
