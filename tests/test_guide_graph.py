@@ -1,9 +1,11 @@
 """The guide's graph (swarmplan.flight.guide) against a plain construction of it: the reversed
-graph built in place equals, to the bit, the one scipy builds from the list of legs and
+graph built in one compiled pass (the rows of the cells near surfaces, the other cells' legs
+implied by their offsets) equals, to the bit, the one scipy builds from the list of legs and
 transposes, and re-pricing a way's cells gives the legs the costs computed cell by cell from
 the cells' centres. The searches run on these arrays, so equal arrays mean equal ways; and the
 compiled search finds scipy's distances and predecessors to the bit, on the guide's graph and
-on small graphs with random costs (ties among equal distances included)."""
+on small grids with random costs (ties among equal distances included), reading the legs'
+start cells and, away from surfaces, their costs from the offsets."""
 
 from __future__ import annotations
 
@@ -68,47 +70,78 @@ def _reference_graph(guide: G.StaticGuide) -> csr_matrix:
     return g.T.tocsr()
 
 
+def _expand(indptr, indices, data, grid) -> csr_matrix:
+    """The whole graph: the stored rows, and the legs of the other cells from their offsets (their
+    start cells the cell less the offset's delta, their costs its length)."""
+    mask, read, delta, length = grid
+    bits = ((mask[:, None] >> np.arange(len(delta), dtype=np.uint32)) & 1).astype(bool)
+    v, q = np.nonzero(bits)  # cell by cell, offset by offset
+    cost = length[q].copy()
+    cost[read[v]] = data
+    stored = np.repeat(np.arange(len(mask)), np.diff(indptr))
+    assert np.array_equal(stored, v[read[v]]) and np.array_equal(indices, (v - delta[q])[read[v]])
+    full = np.concatenate([[0], np.cumsum(bits.sum(axis=1))]).astype(np.int32)
+    return csr_matrix((cost, (v - delta[q]).astype(np.int32), full), shape=(len(mask),) * 2)
+
+
 def test_the_graph_built_in_place_is_the_one_scipy_assembles():
     guide = _guide()
     ref, got = _reference_graph(guide), guide._reverse
-    assert np.array_equal(got.indptr, ref.indptr)
-    assert np.array_equal(got.indices, ref.indices)
-    assert np.array_equal(got.data.view(np.int64), ref.data.view(np.int64))
+    full = _expand(got.indptr, got.indices, got.data, got.grid)
+    assert np.array_equal(full.indptr, ref.indptr)
+    assert np.array_equal(full.indices, ref.indices)
+    assert np.array_equal(full.data.view(np.int64), ref.data.view(np.int64))
+    read = got.grid[1]
+    assert read.any() and not read.all() and len(got.data) < len(ref.data)  # rows near surfaces
     # and so the same search: distances and next cells, from a goal behind the wall and from
     # cells all over the grid, scipy's on scipy's graph and the compiled one on the guide's
     cells = [int(guide.cell_of(np.array([[80.0, 60.0, 20.0]]))[0])]
     cells += np.random.default_rng(2).choice(guide.n_cells, 5, replace=False).tolist()
     for source in cells:
         d0, p0 = dijkstra(ref, directed=True, indices=source, return_predecessors=True)
-        d1, p1 = K.dijkstra(got.indptr, got.indices, got.data, source)
+        d1, p1 = K.dijkstra(got.indptr, got.data, got.grid, source)
         assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
         assert np.array_equal(p0, p1)
         assert np.isfinite(d1).sum() > guide.n_cells // 2  # the free space is reached
 
 
-def test_the_compiled_search_is_scipys_on_random_graphs():
+def test_the_compiled_search_is_scipys_on_random_grids():
     rng = np.random.default_rng(11)
-    for trial in range(40):
-        n = int(rng.integers(2, 300))
-        nnz = int(rng.integers(1, 8 * n))
-        rows, cols = rng.integers(0, n, nnz), rng.integers(0, n, nnz)
-        # costs from a few values: many ways of equal length, where only the order of the
-        # search decides the predecessor
-        cost = (
-            rng.choice([0.5, 1.0, 1.5, 2.0, np.sqrt(2.0)], nnz) if trial % 2 else rng.uniform(0.1, 5.0, nnz)
+    for trial in range(30):
+        shape = rng.integers(2, 8, 3)
+        n = int(np.prod(shape))
+        offsets, delta, length, row, rights = G._legs(shape, np.ones(3))  # equal cells: ties
+        free = rng.random(n) < 0.8
+        prox = np.where(rng.random(n) < 0.5, 0.0, rng.choice([0.25, 0.5, 1.0], n))
+        prox[~free] = 1.0
+        side = rng.uniform(-1.0, 1.0, (len(rights), n))
+        indptr, indices, data, mask = K.reverse_graph(
+            free, prox, side, (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT)
         )
-        g = csr_matrix((cost, (rows, cols)), shape=(n, n))
-        g.sum_duplicates()
-        g.data = np.maximum(g.data, 1e-3)  # no zero cost (scipy drops explicit zeros)
-        source = int(rng.integers(0, n))
-        d0, p0 = dijkstra(g, directed=True, indices=source, return_predecessors=True)
-        d1, p1 = K.dijkstra(g.indptr.astype(np.int32), g.indices.astype(np.int32), g.data, source)
-        assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
-        assert np.array_equal(p0, p1)
-    # and on a line of three vertices, by hand: 0 -> 1 -> 2 at 1 + 2, 0 -> 2 directly at 4
-    g = csr_matrix(([1.0, 4.0, 2.0], ([0, 0, 1], [1, 2, 2])), shape=(3, 3))
-    d, p = K.dijkstra(g.indptr, g.indices, g.data, 0)
-    assert d.tolist() == [0.0, 1.0, 3.0] and p.tolist() == [K.NO_WAY, 0, 1]
+        read = prox > 0.0
+        # the legs stored (into cells near surfaces): costs from a few values (many ways of equal length,
+        # where only the order of the search decides the predecessor) or random ones
+        if trial % 2:
+            data[:] = rng.choice([0.5, 1.0, 1.5, 2.0, np.sqrt(2.0)], len(data))
+        else:
+            data[:] = rng.uniform(0.1, 5.0, len(data))
+        g = _expand(indptr, indices, data, (mask, read, delta, length))
+        for source in rng.choice(n, 3, replace=False).tolist():
+            d0, p0 = dijkstra(g, directed=True, indices=source, return_predecessors=True)
+            d1, p1 = K.dijkstra(indptr, data, (mask, read, delta, length), source)
+            assert np.array_equal(d0.view(np.int64), d1.view(np.int64))
+            assert np.array_equal(p0, p1)
+    # and on a line of three cells, by hand: legs of length 1, those into the middle cell
+    # (near a surface: its row stored) 3 = 1 + 1 * NEAR; the ways to the top cell
+    shape = np.array([1, 1, 3])
+    offsets, delta, length, row, rights = G._legs(shape, np.ones(3))
+    free, prox = np.ones(3, dtype=bool), np.array([0.0, 1.0, 0.0])
+    indptr, indices, data, mask = K.reverse_graph(
+        free, prox, np.zeros((len(rights), 3)), (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT)
+    )
+    assert indptr.tolist() == [0, 0, 2, 2] and indices.tolist() == [0, 2] and data.tolist() == [3.0, 3.0]
+    d, p = K.dijkstra(indptr, data, (mask, prox > 0.0, delta, length), 2)
+    assert d.tolist() == [4.0, 1.0, 0.0] and p.tolist() == [1, 2, K.NO_WAY]
 
 
 def test_re_pricing_gives_each_leg_the_cost_computed_cell_by_cell():

@@ -106,6 +106,24 @@ def test_gap_is_the_distance_between_cell_boxes() -> None:
         np.testing.assert_allclose(guide._gap[c], np.sqrt((d**2).sum(axis=1)).min(), rtol=1e-12)
 
 
+def test_the_compiled_gap_table_is_numpys_shift_by_shift() -> None:
+    for terrain, agents in ((False, 1), (True, 64)):
+        guide = _guide(terrain, agents)
+        near = (guide.clear < guide.half_diagonal + G.SQUEEZE) & (guide.ijk[:, 2] >= guide._low)
+        sq = np.where(near.reshape(tuple(int(v) for v in guide.shape)), 0.0, np.inf)
+        for axis in range(3):
+            src = np.moveaxis(sq, axis, 0)
+            out = src.copy()
+            for s in range(1, int(guide.shape[axis])):
+                term = (max(s - 1, 0) * guide.cell[axis]) ** 2
+                np.minimum(out[s:], src[:-s] + term, out=out[s:])
+                np.minimum(out[:-s], src[s:] + term, out=out[:-s])
+            sq = np.moveaxis(out, 0, axis)
+        expect = np.sqrt(sq).ravel()
+        assert np.array_equal(guide._gap.view(np.int64), expect.view(np.int64))
+        assert guide._gap_max == expect.max() and 0 < (guide._gap > 0).sum() < guide.n_cells
+
+
 def test_bounding_boxes_bound_the_distances() -> None:
     guide = _guide(False, 1)
     rng = np.random.default_rng(5)
@@ -115,6 +133,19 @@ def test_bounding_boxes_bound_the_distances() -> None:
     d = guide._batch.distance(p)
     assert (d[below > 0] >= below[below > 0] - 1e-9).all()  # inside a box: any distance
     assert (np.abs(d - below) < 0.5).any(axis=0).all()  # and not loosely: some points come close
+
+
+def test_the_compiled_reach_table_is_numpys() -> None:
+    guide = _guide(False, 1)
+    lo = guide.lo + guide.ijk * guide.cell
+    hi = lo + guide.cell
+    b = guide._batch
+    for k in range(len(guide.bodies)):
+        c, e = b.position[k], guide._box_half[k]
+        gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
+        expect = np.sqrt((gap * gap).sum(axis=1)) < guide.radius + G.SQUEEZE + 1e-6
+        np.testing.assert_array_equal(guide._reach[:, k], expect)
+        assert expect.any() and not expect.all()  # cells round the body, and cells away from it
 
 
 def test_pairs_measure_the_bits_of_every_body() -> None:

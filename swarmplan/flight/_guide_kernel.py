@@ -9,6 +9,9 @@ greatest vertex index; the legs of a vertex are relaxed in their CSR order. Dist
 predecessors follow from that order alone, so any queue that pops the vertices in it gives the
 same tables: here a binary heap holding each vertex once (its key lowered in place), smaller
 than scipy's, and no per-call checks and copies of the graph (nor scipy.sparse at start-up).
+The graph is the guide's grid of 26 neighbours (:func:`reverse_graph` builds it): a leg's start
+cell and, away from surfaces, its cost follow from its offset, so only the legs into cells near
+surfaces are stored (and re-priced by the ways' loads).
 """
 
 from __future__ import annotations
@@ -25,16 +28,26 @@ _MARGIN = 1e-6
 
 @njit(cache=True)
 def dijkstra(
-    indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, source: int
+    indptr: np.ndarray,
+    data: np.ndarray,
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    source: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Distances (float64) and predecessors (int32, ``NO_WAY`` where none) from ``source``
-    over the graph ``(data, indices, indptr)`` (CSR, non-negative weights)."""
+    over the guide's reversed graph (``reverse_graph``: CSR ``indptr`` and ``data``; its
+    ``indices`` are implicit). ``grid``: per cell the bits of its legs (``mask``: bit q set
+    for a leg along offset q) and whether its row holds their costs (``read``: elsewhere the
+    leg along offset q costs ``length[q]``), and per offset its flat ``delta`` and ``length``.
+    The leg's start cell is the cell less ``delta[q]``: a search reads the stored legs of the
+    cells near surfaces only."""
+    mask, read, delta, length = grid
     n = len(indptr) - 1
+    m = len(delta)
     dist = np.full(n, np.inf)
     pred = np.full(n, NO_WAY, dtype=np.int32)
-    at = np.full(n, -1, dtype=np.int64)  # a vertex's place in the heap (-1: not in it)
-    hd = np.empty(n)  # the heap: keys (distance, vertex) ...
-    hv = np.empty(n, dtype=np.int64)
+    at = np.full(n, -1, dtype=np.int32)  # a vertex's place in the heap (-1: not in it)
+    hd = np.empty(n + 1)  # the heap: keys (distance, vertex), and a sentinel past its end
+    hv = np.empty(n + 1, dtype=np.int32)
     size = 1
     dist[source] = 0.0
     hd[0] = 0.0
@@ -47,26 +60,38 @@ def dijkstra(
         size -= 1
         if size > 0:  # the last entry sifts down from the root
             kd, kv = hd[size], hv[size]
+            hd[size] = np.inf  # never the lesser child
+            hv[size] = -1
             i = 0
             while True:
                 c = 2 * i + 1
                 if c >= size:
                     break
-                if c + 1 < size and (hd[c + 1] < hd[c] or (hd[c + 1] == hd[c] and hv[c + 1] > hv[c])):
-                    c += 1
-                if hd[c] < kd or (hd[c] == kd and hv[c] > kv):
-                    hd[i] = hd[c]
-                    hv[i] = hv[c]
-                    at[hv[i]] = i
+                d0, d1 = hd[c], hd[c + 1]
+                c += np.int64((d1 < d0) | ((d1 == d0) & (hv[c + 1] > hv[c])))  # no branch
+                cd, cv = hd[c], hv[c]
+                if cd < kd or (cd == kd and cv > kv):
+                    hd[i] = cd
+                    hv[i] = cv
+                    at[cv] = i
                     i = c
                 else:
                     break
             hd[i] = kd
             hv[i] = kv
             at[kv] = i
-        for j in range(indptr[u], indptr[u + 1]):
-            w = indices[j]
-            nd = du + data[j]
+        bits = mask[u]
+        j = indptr[u]
+        row = read[u]
+        for q in range(m):
+            if not (bits >> np.uint32(q)) & np.uint32(1):
+                continue
+            w = u - delta[q]
+            if row:
+                nd = du + data[j]
+                j += 1
+            else:
+                nd = du + length[q]
             if dist[w] > nd:
                 dist[w] = nd
                 pred[w] = u
@@ -75,9 +100,10 @@ def dijkstra(
                     i = size
                     size += 1
                 while i > 0:  # sift up
-                    p = (i - 1) // 2
-                    if nd < hd[p] or (nd == hd[p] and w > hv[p]):
-                        hd[i] = hd[p]
+                    p = (i - 1) >> 1
+                    pd = hd[p]
+                    if nd < pd or (nd == pd and w > hv[p]):
+                        hd[i] = pd
                         hv[i] = hv[p]
                         at[hv[i]] = i
                         i = p
@@ -359,3 +385,158 @@ def cells_of(pts: np.ndarray, lo: np.ndarray, cell: np.ndarray, shape: np.ndarra
     for k in range(len(pts)):
         out[k] = _cell(pts[k, 0], pts[k, 1], pts[k, 2], lo, cell, shape)
     return out
+
+
+@njit(cache=True)
+def reverse_graph(
+    free: np.ndarray,
+    prox: np.ndarray,
+    side: np.ndarray,
+    legs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    shape: np.ndarray,
+    costs: tuple[float, float],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The guide's reversed graph in CSR form (``StaticGuide``: row v holds the legs into cell v,
+    by their start cells, ascending), rows only for the cells near surfaces (``prox`` > 0: the
+    legs into any other cell cost their lengths, see :func:`dijkstra`), in two passes over the
+    cells: count, then fill. ``legs``:
+    the 26 offsets (sorted so that their start cells ascend), their flat deltas, their lengths
+    and, per offset, the row of ``side`` (the cells' normals on the leg's right-hand side, as
+    numpy's product computes them) or -1 for a vertical leg; ``costs``: ``NEAR`` and ``RIGHT``.
+    Each cost is the numpy expression's, operation by operation (the same bits). Also per cell
+    the bits of its row's offsets (bit q: the leg along offset q, for :func:`dijkstra`)."""
+    offsets, delta, length, row = legs
+    near, right = costs
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    n = nx * ny * nz
+    m = len(delta)
+    indptr = np.zeros(n + 1, dtype=np.int32)
+    mask = np.zeros(n, dtype=np.uint32)
+    for pass_ in range(2):
+        if pass_ == 1:
+            for v in range(n):
+                indptr[v + 1] += indptr[v]
+            indices = np.empty(indptr[n], dtype=np.int32)
+            data = np.empty(indptr[n])
+        else:
+            indices = np.empty(0, dtype=np.int32)
+            data = np.empty(0)
+        v = 0
+        for i in range(nx):
+            for j in range(ny):
+                for k in range(nz):
+                    at = indptr[v]
+                    count = 0
+                    for q in range(m):
+                        si, sj, sk = i - offsets[q, 0], j - offsets[q, 1], k - offsets[q, 2]
+                        if si < 0 or si >= nx or sj < 0 or sj >= ny or sk < 0 or sk >= nz:
+                            continue
+                        u = v - delta[q]
+                        if not (free[v] or not free[u]):
+                            continue
+                        if pass_ == 0:
+                            mask[v] |= np.uint32(1) << np.uint32(q)
+                        elif prox[v] > 0.0:
+                            indices[at + count] = u
+                            if free[v]:
+                                s = 0.0
+                                if row[q] >= 0:
+                                    s = max(side[row[q], v], 0.0)
+                                data[at + count] = length[q] * (1.0 + prox[v] * (near + right * s))
+                            else:
+                                data[at + count] = 10.0 * length[q]
+                        count += 1
+                    if pass_ == 0 and prox[v] > 0.0:
+                        indptr[v + 1] = count
+                    v += 1
+    return indptr, indices, data, mask
+
+
+@njit(cache=True)
+def reach_table(
+    lo: np.ndarray, cell: np.ndarray, shape: np.ndarray, near: np.ndarray, far: np.ndarray, limit: float
+) -> np.ndarray:
+    """Per cell of the grid (corner ``lo``, cell sizes ``cell``, ``shape``) and per body with
+    the box ``near`` to ``far`` (m, 3): whether the distance between the cell's box and the
+    body's box is below ``limit`` (``StaticGuide._reach_bodies``: numpy's operations in its
+    order, the squares summed from the first axis on)."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    m = len(near)
+    out = np.zeros((nx * ny * nz, m), dtype=np.bool_)
+    v = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                a0 = lo[0] + i * cell[0]
+                a1 = lo[1] + j * cell[1]
+                a2 = lo[2] + k * cell[2]
+                b0, b1, b2 = a0 + cell[0], a1 + cell[1], a2 + cell[2]
+                for b in range(m):
+                    g0 = max(max(a0 - far[b, 0], near[b, 0] - b0), 0.0)
+                    g1 = max(max(a1 - far[b, 1], near[b, 1] - b1), 0.0)
+                    g2 = max(max(a2 - far[b, 2], near[b, 2] - b2), 0.0)
+                    out[v, b] = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2) < limit
+                v += 1
+    return out
+
+
+@njit(cache=True)
+def _line_min_plus(
+    src: np.ndarray, out: np.ndarray, start: int, stride: int, size: int, term: np.ndarray
+) -> None:
+    """``out`` on one line of the grid (``size`` cells from ``start``, ``stride`` apart): per
+    cell the least ``src`` of a cell s cells away plus ``term[s]`` (``src`` >= 0, ``term``
+    non-decreasing: the candidates past a ``term`` no less than the least so far cannot be less)."""
+    for p in range(size):
+        v = start + p * stride
+        best = src[v] + term[0]
+        for s in range(1, size):
+            t = term[s]
+            if t >= best:
+                break
+            if s <= p:
+                best = min(best, src[v - s * stride] + t)
+            if p + s < size:
+                best = min(best, src[v + s * stride] + t)
+        out[v] = best
+
+
+@njit(cache=True)
+def gap_squares(
+    near: np.ndarray, shape: np.ndarray, terms: tuple[np.ndarray, np.ndarray, np.ndarray]
+) -> np.ndarray:
+    """Per cell of the grid (flat, of ``shape``) the least sum over the axes, in their order, of
+    ``terms[axis][s]`` (s: the cells between it and a ``near`` cell along that axis) over the
+    near cells: the minimum one axis after the other, each the same sums as numpy's shift by
+    shift (``StaticGuide._sight_bounds``). Along the first axis the sources are 0 or inf, so
+    the least is the term of the distance to the nearest near cell on the line."""
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    t0, t1, t2 = terms
+    first = np.full(len(near), np.inf)
+    for j in range(ny):
+        for k in range(nz):
+            start = j * nz + k
+            stride = ny * nz
+            last = -1  # the nearest near cell before, then after
+            for i in range(nx):
+                v = start + i * stride
+                if near[v]:
+                    last = i
+                if last >= 0:
+                    first[v] = 0.0 + t0[i - last]
+            last = -1
+            for i in range(nx - 1, -1, -1):
+                v = start + i * stride
+                if near[v]:
+                    last = i
+                if last >= 0:
+                    first[v] = min(first[v], 0.0 + t0[last - i])
+    second = np.empty(len(near))
+    for i in range(nx):
+        for k in range(nz):
+            _line_min_plus(first, second, i * ny * nz + k, nz, ny, t1)
+    third = np.empty(len(near))
+    for i in range(nx):
+        for j in range(ny):
+            _line_min_plus(second, third, (i * ny + j) * nz, 1, nz, t2)
+    return third

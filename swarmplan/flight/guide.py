@@ -51,7 +51,7 @@ if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
-MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~10 ms per goal for a search)
+MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~6 ms per goal for a search)
 MIN_CELL = 1.0  # m: finest cell (small worlds)
 NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
 RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
@@ -67,16 +67,49 @@ _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacl
 
 @dataclasses.dataclass
 class _Graph:
-    """A graph over the cells in CSR form (row v: the legs into v, by their start cell)."""
+    """A graph over the cells in CSR form (row v: the legs into v, by their start cell; rows
+    only for the cells near surfaces: the legs into any other cell cost their lengths)."""
 
     indptr: np.ndarray  # int32, (cells + 1,)
     indices: np.ndarray  # int32: the legs' start cells
     data: np.ndarray  # float64: the legs' costs
+    # What the search needs besides (``_guide_kernel.dijkstra``): per cell the bits of the
+    # offsets of its legs and whether it has a row (near surfaces), per offset the flat delta
+    # and the length.
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def _offsets() -> np.ndarray:
     o = np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)])
     return o[np.abs(o).sum(axis=1) > 0]
+
+
+_OFFSETS = _offsets()  # the 26 neighbours' offsets
+_AROUND = np.vstack([np.zeros((1, 3), dtype=_OFFSETS.dtype), _OFFSETS])  # and the cell itself
+
+
+def _legs(shape: np.ndarray, cell: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The 26 offsets ordered so that the start cells of the legs into a cell ascend, their flat
+    deltas and lengths, per offset its row among the unit vectors to the right of the legs not
+    vertical (-1 for a vertical one), and those vectors."""
+    offsets = _OFFSETS
+    ny, nz = int(shape[1]), int(shape[2])
+    delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
+    order = np.argsort(-delta, kind="stable")
+    offsets, delta = offsets[order], delta[order]
+    length = np.empty(len(offsets))
+    row = np.full(len(offsets), -1, dtype=np.int64)
+    rights = []
+    for k, o in enumerate(offsets):
+        step = o * cell
+        length[k] = float(np.linalg.norm(step))
+        e = step / length[k]
+        right = np.array([e[1], -e[0], 0.0])
+        nr = float(np.linalg.norm(right))
+        if nr > 0.2:
+            row[k] = len(rights)
+            rights.append(right / nr)
+    return offsets, delta, length, row, np.array(rights).reshape(-1, 3)
 
 
 class StaticGuide:
@@ -114,46 +147,25 @@ class StaticGuide:
         c0 = max(2.0 * float(self.cell.max()), 4.0)
         prox = np.clip(1.0 - self.clear / c0, 0.0, 1.0)
         # The reversed graph in CSR form (row v: the legs into v, by their start cell, ascending):
-        # searches run from the goal over reversed legs. Column k of ``weight`` holds the legs
-        # into each cell along offset k, the offsets ordered so that their start cells ascend.
-        offsets = _offsets()
-        delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
-        order = np.argsort(-delta, kind="stable")
-        offsets, delta = offsets[order], delta[order]
-        weight = np.zeros((self.n_cells, len(offsets)), order="F")  # written column by column
-        legal = np.zeros((self.n_cells, len(offsets)), dtype=bool, order="F")
-        flat = np.arange(self.n_cells).reshape(nx, ny, nz)
-        for k, o in enumerate(offsets):
-            src = flat[
-                max(0, -o[0]) : nx - max(0, o[0]),
-                max(0, -o[1]) : ny - max(0, o[1]),
-                max(0, -o[2]) : nz - max(0, o[2]),
-            ].ravel()
-            dst = src + delta[k]
-            # Free cells lead only into free cells; a cell inside the inflated obstacles leads out.
-            keep = self.free[dst] | ~self.free[src]
-            src, dst = src[keep], dst[keep]
-            step = o * self.cell
-            length = float(np.linalg.norm(step))
-            e = step / length
-            right = np.array([e[1], -e[0], 0.0])
-            nr = float(np.linalg.norm(right))
-            side = np.zeros(len(dst))
-            if nr > 0.2:
-                side = np.maximum(normal[dst] @ (right / nr), 0.0)
-            w = length * (1.0 + prox[dst] * (NEAR + RIGHT * side))
-            weight[dst, k] = np.where(self.free[dst], w, 10.0 * length)
-            legal[dst, k] = True
-        indptr = np.zeros(self.n_cells + 1, dtype=np.int32)
-        np.cumsum(legal.sum(axis=1), out=indptr[1:])
-        start = (np.arange(self.n_cells, dtype=np.int32)[:, None] - delta[None, :].astype(np.int32))[legal]
-        data = weight[legal]
-        self._reverse = _Graph(indptr, start, data)
-        self._base = data.copy()
+        # searches run from the goal over reversed legs. Per offset not vertical the cells'
+        # normals on the leg's right-hand side (numpy's product over all cells: the bits it
+        # gives the legs' end cells); the graph itself in one compiled pass.
+        offsets, delta, length, row, rights = _legs(self.shape, self.cell)
+        side = np.empty((len(rights), self.n_cells))
+        for k, r in enumerate(rights):
+            np.matmul(normal, r, out=side[k])
+        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        indptr, start, data, mask = kernels.reverse_graph(
+            self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT)
+        )
+        # A cell with no proximity (free) has legs that cost their lengths (``1 + 0 * x`` is 1,
+        # and the loads re-price only cells near surfaces): it has no row.
         self.near = prox > 0.0
+        self._reverse = _Graph(indptr, start, data, (mask, self.near, delta, length))
+        self._base = data.copy()
         # Unit directions of the legs into cells near surfaces (the only ones a way re-prices),
-        # found at a cell's first re-pricing.
-        self._leg_dir = np.zeros((len(data), 3))
+        # found at a cell's first re-pricing (only those rows are ever read).
+        self._leg_dir = np.empty((len(data), 3))
         self._has_dir = np.zeros(self.n_cells, dtype=bool)
         self._flow = np.zeros((self.n_cells, 3))  # directions of the ways through each cell
         self._row_of = np.full(self.n_cells, -1, dtype=np.int64)  # goal cell -> row of the tables below
@@ -191,17 +203,13 @@ class StaticGuide:
         # The box-to-box distance between cells (i, j, k) and (i', j', k') is the root of the sum
         # over the axes of ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum
         # over the near cells is taken one axis after the other (a min-plus product with the
-        # term of that axis), exactly, in (cells x cells along the axis) work: shift by shift.
-        sq = np.where(near, 0.0, np.inf)
-        for axis in range(3):
-            src = np.moveaxis(sq, axis, 0)
-            out = src.copy()
-            for s in range(1, int(self.shape[axis])):
-                term = (max(s - 1, 0) * self.cell[axis]) ** 2
-                np.minimum(out[s:], src[:-s] + term, out=out[s:])
-                np.minimum(out[:-s], src[s:] + term, out=out[:-s])
-            sq = np.moveaxis(out, 0, axis)
-        self._gap = np.sqrt(sq).ravel()
+        # term of that axis), exactly (compiled: ``gap_squares``).
+        terms = tuple(
+            np.array([(max(s - 1, 0) * self.cell[axis]) ** 2 for s in range(int(self.shape[axis]))])
+            for axis in range(3)
+        )
+        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        self._gap = np.sqrt(kernels.gap_squares(near.ravel(), self.shape, terms))
         self._gap_max = float(self._gap.max())
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -301,13 +309,15 @@ class StaticGuide:
         local[b.code == 3, 2] += b.prm[b.code == 3, 0]  # capsule: and its caps
         # local = (p - centre) @ R, so |p - centre| <= |R| @ local half-extents per world axis.
         self._box_half = np.einsum("mjk,mk->mj", np.abs(b.rotation), local) * (1.0 + 1e-9) + 1e-9
-        lo = self.lo + self.ijk * self.cell
-        hi = lo + self.cell
-        self._reach = np.zeros((self.n_cells, len(self.bodies)), dtype=bool)
-        for k in range(len(self.bodies)):
-            c, e = b.position[k], self._box_half[k]
-            gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
-            self._reach[:, k] = np.sqrt((gap * gap).sum(axis=1)) < self.radius + SQUEEZE + 1e-6
+        # The distance between the boxes below the radius plus ``SQUEEZE``, compiled.
+        self._reach = kernel_module("swarmplan.flight._guide_kernel").reach_table(
+            self.lo,
+            self.cell,
+            self.shape,
+            b.position - self._box_half,
+            b.position + self._box_half,
+            self.radius + SQUEEZE + 1e-6,
+        )
 
     def _body_distance(self, p: np.ndarray, cells: np.ndarray) -> np.ndarray:
         """The distance from each of the samples ``p`` in ``cells`` to the nearest body its cell
@@ -361,7 +371,7 @@ class StaticGuide:
         g = self._reverse
         for c, p in zip(goal_cells.tolist(), starts, strict=True):
             source = self._source_of(c)
-            dist, pred = dijkstra(g.indptr, g.indices, g.data, source)
+            dist, pred = dijkstra(g.indptr, g.data, g.grid, source)
             row = len(self._source)
             if row == len(self._next):  # room for a way per agent, then twice as many ways
                 grow = max(8, len(self.guided), 2 * row)
@@ -393,7 +403,7 @@ class StaticGuide:
         a, b = np.array(way[:-1]), np.array(way[1:])
         d = self.centres[b] - self.centres[a]
         d /= np.linalg.norm(d, axis=1, keepdims=True)
-        nb = (self.ijk[b][:, None, :] + np.vstack([[0, 0, 0], _offsets()])[None]).reshape(-1, 3)
+        nb = (self.ijk[b][:, None, :] + _AROUND[None]).reshape(-1, 3)
         ok = ((nb >= 0) & (nb < self.shape)).all(axis=1)
         cells = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
         dirs = np.repeat(d, 27, axis=0)
@@ -425,7 +435,7 @@ class StaticGuide:
         most clearance when the goal's own cell is not free."""
         if self.free[cell]:
             return cell
-        nb = self.ijk[cell] + _offsets()
+        nb = self.ijk[cell] + _OFFSETS
         nb = nb[((nb >= 0) & (nb < self.shape)).all(axis=1)]
         flat = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
         return int(flat[np.argmax(self.clear[flat])])
