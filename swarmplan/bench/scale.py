@@ -217,11 +217,16 @@ def _row(name: str, value: str, target: str, verdict: str) -> None:
     print(f"| {name} | {value} | {target} | {verdict} |", flush=True)
 
 
-def startup_seconds(record: bool = False, caching: bool = False) -> tuple[float, float, float]:
+#: libraries whose import costs start-up a tenth of a second or more, named when loaded
+HEAVY_IMPORTS = ("numba", "scipy.sparse", "scipy.sparse.csgraph", "scipy.spatial", "scipy.linalg", "trimesh")
+
+
+def startup_seconds(record: bool = False, caching: bool = False) -> tuple[float, float, float, list[str]]:
     """(seconds from interpreter start-up to after the first step, the child's CPU seconds to
     the same point (interpreter start included: the figure a loaded machine does not inflate),
-    whole subprocess wall time). With ``record`` the simulation writes an MCAP log as the
-    command line does (mcap, protobuf and the Foxglove schemas imported, the header written).
+    whole subprocess wall time, which of :data:`HEAVY_IMPORTS` the child had loaded by then).
+    With ``record`` the simulation writes an MCAP log as the command line does (mcap, protobuf
+    and the Foxglove schemas imported, the header written).
 
     The figure is that of a second and later run: Python's bytecode of the package and numba's
     machine code of the kernels cached on disk (``__pycache__``). A run with ``caching`` writes
@@ -244,15 +249,16 @@ def startup_seconds(record: bool = False, caching: bool = False) -> tuple[float,
             if record
             else "s.reset(seed=0); s.step()\n"
         )
-        + "print(time.perf_counter() - t0, time.process_time())\n"
+        + "import sys; print(time.perf_counter() - t0, time.process_time(), "
+        f"*[m for m in {HEAVY_IMPORTS!r} if m in sys.modules])\n"
     )
     env = None
     if caching:
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     t = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
-    first, cpu = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
-    return first, cpu, time.perf_counter() - t
+    first, cpu, *loaded = out.stdout.strip().splitlines()[-1].split()
+    return float(first), float(cpu), time.perf_counter() - t, loaded
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -419,7 +425,7 @@ def main(args: argparse.Namespace) -> int:
     # page cache and the machine's other work), after one that writes the caches
     first_run = startup_seconds(caching=True)[0], startup_seconds(record=True, caching=True)[0]
     samples = sorted((startup_seconds() for _ in range(3)), key=lambda r: r[0])
-    first, cpu, whole = samples[1]
+    first, cpu, whole, loaded = samples[1]
     spread = f"{samples[0][0]:.2f}-{samples[2][0]:.2f}"
     recorded = sorted((startup_seconds(record=True) for _ in range(3)), key=lambda r: r[0])[1]
     _row(
@@ -427,7 +433,8 @@ def main(args: argparse.Namespace) -> int:
         f"{first:.2f} s after interpreter start (3 runs: {spread} s), {cpu:.2f} s CPU "
         f"({whole:.2f} s whole subprocess); with the MCAP recorder as the command line runs: "
         f"{recorded[0]:.2f} s, {recorded[1]:.2f} s CPU (caches written first: {first_run[0]:.2f} s, "
-        f"{first_run[1]:.2f} s with the recorder)",
+        f"{first_run[1]:.2f} s with the recorder); loaded by the first step's end: "
+        f"{', '.join(loaded) or 'none of ' + ', '.join(HEAVY_IMPORTS)}",
         "<= 0.5 s",
         _verdict(first, 0.5, False),
     )
