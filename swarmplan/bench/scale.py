@@ -9,8 +9,9 @@
    32-agent antipodal swap through a hub with a mover (``bench.sim.swap_world``), default
    planner (rscdwoa, population 30 x 100 iterations), with arrivals and collisions;
 3. the real-time factor of a 64-agent / 32-mover world with the default planner (simulated over
-   wall seconds of the stepping loop, the first step excluded: it loads the compiled kernels,
-   which is start-up, as in ``bench swarm`` and ``bench sim``), how its
+   wall seconds of the stepping loop of a second run of the world, its first step excluded: the
+   compiled kernels load at their first calls, which is start-up, and an untimed first run makes
+   them all, as the warm-up runs of ``bench swarm`` do), how its
    log grows (largest message per channel in the last tenth of the run against the second
    tenth; bytes per agent-step) and what the recorder alone costs per step there;
 4. the optimizers' own overhead per evaluation at d = 50 (``bench.overhead``), worst entry;
@@ -217,11 +218,16 @@ def _row(name: str, value: str, target: str, verdict: str) -> None:
     print(f"| {name} | {value} | {target} | {verdict} |", flush=True)
 
 
-def startup_seconds(record: bool = False, caching: bool = False) -> tuple[float, float, float]:
+#: libraries whose import costs start-up a tenth of a second or more, named when loaded
+HEAVY_IMPORTS = ("numba", "scipy.sparse", "scipy.sparse.csgraph", "scipy.spatial", "scipy.linalg", "trimesh")
+
+
+def startup_seconds(record: bool = False, caching: bool = False) -> tuple[float, float, float, list[str]]:
     """(seconds from interpreter start-up to after the first step, the child's CPU seconds to
     the same point (interpreter start included: the figure a loaded machine does not inflate),
-    whole subprocess wall time). With ``record`` the simulation writes an MCAP log as the
-    command line does (mcap, protobuf and the Foxglove schemas imported, the header written).
+    whole subprocess wall time, which of :data:`HEAVY_IMPORTS` the child had loaded by then).
+    With ``record`` the simulation writes an MCAP log as the command line does (mcap, protobuf
+    and the Foxglove schemas imported, the header written).
 
     The figure is that of a second and later run: Python's bytecode of the package and numba's
     machine code of the kernels cached on disk (``__pycache__``). A run with ``caching`` writes
@@ -244,15 +250,16 @@ def startup_seconds(record: bool = False, caching: bool = False) -> tuple[float,
             if record
             else "s.reset(seed=0); s.step()\n"
         )
-        + "print(time.perf_counter() - t0, time.process_time())\n"
+        + "import sys; print(time.perf_counter() - t0, time.process_time(), "
+        f"*[m for m in {HEAVY_IMPORTS!r} if m in sys.modules])\n"
     )
     env = None
     if caching:
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     t = time.perf_counter()
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
-    first, cpu = (float(v) for v in out.stdout.strip().splitlines()[-1].split())
-    return first, cpu, time.perf_counter() - t
+    first, cpu, *loaded = out.stdout.strip().splitlines()[-1].split()
+    return float(first), float(cpu), time.perf_counter() - t, loaded
 
 
 class _Formatter(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -360,14 +367,18 @@ def main(args: argparse.Namespace) -> int:
     # 3. real-time factor, 64 agents + 32 movers, default planner; its log's growth
     t_big = 20.0 if quick else 80.0
     raw = swarm_world(64, 32, 24, args.seed)
-    # the first step (start-up: the compiled kernels load) is not timed, as in bench swarm and sim
+    # Start-up is not timed, as in bench swarm and sim: the compiled kernels load at their first
+    # call, and in this world many are first called well after the first step (the first arrival,
+    # the first escape), so one untimed run of the same world loads them all (bench swarm's warm-up
+    # runs do the same). The runs share nothing else: no result is cached between them.
+    _run(raw, "rscdwoa", t_big, None, warmup=1)
     r = _run(raw, "rscdwoa", t_big, None, warmup=1)
     s = r["summary"]
     flown = r["sim"].state.t - r["t_first"]
     rtf = flown / r["wall"]
     rtf_cpu = flown / r["cpu"]
     _row(
-        "real time, 64 agents + 32 movers, default planner, logging on (the first step excluded)",
+        "real time, 64 agents + 32 movers, default planner, logging on (second run, first step excluded)",
         f"{rtf:.1f}x wall, {rtf_cpu:.1f}x on CPU time "
         f"({flown:.1f} s simulated after the first step in {r['wall']:.1f} s; "
         f"{s['arrived']}/{s['agents_total']} arrived, {s['collisions']} collisions; "
@@ -419,7 +430,7 @@ def main(args: argparse.Namespace) -> int:
     # page cache and the machine's other work), after one that writes the caches
     first_run = startup_seconds(caching=True)[0], startup_seconds(record=True, caching=True)[0]
     samples = sorted((startup_seconds() for _ in range(3)), key=lambda r: r[0])
-    first, cpu, whole = samples[1]
+    first, cpu, whole, loaded = samples[1]
     spread = f"{samples[0][0]:.2f}-{samples[2][0]:.2f}"
     recorded = sorted((startup_seconds(record=True) for _ in range(3)), key=lambda r: r[0])[1]
     _row(
@@ -427,7 +438,8 @@ def main(args: argparse.Namespace) -> int:
         f"{first:.2f} s after interpreter start (3 runs: {spread} s), {cpu:.2f} s CPU "
         f"({whole:.2f} s whole subprocess); with the MCAP recorder as the command line runs: "
         f"{recorded[0]:.2f} s, {recorded[1]:.2f} s CPU (caches written first: {first_run[0]:.2f} s, "
-        f"{first_run[1]:.2f} s with the recorder)",
+        f"{first_run[1]:.2f} s with the recorder); loaded by the first step's end: "
+        f"{', '.join(loaded) or 'none of ' + ', '.join(HEAVY_IMPORTS)}",
         "<= 0.5 s",
         _verdict(first, 0.5, False),
     )

@@ -36,8 +36,13 @@ round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static r
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
 so the agent can still brake before the goal and before any obstacle surface ahead.
 
-There is one implementation of the field, the compiled one, for every world (the numpy
-reference the tests compare it with lives in tests/apf_reference.py).
+The field has two implementations with the same bits: the compiled kernel, and numpy
+(:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below
+swarm size (``swarmplan.geometry.compiled.field_numpy_calls``) while numba is not in the
+process (once something else has loaded it, e.g. the guide's kernels, the kernel costs no more
+to load than its own cached code). The bits are the same, so this is a speed choice only.
+The numpy reference the tests compare both with, sums in another order, lives in
+tests/apf_reference.py.
 """
 
 from __future__ import annotations
@@ -47,9 +52,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from swarmplan.flight import _apf_numpy
 from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.compiled import field_numpy_calls
 from swarmplan.geometry.vec3 import dot3, norm3
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, numba_loaded
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -159,12 +166,17 @@ class ApfField:
         # reach_at_speed's constant parts, computed once: the same floats in the same order.
         self._brake_denominator = 2.0 * np.maximum(params.max_accel, _EPS)
         self._any_fixed_wing = bool(params.fixed_wing.any())
+        self._numpy_calls = field_numpy_calls(len(world.agents))  # then the compiled kernel
 
     def _reach_at_speed(self, idx: np.ndarray | None, vel: np.ndarray) -> np.ndarray:
         """:func:`reach_at_speed` of agents ``idx`` (None: the first ``len(vel)``, in order)."""
         if self._any_fixed_wing:
             idx = np.arange(len(vel)) if idx is None else idx
             return np.ascontiguousarray(reach_at_speed(self.params, idx, vel, self.world.dt))
+        if not numba_loaded():  # the kernel's formula in numpy (the same bits): numba stays unloaded
+            v = norm3(vel)
+            denominator = self._brake_denominator[: len(vel)] if idx is None else self._brake_denominator[idx]
+            return np.ascontiguousarray(v * self.world.dt + v * v / denominator)
         rows = _NO_ROWS if idx is None else np.asarray(idx, dtype=np.int64)
         vel = np.ascontiguousarray(vel, dtype=float)
         out = np.empty(len(vel))
@@ -192,7 +204,12 @@ class ApfField:
         )
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach_all = self._reach_at_speed(None, swarm.vel)
-        kernel_module("swarmplan.flight._apf_kernel").apf_forces(
+        if self._numpy_calls > 0 and not numba_loaded():
+            self._numpy_calls -= 1
+            apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
+        else:
+            apf_forces = kernel_module("swarmplan.flight._apf_kernel").apf_forces
+        apf_forces(
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
@@ -234,7 +251,10 @@ def commanded_velocity(
     clearance_dir: np.ndarray,
 ) -> np.ndarray:
     """:func:`commanded_velocity_numpy` in one compiled pass over the rows (the same bits,
-    tests/test_apf_compiled.py)."""
+    tests/test_apf_compiled.py); numpy itself until numba is in the process (a small world's
+    steps never load numba for it)."""
+    if not numba_loaded():
+        return commanded_velocity_numpy(params, idx, force, pos, goal, clearance, clearance_dir)
     f = np.ascontiguousarray
     return kernel_module("swarmplan.flight._apf_kernel").commanded_velocity(
         params.max_accel[idx], params.speed_cruise[idx], f(force, dtype=float), f(pos, dtype=float),

@@ -61,9 +61,15 @@ def euler_to_quaternion(roll_pitch_yaw_deg: np.ndarray | tuple[float, float, flo
 
 def rotate(quaternion: np.ndarray | tuple[float, ...], v: np.ndarray) -> np.ndarray:
     """``v`` (..., 3) rotated by the quaternion [qx, qy, qz, qw]."""
+    v = np.asarray(v, dtype=float)
+    q = [float(c) for c in quaternion]
+    if q[0] == q[1] == q[2] == 0.0 and q[3] == 1.0 and not (np.signbit(v) & (v == 0.0)).any():
+        # The identity (most bodies): scipy's answer, each component v_k * 1 plus products
+        # with zeros, is v itself unless v holds a -0.0; without importing scipy.spatial.
+        return v.copy()
     from scipy.spatial.transform import Rotation
 
-    return Rotation.from_quat(quaternion).apply(np.asarray(v, dtype=float))
+    return Rotation.from_quat(quaternion).apply(v)
 
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ have loaded already: the world decides (``swarmplan.geometry.compiled.use_compil
 from __future__ import annotations
 
 import importlib
+import sys
 from functools import cache
 from types import ModuleType
 
@@ -22,3 +23,9 @@ def kernel_module(name: str) -> ModuleType:
     if not name.startswith("swarmplan."):
         raise ValueError(f"kernel_module: expected a module of swarmplan, got {name!r}")
     return importlib.import_module(name)
+
+
+def numba_loaded() -> bool:
+    """Whether numba is in the process already (then a kernel whose numpy twin gives the same
+    bits costs only its own cached code to load, not numba's)."""
+    return "numba" in sys.modules

@@ -1,0 +1,289 @@
+"""The potential field of ``swarmplan.flight.apf`` in numpy, for the first calls of a world
+below swarm size (``swarmplan.geometry.compiled.field_numpy_calls``): :func:`apf_forces` takes
+the arguments of ``swarmplan.flight._apf_kernel.apf_forces`` and writes the same bits.
+
+Why a second implementation: the compiled one needs numba, whose import and the loading of the
+kernel's cached machine code cost ~0.3 s of CPU per process, more than a small world's first
+step may take (and than many whole small runs save). Bit for bit: every term follows the
+kernel's formulas operation by operation (IEEE arithmetic is exact per operation, so the
+same expression gives the same double whether numba or numpy evaluates it), and every sum the
+kernel accumulates term by term is accumulated here in the same order by ``np.add.accumulate``
+(sequential, never pairwise), a skipped term being ``-0.0``, the one double whose addition
+changes nothing. Branches become masks that choose between the two branches' values. The
+kernel's cheap test of every pair (the closest approach within the horizon beyond ``reach``)
+selects the pairs the agent term is computed for, as in the kernel; below swarm size every
+pair is at most 48 x 48. tests/test_apf_numpy.py checks the equality on random swarms.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+_EPS = 1e-9  # apf._EPS
+_SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
+
+
+def _sq(v: np.ndarray) -> np.ndarray:
+    """``x*x + y*y + z*z`` over the last axis, in the kernel's order."""
+    return v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2]
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.sqrt(_sq(v)), _EPS)[..., None]
+
+
+def _vec(x: np.ndarray, y: np.ndarray, z: np.ndarray | float) -> np.ndarray:
+    v = np.empty((*x.shape, 3))
+    v[..., 0], v[..., 1], v[..., 2] = x, y, z
+    return v
+
+
+def _across(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The kernel's ``_unit(y, -x, 0.0)`` (its norm's sum ``y*y + x*x + 0.0`` is ``x*x + y*y``)."""
+    n = np.maximum(np.sqrt(x * x + y * y), _EPS)
+    return _vec(y / n, -x / n, 0.0)
+
+
+def _pow1(x: float, p: float) -> float:
+    try:
+        return math.pow(x, p)
+    except (ValueError, OverflowError):  # C's pow answers (inf, nan) where Python raises
+        with np.errstate(all="ignore"):
+            return float(np.power(x, p))
+
+
+def _power(x: np.ndarray, p: float) -> np.ndarray:
+    """The kernel's ``_power`` elementwise (numpy's fast paths, else C's ``pow``)."""
+    if p == 2.0:
+        return x * x
+    if p == 1.0:
+        return x.copy()
+    if p == 0.5:
+        return np.sqrt(x)
+    if p == -1.0:
+        return 1.0 / x
+    if p == 0.0:
+        return np.ones_like(x)
+    return np.array([_pow1(float(v), p) for v in x.ravel()]).reshape(x.shape)
+
+
+def _right(v: np.ndarray) -> np.ndarray:
+    """The kernel's ``_right`` of each vector of ``v`` (..., 3): ``_unit(y, -x, 0.0)`` or
+    ``_unit(0.0, z, -y)``, whose norms' sums drop their exact ``+ 0.0``."""
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    h2 = x * x + y * y
+    side = h2 >= 0.04 * (h2 + z * z)
+    n1 = np.maximum(np.sqrt(h2), _EPS)
+    n2 = np.maximum(np.sqrt(z * z + y * y), _EPS)
+    return _vec(np.where(side, y / n1, 0.0), np.where(side, -x / n1, z / n2), np.where(side, 0.0, -y / n2))
+
+
+def _sum_in_order(first: np.ndarray, terms: np.ndarray) -> np.ndarray:
+    """``first + terms[:, 0] + terms[:, 1] + ...`` added left to right (first (n, k), terms
+    (n, j, k))."""
+    if terms.shape[1] == 0:
+        return first
+    return np.add.accumulate(np.concatenate([first[:, None], terms], axis=1), axis=1)[:, -1]
+
+
+def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: float, k_rep: float,
+           gfac: np.ndarray) -> np.ndarray:  # fmt: skip
+    """The kernel's ``_face`` terms, (n, 2, 3): row 0 the low faces (x, y; the floor is the
+    ground's, a ``-0.0``), row 1 the high ones."""
+    sign = np.array([[1.0], [-1.0]])
+    offset = np.stack([pos - lo, pos - hi], axis=1)
+    rho_b = sign * offset - r[:, None, None]
+    mag = np.where(rho_b < rb0, k_rep * (1.0 / np.maximum(rho_b, 0.05) - 1.0 / rb0), 0.0)
+    terms = sign * mag * gfac[:, None, None]
+    terms[:, 0, 2] = _SKIP
+    return terms
+
+
+def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=False) -> None:  # noqa: ANN001, ARG001
+    """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``; the arguments of
+    ``_apf_kernel.apf_forces`` (``window``, a way of the kernel to skip pair tests without
+    changing the forces, changes nothing here: every pair is tested)."""
+    pos, vel, goal, target, static_scale, idx, reach_now = flyers
+    radius, separation, min_altitude, stop_reach, can_stop = agents
+    h, gh, h_goal, terrain_floor, lo, hi = ground
+    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
+    n = pos.shape[0]
+    if n == 0:
+        return
+    floor = np.maximum(min_altitude[idx], terrain_floor)
+    rho0_g = max(min(rho0, 3.0 * float(floor.max())), 2.0)
+    rb0 = min(rho0, 10.0)
+    ri = radius[idx]
+
+    # Attraction (quadratic well only at the goal itself).
+    e = goal - pos
+    dg = np.sqrt(_sq(e))
+    t = target - pos
+    dt = np.sqrt(_sq(t))
+    to_goal = (np.abs(target - goal) <= 1e-9).all(axis=1)
+    well = (dt <= dq) & to_goal
+    f = np.where(well[:, None], k_att * t, k_att * (dq * t / np.maximum(dt, _EPS)[:, None]))
+    ratio = np.minimum(1.0, dg / rho0)
+    gfac = _power(ratio, npow)
+    gfac_d = np.where(dg < rho0, npow * _power(ratio, npow - 1.0) / rho0, 0.0)
+
+    # Obstacle surfaces (static ones scaled per agent), the goal factor's companion term, the
+    # turn along blocking bodies and the movers' predicted closest approach.
+    turn = hold = None
+    if bodies[0].shape[1]:
+        f, turn, hold = _bodies(
+            (pos, vel, ri, t, dg, to_goal, gfac, gfac_d, _unit(e), f),
+            bodies,
+            (k_rep, rho0, k_rep * k_moving, horizon),
+            static_scale,
+        )
+
+    # Terrain / ground, pushing only while it is not the way to the goal.
+    normal = _unit(_vec(-gh[:, 0], -gh[:, 1], np.ones(n)))
+    rho_g = (pos[:, 2] - h) - ri
+    mag = np.where(rho_g < rho0_g, k_rep * (1.0 / np.maximum(rho_g, 0.05) - 1.0 / rho0_g), 0.0)
+    mag = np.where(goal[:, 2] - h_goal < floor, mag * gfac, mag)
+    f = f + mag[:, None] * normal
+
+    # Faces of the flight volume (the floor is the ground's).
+    faces = _faces(pos, lo, hi, ri, rb0, k_rep, gfac)
+    f = f + faces[:, 0] + faces[:, 1]  # per axis: the low face, then the high one
+
+    # Other agents.
+    if swarm[0].shape[0] >= 2:
+        terms = _agent_terms(
+            (pos, vel, idx, reach_now, dg, gfac),
+            (radius, separation, stop_reach, can_stop),
+            swarm,
+            (reach, rho0, k_agent, horizon),
+        )
+        f = _sum_in_order(f, terms)
+    # The turn along blocking bodies only where they hold the agent.
+    if turn is not None:
+        pull = k_att * np.minimum(dt, dq)
+        turned = (turn != 0.0).any(axis=1) & (pull + hold < 0.25 * pull)
+        f = np.where(turned[:, None], f + turn, f)
+    out[:] = f
+
+
+def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
+    """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
+    blocking bodies and their hold."""
+    pos, vel, ri, t, dg, to_goal, gfac, gfac_d, u, f = a
+    dist, grad, moving, o_center, o_vel, o_radius = bodies
+    k_rep, rho0, k_mv, horizon = g
+    n, m = dist.shape
+    ax = _unit(t)[:, None, :]
+    turn = np.where(to_goal, np.minimum(1.0, np.maximum(0.0, dg / rho0 - 1.0)), 0.0)
+    rho = dist - ri[:, None]
+    active = rho < rho0
+    static = active & ~moving
+    k = np.where(moving, k_rep, (k_rep * static_scale)[:, None])
+    x = 1.0 / np.maximum(rho, 0.05) - 1.0 / rho0
+    w = k * x * gfac[:, None]
+    block = _dot(ax, grad)
+    terms = np.empty((n, m, 5))
+    terms[..., :3] = np.where(active[..., None], w[..., None] * grad, _SKIP)
+    terms[..., 3] = np.where(active, 0.5 * k * (x * x) * rho0, _SKIP)
+    terms[..., 4] = np.where(static, w * block, _SKIP)
+    sums = _sum_in_order(np.concatenate([f, np.zeros((n, 2))], axis=1), terms)
+    f, pot_sum, hold = sums[:, :3], sums[:, 3], sums[:, 4]
+    turning = static & (block < 0.0) & (turn[:, None] > 0.0)
+    bend = np.zeros((n, 3))
+    if turning.any():
+        s = ax - block[..., None] * grad
+        square = _sq(s) < 0.04
+        cx, cy = pos[:, None, 0] - o_center[:, 0], pos[:, None, 1] - o_center[:, 1]
+        nx, ny, nz = grad[..., 0], grad[..., 1], grad[..., 2]
+        d = cx * nx + cy * ny
+        q = _vec(cx - d * nx, cy - d * ny, -d * nz)
+        centre = _sq(q) < 1e-12 * (1.0 + cx * cx + cy * cy)
+        q = np.where(centre[..., None], _right(-grad), q)
+        s = _unit(np.where(square[..., None], q, s))
+        wt = w * block * turn[:, None]
+        bend = _sum_in_order(bend, np.where(turning[..., None], -(wt[..., None] * s), _SKIP))
+    f = f + (pot_sum * gfac_d)[:, None] * u
+    mv = np.flatnonzero(moving)
+    if len(mv):
+        # Predicted closest approach to each mover, right-hand bias on collision course.
+        dp = pos[:, None, :] - o_center[mv]
+        dv = vel[:, None, :] - o_vel[mv]
+        tau = np.minimum(np.maximum(-_dot(dp, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)
+        sp = dp + tau[..., None] * dv
+        d = np.sqrt(_sq(sp))
+        r_o = o_radius[mv]
+        rho_m = d - r_o - ri[:, None]
+        rep = np.where(rho_m < rho0, k_mv * (1.0 / np.maximum(rho_m, 0.05) - 1.0 / rho0), 0.0)
+        mag = rep * (1.0 - tau / (horizon + _EPS))
+        right = _across(dv[..., 0], dv[..., 1])
+        way = _unit(_unit(sp) + 0.3 * right)
+        way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)
+        live = (tau > 0.0) & (mag != 0.0)
+        f = _sum_in_order(f, np.where(live[..., None], mag[..., None] * way, _SKIP))
+    return f, bend, hold
+
+
+def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
+    """The other agents' terms on every flyer, (n, n_all, 3) in the kernel's order of agents,
+    ``-0.0`` where the kernel adds nothing."""
+    pos, vel, idx, reach_now, dg, gfac = fl
+    radius, separation, stop_reach, can_stop = agents
+    all_pos, all_vel, parked, goal_dist, reach_all = swarm
+    reach, rho0, k_agent, horizon = g
+    n, n_all = len(pos), len(all_pos)
+    dp = pos[:, None, :] - all_pos
+    dw = vel[:, None, :] - all_vel
+    # The kernel's _near: pairs whose closest approach within the horizon may lie inside reach.
+    r2 = reach * reach
+    dd, bb, a = _sq(dp), _dot(dp, dw), _sq(dw)
+    ee = _sq(dp + horizon * dw)
+    far = (dd >= r2) & (
+        (bb >= 0.0)
+        | ((-bb >= a * horizon) & (ee >= r2 * (1.0 + 1e-9)))
+        | ((-bb < a * horizon) & (dd * a - bb * bb >= r2 * a + 1e-9 * dd * a))
+    )
+    far[np.arange(n), idx] = True  # an agent and itself
+    rows, b = np.nonzero(~far)
+    terms = np.full((n, n_all, 3), _SKIP)
+    if len(rows) == 0:
+        return terms
+    ia = idx[rows]
+    dp, dw = dp[rows, b], dw[rows, b]
+    c = np.maximum(separation[ia], separation[b]) + (radius[ia] + radius[b])[:, None]
+    q = dp / c
+    e = np.sqrt(_sq(q))
+    stop_a, stop_b = can_stop[ia], can_stop[b]
+    pair_reach = stop_reach[ia] + stop_reach[b]
+    pair_reach = np.where(
+        parked[b] & stop_a,
+        reach_now[rows],
+        np.where(stop_a & stop_b, np.minimum(pair_reach, reach_now[rows] + reach_all[b]), pair_reach),
+    )
+    e0 = 1.0 + np.minimum(pair_reach, rho0) / np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
+    dv = dw / c
+    tau = np.minimum(np.maximum(-_dot(q, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)
+    s = q + tau[:, None] * dv
+    es = np.sqrt(_sq(s))
+    current = e < e0
+    predicted = (es < e0) & (tau > 0)
+    mag = np.where(current, k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    mag_p = np.where(predicted, k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    mag_p = mag_p * (1.0 - tau / (horizon + _EPS))
+    # Priority: a parked agent, or one farther from its goal, repels with the goal factor.
+    factored = stop_a & (parked[b] | (dg[rows] <= goal_dist[b]))
+    mag = np.where(factored, mag * gfac[rows], mag)
+    mag_p = np.where(factored, mag_p * gfac[rows], mag_p)
+    side = _right(dw)
+    side[:, 2] = side[:, 2] + (2.0 * dw[:, 0] + dw[:, 1]) / (
+        math.sqrt(5.0) * np.maximum(np.sqrt(_sq(dw)), _EPS)
+    )
+    way = _unit(_unit(s * c) + 0.5 * side)
+    acts = (current | predicted)[:, None]
+    terms[rows, b] = np.where(acts, mag[:, None] * _unit(q / c) + mag_p[:, None] * way, _SKIP)
+    return terms
