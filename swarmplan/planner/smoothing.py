@@ -30,6 +30,13 @@ from swarmplan.planner.escape import model_turn_radius, static_clearance
 __all__ = ["CurvatureSmoother", "fillet_corner", "fillet_path"]
 
 
+def _norm(x: np.ndarray) -> float:
+    """``float(np.linalg.norm(x))`` of a float vector, the same bits (numpy's own path for a
+    vector: the square root of ``x.dot(x)``) without its dispatch."""
+    x = x.ravel(order="K")
+    return math.sqrt(x.dot(x))
+
+
 class CurvatureSmoother:
     """Plans smoothing segments in ``on_step`` (see the module docstring)."""
 
@@ -59,7 +66,7 @@ class CurvatureSmoother:
         more tightly than its model allows, else None."""
         s = sim.state
         p, v = s.position[i], s.velocity[i]
-        speed = float(np.linalg.norm(v))
+        speed = _norm(v)
         if speed < 0.5 * float(sim.params.speed_cruise[i]):
             return None
         R = model_turn_radius(sim, i)
@@ -69,23 +76,23 @@ class CurvatureSmoother:
             R = min(R, speed * speed / max(float(sim.params.max_accel[i]), 1e-9))
         target, after, k = self._target(sim, i)
         to_t = target - p
-        dist = float(np.linalg.norm(to_t))
+        dist = _norm(to_t)
         if dist <= sim.world.goal_tolerance:
             return None
         h = v / speed
         # Target inside a minimum turning circle (in the plane of heading and target): unreachable
         # by turning at the limit, the APF would circle or overshoot.
         lateral = to_t - np.dot(to_t, h) * h
-        nl = float(np.linalg.norm(lateral))
+        nl = _norm(lateral)
         if nl > 1e-6:
             center = p + R * lateral / nl
-            if np.linalg.norm(target - center) < R * 0.98:
+            if _norm(target - center) < R * 0.98:
                 return (target.copy(), -1) if k < 0 else (target.copy(), k)
         # Route corner at the next waypoint tighter than the turn radius allows.
         if after is not None and dist < 2.0 * R:
             d1 = to_t / dist
             d2 = after - target
-            l2 = float(np.linalg.norm(d2))
+            l2 = _norm(d2)
             if l2 > 1e-6:
                 theta = math.acos(float(np.clip(np.dot(d1, d2 / l2), -1, 1)))
                 tangent = R * math.tan(min(theta, 3.0) / 2)
