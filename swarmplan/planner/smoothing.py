@@ -124,9 +124,11 @@ class CurvatureSmoother:
         if self._reach is None:
             rho0 = float(sim.world.planner_config.apf.influence)
             self._reach = current_reach(sim.params, stopping_reach(sim.params, sim.world.dt), rho0)
-        near = (
-            np.linalg.norm(s.position[None, :, :] - s.position[rows, None, :], axis=2) < self._reach
-        ) & s.active
+        # np.linalg.norm(diff, axis=2) is sqrt((x² + y²) + z²) summed in this order: the same
+        # bits per coordinate plane, without the (rows, n, 3) array and its reduction over 3.
+        p, q = s.position.T, s.position[rows].T
+        x, y, z = (p[c][None, :] - q[c][:, None] for c in range(3))
+        near = (np.sqrt(x * x + y * y + z * z) < self._reach) & s.active
         near[np.arange(len(rows)), rows] = False
         return near.any(axis=1).tolist()
 
