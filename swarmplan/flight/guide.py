@@ -134,6 +134,7 @@ class StaticGuide:
         h = max((float(np.prod(size)) / cells) ** (1.0 / 3.0), MIN_CELL)
         self.shape = np.maximum(np.ceil(size / h).astype(np.int64), 1)
         self.cell = size / self.shape
+        self._sample_step = 0.5 * float(self.cell.min())  # ``blocked``'s spacing of samples
         self.lo = lo
         nx, ny, nz = (int(v) for v in self.shape)
         self.n_cells = nx * ny * nz
@@ -267,8 +268,8 @@ class StaticGuide:
         cut = np.minimum(length, reach)  # only the first ``reach`` m of each line
         end = start + (end - start) * (cut / np.maximum(length, 1e-12))[:, None]
         length = cut
-        step = 0.5 * float(self.cell.min())
-        samples = int(min(max(np.ceil(length.max() / step), 1), 4000))  # of all rows: kept as is
+        x = float(length.max()) / self._sample_step
+        samples = 4000 if x > 4000 else max(math.ceil(x), 1)  # of all rows: kept as is
         t = self._t.get(samples)
         if t is None:
             t = self._t[samples] = np.linspace(0.0, 1.0, samples + 1)

@@ -30,6 +30,13 @@ from swarmplan.planner.escape import model_turn_radius, static_clearance
 __all__ = ["CurvatureSmoother", "fillet_corner", "fillet_path"]
 
 
+def _norm(x: np.ndarray) -> float:
+    """``float(np.linalg.norm(x))`` of a float vector, the same bits (numpy's own path for a
+    vector: the square root of ``x.dot(x)``) without its dispatch."""
+    x = x.ravel(order="K")
+    return math.sqrt(x.dot(x))
+
+
 class CurvatureSmoother:
     """Plans smoothing segments in ``on_step`` (see the module docstring)."""
 
@@ -59,7 +66,7 @@ class CurvatureSmoother:
         more tightly than its model allows, else None."""
         s = sim.state
         p, v = s.position[i], s.velocity[i]
-        speed = float(np.linalg.norm(v))
+        speed = _norm(v)
         if speed < 0.5 * float(sim.params.speed_cruise[i]):
             return None
         R = model_turn_radius(sim, i)
@@ -69,23 +76,23 @@ class CurvatureSmoother:
             R = min(R, speed * speed / max(float(sim.params.max_accel[i]), 1e-9))
         target, after, k = self._target(sim, i)
         to_t = target - p
-        dist = float(np.linalg.norm(to_t))
+        dist = _norm(to_t)
         if dist <= sim.world.goal_tolerance:
             return None
         h = v / speed
         # Target inside a minimum turning circle (in the plane of heading and target): unreachable
         # by turning at the limit, the APF would circle or overshoot.
         lateral = to_t - np.dot(to_t, h) * h
-        nl = float(np.linalg.norm(lateral))
+        nl = _norm(lateral)
         if nl > 1e-6:
             center = p + R * lateral / nl
-            if np.linalg.norm(target - center) < R * 0.98:
+            if _norm(target - center) < R * 0.98:
                 return (target.copy(), -1) if k < 0 else (target.copy(), k)
         # Route corner at the next waypoint tighter than the turn radius allows.
         if after is not None and dist < 2.0 * R:
             d1 = to_t / dist
             d2 = after - target
-            l2 = float(np.linalg.norm(d2))
+            l2 = _norm(d2)
             if l2 > 1e-6:
                 theta = math.acos(float(np.clip(np.dot(d1, d2 / l2), -1, 1)))
                 tangent = R * math.tan(min(theta, 3.0) / 2)
@@ -94,6 +101,22 @@ class CurvatureSmoother:
                     return end, k
         return None
 
+    @staticmethod
+    def _fast(sim: PlanningContext, rows: np.ndarray) -> list[int]:
+        """The agents of ``rows`` flying at least half their cruise speed, by ``check``'s own
+        test (``np.linalg.norm`` of each velocity). The speeds of all rows at once decide every
+        row but those within rounding of the threshold, which are measured again one by one."""
+        s = sim.state
+        v = s.velocity[rows]
+        half = 0.5 * sim.params.speed_cruise[rows]
+        speed = np.sqrt((v * v).sum(axis=1))
+        unsure = np.abs(speed - half) <= 1e-9 * (np.abs(half) + 1.0)
+        keep = ~(speed < half)
+        for j in np.flatnonzero(unsure).tolist():
+            i = int(rows[j])
+            keep[j] = not np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i])
+        return rows[keep].tolist()
+
     def _crowded(self, sim: PlanningContext, rows: np.ndarray) -> list[bool]:
         """Per agent of ``rows``: ``EscapePlanner.agents_near(sim, i).any()`` (the same
         distances, all rows at once)."""
@@ -101,9 +124,11 @@ class CurvatureSmoother:
         if self._reach is None:
             rho0 = float(sim.world.planner_config.apf.influence)
             self._reach = current_reach(sim.params, stopping_reach(sim.params, sim.world.dt), rho0)
-        near = (
-            np.linalg.norm(s.position[None, :, :] - s.position[rows, None, :], axis=2) < self._reach
-        ) & s.active
+        # np.linalg.norm(diff, axis=2) is sqrt((x² + y²) + z²) summed in this order: the same
+        # bits per coordinate plane, without the (rows, n, 3) array and its reduction over 3.
+        p, q = s.position.T, s.position[rows].T
+        x, y, z = (p[c][None, :] - q[c][:, None] for c in range(3))
+        near = (np.sqrt(x * x + y * y + z * z) < self._reach) & s.active
         near[np.arange(len(rows)), rows] = False
         return near.any(axis=1).tolist()
 
@@ -114,17 +139,16 @@ class CurvatureSmoother:
         n = len(s.mode)
         if len(self.next_check) != n:
             self.next_check = np.zeros(n)
+        ready = ~(s.t < self.next_check)
+        if not ready.any():  # most steps: no agent's check is due
+            return out
         apf = np.fromiter(map(Mode.APF.__eq__, s.mode.tolist()), dtype=bool, count=n)
-        due = np.flatnonzero(s.active & apf & ~(s.t < self.next_check))
+        due = np.flatnonzero(s.active & apf & ready)
         if not len(due):
             return out
         self.next_check[due] = s.t + self.check_interval
         # Too slow to need a turn wider than it can fly (``check``'s first test).
-        fast = [
-            i
-            for i in due.tolist()
-            if not np.linalg.norm(s.velocity[i]) < 0.5 * float(sim.params.speed_cruise[i])
-        ]
+        fast = self._fast(sim, due)
         if not fast:
             return out
         # Among other agents the way is theirs to shape: no segment to smooth.
