@@ -91,15 +91,18 @@ def test_opposing_ways_through_a_gap_take_separate_lanes():
     assert np.linalg.norm(a[1:] - b[1:]) >= min(guide.cell[1:]) - 1e-9
 
 
+# A box that flies into the wall's gap and parks there for good at t = 5 s.
+PLUG = {
+    "id": "plug",
+    "shape": "box",
+    "size": [2, 8, 60],
+    "position": [50, 90, 25],
+    "motion": {"type": "waypoints", "waypoints": [[50, 50, 25]], "speed": 8, "loop": False},
+}
+
+
 def test_a_mover_parked_for_good_joins_the_bodies_at_rest():
-    plug = {
-        "id": "plug",
-        "shape": "box",
-        "size": [2, 8, 60],
-        "position": [50, 90, 25],
-        "motion": {"type": "waypoints", "waypoints": [[50, 50, 25]], "speed": 8, "loop": False},
-    }
-    world = make_world(base_world(obstacles=WALL + [plug]))
+    world = make_world(base_world(obstacles=WALL + [PLUG]))
     (mover,) = world.moving_obstacles
     assert G.parks_at(mover) == pytest.approx(40.0 / 8.0)
     assert [o.id for o in G.resting_bodies(world, 4.9)] == ["south", "north"]
@@ -110,15 +113,8 @@ def test_a_mover_parked_for_good_joins_the_bodies_at_rest():
 
 
 def test_the_simulation_goes_round_a_mover_from_the_step_it_parks():
-    plug = {
-        "id": "plug",
-        "shape": "box",
-        "size": [2, 8, 60],
-        "position": [50, 90, 25],
-        "motion": {"type": "waypoints", "waypoints": [[50, 50, 25]], "speed": 8, "loop": False},
-    }
     world = make_world(
-        base_world(obstacles=WALL + [plug], agents=[{"id": "a", "start": [30, 20, 20], "goal": [70, 20, 20]}])
+        base_world(obstacles=WALL + [PLUG], agents=[{"id": "a", "start": [30, 20, 20], "goal": [70, 20, 20]}])
     )
     sim = Simulation(world, planner="none")
     for run in range(2):  # a second run starts again from the bodies at rest at 0
