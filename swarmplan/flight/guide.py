@@ -30,7 +30,9 @@ nothing is built and nothing changes. An agent following a segment or a global r
 and fixed wings (which cannot fly a way that hugs corners) are never guided.
 The searches, the line-of-sight samples and the points on the ways run compiled
 (``_guide_kernel``), each giving the numbers its numpy or scipy formulation gives (the same
-ways, the same decisions).
+ways, the same decisions); below swarm size, while numba is not loaded, the per-step calls run
+their numpy twins (``_guide_numpy``: the same answers), so a small world's first steps need no
+numba to load.
 Stuck detection measures a guided agent's progress along its way, and the escape planner plans
 no escape for an agent the guide leads (unless a moving obstacle is near; the guide sees static
 ones only): what holds it is other agents.
