@@ -13,6 +13,7 @@ from test_swarm_scenarios import _assert_home
 from swarmplan.flight import guide as G
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.sim import Simulation
+from swarmplan.world import motion
 
 # A wall across the field at x = 50 (1 m thick, taller than the bounds) with one gap 6 m wide
 # at y = 47..53; the agent starts west of it, its goal straight east behind the wall.
@@ -104,12 +105,12 @@ PLUG = {
 def test_a_mover_parked_for_good_joins_the_bodies_at_rest():
     world = make_world(base_world(obstacles=WALL + [PLUG]))
     (mover,) = world.moving_obstacles
-    assert G.parks_at(mover) == pytest.approx(40.0 / 8.0)
-    assert [o.id for o in G.resting_bodies(world, 4.9)] == ["south", "north"]
-    rest = G.resting_bodies(world, 5.0)
+    assert motion.parks_at(mover) == pytest.approx(40.0 / 8.0)
+    assert [o.id for o in motion.resting_bodies(world, 4.9)] == ["south", "north"]
+    rest = motion.resting_bodies(world, 5.0)
     assert [o.id for o in rest] == ["south", "north", "plug"] and rest[-1].motion is None
     np.testing.assert_allclose(rest[-1].position, [50, 50, 25])
-    assert G.next_rest(world, 0.0) == pytest.approx(5.0) and G.next_rest(world, 5.0) == np.inf
+    assert motion.next_rest(world, 0.0) == pytest.approx(5.0) and motion.next_rest(world, 5.0) == np.inf
 
 
 def test_the_simulation_goes_round_a_mover_from_the_step_it_parks():

@@ -46,10 +46,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.flight import _guide_numpy
+from swarmplan.flight import _guide_numpy, guide_cache
 from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
 from swarmplan.geometry.compiled import use_compiled
 from swarmplan.runtime.compiled import kernel_module, numba_loaded
+from swarmplan.world.motion import resting_bodies
 
 if TYPE_CHECKING:
     from types import ModuleType
@@ -147,12 +148,30 @@ class StaticGuide:
         ii, jj, kk = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
         self.ijk = np.column_stack([ii.ravel(), jj.ravel(), kk.ravel()])
         self.centres = lo + (self.ijk + 0.5) * self.cell
-        self.clear, normal, self._body_clear = self._clearance(self.centres)
-        self.free = self.clear > 0.0
         # The clearance a point may lose against its cell's centre (the distance is 1-Lipschitz).
         self.half_diagonal = 0.5 * float(np.linalg.norm(self.cell))
-        c0 = max(2.0 * float(self.cell.max()), 4.0)
-        prox = np.clip(1.0 - self.clear / c0, 0.0, 1.0)
+        self._flow = np.zeros((self.n_cells, 3))  # directions of the ways through each cell
+        self._row_of = np.full(self.n_cells, -1, dtype=np.int64)  # goal cell -> row of the tables below
+        self._next = np.empty((0, self.n_cells), dtype=np.int32)
+        self._dist = np.empty((0, self.n_cells), dtype=np.float32)
+        self._source = np.empty(0, dtype=np.int64)
+        self.guided = np.zeros(len(world.agents), dtype=bool)
+        self._t: dict[int, np.ndarray] = {}  # the samples' parameters along a line, by their count
+        # The clearance is 1-Lipschitz everywhere (flat ground, exact distances to the bodies).
+        self._lipschitz = not world.peaks and not self._batch.meshes
+        # The grid's box less a margin: a sample beyond it is measured against every body.
+        self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
+        # The grid's tables: those of an earlier guide of the same geometry when at hand (the
+        # same bits), else computed here and kept for the next.
+        self._grid_key = guide_cache.grid_key(self)
+        if not guide_cache.load_grid(self, self._grid_key):
+            self._compute_grid()
+            guide_cache.store_grid(self, self._grid_key)
+
+    def _compute_grid(self) -> None:
+        """The cells' clearance, the reversed graph and the line-of-sight tables."""
+        self.clear, normal, self._body_clear = self._clearance(self.centres)
+        prox = self._proximity()
         # The reversed graph in CSR form (row v: the legs into v, by their start cell, ascending):
         # searches run from the goal over reversed legs. Per offset not vertical the cells'
         # normals on the leg's right-hand side (numpy's product over all cells: the bits it
@@ -165,28 +184,30 @@ class StaticGuide:
         indptr, start, data, mask = kernels.reverse_graph(
             self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT)
         )
+        self._adopt_graph(indptr, start, data, mask)
+        self._sight_bounds()
+        self._reach_bodies()
+
+    def _proximity(self) -> np.ndarray:
+        """Each cell's nearness to a surface (0 from ``C0`` of clearance on, 1 at none), and the
+        cells' ``free`` and ``near`` flags from their clearance."""
+        self.free = self.clear > 0.0
+        c0 = max(2.0 * float(self.cell.max()), 4.0)
+        prox = np.clip(1.0 - self.clear / c0, 0.0, 1.0)
         # A cell with no proximity (free) has legs that cost their lengths (``1 + 0 * x`` is 1,
         # and the loads re-price only cells near surfaces): it has no row.
         self.near = prox > 0.0
+        return prox
+
+    def _adopt_graph(self, indptr: np.ndarray, start: np.ndarray, data: np.ndarray, mask: np.ndarray) -> None:
+        """Take the reversed graph's arrays (``reverse_graph``'s, computed or read back)."""
+        _, delta, length, _, _ = _legs(self.shape, self.cell)
         self._reverse = _Graph(indptr, start, data, (mask, self.near, delta, length))
         self._base = data.copy()
         # Unit directions of the legs into cells near surfaces (the only ones a way re-prices),
         # found at a cell's first re-pricing (only those rows are ever read).
         self._leg_dir = np.empty((len(data), 3))
         self._has_dir = np.zeros(self.n_cells, dtype=bool)
-        self._flow = np.zeros((self.n_cells, 3))  # directions of the ways through each cell
-        self._row_of = np.full(self.n_cells, -1, dtype=np.int64)  # goal cell -> row of the tables below
-        self._next = np.empty((0, self.n_cells), dtype=np.int32)
-        self._dist = np.empty((0, self.n_cells), dtype=np.float32)
-        self._source = np.empty(0, dtype=np.int64)
-        self.guided = np.zeros(len(world.agents), dtype=bool)
-        self._t: dict[int, np.ndarray] = {}  # the samples' parameters along a line, by their count
-        self._sight_bounds()
-        # The clearance is 1-Lipschitz everywhere (flat ground, exact distances to the bodies).
-        self._lipschitz = not world.peaks and not self._batch.meshes
-        # The grid's box less a margin: a sample beyond it is measured against every body.
-        self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
-        self._reach_bodies()
 
     # ------------------------------------------------------------------ geometry
 
@@ -461,11 +482,19 @@ class StaticGuide:
         self.guided[:] = False
         if pos is None or goal is None:
             return
+        # A guide with no way yet finds the ways an earlier one found from the same starts.
+        key = (
+            guide_cache.ways_key(self._grid_key, pos, goal, self.can_stop) if not len(self._source) else None
+        )
+        if key is not None and guide_cache.load_ways(self, key):
+            return
         rows = np.flatnonzero(self.can_stop[: len(pos)])
         if len(rows):
             self.guided[rows] = self.blocked(pos[rows], goal[rows])
             rows = rows[self.guided[rows]]
             self._rows_for(self.cell_of(goal[rows]), pos[rows])
+        if key is not None:
+            guide_cache.store_ways(self, key)
 
     def targets(
         self,
@@ -531,35 +560,6 @@ class StaticGuide:
         table = self._rows_for(self.cell_of(goal), pos)
         cell = self.cell_of(pos)
         return self._dist[table, cell].astype(float) + np.linalg.norm(self.centres[cell] - pos, axis=1)
-
-
-def parks_at(o: Obstacle) -> float | None:
-    """When moving obstacle ``o`` comes to rest for good (waypoints without ``loop``: at its last
-    waypoint), else None."""
-    m = o.motion
-    if m is None or m.type != "waypoints" or m.loop or m.speed <= 0:
-        return None
-    pts = np.vstack([o.position, *m.waypoints])
-    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()) / float(m.speed)
-
-
-def resting_bodies(world: World, t: float) -> tuple[Obstacle, ...]:
-    """The obstacles at rest for good at time ``t``: the static ones and the movers parked by
-    then (as static bodies at their last waypoint)."""
-    out = list(world.static_obstacles)
-    for o in world.moving_obstacles:
-        park = parks_at(o)
-        if park is not None and park <= t:
-            out.append(
-                dataclasses.replace(o, position=np.asarray(o.motion.waypoints[-1], dtype=float), motion=None)
-            )
-    return tuple(out)
-
-
-def next_rest(world: World, t: float) -> float:
-    """The first time after ``t`` at which a mover comes to rest for good (inf when none does)."""
-    times = [p for p in (parks_at(o) for o in world.moving_obstacles) if p is not None and p > t]
-    return min(times, default=math.inf)
 
 
 def make_guide(world: World, params: AgentParams, t: float = 0.0) -> StaticGuide | None:

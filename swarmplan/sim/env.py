@@ -37,7 +37,7 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
-from swarmplan.flight.guide import make_guide, next_rest
+from swarmplan.flight.guide import make_guide
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.compiled import use_compiled_checks
@@ -53,6 +53,7 @@ from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
+from swarmplan.world.motion import next_rest
 
 FAR_GOAL = np.array([1e9, 0.0, 0.0])
 """Offset of the goal row an evading agent's braking margin sees: its goal's cap never binds."""

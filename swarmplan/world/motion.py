@@ -13,13 +13,14 @@ Orientation stays the obstacle's ``rotation`` (the motions translate only).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 if TYPE_CHECKING:
-    from swarmplan.world.model import Motion, Obstacle
+    from swarmplan.world.model import Motion, Obstacle, World
 
 
 _CACHE_SIZE = 256
@@ -136,3 +137,32 @@ def _linear_rows(obstacles: tuple[Obstacle, ...] | list[Obstacle]) -> tuple[np.n
             _LINEAR.clear()
         _LINEAR[id(obstacles)] = (obstacles, rows)
     return rows
+
+
+def parks_at(o: Obstacle) -> float | None:
+    """When moving obstacle ``o`` comes to rest for good (waypoints without ``loop``: at its last
+    waypoint), else None."""
+    m = o.motion
+    if m is None or m.type != "waypoints" or m.loop or m.speed <= 0:
+        return None
+    pts = np.vstack([o.position, *m.waypoints])
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()) / float(m.speed)
+
+
+def resting_bodies(world: World, t: float) -> tuple[Obstacle, ...]:
+    """The obstacles at rest for good at time ``t``: the static ones and the movers parked by
+    then (as static bodies at their last waypoint)."""
+    out = list(world.static_obstacles)
+    for o in world.moving_obstacles:
+        park = parks_at(o)
+        if park is not None and park <= t:
+            out.append(
+                dataclasses.replace(o, position=np.asarray(o.motion.waypoints[-1], dtype=float), motion=None)
+            )
+    return tuple(out)
+
+
+def next_rest(world: World, t: float) -> float:
+    """The first time after ``t`` at which a mover comes to rest for good (inf when none does)."""
+    times = [p for p in (parks_at(o) for o in world.moving_obstacles) if p is not None and p > t]
+    return min(times, default=math.inf)
