@@ -378,6 +378,8 @@ class StaticGuide:
             sel = np.flatnonzero(b.code[body] == code)
             if len(sel):
                 d[sel] = SHAPE_DISTANCE[shape](local[sel], *(v[body[sel]] for v in b.by_obstacle[shape]))
+        mesh = np.flatnonzero(b.code[body] < 0)  # and the meshes from their grids, as ``distance`` does
+        d[mesh] = b.pair_distance(p[pt[mesh]], body[mesh])
         first = np.flatnonzero(np.diff(pt, prepend=-1))  # pairs come row by row
         out[pt[first]] = np.minimum.reduceat(d, first)
         return out
