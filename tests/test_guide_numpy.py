@@ -4,10 +4,13 @@ line-of-sight check makes (samples to measure, their points and cells, the rows 
 the distances) on random lines among the bodies of tests/test_guide_sight.py over flat ground
 and terrain (lines through bodies, grazing them, of length 0, leaving the grid), the cells and
 points of attraction on random points, and a whole 16-agent run with guided agents; the world's
-size and numba's presence choose the implementation."""
+size and numba's presence choose the implementation, and with the guide's tables on disk a
+small guided world steps without numba."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Callable
 from types import ModuleType, SimpleNamespace
 
@@ -220,3 +223,31 @@ def test_a_small_swarm_flies_the_same_with_both_guides(monkeypatch: pytest.Monke
         _same(v0, v1)
         assert e0 == e1
     assert np.abs(a[-1][0] - a[0][0]).max() > 10.0  # the agents went somewhere
+
+
+def test_a_small_guided_world_steps_without_numba() -> None:
+    """With the guide's tables on disk (built here first), a fresh interpreter builds, resets and
+    steps the 16-agent world with its guide, agents guided, without importing numba."""
+    from swarmplan.bench.sim import swarm_world
+    from swarmplan.planner import make_planner
+    from swarmplan.sim import Simulation
+    from swarmplan.world import parse_world
+
+    world = parse_world(swarm_world(16, 4, 8))
+    Simulation(world, planner=make_planner(world)).reset(seed=0)  # the tables stored
+    code = (
+        "import sys\n"
+        "from swarmplan.bench.sim import swarm_world\n"
+        "from swarmplan.planner import make_planner\n"
+        "from swarmplan.sim import Simulation\n"
+        "from swarmplan.world import parse_world\n"
+        "w = parse_world(swarm_world(16, 4, 8))\n"
+        "s = Simulation(w, planner=make_planner(w))\n"
+        "s.reset(seed=0)\n"
+        "guided = 0\n"
+        "for _ in range(30):\n"
+        "    s.step(); guided += int(s.guide.guided.sum())\n"
+        "print(guided > 0, sorted(m for m in ('numba', 'llvmlite') if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True []"
