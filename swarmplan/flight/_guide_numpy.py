@@ -35,21 +35,12 @@ _SAMPLES = 1 << 20  # samples per block of lines (a few arrays of this many doub
 _SHAPES = ("sphere", "box", "cylinder", "capsule")  # the kernel's codes 0-3
 
 
-def _cells(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, lo: np.ndarray, cell: np.ndarray, shape: np.ndarray
-) -> np.ndarray:
-    """The flat index of the cell holding each (x, y, z) (any shape): the kernel's ``_cell``,
-    the floor of ``(x - lo) / cell`` clipped to the grid (in float, then the integer)."""
-    ijk = []
-    for a, v in enumerate((x, y, z)):
-        f = np.floor((v - lo[a]) / cell[a])
-        ijk.append(np.minimum(np.maximum(f, 0.0), float(shape[a] - 1)).astype(np.int64))
-    return (ijk[0] * int(shape[1]) + ijk[1]) * int(shape[2]) + ijk[2]
-
-
 def cells_of(pts: np.ndarray, lo: np.ndarray, cell: np.ndarray, shape: np.ndarray) -> np.ndarray:
-    """The flat index of the cell holding each of ``pts`` (n, 3) (``StaticGuide.cell_of``)."""
-    return _cells(pts[:, 0], pts[:, 1], pts[:, 2], lo, cell, shape)
+    """The flat index of the cell holding each of ``pts`` (..., 3) (``StaticGuide.cell_of``): the
+    kernel's ``_cell``, the floor of ``(p - lo) / cell`` clipped to the grid (in float, then the
+    integer)."""
+    ijk = np.minimum(np.maximum(np.floor((pts - lo) / cell), 0.0), shape - 1.0).astype(np.int64)
+    return (ijk[..., 0] * int(shape[1]) + ijk[..., 1]) * int(shape[2]) + ijk[..., 2]
 
 
 def way_points(
@@ -110,23 +101,22 @@ def sight_samples(
     block = max(1, _SAMPLES // max(m, 1))
     for a in range(0, len(lines), block):
         r = lines[a : a + block]
-        x, y, z = (start[r, k][:, None] + t[None, :] * d[r, k][:, None] for k in range(3))
-        c = _cells(x, y, z, lo, cell, shape)
+        p = start[r, None, :] + t[None, :, None] * d[r, None, :]  # (lines, samples, 3)
+        c = cells_of(p, lo, cell, shape)
         local, q = np.nonzero(clear[c] < limit)  # row by row, along each line: the kernel's order
-        row = r[local]
-        x, y, z, c = x[local, q], y[local, q], z[local, q], c[local, q]
+        row, p, c = r[local], p[local, q], c[local, q]
         if bounded:
             cc = clear[c]
-            ox, oy, oz = x - centres[c, 0], y - centres[c, 1], z - centres[c, 2]
-            off = np.sqrt(ox * ox + oy * oy + oz * oz)
+            o = p - centres[c]
+            off = np.sqrt(o[:, 0] * o[:, 0] + o[:, 1] * o[:, 1] + o[:, 2] * o[:, 2])
             within = cc + off < squeeze - _MARGIN  # surely within ``squeeze``: blocked
             beyond = cc - off > squeeze + _MARGIN  # surely beyond it: no exact distance
-            ground = ~beyond & ((z - 0.0) - floor - radius < squeeze)  # flat ground decides
+            ground = ~beyond & ((p[:, 2] - 0.0) - floor - radius < squeeze)  # flat ground decides
             hit[row[within | ground]] = True
             measure = ~beyond & ~(body_clear[c] - off > squeeze + _MARGIN) & ~hit[row]
-            row, x, y, z, c = row[measure], x[measure], y[measure], z[measure], c[measure]
+            row, p, c = row[measure], p[measure], c[measure]
         rows.append(row)
-        pts.append(np.column_stack([x, y, z]))
+        pts.append(p)
         cells.append(c)
     if not rows:
         return np.empty(0, dtype=np.int64), np.empty((0, 3)), np.empty(0, dtype=np.int64), hit
