@@ -97,12 +97,16 @@ def _lines(guide: G.StaticGuide, rng: np.random.Generator, n: int) -> tuple[np.n
 
 
 @pytest.mark.parametrize(("terrain", "agents"), [(False, 1), (True, 1), (False, 200)])
-def test_the_twins_decide_every_line_as_the_kernels_do(terrain: bool, agents: int) -> None:
+def test_the_twins_decide_every_line_as_the_kernels_do(
+    terrain: bool, agents: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
     guide = _guide(terrain, agents)  # 200 agents: a coarser grid (its twin forced here)
     rng = np.random.default_rng(11 + agents + terrain)
     seen: dict[str, int] = {}
     blocked = 0
     for trial in range(12):
+        if trial == 6:  # the later calls' lines in many blocks
+            monkeypatch.setattr(T, "_SAMPLES", 4096)
         start, end = _lines(guide, rng, 300)
         reach = rng.choice([np.inf, 5.0, 20.0], len(start)) if trial % 2 else np.inf
         twin = _use(guide, _both(seen)).blocked(start, end, reach)
