@@ -151,6 +151,9 @@ def test_the_oldest_entries_go_beyond_the_size_limit(folder: Path, monkeypatch: 
     left = sorted(p.stem for p in folder.glob("*.npz"))
     assert left == ["test-key0", "test-key4", "test-key5"]
     assert disk_cache.load("test", "key1") is None
+    monkeypatch.setattr(disk_cache, "MAX_ENTRY_BYTES", 7999)
+    disk_cache.save("test", "big", {"x": np.zeros(1000)})
+    assert disk_cache.load("test", "big") is None
 
 
 def test_a_run_goes_on_the_same_with_the_tables_read_back(folder: Path) -> None:

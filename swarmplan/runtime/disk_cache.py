@@ -36,6 +36,8 @@ import numpy as np
 ENV = "SWARMPLAN_CACHE_DIR"
 MAX_BYTES = 512 * 2**20
 """The cache's size in all, beyond which the least recently used entries are removed."""
+MAX_ENTRY_BYTES = MAX_BYTES // 8
+"""An entry larger than this is not stored (it would push out most of the others)."""
 
 _KEY = "__key__"
 
@@ -130,9 +132,10 @@ def load(kind: str, key: str) -> dict[str, np.ndarray] | None:
 
 
 def save(kind: str, key: str, arrays: dict[str, np.ndarray]) -> None:
-    """Store ``arrays`` as ``kind`` under ``key`` (nothing when the cache is off or unwritable)."""
+    """Store ``arrays`` as ``kind`` under ``key`` (nothing when the cache is off or unwritable,
+    or the arrays exceed ``MAX_ENTRY_BYTES``)."""
     folder = cache_dir()
-    if folder is None:
+    if folder is None or sum(np.asarray(a).nbytes for a in arrays.values()) > MAX_ENTRY_BYTES:
         return
     tmp = None
     try:
