@@ -1,8 +1,8 @@
 """Arrays kept on disk between runs, keyed by everything they are computed from.
 
 Some work depends on a world's geometry alone and costs more than the rest of a small run's
-start-up (the static guide's grid and its first ways: :mod:`swarmplan.flight.guide_cache`). It
-is computed once and read back by later runs of the same world, in this process or another
+start-up: the static guide's grid and its first ways (:mod:`swarmplan.flight.guide_cache`), a
+mesh's distance grid (:class:`swarmplan.geometry.shapes.MeshGrid`). It is computed once and read back by later runs of the same world, in this process or another
 (a sweep's workers, the next run of a world file being edited).
 
 - **Where:** ``$SWARMPLAN_CACHE_DIR``, else ``$XDG_CACHE_HOME/swarmplan``, else
