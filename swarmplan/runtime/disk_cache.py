@@ -2,8 +2,9 @@
 
 Some work depends on a world's geometry alone and costs more than the rest of a small run's
 start-up: the static guide's grid and its first ways (:mod:`swarmplan.flight.guide_cache`), a
-mesh's distance grid (:class:`swarmplan.geometry.shapes.MeshGrid`). It is computed once and read back by later runs of the same world, in this process or another
-(a sweep's workers, the next run of a world file being edited).
+mesh's distance grid (:class:`swarmplan.geometry.shapes.MeshGrid`). It is computed once and
+read back by later runs of the same world, in this process or another (a sweep's workers, the
+next run of a world file being edited).
 
 - **Where:** ``$SWARMPLAN_CACHE_DIR``, else ``$XDG_CACHE_HOME/swarmplan``, else
   ``~/.cache/swarmplan``. ``SWARMPLAN_CACHE_DIR`` set to an empty value turns the cache off.
@@ -123,9 +124,12 @@ def load(kind: str, key: str) -> dict[str, np.ndarray] | None:
     try:
         with np.load(path, allow_pickle=False) as f:
             arrays = {name: f[name] for name in f.files}
-        os.utime(path)  # recently used: the last to be removed
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):  # damaged or foreign
         return None
+    try:
+        os.utime(path)  # recently used: the last to be removed
+    except OSError:  # a cache one may read but not write
+        pass
     if str(arrays.pop(_KEY, "")) != key:
         return None
     return arrays
