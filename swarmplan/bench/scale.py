@@ -230,9 +230,10 @@ def startup_seconds(record: bool = False, caching: bool = False) -> tuple[float,
     and the Foxglove schemas imported, the header written).
 
     The figure is that of a second and later run: Python's bytecode of the package and numba's
-    machine code of the kernels cached on disk (``__pycache__``). A run with ``caching`` writes
-    both, also where ``PYTHONDONTWRITEBYTECODE`` is set (without bytecode every start compiles
-    the package's sources again, ~0.06-0.1 s): run one before timing."""
+    machine code of the kernels cached on disk (``__pycache__``), and the static guide's grid and
+    first ways (:mod:`swarmplan.runtime.disk_cache`). A run with ``caching`` writes them all,
+    also where ``PYTHONDONTWRITEBYTECODE`` is set (without bytecode every start compiles the
+    package's sources again, ~0.06-0.1 s): run one before timing."""
     code = (
         "import time; t0 = time.perf_counter()\n"
         "import tempfile\n"

@@ -36,6 +36,8 @@ numba to load.
 Stuck detection measures a guided agent's progress along its way, and the escape planner plans
 no escape for an agent the guide leads (unless a moving obstacle is near; the guide sees static
 ones only): what holds it is other agents.
+The grid's tables and the ways found at the first reset are kept on disk and read back, bit for
+bit, by the next guide of the same geometry and starts (:mod:`swarmplan.flight.guide_cache`).
 """
 
 from __future__ import annotations

@@ -10,9 +10,11 @@ distances are approximate to about one voxel.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from swarmplan.runtime import disk_cache
 
 if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle
@@ -115,20 +117,37 @@ class MeshGrid:
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, cells: int = 48, pad: float | None = None):
         import trimesh
-        from scipy import ndimage
 
         mesh = trimesh.Trimesh(vertices, faces, process=False)
+        # The grid depends on the mesh alone: kept on disk for the next process (~0.6 s each).
+        key = disk_cache.digest("mesh grid", np.asarray(vertices), np.asarray(faces), cells, pad)
+        stored = disk_cache.load("mesh-grid", key)
+        if stored is None:
+            stored = self._compute(mesh, cells, pad)
+            disk_cache.save("mesh-grid", key, stored)
+        self.grid, self.lo, self.pitch = stored["grid"], stored["lo"], float(stored["pitch"])
+        self.grad = np.stack(np.gradient(self.grid, self.pitch), axis=-1)
+        self.hi = self.lo + (np.array(self.grid.shape) - 1) * self.pitch
+        self.mesh_lo, self.mesh_hi = mesh.bounds
+        self.mesh = mesh
+        self.watertight = bool(stored["watertight"])
+
+    @staticmethod
+    def _compute(mesh: Any, cells: int, pad: float | None) -> dict[str, np.ndarray]:
+        """The grid's values, corner, pitch and whether the mesh is closed."""
+        import trimesh
+        from scipy import ndimage
+
         lo, hi = mesh.bounds
         extent = float(np.max(hi - lo))
         pitch = extent / cells
         pad = 4 * pitch if pad is None else pad
-        self.lo = lo - pad
+        corner = lo - pad
         shape = np.ceil((hi - lo + 2 * pad) / pitch).astype(int) + 1
-        self.pitch = pitch
         # Voxel centres inside the mesh (filled voxelization), then two distance transforms.
         vox = mesh.voxelized(pitch).fill()
         occ = np.zeros(shape, dtype=bool)
-        idx = np.round((vox.points - self.lo) / pitch).astype(int)
+        idx = np.round((vox.points - corner) / pitch).astype(int)
         ok = np.all((idx >= 0) & (idx < shape), axis=1)
         occ[tuple(idx[ok].T)] = True
         outside = ndimage.distance_transform_edt(~occ) * pitch
@@ -137,15 +156,11 @@ class MeshGrid:
         grid = np.where(occ, -(inside - 0.5 * pitch), outside - 0.5 * pitch)
         # Near the surface, where clearance matters, replace the voxel estimate by exact values.
         band = np.abs(grid) < 3 * pitch
-        nodes = self.lo + np.argwhere(band) * pitch
+        nodes = corner + np.argwhere(band) * pitch
         if len(nodes):
             grid[band] = -trimesh.proximity.signed_distance(mesh, nodes)  # trimesh: positive inside
-        self.grid = grid
-        self.grad = np.stack(np.gradient(self.grid, pitch), axis=-1)
-        self.hi = self.lo + (shape - 1) * pitch
-        self.mesh_lo, self.mesh_hi = lo, hi
-        self.mesh = mesh
-        self.watertight = bool(mesh.is_watertight)
+        closed = np.array(mesh.is_watertight)
+        return {"grid": grid, "lo": corner, "pitch": np.array(pitch), "watertight": closed}
 
     def exact(self, p: np.ndarray, approx: np.ndarray | None = None) -> np.ndarray:
         """Exact distances from local points (N, 3) to the mesh surface, for metrics.

@@ -1,9 +1,10 @@
 """Arrays kept on disk between runs, keyed by everything they are computed from.
 
 Some work depends on a world's geometry alone and costs more than the rest of a small run's
-start-up (the static guide's grid and its first ways: :mod:`swarmplan.flight.guide_cache`). It
-is computed once and read back by later runs of the same world, in this process or another
-(a sweep's workers, the next run of a world file being edited).
+start-up: the static guide's grid and its first ways (:mod:`swarmplan.flight.guide_cache`), a
+mesh's distance grid (:class:`swarmplan.geometry.shapes.MeshGrid`). It is computed once and
+read back by later runs of the same world, in this process or another (a sweep's workers, the
+next run of a world file being edited).
 
 - **Where:** ``$SWARMPLAN_CACHE_DIR``, else ``$XDG_CACHE_HOME/swarmplan``, else
   ``~/.cache/swarmplan``. ``SWARMPLAN_CACHE_DIR`` set to an empty value turns the cache off.
@@ -36,6 +37,8 @@ import numpy as np
 ENV = "SWARMPLAN_CACHE_DIR"
 MAX_BYTES = 512 * 2**20
 """The cache's size in all, beyond which the least recently used entries are removed."""
+MAX_ENTRY_BYTES = MAX_BYTES // 8
+"""An entry larger than this is not stored (it would push out most of the others)."""
 
 _KEY = "__key__"
 
@@ -121,18 +124,22 @@ def load(kind: str, key: str) -> dict[str, np.ndarray] | None:
     try:
         with np.load(path, allow_pickle=False) as f:
             arrays = {name: f[name] for name in f.files}
-        os.utime(path)  # recently used: the last to be removed
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile):  # damaged or foreign
         return None
+    try:
+        os.utime(path)  # recently used: the last to be removed
+    except OSError:  # a cache one may read but not write
+        pass
     if str(arrays.pop(_KEY, "")) != key:
         return None
     return arrays
 
 
 def save(kind: str, key: str, arrays: dict[str, np.ndarray]) -> None:
-    """Store ``arrays`` as ``kind`` under ``key`` (nothing when the cache is off or unwritable)."""
+    """Store ``arrays`` as ``kind`` under ``key`` (nothing when the cache is off or unwritable,
+    or the arrays exceed ``MAX_ENTRY_BYTES``)."""
     folder = cache_dir()
-    if folder is None:
+    if folder is None or sum(np.asarray(a).nbytes for a in arrays.values()) > MAX_ENTRY_BYTES:
         return
     tmp = None
     try:

@@ -1,8 +1,9 @@
-"""The static guide's tables kept on disk (swarmplan.flight.guide_cache over
-swarmplan.runtime.disk_cache): a guide read back holds, array for array and bit for bit, what a
-computed one holds, after its build and after its first reset; a run goes on identically; a
-change of any input or constant is another entry; a damaged, foreign or unwritable entry costs
-only the speed-up."""
+"""Arrays kept on disk between runs (swarmplan.runtime.disk_cache): the static guide's tables
+(swarmplan.flight.guide_cache) and the mesh distance grids (swarmplan.geometry.shapes.MeshGrid).
+A guide read back holds, array for array and bit for bit, what a computed one holds, after its
+build and after its first reset, and a run goes on identically; a mesh grid read back is the
+computed one; a change of any input or constant is another entry; a damaged, foreign or
+unwritable entry costs only the speed-up."""
 
 from __future__ import annotations
 
@@ -151,6 +152,9 @@ def test_the_oldest_entries_go_beyond_the_size_limit(folder: Path, monkeypatch: 
     left = sorted(p.stem for p in folder.glob("*.npz"))
     assert left == ["test-key0", "test-key4", "test-key5"]
     assert disk_cache.load("test", "key1") is None
+    monkeypatch.setattr(disk_cache, "MAX_ENTRY_BYTES", 7999)
+    disk_cache.save("test", "big", {"x": np.zeros(1000)})
+    assert disk_cache.load("test", "big") is None
 
 
 def test_a_run_goes_on_the_same_with_the_tables_read_back(folder: Path) -> None:
@@ -179,3 +183,23 @@ def test_a_run_goes_on_the_same_with_the_tables_read_back(folder: Path) -> None:
     off = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          env={**env, disk_cache.ENV: ""})  # fmt: skip
     assert off.stdout == runs[0].stdout
+
+
+def test_a_mesh_grid_read_back_is_the_computed_one(folder: Path) -> None:
+    import trimesh
+
+    from swarmplan.geometry.shapes import MeshGrid
+
+    box = trimesh.creation.box(extents=(2.0, 1.0, 0.5))
+    computed = MeshGrid(box.vertices, box.faces, cells=16)
+    assert len(list(folder.glob("mesh-grid-*.npz"))) == 1
+    read = MeshGrid(box.vertices, box.faces, cells=16)
+    for name in ("grid", "grad", "lo", "hi", "mesh_lo", "mesh_hi"):
+        a, b = getattr(computed, name), getattr(read, name)
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
+    assert (computed.pitch, computed.watertight) == (read.pitch, read.watertight)
+    assert type(read.pitch) is float and read.watertight
+    p = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 1.25]])
+    np.testing.assert_allclose(read.exact(p), [-0.25, 1.0, 1.0])  # inside, beside, above
+    MeshGrid(box.vertices, box.faces, cells=12)  # another resolution: another entry
+    assert len(list(folder.glob("mesh-grid-*.npz"))) == 2
