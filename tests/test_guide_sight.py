@@ -1,9 +1,9 @@
 """The guide's line-of-sight check (swarmplan.flight.guide.StaticGuide.blocked) passes over lines
 that cannot land a sample in a cell near a surface and measures a sample's distances only near
 a body's bounding box: on random lines among boxes, cylinders, capsules and spheres, over flat
-ground and over terrain (and with a mesh among the bodies), its answers equal those of measuring every sample of every line; the
-bounding boxes hold the bodies (no distance below the box's), and the gap table is the
-distance between cell boxes."""
+ground and over terrain (and with a mesh among the bodies), its answers equal those of
+measuring every sample of every line; the bounding boxes hold the bodies (no distance below the
+box's), and the gap table is the distance between cell boxes."""
 
 from __future__ import annotations
 
