@@ -1,9 +1,9 @@
 """The guide's line-of-sight check (swarmplan.flight.guide.StaticGuide.blocked) passes over lines
 that cannot land a sample in a cell near a surface and measures a sample's distances only near
 a body's bounding box: on random lines among boxes, cylinders, capsules and spheres, over flat
-ground and over terrain, its answers equal those of measuring every sample of every line; the
-bounding boxes hold the bodies (no distance below the box's), and the gap table is the
-distance between cell boxes."""
+ground and over terrain (and with a mesh among the bodies), its answers equal those of
+measuring every sample of every line; the bounding boxes hold the bodies (no distance below the
+box's), and the gap table is the distance between cell boxes."""
 
 from __future__ import annotations
 
@@ -180,3 +180,27 @@ def test_cell_of_is_the_clipped_floor_of_the_grid_coordinates() -> None:
     expect = (ijk[:, 0] * guide.shape[1] + ijk[:, 1]) * guide.shape[2] + ijk[:, 2]
     np.testing.assert_array_equal(guide.cell_of(p), expect)
     assert guide.cell_of(guide.centres[[0, 7, guide.n_cells - 1]]).tolist() == [0, 7, guide.n_cells - 1]
+
+
+def test_a_mesh_among_the_bodies_is_measured_from_its_grid(tmp_path) -> None:
+    """With a mesh among the bodies every sample is measured against every body in numpy, the
+    mesh from its distance grid: the distances of ``ShapeBatch.distance``, and the answers of
+    measuring every sample, on lines inside the grid (where no sample calls for every body)."""
+    import trimesh
+
+    trimesh.creation.box(extents=(10.0, 10.0, 20.0)).export(tmp_path / "cube.stl")
+    mesh = {"id": "m", "shape": "mesh", "file": str(tmp_path / "cube.stl"), "position": [50, 50, 10]}
+    raw = base_world(
+        obstacles=[mesh, OBSTACLES[2]], agents=[{"id": "a", "start": [5, 5, 40], "goal": [95, 95, 40]}]
+    )
+    world = make_world(raw)
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    rng = np.random.default_rng(2)
+    p = rng.uniform([1, 1, 1], [99, 99, 49], (3000, 3))
+    d = guide._body_distance(p, guide.cell_of(p))
+    np.testing.assert_array_equal(d, guide._batch.distance(p).min(axis=1))
+    start = rng.uniform([2, 2, 2], [98, 98, 48], (2000, 3))
+    end = np.clip(start + rng.normal(size=(2000, 3)) * 10.0, 2.0, 48.0)
+    fast = guide.blocked(start, end)
+    np.testing.assert_array_equal(fast, _every_sample(guide, *_cut(start, end, np.inf)))
+    assert 0 < fast.sum() < len(fast)

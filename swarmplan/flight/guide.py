@@ -30,7 +30,9 @@ nothing is built and nothing changes. An agent following a segment or a global r
 and fixed wings (which cannot fly a way that hugs corners) are never guided.
 The searches, the line-of-sight samples and the points on the ways run compiled
 (``_guide_kernel``), each giving the numbers its numpy or scipy formulation gives (the same
-ways, the same decisions).
+ways, the same decisions); below swarm size, while numba is not loaded, the per-step calls run
+their numpy twins (``_guide_numpy``: the same answers), so a small world's first steps need no
+numba to load.
 Stuck detection measures a guided agent's progress along its way, and the escape planner plans
 no escape for an agent the guide leads (unless a moving obstacle is near; the guide sees static
 ones only): what holds it is other agents.
@@ -46,12 +48,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.flight import guide_cache
+from swarmplan.flight import _guide_numpy, guide_cache
 from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.geometry.compiled import use_compiled
+from swarmplan.runtime.compiled import kernel_module, numba_loaded
 from swarmplan.world.motion import resting_bodies
 
 if TYPE_CHECKING:
+    from types import ModuleType
+
     from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
@@ -260,10 +265,17 @@ class StaticGuide:
                 normal[a : a + _CHUNK][closer] = g[rows, j][closer]
         return clear - self.radius, normal, body - self.radius
 
+    def _kernels(self) -> ModuleType:
+        """The per-step kernels: their numpy twins (the same answers) below swarm size while
+        numba is not in the process, else the compiled ones."""
+        if not use_compiled(len(self.world.agents)) and not numba_loaded():
+            return _guide_numpy
+        return kernel_module("swarmplan.flight._guide_kernel")
+
     def cell_of(self, pts: np.ndarray) -> np.ndarray:
         """Index of the cell holding each of ``pts`` (points outside: the nearest cell)."""
         pts = np.ascontiguousarray(pts, dtype=float).reshape(-1, 3)
-        return kernel_module("swarmplan.flight._guide_kernel").cells_of(pts, self.lo, self.cell, self.shape)
+        return self._kernels().cells_of(pts, self.lo, self.cell, self.shape)
 
     def blocked(self, start: np.ndarray, end: np.ndarray, reach: np.ndarray | float = np.inf) -> np.ndarray:
         """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
@@ -297,7 +309,7 @@ class StaticGuide:
         t = self._t.get(samples)
         if t is None:
             t = self._t[samples] = np.linspace(0.0, 1.0, samples + 1)
-        kernels = kernel_module("swarmplan.flight._guide_kernel")
+        kernels = self._kernels()
         grid = (self.lo, self.cell, self.shape, self.centres, self.clear, self._body_clear)
         levels = (self.half_diagonal + SQUEEZE, SQUEEZE, self.floor, self.radius)
         row, p, cells, out = kernels.sight_samples(
@@ -353,8 +365,8 @@ class StaticGuide:
         b = self._batch
         every = bool(((p < self._inner[0]) | (p > self._inner[1])).any())
         if not b.meshes:
-            kernels = kernel_module("swarmplan.flight._guide_kernel")
-            return kernels.body_distance(p, cells, self._reach, every, b.position, b.rotation, b.code, b.prm)
+            prims = (b.position, b.rotation, b.code, b.prm)
+            return self._kernels().body_distance(p, cells, self._reach, every, *prims)
         if every:
             return b.distance(p).min(axis=1)
         pt, body = np.nonzero(self._reach[cells])
@@ -368,6 +380,8 @@ class StaticGuide:
             sel = np.flatnonzero(b.code[body] == code)
             if len(sel):
                 d[sel] = SHAPE_DISTANCE[shape](local[sel], *(v[body[sel]] for v in b.by_obstacle[shape]))
+        mesh = np.flatnonzero(b.code[body] < 0)  # and the meshes from their grids, as ``distance`` does
+        d[mesh] = b.pair_distance(p[pt[mesh]], body[mesh])
         first = np.flatnonzero(np.diff(pt, prepend=-1))  # pairs come row by row
         out[pt[first]] = np.minimum.reduceat(d, first)
         return out
@@ -521,9 +535,8 @@ class StaticGuide:
         scale[rows] = np.minimum(scale[rows], REPULSION)
         p, g = pos[rows], goal[rows]
         table = self._rows_for(self.cell_of(g), p)
-        kernels = kernel_module("swarmplan.flight._guide_kernel")
-        grid = (self.lo, self.cell, self.shape, self.centres)
-        out[rows] = kernels.way_points(p, g, table, grid, (self._next, self._dist, self._source), HOPS)
+        grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
+        out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         return out, scale
 
     def leads(self, i: int, pos: np.ndarray, goal: np.ndarray) -> bool:
