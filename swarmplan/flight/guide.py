@@ -191,8 +191,8 @@ class StaticGuide:
         self._reach_bodies()
 
     def _proximity(self) -> np.ndarray:
-        """Each cell's nearness to a surface (0 from ``C0`` of clearance on, 1 at none), and the
-        cells' ``free`` and ``near`` flags from their clearance."""
+        """Each cell's nearness to a surface (1 at the surface, falling to 0 at a clearance of two
+        cells or 4 m, whichever is more), and the cells' ``free`` and ``near`` flags from it."""
         self.free = self.clear > 0.0
         c0 = max(2.0 * float(self.cell.max()), 4.0)
         prox = np.clip(1.0 - self.clear / c0, 0.0, 1.0)
