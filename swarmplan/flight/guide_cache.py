@@ -146,13 +146,23 @@ def load_ways(guide: StaticGuide, key: str) -> bool:
         return False
     n = guide.n_cells
     rows, capacity = len(a["source"]), int(a["capacity"])
-    if a["next"].shape != (rows, n) or capacity < rows:
+    legs = _legs_of(guide, np.flatnonzero(a["has_dir"]))
+    # Every part checked before the guide is touched: an entry is taken whole or not at all.
+    if (
+        a["next"].shape != (rows, n)
+        or a["dist"].shape != (rows, n)
+        or capacity < rows
+        or len(legs) != len(a["leg_dir"])
+        or len(a["priced"]) != len(a["prices"])
+        or len(a["flow_cells"]) != len(a["flow"])
+        or len(a["goal_cells"]) != len(a["goal_rows"])
+    ):
         return False
     guide.guided[:] = a["guided"]
     guide._reverse.data[a["priced"]] = a["prices"]
     guide._flow[a["flow_cells"]] = a["flow"]
     guide._has_dir[:] = a["has_dir"]
-    guide._leg_dir[_legs_of(guide, np.flatnonzero(guide._has_dir))] = a["leg_dir"]
+    guide._leg_dir[legs] = a["leg_dir"]
     guide._row_of[a["goal_cells"]] = a["goal_rows"]
     guide._next = np.empty((capacity, n), dtype=np.int32)
     guide._dist = np.empty((capacity, n), dtype=np.float32)
