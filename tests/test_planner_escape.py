@@ -170,15 +170,51 @@ def test_every_attempt_rejected_holds_then_searches_wider(monkeypatch):
     assert widths[before][1] == pytest.approx(growth * widths[0][1])
 
 
-def test_a_fixed_wing_with_no_room_to_loiter_is_failed_with_the_reason(monkeypatch):
+def test_a_fixed_wing_with_no_room_anywhere_flies_on_and_plans_again(monkeypatch):
     sim, planner = _pocket_sim()
     monkeypatch.setattr(EscapePlanner, "segment_hit", lambda *a: "back")
-    sim.params.fixed_wing[0] = True  # every loiter circle is 'blocked' too
+    sim.params.fixed_wing[0] = True  # every loiter circle and every way to free volume is 'blocked'
     for _ in range(planner.escape.cfg["rounds"] - 1):
         assert planner.on_stuck(sim, 0) is None
-    assert planner.on_stuck(sim, 0) == "failed"
+    assert planner.on_stuck(sim, 0) is None  # never 'failed': on under the field
     kind, detail = [(e.kind, e.detail) for e in sim._events][-1]
     assert kind == "hold" and detail["possible"] is False
+
+
+def test_a_fixed_wing_with_no_loiter_circle_flies_to_the_clearest_free_point(monkeypatch):
+    from swarmplan.planner.escape import static_clearance
+    from swarmplan.planner.hold import FREE_CLIMBS, FREE_HEADINGS, LOITER_FACTORS
+
+    sim, planner = _pocket_sim()
+    sim.params.fixed_wing[0] = True
+    sim.params.min_turn_radius[0] = 5.0  # its points (24 m off) are within the 120 x 80 x 30 m volume
+    reach = 2.0 * LOITER_FACTORS[-1] * float(sim.params.min_turn_radius[0])
+
+    def only_free_volume_open(self, sim, i, poly, start_clearance):
+        # Escapes and loiter circles are 'blocked'; ways to a point a loiter's diameter off are free.
+        return None if np.isclose(np.linalg.norm(poly[-1] - poly[0]), reach, rtol=1e-9) else "back"
+
+    monkeypatch.setattr(EscapePlanner, "segment_hit", lambda *a: "back")
+    for _ in range(planner.escape.cfg["rounds"] - 1):
+        assert planner.on_stuck(sim, 0) is None
+    from swarmplan.planner.escape import EscapeOutcome
+
+    monkeypatch.setattr(EscapePlanner, "plan", lambda *a, **k: EscapeOutcome(None, 1, []))  # no escape
+    monkeypatch.setattr(EscapePlanner, "segment_hit", only_free_volume_open)
+    out = planner.on_stuck(sim, 0)
+    assert isinstance(out, PlannedSegment) and out.mode == Mode.ESCAPE
+    kind, detail = [(e.kind, e.detail) for e in sim._events][-1]
+    assert kind == "hold" and detail["possible"] and detail["free_volume"]
+    # Its end is the clearest of the candidate points: no other is clearer.
+    p = sim.state.position[0]
+    np.testing.assert_allclose(np.linalg.norm(out.waypoints[-1] - p), reach, rtol=1e-9)
+    psi = np.arange(FREE_HEADINGS) * 2 * np.pi / FREE_HEADINGS
+    g = np.array(FREE_CLIMBS)[:, None] * float(sim.params.max_climb[0])
+    up = np.broadcast_to(np.sin(g), (len(g), len(psi)))
+    u = np.stack([np.cos(g) * np.cos(psi), np.cos(g) * np.sin(psi), up], -1)
+    r = float(sim.params.radius[0])
+    best = static_clearance(sim, (p + reach * u).reshape(-1, 3), r).max()
+    assert static_clearance(sim, out.waypoints[-1], r)[0] == pytest.approx(best)
 
 
 def test_same_seed_same_run():

@@ -33,7 +33,9 @@ rounds the agent holds on under APF — other agents and moving obstacles move o
 round may find a way — and an ``escape_deferred`` event is logged).
 
 No giving up: after ``rounds`` failed rounds, or ``max_escapes`` escapes, the agent holds
-(:mod:`swarmplan.planner.hold`) and plans again wider; ``failed`` only with no room to hold.
+(:mod:`swarmplan.planner.hold`) and plans again wider; a fixed wing with no room to loiter
+flies towards free volume (or on under the field) and plans again. This planner never answers
+``failed``.
 """
 
 from __future__ import annotations
@@ -44,7 +46,6 @@ import numpy as np
 
 from swarmplan import optimizers
 from swarmplan.core import (
-    FAILED,
     SEGMENT_REPULSION_SCALE,
     Mode,
     PlannedSegment,
@@ -55,7 +56,7 @@ from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import CROWD, guided, held_by_obstacles, queued, under_way
-from swarmplan.planner.hold import hold_waypoints
+from swarmplan.planner.hold import free_volume_waypoints, hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 
@@ -518,7 +519,9 @@ class EscapePlanner:
 
     def hold(self, sim: PlanningContext, i: int, reason: str) -> StuckOutcome:
         """A holding pattern (:mod:`swarmplan.planner.hold`) instead of giving up; later searches
-        are ``growth`` times wider per hold. ``FAILED`` only when no holding pattern is free."""
+        are ``growth`` times wider per hold. A multirotor hovers; a fixed wing with no free
+        loiter circle flies towards free volume (:func:`free_volume_waypoints`), or, with no
+        free way there either, on under the field (None) until it plans again."""
         rounds = self.holds.get(i, 0) + 1
         self.holds[i] = rounds
         s = sim.state
@@ -531,8 +534,22 @@ class EscapePlanner:
             lambda poly: self.segment_hit(sim, i, poly, start_clear) is not None,
         )
         if pts is None:
-            sim.note_event(i, "hold", {"reason": reason, "round": rounds, "possible": False})
-            return FAILED
+            # A fixed wing and no circle fits here: towards the nearest free volume, to hold there.
+            r = float(sim.params.radius[i])
+            pts = free_volume_waypoints(
+                s.position[i],
+                s.velocity[i],
+                model_turn_radius(sim, i),
+                float(sim.params.max_climb[i]),
+                lambda q: static_clearance(sim, q, r),
+                lambda poly: self.segment_hit(sim, i, poly, start_clear) is not None,
+            )
+            if pts is None:  # nothing free within reach: it flies on under the field and plans again
+                sim.note_event(i, "hold", {"reason": reason, "round": rounds, "possible": False})
+                return None
+            detail = {"reason": reason, "round": rounds, "possible": True, "free_volume": True}
+            sim.note_event(i, "hold", detail)
+            return PlannedSegment(pts, mode=Mode.ESCAPE)
         sim.note_event(i, "hold", {"reason": reason, "round": rounds, "possible": True})
         return PlannedSegment(pts, mode=Mode.ESCAPE)
 

@@ -5,7 +5,10 @@ obstacles and other agents while it waits). A fixed wing cannot hover: it flies 
 circle, tangent to its current heading so it can enter it at once, of radius at least its
 minimum turn radius, on whichever side (and at the smallest radius of 1.2, 1.6, 2.4 x R_min)
 the swept check finds clear of static obstacles, terrain and the bounds; the circle's points
-are spaced at most 10 degrees apart. None fits: holding is impossible there.
+are spaced at most 10 degrees apart. None fits where it is: it flies towards the nearest free
+volume (:func:`free_volume_waypoints`: a turn at its minimum radius, then straight, to the
+clearest of the points around it at the distance of a loiter's diameter), holds there and
+plans again; a fixed wing never gives up in the air.
 """
 
 from __future__ import annotations
@@ -15,8 +18,16 @@ from collections.abc import Callable
 
 import numpy as np
 
+from swarmplan.geometry.polyline import dubins_chain
+
 LOITER_FACTORS = (1.2, 1.6, 2.4)
 """Loiter radii tried, in multiples of the minimum turn radius."""
+
+FREE_HEADINGS = 16
+"""Headings (evenly spaced) of the points a fixed wing looks at for free volume."""
+
+FREE_CLIMBS = (0.0, 0.5, -0.5)
+"""Flight-path angles of those points, in fractions of the climb limit (level first)."""
 
 
 def loiter_circle(position: np.ndarray, velocity: np.ndarray, radius: float, side: float) -> np.ndarray:
@@ -53,4 +64,39 @@ def hold_waypoints(
             pts = loiter_circle(p, velocity, factor * min_turn_radius, side)
             if not blocked(np.vstack([p[None], pts])):
                 return pts
+    return None
+
+
+def free_volume_waypoints(
+    position: np.ndarray,
+    velocity: np.ndarray,
+    min_turn_radius: float,
+    climb_limit: float,
+    clearance: Callable[[np.ndarray], np.ndarray],
+    blocked: Callable[[np.ndarray], bool],
+) -> np.ndarray | None:
+    """A fixed wing's way (points after ``position``) towards the nearest free volume: of the
+    points at the distance of the widest loiter's diameter around it (``FREE_HEADINGS``
+    headings, ``FREE_CLIMBS`` flight-path angles), the one of largest ``clearance(points)``
+    whose Dubins path (turn at ``min_turn_radius``, then straight) is not ``blocked``; at half
+    and a quarter of that distance when none is. None when no such path is free."""
+    p = np.asarray(position, float)
+    v = np.asarray(velocity, float)
+    psi = np.arange(FREE_HEADINGS) * (2.0 * math.pi / FREE_HEADINGS)
+    for scale in (1.0, 0.5, 0.25):
+        reach = 2.0 * LOITER_FACTORS[-1] * min_turn_radius * scale
+        pts = []
+        for f in FREE_CLIMBS:
+            g = f * climb_limit
+            c = math.cos(g)
+            u = np.column_stack([c * np.cos(psi), c * np.sin(psi), np.full(len(psi), math.sin(g))])
+            pts.append(p + reach * u)
+        pts = np.concatenate(pts)
+        clear = clearance(pts)
+        for k in np.argsort(-clear, kind="stable").tolist():
+            if clear[k] <= 0.0:
+                break
+            way = dubins_chain(p, v, pts[k][None], min_turn_radius)
+            if not blocked(way):
+                return way[1:]
     return None

@@ -149,8 +149,9 @@ class Navigator:
         Progress is measured as the distance still to fly: straight to the goal, or along the
         rest of the global route when the agent has one (a route may detour away from the goal).
         ``on_stuck(i)`` answers for a stuck agent: a segment to follow, ``FAILED`` or None (keep
-        flying under APF), with the events reported while planning it (logged after the
-        ``stuck`` event). Returns what was detected and started.
+        flying under APF; a fixed wing answered ``FAILED`` flies on too: it cannot stop), with
+        the events reported while planning it (logged after the ``stuck`` event). Returns what
+        was detected and started.
         """
         out = NOTHING
         window = self.world.planner_config.stuck.window
@@ -190,6 +191,8 @@ class Navigator:
                 continue
             outcome, reported = on_stuck(i)
             out += Tally(events=tuple(reported))
+            if outcome == FAILED and self.params.fixed_wing[i]:
+                continue  # a fixed wing cannot stop in the air: it flies on and is asked again
             if outcome == FAILED:
                 s.mode[i] = Mode.FAILED
                 failed = Event(s.t, self.params.ids[i], "failed", {"reason": failure_reason(reported)})
