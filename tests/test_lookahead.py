@@ -56,13 +56,19 @@ def test_without_the_guard_the_same_flight_hits_the_wall(monkeypatch):
     assert summary["agents"][0]["collided_with"] == ["wall"]
 
 
-def _one_agent_params() -> AgentParams:
-    return AgentParams.from_world(wall_world())
+def _one_agent_params(instant: bool = False) -> AgentParams:
+    """The wall world's agent; ``instant``: rolling at once (no roll rate) and keeping only its
+    radius from bodies, for the closed-form figures below."""
+    p = AgentParams.from_world(wall_world())
+    if instant:
+        p.roll_rate[:] = np.inf
+        p.clearance[:] = p.radius
+    return p
 
 
-def _wall_clearance(points: np.ndarray, radii: np.ndarray, t: float) -> np.ndarray:
+def _wall_clearance(points: np.ndarray, radii: np.ndarray, t: float, extra: np.ndarray) -> np.ndarray:
     """Half-space x < WALL_X - 1 (the wall's near face) as the only obstacle."""
-    return (WALL_X - 1.0) - points[:, 0] - radii
+    return (WALL_X - 1.0) - points[:, 0] - radii - extra
 
 
 def test_guard_keeps_the_field_command_while_a_way_out_remains():
@@ -72,7 +78,7 @@ def test_guard_keeps_the_field_command_while_a_way_out_remains():
     with X = sum of 1.5 cos(0.075 k) over the first quarter turn (19.25 m): the body keeps
     D - X - 1 >= 1 for D >= X + 2. The command stands while the next state (D - 1.5) still
     has that way out, i.e. down to D = X + 3.5; below, the guard turns at once."""
-    p = _one_agent_params()
+    p = _one_agent_params(instant=True)
     idx = np.array([0])
     vel = np.array([[15.0, 0.0, 0.0]])
     cmd = vel.copy()  # straight on at the wall
@@ -125,3 +131,45 @@ def test_predicted_positions_are_exact_arcs():
     t = times[1]
     c, s = np.cos(np.radians(10)), np.sin(np.radians(10))
     np.testing.assert_allclose(P[0, 3, 1], [15 * c * t, 0.0, 15 * s * t], atol=1e-9)  # straight climb
+
+
+def test_a_finite_roll_rate_makes_the_guard_turn_earlier():
+    """Rolling into the turn takes steps the instant model turns in: the guard gives the
+    command up farther from the wall."""
+    idx, vel = np.array([0]), np.array([[15.0, 0.0, 0.0]])
+    required = np.array([1.0])
+
+    def last_standing(p: AgentParams) -> float:
+        for distance in np.arange(60.0, 10.0, -0.05):
+            pos = np.array([[WALL_X - 1 - distance, 100.0, 30.0]])
+            _, replaced = guard_commands(p, idx, pos, vel, vel.copy(), 0.0, 0.1, _wall_clearance, required)
+            if replaced[0]:
+                return float(distance)
+        raise AssertionError("never guarded")
+
+    instant = _one_agent_params(instant=True)
+    rolling = _one_agent_params(instant=True)
+    rolling.roll_rate[:] = _one_agent_params().roll_rate
+    assert last_standing(rolling) > last_standing(instant) + 0.5
+
+
+def test_the_guard_keeps_the_aircrafts_clearance_from_bodies():
+    """By default a fixed wing keeps half its horizontal separation from bodies (2 m here, body
+    radius 1 m): the command is given up one metre farther from the wall than with its radius."""
+    p = _one_agent_params()
+    assert p.clearance[0] == pytest.approx(2.0)
+    idx, vel, required = np.array([0]), np.array([[15.0, 0.0, 0.0]]), np.array([1.0])
+
+    def replaced_at(params: AgentParams, distance: float) -> bool:
+        pos = np.array([[WALL_X - 1 - distance, 100.0, 30.0]])
+        return bool(
+            guard_commands(params, idx, pos, vel, vel.copy(), 0.0, 0.1, _wall_clearance, required)[1][0]
+        )
+
+    near = _one_agent_params()
+    near.clearance[:] = near.radius
+    # Between the two thresholds (1 m apart) only the wider clearance gives the command up.
+    gaps = np.arange(15.0, 40.0, 0.05)
+    wide = next(d for d in gaps[::-1] if replaced_at(p, d))
+    tight = next(d for d in gaps[::-1] if replaced_at(near, d))
+    assert wide - tight == pytest.approx(1.0, abs=0.06)

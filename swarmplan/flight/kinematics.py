@@ -5,7 +5,10 @@
   max_accel * dt; flight-path angle within ±max_climb_angle; heading and flight-path angle turn
   together, so that the direction of flight turns by at most V * dt / min_turn_radius per step
   (V the slower of the step's two speeds): the 3D curvature of the flown path, turning angle
-  over distance, stays <= 1 / min_turn_radius at every speed.
+  over distance, stays <= 1 / min_turn_radius at every speed. It rolls into and out of turns:
+  the bank of one step, atan(curvature * V^2 / g), differs from the last one's by at most
+  roll_rate * dt, so curvature changes continuously (the simulation keeps each fixed wing's
+  turn state, the last step's curvature; ``swarmplan.flight._fixed_wing_kernel``).
 Positions advance with the new velocity (semi-implicit Euler), so the recorded velocity
 is exactly the step's displacement over dt.
 """
@@ -18,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.runtime.compiled import kernel_module
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -38,6 +42,8 @@ class AgentParams:
     max_climb: np.ndarray
     min_altitude: np.ndarray
     separation: np.ndarray
+    roll_rate: np.ndarray  # rad/s (fixed wings)
+    clearance: np.ndarray  # m the turn-ahead guard keeps from every body (fixed wings)
 
     @classmethod
     def from_world(cls, world: World) -> AgentParams:
@@ -55,6 +61,8 @@ class AgentParams:
             max_climb=arr(lambda x: x.max_climb_angle),
             min_altitude=arr(lambda x: x.min_altitude),
             separation=np.array([x.separation for x in a], dtype=float).reshape(-1, 3),
+            roll_rate=arr(lambda x: x.roll_rate if x.roll_rate > 0 else np.inf),
+            clearance=arr(lambda x: max(x.clearance, x.radius)),
         )
 
 
@@ -81,28 +89,41 @@ def limit_multirotor(
     return v0 + dv * np.minimum(1.0, amax * dt / np.maximum(n, 1e-12))[:, None]
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + np.pi) % (2 * np.pi) - np.pi
+def fixed_wing_model():  # noqa: ANN201
+    """:mod:`swarmplan.flight._fixed_wing_kernel` (numba loads with it at the first call)."""
+    return kernel_module("swarmplan.flight._fixed_wing_kernel")
 
 
-def direction_angles(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Heading and flight-path angle (rad) of velocities ``v`` (n, 3)."""
-    return np.arctan2(v[:, 1], v[:, 0]), np.arctan2(v[:, 2], np.hypot(v[:, 0], v[:, 1]))
+def fly_fixed_wing(
+    v0: np.ndarray,
+    v_cmd: np.ndarray,
+    vmin: np.ndarray,
+    vmax: np.ndarray,
+    amax: np.ndarray,
+    turn_radius: np.ndarray,
+    climb: np.ndarray,
+    dt: float,
+    kappa: np.ndarray | None = None,
+    roll: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """New velocities (n, 3) and turn states (n, 2) of fixed wings: speed within [vmin, vmax]
+    by at most amax * dt a step, |flight-path angle| <= climb, and the direction of flight
+    turned towards the command's by at most ``min(V0, V1) * dt / turn_radius`` (heading and
+    flight-path angle together); with turn states ``kappa`` (n, 2, the curvature of the last
+    step, :func:`turn_states`) and roll rates ``roll`` (rad/s), the bank of the curvature,
+    ``atan(k V^2 / g)`` (V the faster speed), changes by at most ``roll dt``. Without them the
+    turn is not rate-limited.
 
-
-def turn_budget(dpsi: np.ndarray, gamma0: np.ndarray, gamma1: np.ndarray, budget: np.ndarray) -> np.ndarray:
-    """Fraction in [0, 1] of a heading change ``dpsi`` and a flight-path angle change
-    ``gamma0 -> gamma1`` that turns the direction of flight by at most ``budget`` (rad).
-
-    Both angles move together along the straight line in (heading, flight-path angle); the
-    direction then sweeps an arc on the unit sphere of length at most
-    ``sqrt(dgamma^2 + (c dpsi)^2)``, ``c`` the largest cos(gamma) on the way, which bounds the
-    angle between the two directions."""
-    dg = gamma1 - gamma0
-    crosses = np.sign(gamma0) * np.sign(gamma1) <= 0
-    c = np.where(crosses, 1.0, np.cos(np.minimum(np.abs(gamma0), np.abs(gamma1))))
-    need = np.sqrt(dg**2 + (c * dpsi) ** 2)
-    return np.clip(budget / np.maximum(need, 1e-15), 0.0, 1.0)
+    A command of (near) zero keeps the direction; a vertical one keeps the heading and asks
+    for the full climb or dive (``swarmplan.flight._fixed_wing_kernel.fly_step``)."""
+    n = len(v0)
+    f = np.ascontiguousarray
+    kappa = np.zeros((n, 2)) if kappa is None else f(kappa, dtype=float)
+    roll = np.full(n, np.inf) if roll is None else f(roll, dtype=float)
+    return fixed_wing_model().fly_steps(
+        f(v0, dtype=float), f(v_cmd, dtype=float), kappa,
+        *(f(np.broadcast_to(x, (n,)), dtype=float) for x in (vmin, vmax, amax, turn_radius, climb)), roll, dt,
+    )  # fmt: skip
 
 
 def limit_fixed_wing(
@@ -114,42 +135,34 @@ def limit_fixed_wing(
     turn_radius: np.ndarray,
     climb: np.ndarray,
     dt: float,
+    kappa: np.ndarray | None = None,
+    roll: np.ndarray | None = None,
 ) -> np.ndarray:
-    """New velocity of fixed wings: speed within [vmin, vmax] by at most amax * dt a step,
-    |flight-path angle| <= climb, and the direction of flight turned towards the command's
-    by at most ``min(V0, V1) * dt / turn_radius`` (heading and flight-path angle together).
+    """The new velocities of :func:`fly_fixed_wing`."""
+    return fly_fixed_wing(v0, v_cmd, vmin, vmax, amax, turn_radius, climb, dt, kappa, roll)[0]
 
-    A command of (near) zero keeps the direction; a vertical one keeps the heading and asks
-    for the full climb or dive."""
-    speed0 = norm3(v0)
-    psi0, gamma0 = direction_angles(v0)
-    gamma0 = np.clip(gamma0, -climb, climb)
-    s_cmd = norm3(v_cmd)
-    speed_cmd = np.clip(s_cmd, vmin, vmax)
-    psi_cmd, gamma_cmd = direction_angles(v_cmd)
-    hxy = np.hypot(v_cmd[:, 0], v_cmd[:, 1])
-    vertical = hxy < 1e-9 * np.maximum(s_cmd, 1e-12)
-    psi_cmd = np.where(vertical, psi0, psi_cmd)
-    gamma_cmd = np.where(vertical, np.sign(v_cmd[:, 2]) * climb, gamma_cmd)
-    still = s_cmd < 1e-12
-    psi_cmd = np.where(still, psi0, psi_cmd)
-    gamma_cmd = np.clip(np.where(still, gamma0, gamma_cmd), -climb, climb)
-    speed1 = np.clip(speed0 + np.clip(speed_cmd - speed0, -amax * dt, amax * dt), vmin, vmax)
-    # At the slower of the two speeds, the turn keeps the radius >= turn_radius (a hair inside,
-    # so rounding never crosses it).
-    budget = np.minimum(speed0, speed1) / turn_radius * dt * (1.0 - 1e-9)
-    dpsi = _wrap(psi_cmd - psi0)
-    f = turn_budget(dpsi, gamma0, gamma_cmd, budget)
-    psi1 = psi0 + f * dpsi
-    gamma1 = gamma0 + f * (gamma_cmd - gamma0)
-    c = np.cos(gamma1)
-    return speed1[:, None] * np.stack([c * np.cos(psi1), c * np.sin(psi1), np.sin(gamma1)], axis=1)
+
+def turn_states(
+    params: AgentParams, v0: np.ndarray, v1: np.ndarray, dt: float, idx: np.ndarray
+) -> np.ndarray:
+    """Turn states (rows of ``idx``, (n, 2)) of the steps ``v0 -> v1`` of fixed wings ``idx``:
+    each step's curvature, as :func:`fly_fixed_wing` left it."""
+    f = np.ascontiguousarray
+    climb = f(params.max_climb[idx])
+    return fixed_wing_model().turn_states(f(v0, dtype=float), f(v1, dtype=float), climb, dt)
 
 
 def limit_velocity(
-    params: AgentParams, v0: np.ndarray, v_cmd: np.ndarray, dt: float, idx: np.ndarray
+    params: AgentParams,
+    v0: np.ndarray,
+    v_cmd: np.ndarray,
+    dt: float,
+    idx: np.ndarray,
+    kappa: np.ndarray | None = None,
 ) -> np.ndarray:
-    """New velocities of agents ``idx`` under their own model's limits."""
+    """New velocities of agents ``idx`` under their own model's limits; ``kappa`` (rows of
+    ``idx``, (n, 2)): the fixed wings' turn states, whose curvature their roll rate changes
+    (None: turns not rate-limited)."""
     out = np.empty((len(idx), 3))
     fw = params.fixed_wing[idx]
     mr = ~fw
@@ -167,5 +180,7 @@ def limit_velocity(
             params.min_turn_radius[k],
             params.max_climb[k],
             dt,
+            None if kappa is None else kappa[fw],
+            None if kappa is None else params.roll_rate[k],
         )
     return out

@@ -14,10 +14,13 @@ the safe manoeuvre closest to the field's command, or, when none is safe, the on
 the most clearance. Flying the field's command until the last step that keeps a way out
 leaves the field in charge everywhere but where it would corner the aircraft.
 
-The predictions fly the model itself (``swarmplan.flight.kinematics.limit_fixed_wing``, step by
-step, at constant speed: the flight-path angle ramps within the same turn budget as the
-heading), all candidates at once, and all candidates and all times are measured in one batched
-distance query. The manoeuvres from where the aircraft is now are only needed where the field's
+The predictions fly the model itself (``swarmplan.flight._fixed_wing_kernel``, compiled: step
+by step, at constant speed, rolling from the aircraft's current turn at its roll rate; the
+flight-path angle ramps within the same turn budget as the heading), all candidates at once,
+and all candidates and all times are measured in one batched distance query. The clearance
+kept from obstacles, still or moving, is the aircraft's own (``clearance``, by default the
+largest of its radius, half its horizontal separation and 0.05 R_min); from the terrain and
+the bounds one body radius. The manoeuvres from where the aircraft is now are only needed where the field's
 command would corner it: they are flown for those aircraft alone (every row of a rollout and of
 a clearance query is computed on its own, so the answers are those of flying them all).
 (:func:`predicted_positions` gives the closed-form arcs and helices of a
@@ -30,15 +33,18 @@ from collections.abc import Callable
 
 import numpy as np
 
-from swarmplan.flight.kinematics import AgentParams, limit_fixed_wing, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, fixed_wing_model, fly_fixed_wing, limit_velocity
 
-ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
-"""``clearance(points (P, 3), radii (P,), times (P,)) -> (P,)`` distance from each body to the
-nearest obstacle surface (moving ones where they are at that time), the terrain or the bounds."""
+ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+"""``clearance(points (P, 3), radii (P,), times (P,), extra (P,)) -> (P,)`` distance from each
+body to the terrain or the bounds, or to the nearest obstacle surface (moving ones where they
+are at that time) less ``extra``, the gap kept from obstacles beyond ``radii``."""
 
 # (turn, climb) of the sustained candidate commands: turn -1/+1 = hard right/left, 0 = hold
 # heading; climb -1/0/+1 = dive/level/climb at the model's limit.
 _MANOEUVRES = tuple((turn, climb) for turn in (-1, 0, 1) for climb in (0, 1, -1))
+_TURN = np.array([m[0] for m in _MANOEUVRES], dtype=float)
+_UP = np.array([m[1] for m in _MANOEUVRES], dtype=float)
 
 
 def horizon_steps(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: float) -> int:
@@ -97,39 +103,26 @@ def predicted_positions(
 
 
 def rollout_manoeuvres(
-    params: AgentParams, idx: np.ndarray, pos: np.ndarray, vel: np.ndarray, steps: int, dt: float
+    params: AgentParams,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    steps: int,
+    dt: float,
+    kappa: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Positions (n, C, steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` flying each sustained
-    manoeuvre for ``steps`` steps of the model at constant speed (the commands are re-formed
-    from the current heading each step, as the guard flies them)."""
-    n, c = len(idx), len(_MANOEUVRES)
-    rows = np.repeat(idx, c)
-    speed = np.repeat(np.linalg.norm(vel, axis=1), c)
-    climb = params.max_climb[rows]
-    radius = params.min_turn_radius[rows]
-    amax = params.max_accel[rows]
-    v = np.repeat(vel, c, axis=0)
-    p = np.repeat(pos, c, axis=0)
-    out = np.empty((steps, n * c, 3))
-    turn = np.tile(np.array([m[0] for m in _MANOEUVRES], dtype=float), n)
-    up = np.tile(np.array([m[1] for m in _MANOEUVRES], dtype=float), n) * climb
-    for k in range(steps):
-        cmd = _sustained_commands(v, turn, up)
-        v = limit_fixed_wing(v, cmd, speed, speed, amax, radius, climb, dt)
-        p = p + v * dt
-        out[k] = p
-    return out.transpose(1, 0, 2).reshape(n, c, steps, 3)
-
-
-def _sustained_commands(v: np.ndarray, turn: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """The manoeuvres' commands (n * C, 3) from the current velocities ``v`` (n * C, 3), row
-    ``i * C + j`` manoeuvre j: its turn (-1, 0, 1) in ``turn`` and its flight-path angle
-    (the climb limit times -1, 0 or 1) in ``g`` (n * C each)."""
-    speed = np.linalg.norm(v, axis=1)
-    psi = np.arctan2(v[:, 1], v[:, 0])
-    a = psi + turn * (np.pi / 2)
-    cg = np.cos(g)
-    return speed[:, None] * np.stack([cg * np.cos(a), cg * np.sin(a), np.sin(g)], axis=-1)
+    """Positions (n, C, steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` (turn states
+    ``kappa`` (n, 2), default straight) flying each sustained manoeuvre for ``steps`` steps of
+    the model at constant speed (the commands are re-formed from the current heading each
+    step, as the guard flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
+    f = np.ascontiguousarray
+    n = len(idx)
+    kappa = np.zeros((n, 2)) if kappa is None else f(kappa, dtype=float)
+    return fixed_wing_model().rollouts(
+        f(pos, dtype=float), f(vel, dtype=float), kappa, _TURN, _UP,
+        f(params.max_accel[idx]), f(params.min_turn_radius[idx]), f(params.max_climb[idx]),
+        f(params.roll_rate[idx]), int(steps), dt,
+    )  # fmt: skip
 
 
 def _manoeuvre_clearance(
@@ -137,15 +130,17 @@ def _manoeuvre_clearance(
     idx: np.ndarray,
     pos: np.ndarray,
     vel: np.ndarray,
+    kappa: np.ndarray,
     times: np.ndarray,
     dt: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Predicted positions (n, C, H, 3) of the sustained manoeuvres from ``pos``/``vel``, and the
-    matching body radii (n, C, H)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Predicted positions (n, C, H, 3) of the sustained manoeuvres from ``pos``/``vel``/``kappa``,
+    the matching body radii (n, C, H) and the gaps kept from bodies beyond them (n, C, H)."""
     n, c = len(idx), len(_MANOEUVRES)
-    points = rollout_manoeuvres(params, idx, pos, vel, len(times), dt)
+    points = rollout_manoeuvres(params, idx, pos, vel, len(times), dt, kappa)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
-    return points, radii
+    extra = np.broadcast_to((params.clearance - params.radius)[idx][:, None, None], (n, c, len(times)))
+    return points, radii, extra
 
 
 def guard_commands(
@@ -158,31 +153,41 @@ def guard_commands(
     dt: float,
     clearance: ClearanceFn,
     required: np.ndarray,
+    kappa: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Guarded commands of fixed wings ``idx`` (rows of ``pos``, ``vel``, ``v_cmd``).
+    """Guarded commands of fixed wings ``idx`` (rows of ``pos``, ``vel``, ``v_cmd`` and of their
+    turn states ``kappa``, default straight).
 
     The field's command stands if, after one step of it, at least one sustained manoeuvre
     (hard left/right turn or straight, level/climbing/diving) keeps ``required`` (n,) clearance
-    over the horizon: a way out is always kept. Otherwise the agent starts now the safe
-    manoeuvre whose next velocity is nearest the field's (or, if none is safe, the one keeping
-    the most clearance). Returns the commands (n, 3) and a mask (n,) of the replaced ones.
+    (obstacles: ``params.clearance``) over the horizon: a way out is always kept. Otherwise
+    the agent starts now the safe manoeuvre whose next velocity is nearest the field's (or, if
+    none is safe, the one keeping the most clearance). Returns the commands (n, 3) and a mask
+    (n,) of the replaced ones.
     """
     n = len(idx)
     out = v_cmd.copy()
     replaced = np.zeros(n, dtype=bool)
     if n == 0:
         return out, replaced
+    kappa = np.zeros((n, 2)) if kappa is None else kappa
     steps = horizon_steps(params, idx, np.linalg.norm(vel, axis=1), dt)
     times = np.arange(1, steps + 1) * dt
     c = len(_MANOEUVRES)
+    extra_now = params.clearance[idx] - params.radius[idx]
     # After one step of the field's command ...
-    v_next = limit_velocity(params, vel, v_cmd, dt, idx)
+    k = idx
+    v_next, k_next = fly_fixed_wing(
+        vel, v_cmd, params.speed_min[k], params.speed_max[k], params.max_accel[k],
+        params.min_turn_radius[k], params.max_climb[k], dt, kappa, params.roll_rate[k],
+    )  # fmt: skip
     p_next = pos + v_next * dt
-    after, r_after = _manoeuvre_clearance(params, idx, p_next, v_next, times, dt)
+    after, r_after, e_after = _manoeuvre_clearance(params, idx, p_next, v_next, k_next, times, dt)
     points = np.concatenate([after.reshape(-1, 3), p_next])
     radii = np.concatenate([r_after.reshape(-1), params.radius[idx]])
+    extra = np.concatenate([e_after.reshape(-1), extra_now])
     when = np.concatenate([np.tile(t0 + dt + times, n * c), np.full(n, t0 + dt)])
-    clear = clearance(points, radii, when)
+    clear = clearance(points, radii, when, extra)
     m = n * c * steps
     worst_after = clear[:m].reshape(n, c, steps).min(axis=2)
     step_clear = clear[m:]
@@ -192,14 +197,17 @@ def guard_commands(
     # ... and, for the agents it would corner, from where they are now (each row of a rollout
     # and of a clearance is its own: the same values as when every agent is rolled out).
     rows = np.flatnonzero(~keep)
-    k = len(rows)
-    now, r_now = _manoeuvre_clearance(params, idx[rows], pos[rows], vel[rows], times, dt)
-    clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), np.tile(t0 + times, k * c))
+    kk = len(rows)
+    now, r_now, e_now = _manoeuvre_clearance(params, idx[rows], pos[rows], vel[rows], kappa[rows], times, dt)
+    when_now = np.tile(t0 + times, kk * c)
+    clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), when_now, e_now.reshape(-1))
     worst_now = np.full((n, c), -np.inf)
-    worst_now[rows] = clear_now.reshape(k, c, steps).min(axis=2)
+    worst_now[rows] = clear_now.reshape(kk, c, steps).min(axis=2)
     # What each manoeuvre flies on the next step, under the model itself.
     cmds = _manoeuvre_commands(vel, params.max_climb[idx])
-    first = limit_velocity(params, np.repeat(vel, c, axis=0), cmds.reshape(-1, 3), dt, np.repeat(idx, c))
+    rep = np.repeat(idx, c)
+    v_rep, k_rep = np.repeat(vel, c, axis=0), np.repeat(kappa, c, axis=0)
+    first = limit_velocity(params, v_rep, cmds.reshape(-1, 3), dt, rep, k_rep)
     first = first.reshape(n, c, 3)
     for i in np.flatnonzero(~keep):
         safe = np.flatnonzero(worst_now[i] >= required[i])

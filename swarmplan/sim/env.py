@@ -38,7 +38,7 @@ from swarmplan.core import (
 )
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
 from swarmplan.flight.guide import make_guide
-from swarmplan.flight.kinematics import AgentParams, initial_velocity
+from swarmplan.flight.kinematics import AgentParams, initial_velocity, turn_states
 from swarmplan.geometry.collision import first_hits
 from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -151,6 +151,7 @@ class Simulation:
             self.guide.reset(start, goal)
         self.navigator.reset(self.state)
         self.guard.reset()
+        self.safety.turn[:] = 0.0  # fixed wings start straight and level
         self.near_misses = NearMisses(self.params)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.wall_start = time.perf_counter()
@@ -348,6 +349,9 @@ class Simulation:
                         self._merge(collide(s, self.ids, i, hit, t1))
                         pos1[i] = crash_point(self.scene, self.params.radius[i], pos0[i], pos1[i], t0, dt)
                         vel1[i] = 0.0
+            fw = idx[self.params.fixed_wing[idx]]
+            if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
+                self.safety.turn[fw] = turn_states(self.params, vel0[fw], vel1[fw], dt, fw)
         for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, active):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] != Mode.COLLIDED:  # an arrived agent touched is a collision too

@@ -21,7 +21,6 @@ from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl, segment_segment_min_distance
 from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
-from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim.metrics import NOTHING, Tally
@@ -87,6 +86,10 @@ class SafetyFilter:
         self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
         self._every = np.arange(len(params.radius))  # the rows of a step where every agent flies
+        # The fixed wings' turn states (the curvature of their last step, rows by agent; the
+        # simulation keeps them): every fixed-wing step formed here rolls on from them.
+        self.turn = np.zeros((len(params.radius), 2))
+        self._centers: dict[int, np.ndarray] = {}  # movers' centres by step number (predictions)
 
     def guard_fixed_wings(
         self,
@@ -110,7 +113,7 @@ class SafetyFilter:
         speed = np.linalg.norm(vel0[idx], axis=1)
         horizon = horizon_steps(p, idx[fw], speed[fw], dt) * dt
         required = p.radius[idx]
-        reach = (speed + self.scene.max_obstacle_speed) * horizon + required + p.radius[idx]
+        reach = (speed + self.scene.max_obstacle_speed) * horizon + p.clearance[idx] + p.radius[idx]
         obstacle_clear = (d - p.radius[idx, None]).min(axis=1) if d.shape[1] else np.full(len(idx), np.inf)
         q = pos0[idx]
         bounds_clear = (
@@ -123,33 +126,56 @@ class SafetyFilter:
         close = np.flatnonzero((d[rows] < reach[rows, None]).any(axis=0)) if d.shape[1] else np.array([], int)
         obstacles = self.world.obstacles
 
-        def clearance_at(points: np.ndarray, radii: np.ndarray, times: np.ndarray) -> np.ndarray:
+        field = self.scene.field
+        static = [j for j in close if not obstacles[j].moving]
+        movers = [j for j in close if obstacles[j].moving]
+
+        def clearance_at(
+            points: np.ndarray, radii: np.ndarray, times: np.ndarray, extra: np.ndarray
+        ) -> np.ndarray:
             w = self.world
             c = points[:, 2] - w.terrain_height(points[:, :2]) - radii
             # Leaving the flight volume counts as a collision ('bounds') as well.
             inside = np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1)
             c = np.minimum(c, inside - radii)
-            if len(close):
-                movers = [obstacles[j] for j in close if obstacles[j].moving]
-                if movers:
-                    when, which = np.unique(times, return_inverse=True)
-                    centers = np.stack([poses_at(movers, t)[0] for t in when])  # (T, movers, 3)
-                k = 0
-                for j in close:
-                    o = obstacles[j]
-                    at = o.position
-                    if o.moving:
-                        at, k = centers[which, k], k + 1
-                    dj = distance_and_gradient(o, points, at, self.scene.field.mesh_grids.get(j))[0]
-                    c = np.minimum(c, dj - radii)
+            if static:
+                c = np.minimum(c, field.distance(points, None, np.array(static)).min(axis=1) - radii - extra)
+            if movers:
+                # Movers translate: a point's distance to one at time t is that of the point
+                # shifted by the mover's way since t = 0 to the mover where it started.
+                when, which = np.unique(np.rint(times / dt).astype(np.int64), return_inverse=True)
+                rows = np.searchsorted(np.flatnonzero(self.scene.moving_mask), movers)
+                centers = self._predicted_centers(when)[:, rows]  # (T, movers, 3)
+                for k, j in enumerate(movers):
+                    shifted = points - (centers[which, k] - obstacles[j].position)
+                    dj = field.distance(shifted, None, np.array([j]))[:, 0]
+                    c = np.minimum(c, dj - radii - extra)
             return c
 
         guarded, replaced = guard_commands(
-            p, idx[rows], pos0[idx[rows]], vel0[idx[rows]], v_cmd[rows], t0, dt, clearance_at, required[rows]
-        )
+            p, idx[rows], pos0[idx[rows]], vel0[idx[rows]], v_cmd[rows], t0, dt, clearance_at, required[rows],
+            self.turn[idx[rows]],
+        )  # fmt: skip
         out = v_cmd.copy()
         out[rows] = guarded
         return out, Tally(counts=tuple(("guard_steps", i) for i in idx[rows][replaced].tolist()))
+
+    def _predicted_centers(self, steps: np.ndarray) -> np.ndarray:
+        """The moving obstacles' centres (T, movers, 3) at the times ``steps * dt`` (``steps``
+        (T,) sorted step numbers), kept per step number: the guard's predictions of one step
+        overlap the next one's but for a step (those before the first asked for are dropped)."""
+        dt, cache = self.world.dt, self._centers
+        first = int(steps[0])
+        for k in [k for k in cache if k < first]:
+            del cache[k]
+        movers = self.world.moving_obstacles
+        out = np.empty((len(steps), len(movers), 3))
+        for r, k in enumerate(steps.tolist()):
+            hit = cache.get(k)
+            if hit is None:
+                hit = cache[k] = poses_at(movers, k * dt)[0]
+            out[r] = hit
+        return out
 
     def braking_margin(
         self,
@@ -263,7 +289,7 @@ class SafetyFilter:
                     free[undecided] = [h is None for h in hits]
                 return out, vel1, free
         v_cmd = self.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, goal)
-        return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx), None
+        return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx, self.turn[idx]), None
 
     def _braking_margin_compiled(
         self,
@@ -523,7 +549,8 @@ class SafetyFilter:
                         sp * np.array([math.cos(g) * math.cos(a), math.cos(g) * math.sin(a), math.sin(g)])
                     )
         cmds = np.array(cmds)
-        v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, np.full(len(cmds), i))
+        rows = np.full(len(cmds), i)
+        v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, rows, self.turn[rows])
         return list(v)
 
 

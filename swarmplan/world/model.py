@@ -109,6 +109,8 @@ class AgentSpec:
     max_climb_angle: float  # radians
     min_altitude: float
     separation: np.ndarray  # (3,)
+    roll_rate: float = 0.0  # rad/s, fixed wings (0: none given, a multirotor)
+    clearance: float = 0.0  # m from every body, fixed wings (a multirotor: its radius)
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,31 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "separation": [5.0, 5.0, 2.0],
 }
 
+FIXED_WING_KEYS = ("roll_rate", "clearance")
+"""Agent keys of fixed wings only, defaulting from the airframe (:func:`fixed_wing_defaults`)."""
+
+GRAVITY = 9.80665
+"""m/s²: the bank of a level turn of radius R at speed V is atan(V² / (g R))."""
+
+
+def fixed_wing_defaults(params: dict[str, Any]) -> dict[str, float]:
+    """A fixed wing's ``roll_rate`` (deg/s) and ``clearance`` (m) unless its world sets them:
+    it rolls into the bank of a minimum-radius turn at cruise speed, atan(V² / (g R_min)),
+    while it flies a quarter of its turn radius, within a second at most (its turns start
+    where they are asked for, to a quarter radius); it keeps from every body the largest of
+    its radius, half its horizontal separation and the tracking error a fixed wing is
+    allowed (``0.05 min_turn_radius``, docs/tracking.md)."""
+    v, r = params["speed"]["cruise"], params["min_turn_radius"]
+    sep = params["separation"]
+    out = dict(params)
+    if out.get("roll_rate") is None:
+        roll_in = min(1.0, 0.25 * r / max(v, 1e-9))  # s
+        out["roll_rate"] = math.degrees(math.atan(v * v / (GRAVITY * r))) / roll_in
+    if out.get("clearance") is None:
+        out["clearance"] = max(params["radius"], 0.5 * max(sep[0], sep[1]), 0.05 * r)
+    return out
+
+
 PLANNER_DEFAULTS: dict[str, Any] = {
     "mode": "reactive",
     "apf": {
@@ -152,6 +177,9 @@ def _resolve_agent_params(c: Checker, node: dict, path: str, base: dict[str, Any
     for k in ("radius", "max_accel", "min_turn_radius"):
         if k in node:
             out[k] = c.number(node, k, path, base[k], positive=True)
+    for k in FIXED_WING_KEYS:  # fixed wings' own keys: written to the resolved world for them only
+        if k in node:
+            out[k] = c.number(node, k, path, base.get(k), positive=True)
     if "min_altitude" in node:
         out["min_altitude"] = c.number(node, "min_altitude", path, base["min_altitude"], nonneg=True)
     if "max_climb_angle" in node:
@@ -411,7 +439,7 @@ def parse_world(
         if th is not None:
             threats.append(th)
 
-    agent_keys = list(AGENT_DEFAULTS)
+    agent_keys = [*AGENT_DEFAULTS, *FIXED_WING_KEYS]
     defaults = copy.deepcopy(AGENT_DEFAULTS)
     if raw.get("agent_defaults") is not None and c.keys(raw["agent_defaults"], "agent_defaults", agent_keys):
         defaults = _resolve_agent_params(c, raw["agent_defaults"], "agent_defaults", defaults)
@@ -436,6 +464,10 @@ def parse_world(
         params = _resolve_agent_params(c, a, p, defaults)
         if "speed" in a or "model" in a:  # what the agent inherits is checked once, in agent_defaults
             _check_agent_params(c, params, p)
+        if params["model"] != "fixed_wing":
+            params = {k: v for k, v in params.items() if k not in FIXED_WING_KEYS}
+        elif None not in _flat_values(params):
+            params = fixed_wing_defaults(params)
         resolved = {"id": aid, "start": _lst(start), "goal": _lst(goal), **copy.deepcopy(params)}
         agents_out.append(resolved)
         if aid is None or start is None or goal is None or None in _flat_values(params):
@@ -455,6 +487,8 @@ def parse_world(
                 max_climb_angle=math.radians(params["max_climb_angle"]),
                 min_altitude=params["min_altitude"],
                 separation=np.asarray(params["separation"], dtype=float),
+                roll_rate=math.radians(params.get("roll_rate", 0.0)),
+                clearance=params.get("clearance", params["radius"]),
             )
         )
     _check_defaults_alone(c, defaults)

@@ -1,0 +1,189 @@
+"""The fixed-wing kinematic model compiled: one step of one aircraft, the model's steps of many
+aircraft, the turn state a step leaves, and the turn-ahead guard's rollouts of the sustained
+manoeuvres (``swarmplan.flight.kinematics`` and ``swarmplan.flight.lookahead`` call these: the
+one implementation of the model).
+
+One step (:func:`fly_step`): speed towards the command's within [vmin, vmax], by at most
+amax * dt; the direction of flight turned towards the command's. The turn is a vector
+``w = (c dpsi, dgamma)`` of heading and flight-path angle changes (``c`` the largest
+cos(gamma) between the step's two flight-path angles): its length bounds the angle the
+direction turns (the direction sweeps an arc on the unit sphere no longer than it), so
+``|w| <= V dt / R_min`` (V the slower of the step's two speeds) keeps the path's curvature
+within 1 / R_min. The turn state ``kappa = w / (V dt)`` is the curvature of the step; with a
+finite roll rate ``p`` (rad/s) the next step's bank differs from it by at most ``p dt``, a
+curvature ``k`` banking ``atan(k V^2 / g)`` (a level turn's bank, V the step's faster speed;
+as a vector, in the direction of ``kappa``): curvature changes continuously, the aircraft rolls
+into and out of turns.
+
+Loaded at the first fixed-wing step through ``runtime.compiled.kernel_module``; every compiled
+function of the model is in this file (numba's cache does not see callees in other files).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+GRAVITY = 9.80665  # swarmplan.world.schema.GRAVITY
+
+_HALF_PI = 0.5 * math.pi
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _clip(x, lo, hi):  # noqa: ANN001, ANN202
+    return min(max(x, lo), hi)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _wrap(a):  # noqa: ANN001, ANN202
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _cos_factor(g0, g1):  # noqa: ANN001, ANN202
+    """The largest cos(gamma) between flight-path angles ``g0`` and ``g1``."""
+    if g0 * g1 <= 0.0:
+        return 1.0
+    return math.cos(min(abs(g0), abs(g1)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bank(kh, kv, q):  # noqa: ANN001, ANN202
+    """The bank vector of curvature (kh, kv) at V^2 / g = ``q``: its direction, atan(|k| q) long."""
+    k = math.hypot(kh, kv)
+    if k <= 0.0:
+        return 0.0, 0.0
+    f = math.atan(k * q) / k
+    return kh * f, kv * f
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _unbank(bh, bv, q):  # noqa: ANN001, ANN202
+    """The curvature of bank vector (bh, bv) at V^2 / g = ``q`` (the inverse of :func:`_bank`)."""
+    b = math.hypot(bh, bv)
+    if b <= 0.0:
+        return 0.0, 0.0
+    f = math.tan(min(b, 0.5 * math.pi - 1e-9)) / (q * b)
+    return bh * f, bv * f
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def fly_step(vx, vy, vz, cx, cy, cz, kh, kv, vmin, vmax, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
+    """One step of one fixed wing at velocity (vx, vy, vz) with turn state (kh, kv), commanded
+    (cx, cy, cz); ``roll`` its roll rate (rad/s; inf: none). Returns the new velocity and turn
+    state. A command of (near) zero keeps the direction; a vertical one keeps the heading and
+    asks for the full climb or dive."""
+    speed0 = math.sqrt(vx * vx + vy * vy + vz * vz)
+    psi0 = math.atan2(vy, vx)
+    gamma0 = _clip(math.atan2(vz, math.hypot(vx, vy)), -climb, climb)
+    s_cmd = math.sqrt(cx * cx + cy * cy + cz * cz)
+    hxy = math.hypot(cx, cy)
+    if s_cmd < 1e-12:
+        psi_cmd, gamma_cmd = psi0, gamma0
+    elif hxy < 1e-9 * s_cmd:
+        psi_cmd, gamma_cmd = psi0, (climb if cz > 0.0 else -climb)
+    else:
+        psi_cmd, gamma_cmd = math.atan2(cy, cx), math.atan2(cz, hxy)
+    gamma_cmd = _clip(gamma_cmd, -climb, climb)
+    speed_cmd = _clip(s_cmd, vmin, vmax)
+    step = amax * dt
+    speed1 = _clip(speed0 + _clip(speed_cmd - speed0, -step, step), vmin, vmax)
+    ds = min(speed0, speed1) * dt
+    # A hair inside the radius, so rounding never crosses it.
+    budget = ds / radius * (1.0 - 1e-9)
+    dpsi = _wrap(psi_cmd - psi0)
+    c = _cos_factor(gamma0, gamma_cmd)
+    wh, wv = c * dpsi, gamma_cmd - gamma0
+    n = math.hypot(wh, wv)
+    if n > budget:
+        f = budget / n
+        wh, wv = wh * f, wv * f
+    if roll < np.inf and ds > 0.0:
+        # Curvatures as banks (a level turn of curvature k banks atan(k V^2 / g)): this step's
+        # bank differs from the last step's by at most roll * dt.
+        fast = max(speed0, speed1)
+        q = fast * fast / GRAVITY
+        bh, bv = _bank(kh, kv, q)
+        ah, av = _bank(wh / ds, wv / ds, q)
+        dh, dv = ah - bh, av - bv
+        m = math.hypot(dh, dv)
+        lim = roll * dt
+        if m > lim:
+            dh, dv = dh * (lim / m), dv * (lim / m)
+        kh1, kv1 = _unbank(bh + dh, bv + dv, q)
+        wh, wv = kh1 * ds, kv1 * ds
+        n = math.hypot(wh, wv)
+        if n > budget:
+            wh, wv = wh * (budget / n), wv * (budget / n)
+    gamma1 = _clip(gamma0 + wv, -climb, climb)
+    c1 = _cos_factor(gamma0, gamma1)
+    psi1 = psi0 + wh / c1
+    k_h = wh / ds if ds > 0.0 else 0.0
+    k_v = (gamma1 - gamma0) / ds if ds > 0.0 else 0.0
+    cg = math.cos(gamma1)
+    return speed1 * cg * math.cos(psi1), speed1 * cg * math.sin(psi1), speed1 * math.sin(gamma1), k_h, k_v
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def fly_steps(v0, v_cmd, kappa, vmin, vmax, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
+    """:func:`fly_step` of every row: velocities (n, 3) and turn states (n, 2) after one step."""
+    n = v0.shape[0]
+    v1 = np.empty((n, 3))
+    k1 = np.empty((n, 2))
+    for i in range(n):
+        a, b, c, d, e = fly_step(
+            v0[i, 0], v0[i, 1], v0[i, 2], v_cmd[i, 0], v_cmd[i, 1], v_cmd[i, 2], kappa[i, 0], kappa[i, 1],
+            vmin[i], vmax[i], amax[i], radius[i], climb[i], roll[i], dt,
+        )  # fmt: skip
+        v1[i, 0], v1[i, 1], v1[i, 2], k1[i, 0], k1[i, 1] = a, b, c, d, e
+    return v1, k1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def turn_states(v0, v1, climb, dt):  # noqa: ANN001, ANN201
+    """The turn states (n, 2) of steps from velocities ``v0`` to ``v1`` (n, 3): what
+    :func:`fly_step` returns for the step it flew (up to rounding), for any step."""
+    n = v0.shape[0]
+    out = np.zeros((n, 2))
+    for i in range(n):
+        s0 = math.sqrt(v0[i, 0] ** 2 + v0[i, 1] ** 2 + v0[i, 2] ** 2)
+        s1 = math.sqrt(v1[i, 0] ** 2 + v1[i, 1] ** 2 + v1[i, 2] ** 2)
+        ds = min(s0, s1) * dt
+        if ds <= 0.0:
+            continue
+        g0 = _clip(math.atan2(v0[i, 2], math.hypot(v0[i, 0], v0[i, 1])), -climb[i], climb[i])
+        g1 = math.atan2(v1[i, 2], math.hypot(v1[i, 0], v1[i, 1]))
+        dpsi = _wrap(math.atan2(v1[i, 1], v1[i, 0]) - math.atan2(v0[i, 1], v0[i, 0]))
+        out[i, 0] = _cos_factor(g0, g1) * dpsi / ds
+        out[i, 1] = (g1 - g0) / ds
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def rollouts(pos, vel, kappa, turn, up, amax, radius, climb, roll, steps, dt):  # noqa: ANN001, ANN201
+    """Positions (n, C, steps, 3) of fixed wings at ``pos``/``vel`` (n, 3) with turn states
+    ``kappa`` (n, 2) flying each sustained manoeuvre c (``turn[c]`` -1/0/1: hard right, hold,
+    hard left; ``up[c]`` -1/0/1 times the climb limit) for ``steps`` steps of the model at
+    constant speed: each step's command is the current heading turned by 90 degrees times
+    ``turn[c]``, at the flight-path angle, at the current speed."""
+    n, nc = pos.shape[0], turn.shape[0]
+    out = np.empty((n, nc, steps, 3))
+    for i in range(n):
+        speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
+        for c in range(nc):
+            vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
+            kh, kv = kappa[i, 0], kappa[i, 1]
+            x, y, z = pos[i, 0], pos[i, 1], pos[i, 2]
+            g = up[c] * climb[i]
+            cg, sg = math.cos(g), math.sin(g)
+            for k in range(steps):
+                a = math.atan2(vy, vx) + turn[c] * _HALF_PI
+                vx, vy, vz, kh, kv = fly_step(
+                    vx, vy, vz, speed * cg * math.cos(a), speed * cg * math.sin(a), speed * sg, kh, kv,
+                    speed, speed, amax[i], radius[i], climb[i], roll[i], dt,
+                )  # fmt: skip
+                x, y, z = x + vx * dt, y + vy * dt, z + vz * dt
+                out[i, c, k, 0], out[i, c, k, 1], out[i, c, k, 2] = x, y, z
+    return out
