@@ -10,6 +10,7 @@ arrived, collided or failed; ``truncated`` means the world's ``sim.max_time`` ra
 
 This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.scene`
 (obstacles, distances), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection),
+:mod:`~swarmplan.sim.loiter` (arrived fixed wings circle their goals),
 :mod:`~swarmplan.sim.safety` (safety filter, deconfliction, fixed-wing guard),
 :mod:`~swarmplan.sim.contacts` (collisions, crash point, arrival, near misses),
 :mod:`~swarmplan.sim.guard` (arrived multirotors out of a mover's way and back).
@@ -46,6 +47,7 @@ from swarmplan.geometry.vec3 import norm3
 from swarmplan.planner import make_planner
 from swarmplan.sim.contacts import NearMisses, arrivals, collide, crash_point, parked_contacts
 from swarmplan.sim.guard import GoalGuard
+from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import Navigator, distance_to_go
@@ -99,9 +101,12 @@ class Simulation:
         self._compiled = use_compiled_checks(self.n)  # swarm size: compiled per-step helpers
         self.navigator = Navigator(world, self.params, self.guide)
         self.guard = GoalGuard(self.params, world.dt)
+        self.loiter = Loiter(self.params)  # arrived fixed wings circle their goals
+        self._static_idx = np.flatnonzero(~self.moving_mask)
         # The speed a one-step stop can take within max_accel (fixed wings: any), read every step.
         self._stop_speed = np.where(self.params.fixed_wing, np.inf, self.params.max_accel * world.dt)
         self._stop_speed.setflags(write=False)
+        self._fixed_wings = bool(self.params.fixed_wing.any())
         self._mover_ids = tuple(o.id for o in world.obstacles if o.moving)
         self._mover_radii = self.scene.bounding_radius[self.moving_mask]  # read every guarded step
         self.state: SwarmState | None = None
@@ -151,6 +156,7 @@ class Simulation:
             self.guide.reset(start, goal)
         self.navigator.reset(self.state)
         self.guard.reset()
+        self.loiter.reset()
         self.safety.turn[:] = 0.0  # fixed wings start straight and level
         self.near_misses = NearMisses(self.params)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
@@ -263,7 +269,10 @@ class Simulation:
         if self.guard.guarding.any():
             self._merge(self._guard_goals(s, q0, qv0))
         active = s.active
-        idx = np.flatnonzero(active)
+        # Arrived fixed wings fly on (they loiter about their goals): they are flown as the rest.
+        loiter = self.loiter.rows(s)
+        flying_now = active | loiter if loiter.any() else active
+        idx = np.flatnonzero(flying_now)
         # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
         # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
         measured = np.ones(self.n, dtype=bool)
@@ -303,7 +312,12 @@ class Simulation:
                 self.navigator.guide = self.guide
             if self.guide is not None:
                 target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
-            parked = ~active  # modes changed above stay flying ones: arrivals come later
+            if loiter.any():  # a point ahead on its circle is a loitering agent's target and goal
+                rows = np.flatnonzero(loiter[idx])
+                ahead = self.loiter.targets(idx[rows], pos0[idx[rows]])
+                target, goal_idx = np.array(target, dtype=float), goal_idx.copy()
+                target[rows] = goal_idx[rows] = ahead
+            parked = ~flying_now  # modes changed above stay flying ones: arrivals come later
             flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
             to_go = norm3(s.goal - pos0)
             force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
@@ -352,7 +366,7 @@ class Simulation:
             fw = idx[self.params.fixed_wing[idx]]
             if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
                 self.safety.turn[fw] = turn_states(self.params, vel0[fw], vel1[fw], dt, fw)
-        for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, active):
+        for i, j in agent_contacts_indexed(pos0, pos1, self.params.radius, flying_now):
             for a, b in ((i, j), (j, i)):
                 if s.mode[a] != Mode.COLLIDED:  # an arrived agent touched is a collision too
                     touched = True
@@ -365,7 +379,12 @@ class Simulation:
         # and the guard's take-offs keep agents flying): who still flies is known without
         # asking every mode again.
         flying = s.active if touched else active
+        kept = vel1.copy() if self._fixed_wings else None
         arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying)
+        for i, _t in arrived.arrivals if self._fixed_wings else ():
+            if self.params.fixed_wing[i]:  # it cannot stop: it flies on round its goal
+                vel1[i] = kept[i]
+                self.loiter.start(i, s.goal[i], self.safety.turn[i], self._clear_of_statics(i))
         self._merge(self.guard.arrived(arrived, s))
 
         # Clearances at the committed positions (also the next step's distances).
@@ -396,6 +415,21 @@ class Simulation:
         runs, self._optimizer_runs = self._optimizer_runs, []
         agents, obstacles = self._agent_states(), self._obstacle_states(t1)
         return StepResult(s, events, terminated, truncated, agents, obstacles, runs)
+
+    def _clear_of_statics(self, i: int):  # noqa: ANN202
+        """``clearance(points) -> (P,)`` of agent ``i``'s body at ``points``: from the terrain and
+        the bounds beyond its radius, from static obstacles beyond its ``clearance``."""
+        w, p, field, static = self.world, self.params, self.field, self._static_idx
+
+        def clearance(points: np.ndarray) -> np.ndarray:
+            r = p.radius[i]
+            c = points[:, 2] - w.terrain_height(points[:, :2]) - r
+            c = np.minimum(c, np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1) - r)
+            if len(static):
+                c = np.minimum(c, field.distance(points, None, static).min(axis=1) - p.clearance[i])
+            return c
+
+        return clearance
 
     def _nearest_obstacle(self, i: int) -> str:
         """The id of the obstacle nearest to agent ``i`` at the step's end."""

@@ -20,9 +20,9 @@ any flying agent) and cannot re-arrive; once no threat is left it flies the pote
 back to its goal and re-enters mode ``arrived`` with an ``evade_end`` event (its
 ``arrival_time`` stays its first arrival).
 
-Fixed wings cannot hover: at their goal their flight ends (they are recorded at rest there, the
-model's convention for a fixed wing that reached its goal) and they do not evade; a contact
-with one there is a collision as for any agent.
+Fixed wings cannot hover: at their goal they loiter (``swarmplan.sim.loiter``), flown as every
+flying aircraft (the field, the turn-ahead guard, the safety filter); a contact with one there
+is a collision as for any agent.
 """
 
 from __future__ import annotations

@@ -1,0 +1,85 @@
+"""Arrived fixed wings keep flying: a fixed wing cannot hold still, so once at its goal it
+loiters on a level circle about it, and stays an aircraft like any other (the turn-ahead guard,
+the potential field's repulsion from moving obstacles and other agents, the safety filter and
+the contact checks all go on for it).
+
+The circle: centred on the goal, at the goal's altitude, of the smallest radius of
+``LOITER_FACTORS`` x ``min_turn_radius`` (``swarmplan.planner.hold``) whose points (every
+10 degrees) keep the aircraft's ``clearance`` from every static obstacle, the terrain and the
+bounds; when none does, the one that keeps the most. It circles the way it was turning when it
+arrived (left when flying straight). Its field pulls it at a point ``LEAD`` radians ahead of it
+on the circle (which also stands for its goal in the field's goal-distance factor), so it flies
+out onto the circle and round it.
+
+Its mode stays ``arrived`` and its arrival time the first arrival; its path length and flight
+metrics end at the arrival (``swarmplan.replay.metrics.active_end``); a contact while it loiters
+is a collision, for the simulation as for the replay's audit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from swarmplan.core import Mode, SwarmState
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.planner.hold import LOITER_FACTORS
+
+LEAD = math.radians(30.0)
+"""How far ahead on the circle (rad) a loitering fixed wing's field pulls it."""
+
+_POINTS = 36  # points checked on a candidate circle (every 10 degrees)
+
+
+class Loiter:
+    """The circles of the arrived fixed wings (reset with :meth:`reset`)."""
+
+    def __init__(self, params: AgentParams):
+        self.params = params
+        n = len(params.ids)
+        self.on = np.zeros(n, dtype=bool)  # loitering now
+        self.center = np.zeros((n, 3))
+        self.radius = np.zeros(n)
+        self.side = np.ones(n)
+
+    def reset(self) -> None:
+        self.on[:] = False
+
+    def rows(self, s: SwarmState) -> np.ndarray:
+        """Which agents loiter (arrived fixed wings that have not collided since)."""
+        if not self.on.any():
+            return self.on
+        self.on &= s.mode == Mode.ARRIVED
+        return self.on
+
+    def start(
+        self, i: int, goal: np.ndarray, turn: np.ndarray, clearance: Callable[[np.ndarray], np.ndarray]
+    ) -> None:
+        """Agent ``i`` arrived at ``goal`` with turn state ``turn`` (2,): its circle, the first
+        of the radii whose points keep ``clearance(points) >= 0`` (else the clearest one)."""
+        r_min = float(self.params.min_turn_radius[i])
+        ang = np.arange(_POINTS) * (2.0 * math.pi / _POINTS)
+        best, best_clear = None, -np.inf
+        for factor in LOITER_FACTORS:
+            r = factor * r_min
+            pts = goal + np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros(_POINTS)])
+            worst = float(clearance(pts).min())
+            if worst >= 0.0:
+                best = r
+                break
+            if worst > best_clear:
+                best, best_clear = r, worst
+        self.on[i] = True
+        self.center[i] = goal
+        self.radius[i] = best
+        self.side[i] = 1.0 if turn[0] >= 0.0 else -1.0
+
+    def targets(self, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """The points (len(rows), 3) ``LEAD`` ahead on their circles of loitering agents ``rows``
+        at ``pos``."""
+        c = self.center[rows]
+        theta = np.arctan2(pos[:, 1] - c[:, 1], pos[:, 0] - c[:, 0]) + self.side[rows] * LEAD
+        r = self.radius[rows]
+        return np.column_stack([c[:, 0] + r * np.cos(theta), c[:, 1] + r * np.sin(theta), c[:, 2]])
