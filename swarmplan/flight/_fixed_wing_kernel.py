@@ -9,11 +9,11 @@ amax * dt; the direction of flight turned towards the command's. The turn is a v
 cos(gamma) between the step's two flight-path angles): its length bounds the angle the
 direction turns (the direction sweeps an arc on the unit sphere no longer than it), so
 ``|w| <= V dt / R_min`` (V the slower of the step's two speeds) keeps the path's curvature
-within 1 / R_min. The turn state ``kappa = w / (V dt)`` is the curvature of the step; with a
-finite roll rate ``p`` (rad/s) the next step's bank differs from it by at most ``p dt``, a
-curvature ``k`` banking ``atan(k V^2 / g)`` (a level turn's bank, V the step's faster speed;
-as a vector, in the direction of ``kappa``): curvature changes continuously, the aircraft rolls
-into and out of turns.
+within 1 / R_min. The turn state ``kappa = w / (V dt)`` is the curvature of the step, its
+horizontal and vertical parts; with a finite roll rate ``p`` (rad/s) the bank of the
+horizontal part, ``atan(kappa_h V^2 / g)`` (a level turn's bank, V the step's faster speed),
+changes by at most ``p dt`` a step, and the climb or dive takes what the turn leaves of the
+budget: the turn's curvature changes continuously, the aircraft rolls into and out of turns.
 
 Loaded at the first fixed-wing step through ``runtime.compiled.kernel_module``; every compiled
 function of the model is in this file (numba's cache does not see callees in other files).
@@ -50,26 +50,6 @@ def _cos_factor(g0, g1):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _bank(kh, kv, q):  # noqa: ANN001, ANN202
-    """The bank vector of curvature (kh, kv) at V^2 / g = ``q``: its direction, atan(|k| q) long."""
-    k = math.hypot(kh, kv)
-    if k <= 0.0:
-        return 0.0, 0.0
-    f = math.atan(k * q) / k
-    return kh * f, kv * f
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _unbank(bh, bv, q):  # noqa: ANN001, ANN202
-    """The curvature of bank vector (bh, bv) at V^2 / g = ``q`` (the inverse of :func:`_bank`)."""
-    b = math.hypot(bh, bv)
-    if b <= 0.0:
-        return 0.0, 0.0
-    f = math.tan(min(b, 0.5 * math.pi - 1e-9)) / (q * b)
-    return bh * f, bv * f
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def fly_step(vx, vy, vz, cx, cy, cz, kh, kv, vmin, vmax, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
     """One step of one fixed wing at velocity (vx, vy, vz) with turn state (kh, kv), commanded
     (cx, cy, cz); ``roll`` its roll rate (rad/s; inf: none). Returns the new velocity and turn
@@ -101,22 +81,16 @@ def fly_step(vx, vy, vz, cx, cy, cz, kh, kv, vmin, vmax, amax, radius, climb, ro
         f = budget / n
         wh, wv = wh * f, wv * f
     if roll < np.inf and ds > 0.0:
-        # Curvatures as banks (a level turn of curvature k banks atan(k V^2 / g)): this step's
-        # bank differs from the last step's by at most roll * dt.
+        # The horizontal turn as a bank (a level turn of curvature k banks atan(k V^2 / g)):
+        # this step's differs from the last step's by at most roll * dt; the climb or dive
+        # takes what is left of the turn budget.
         fast = max(speed0, speed1)
         q = fast * fast / GRAVITY
-        bh, bv = _bank(kh, kv, q)
-        ah, av = _bank(wh / ds, wv / ds, q)
-        dh, dv = ah - bh, av - bv
-        m = math.hypot(dh, dv)
-        lim = roll * dt
-        if m > lim:
-            dh, dv = dh * (lim / m), dv * (lim / m)
-        kh1, kv1 = _unbank(bh + dh, bv + dv, q)
-        wh, wv = kh1 * ds, kv1 * ds
-        n = math.hypot(wh, wv)
-        if n > budget:
-            wh, wv = wh * (budget / n), wv * (budget / n)
+        b0 = math.atan(kh * q)
+        db = _clip(math.atan(wh / ds * q) - b0, -roll * dt, roll * dt)
+        wh = _clip(math.tan(b0 + db) / q * ds, -budget, budget)
+        room = math.sqrt(max(budget * budget - wh * wh, 0.0))
+        wv = _clip(wv, -room, room)
     gamma1 = _clip(gamma0 + wv, -climb, climb)
     c1 = _cos_factor(gamma0, gamma1)
     psi1 = psi0 + wh / c1

@@ -6,9 +6,10 @@
   together, so that the direction of flight turns by at most V * dt / min_turn_radius per step
   (V the slower of the step's two speeds): the 3D curvature of the flown path, turning angle
   over distance, stays <= 1 / min_turn_radius at every speed. It rolls into and out of turns:
-  the bank of one step, atan(curvature * V^2 / g), differs from the last one's by at most
-  roll_rate * dt, so curvature changes continuously (the simulation keeps each fixed wing's
-  turn state, the last step's curvature; ``swarmplan.flight._fixed_wing_kernel``).
+  the bank of one step's horizontal curvature, atan(k_h * V^2 / g), differs from the last
+  one's by at most roll_rate * dt, so the turn's curvature changes continuously (the
+  simulation keeps each fixed wing's turn state, the last step's curvature;
+  ``swarmplan.flight._fixed_wing_kernel``).
 Positions advance with the new velocity (semi-implicit Euler), so the recorded velocity
 is exactly the step's displacement over dt.
 """
@@ -110,8 +111,8 @@ def fly_fixed_wing(
     by at most amax * dt a step, |flight-path angle| <= climb, and the direction of flight
     turned towards the command's by at most ``min(V0, V1) * dt / turn_radius`` (heading and
     flight-path angle together); with turn states ``kappa`` (n, 2, the curvature of the last
-    step, :func:`turn_states`) and roll rates ``roll`` (rad/s), the bank of the curvature,
-    ``atan(k V^2 / g)`` (V the faster speed), changes by at most ``roll dt``. Without them the
+    step, :func:`turn_states`) and roll rates ``roll`` (rad/s), the bank of the horizontal
+    curvature, ``atan(k_h V^2 / g)`` (V the faster speed), changes by at most ``roll dt``. Without them the
     turn is not rate-limited.
 
     A command of (near) zero keeps the direction; a vertical one keeps the heading and asks
