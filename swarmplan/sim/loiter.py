@@ -11,9 +11,9 @@ arrived (left when flying straight). Its field pulls it at a point ``LEAD`` radi
 on the circle (which also stands for its goal in the field's goal-distance factor), so it flies
 out onto the circle and round it.
 
-Its mode stays ``arrived`` and its arrival time the first arrival; its path length and flight
-metrics end at the arrival (``swarmplan.replay.metrics.active_end``); a contact while it loiters
-is a collision, for the simulation as for the replay's audit.
+Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
+loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
+a contact while it loiters is a collision, for the simulation as for the replay's audit.
 """
 
 from __future__ import annotations
