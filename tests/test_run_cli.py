@@ -205,6 +205,13 @@ def test_bench_sim_zero_agents_exit_2(capsys):
     assert err.strip() == "error: --agents: must be >= 1, got 0"
 
 
+def test_bench_sim_of_a_missing_world_file_exit_2(capsys, tmp_path):
+    from swarmplan.cli.bench import main as bench
+
+    assert bench(["sim", "--world", str(tmp_path / "none.yaml")]) == 2
+    assert capsys.readouterr().err.strip() == f"error: --world: no such file: {tmp_path / 'none.yaml'}"
+
+
 def test_sigterm_closes_the_log_like_ctrl_c_and_counts_only_written_steps(tmp_path):
     """SIGTERM ends the run at a step boundary: exit 1, a readable log whose /summary says
     interrupted and counts exactly the steps whose states are in the log."""

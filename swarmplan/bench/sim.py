@@ -7,7 +7,9 @@ for ``--sim-time`` simulated seconds (with the MCAP recorder unless ``--no-log``
 prints sim-s per wall-s (the first step, where compiled kernels load, not timed) and the mean
 step time; configurations with a speed target (``TARGETS``: 512 agents + 64 movers, pure
 APF, recording on: >= 25x) print their verdict. ``--worlds`` instead runs every world in
-``worlds/`` (and its sub-folders) to its end and prints each one's wall time.
+``worlds/`` (and its sub-folders) to its end and prints each one's wall time; ``--world PATH``
+times that world file's stepping loop the same way (its own optimizer and end unless
+``--optimizer``/``--sim-time`` say otherwise; fixed-wing worlds, recording on: >= 30x).
 
 :func:`swarm_world` and :func:`swap_world` (an antipodal swap through a hub, full of escapes)
 also generate the worlds of ``python -m swarmplan.bench scale``.
@@ -16,6 +18,7 @@ also generate the worlds of ``python -m swarmplan.bench scale``.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -149,13 +152,29 @@ TARGETS = {(512, 64, 24, "none", True): 25.0}
 prints its verdict beside its figure."""
 
 
+FIXED_WING_TARGET = 30.0
+"""Real-time factor target of a fixed-wing world file (``--world``, recording on)."""
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--agents", type=int, default=64, help="agents of the generated swarm world")
     parser.add_argument("--movers", type=int, default=16, help="moving obstacles of the generated world")
     parser.add_argument("--statics", type=int, default=24, help="static obstacles of the generated world")
-    parser.add_argument("--sim-time", type=float, default=30.0, help="simulated seconds to run")
+    parser.add_argument(
+        "--sim-time",
+        type=float,
+        default=None,
+        help="simulated seconds to run (unset: 30; with --world: its end)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the generated world and of the run")
-    parser.add_argument("--optimizer", default="none", help="planner optimizer ('none' = pure APF)")
+    parser.add_argument(
+        "--optimizer",
+        default=None,
+        help="planner optimizer ('none' = pure APF; unset: none, with --world its own)",
+    )
+    parser.add_argument(
+        "--world", type=Path, default=None, help="time this world file instead of a generated one"
+    )
     parser.add_argument("--no-log", action="store_true", help="do not record (measures the simulator alone)")
     parser.add_argument("--worlds", action="store_true", help="time every shipped world instead")
 
@@ -190,8 +209,10 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
     for name in ("movers", "statics", "seed"):
         if getattr(args, name) < 0:
             problems.append(f"--{name}: must be >= 0, got {getattr(args, name)}")
-    if not args.sim_time > 0:
+    if args.sim_time is not None and not args.sim_time > 0:
         problems.append(f"--sim-time: must be > 0, got {args.sim_time:g}")
+    if args.world is not None and not args.world.is_file():
+        problems.append(f"--world: no such file: {args.world}")
     return problems
 
 
@@ -204,11 +225,25 @@ def main(args: argparse.Namespace) -> int:
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 
-    world = parse_world(swarm_world(args.agents, args.movers, args.statics, args.seed))
+    if args.world is not None:
+        from swarmplan.world import WorldError, load_world
+
+        try:
+            world = load_world(args.world)
+        except WorldError as exc:
+            more = f" (and {len(exc.problems) - 1} more)" if len(exc.problems) > 1 else ""
+            print(f"--world: {args.world}: {exc.problems[0]}{more}", file=sys.stderr)
+            return 2
+        optimizer = world.planner_config.optimizer.name if args.optimizer is None else args.optimizer
+        sim_time = world.max_time if args.sim_time is None else args.sim_time
+    else:
+        world = parse_world(swarm_world(args.agents, args.movers, args.statics, args.seed))
+        optimizer = "none" if args.optimizer is None else args.optimizer
+        sim_time = 30.0 if args.sim_time is None else args.sim_time
     with tempfile.TemporaryDirectory() as tmp:
         recorder = None if args.no_log else McapRecorder(Path(tmp) / "bench.mcap")
         log = RecordingObserver(recorder) if recorder is not None else None
-        sim = Simulation(world, planner=make_planner(world, args.optimizer))
+        sim = Simulation(world, planner=make_planner(world, optimizer))
         first = sim.start(seed=args.seed)
         if log is not None:
             log.on_reset(first)
@@ -220,7 +255,7 @@ def main(args: argparse.Namespace) -> int:
         start, cpu0 = time.perf_counter(), time.process_time()
         steps = 0
         try:
-            while not (r.terminated or r.truncated) and sim.state.t < args.sim_time - 1e-9:
+            while not (r.terminated or r.truncated) and sim.state.t < sim_time - 1e-9:
                 r = sim.step()
                 if log is not None:
                     log.on_step(r)
@@ -234,7 +269,7 @@ def main(args: argparse.Namespace) -> int:
     s = sim.summary()
     print(
         f"world: {world.name}: {len(world.agents)} agents, {len(world.moving_obstacles)} moving and "
-        f"{len(world.static_obstacles)} static obstacles, dt {world.dt} s, optimizer {args.optimizer}, "
+        f"{len(world.static_obstacles)} static obstacles, dt {world.dt} s, optimizer {optimizer}, "
         f"recording {'off' if args.no_log else 'on'}"
     )
     flown = sim.state.t - t_first
@@ -254,7 +289,10 @@ def main(args: argparse.Namespace) -> int:
         f"agents arrived {s['arrived']}/{s['agents_total']}, collisions {s['collisions']}"
         + (f", log {size / 1e6:.1f} MB" if size else "")
     )
-    target = TARGETS.get((args.agents, args.movers, args.statics, args.optimizer, not args.no_log))
+    target = TARGETS.get((args.agents, args.movers, args.statics, optimizer, not args.no_log))
+    if args.world is not None:
+        fixed = any(a.model == "fixed_wing" for a in world.agents)
+        target = FIXED_WING_TARGET if fixed and not args.no_log else None
     if target is not None:
         print(
             f"target: >= {target:g}x real time (wall, the first step excluded): {rtf:.1f}x "

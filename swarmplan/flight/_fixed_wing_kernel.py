@@ -138,11 +138,11 @@ def turn_states(v0, v1, climb, dt):  # noqa: ANN001, ANN201
 @njit(cache=True, nogil=True, error_model="numpy")
 def rollouts(pos, vel, kappa, turn, up, amax, radius, climb, roll, steps, dt):  # noqa: ANN001, ANN201
     """Positions (n, C, steps, 3) of fixed wings at ``pos``/``vel`` (n, 3) with turn states
-    ``kappa`` (n, 2) flying each sustained manoeuvre c (``turn[c]`` -1/0/1: hard right, hold,
-    hard left; ``up[c]`` -1/0/1 times the climb limit) for ``steps`` steps of the model at
+    ``kappa`` (n, 2) flying each of its sustained manoeuvres c (``turn[i, c]`` -1/0/1: hard
+    right, hold, hard left; ``up[i, c]`` -1/0/1 times the climb limit) for ``steps`` steps of the model at
     constant speed: each step's command is the current heading turned by 90 degrees times
-    ``turn[c]``, at the flight-path angle, at the current speed."""
-    n, nc = pos.shape[0], turn.shape[0]
+    ``turn[i, c]``, at the flight-path angle, at the current speed."""
+    n, nc = pos.shape[0], turn.shape[1]
     out = np.empty((n, nc, steps, 3))
     for i in range(n):
         speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
@@ -150,10 +150,10 @@ def rollouts(pos, vel, kappa, turn, up, amax, radius, climb, roll, steps, dt):  
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
             kh, kv = kappa[i, 0], kappa[i, 1]
             x, y, z = pos[i, 0], pos[i, 1], pos[i, 2]
-            g = up[c] * climb[i]
+            g = up[i, c] * climb[i]
             cg, sg = math.cos(g), math.sin(g)
             for k in range(steps):
-                a = math.atan2(vy, vx) + turn[c] * _HALF_PI
+                a = math.atan2(vy, vx) + turn[i, c] * _HALF_PI
                 vx, vy, vz, kh, kv = fly_step(
                     vx, vy, vz, speed * cg * math.cos(a), speed * cg * math.sin(a), speed * sg, kh, kv,
                     speed, speed, amax[i], radius[i], climb[i], roll[i], dt,

@@ -110,16 +110,20 @@ def rollout_manoeuvres(
     steps: int,
     dt: float,
     kappa: np.ndarray | None = None,
+    which: np.ndarray | None = None,
 ) -> np.ndarray:
     """Positions (n, C, steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` (turn states
-    ``kappa`` (n, 2), default straight) flying each sustained manoeuvre for ``steps`` steps of
-    the model at constant speed (the commands are re-formed from the current heading each
-    step, as the guard flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
+    ``kappa`` (n, 2), default straight) flying each sustained manoeuvre (or, with ``which``
+    (n, C'), the manoeuvres of those indices, (n, C', steps, 3)) for ``steps`` steps of the
+    model at constant speed (the commands are re-formed from the current heading each step,
+    as the guard flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
     f = np.ascontiguousarray
     n = len(idx)
     kappa = np.zeros((n, 2)) if kappa is None else f(kappa, dtype=float)
+    if which is None:
+        which = np.broadcast_to(np.arange(len(_MANOEUVRES)), (n, len(_MANOEUVRES)))
     return fixed_wing_model().rollouts(
-        f(pos, dtype=float), f(vel, dtype=float), kappa, _TURN, _UP,
+        f(pos, dtype=float), f(vel, dtype=float), kappa, f(_TURN[which]), f(_UP[which]),
         f(params.max_accel[idx]), f(params.min_turn_radius[idx]), f(params.max_climb[idx]),
         f(params.roll_rate[idx]), int(steps), dt,
     )  # fmt: skip
@@ -133,11 +137,13 @@ def _manoeuvre_clearance(
     kappa: np.ndarray,
     times: np.ndarray,
     dt: float,
+    which: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Predicted positions (n, C, H, 3) of the sustained manoeuvres from ``pos``/``vel``/``kappa``,
-    the matching body radii (n, C, H) and the gaps kept from bodies beyond them (n, C, H)."""
-    n, c = len(idx), len(_MANOEUVRES)
-    points = rollout_manoeuvres(params, idx, pos, vel, len(times), dt, kappa)
+    """Predicted positions (n, C, H, 3) of the sustained manoeuvres (``which``: those of these
+    indices, (n, C')) from ``pos``/``vel``/``kappa``, the matching body radii (n, C, H) and the
+    gaps kept from bodies beyond them (n, C, H)."""
+    n, c = len(idx), len(_MANOEUVRES) if which is None else which.shape[1]
+    points = rollout_manoeuvres(params, idx, pos, vel, len(times), dt, kappa, which)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
     extra = np.broadcast_to((params.clearance - params.radius)[idx][:, None, None], (n, c, len(times)))
     return points, radii, extra
@@ -154,9 +160,12 @@ def guard_commands(
     clearance: ClearanceFn,
     required: np.ndarray,
     kappa: np.ndarray | None = None,
+    prefer: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Guarded commands of fixed wings ``idx`` (rows of ``pos``, ``vel``, ``v_cmd`` and of their
-    turn states ``kappa``, default straight).
+    turn states ``kappa``, default straight). ``prefer`` (n,), updated in place: per agent the
+    manoeuvre checked first (the answer does not depend on it; the last one found safe is
+    usually safe again, and then the others are not rolled out).
 
     The field's command stands if, after one step of it, at least one sustained manoeuvre
     (hard left/right turn or straight, level/climbing/diving) keeps ``required`` (n,) clearance
@@ -182,16 +191,31 @@ def guard_commands(
         params.min_turn_radius[k], params.max_climb[k], dt, kappa, params.roll_rate[k],
     )  # fmt: skip
     p_next = pos + v_next * dt
-    after, r_after, e_after = _manoeuvre_clearance(params, idx, p_next, v_next, k_next, times, dt)
-    points = np.concatenate([after.reshape(-1, 3), p_next])
-    radii = np.concatenate([r_after.reshape(-1), params.radius[idx]])
-    extra = np.concatenate([e_after.reshape(-1), extra_now])
-    when = np.concatenate([np.tile(t0 + dt + times, n * c), np.full(n, t0 + dt)])
+    # Is any manoeuvre safe after it? Each agent's ``prefer`` (the one safe there last time)
+    # first, every other one only for the agents it leaves in doubt: the same answers.
+    prefer = np.zeros(n, dtype=np.int64) if prefer is None else prefer
+    pref, r_pref, e_pref = _manoeuvre_clearance(
+        params, idx, p_next, v_next, k_next, times, dt, prefer[:, None]
+    )
+    points = np.concatenate([pref.reshape(-1, 3), p_next])
+    radii = np.concatenate([r_pref.reshape(-1), params.radius[idx]])
+    extra = np.concatenate([e_pref.reshape(-1), extra_now])
+    when = np.concatenate([np.tile(t0 + dt + times, n), np.full(n, t0 + dt)])
     clear = clearance(points, radii, when, extra)
-    m = n * c * steps
-    worst_after = clear[:m].reshape(n, c, steps).min(axis=2)
+    m = n * steps
     step_clear = clear[m:]
-    keep = (step_clear >= required) & np.any(worst_after >= required[:, None], axis=1)
+    keep = (step_clear >= required) & (clear[:m].reshape(n, steps).min(axis=1) >= required)
+    doubt = np.flatnonzero(~keep & (step_clear >= required))
+    if len(doubt):
+        d = len(doubt)
+        after, r_after, e_after = _manoeuvre_clearance(
+            params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], times, dt
+        )
+        when = np.tile(t0 + dt + times, d * c)
+        clear_after = clearance(after.reshape(-1, 3), r_after.reshape(-1), when, e_after.reshape(-1))
+        safe = clear_after.reshape(d, c, steps).min(axis=2) >= required[doubt, None]
+        keep[doubt] = safe.any(axis=1)
+        prefer[doubt] = np.where(safe.any(axis=1), np.argmax(safe, axis=1), prefer[doubt])
     if keep.all():
         return out, replaced
     # ... and, for the agents it would corner, from where they are now (each row of a rollout

@@ -90,6 +90,8 @@ class SafetyFilter:
         # simulation keeps them): every fixed-wing step formed here rolls on from them.
         self.turn = np.zeros((len(params.radius), 2))
         self._centers: dict[int, np.ndarray] = {}  # movers' centres by step number (predictions)
+        # Per fixed wing, the guard's manoeuvre last found safe (checked first: the same answers).
+        self._prefer = np.zeros(len(params.radius), dtype=np.int64)
 
     def guard_fixed_wings(
         self,
@@ -152,10 +154,13 @@ class SafetyFilter:
                     c = np.minimum(c, dj - radii - extra)
             return c
 
+        agents = idx[rows]
+        prefer = self._prefer[agents]
         guarded, replaced = guard_commands(
-            p, idx[rows], pos0[idx[rows]], vel0[idx[rows]], v_cmd[rows], t0, dt, clearance_at, required[rows],
-            self.turn[idx[rows]],
+            p, agents, pos0[agents], vel0[agents], v_cmd[rows], t0, dt, clearance_at, required[rows],
+            self.turn[agents], prefer,
         )  # fmt: skip
+        self._prefer[agents] = prefer
         out = v_cmd.copy()
         out[rows] = guarded
         return out, Tally(counts=tuple(("guard_steps", i) for i in idx[rows][replaced].tolist()))
