@@ -1,0 +1,48 @@
+"""Fixed wings through a window (``worlds/fixed_wing_window.yaml``: a thin wall, a 40 m x 30 m
+opening, 40 m turn radius): the aircraft whose straight line runs through the opening flies
+it straight (path within 1.2 x the straight line) whatever the optimizer and seed, the one whose
+line the wall blocks lines up with the opening and goes through (both arrive on the world's own
+seed and optimizer; on seed 2 the other's escapes can still take it away from the opening);
+nothing is touched."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from helpers import run_to_end
+
+from swarmplan.planner import make_planner
+from swarmplan.world import load_world
+
+WORLD = Path(__file__).resolve().parents[1] / "worlds" / "fixed_wing_window.yaml"
+
+
+def _fly(optimizer: str | None, seed: int) -> tuple[dict, float]:
+    world = load_world(WORLD)
+    _, summary, pos = run_to_end(world, seed=seed, planner=make_planner(world, optimizer))
+    pos = np.array(pos)[:, 0]
+    aligned = summary["agents"][0]
+    k = int(round(aligned["arrival_time"] / world.dt)) if aligned["arrived"] else len(pos) - 1
+    flown = float(np.linalg.norm(np.diff(pos[: k + 1], axis=0), axis=1).sum())
+    return summary, flown / float(np.linalg.norm(world.agents[0].goal - world.agents[0].start))
+
+
+def test_both_fixed_wings_go_through_the_window():
+    summary, ratio = _fly(None, 1)
+    assert summary["arrived"] == summary["agents_total"] == 2, summary["agents"]
+    assert summary["collisions"] == 0
+    assert ratio <= 1.2, ratio
+    for a in summary["agents"]:
+        assert a["min_obstacle_clearance"] >= 0.5 * 10.0 - 1e-6, a  # half the 10 m separation
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("optimizer", ["rscdwoa", "woa", "pso", "de"])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_aligned_fixed_wing_flies_straight_through_on_every_optimizer_and_seed(optimizer, seed):
+    summary, ratio = _fly(optimizer, seed)
+    aligned = summary["agents"][0]
+    assert aligned["arrived"] and aligned["collisions"] == 0 and summary["collisions"] == 0, summary["agents"]
+    assert ratio <= 1.2, ratio
