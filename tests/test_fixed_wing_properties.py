@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 from swarmplan.core import Mode
-from swarmplan.world.schema import GRAVITY
+from swarmplan.world.airframe import GRAVITY
 
 DT = 0.1
 SIZE = (500.0, 300.0, 120.0)

@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-GRAVITY = 9.80665  # swarmplan.world.schema.GRAVITY
+GRAVITY = 9.80665  # swarmplan.world.airframe.GRAVITY
 
 _HALF_PI = 0.5 * math.pi
 

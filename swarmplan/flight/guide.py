@@ -29,7 +29,7 @@ way (or the goal itself once that is within reach), and its static repulsion is 
 nothing is built and nothing changes. An agent following a segment or a global route keeps it,
 and fixed wings (which cannot fly a way that hugs corners) are never guided; but a fixed wing
 whose whole straight line to its goal is clear (through a window, a gap) flies it without the
-static bodies' push (``SIGHT_REPULSION``), which would turn it away in front of the opening,
+static bodies' push (``swarmplan.flight.sight``), which would turn it away in front of the opening,
 and one whose line is blocked flies straight at the farthest point of its way that it sees
 (lining up with the opening the way runs through): its turn-ahead guard keeps its clearance.
 The searches, the line-of-sight samples and the points on the ways run compiled
@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.flight import _guide_numpy, guide_cache
+from swarmplan.flight.sight import fixed_wings_in_sight
 from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
 from swarmplan.geometry.compiled import use_compiled
 from swarmplan.runtime.compiled import kernel_module, numba_loaded
@@ -72,7 +73,6 @@ ONCOMING = 3.0  # extra cost per metre through a cell near surfaces per way thro
 HOPS = 2  # legs ahead on the way: the point of attraction
 SQUEEZE = 1.0  # m: a line closer than this to a surface (beyond the radius) counts as blocked
 REPULSION = 0.15  # scale of a guided agent's static repulsion (half a segment's)
-SIGHT_REPULSION = 0.0  # of a fixed wing's with a clear line to its goal (its guard keeps clear)
 AHEAD = 2.0  # influence distances of a line an unguided agent checks in flight
 RECHECK = 5  # steps between two line-of-sight checks of an agent
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
@@ -540,7 +540,7 @@ class StaticGuide:
             reach = np.where(self.guided[who], np.inf, self.ahead)
             self.guided[who] = self.blocked(pos[due], goal[due], reach)
         if not self.can_stop[idx].all():
-            target, scale = self._fixed_wings_in_sight(step, idx, pos, goal, to_goal, target, scale)
+            target, scale = fixed_wings_in_sight(self, step, idx, pos, goal, to_goal, target, scale, RECHECK)
         rows = np.flatnonzero(to_goal & self.guided[idx])
         if not len(rows):
             return target, scale
@@ -552,56 +552,6 @@ class StaticGuide:
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         return out, scale
-
-    def _fixed_wings_in_sight(
-        self,
-        step: int,
-        idx: np.ndarray,
-        pos: np.ndarray,
-        goal: np.ndarray,
-        to_goal: np.ndarray,
-        target: np.ndarray,
-        scale: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """``target`` and ``scale`` for the fixed wings flying at their goal (checked every
-        ``RECHECK`` steps): one with a clear straight line to it flies that line without the
-        static bodies' push (``SIGHT_REPULSION``): through a window or a gap its line passes,
-        the edges' push would turn it away in front of the opening; one whose line is blocked
-        flies straight, the same way, at the farthest point of its way on the grid that it
-        sees (it lines up with the opening the way runs through). Its turn-ahead guard keeps
-        its clearance from the bodies."""
-        fixed = to_goal & ~self.can_stop[idx]
-        due = np.flatnonzero(fixed & ((idx + step) % RECHECK == 0))
-        if len(due):
-            who = idx[due]
-            self.in_sight[who] = ~self.blocked(pos[due], goal[due])
-            for r in due[~self.in_sight[who]].tolist():
-                point = self._farthest_seen(pos[r], goal[r])
-                self.sighted[idx[r]] = point is not None
-                if point is not None:
-                    self.sight_point[idx[r]] = point
-        seen = fixed & (self.in_sight[idx] | self.sighted[idx])
-        rows = np.flatnonzero(seen)
-        if not len(rows):
-            return target, scale
-        scale = scale.copy()
-        scale[rows] = np.minimum(scale[rows], SIGHT_REPULSION)
-        aim = np.flatnonzero(seen & ~self.in_sight[idx])
-        if len(aim):
-            target = np.array(target, dtype=float)
-            target[aim] = self.sight_point[idx[aim]]
-        return target, scale
-
-    def _farthest_seen(self, pos: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
-        """The farthest cell centre of the way from ``pos`` to ``goal`` (3,) whose straight line
-        from ``pos`` is clear, or None (no way, or no point of it in sight)."""
-        row = int(self._rows_for(self.cell_of(goal[None]), pos[None])[0])
-        way = self._way(row, int(self.cell_of(pos[None])[0]))
-        if len(way) < 2 or way[-1] != self._source[row]:
-            return None
-        pts = self.centres[np.array(way[1:])]
-        clear = np.flatnonzero(~self.blocked(np.repeat(pos[None], len(pts), axis=0), pts))
-        return None if not len(clear) else pts[int(clear[-1])].copy()
 
     def leads(self, i: int, pos: np.ndarray, goal: np.ndarray) -> bool:
         """Whether the guide leads agent ``i`` at ``pos`` to ``goal`` (3,): it is guided and a way

@@ -62,7 +62,7 @@ from swarmplan.planner.escape_gates import (
     held_by_obstacles,
     stand_down_gate,
 )
-from swarmplan.planner.hold import free_volume_waypoints, hold_waypoints
+from swarmplan.planner.hold import holding_pattern
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
 
@@ -532,32 +532,23 @@ class EscapePlanner:
     def hold(self, sim: PlanningContext, i: int, reason: str) -> StuckOutcome:
         """A holding pattern (:mod:`swarmplan.planner.hold`) instead of giving up; later searches
         are ``growth`` times wider per hold. A multirotor hovers; a fixed wing with no free
-        loiter circle flies towards free volume (:func:`free_volume_waypoints`), or, with no
+        loiter circle flies towards free volume (``hold.free_volume_waypoints``), or, with no
         free way there either, on under the field (None) until it plans again."""
         rounds = self.holds.get(i, 0) + 1
         self.holds[i] = rounds
         s = sim.state
         start_clear = float(static_clearance(sim, s.position[i], float(sim.params.radius[i]))[0])
-        pts = hold_waypoints(
+        r = float(sim.params.radius[i])
+        # A fixed wing with no free circle here: towards the nearest free volume, to hold there.
+        pts, free_volume = holding_pattern(
             s.position[i],
             s.velocity[i],
             bool(sim.params.fixed_wing[i]),
             model_turn_radius(sim, i),
+            float(sim.params.max_climb[i]),
+            lambda q: static_clearance(sim, q, r),
             lambda poly: self.segment_hit(sim, i, poly, start_clear) is not None,
         )
-        free_volume = False
-        if pts is None:
-            # A fixed wing and no circle fits here: towards the nearest free volume, to hold there.
-            r = float(sim.params.radius[i])
-            pts = free_volume_waypoints(
-                s.position[i],
-                s.velocity[i],
-                model_turn_radius(sim, i),
-                float(sim.params.max_climb[i]),
-                lambda q: static_clearance(sim, q, r),
-                lambda poly: self.segment_hit(sim, i, poly, start_clear) is not None,
-            )
-            free_volume = pts is not None
         detail = {"reason": reason, "round": rounds, "possible": pts is not None, "held_by": held_by(sim, i)}
         if free_volume:
             detail["free_volume"] = True

@@ -100,3 +100,21 @@ def free_volume_waypoints(
             if not blocked(way):
                 return way[1:]
     return None
+
+
+def holding_pattern(
+    position: np.ndarray,
+    velocity: np.ndarray,
+    fixed_wing: bool,
+    min_turn_radius: float,
+    climb_limit: float,
+    clearance: Callable[[np.ndarray], np.ndarray],
+    blocked: Callable[[np.ndarray], bool],
+) -> tuple[np.ndarray | None, bool]:
+    """:func:`hold_waypoints`, or for a fixed wing with no free circle
+    :func:`free_volume_waypoints`; and whether the latter answered."""
+    pts = hold_waypoints(position, velocity, fixed_wing, min_turn_radius, blocked)
+    if pts is not None:
+        return pts, False
+    pts = free_volume_waypoints(position, velocity, min_turn_radius, climb_limit, clearance, blocked)
+    return pts, pts is not None

@@ -17,6 +17,7 @@ import numpy as np
 
 from swarmplan import optimizers
 from swarmplan.geometry.rotation import rotation_matrix
+from swarmplan.world.airframe import FIXED_WING_KEYS, airframe_keys
 from swarmplan.world.checker import Checker, join, typename
 from swarmplan.world.checks import check_placements
 from swarmplan.world.meshes import load_mesh
@@ -47,31 +48,6 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "min_altitude": None,  # m; left out: from the agent (default_min_altitude)
     "separation": None,  # m; left out: the agent's diameter on each axis (default_separation)
 }
-
-FIXED_WING_KEYS = ("roll_rate", "clearance")
-"""Agent keys of fixed wings only, defaulting from the airframe (:func:`fixed_wing_defaults`)."""
-
-GRAVITY = 9.80665
-"""m/s²: the bank of a level turn of radius R at speed V is atan(V² / (g R))."""
-
-
-def fixed_wing_defaults(params: dict[str, Any]) -> dict[str, float]:
-    """A fixed wing's ``roll_rate`` (deg/s) and ``clearance`` (m) unless its world sets them:
-    it rolls into the bank of a minimum-radius turn at cruise speed, atan(V² / (g R_min)),
-    while it flies a quarter of its turn radius, within a second at most (its turns start
-    where they are asked for, to a quarter radius); it keeps from every body the largest of
-    its radius, half its horizontal separation and the tracking error a fixed wing is
-    allowed (``0.05 min_turn_radius``, docs/tracking.md)."""
-    v, r = params["speed"]["cruise"], params["min_turn_radius"]
-    sep = params["separation"]
-    out = dict(params)
-    if out.get("roll_rate") is None:
-        roll_in = min(1.0, 0.25 * r / max(v, 1e-9))  # s
-        out["roll_rate"] = math.degrees(math.atan(v * v / (GRAVITY * r))) / roll_in
-    if out.get("clearance") is None:
-        out["clearance"] = max(params["radius"], 0.5 * max(sep[0], sep[1]), 0.05 * r)
-    return out
-
 
 PLANNER_DEFAULTS: dict[str, Any] = {
     "mode": "reactive",
@@ -515,10 +491,7 @@ def parse_world(
             params["min_altitude"] = round(default_min_altitude(params), 6)
         if "speed" in a or "model" in a:  # what the agent inherits is checked once, in agent_defaults
             _check_agent_params(c, params, p)
-        if params["model"] != "fixed_wing":
-            params = {k: v for k, v in params.items() if k not in FIXED_WING_KEYS}
-        elif None not in _flat_values(params):
-            params = fixed_wing_defaults(params)
+        params = airframe_keys(params, complete=None not in _flat_values(params))
         resolved = {"id": aid, "start": _lst(start), "goal": _lst(goal), **copy.deepcopy(params)}
         agents_out.append(resolved)
         if aid is None or start is None or goal is None or None in _flat_values(params):
