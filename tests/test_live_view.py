@@ -179,13 +179,15 @@ def test_a_viewer_that_unsubscribes_and_leaves_prints_nothing(tmp_path: Path, ca
 
         async def visit() -> int:
             got = 0
-            async with websockets.connect(f"ws://127.0.0.1:{sink.port}", subprotocols=list(SUBPROTOCOLS)) as ws:
+            url = f"ws://127.0.0.1:{sink.port}"
+            async with websockets.connect(url, subprotocols=list(SUBPROTOCOLS)) as ws:
                 ids: dict[str, int] = {}
                 while "/a" not in ids:
                     op = json.loads(await asyncio.wait_for(ws.recv(), 10.0))
                     if op["op"] == "advertise":
                         ids.update({c["topic"]: c["id"] for c in op["channels"]})
-                await ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": ids["/a"]}]}))
+                subscription = {"id": 1, "channelId": ids["/a"]}
+                await ws.send(json.dumps({"op": "subscribe", "subscriptions": [subscription]}))
                 for k in range(100):  # until the subscription is in place
                     sink.add_message(channel, 2 + k, b"{}")
                     try:
