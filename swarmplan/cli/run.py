@@ -59,10 +59,33 @@ def check_writable(path: Path, label: str) -> None:
         ) from None
 
 
+TURN_RULES = (
+    (True, "fixed wing: curvature over 1.05 / min_turn_radius"),
+    (False, "multirotor: lateral acceleration over 1.05 max_accel"),
+)
+"""(fixed wing or not, the rule its broken turn limit is): a table names only the rules of the
+models whose limit was broken."""
+
+
+def _fixed_wing(a: dict[str, Any]) -> bool:
+    """A summary entry of a fixed wing (its turn limit is a curvature, not an acceleration)."""
+    return a.get("lateral_accel_limit") is None
+
+
+def _curvature(a: dict[str, Any]) -> tuple[str, str]:
+    """(max curvature, its limit) for a fixed wing; '-' for a multirotor: it may turn the tighter
+    the slower it flies (a hovering one's steps of millimetres make any turn a curvature in the
+    hundreds), so its turn limit is the lateral acceleration beside it."""
+    if not _fixed_wing(a):
+        return "-", "-"
+    limit = a.get("curvature_limit")
+    return f"{a['max_curvature']:.3g}", "-" if limit is None else f"{limit:.3g}"
+
+
 def _lateral(a: dict[str, Any]) -> str:
     """Max lateral acceleration beside the multirotor's max_accel; '!' marks a broken turn limit."""
     flag = " !" if a.get("curvature_violation") else ""
-    if a.get("lateral_accel_limit") is None:  # fixed wing: its limit is the curvature
+    if _fixed_wing(a):  # its limit is the curvature
         return ("-" if a.get("max_lateral_accel") is None else f"{a['max_lateral_accel']:.2f}") + flag
     return f"{a['max_lateral_accel']:.2f}/{a['lateral_accel_limit']:.2f}{flag}"
 
@@ -77,7 +100,7 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
         "ratio",
         "min clear m",
         "max curv 1/m",
-        "limit 1/m",
+        "curv limit 1/m",
         "lat acc m/s2",
         "cusps",
         "collisions",
@@ -94,8 +117,7 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
                 f"{a['path_length']:.1f}",
                 "-" if a["length_ratio"] is None else f"{a['length_ratio']:.3f}",
                 "-" if a["min_clearance"] is None else f"{a['min_clearance']:.2f}",
-                f"{a['max_curvature']:.3g}",
-                "-" if a.get("curvature_limit") is None else f"{a['curvature_limit']:.3g}",
+                *_curvature(a),
                 _lateral(a),
                 str(a.get("cusps", 0)),
                 str(a["collisions"]),
@@ -112,12 +134,10 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
     widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(head)]
     line = lambda cells: "  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True))  # noqa: E731
     out = [line(head), line(["-" * w for w in widths])] + [line(r) for r in rows]
-    broken = [a["id"] for a in summary["agents"] if a.get("curvature_violation")]
+    broken = [a for a in summary["agents"] if a.get("curvature_violation")]
     if broken:
-        out.append(
-            f"TURN LIMIT BROKEN (!): {', '.join(broken)} (fixed wing: curvature over 1.05 / min_turn_radius; "
-            "multirotor: lateral acceleration over 1.05 max_accel)"
-        )
+        rules = [rule for fixed, rule in TURN_RULES if any(_fixed_wing(a) == fixed for a in broken)]
+        out.append(f"TURN LIMIT BROKEN (!): {', '.join(a['id'] for a in broken)} ({'; '.join(rules)})")
     out += exposure_warnings(summary)
     verdict = "SUCCESS" if summary["success"] else ("INTERRUPTED" if summary["interrupted"] else "FAILED")
     out.append("")
