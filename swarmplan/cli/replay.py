@@ -255,6 +255,7 @@ def _write_outputs(rec: Recording, args: argparse.Namespace, agent_ids: list[str
                 max_frames=args.max_frames,
                 speed=args.speed,
                 agents=agent_ids,
+                progress=sys.stderr.isatty(),  # no bar in a captured log (as run)
             )
         )
     return outputs
