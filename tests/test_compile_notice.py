@@ -53,3 +53,37 @@ def test_numba_s_lock_is_found_once_numba_is_loaded():
     lock = _numba_compiler_lock()
     assert lock.acquire(blocking=False)
     lock.release()
+
+
+def test_the_notice_is_said_once_per_machine_not_once_per_run(tmp_path):
+    """Said once, a marker file keeps a later run (another world that loads or compiles more
+    kernels) from saying it again; a run that said it tells so (``said``)."""
+    marker = tmp_path / "cache" / "compile-notice-x"
+    lock = threading.Lock()
+    lock.acquire()
+    try:
+        for expected in ([COMPILE_NOTICE], []):
+            said: list[str] = []
+            notice = CompileNotice(said.append, patience=0.2, interval=0.05, lock=lambda: lock, marker=marker)
+            notice.start()
+            time.sleep(0.5)
+            notice.stop()
+            assert said == expected and notice.said == bool(expected)
+            assert marker.exists()
+    finally:
+        lock.release()
+
+
+def test_the_run_summary_says_when_its_speed_includes_compiling():
+    from swarmplan.cli.run import format_summary
+
+    agent = {"id": "a", "arrived": True, "final_mode": "arrived", "arrival_time": 10.0, "path_length": 80.0,
+             "length_ratio": 1.0, "min_clearance": 5.0, "max_curvature": 0.0, "curvature_limit": 0.06,
+             "max_lateral_accel": 0.0, "lateral_accel_limit": 4.0, "cusps": 0, "collisions": 0,
+             "stuck_events": 0, "escapes": 0}  # fmt: skip
+    summary = {"agents": [agent], "success": True, "interrupted": False, "arrived": 0, "agents_total": 0,
+               "collisions": 0, "sim_time": 10.0, "wall_time": 20.0, "world": "w", "seed": 0,
+               "optimizer": "none"}  # fmt: skip
+    assert "(0.5 sim-s/s, compiling included)" in format_summary(summary, None, compiled=True)
+    assert "(0.5 sim-s/s)" in format_summary(summary, None)
+

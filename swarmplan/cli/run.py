@@ -20,6 +20,7 @@ from typing import Any
 
 from swarmplan import optimizers
 from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout, write_failure, writer_messages
+from swarmplan.io.compile_notice import CompileNotice, said_marker
 from swarmplan.io.runner import LiveView, apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sim.threats import exposure_warnings
@@ -90,8 +91,9 @@ def _lateral(a: dict[str, Any]) -> str:
     return f"{a['max_lateral_accel']:.2f}/{a['lateral_accel_limit']:.2f}{flag}"
 
 
-def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
-    """The per-agent table printed at the end of a run."""
+def format_summary(summary: dict[str, Any], log_path: Path | None, compiled: bool = False) -> str:
+    """The per-agent table printed at the end of a run (``compiled``: its wall time includes
+    compiling the kernels, which the speed figure says)."""
     head = (
         "agent",
         "arrived",
@@ -145,7 +147,9 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
         f"{verdict}: {summary['arrived']}/{summary['agents_total']} arrived, "
         f"{summary['collisions']} collision(s), "
         f"sim {summary['sim_time']:.1f} s in {summary['wall_time']:.2f} s wall "
-        f"({summary['sim_time'] / max(summary['wall_time'], 1e-9):.1f} sim-s/s), "
+        f"({summary['sim_time'] / max(summary['wall_time'], 1e-9):.1f} sim-s/s"
+        + (", compiling included" if compiled else "")
+        + "), "
         f"world {summary['world']!r}, seed {summary['seed']}, optimizer {summary['optimizer']}"
     )
     if log_path is not None:
@@ -252,6 +256,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {p}", file=sys.stderr)
         return EXIT_BAD_INPUT
     complaints = None
+    notice = None if args.quiet else CompileNotice(marker=said_marker())
     try:
         with writer_messages() as complaints:
             summary = simulate(
@@ -261,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
                 progress=not args.quiet and sys.stderr.isatty(),
                 stop_on_signals=True,
                 live=live,
-                notices=not args.quiet,
+                notices=notice or False,
             )
     except (RuntimeError, OSError) as exc:
         reason = write_failure(exc, complaints)
@@ -278,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\ninterrupted: the log {log_path} was closed with every step so far", file=sys.stderr)
         return EXIT_FAILED
     if not args.quiet:
-        print(format_summary(summary, log_path))
+        print(format_summary(summary, log_path, compiled=notice is not None and notice.said))
     return EXIT_OK if summary["success"] else EXIT_FAILED
 
 
