@@ -283,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\ninterrupted: the log {log_path} was closed with every step so far", file=sys.stderr)
         return EXIT_FAILED
     if not args.quiet:
-        print(format_summary(summary, log_path, compiled=notice is not None and notice.said))
+        print(format_summary(summary, log_path, compiled=notice is not None and notice.compiled))
     return EXIT_OK if summary["success"] else EXIT_FAILED
 
 

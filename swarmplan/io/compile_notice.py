@@ -46,8 +46,9 @@ def _numba_compiler_lock() -> Any:
 class CompileNotice:
     """Writes :data:`COMPILE_NOTICE` with ``write`` once when the compiler lock stays held for
     ``patience`` seconds (checked every ``interval`` s) between :meth:`start` and :meth:`stop`,
-    unless the ``marker`` file says it was said before (then nothing is watched); a notice
-    said leaves the marker at :meth:`stop`. ``said`` tells whether this run compiled."""
+    unless the ``marker`` file says it was said before; a notice said leaves the marker at
+    :meth:`stop`. ``compiled`` tells whether this run compiled (said or not), ``said`` whether
+    it wrote the notice."""
 
     def __init__(
         self,
@@ -63,12 +64,13 @@ class CompileNotice:
         self.lock = lock
         self.marker = marker
         self.said = False
+        self.compiled = False
+        self._quiet = False
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
     def start(self) -> CompileNotice:
-        if self.marker is not None and self.marker.exists():
-            return self  # said on this machine before
+        self._quiet = self.marker is not None and self.marker.exists()  # said on this machine before
         self._thread = threading.Thread(target=self._watch, name="compile-notice", daemon=True)
         self._thread.start()
         return self
@@ -97,6 +99,8 @@ class CompileNotice:
             now = time.monotonic()
             held_since = now if held_since is None else held_since
             if now - held_since >= self.patience:
-                self.write(COMPILE_NOTICE)
-                self.said = True
+                self.compiled = True
+                if not self._quiet:
+                    self.write(COMPILE_NOTICE)
+                    self.said = True
                 return

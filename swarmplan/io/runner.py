@@ -200,7 +200,7 @@ def simulate(
     channels are also served live (its address is printed on ``stream``), the run paced as
     it says; the server stops when the log is closed. With ``notices``, a run that compiles
     kernels (the first on a machine) says so on ``stream`` (``CompileNotice``: pass one to learn
-    afterwards whether it did, its ``said``). The progress bar ends at 100 % when the run ends
+    afterwards whether it compiled, its ``compiled``). The progress bar ends at 100 % when the run ends
     by itself.
     """
     from swarmplan.io.recording import McapRecorder  # here: the writer's import costs start-up
