@@ -297,7 +297,7 @@ def main(args: argparse.Namespace) -> int:
     from swarmplan.bench.swarm_report import write_docs
 
     page = out if args.docs is None else Path(args.docs)
-    write_docs(page, rows, table, verdicts, pictures, sizes, seeds, orca)
+    write_docs(page, rows, table, verdicts, pictures, sizes, seeds, orca, args.docs)
     print(f"wrote {out / 'swarm.csv'} and {page / 'swarm-benchmarks.md'}")
     return 0
 
