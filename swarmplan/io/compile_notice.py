@@ -7,10 +7,10 @@ milliseconds each. :class:`CompileNotice` watches numba's compiler lock from a b
 thread while a run goes on: numba holds it while it loads a cached kernel (milliseconds) or
 compiles one (seconds), so a lock held for longer than ``patience`` means compiling, and the
 notice is written once. Once said, a file in the cache folder
-(:func:`swarmplan.runtime.disk_cache.cache_dir`, keyed by the code and the numba installation)
-keeps later runs from saying it again: the notice is for the first run on a machine, not for
-each world. Nothing is imported for the watching: until a kernel loads, numba is not in the
-process and there is nothing to watch.
+(:func:`swarmplan.runtime.disk_cache.cache_dir`, keyed by the package's version and the Python
+and numba installations) keeps later runs from saying it again: the notice is for the first
+run on a machine, not for each world. Nothing is imported for the watching: until a kernel
+loads, numba is not in the process and there is nothing to watch.
 """
 
 from __future__ import annotations
@@ -29,12 +29,22 @@ COMPILE_NOTICE = (
 
 
 def said_marker() -> Path | None:
-    """The file whose presence says the notice was given with this code and numba (None when
-    the cache folder is off)."""
-    from swarmplan.runtime.disk_cache import cache_dir, code_fingerprint
+    """The file whose presence says the notice was given on this machine for this version of
+    the package, Python and numba (None when the cache folder is off)."""
+    import hashlib
+    import importlib.util
+    import os
+
+    from swarmplan import __version__
+    from swarmplan.runtime.disk_cache import cache_dir
 
     folder = cache_dir()
-    return None if folder is None else folder / f"compile-notice-{code_fingerprint()[:16]}"
+    if folder is None:
+        return None
+    spec = importlib.util.find_spec("numba")
+    numba = os.stat(spec.origin) if spec is not None and spec.origin else None
+    key = f"{__version__};{sys.version};{numba and (spec.origin, numba.st_size, numba.st_mtime_ns)}"
+    return folder / f"compile-notice-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
 
 
 def _numba_compiler_lock() -> Any:
