@@ -15,12 +15,18 @@ loads, numba is not in the process and there is nothing to watch.
 
 from __future__ import annotations
 
+import hashlib
+import importlib.util
+import os
 import sys
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from swarmplan import __version__
+from swarmplan.runtime.disk_cache import cache_dir
 
 COMPILE_NOTICE = (
     "compiling the numerical kernels for this machine, once: this run takes longer (about "
@@ -31,13 +37,6 @@ COMPILE_NOTICE = (
 def said_marker() -> Path | None:
     """The file whose presence says the notice was given on this machine for this version of
     the package, Python and numba (None when the cache folder is off)."""
-    import hashlib
-    import importlib.util
-    import os
-
-    from swarmplan import __version__
-    from swarmplan.runtime.disk_cache import cache_dir
-
     folder = cache_dir()
     if folder is None:
         return None
