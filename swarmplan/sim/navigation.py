@@ -177,9 +177,7 @@ class Navigator:
                 continue
             if s.t - self.progress_t[i] < window - 1e-9:
                 continue
-            # Python floats: an agent with no way found then nor now (inf - inf) made no
-            # measurable progress (nan, so stuck) without numpy's invalid-value warning.
-            progress = float(self.progress_ref[i]) - float(dg[i])
+            progress = self.progress_ref[i] - dg[i]
             self.progress_ref[i], self.progress_t[i] = dg[i], s.t
             if progress >= min_progress:
                 continue
