@@ -33,7 +33,8 @@ def wall_world(influence: float = 3.0):
             "separation": [4, 4, 2],
         },
         agents=[{"id": "a", "start": [30, 100, 30], "goal": [170, 100, 30]}],
-        planner={"optimizer": {"name": "none"}, "apf": {"influence": influence}},
+        # The bare field (no guide: a fixed wing's line of sight would lead it round the wall).
+        planner={"optimizer": {"name": "none"}, "apf": {"influence": influence, "guide": False}},
     )
     return make_world(raw)
 
