@@ -15,7 +15,7 @@ Classes (the agent's parameters, drawn per agent; the world's size; the step):
   high); dt 0.1 s.
 - ``fixed_wing``: minimum turn radius R of 20-2000 m, cruise speed sqrt(R a) for a lateral
   acceleration a of 2-8 m/s² (speeds 0.7-1.3 of cruise), in worlds of 6-12 R across and 3-5 R
-  high; dt 0.1 s.
+  high; dt the time the fastest agent takes to turn by 1/20 rad, 0.1-0.5 s.
 
 Starts and goals are sampled over the whole free volume: 40 % anywhere, the rest near a surface
 (just above the ground, beside a body, under a raised slab, beside a face of the bounds). A
@@ -45,7 +45,16 @@ SHAPES = ("sphere", "box", "cylinder", "capsule")
 """The body shapes drawn (every primitive the world format accepts)."""
 
 DT = {"lab": 0.05, "field": 0.1, "fixed_wing": 0.1}
-"""The simulation step of each class (s)."""
+"""The simulation step of each class (s); a fixed wing's grows with its turn radius (:func:`_dt`)."""
+
+
+def _dt(kind: str, agents: list[dict[str, Any]]) -> float:
+    """The world's step: the class's, or for fixed wings the time the fastest one takes to turn
+    by 1/20 rad on the tightest turn radius, between 0.1 and 0.5 s (in 0.05 s)."""
+    if kind != "fixed_wing":
+        return DT[kind]
+    turn = min(a["min_turn_radius"] for a in agents) / max(a["speed"]["max"] for a in agents) / 20.0
+    return round(min(0.5, max(DT[kind], math.floor(turn / 0.05) * 0.05)), 2)
 
 MULTIROTOR_TOLERANCE_CAP = 0.3
 """m: a multirotor world's goal tolerance is its smallest agent's radius, at most this."""
@@ -285,25 +294,22 @@ def _point(
 
 
 def _at_distance(space: _Space, c: np.ndarray, u: np.ndarray, target: float, far: float) -> np.ndarray | None:
-    """The point on the ray ``c + s u`` whose clearance to the static bodies first reaches
-    ``target`` (bisection), or None."""
-    bodies = space.static
-    if not bodies:
+    """The point on the ray ``c + s u`` (0 <= s <= ``far``) where its clearance to the static
+    bodies first reaches ``target`` (to 1/4096 of ``far``), or None."""
+    if not space.static:
         return None
-
-    def dist(s: float) -> float:
-        q = c + s * u
-        return min(float(space._sd(o, q[None])[0]) for o in bodies)
-
     a, b = 0.0, far
-    if dist(b) < target:
-        return None
-    for _ in range(40):
-        m = 0.5 * (a + b)
-        if dist(m) < target:
-            a = m
-        else:
-            b = m
+    for _ in range(2):  # a coarse pass, then a fine one between the two samples around it
+        s = np.linspace(a, b, 65)
+        q = c + s[:, None] * u
+        d = np.min([space._sd(o, q) for o in space.static], axis=0)
+        out = np.flatnonzero(d >= target)
+        if not len(out):
+            return None
+        k = int(out[0])
+        if k == 0:
+            return q[0]
+        a, b = s[k - 1], s[k]
     return c + b * u
 
 
@@ -403,7 +409,7 @@ def _try_world(kind: str, rng: np.random.Generator, *, max_agents: int, max_bodi
         "seed": 0,
         "bounds": {"min": [0.0, 0.0, 0.0], "max": _vec(size)},
         "sim": {
-            "dt": DT[kind],
+            "dt": _dt(kind, kept),
             "max_time": _r(math.ceil((3.0 * straight + 30.0) * 10.0) / 10.0),
             "goal_tolerance": _r(tolerance),
         },
