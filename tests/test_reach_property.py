@@ -23,8 +23,12 @@ from swarmplan.world import parse_world
 
 REGRESSIONS = Path(__file__).parent / "reach_regressions"
 
-EXAMPLES = {"lab": 12, "field": 8, "fixed_wing": 6}
-"""Worlds drawn per class in the default suite."""
+EXAMPLES = {"lab": 8, "field": 5, "fixed_wing": 3}
+"""Worlds drawn per class in the default suite (a fixed wing's flight costs the most per step:
+its guard rolls out its manoeuvres)."""
+
+EXAMPLES_SLOW = 20
+"""Worlds drawn per class by the slow study."""
 
 # Deterministic draws (the suite's outcome does not change from run to run) and no shrinking
 # (a seed shrinks to nothing useful; the caps do, but each step is a whole flight).
@@ -99,11 +103,11 @@ def test_random_worlds_place_goals_near_surfaces(kind):
     assert low >= 5
 
 
-def _over_draws(kind: str, check) -> None:  # noqa: ANN001
-    """``check(raw, record)`` on every world hypothesis draws for ``kind`` (the same draws for
-    every check: one source, one derandomized sequence; each world is flown once)."""
+def _over_draws(kind: str, check, examples: int) -> None:  # noqa: ANN001
+    """``check(raw, record)`` on ``examples`` worlds hypothesis draws for ``kind`` (the same draws
+    for every check: one source, one derandomized sequence; each world is flown once)."""
 
-    @settings(max_examples=EXAMPLES[kind], **_SETTINGS)
+    @settings(max_examples=examples, **_SETTINGS)
     @given(draws)
     def run(draw: tuple[int, int, int]) -> None:
         check(*_record(kind, *draw))
@@ -113,12 +117,18 @@ def _over_draws(kind: str, check) -> None:  # noqa: ANN001
 
 @pytest.mark.parametrize("kind", CLASSES)
 def test_no_collision_and_limits_kept(kind):
-    _over_draws(kind, _safe)
+    _over_draws(kind, _safe, EXAMPLES[kind])
 
 
 @pytest.mark.parametrize("kind", CLASSES)
 def test_every_agent_home(kind):
-    _over_draws(kind, _home)
+    _over_draws(kind, _home, EXAMPLES[kind])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", CLASSES)
+def test_every_agent_home_safely_many_worlds(kind):
+    _over_draws(kind, lambda raw, rec: (_safe(raw, rec), _home(raw, rec)), EXAMPLES_SLOW)
 
 
 @pytest.mark.parametrize("path", sorted(REGRESSIONS.glob("*.yaml")), ids=lambda p: p.stem)

@@ -277,7 +277,7 @@ def main(args: argparse.Namespace) -> int:
             failures.mkdir(exist_ok=True)
             raw = world_of(kind, args.seed, k)
             path = failures / f"{raw['name']}.yaml"
-            path.write_text(yaml.safe_dump(raw, sort_keys=False))
+            path.write_text(yaml.safe_dump(raw, sort_keys=False, default_flow_style=None))
             if args.logs:
                 fly(raw, log=failures / f"{raw['name']}.mcap")
     table = markdown(tables)
