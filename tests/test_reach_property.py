@@ -137,3 +137,34 @@ def test_regression_world(path):
     rec = fly(raw)
     _safe(raw, rec)
     _home(raw, rec)
+
+
+def test_bench_flight_is_reproducible_and_tabled():
+    """The same world flies to the same record (wall time aside); the class table counts it."""
+    from swarmplan.bench.reach import class_table, markdown, passed, world_of
+
+    raw = world_of("lab", 0, 4)
+    assert raw == world_of("lab", 0, 4)
+    a, b = fly(raw), fly(world_of("lab", 0, 4))
+    a.pop("wall"), b.pop("wall")
+    assert a == b
+    t = class_table("lab", [a])
+    assert t["worlds"] == 1 and t["agents"] == len(raw["agents"])
+    assert t["all_home"] == int(all(x["home"] for x in a["agents"]))
+    assert t["passed"] == int(passed(a))
+    assert sum(t["causes"].values()) == t["agents"] - t["home"]
+    assert "| lab | 1 |" in markdown([t])
+
+
+def test_bench_reach_refuses_bad_arguments():
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "swarmplan.bench", "reach", "--worlds", "0", "--class", "glider"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert lines == [
+        "error: --worlds: must be >= 1, got 0",
+        "error: --class: expected one of lab, field, fixed_wing or all, got 'glider'",
+    ]
