@@ -131,6 +131,7 @@ def fly(raw: dict[str, Any], log: Path | None = None) -> dict[str, Any]:
                 distance_to_goal=round(float(distance[i]), 4),
                 goal_height=round(float(spec.goal[2]), 4),
                 radius=spec.radius,
+                collided_with=a["collided_with"],
                 stuck_events=a["stuck_events"],
                 escapes=a["escapes"],
             )
