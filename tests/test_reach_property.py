@@ -4,8 +4,9 @@ with the default planner. Asserted per world: no collision, every agent within i
 (a multirotor's lateral acceleration, a fixed wing's curvature), every agent home within three
 times the straight-line time plus 30 s. The worlds are small (up to 3 agents and 3 bodies, the
 small end of each class) so the file runs in seconds; ``python -m swarmplan.bench reach`` flies
-the full classes. Every world the bench or hypothesis found failing is kept in
-``tests/reach_regressions/`` and flown here too."""
+the full classes. Small failing worlds the bench found are kept in ``tests/reach_regressions/``
+and flown here too (a failing draw prints as ``draw=(seed, agents, bodies)``: ``_world`` of it is
+the world, to keep there the same way)."""
 
 from __future__ import annotations
 
