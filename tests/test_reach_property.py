@@ -188,7 +188,7 @@ def test_bench_flight_is_reproducible_and_tabled():
     assert t["worlds"] == 1 and t["agents"] == len(raw["agents"])
     assert t["all_home"] == int(all(x["home"] for x in a["agents"]))
     assert t["passed"] == int(passed(a))
-    assert sum(t["causes"].values()) == t["agents"] - t["home"]
+    assert sum(t["causes"].values()) == t["agents"] - t["home"] == sum(t["held_by"].values())
     assert "| lab | 1 |" in markdown([t])
 
 

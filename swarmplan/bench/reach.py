@@ -17,6 +17,8 @@ default planner and its own seed, and prints per class:
   holding pattern); ``escape abandoned`` (its last escape segment was abandoned);
   ``short of goal`` (ended within a quarter of its straight line from the goal: it stopped or
   hovered near it); ``stuck`` (found stuck on the way); ``timeout`` (still on its way);
+- the agents not home by what their events last said held them (``held_by``: the ground, the
+  bounds, a body, an agent, or none within the field's reach);
 - the median, over the agents home, of the flown path over the straight line and of the arrival
   time over the straight line's time at cruise speed.
 
@@ -126,8 +128,11 @@ def fly(raw: dict[str, Any], log: Path | None = None) -> dict[str, Any]:
             "time_ratio": round(a["arrival_time"] / (straight / cruise), 4) if a["arrived"] else None,
         }
         if not a["arrived"]:
+            mine = events.by_agent.get(a["id"], [])
+            held = [e.detail["held_by"] for e in mine if isinstance(e.detail.get("held_by"), dict)]
             rec.update(
-                cause=cause_of(a, events.by_agent.get(a["id"], []), float(distance[i])),
+                cause=cause_of(a, mine, float(distance[i])),
+                held_by=held[-1] if held else None,
                 distance_to_goal=round(float(distance[i]), 4),
                 goal_height=round(float(spec.goal[2]), 4),
                 radius=spec.radius,
@@ -174,10 +179,22 @@ def class_table(kind: str, records: list[dict[str, Any]]) -> dict[str, Any]:
         "limit_breaks": sum(a["limit_break"] for a in agents),
         "worst_limit_ratio": max((a["limit_ratio"] for a in agents), default=0.0),
         "causes": causes,
+        "held_by": _held_counts(agents),
         "median_path_ratio": float(np.median(path)) if path else None,
         "median_time_ratio": float(np.median(times)) if times else None,
         "passed": sum(passed(r) for r in records),
     }
+
+
+def _held_counts(agents: list[dict[str, Any]]) -> dict[str, int]:
+    """Agents not home by what their events last said held them (``held_by.by``; ``unsaid``
+    when no event of theirs said)."""
+    out: dict[str, int] = {}
+    for a in agents:
+        if not a["home"]:
+            by = (a.get("held_by") or {}).get("by", "unsaid")
+            out[by] = out.get(by, 0) + 1
+    return dict(sorted(out.items()))
 
 
 def _fmt(x: float | None, digits: int = 2) -> str:
@@ -202,6 +219,10 @@ def markdown(tables: list[dict[str, Any]]) -> str:
               "|---|" + "---|" * len(CAUSES)]  # fmt: skip
     for t in tables:
         lines.append(f"| {t['class']} | " + " | ".join(str(t["causes"][c]) for c in CAUSES) + " |")
+    lines += ["", "Agents not home, by what their events last said held them (`held_by`):", ""]
+    for t in tables:
+        held = ", ".join(f"{by} {n}" for by, n in t["held_by"].items()) or "none"
+        lines.append(f"- {t['class']}: {held}")
     return "\n".join(lines)
 
 
