@@ -23,7 +23,8 @@ default planner and its own seed, and prints per class:
   time over the straight line's time at cruise speed.
 
 Writes ``reach.md`` (the tables) and ``reach.json`` (one record per world, with every agent not
-home: its cause, final distance to the goal and the goal's height) to ``--out``, and every world
+home: its cause, final distance to the goal, the goal's height and what held it; with every agent
+that collided, arrived or not: what it struck) to ``--out``, and every world
 that did not get every agent home without collision or limit break as
 ``failures/<name>.yaml`` there, a world file ``python -m swarmplan.run`` flies again (its own
 seed inside); ``--logs`` also records those runs' MCAP logs beside them.
@@ -127,6 +128,8 @@ def fly(raw: dict[str, Any], log: Path | None = None) -> dict[str, Any]:
             "path_ratio": a["length_ratio"] if a["arrived"] else None,
             "time_ratio": round(a["arrival_time"] / (straight / cruise), 4) if a["arrived"] else None,
         }
+        if a["collisions"]:  # also an arrived agent struck where it waits
+            rec["collided_with"] = a["collided_with"]
         if not a["arrived"]:
             mine = events.by_agent.get(a["id"], [])
             held = [e.detail["held_by"] for e in mine if isinstance(e.detail.get("held_by"), dict)]
@@ -136,7 +139,6 @@ def fly(raw: dict[str, Any], log: Path | None = None) -> dict[str, Any]:
                 distance_to_goal=round(float(distance[i]), 4),
                 goal_height=round(float(spec.goal[2]), 4),
                 radius=spec.radius,
-                collided_with=a["collided_with"],
                 stuck_events=a["stuck_events"],
                 escapes=a["escapes"],
             )
