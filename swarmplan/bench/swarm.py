@@ -28,32 +28,16 @@ import importlib.util
 import math
 import tempfile
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
+from swarmplan.bench.swarm_report import Row
 from swarmplan.bench.swarm_scenarios import MAX_AGENTS, OBSTACLE_FREE, SCENARIOS, scenario_world
 from swarmplan.geometry.compiled import COMPILED_FROM
 
 SYSTEMS = ("planner", "apf", "orca")
-
-
-@dataclass
-class Row:
-    scenario: str
-    agents: int
-    system: str
-    seed: int
-    arrived: int
-    collisions: int
-    min_separation: float
-    path_ratio: float
-    last_arrival: float
-    sim_time: float
-    wall: float
-    rtf: float
-    escapes: int
 
 
 class ContactMeter:
