@@ -24,7 +24,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-12  # shapes._EPS: the floor of a normalized vector's length
 

@@ -32,7 +32,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 SPHERE, BOX, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
 """Shape codes of :func:`shape_code`."""

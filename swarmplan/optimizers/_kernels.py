@@ -20,7 +20,8 @@ Rules the kernels follow (so that they stay cheap to compile and to call):
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True)

@@ -18,7 +18,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 #: Layout of the per-run constants vector ``c`` (one array instead of a dozen scalar
 #: arguments: each argument costs numba's dispatcher ~0.1 µs).

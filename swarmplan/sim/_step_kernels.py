@@ -14,9 +14,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from swarmplan.geometry.sweep_kernels import HIT, NO, UNDECIDED, sweep_one
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, inline="always")
