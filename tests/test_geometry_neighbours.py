@@ -18,7 +18,7 @@ def _path(request, monkeypatch):
     """Every test on both paths: the compiled kernels (swarm-sized worlds) and the reference
     path (smaller worlds), whatever the size of the test's swarm."""
     threshold = 0 if request.param == "compiled" else 10**9
-    monkeypatch.setattr("swarmplan.geometry.compiled.CHECKS_COMPILED_FROM", threshold)
+    monkeypatch.setattr("swarmplan.runtime.compiled.CHECKS_COMPILED_FROM", threshold)
 
 
 def _swarm(seed, n=200):

@@ -47,7 +47,8 @@ def test_an_edited_callee_in_another_file_is_compiled_afresh(tmp_path: Path) -> 
     callee = "from numba import njit\n\n\n@njit(cache=True)\ndef g():\n    return {}\n"
     (pkg / "callee.py").write_text(callee.format(1))
     (pkg / "entry.py").write_text(
-        "from numba import njit\n\nfrom kpkg.callee import g\n\n\n@njit(cache=True)\ndef f():\n    return g() + 10\n"
+        "from numba import njit\n\nfrom kpkg.callee import g\n\n\n"
+        "@njit(cache=True)\ndef f():\n    return g() + 10\n"
     )
     first = _run(tmp_path)
     again = _run(tmp_path)

@@ -24,8 +24,8 @@ from swarmplan.world.motion import poses_at
 @pytest.fixture(autouse=True)
 def _compiled(monkeypatch):
     """The compiled path under test, in worlds of any size (by default only swarm-sized
-    worlds take it: ``geometry.compiled.use_compiled_checks``)."""
-    monkeypatch.setattr("swarmplan.geometry.compiled.CHECKS_COMPILED_FROM", 0)
+    worlds take it: ``runtime.compiled.use_compiled_checks``)."""
+    monkeypatch.setattr("swarmplan.runtime.compiled.CHECKS_COMPILED_FROM", 0)
 
 
 SHAPES = [
@@ -375,7 +375,7 @@ def test_reference_and_compiled_runs_are_identical(monkeypatch):
     """A whole 24-agent run with every swept check compiled gives the same states and events as
     its default (every check on its reference path: numpy and FCL)."""
     from swarmplan.bench.sim import swarm_world
-    from swarmplan.geometry import compiled as choice
+    from swarmplan.runtime import compiled as choice
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 
@@ -403,7 +403,7 @@ def test_a_crowded_run_is_identical_on_both_paths(monkeypatch):
     smoothing and timeouts all happen) steps to the same bits on both paths: every step's
     positions, velocities and modes and every event, compiled checks against the reference ones."""
     from swarmplan.bench.sim import swap_world
-    from swarmplan.geometry import compiled as choice
+    from swarmplan.runtime import compiled as choice
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 

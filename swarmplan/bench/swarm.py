@@ -35,7 +35,7 @@ import numpy as np
 
 from swarmplan.bench.swarm_report import Row
 from swarmplan.bench.swarm_scenarios import MAX_AGENTS, OBSTACLE_FREE, SCENARIOS, scenario_world
-from swarmplan.geometry.compiled import COMPILED_FROM
+from swarmplan.runtime.compiled import COMPILED_FROM
 
 SYSTEMS = ("planner", "apf", "orca")
 

@@ -50,8 +50,7 @@ import numpy as np
 from swarmplan.flight import _guide_numpy, guide_cache
 from swarmplan.flight.guide_graph import AROUND, OFFSETS, Graph, legs
 from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
-from swarmplan.geometry.compiled import use_compiled
-from swarmplan.runtime.compiled import kernel_module, numba_loaded
+from swarmplan.runtime.compiled import kernel_module, use_numpy_twin
 from swarmplan.world.motion import resting_bodies
 
 if TYPE_CHECKING:
@@ -250,7 +249,7 @@ class StaticGuide:
     def _kernels(self) -> ModuleType:
         """The per-step kernels: their numpy twins (the same answers) below swarm size while
         numba is not in the process, else the compiled ones."""
-        if not use_compiled(len(self.world.agents)) and not numba_loaded():
+        if use_numpy_twin(len(self.world.agents)):
             return _guide_numpy
         return kernel_module("swarmplan.flight._guide_kernel")
 

@@ -5,8 +5,21 @@ numba's import and the loading of a kernel module's cached machine code cost ~0.
 per process, so no module imports a kernel module (``_*kernel*.py``, ``sweep_kernels.py``) at
 its top: the code that runs a kernel asks :func:`kernel_module` for it when it first needs it,
 e.g. ``kernel_module("swarmplan.geometry.sweep_kernels")``, and each module is imported once
-per process. Whether a computation runs compiled is decided by one rule
-(``swarmplan.geometry.compiled``), never by what a process happens to have loaded already.
+per process.
+
+**Which path runs: one rule, here.** Below ``COMPILED_FROM`` agents a world's per-step work runs
+numpy (and FCL): numba's one-time load (its import and the cached machine code, ~0.9 s CPU per
+process) costs more than a small world's whole run saves, and a 16-agent world would not reach
+its first step within 0.5 s. From it on (swarm scale) the field, the nearest surfaces, the
+agents' clearance, the swept checks and the recorder's number formatting run compiled
+(:func:`use_compiled`, :func:`use_compiled_checks`). Both paths give the same bits (the kernels
+follow numpy's formulas and order of sums; the swept checks decide exactly what FCL decides),
+so a world runs identically either way, and the choice reads the world's size only, never what
+a process has loaded before. A computation with a numpy twin of the same bits (the potential
+field, the guide's per-step calls) runs the twin while numba is not in the process
+(:func:`use_numpy_twin`); the field does so for its first ``FIELD_NUMPY_CALLS`` calls only
+(:func:`field_numpy_calls`), then loads numba: a small world reaches its first step without
+numba, and a long run pays numba's load once instead of numpy's per-call overhead for good.
 
 **The on-disk cache.** Every kernel module takes :func:`njit` from here (not from numba). numba's
 own cache (``cache=True``) checks only the file of the function it compiled: a kernel that
@@ -47,6 +60,44 @@ _KERNEL = re.compile(
 _IMPORT = re.compile(
     r"^[ \t]*(?:from[ \t]+([\w.]+)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)|import[ \t]+([\w., \t]+))", re.M
 )
+
+
+COMPILED_FROM = 49
+"""Swarm size (agents in the world) from which the compiled per-step kernels run."""
+
+FIELD_NUMPY_CALLS = 600
+"""Calls of a world's field that run numpy below ``COMPILED_FROM`` agents before it goes
+compiled: numba's load (~0.3 s of CPU with the field's cached kernel) costs about as much as
+this many numpy calls of a 16-agent field (0.36-0.5 ms each, against 0.04 ms compiled), so no
+run pays more than about twice the cheaper of the two."""
+
+CHECKS_COMPILED_FROM = COMPILED_FROM
+"""Swarm size from which the swept checks (``first_hits``, arrivals, near misses, agent
+contacts, the braking margin's free distances) run compiled: the same rule as the field. Their
+answers are exact on both paths, so this is a speed choice only (its own name lets the tests
+run either path)."""
+
+
+def use_compiled(n_agents: int) -> bool:
+    """Whether a world of ``n_agents`` agents runs its per-step field (and recorder) compiled."""
+    return n_agents >= COMPILED_FROM
+
+
+def use_compiled_checks(n_agents: int) -> bool:
+    """Whether a world of ``n_agents`` agents runs the compiled swept checks."""
+    return n_agents >= CHECKS_COMPILED_FROM
+
+
+def field_numpy_calls(n_agents: int) -> int:
+    """How many calls of the field of a world of ``n_agents`` agents run numpy before it goes
+    compiled (none at swarm size)."""
+    return 0 if use_compiled(n_agents) else FIELD_NUMPY_CALLS
+
+
+def use_numpy_twin(n_agents: int | None = None) -> bool:
+    """Whether a computation with a numpy twin of the same bits runs the twin: while numba is not
+    in the process and, for a world's per-step work (``n_agents`` given), below swarm size."""
+    return not numba_loaded() and (n_agents is None or not use_compiled(n_agents))
 
 
 @cache
