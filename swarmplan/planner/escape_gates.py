@@ -4,6 +4,8 @@ obstacles leads it, or it waits in a queue."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from swarmplan.core import PlanningContext
@@ -83,6 +85,29 @@ def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     push = apf.k_rep * (1.0 / np.maximum(rho[near], 0.05) - 1.0 / apf.influence) * gfac
     along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
     return bool(pull + float(push @ along) < 0.5 * pull)
+
+
+def stand_down_gate(
+    sim: PlanningContext,
+    i: int,
+    escaped_at: float | None,
+    agents_near: Callable[[], np.ndarray],
+    only_agents_around: Callable[[], bool],
+) -> str | None:
+    """The reason to let the field, not an escape, free stuck agent ``i`` this window, if any:
+    ``under_way`` (it still flies at half its cruise speed or more), ``queue`` (its last escape,
+    started ``escaped_at`` m from its goal, left it no nearer while others are near), ``crowd``
+    (other agents, not a trap, hold it) or ``guided`` (the guide leads it round static
+    obstacles). The tests run cheapest first (the same answer in any order)."""
+    if under_way(sim, i):
+        return "under_way"
+    if escaped_at is not None and queued(sim, i, escaped_at, agents_near()):
+        return "queue"
+    if only_agents_around():
+        return "crowd"
+    if guided(sim, i):
+        return "guided"
+    return None
 
 
 def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
