@@ -290,7 +290,7 @@ def first_hits(
     """:meth:`CollisionWorld.first_hit` for many agents at once.
 
     Swarm-sized worlds (``use_compiled_checks``): bounds, ground and terrain are decided in
-    numpy; the bodies by the compiled kernels (``sweep_kernels``: exact geometry, decided only
+    numpy; the bodies by the compiled kernels (``swept_kernels``: exact geometry, decided only
     away from contact), and the agents whose answer the kernels leave undecided (a body within
     ``BAND`` of contact, or a mesh) by :func:`first_hits_fcl`. Smaller worlds:
     :func:`first_hits_fcl` for all (the same answers).
@@ -302,7 +302,7 @@ def first_hits(
     if not use_compiled_checks(len(cw.world.agents)):
         return first_hits_fcl(cw, p0, p1, radii, q0, q1)
     oob, low, ground_name = _bounds_and_ground(cw.world, p0, p1, radii)
-    kind, index = kernel_module("swarmplan.geometry.sweep_kernels").sweep_many(
+    kind, index = kernel_module("swarmplan.geometry.swept_kernels").sweep_many(
         np.ascontiguousarray(p0, dtype=float),
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),

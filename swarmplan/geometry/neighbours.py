@@ -44,7 +44,7 @@ def agent_contacts_indexed(
     p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, active: np.ndarray, margin: float = 0.0
 ) -> list[tuple[int, int]]:
     """``agent_contacts`` with candidates from a sweep and prune on the step's midpoints (compiled,
-    ``sweep_kernels.agent_contacts``): two points moving along their steps stay within half of
+    ``swept_kernels.agent_contacts``): two points moving along their steps stay within half of
     each step of their midpoints, so a contact needs the midpoints closer than both half-steps
     + both radii + ``margin``; the candidates' distances are ``segment_segment_min_distance``'s
     arithmetic, term for term, and the pairs come in ``np.triu_indices`` order. Below swarm size
@@ -62,7 +62,7 @@ def agent_contacts_indexed(
         d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
         hit = d < radii[i] + radii[j] + margin
         return list(zip(i[hit].tolist(), j[hit].tolist(), strict=True))
-    i, j = kernel_module("swarmplan.geometry.sweep_kernels").agent_contacts(
+    i, j = kernel_module("swarmplan.geometry.swept_kernels").agent_contacts(
         np.ascontiguousarray(p0, dtype=float),
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),

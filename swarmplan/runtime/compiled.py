@@ -2,9 +2,9 @@
 cannot go stale.
 
 numba's import and the loading of a kernel module's cached machine code cost ~0.5-1 s of CPU
-per process, so no module imports a kernel module (``_*kernel*.py``, ``sweep_kernels.py``) at
+per process, so no module imports a kernel module (``_*kernel*.py``, ``swept_kernels.py``) at
 its top: the code that runs a kernel asks :func:`kernel_module` for it when it first needs it,
-e.g. ``kernel_module("swarmplan.geometry.sweep_kernels")``, and each module is imported once
+e.g. ``kernel_module("swarmplan.geometry.swept_kernels")``, and each module is imported once
 per process.
 
 **Which path runs: one rule, here.** Below ``COMPILED_FROM`` agents a world's per-step work runs

@@ -122,7 +122,7 @@ def arrivals(
         rows, dmins = flying[arrive], d[arrive]
     else:
         # Compiled: segment_segment_min_distance to the goal and the speed test, term for term.
-        rows, dmins = kernel_module("swarmplan.geometry.sweep_kernels").arrivals(
+        rows, dmins = kernel_module("swarmplan.geometry.swept_kernels").arrivals(
             np.ascontiguousarray(pos0, dtype=float),
             np.ascontiguousarray(pos1, dtype=float),
             np.ascontiguousarray(s.goal, dtype=float),
@@ -164,7 +164,7 @@ class NearMisses:
             pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
             keys = pi.astype(np.int64) * self._n + pj
         else:
-            keys = kernel_module("swarmplan.geometry.sweep_kernels").separation_keys(
+            keys = kernel_module("swarmplan.geometry.swept_kernels").separation_keys(
                 np.ascontiguousarray(pos, dtype=float),
                 self._separation,
                 self._radius,

@@ -352,7 +352,7 @@ class SafetyFilter:
         redo = np.arange(len(start))
         hit_rows, free = [], []
         if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
-            status, lo = kernel_module("swarmplan.geometry.sweep_kernels").free_distances(
+            status, lo = kernel_module("swarmplan.geometry.swept_kernels").free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
                 self._bounds[0], self._bounds[1],
                 *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
