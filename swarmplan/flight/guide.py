@@ -17,9 +17,9 @@ direction, so that in a passage two opposing flows keep to their own right-hand 
 of meeting head-on (the right-hand rule the field applies between agents). Each new way then
 loads the cells near surfaces it runs through (``ONCOMING``: negotiated congestion), so opposing
 flows take separate lanes through a passage (a doorway's tall slot: different heights). Ways in
-the same direction are not spread (``SAME`` = 0): at 0.2 they reached down to the ground's
-repulsion and two agents were held at a doorway's corners (16 agents, pure APF, seeds 0-5: 92/96 -> 96/96
-with 0; 64 agents, seeds 0-5: all arrive either way).
+the same direction are not spread (``SAME`` = 0): spread at 0.2, they reach down to the ground's
+repulsion and hold two agents at a doorway's corners (16 agents, pure APF, seeds 0-5: 92 of 96
+arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
 
 Each step an agent whose straight line to its goal runs through a static obstacle or within
 ``SQUEEZE`` of one (inflated by its radius; checked every ``RECHECK`` steps, a fifth of the
