@@ -114,7 +114,9 @@ def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
     """What holds agent ``i``: the nearest of the ground (or terrain), the faces of the flight
     volume, the obstacles (at their poses now) and the other agents, by clearance from the
     agent's body. ``{"by": "ground" | "bounds" | "body" | "agent", "id": ..., "clearance": m}``
-    (``id`` names the body or agent; ``by: "none"`` in an empty world)."""
+    (``id`` names the body or agent; ``by: "none"`` when the nearest lies beyond the field's
+    influence: nothing holds the agent but its own field, e.g. the pull of a moving obstacle's
+    predicted approach)."""
     w, s, p = sim.world, sim.state, sim.params
     pos, r = s.position[i], float(p.radius[i])
     h = float(w.terrain_height(pos[None, :2])[0])
@@ -132,4 +134,6 @@ def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
         k = int(np.argmin(gap))
         found.append((float(gap[k]), "agent", str(p.ids[others[k]])))
     clearance, by, ident = min(found, key=lambda f: f[0])
+    if clearance > float(w.planner_config.apf.influence):  # nothing within the field's reach
+        by, ident = "none", None
     return {"by": by, "id": ident, "clearance": round(clearance, 6)}
