@@ -79,14 +79,25 @@ def dynamic_imports(node: ast.AST, files: dict[str, Path]) -> list[str] | None:
     return ["<unknown: " + ast.unparse(node) + ">"]
 
 
+_GRAPHS: dict[tuple[Path, bool, bool], dict[str, set[str]]] = {}
+
+
 def import_graph(annotations: bool = False, implicit_packages: bool = True) -> dict[str, set[str]]:
     """Module -> our modules it imports anywhere it can run (function level included), and with
     ``annotations`` in ``if TYPE_CHECKING:`` blocks too.
 
     Importing ``a.b.c`` also runs the packages ``a.b`` and ``a`` first; those count as
     imported too (unless ``implicit_packages`` is false), unless they are packages the importer itself
-    lives in (already running).
+    lives in (already running). Each graph is read from the sources once per test run (a copy
+    each call).
     """
+    key = (PACKAGE, annotations, implicit_packages)
+    if key not in _GRAPHS:
+        _GRAPHS[key] = _read_import_graph(annotations, implicit_packages)
+    return {mod: set(targets) for mod, targets in _GRAPHS[key].items()}
+
+
+def _read_import_graph(annotations: bool, implicit_packages: bool) -> dict[str, set[str]]:
     files = {module_name(p): p for p in PACKAGE.rglob("*.py")}
     packages = {module_name(p) for p in PACKAGE.rglob("__init__.py")}
     graph: dict[str, set[str]] = {}
