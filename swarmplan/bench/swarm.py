@@ -35,7 +35,13 @@ from pathlib import Path
 import numpy as np
 
 from swarmplan.bench.swarm_report import Row
-from swarmplan.bench.swarm_scenarios import MAX_AGENTS, OBSTACLE_FREE, SCENARIOS, scenario_world
+from swarmplan.bench.swarm_scenarios import (
+    LAB_SCENARIOS,
+    MAX_AGENTS,
+    OBSTACLE_FREE,
+    SCENARIOS,
+    scenario_world,
+)
 from swarmplan.runtime.compiled import COMPILED_FROM
 
 SYSTEMS = ("planner", "apf", "orca")
@@ -128,7 +134,8 @@ def run_swarmplan(name: str, agents: int, seed: int, system: str, keep_paths: bo
     flown = sim.state.t - run.t_first
     row = Row(name, agents, system, seed, int(arrived.sum()), len(run.meter.pairs), run.meter.min_gap, ratio,
               float(np.nanmax(m.arrival_time)) if arrived.any() else math.nan, sim.state.t, run.wall,
-              flown / run.wall if run.wall > 0 else math.nan, int(m.escapes.sum()))  # fmt: skip
+              flown / run.wall if run.wall > 0 else math.nan, int(m.escapes.sum()),
+              float(np.nanmean(m.arrival_time)) if arrived.any() else math.nan)  # fmt: skip
     return row, (np.array(run.paths) if keep_paths else None)
 
 
@@ -191,7 +198,14 @@ def _parse_sizes(text: str) -> list[int] | None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sizes", default="16,64,256,512", help="swarm sizes, comma-separated (each >= 2)")
     parser.add_argument("--seeds", type=int, default=3, help="seeds per scenario and size")
-    parser.add_argument("--scenarios", default=",".join(SCENARIOS), help="scenarios, comma-separated")
+    parser.add_argument(
+        "--scenarios",
+        default=",".join(SCENARIOS),
+        help="scenarios, comma-separated; 'lab' (or lab scenario names: "
+        + ", ".join(LAB_SCENARIOS)
+        + ") flies the literature's lab scenarios at their own sizes, beside their published "
+        "figures, into --out only",
+    )
     parser.add_argument("--peers", default="", help="peer systems to fly beside swarmplan: orca")
     parser.add_argument(
         "--out",
@@ -212,9 +226,11 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
         problems.append(f"--sizes: expected whole numbers >= 2 separated by commas, got {args.sizes!r}")
     if args.seeds < 1:
         problems.append(f"--seeds: must be >= 1, got {args.seeds}")
-    unknown = [s for s in args.scenarios.split(",") if s not in SCENARIOS]
+    named = args.scenarios.split(",")
+    unknown = [s for s in named if s not in SCENARIOS and s not in LAB_SCENARIOS and s != "lab"]
     if unknown:
-        problems.append(f"--scenarios: unknown {', '.join(unknown)} (known: {', '.join(SCENARIOS)})")
+        known = ", ".join([*SCENARIOS, "lab", *LAB_SCENARIOS])
+        problems.append(f"--scenarios: unknown {', '.join(unknown)} (known: {known})")
     peers = [p for p in args.peers.split(",") if p]
     if any(p != "orca" for p in peers):
         problems.append(f"--peers: only 'orca' is known, got {args.peers!r}")
@@ -232,10 +248,18 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
 def main(args: argparse.Namespace) -> int:
     sizes = [16] if args.quick else _parse_sizes(args.sizes)
     seeds = 1 if args.quick else args.seeds
-    scenarios = args.scenarios.split(",")
+    chosen = [n for s in args.scenarios.split(",") for n in (LAB_SCENARIOS if s == "lab" else [s])]
+    scenarios = [n for n in dict.fromkeys(chosen) if n in SCENARIOS]
+    lab = [n for n in dict.fromkeys(chosen) if n in LAB_SCENARIOS]
     orca = "orca" in args.peers.split(",")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if lab:
+        from swarmplan.bench.swarm_lab import run_lab
+
+        run_lab(lab, seeds, out)
+    if not scenarios:
+        return 0
     # Start-up out of the figures: every compiled kernel a run may call (field, checks, escape
     # and smoothing costs, movers) loaded once, by runs whose rows are not kept, at the swarm
     # size from which the step's geometry runs compiled (smaller worlds never load it: where

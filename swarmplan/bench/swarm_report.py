@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import os
 import subprocess
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ class Row:
     wall: float
     rtf: float
     escapes: int
+    mean_arrival: float = math.nan
 
 
 def _commit() -> str:
