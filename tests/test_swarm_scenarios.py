@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from swarmplan.bench import swarm_scenarios as S
-from swarmplan.bench.swarm import ContactMeter
+from swarmplan.bench.swarm_runs import ContactMeter
 from swarmplan.sim import Simulation
 
 
@@ -165,8 +165,8 @@ def test_lab_scenarios_are_the_literatures():
 
 
 def test_lab_table_sets_the_published_figures_beside_ours():
-    from swarmplan.bench.swarm import Row
     from swarmplan.bench.swarm_lab import lab_table, lab_verdicts
+    from swarmplan.bench.swarm_report import Row
 
     rows = [
         Row("rmader_circle_5m", 10, "planner", s, 10, c, 0.3, 1.1, last, 42.0, 1.0, 10.0, 0, 4.0)

@@ -56,6 +56,7 @@ def _dt(kind: str, agents: list[dict[str, Any]]) -> float:
     turn = min(a["min_turn_radius"] for a in agents) / max(a["speed"]["max"] for a in agents) / 20.0
     return round(min(0.5, max(DT[kind], math.floor(turn / 0.05) * 0.05)), 2)
 
+
 MULTIROTOR_TOLERANCE_CAP = 0.3
 """m: a multirotor world's goal tolerance is its smallest agent's radius, at most this."""
 

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from swarmplan.bench.swarm import Row, run_swarmplan
+from swarmplan.bench.swarm_report import Row
+from swarmplan.bench.swarm_runs import run_swarmplan
 from swarmplan.bench.swarm_scenarios import LAB_SIZES, PUBLISHED
 
 TRAVEL_TARGET = 5.0

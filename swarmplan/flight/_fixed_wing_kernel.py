@@ -24,7 +24,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 GRAVITY = 9.80665  # swarmplan.world.airframe.GRAVITY
 

@@ -2,22 +2,59 @@
 is never guided along the grid's way (it cannot fly a way that hugs corners), but one flying at
 its goal along a clear straight line flies it without the static bodies' push, and one whose
 line is blocked flies straight at the farthest point of its way it sees. Its turn-ahead guard
-keeps its clearance from the bodies."""
+keeps its clearance from the bodies.
+
+A fixed wing whose whole straight line to its goal is clear (through a window, a gap) flies it
+without the static bodies' push, which would turn it away in front of the opening; one whose
+line is blocked flies straight at the farthest point of its way that it sees (lining up with
+the opening the way runs through). Its line is checked as a guided agent's (every ``RECHECK``
+steps, ``swarmplan.flight.guide``)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:
-    from swarmplan.flight.guide import StaticGuide
+from swarmplan.flight.guide import RECHECK, StaticGuide
 
 SIGHT_REPULSION = 0.0
 """Scale of the static repulsion of a fixed wing flying a clear line (its guard keeps clear)."""
 
 
+class Sight:
+    """Per fixed wing: whether its straight line to its goal is clear and, for one whose line
+    is blocked, the farthest point of its way in clear sight (reset with :meth:`reset`, and
+    with every new guide)."""
+
+    def __init__(self, n: int):
+        self.in_sight = np.zeros(n, dtype=bool)
+        self.sighted = np.zeros(n, dtype=bool)
+        self.point = np.zeros((n, 3))
+
+    def reset(self) -> None:
+        self.in_sight[:] = False
+        self.sighted[:] = False
+
+    def targets(
+        self,
+        guide: StaticGuide,
+        step: int,
+        idx: np.ndarray,
+        pos: np.ndarray,
+        goal: np.ndarray,
+        target: np.ndarray,
+        scale: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``target`` and ``scale`` of agents ``idx`` at ``pos`` (n, 3) (``guide.targets``'s answers)
+        with those of the fixed wings among them flying at their goal: :func:`fixed_wings_in_sight`."""
+        if guide.can_stop[idx].all():
+            return target, scale
+        same = target == goal
+        to_goal = same[:, 0] & same[:, 1] & same[:, 2]
+        return fixed_wings_in_sight(self, guide, step, idx, pos, goal, to_goal, target, scale)
+
+
 def fixed_wings_in_sight(
+    sight: Sight,
     guide: StaticGuide,
     step: int,
     idx: np.ndarray,
@@ -26,35 +63,34 @@ def fixed_wings_in_sight(
     to_goal: np.ndarray,
     target: np.ndarray,
     scale: np.ndarray,
-    recheck: int,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``target`` and ``scale`` for the fixed wings flying at their goal (checked every
-    ``recheck`` steps): one with a clear straight line to it flies that line without the
+    ``RECHECK`` steps): one with a clear straight line to it flies that line without the
     static bodies' push (``SIGHT_REPULSION``): through a window or a gap its line passes,
     the edges' push would turn it away in front of the opening; one whose line is blocked
     flies straight, the same way, at the farthest point of its way on the grid that it
     sees (it lines up with the opening the way runs through). Its turn-ahead guard keeps
     its clearance from the bodies."""
     fixed = to_goal & ~guide.can_stop[idx]
-    due = np.flatnonzero(fixed & ((idx + step) % recheck == 0))
+    due = np.flatnonzero(fixed & ((idx + step) % RECHECK == 0))
     if len(due):
         who = idx[due]
-        guide.in_sight[who] = ~guide.blocked(pos[due], goal[due])
-        for r in due[~guide.in_sight[who]].tolist():
+        sight.in_sight[who] = ~guide.blocked(pos[due], goal[due])
+        for r in due[~sight.in_sight[who]].tolist():
             point = farthest_seen(guide, pos[r], goal[r])
-            guide.sighted[idx[r]] = point is not None
+            sight.sighted[idx[r]] = point is not None
             if point is not None:
-                guide.sight_point[idx[r]] = point
-    seen = fixed & (guide.in_sight[idx] | guide.sighted[idx])
+                sight.point[idx[r]] = point
+    seen = fixed & (sight.in_sight[idx] | sight.sighted[idx])
     rows = np.flatnonzero(seen)
     if not len(rows):
         return target, scale
     scale = scale.copy()
     scale[rows] = np.minimum(scale[rows], SIGHT_REPULSION)
-    aim = np.flatnonzero(seen & ~guide.in_sight[idx])
+    aim = np.flatnonzero(seen & ~sight.in_sight[idx])
     if len(aim):
         target = np.array(target, dtype=float)
-        target[aim] = guide.sight_point[idx[aim]]
+        target[aim] = sight.point[idx[aim]]
     return target, scale
 
 

@@ -14,7 +14,7 @@ numpy's 3x3 products go through BLAS, whose fused multiply-adds a loop here woul
 reproduce (30 % of the coordinates differed in the last bit). The clearance is exact (the
 same value per pair, a minimum). Meshes stay with their numpy grid.
 
-Imported lazily (:func:`swarmplan.geometry.compiled.field_kernels`): numba is not loaded by
+Imported lazily (``runtime.compiled.kernel_module``): numba is not loaded by
 small worlds, and never at start-up. Every compiled function of these queries is in this
 file: numba's cache does not see changes of callees in other files.
 """
@@ -24,7 +24,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-12  # shapes._EPS: the floor of a normalized vector's length
 

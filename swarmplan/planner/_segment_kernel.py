@@ -19,7 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 # Columns of the kernel's output, in SegmentCost.terms' order.
 LENGTH, TURNING, STATIC, VERTICES, FLOOR_BOUNDS, THREATS, MOVING, AGENTS = range(8)

@@ -14,9 +14,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from swarmplan.geometry.sweep_kernels import HIT, NO, UNDECIDED, sweep_one
+from swarmplan.geometry.swept_kernels import HIT, NO, UNDECIDED, sweep_one
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, inline="always")
@@ -254,7 +254,7 @@ def _probe(
     m_dims: np.ndarray,
     slack: float,
 ) -> int:
-    """``sweep_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
+    """``swept_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
     UNDECIDED) with the end point in the caller's buffer ``end``, through :func:`_step_status`."""
     for c in range(3):
         end[c] = start[c] + u[c] * length

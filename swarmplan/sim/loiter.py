@@ -20,12 +20,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.planner.hold import LOITER_FACTORS
+
+if TYPE_CHECKING:
+    from swarmplan.sim.scene import Scene
 
 LEAD = math.radians(30.0)
 """How far ahead on the circle (rad) a loitering fixed wing's field pulls it."""
@@ -43,6 +47,7 @@ class Loiter:
         self.center = np.zeros((n, 3))
         self.radius = np.zeros(n)
         self.side = np.ones(n)
+        self.fixed_wings = bool(params.fixed_wing.any())  # whether any agent can loiter
 
     def reset(self) -> None:
         self.on[:] = False
@@ -53,6 +58,28 @@ class Loiter:
             return self.on
         self.on &= s.mode == Mode.ARRIVED
         return self.on
+
+    def flying(self, s: SwarmState, active: np.ndarray) -> np.ndarray:
+        """The agents flown this step: the ``active`` ones and those that loiter (flown as the rest)."""
+        loiter = self.rows(s)
+        return active | loiter if loiter.any() else active
+
+    def fly_on(
+        self,
+        arrivals: tuple[tuple[int, float], ...],
+        s: SwarmState,
+        velocity: np.ndarray,
+        flown: np.ndarray | None,
+        turn: np.ndarray,
+        scene: Scene,
+    ) -> None:
+        """The fixed wings among ``arrivals`` (agent, time) cannot stop: each flies on at its
+        step's velocity (its row of ``flown`` back into ``velocity``, which the arrival zeroed)
+        round its goal, from its turn state (a row of ``turn``). ``flown`` None: no fixed wings."""
+        for i, _t in arrivals if flown is not None else ():
+            if self.params.fixed_wing[i]:
+                velocity[i] = flown[i]
+                self.start(i, s.goal[i], turn[i], clear_of_statics(scene, i))
 
     def start(
         self, i: int, goal: np.ndarray, turn: np.ndarray, clearance: Callable[[np.ndarray], np.ndarray]
@@ -83,3 +110,20 @@ class Loiter:
         theta = np.arctan2(pos[:, 1] - c[:, 1], pos[:, 0] - c[:, 0]) + self.side[rows] * LEAD
         r = self.radius[rows]
         return np.column_stack([c[:, 0] + r * np.cos(theta), c[:, 1] + r * np.sin(theta), c[:, 2]])
+
+
+def clear_of_statics(scene: Scene, i: int) -> Callable[[np.ndarray], np.ndarray]:
+    """``clearance(points) -> (P,)`` of agent ``i``'s body at ``points``: from the terrain and the
+    bounds beyond its radius, from the static obstacles beyond its ``clearance``."""
+    w, p, field = scene.world, scene.params, scene.field
+    static = np.flatnonzero(~scene.moving_mask)
+
+    def clearance(points: np.ndarray) -> np.ndarray:
+        r = p.radius[i]
+        c = points[:, 2] - w.terrain_height(points[:, :2]) - r
+        c = np.minimum(c, np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1) - r)
+        if len(static):
+            c = np.minimum(c, field.distance(points, None, static).min(axis=1) - p.clearance[i])
+        return c
+
+    return clearance

@@ -16,13 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan.core import Event, Mode
-from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity, turn_states
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl, segment_segment_min_distance
-from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
@@ -86,8 +85,8 @@ class SafetyFilter:
         self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
         self._every = np.arange(len(params.radius))  # the rows of a step where every agent flies
-        # The fixed wings' turn states (the curvature of their last step, rows by agent; the
-        # simulation keeps them): every fixed-wing step formed here rolls on from them.
+        # The fixed wings' turn states (the curvature of their last step, rows by agent; :meth:`fly`
+        # keeps them, the simulation's reset zeroes them): every fixed-wing step rolls on from them.
         self.turn = np.zeros((len(params.radius), 2))
         self._centers: dict[int, np.ndarray] = {}  # movers' centres by step number (predictions)
         # Per fixed wing, the guard's manoeuvre last found safe (checked first: the same answers).
@@ -296,6 +295,30 @@ class SafetyFilter:
         v_cmd = self.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, goal)
         return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx, self.turn[idx]), None
 
+    def fly(
+        self, cmd: Commands, start: AgentMotion, window: StepWindow, modes: np.ndarray, brake_goal: np.ndarray
+    ) -> Filtered:
+        """The step of agents ``cmd.idx`` from ``start``: their commands braked and limited
+        (:meth:`brake_and_limit`, toward ``brake_goal``), flown for one step and filtered
+        (:meth:`filter`); the other agents stay where they are, at rest."""
+        idx, (pos0, vel0), dt = cmd.idx, (start.position, start.velocity), self.world.dt
+        v_cmd, v_new, free = self.brake_and_limit(
+            idx, pos0, vel0, cmd.velocity, window.q0, window.q1, brake_goal
+        )
+        vel1 = np.zeros_like(vel0)
+        if len(idx) == len(pos0):  # every row (the same values as through idx)
+            vel1[:] = v_new
+            pos1 = pos0 + vel1 * dt
+        else:
+            pos1 = pos0.copy()
+            vel1[idx] = v_new
+            pos1[idx] = pos0[idx] + vel1[idx] * dt
+        out = self.filter(Commands(idx, v_cmd), start, AgentMotion(pos1, vel1), window, modes, free)
+        fw = idx[self.params.fixed_wing[idx]]
+        if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
+            self.turn[fw] = turn_states(self.params, vel0[fw], out.end.velocity[fw], dt, fw)
+        return out
+
     def _braking_margin_compiled(
         self,
         k: np.ndarray,
@@ -364,7 +387,7 @@ class SafetyFilter:
         redo = np.arange(len(start))
         hit_rows, free = [], []
         if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
-            status, lo = sweep_kernels().free_distances(
+            status, lo = kernel_module("swarmplan.geometry.swept_kernels").free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
                 self._bounds[0], self._bounds[1],
                 *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,

@@ -32,7 +32,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 SPHERE, BOX, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
 """Shape codes of :func:`shape_code`."""
@@ -40,7 +41,7 @@ SPHERE, BOX, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
 BAND = 1e-4
 """Metres either side of contact (``dist == r``) where FCL decides, not the kernel. On tangent
 sweeps FCL's primitive tests agreed with exact geometry at 1e-6 m and beyond and disagreed only
-at 1e-7 m and below (tests/test_sweep_kernels.py checks the band's edge)."""
+at 1e-7 m and below (tests/test_swept_kernels.py checks the band's edge)."""
 
 NO, HIT, UNDECIDED = 0, 1, 2
 
