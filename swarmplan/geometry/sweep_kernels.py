@@ -34,8 +34,10 @@ import math
 import numpy as np
 from numba import njit
 
-SPHERE, BOX, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
-"""Shape codes of :func:`shape_code`."""
+from swarmplan.geometry._shape_kernel import SPHERE, exact, half_extents, sdf
+
+MESH = -1
+"""The code of meshes (``bodies.MESH``; the other codes are ``_shape_kernel``'s)."""
 
 BAND = 1e-4
 """Metres either side of contact (``dist == r``) where FCL decides, not the kernel. On tangent
@@ -52,33 +54,8 @@ then within ``BAND + _RESOLVE`` of contact and goes to FCL."""
 
 @njit(cache=True)
 def _point_distance(x: float, y: float, z: float, code: int, d0: float, d1: float, d2: float) -> float:
-    """Distance from a local-frame point to the body (0 inside): box half-extents (d0, d1, d2);
-    cylinder radius d0, half-height d1; capsule radius d0, half-length d1; sphere radius d0."""
-    if code == BOX:
-        dx = max(abs(x) - d0, 0.0)
-        dy = max(abs(y) - d1, 0.0)
-        dz = max(abs(z) - d2, 0.0)
-        return math.sqrt(dx * dx + dy * dy + dz * dz)
-    if code == CYLINDER:
-        dr = max(math.sqrt(x * x + y * y) - d0, 0.0)
-        dz = max(abs(z) - d1, 0.0)
-        return math.sqrt(dr * dr + dz * dz)
-    if code == CAPSULE:
-        zc = min(max(z, -d1), d1)
-        return max(math.sqrt(x * x + y * y + (z - zc) * (z - zc)) - d0, 0.0)
-    return max(math.sqrt(x * x + y * y + z * z) - d0, 0.0)
-
-
-@njit(cache=True)
-def _aabb_half(code: int, d0: float, d1: float, d2: float) -> tuple[float, float, float]:
-    """Half-extents of the body's local bounding box."""
-    if code == BOX:
-        return d0, d1, d2
-    if code == CYLINDER:
-        return d0, d0, d1
-    if code == CAPSULE:
-        return d0, d0, d1 + d0
-    return d0, d0, d0
+    """Distance from a local-frame point to the body, 0 inside (``_shape_kernel.sdf``)."""
+    return max(sdf(code, x, y, z, d0, d1, d2), 0.0)
 
 
 @njit(cache=True)
@@ -98,13 +75,15 @@ def classify(
     """NO, HIT or UNDECIDED for the sphere of radius ``r`` swept ``a -> b`` (body's local frame)."""
     if code == MESH:
         return UNDECIDED
-    hx, hy, hz = _aabb_half(code, d0, d1, d2)
+    hx, hy, hz = half_extents(code, d0, d1, d2)
     # Lower bound 1: the gap between the segment's bounding box and the body's.
     gx = max(min(ax, bx) - hx, -hx - max(ax, bx), 0.0)
     gy = max(min(ay, by) - hy, -hy - max(ay, by), 0.0)
     gz = max(min(az, bz) - hz, -hz - max(az, bz), 0.0)
     if math.sqrt(gx * gx + gy * gy + gz * gz) > r + BAND:
         return NO
+    if not exact(code):  # no exact distance to bracket: FCL decides
+        return UNDECIDED
     ux, uy, uz = bx - ax, by - ay, bz - az
     length = math.sqrt(ux * ux + uy * uy + uz * uz)
     if code == SPHERE:

@@ -9,9 +9,9 @@ where it provably adds zero: bodies and intents culled per candidate, then per l
 the sample's position (exact signed distances; a mover or another agent also moves, at most
 ``vstep`` per grid step or ``v_max``), so a sample at distance D proves the next
 (D - reach) / spacing samples out of reach; they are skipped (``_SLACK`` covers rounding).
-Meshes, terrain peaks and threats are left to numpy (``SegmentCost``'s fallbacks).
-Every compiled function is in this file: numba's cache does not see changes of callees in
-other files. docs/performance.md ("Escape planning") has the measurements.
+Meshes, terrain peaks and threats are left to numpy (``SegmentCost``'s fallbacks). The
+bodies' distances are the shapes' one compiled distance (``_shape_kernel.sdf``).
+docs/performance.md ("Escape planning") has the measurements.
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from swarmplan.geometry._shape_kernel import sdf
 
 # Columns of the kernel's output, in SegmentCost.terms' order.
 LENGTH, TURNING, STATIC, VERTICES, FLOOR_BOUNDS, THREATS, MOVING, AGENTS = range(8)
@@ -31,39 +33,15 @@ _SLACK = 1e-6
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _sdf(code, x, y, z, a, b, c):  # noqa: ANN001, ANN202
-    """Signed distance of the local point (x, y, z) to a sphere (code 0, radius a), a box (1,
-    half sizes a, b, c), a cylinder (2, radius a, half height b) or a capsule (3, radius a,
-    half height b): the formulas of ``swarmplan.geometry.batch``."""
-    if code == 0:
-        return math.sqrt(x * x + y * y + z * z) - a
-    if code == 1:
-        qx = abs(x) - a
-        qy = abs(y) - b
-        qz = abs(z) - c
-        ox = max(qx, 0.0)
-        oy = max(qy, 0.0)
-        oz = max(qz, 0.0)
-        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, qy, qz), 0.0)
-    if code == 2:
-        dr = math.sqrt(x * x + y * y) - a
-        dz = abs(z) - b
-        return math.hypot(max(dr, 0.0), max(dz, 0.0)) + min(max(dr, dz), 0.0)
-    zc = min(max(z, -b), b)
-    dz = z - zc
-    return math.sqrt(x * x + y * y + dz * dz) - a
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _body_distance(code, rot, ident, prm, j, rx, ry, rz):  # noqa: ANN001, ANN202
     """Signed distance to body ``j`` of the point at ``(rx, ry, rz)`` from its centre."""
     if ident[j]:
-        return _sdf(code[j], rx, ry, rz, prm[j, 0], prm[j, 1], prm[j, 2])
+        return sdf(code[j], rx, ry, rz, prm[j, 0], prm[j, 1], prm[j, 2])
     R = rot[j]
     x = rx * R[0, 0] + ry * R[1, 0] + rz * R[2, 0]
     y = rx * R[0, 1] + ry * R[1, 1] + rz * R[2, 1]
     z = rx * R[0, 2] + ry * R[1, 2] + rz * R[2, 2]
-    return _sdf(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
+    return sdf(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from swarmplan import optimizers
+from swarmplan.geometry import bodies
 from swarmplan.geometry.rotation import rotation_matrix
 from swarmplan.world.checker import Checker, join, typename
 from swarmplan.world.checks import check_placements
@@ -36,6 +37,8 @@ from swarmplan.world.model import (
 )
 from swarmplan.world.planner_config import check_escape, check_global, planner_config
 from swarmplan.world.tracker_config import parse_tracker
+
+_OBSTACLE_FIELDS = ("radius", "size", "height")
 
 AGENT_DEFAULTS: dict[str, Any] = {
     "model": "multirotor",
@@ -238,13 +241,8 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
         c.add(path, f"expected a mapping, got {typename(o)}")
         return None, None
     shape = c.string(o, "shape", path, None, SHAPES)
-    per_shape = {
-        "sphere": ["radius"],
-        "box": ["size"],
-        "cylinder": ["radius", "height"],
-        "capsule": ["radius", "height"],
-        "mesh": ["file", "scale"],
-    }
+    per_shape = {s.name: [k.name for k in s.keys] for s in bodies.SHAPES}
+    per_shape["mesh"] = ["file", "scale"]
     common = ["id", "shape", "position", "rotation", "motion"]
     if shape is None:
         c.keys(o, path, common + sorted({k for v in per_shape.values() for k in v}))
@@ -255,15 +253,16 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
     rot = c.vector(o, "rotation", path, 3, [0.0, 0.0, 0.0])
     out: dict[str, Any] = {"id": oid, "shape": shape, "position": _lst(pos), "rotation": _lst(rot)}
     kw: dict[str, Any] = {}
-    if shape in ("sphere", "cylinder", "capsule"):
-        kw["radius"] = c.number(o, "radius", path, None, positive=True)
-        out["radius"] = kw["radius"]
-    if shape in ("cylinder", "capsule"):
-        kw["height"] = c.number(o, "height", path, None, positive=shape == "cylinder", nonneg=True)
-        out["height"] = kw["height"]
-    if shape == "box":
-        kw["size"] = c.vector(o, "size", path, 3, positive=True)
-        out["size"] = _lst(kw["size"])
+    params: dict[str, Any] = {}
+    for key in bodies.shape(shape).keys if shape is not None else ():
+        if key.vector:
+            params[key.name] = c.vector(o, key.name, path, 3, positive=key.positive, nonneg=True)
+            out[key.name] = _lst(params[key.name])
+        else:
+            params[key.name] = c.number(o, key.name, path, None, positive=key.positive, nonneg=True)
+            out[key.name] = params[key.name]
+    # The shapes' keys that are fields of the model too (radius, size, height).
+    kw.update({k: v for k, v in params.items() if k in _OBSTACLE_FIELDS})
     if shape == "mesh":
         file = c.string(o, "file", path)
         scale_raw = o.get("scale", 1.0)
@@ -282,13 +281,20 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
     motion = None
     if o.get("motion") is not None:
         out["motion"], motion = _resolve_motion(c, o["motion"], f"{path}.motion")
-    if any(v is None for v in (oid, shape, pos, rot, *kw.values())):
+    if any(v is None for v in (oid, shape, pos, rot, *kw.values(), *params.values())):
         return out, None
     if shape == "mesh" and "vertices" not in kw:
         return out, None
     R = rotation_matrix(rot)
     obst = Obstacle(
-        id=oid, shape=shape, position=pos, rotation=R, rotation_deg=tuple(rot.tolist()), motion=motion, **kw
+        id=oid,
+        shape=shape,
+        position=pos,
+        rotation=R,
+        rotation_deg=tuple(rot.tolist()),
+        motion=motion,
+        params=params if shape != "mesh" else None,
+        **kw,
     )
     if shape == "mesh":
         # The log inlines mesh geometry in world coordinates (scale, rotation, position applied).

@@ -1,0 +1,128 @@
+"""The signed distance of a local point to each obstacle shape, compiled (numba): the one
+place the shapes' distances are written for compiled code.
+
+Every compiled caller (the field, the swept checks, the guide, the escapes' segment costs)
+calls these; their numpy twins are :mod:`swarmplan.geometry.shapes` (``SDF``, ``DISTANCE``),
+held to them bit for bit by tests/test_shape_distance.py. A shape is its code (the index in
+:data:`swarmplan.geometry.bodies.SHAPES`) and three parameters ``a, b, c``
+(``bodies.Shape.params``): sphere radius; box half sizes; cylinder and capsule radius and
+half height. Points are in the body's frame (centre at the origin, axis along z). Meshes
+(code -1) have no analytic distance: their callers use the mesh's distance grid, or FCL.
+
+Compiled with numpy's error model (no exceptions on a division; none divides by zero).
+Imported only by kernel modules (numba stays out of start-up).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+EPS = 1e-12
+"""The floor of a normalized vector's length (``shapes._EPS``)."""
+
+SPHERE, BOX, CYLINDER, CAPSULE = 0, 1, 2, 3
+"""Shape codes (``bodies.SHAPES`` order)."""
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sdf(code, x, y, z, a, b, c):  # noqa: ANN001, ANN201
+    """Signed distance (positive outside, negative inside) of the local point (x, y, z) to the
+    shape ``code`` with parameters ``a, b, c``."""
+    if code == SPHERE:
+        return math.sqrt(x * x + y * y + z * z) - a
+    if code == BOX:
+        qx = abs(x) - a
+        qy = abs(y) - b
+        qz = abs(z) - c
+        ox = max(qx, 0.0)
+        oy = max(qy, 0.0)
+        oz = max(qz, 0.0)
+        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, qy, qz), 0.0)
+    if code == CYLINDER:
+        dr = math.sqrt(x * x + y * y) - a
+        dz = abs(z) - b
+        return math.hypot(max(dr, 0.0), max(dz, 0.0)) + min(max(dr, dz), 0.0)
+    # capsule: to the closest point of its axis segment
+    dz = z - min(max(z, -b), b)
+    return math.sqrt(x * x + y * y + dz * dz) - a
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN201
+    """:func:`sdf` and its local gradient (a unit vector): ``(d, gx, gy, gz)``, the values of
+    ``shapes.SDF`` bit for bit."""
+    if code == SPHERE:
+        n = math.sqrt(x * x + y * y + z * z)
+        m = max(n, EPS)
+        return n - a, x / m, y / m, z / m
+    if code == BOX:
+        sx = 1.0 if x >= 0 else -1.0
+        sy = 1.0 if y >= 0 else -1.0
+        sz = 1.0 if z >= 0 else -1.0
+        qx = abs(x) - a
+        qy = abs(y) - b
+        qz = abs(z) - c
+        px = max(qx, 0.0)
+        py = max(qy, 0.0)
+        pz = max(qz, 0.0)
+        outside = math.sqrt(px * px + py * py + pz * pz)
+        qmax = max(qx, qy, qz)
+        d = outside + min(qmax, 0.0)
+        if outside > 0:
+            m = max(outside, EPS)
+            return d, px / m * sx, py / m * sy, pz / m * sz
+        # Inside or on the surface: the face of the largest q (the first on ties, np.argmax).
+        if qx >= qy and qx >= qz:
+            return d, sx, 0.0, 0.0
+        if qy >= qz:
+            return d, 0.0, sy, 0.0
+        return d, 0.0, 0.0, sz
+    if code == CYLINDER:
+        rxy = math.sqrt(x * x + y * y)
+        dr = rxy - a
+        dz = abs(z) - b
+        out_r = max(dr, 0.0)
+        out_z = max(dz, 0.0)
+        outside = math.hypot(out_r, out_z)
+        d = outside + min(max(dr, dz), 0.0)
+        m = max(rxy, EPS)
+        ux = x / m
+        uy = y / m
+        zd = 1.0 if z >= 0 else -1.0
+        if outside > 0:
+            # radial * out_r + zdir * out_z, component by component as numpy adds them (the
+            # zero terms decide the sign of a zero).
+            vx = ux * out_r + 0.0 * out_z
+            vy = uy * out_r + 0.0 * out_z
+            vz = 0.0 * out_r + zd * out_z
+            n = max(math.sqrt(vx * vx + vy * vy + vz * vz), EPS)
+            return d, vx / n, vy / n, vz / n
+        if dr > dz:
+            return d, ux, uy, 0.0
+        return d, 0.0, 0.0, zd
+    # capsule: to the closest point of its axis segment
+    vz = z - min(max(z, -b), b)
+    n = math.sqrt(x * x + y * y + vz * vz)
+    m = max(n, EPS)
+    return n - a, x / m, y / m, vz / m
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def half_extents(code, a, b, c):  # noqa: ANN001, ANN201
+    """Half sizes of the shape's local bounding box."""
+    if code == BOX:
+        return a, b, c
+    if code == CYLINDER:
+        return a, a, b
+    if code == CAPSULE:
+        return a, a, b + a
+    return a, a, a
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def exact(code):  # noqa: ANN001, ANN201
+    """Whether :func:`sdf` is the exact distance of the shape (then it is 1-Lipschitz and, the
+    shapes being convex, convex along a line: the swept checks may decide with it)."""
+    return 0 <= code <= CAPSULE
