@@ -41,6 +41,7 @@ SHAPES = [
     {"shape": "box", "size": [2, 2, 2]},
     {"shape": "cylinder", "radius": 1, "height": 3},
     {"shape": "capsule", "radius": 1, "height": 3},
+    {"shape": "ellipsoid", "semi_axes": [2, 1.5, 1]},
     {"shape": "mesh", "file": "meshes/hangar.stl", "scale": 0.05},
 ]
 

@@ -39,6 +39,11 @@ UNIT: dict[str, tuple[dict, list[tuple[tuple[float, float, float], float]]]] = {
         {"radius": 1.0, "height": 2.0},
         [((2, 0, 0), 1.0), ((0, 0, 3), 1.0), ((0, 3, 1), 2.0), ((0, 0, -1.5), -0.5), ((0, 0, 0), -1.0)],
     ),
+    "ellipsoid": (
+        {"semi_axes": [1, 2, 3]},
+        # Outside exact; inside exact on the smallest axis (the bound's depth is the truth there).
+        [((3, 0, 0), 2.0), ((0, -5, 0), 3.0), ((0, 0, 4.5), 1.5), ((0.5, 0, 0), -0.5), ((0, 0, 0), -1.0)],
+    ),
 }
 """Per shape: its world-format parameters and (point, exact signed distance) pairs."""
 
@@ -176,3 +181,27 @@ def test_bounding_radius_holds_the_surface() -> None:
         bound = s.bound(UNIT[s.name][0])
         assert np.linalg.norm(v, axis=1).max() <= bound + 1e-9
         assert np.linalg.norm(v, axis=1).max() >= 0.9 * bound
+
+
+def test_ellipsoid_inside_never_shows_less_depth() -> None:
+    """Inside an ellipsoid the distance is minus a bound of the depth: never above the true
+    signed distance (here against a dense sampling of its surface, which overstates the depth
+    by at most the longest edge between its samples)."""
+    import trimesh
+
+    axes = np.array([1.0, 2.0, 3.0])
+    code = bodies.shape("ellipsoid").code
+    sphere = trimesh.creation.icosphere(subdivisions=6)
+    surface = sphere.vertices * axes
+    gap = np.linalg.norm(
+        surface[sphere.edges_unique[:, 0]] - surface[sphere.edges_unique[:, 1]], axis=1
+    ).max()
+    rng = np.random.default_rng(11)
+    p = rng.uniform(-1, 1, (400, 3)) * axes
+    p = p[np.linalg.norm(p / axes, axis=1) < 1]
+    depth = np.array([np.linalg.norm(surface - q, axis=1).min() for q in p])
+    d = shapes.distance_of(code, p, axes)
+    assert (d < 0).all()
+    assert gap < 0.1
+    assert (-d >= depth - gap).all()
+    assert (-d <= axes.min()).all()

@@ -129,6 +129,18 @@ SHAPES: tuple[Shape, ...] = (
         ),
     ),
     Shape(
+        "ellipsoid",
+        4,
+        (Key("semi_axes", vector=True),),
+        params=lambda v: tuple(float(e) for e in np.asarray(v["semi_axes"], dtype=float)),
+        bound=lambda v: float(np.max(np.asarray(v["semi_axes"], dtype=float))),
+        fcl=lambda v: _fcl().Ellipsoid(*(float(e) for e in np.asarray(v["semi_axes"], dtype=float))),
+        surface=lambda v: _trimesh().Trimesh(
+            _trimesh().creation.icosphere(subdivisions=3).vertices * np.asarray(v["semi_axes"], dtype=float),
+            _trimesh().creation.icosphere(subdivisions=3).faces,
+        ),
+    ),
+    Shape(
         "mesh",
         MESH,
         (),  # file and scale: read by the world format's mesh loader
