@@ -184,7 +184,8 @@ class CollisionWorld:
         return self._kernel_statics
 
     def kernel_movers(self, q0: np.ndarray, q1: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The moving bodies at ``q0`` -> ``q1`` as the kernels take them."""
+        """The moving bodies at ``q0`` -> ``q1`` as the kernels take them: positions at both
+        ends, bounding radii, shape table."""
         return (
             np.ascontiguousarray(q0, dtype=float).reshape(-1, 3),
             np.ascontiguousarray(q1, dtype=float).reshape(-1, 3),
@@ -291,8 +292,8 @@ def first_hits(
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),
         oob | low,
-        *cw.kernel_statics(),
-        *cw.kernel_movers(q0, q1),
+        cw.kernel_statics(),
+        cw.kernel_movers(q0, q1),
         SLACK,
     )
     fcl_rows = []

@@ -140,16 +140,14 @@ def _classify_body(
     by: float,
     bz: float,
     r: float,
-    cx: float,
-    cy: float,
-    cz: float,
+    c: np.ndarray,
     rot: np.ndarray,
     code: int,
     dims: np.ndarray,
 ) -> int:
     """:func:`classify` for a body at ``c`` rotated by ``rot`` (world = rot @ local + c)."""
-    ax, ay, az = ax - cx, ay - cy, az - cz
-    bx, by, bz = bx - cx, by - cy, bz - cz
+    ax, ay, az = ax - c[0], ay - c[1], az - c[2]
+    bx, by, bz = bx - c[0], by - c[1], bz - c[2]
     la = (
         rot[0, 0] * ax + rot[1, 0] * ay + rot[2, 0] * az,
         rot[0, 1] * ax + rot[1, 1] * ay + rot[2, 1] * az,
@@ -219,17 +217,8 @@ def sweep_one(
     a: np.ndarray,
     b: np.ndarray,
     r: float,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    statics: tuple,
+    movers: tuple,
     slack: float,
     first: bool,
 ) -> tuple[int, int]:
@@ -238,7 +227,12 @@ def sweep_one(
     Returns (kind, index): kind 0 none, 1 static ``index``, 2 mover ``index``, 3 undecided (FCL
     must decide). With ``first`` the answer is the first body in order that touches (an
     undecided body before it makes the whole answer undecided); without, any body that
-    certainly touches is enough (a yes/no question)."""
+    certainly touches is enough (a yes/no question). ``statics``: (centres, bounding radii,
+    shape codes, rotations, parameters) of the static bodies (``CollisionWorld.kernel_statics``);
+    ``movers``: (positions at the step's start and end, bounding radii, codes, rotations,
+    parameters) of the moving ones (``CollisionWorld.kernel_movers``)."""
+    s_center, s_radius, s_code, s_rot, s_dims = statics
+    q0, q1, m_radius, m_code, m_rot, m_dims = movers
     undecided = False
     for k in range(len(s_radius)):
         # The cheap reject (twice the slack: it only saves work) before the previous prefilter.
@@ -249,10 +243,7 @@ def sweep_one(
             continue
         if _point_segment(s_center[k, 0], s_center[k, 1], s_center[k, 2], a, b) - s_radius[k] > r + slack:
             continue
-        c = _classify_body(
-            a[0], a[1], a[2], b[0], b[1], b[2], r, s_center[k, 0], s_center[k, 1], s_center[k, 2],
-            s_rot[k], s_code[k], s_dims[k],
-        )  # fmt: skip
+        c = _classify_body(a[0], a[1], a[2], b[0], b[1], b[2], r, s_center[k], s_rot[k], s_code[k], s_dims[k])
         if c == HIT:
             if first and undecided:
                 return 3, -1
@@ -271,7 +262,7 @@ def sweep_one(
         c = _classify_body(
             a[0], a[1], a[2],
             b[0] - (q1[k, 0] - q0[k, 0]), b[1] - (q1[k, 1] - q0[k, 1]), b[2] - (q1[k, 2] - q0[k, 2]),
-            r, q0[k, 0], q0[k, 1], q0[k, 2], m_rot[k], m_code[k], m_dims[k],
+            r, q0[k], m_rot[k], m_code[k], m_dims[k],
         )  # fmt: skip
         if c == HIT:
             if first and undecided:
@@ -288,17 +279,8 @@ def sweep_many(
     p1: np.ndarray,
     radii: np.ndarray,
     skip: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    statics: tuple,
+    movers: tuple,
     slack: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`sweep_one` (first body in order) for each row not ``skip``ped: kinds and indices."""
@@ -308,10 +290,7 @@ def sweep_many(
     for i in range(n):
         if skip[i]:
             continue
-        kind[i], index[i] = sweep_one(
-            p0[i], p1[i], radii[i], s_center, s_radius, s_code, s_rot, s_dims,
-            q0, q1, m_radius, m_code, m_rot, m_dims, slack, True,
-        )  # fmt: skip
+        kind[i], index[i] = sweep_one(p0[i], p1[i], radii[i], statics, movers, slack, True)
     return kind, index
 
 
@@ -321,23 +300,15 @@ def _touches(
     u: np.ndarray,
     length: float,
     r: float,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    bounds: tuple,
+    statics: tuple,
+    movers: tuple,
     slack: float,
 ) -> int:
     """NO / HIT / UNDECIDED for the sweep ``start -> start + u * length`` over flat ground:
-    ``first_hits``' bounds, ground and body checks as a yes/no question."""
+    ``first_hits``' bounds (``bounds``: lowest and highest corner), ground and body checks as a
+    yes/no question."""
+    lo_b, hi_b = bounds
     end = np.empty(3)
     for c in range(3):
         end[c] = start[c] + u[c] * length
@@ -346,10 +317,7 @@ def _touches(
             return HIT
     if min(start[2], end[2]) < r - 1e-9:
         return HIT
-    kind, _ = sweep_one(
-        start, end, r, s_center, s_radius, s_code, s_rot, s_dims,
-        q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
-    )  # fmt: skip
+    kind, _ = sweep_one(start, end, r, statics, movers, slack, False)
     if kind == 3:
         return UNDECIDED
     return NO if kind == 0 else HIT
@@ -361,19 +329,9 @@ def free_distances(
     u: np.ndarray,
     reach: np.ndarray,
     radii: np.ndarray,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    bounds: tuple,
+    statics: tuple,
+    movers: tuple,
     slack: float,
     halvings: int,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -385,10 +343,7 @@ def free_distances(
     status = np.zeros(n, np.int64)
     free = np.zeros(n)
     for i in range(n):
-        h = _touches(
-            start[i], u[i], reach[i], radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
-            q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-        )  # fmt: skip
+        h = _touches(start[i], u[i], reach[i], radii[i], bounds, statics, movers, slack)
         if h != HIT:
             status[i] = h
             continue
@@ -396,10 +351,7 @@ def free_distances(
         lo, hi = 0.0, reach[i]
         for _ in range(halvings):
             mid = 0.5 * (lo + hi)
-            h = _touches(
-                start[i], u[i], mid, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
-                q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-            )  # fmt: skip
+            h = _touches(start[i], u[i], mid, radii[i], bounds, statics, movers, slack)
             if h == UNDECIDED:
                 status[i] = 2
                 break

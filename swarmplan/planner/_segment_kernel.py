@@ -60,14 +60,15 @@ def _point_gap(lo, hi, p):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _agents(P, c, lens, per, f, w, times_, points_, nk_, scale, contact_, reach_, vmax, ibox):  # noqa: ANN001, ANN202
-    """Other-agents term of candidate ``c``: per sample and intent j,
+def _agents(P, c, lens, per, f, w, intents, ibox):  # noqa: ANN001, ANN202
+    """Other-agents term of candidate ``c`` (``intents``: ``segment_terms``'): per sample and intent j,
     ``w_agents * max(1.2 - |(p - q) / scale_j|, 0) * ds + w_coll * (|p - q| < contact_j) * ds``
     with q the intent's position at the sample's time (``np.interp`` of its knots, clamped).
 
     Intent by intent, the legs are walked in time order with a knot pointer that only moves
     on; a leg whose samples' box stays beyond ``reach_j`` of the intent's box over the
     samples' time window adds exactly zero, and so do samples skipped by tracing."""
+    times_, points_, nk_, scale, contact_, reach_, vmax = intents
     m = P.shape[1]
     t0, speed, w_agents, w_coll = f[4], f[3], w[8], w[1]
     acc = 0.0
@@ -280,35 +281,7 @@ def _turning(P, c, lens, f, w, heading):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
-    P,
-    f,
-    w,
-    heading,
-    bmin,
-    bmax,
-    flags,
-    s_code,
-    s_pos,
-    s_rot,
-    s_ident,
-    s_prm,
-    s_bound,
-    m_code,
-    m_rot,
-    m_ident,
-    m_prm,
-    m_bound,
-    i_times,
-    i_points,
-    i_nk,
-    i_scale,
-    i_contact,
-    i_reach,
-    i_vmax,
-    centers,
-    vstep,
-):
+def segment_terms(P, f, w, heading, bounds, flags, statics, movers, intents, centers, vstep):  # noqa: ANN001, ANN201, PLR0912, PLR0915, C901
     """Terms (n, 8) of polylines ``P`` (n, m, 3), columns as ``SegmentCost.terms``, and their
     sum in that order (column 8); and 0, or the length of the movers' grid the candidates need
     when ``centers`` is shorter (then nothing was computed).
@@ -316,12 +289,19 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
     ``f``: r, required, start_clearance, speed, t0, spacing, turn_radius, max_climb,
     has_heading, fixed_wing, vertex_clearance, floor, max_samples, pose_step.
     ``w``: clearance, collision, floor, bounds, turn, turn_radius, climb, moving, agents, vertex.
+    ``bounds``: lowest and highest corner of the world.
     ``flags``: static term here, vertex term here, floor/bounds term here (1 or 0).
-    Static bodies ``s_*`` (code, centre, rotation, identity flag, shape parameters, bounding
-    radius); moving ones ``m_*`` with their predicted ``centers`` (T, Mm, 3) on the
-    ``pose_step`` grid from t0 and ``vstep`` (Mm,), a bound on a centre's move per grid step;
-    intents ``i_*`` as ``_segment_pack.pack_intents`` with ``i_vmax`` their largest speed.
+    ``statics``: the static bodies (code, centre, rotation, identity flag, shape parameters,
+    bounding radius: ``_segment_pack.pack_bodies``); ``movers``: the moving ones (code,
+    rotation, identity flag, parameters, bounding radius) with their predicted ``centers``
+    (T, Mm, 3) on the ``pose_step`` grid from t0 and ``vstep`` (Mm,), a bound on a centre's move
+    per grid step; ``intents``: (times, points, knots, scale, contact, reach, largest speed) as
+    ``_segment_pack.pack_intents``.
     """
+    bmin, bmax = bounds
+    s_code, s_pos, s_rot, s_ident, s_prm, s_bound = statics
+    m_code, m_rot, m_ident, m_prm, m_bound = movers
+    i_nk = intents[2]
     n, m, _ = P.shape
     out = np.zeros((n, N_TERMS + 1))
     if n == 0:
@@ -377,7 +357,7 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
     ibox = np.empty((Mi, 6))
     if Mi:
         for j in range(Mi):
-            _intent_box(i_times[j], i_points[j], i_nk[j], t0, t0 + longest_total / speed, ibox[j])
+            _intent_box(intents[0][j], intents[1][j], i_nk[j], t0, t0 + longest_total / speed, ibox[j])
     # Each mover's box over the grid (every sample's grid time is in it).
     mbox = np.empty((Mm, 6))
     for j in range(Mm):
@@ -543,9 +523,7 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
 
         # -------------------------------------------------------------------- other agents
         if Mi:
-            out[c, AGENTS] = _agents(
-                P, c, lens[c], per, f, w, i_times, i_points, i_nk, i_scale, i_contact, i_reach, i_vmax, ibox
-            )
+            out[c, AGENTS] = _agents(P, c, lens[c], per, f, w, intents, ibox)
 
         # -------------------------------------------------------------------- free waypoints
         if do_vertex:
