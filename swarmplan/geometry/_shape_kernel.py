@@ -84,32 +84,7 @@ def _ellipsoid(x, y, z, a, b, c):  # noqa: ANN001, ANN202
     return -depth, vx / m, vy / m, vz / m
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def sdf(code, x, y, z, a, b, c):  # noqa: ANN001, ANN201
-    """Signed distance (positive outside, negative inside) of the local point (x, y, z) to the
-    shape ``code`` with parameters ``a, b, c``."""
-    if code == SPHERE:
-        return math.sqrt(x * x + y * y + z * z) - a
-    if code == BOX:
-        qx = abs(x) - a
-        qy = abs(y) - b
-        qz = abs(z) - c
-        ox = max(qx, 0.0)
-        oy = max(qy, 0.0)
-        oz = max(qz, 0.0)
-        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, qy, qz), 0.0)
-    if code == CYLINDER:
-        dr = math.sqrt(x * x + y * y) - a
-        dz = abs(z) - b
-        return math.hypot(max(dr, 0.0), max(dz, 0.0)) + min(max(dr, dz), 0.0)
-    if code == ELLIPSOID:
-        return _ellipsoid(x, y, z, a, b, c)[0]
-    # capsule: to the closest point of its axis segment
-    dz = z - min(max(z, -b), b)
-    return math.sqrt(x * x + y * y + dz * dz) - a
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN201
     """:func:`sdf` and its local gradient (a unit vector): ``(d, gx, gy, gz)``, the values of
     ``shapes.SDF`` bit for bit."""
@@ -169,6 +144,14 @@ def sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN201
     n = math.sqrt(x * x + y * y + vz * vz)
     m = max(n, EPS)
     return n - a, x / m, y / m, vz / m
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sdf(code, x, y, z, a, b, c):  # noqa: ANN001, ANN201
+    """Signed distance (positive outside, negative inside) of the local point (x, y, z) to the
+    shape ``code`` with parameters ``a, b, c``: :func:`sdf_grad`'s distance (inlined, the
+    gradient's work left out by the compiler)."""
+    return sdf_grad(code, x, y, z, a, b, c)[0]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
