@@ -308,19 +308,37 @@ def _touches(
     """NO / HIT / UNDECIDED for the sweep ``start -> start + u * length`` over flat ground:
     ``first_hits``' bounds (``bounds``: lowest and highest corner), ground and body checks as a
     yes/no question."""
-    lo_b, hi_b = bounds
     end = np.empty(3)
     for c in range(3):
         end[c] = start[c] + u[c] * length
+    return step_status(start, end, r, bounds, True, statics, movers, slack)
+
+
+@njit(cache=True, inline="always")
+def step_status(
+    a: np.ndarray,
+    b: np.ndarray,
+    r: float,
+    bounds: tuple,
+    bodies: bool,
+    statics: tuple,
+    movers: tuple,
+    slack: float,
+) -> int:
+    """NO, HIT or UNDECIDED for the step ``a -> b`` over flat ground: ``first_hits``' bounds
+    (``bounds``: lowest and highest corner), ground and body checks as a yes/no question
+    (``bodies``: the world has obstacles; without, the bodies' check is skipped, its answer
+    being NO)."""
+    lo_b, hi_b = bounds
     for c in range(3):
-        if end[c] < lo_b[c] - 1e-9 or end[c] > hi_b[c] + 1e-9:
+        if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
             return HIT
-    if min(start[2], end[2]) < r - 1e-9:
+    if min(a[2], b[2]) < r - 1e-9:
         return HIT
-    kind, _ = sweep_one(start, end, r, statics, movers, slack, False)
-    if kind == 3:
-        return UNDECIDED
-    return NO if kind == 0 else HIT
+    if not bodies:
+        return NO
+    kind, _ = sweep_one(a, b, r, statics, movers, slack, False)
+    return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
 
 
 @njit(cache=True)

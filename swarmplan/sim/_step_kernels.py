@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from swarmplan.geometry.sweep_kernels import HIT, NO, UNDECIDED, sweep_one
+from swarmplan.geometry.sweep_kernels import HIT, UNDECIDED, step_status
 
 
 @njit(cache=True, inline="always")
@@ -134,7 +134,7 @@ def braking_margin(
         if check_step:
             for k in range(3):
                 end[k] = pos0[i, k] + vel1[i, k] * dt
-            status[i] = _step_status(pos0[i], end, radii[i], bounds, bodies, statics, movers, slack)
+            status[i] = step_status(pos0[i], end, radii[i], bounds, bodies, statics, movers, slack)
     return out, vel1, status, True
 
 
@@ -154,33 +154,8 @@ def touches_many(
     out = np.empty(n, np.int64)
     bodies = len(statics[1]) + len(movers[2]) > 0
     for i in range(n):
-        out[i] = _step_status(p0[i], p1[i], radii[i], bounds, bodies, statics, movers, slack)
+        out[i] = step_status(p0[i], p1[i], radii[i], bounds, bodies, statics, movers, slack)
     return out
-
-
-@njit(cache=True, inline="always")
-def _step_status(
-    a: np.ndarray,
-    b: np.ndarray,
-    r: float,
-    bounds: tuple,
-    bodies: bool,
-    statics: tuple,
-    movers: tuple,
-    slack: float,
-) -> int:
-    """One step of :func:`touches_many`: NO, HIT or UNDECIDED (``bodies``: the world has
-    obstacles; without, the bodies' check is skipped, its answer being NO)."""
-    lo_b, hi_b = bounds
-    for c in range(3):
-        if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
-            return HIT
-    if min(a[2], b[2]) < r - 1e-9:
-        return HIT
-    if not bodies:
-        return NO
-    kind, _ = sweep_one(a, b, r, statics, movers, slack, False)
-    return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
 
 
 @njit(cache=True, inline="always")
@@ -197,10 +172,10 @@ def _probe(
     slack: float,
 ) -> int:
     """``sweep_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
-    UNDECIDED) with the end point in the caller's buffer ``end``, through :func:`_step_status`."""
+    UNDECIDED) with the end point in the caller's buffer ``end``, through ``sweep_kernels.step_status``."""
     for c in range(3):
         end[c] = start[c] + u[c] * length
-    return _step_status(start, end, r, bounds, bodies, statics, movers, slack)
+    return step_status(start, end, r, bounds, bodies, statics, movers, slack)
 
 
 @njit(cache=True)
