@@ -145,9 +145,10 @@ def test_every_caller_measures_the_table_distance(shape: bodies.Shape) -> None:
     reach = np.ones((1, 2), dtype=np.bool_)
     cells = np.zeros(len(pts), dtype=np.int64)
     prims = (table.position, table.rotation, table.code, table.prm)
-    for body_distance in (_guide_kernel.body_distance, _guide_numpy.body_distance):
-        got = body_distance(pts, cells, reach, True, *prims)
-        np.testing.assert_allclose(got, twin.min(axis=1), rtol=0, atol=1e-12)
+    kernels = (_guide_kernel.body_distance, _guide_numpy.body_distance)
+    guide = [f(pts, cells, reach, True, *prims) for f in kernels]
+    assert guide[0].tobytes() == guide[1].tobytes()
+    np.testing.assert_allclose(guide[0], twin.min(axis=1), rtol=0, atol=1e-12)
     # Replay's audit reads the log's obstacles.
     for j, obst in enumerate(world.resolved["obstacles"]):
         assert primitive_distance(local[j], obst).tobytes() == twin[:, j].tobytes()
