@@ -123,7 +123,7 @@ def test_a_stuck_agent_gets_its_optimizer_after_one_stood_down_window(monkeypatc
     from helpers import default_planner
 
     from swarmplan.io.runner import run_episode
-    from swarmplan.planner.escape import EscapePlanner
+    from swarmplan.planner import escape
     from swarmplan.sim import Simulation
 
     # the U-shaped pocket: the bare field holds the agent in front of the wall
@@ -137,7 +137,7 @@ def test_a_stuck_agent_gets_its_optimizer_after_one_stood_down_window(monkeypatc
                       "apf": {"guide": False}}  # fmt: skip
     raw["sim"]["max_time"] = 20.0
     world = make_world(raw)
-    monkeypatch.setattr(EscapePlanner, "_gate", lambda self, sim, i: "crowd")
+    monkeypatch.setattr(escape, "stand_down_gate", lambda *args: "crowd")
     kinds: list[str] = []
     runs: list[int] = []
 
@@ -157,3 +157,19 @@ def test_a_stuck_agent_gets_its_optimizer_after_one_stood_down_window(monkeypatc
     assert kinds[:2] == ["stuck", "escape_stood_down"], kinds[:6]
     assert kinds[2] == "stuck" and kinds[3] in offered, kinds[:6]
     assert runs and runs[0] > 0, "no optimizer run was recorded"
+
+
+def test_overlaps_found_in_a_large_swarm():
+    """Above 64 agents the pairs come from a k-d tree: the same answer as every pair."""
+    raw = _single(((0, 0, 0), (100, 100, 20)), (1, 1, 5), (99, 99, 5), 0.4, 3.0, 3.0, 0.3)
+    raw["agents"] = [
+        {"id": f"a{k}", "start": [5.0 + 2 * (k % 10), 5.0 + 2 * (k // 10), 5.0],
+         "goal": [5.0 + 2 * (k % 10), 80.0 - 2 * (k // 10), 5.0]}
+        for k in range(70)
+    ]  # fmt: skip
+    make_world(raw)
+    raw["agents"][69]["start"] = [5.3, 5.0, 5.0]  # onto a0's start
+    with pytest.raises(WorldError) as err:
+        make_world(raw)
+    assert str(err.value).count("overlaps agent") == 1
+    assert "agents[0].start: overlaps agent 'a69'" in str(err.value)

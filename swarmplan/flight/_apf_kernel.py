@@ -417,6 +417,8 @@ def commanded_velocity(amax, cruise, force, pos, goal, clearance, normal, out): 
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         toward = -(vx * nx + vy * ny + vz * nz)
         allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - 0.5, 0.0))
+        if dg < clearance[i]:  # a goal nearer than the surface: its own cap stops the agent short of it
+            allowed = _maximum(allowed, speed)
         excess = _maximum(toward - allowed, 0.0)
         out[i, 0] = vx + excess * nx
         out[i, 1] = vy + excess * ny

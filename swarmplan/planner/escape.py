@@ -58,11 +58,9 @@ from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import (
     CROWD,
     STAND_DOWN_WINDOWS,
-    guided,
     held_by,
     held_by_obstacles,
-    queued,
-    under_way,
+    stand_down_gate,
 )
 from swarmplan.planner.hold import hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
@@ -481,7 +479,10 @@ class EscapePlanner:
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
-        gate = None if self._stood_down.get(i, 0) >= STAND_DOWN_WINDOWS else self._gate(sim, i)
+        gate = None
+        if self._stood_down.get(i, 0) < STAND_DOWN_WINDOWS:
+            near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
+            gate = stand_down_gate(sim, i, self._escaped_at.get(i), near, crowd)
         if gate is not None:
             self._stood_down[i] = self._stood_down.get(i, 0) + 1
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})
@@ -526,20 +527,6 @@ class EscapePlanner:
             return None
         self.failures[i] = 0
         return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
-
-    def _gate(self, sim: PlanningContext, i: int) -> str | None:
-        """The reason to let the field (not an escape) free agent ``i`` this time, if any:
-        ``under_way`` (it still flies at half its cruise speed or more), ``queue`` (its last
-        escape left it no nearer while others are near), ``crowd`` (other agents, not a trap,
-        hold it) or ``guided`` (the guide leads it round static obstacles)."""
-        start = self._escaped_at.get(i)  # cheapest test first (same answers in any order)
-        tests = (
-            ("under_way", lambda: under_way(sim, i)),
-            ("queue", lambda: start is not None and queued(sim, i, start, self.agents_near(sim, i))),
-            ("crowd", lambda: self.only_agents_around(sim, i)),
-            ("guided", lambda: guided(sim, i)),
-        )
-        return next((name for name, holds in tests if holds()), None)
 
     def hold(self, sim: PlanningContext, i: int, reason: str) -> StuckOutcome:
         """A holding pattern (:mod:`swarmplan.planner.hold`) instead of giving up; later searches

@@ -4,6 +4,8 @@ obstacles leads it, or it waits in a queue."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from swarmplan.core import PlanningContext
@@ -87,11 +89,36 @@ def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     return bool(pull + float(push @ along) < 0.5 * pull)
 
 
+def stand_down_gate(
+    sim: PlanningContext,
+    i: int,
+    escaped_at: float | None,
+    agents_near: Callable[[], np.ndarray],
+    only_agents_around: Callable[[], bool],
+) -> str | None:
+    """The reason to let the field, not an escape, free stuck agent ``i`` this window, if any:
+    ``under_way`` (it still flies at half its cruise speed or more), ``queue`` (its last escape,
+    started ``escaped_at`` m from its goal, left it no nearer while others are near), ``crowd``
+    (other agents, not a trap, hold it) or ``guided`` (the guide leads it round static
+    obstacles). The tests run cheapest first (the same answer in any order)."""
+    if under_way(sim, i):
+        return "under_way"
+    if escaped_at is not None and queued(sim, i, escaped_at, agents_near()):
+        return "queue"
+    if only_agents_around():
+        return "crowd"
+    if guided(sim, i):
+        return "guided"
+    return None
+
+
 def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
     """What holds agent ``i``: the nearest of the ground (or terrain), the faces of the flight
     volume, the obstacles (at their poses now) and the other agents, by clearance from the
     agent's body. ``{"by": "ground" | "bounds" | "body" | "agent", "id": ..., "clearance": m}``
-    (``id`` names the body or agent; ``by: "none"`` in an empty world)."""
+    (``id`` names the body or agent; ``by: "none"`` when the nearest lies beyond the field's
+    influence: nothing holds the agent but its own field, e.g. the pull of a moving obstacle's
+    predicted approach)."""
     w, s, p = sim.world, sim.state, sim.params
     pos, r = s.position[i], float(p.radius[i])
     h = float(w.terrain_height(pos[None, :2])[0])
@@ -109,4 +136,6 @@ def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
         k = int(np.argmin(gap))
         found.append((float(gap[k]), "agent", str(p.ids[others[k]])))
     clearance, by, ident = min(found, key=lambda f: f[0])
+    if clearance > float(w.planner_config.apf.influence):  # nothing within the field's reach
+        by, ident = "none", None
     return {"by": by, "id": ident, "clearance": round(clearance, 6)}

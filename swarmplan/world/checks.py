@@ -4,7 +4,6 @@ obstacles (exact signed distances) and the terrain."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from swarmplan.geometry.shapes import signed_distance
 from swarmplan.world import terrain
@@ -43,6 +42,8 @@ def check_placements(
                 ground = float(terrain.height(peaks, point[:2]))
                 if point[2] - ground < a.radius:
                     c.add(f"{p}.{key}", f"below the terrain (terrain height {ground:.2f} m at this point)")
+            elif point[2] < a.radius:
+                c.add(f"{p}.{key}", f"touching the ground (z = {point[2]:g} m, radius {a.radius:g} m)")
     for key in ("start", "goal"):
         for k, j, gap, need in _overlaps(agents, key):
             p = f"agents[{index.get(agents[k].id, '?')}]"
@@ -59,7 +60,13 @@ def _overlaps(agents: list[AgentSpec], key: str) -> list[tuple[int, int, float, 
         return []
     pts = np.array([getattr(a, key) for a in agents], dtype=float)
     radii = np.array([a.radius for a in agents], dtype=float)
-    pairs = cKDTree(pts).query_pairs(2.0 * float(radii.max()), output_type="ndarray")
+    if len(agents) <= 64:  # every pair (a small world starts without scipy.spatial)
+        k, j = np.triu_indices(len(agents), 1)
+        pairs = np.column_stack([k, j])
+    else:
+        from scipy.spatial import cKDTree
+
+        pairs = cKDTree(pts).query_pairs(2.0 * float(radii.max()), output_type="ndarray")
     out = []
     for k, j in sorted(map(tuple, pairs.tolist())):
         gap, need = float(np.linalg.norm(pts[k] - pts[j])), float(radii[k] + radii[j])
