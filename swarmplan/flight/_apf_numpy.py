@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from swarmplan.flight.field_law import bounds_range, goal_factor, ground_range, power, repulsion
+from swarmplan.flight.field_law import NEAREST, bounds_range, goal_factor, ground_range, power, repulsion
 
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
@@ -164,7 +164,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     active = rho < rho0
     static = active & ~moving
     k = np.where(moving, k_rep, (k_rep * static_scale)[:, None])
-    x = 1.0 / np.maximum(rho, 0.05) - 1.0 / rho0
+    x = 1.0 / np.maximum(rho, NEAREST) - 1.0 / rho0  # the law's terms (field_law.repulsion)
     w = k * x * gfac[:, None]
     block = _dot(ax, grad)
     terms = np.empty((n, m, 5))
