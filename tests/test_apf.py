@@ -285,7 +285,7 @@ def test_fixed_wings_keep_the_full_repulsion_of_parked_agents(monkeypatch):
     """Only agents that can stop take the goal factor on parked agents: a fixed wing near its
     goal circles at speed past them (rscdwoa_multi_uav, woa seed 9: uav1 circled its goal for
     50 s with the factor, arrived at 60 s without it). A multirotor takes the factor."""
-    import swarmplan.sim.env as env
+    import swarmplan.sim.steering as steering
     from swarmplan.sim import Simulation
 
     fixed = {"model": "fixed_wing", "speed": {"min": 8, "max": 14, "cruise": 10}, "min_turn_radius": 20}
@@ -299,8 +299,8 @@ def test_fixed_wings_keep_the_full_repulsion_of_parked_agents(monkeypatch):
         )
     )
     used = []
-    real_cmd = env.commanded_velocity
-    monkeypatch.setattr(env, "commanded_velocity", lambda *a: used.append(a[2].copy()) or real_cmd(*a))
+    real_cmd = steering.commanded_velocity
+    monkeypatch.setattr(steering, "commanded_velocity", lambda *a: used.append(a[2].copy()) or real_cmd(*a))
     sim = Simulation(w)
     sim.reset(seed=0)
     sim.step()  # 'parked' starts on its goal: it arrives in this step

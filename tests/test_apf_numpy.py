@@ -19,8 +19,7 @@ from test_apf_compiled import N, _inputs, _world
 from swarmplan.flight import _apf_numpy, apf
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.geometry.compiled import COMPILED_FROM, FIELD_NUMPY_CALLS
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import COMPILED_FROM, FIELD_NUMPY_CALLS, kernel_module
 
 
 def _both(
@@ -39,12 +38,12 @@ def _both(
 @contextmanager
 def _numpy_while_numba_loaded() -> Iterator[None]:
     """The field's numpy path also in this process, where numba is loaded."""
-    saved = apf.numba_loaded
-    apf.numba_loaded = lambda: False
+    saved = apf.use_numpy_twin
+    apf.use_numpy_twin = lambda n_agents=None: True
     try:
         yield
     finally:
-        apf.numba_loaded = saved
+        apf.use_numpy_twin = saved
 
 
 def _same_bits(a: np.ndarray, b: np.ndarray) -> None:
@@ -102,10 +101,10 @@ def test_world_size_and_calls_choose_the_implementation(monkeypatch):
     """At swarm size the field runs compiled from its first call; below it, its first
     ``FIELD_NUMPY_CALLS`` calls run numpy and the later ones compiled, unless numba is in the
     process already (then compiled from the first call)."""
-    from swarmplan.flight import apf
+    from swarmplan.runtime import compiled
 
     loaded = [False]
-    monkeypatch.setattr(apf, "numba_loaded", lambda: loaded[0])
+    monkeypatch.setattr(compiled, "numba_loaded", lambda: loaded[0])
     swarm = _world(False)
     assert len(swarm.agents) >= COMPILED_FROM  # the random-swarm world is at swarm size
     assert ApfField(swarm, _inputs(swarm, 0)[0])._numpy_calls == 0

@@ -10,6 +10,7 @@ every module under ``swarmplan.x``)."""
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "swarmplan"
@@ -23,17 +24,23 @@ def module_name(path: Path) -> str:
     return ".".join(parts)
 
 
-def runtime_nodes(tree: ast.AST) -> list[ast.AST]:
-    """Every node that can run: ``if TYPE_CHECKING:`` blocks (annotations only) are left out."""
+def runtime_nodes(tree: ast.AST, annotations: bool = False) -> list[ast.AST]:
+    """Every node that can run: ``if TYPE_CHECKING:`` blocks (annotations only) are left out,
+    unless ``annotations``."""
     out: list[ast.AST] = []
     todo = [tree]
     while todo:
         node = todo.pop()
         out.append(node)
         for child in ast.iter_child_nodes(node):
-            if isinstance(child, ast.If) and ast.unparse(child.test) in (
-                "TYPE_CHECKING",
-                "typing.TYPE_CHECKING",
+            if (
+                not annotations
+                and isinstance(child, ast.If)
+                and ast.unparse(child.test)
+                in (
+                    "TYPE_CHECKING",
+                    "typing.TYPE_CHECKING",
+                )
             ):
                 todo.extend(child.orelse)
                 continue
@@ -43,7 +50,15 @@ def runtime_nodes(tree: ast.AST) -> list[ast.AST]:
 
 def dynamic_imports(node: ast.AST, files: dict[str, Path]) -> list[str] | None:
     """The modules a call imports by name (see the module docstring), None for any other node;
-    a dynamic import whose module cannot be read off the call is an error."""
+    a dynamic import whose module cannot be read off the call is an error. A module looked up
+    by name (``sys.modules["swarmplan...."]``) counts as imported too."""
+    if (
+        isinstance(node, ast.Subscript)
+        and ast.unparse(node.value) == "sys.modules"
+        and isinstance(node.slice, ast.Constant)
+        and str(node.slice.value).startswith("swarmplan")
+    ):
+        return [str(node.slice.value)]
     if not isinstance(node, ast.Call):
         return None
     func = node.func
@@ -64,19 +79,32 @@ def dynamic_imports(node: ast.AST, files: dict[str, Path]) -> list[str] | None:
     return ["<unknown: " + ast.unparse(node) + ">"]
 
 
-def import_graph() -> dict[str, set[str]]:
-    """Module -> our modules it imports anywhere it can run (function level included).
+_GRAPHS: dict[tuple[Path, bool, bool], dict[str, set[str]]] = {}
+
+
+def import_graph(annotations: bool = False, implicit_packages: bool = True) -> dict[str, set[str]]:
+    """Module -> our modules it imports anywhere it can run (function level included), and with
+    ``annotations`` in ``if TYPE_CHECKING:`` blocks too.
 
     Importing ``a.b.c`` also runs the packages ``a.b`` and ``a`` first; those count as
-    imported too, unless they are packages the importer itself lives in (already running).
+    imported too (unless ``implicit_packages`` is false), unless they are packages the importer itself
+    lives in (already running). Each graph is read from the sources once per test run (a copy
+    each call).
     """
+    key = (PACKAGE, annotations, implicit_packages)
+    if key not in _GRAPHS:
+        _GRAPHS[key] = _read_import_graph(annotations, implicit_packages)
+    return {mod: set(targets) for mod, targets in _GRAPHS[key].items()}
+
+
+def _read_import_graph(annotations: bool, implicit_packages: bool) -> dict[str, set[str]]:
     files = {module_name(p): p for p in PACKAGE.rglob("*.py")}
     packages = {module_name(p) for p in PACKAGE.rglob("__init__.py")}
     graph: dict[str, set[str]] = {}
     for mod, path in files.items():
         own = mod if mod in packages else mod.rpartition(".")[0]
         targets: set[str] = set()
-        for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8")), annotations):
             names: list[str] = dynamic_imports(node, files) or []
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
@@ -93,7 +121,7 @@ def import_graph() -> dict[str, set[str]]:
                     running = own == name or own.startswith(name + ".")
                     if name in files and not running:
                         targets.add(name)
-                    name = name.rpartition(".")[0]
+                    name = name.rpartition(".")[0] if implicit_packages else ""
         targets.discard(mod)
         graph[mod] = targets
     return graph
@@ -141,6 +169,26 @@ def test_cycle_finder_finds_a_cycle() -> None:
 
 def test_no_import_cycles() -> None:
     assert cycles(import_graph()) == []
+
+
+def test_no_files_import_each_other_even_for_annotations() -> None:
+    """No two files import each other, directly or in a circle, counting the imports of
+    annotations and modules looked up by name (``sys.modules[...]``): a file's code, types and
+    state are its own, read by the files above it."""
+    assert cycles(import_graph(annotations=True, implicit_packages=False)) == []
+
+
+def test_file_circle_finder_sees_annotations_and_lookups(tmp_path: Path, monkeypatch) -> None:
+    pkg = tmp_path / "swarmplan"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from swarmplan.b import B\n"
+    )
+    (pkg / "b.py").write_text("import sys\n\ndef f():\n    return sys.modules['swarmplan.a']\n")
+    monkeypatch.setattr(sys.modules[__name__], "PACKAGE", pkg)
+    assert cycles(import_graph()) == []
+    assert cycles(import_graph(annotations=True, implicit_packages=False)) == [["swarmplan.a", "swarmplan.b"]]
 
 
 def test_no_module_over_max_lines() -> None:

@@ -18,6 +18,7 @@ import pytest
 
 from swarmplan.bench.sim import swarm_world
 from swarmplan.flight import guide as G
+from swarmplan.flight.guide_graph import Graph
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.runtime import disk_cache
 from swarmplan.world import parse_world
@@ -47,7 +48,7 @@ def _state(guide: G.StaticGuide) -> dict[str, np.ndarray]:
     for name, value in vars(guide).items():
         if isinstance(value, np.ndarray):
             out[name] = value
-        elif isinstance(value, G._Graph):
+        elif isinstance(value, Graph):
             for field in dataclasses.fields(value):
                 part = getattr(value, field.name)
                 for k, a in enumerate(part if isinstance(part, tuple) else (part,)):

@@ -13,9 +13,9 @@ from helpers import base_world, make_world, obstacles_of
 
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
-from swarmplan.geometry.compiled import COMPILED_FROM
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.shapes import ObstacleField
+from swarmplan.runtime.compiled import COMPILED_FROM
 from swarmplan.sim.scene import Scene
 from swarmplan.world import load_world, parse_world
 
@@ -190,7 +190,7 @@ def test_compiled_clearance_of_a_spread_swarm():
 def test_a_swarm_world_runs_the_same_compiled_and_in_numpy(monkeypatch):
     """The compiled path changes nothing a run does: 48 agents among rotated boxes, cylinders,
     spheres and movers, the same states and events after 150 steps."""
-    import swarmplan.geometry.compiled as compiled
+    import swarmplan.runtime.compiled as compiled
     from swarmplan.bench.sim import swarm_world
     from swarmplan.sim import Simulation
 

@@ -18,7 +18,7 @@ def _path(request, monkeypatch):
     """Every test on both paths: the compiled kernels (swarm-sized worlds) and the reference
     path (smaller worlds), whatever the size of the test's swarm."""
     threshold = 0 if request.param == "compiled" else 10**9
-    monkeypatch.setattr("swarmplan.geometry.compiled.CHECKS_COMPILED_FROM", threshold)
+    monkeypatch.setattr("swarmplan.runtime.compiled.CHECKS_COMPILED_FROM", threshold)
 
 
 def _swarm(seed, n=200):
@@ -113,9 +113,9 @@ def test_compiled_contacts_match_all_pairs_at_the_exact_threshold():
 
 @pytest.mark.parametrize("seed", range(3))
 def test_compiled_near_miss_pairs_equal_separation_violations(seed):
-    """``NearMisses`` takes its pairs from ``sweep_kernels.separation_keys``: the same pairs, in
+    """``NearMisses`` takes its pairs from ``swept_kernels.separation_keys``: the same pairs, in
     the same order, as ``separation_violations``, incl. pairs exactly on the ellipsoid."""
-    from swarmplan.geometry import sweep_kernels
+    from swarmplan.geometry import swept_kernels
 
     p0, _, radii, sep, active = _swarm(seed, 300)
     # Two pairs placed on the ellipsoid along x: exactly on it (outside) and one ulp inside.
@@ -125,7 +125,7 @@ def test_compiled_near_miss_pairs_equal_separation_violations(seed):
     p0[3] = p0[2] + [np.nextafter(scale2, 0.0), 0, 0]
     active[:4] = True
     i, j = separation_violations(p0, sep, radii, active)
-    keys = sweep_kernels.separation_keys(p0, sep, radii, active)
+    keys = swept_kernels.separation_keys(p0, sep, radii, active)
     assert len(i) > 20
     np.testing.assert_array_equal(keys // len(p0), i)
     np.testing.assert_array_equal(keys % len(p0), j)

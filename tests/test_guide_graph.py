@@ -16,6 +16,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from swarmplan.flight import _guide_kernel as K
 from swarmplan.flight import guide as G
+from swarmplan.flight import guide_graph
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
 
@@ -45,7 +46,7 @@ def _reference_graph(guide: G.StaticGuide) -> csr_matrix:
     free = clear > 0.0
     flat = np.arange(guide.n_cells).reshape(nx, ny, nz)
     rows, cols, cost = [], [], []
-    for o in G._offsets():
+    for o in guide_graph.OFFSETS:
         src = flat[
             max(0, -o[0]) : nx - max(0, o[0]),
             max(0, -o[1]) : ny - max(0, o[1]),
@@ -110,7 +111,7 @@ def test_the_compiled_search_is_scipys_on_random_grids():
     for trial in range(30):
         shape = rng.integers(2, 8, 3)
         n = int(np.prod(shape))
-        offsets, delta, length, row, rights = G._legs(shape, np.ones(3))  # equal cells: ties
+        offsets, delta, length, row, rights = guide_graph.legs(shape, np.ones(3))  # equal cells: ties
         free = rng.random(n) < 0.8
         prox = np.where(rng.random(n) < 0.5, 0.0, rng.choice([0.25, 0.5, 1.0], n))
         prox[~free] = 1.0
@@ -134,7 +135,7 @@ def test_the_compiled_search_is_scipys_on_random_grids():
     # and on a line of three cells, by hand: legs of length 1, those into the middle cell
     # (near a surface: its row stored) 3 = 1 + 1 * NEAR; the ways to the top cell
     shape = np.array([1, 1, 3])
-    offsets, delta, length, row, rights = G._legs(shape, np.ones(3))
+    offsets, delta, length, row, rights = guide_graph.legs(shape, np.ones(3))
     free, prox = np.ones(3, dtype=bool), np.array([0.0, 1.0, 0.0])
     indptr, indices, data, mask = K.reverse_graph(
         free, prox, np.zeros((len(rights), 3)), (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT)

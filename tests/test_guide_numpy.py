@@ -21,8 +21,7 @@ from test_guide_sight import _guide
 
 from swarmplan.flight import _guide_numpy as T
 from swarmplan.flight import guide as G
-from swarmplan.geometry.compiled import COMPILED_FROM
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import COMPILED_FROM, kernel_module
 
 K = kernel_module("swarmplan.flight._guide_kernel")
 NAMES = ("cells_of", "way_points", "sight_samples", "flat_hits", "body_distance")
@@ -165,8 +164,10 @@ def test_the_twins_find_the_kernels_cells_and_points_of_attraction() -> None:
 def test_world_size_and_numba_choose_the_implementation(monkeypatch: pytest.MonkeyPatch) -> None:
     """Below swarm size and with numba not in the process the guide's per-step calls run the
     twins; at swarm size, or once numba is loaded, the kernels."""
+    from swarmplan.runtime import compiled
+
     loaded = [False]
-    monkeypatch.setattr(G, "numba_loaded", lambda: loaded[0])
+    monkeypatch.setattr(compiled, "numba_loaded", lambda: loaded[0])
     calls: list[tuple[str, str]] = []
     for module, kind in ((T, "numpy"), (K, "compiled")):
         for name in NAMES:
@@ -199,14 +200,13 @@ def test_a_small_swarm_flies_the_same_with_both_guides(monkeypatch: pytest.Monke
     kernels and by the twins: the same positions, velocities and events at every step."""
     from swarmplan.bench.sim import swarm_world
     from swarmplan.planner import make_planner
-    from swarmplan.runtime.compiled import numba_loaded
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 
     world = parse_world(swarm_world(16, 4, 8))
     runs = []
     for twin in (False, True):
-        monkeypatch.setattr(G, "numba_loaded", (lambda: False) if twin else numba_loaded)
+        monkeypatch.setattr(G, "use_numpy_twin", lambda n_agents, twin=twin: twin)
         sim = Simulation(world, planner=make_planner(world))
         assert sim.guide is not None and (sim.guide._kernels() is T) == twin
         sim.reset(seed=0)

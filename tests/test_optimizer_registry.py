@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from swarmplan.optimizers import available, defaults, make, optimizer_class, register
-from swarmplan.optimizers.core import Optimizer
+from swarmplan.optimizers.base import Optimizer
 from swarmplan.optimizers.registry import _REGISTRY, BUILTIN
 
 

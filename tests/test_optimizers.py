@@ -359,7 +359,7 @@ def test_bench_shifted_suite_runs_bases_and_param_sets(tmp_path, capsys):
 @pytest.mark.parametrize("name", ALGORITHMS)
 def test_warm_up_loads_once_and_leaves_runs_unchanged(name):
     """Planners call ``warm_up`` before timing a plan: it must not change any run."""
-    from swarmplan.optimizers import core
+    from swarmplan.optimizers import base
 
     def cost(X):
         return sphere(X - 0.3)
@@ -369,7 +369,7 @@ def test_warm_up_loads_once_and_leaves_runs_unchanged(name):
     opt = make(name)
     rng = np.random.default_rng(5)
     opt.warm_up()
-    assert (name, repr(sorted(opt.params.items()))) in core._WARMED
+    assert (name, repr(sorted(opt.params.items()))) in base._WARMED
     after = opt.minimize(cost, lower, upper, max_evals=600, seed=rng)
     assert np.array_equal(before.x, after.x) and np.array_equal(before.history, after.history)
     assert before.evaluations == after.evaluations

@@ -73,7 +73,7 @@ def test_ga_keeps_its_elite():
     # With elitism the best cost of the population never gets worse: history is the best
     # ever found anyway, so check the population directly through the state.
     ga = make("ga", population=20)
-    from swarmplan.optimizers.core import Problem
+    from swarmplan.optimizers.base import Problem
 
     problem = Problem(sphere, LOWER, UPPER, 2000)
     rng = np.random.default_rng(3)

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from swarmplan.optimizers import make
+from swarmplan.optimizers.base import Problem
 from swarmplan.optimizers.bat import IbaAbc, _IbaAbcState, roulette_probabilities
 from swarmplan.optimizers.bat_gauss import sine_weight, two_gaussian
-from swarmplan.optimizers.core import Problem
 
 D = 10
 LOWER, UPPER = -5.12 * np.ones(D), 5.12 * np.ones(D)

@@ -18,6 +18,7 @@ import pytest
 from scipy.stats import rankdata
 
 from swarmplan.optimizers import make
+from swarmplan.optimizers.base import Problem
 from swarmplan.optimizers.central_force import (
     _to_box,
     _to_unit,
@@ -25,7 +26,6 @@ from swarmplan.optimizers.central_force import (
     cfo_weights,
     gravity_from_weights,
 )
-from swarmplan.optimizers.core import Problem
 
 
 def _sphere(X: np.ndarray) -> np.ndarray:

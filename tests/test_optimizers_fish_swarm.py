@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from swarmplan.optimizers import make
-from swarmplan.optimizers.core import Problem
+from swarmplan.optimizers.base import Problem
 from swarmplan.optimizers.fish_swarm import (
     best_in_view,
     in_view,

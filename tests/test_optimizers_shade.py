@@ -7,7 +7,7 @@ import pytest
 
 from swarmplan.bench.functions import get
 from swarmplan.optimizers import make
-from swarmplan.optimizers.core import Problem
+from swarmplan.optimizers.base import Problem
 
 D = 10
 

@@ -79,7 +79,7 @@ def test_woa_a_decreases_with_evaluations_used():
     # Early on |A| can exceed 1 (exploration); with the budget nearly used, a ~ 0 and every
     # whale moves towards X_*: the population contracts around the best point.
     woa = make("woa")
-    from swarmplan.optimizers.core import Problem
+    from swarmplan.optimizers.base import Problem
 
     problem = Problem(sphere, LOWER, UPPER, 10**6)
     rng = np.random.default_rng(0)
@@ -182,7 +182,7 @@ def test_rscdwoa_defaults():
 
 def test_woa_generation_is_eqs_2_to_10_on_the_same_draws():
     # one generation of the kernel against the equations written out in numpy
-    from swarmplan.optimizers.core import Problem
+    from swarmplan.optimizers.base import Problem
 
     opt = make("woa", population=40)
     problem = Problem(shifted_sphere, LOWER, UPPER, 10**6)
@@ -208,7 +208,7 @@ def test_woa_generation_is_eqs_2_to_10_on_the_same_draws():
 
 @pytest.mark.parametrize("kind", ["tent", "logistic"])
 def test_rscdwoa_revives_degenerate_chaos_in_a_run(kind):
-    from swarmplan.optimizers.core import Problem
+    from swarmplan.optimizers.base import Problem
 
     opt = make("rscdwoa", chaos=kind, population=5)
     problem = Problem(sphere, LOWER, UPPER, 10**6)
@@ -228,7 +228,7 @@ def test_rscdwoa_de_crossover_and_perturbation_frequencies():
     # else the parent's; perturbed coordinates uniform in the box. With lambda = F = 0 and
     # omega = 1 the donor is the population best's coordinate, so each outcome is recognizable.
     from swarmplan.optimizers import _whale_kernels as wk
-    from swarmplan.optimizers.core import Problem
+    from swarmplan.optimizers.base import Problem
     from swarmplan.optimizers.whale import _kit
 
     n, d, alpha, c_rate = 20, 50, 0.2, 0.6

@@ -151,14 +151,14 @@ def test_every_attempt_rejected_holds_then_searches_wider(monkeypatch):
     # Each round but the last defers (the agent holds on under APF and is asked again) ...
     for r in range(1, rounds):
         assert planner.on_stuck(sim, 0) is None
-        kind, detail = [(e.kind, e.detail) for e in sim._events][-1]
+        kind, detail = [(e.kind, e.detail) for e in sim.records.events][-1]
         assert kind == "escape_deferred" and detail["round"] == r and detail["attempts"] == attempts
         assert detail["held_by"]["by"] in ("ground", "bounds", "body", "agent", "none")
     # ... and the last does not give up: the multirotor hovers where it is, and says why.
     out = planner.on_stuck(sim, 0)
     assert isinstance(out, PlannedSegment) and out.mode == Mode.ESCAPE
     np.testing.assert_allclose(out.waypoints, [sim.state.position[0]])
-    kind, detail = [(e.kind, e.detail) for e in sim._events][-1]
+    kind, detail = [(e.kind, e.detail) for e in sim.records.events][-1]
     assert kind == "hold" and detail["possible"] and detail["round"] == 1
     assert f"in {rounds} rounds" in detail["reason"]
     assert sim.metrics.optimizer_runs[0] == rounds * attempts
@@ -176,7 +176,7 @@ def test_a_fixed_wing_with_no_room_to_loiter_is_failed_with_the_reason(monkeypat
     for _ in range(planner.escape.cfg["rounds"] - 1):
         assert planner.on_stuck(sim, 0) is None
     assert planner.on_stuck(sim, 0) == "failed"
-    kind, detail = [(e.kind, e.detail) for e in sim._events][-1]
+    kind, detail = [(e.kind, e.detail) for e in sim.records.events][-1]
     assert kind == "hold" and detail["possible"] is False
 
 

@@ -11,8 +11,8 @@ import pytest
 from mcap.reader import make_reader
 
 from swarmplan.core import AgentStates, Mode
-from swarmplan.geometry.compiled import COMPILED_FROM
 from swarmplan.io.recording import McapRecorder
+from swarmplan.runtime.compiled import COMPILED_FROM
 
 
 def _states(n: int, steps: int, seed: int) -> list[tuple[float, AgentStates]]:

@@ -14,7 +14,7 @@ from helpers import base_world, make_world
 
 from swarmplan.flight import _guide_kernel, _guide_numpy
 from swarmplan.geometry import _shape_kernel as K
-from swarmplan.geometry import bodies, shapes, sweep_kernels
+from swarmplan.geometry import bodies, shapes, swept_kernels
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import fcl_geometry, shape_table
 from swarmplan.planner import _segment_kernel
@@ -134,7 +134,7 @@ def test_every_caller_measures_the_table_distance(shape: bodies.Shape) -> None:
     code, rot, prm = shape_table(list(world.obstacles))
     assert (code == table.code).all() and (rot == table.rotation).all() and (prm == table.prm).all()
     for j in range(2):
-        got = np.array([sweep_kernels._point_distance(*q, shape.code, *table.prm[j]) for q in local[j]])
+        got = np.array([swept_kernels._point_distance(*q, shape.code, *table.prm[j]) for q in local[j]])
         assert got.tobytes() == np.maximum(twin[:, j], 0.0).tobytes()
     # The escapes' segment costs.
     for j in range(2):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from swarmplan.bench import swarm_scenarios as S
-from swarmplan.bench.swarm import ContactMeter
+from swarmplan.bench.swarm_runs import ContactMeter
 from swarmplan.sim import Simulation
 
 
@@ -139,3 +139,42 @@ def test_bench_swarm_rejects_bad_arguments(argv, message, tmp_path):
     assert out.returncode == 2
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in out.stderr
+
+
+def test_lab_scenarios_are_the_literatures():
+    """RMADER's circle: antipodal on a 10 m circle at the asked altitude, its drone and step;
+    the Crazyswarm room: a grid swapped through its centre, the downwash ellipsoid as the
+    separation (semi-axes minus both radii); every lab scenario parses at each of its sizes."""
+    raw = S.rmader_circle(10, 0, altitude=5.0)
+    start = np.array([a["start"] for a in raw["agents"]])
+    goal = np.array([a["goal"] for a in raw["agents"]])
+    assert np.allclose(np.linalg.norm(start[:, :2], axis=1), 10.0) and np.allclose(start[:, 2], 5.0)
+    assert np.allclose(goal[:, :2], -start[:, :2]) and np.allclose(goal[:, 2], 5.0)
+    assert raw["agent_defaults"]["radius"] == 0.4 and raw["agent_defaults"]["speed"]["max"] == 5.0
+    assert raw["sim"]["dt"] == 0.05 and raw["sim"]["goal_tolerance"] == 0.5
+    room = S.crazyswarm_room(16, 0)
+    sep = np.array(room["agent_defaults"]["separation"]) + 2 * room["agent_defaults"]["radius"]
+    assert np.allclose(sep, S.CRAZYSWARM_ELLIPSOID)
+    start = np.array([a["start"] for a in room["agents"]])
+    goal = np.array([a["goal"] for a in room["agents"]])
+    assert np.allclose(goal[:, :2], -start[:, :2])
+    assert set(S.LAB_SIZES) == set(S.LAB_SCENARIOS)
+    for name, sizes in S.LAB_SIZES.items():
+        for n in sizes:
+            assert len(S.scenario_world(name, n, 1).agents) == n
+
+
+def test_lab_table_sets_the_published_figures_beside_ours():
+    from swarmplan.bench.swarm_lab import lab_table, lab_verdicts
+    from swarmplan.bench.swarm_report import Row
+
+    rows = [
+        Row("rmader_circle_5m", 10, "planner", s, 10, c, 0.3, 1.1, last, 42.0, 1.0, 10.0, 0, 4.0)
+        for s, c, last in ((0, 0, 4.5), (1, 1, 5.5))
+    ]
+    text = lab_table(rows)
+    assert "| rmader_circle_5m | 10 | planner | 20/20 | 50 % | 1 | 0.30 | 4.00 | 5.00 | 0 |" in text
+    assert "| EGO-Swarm | 38 % | 5.64 |" in text and "mit-acl/rmader" in text
+    verdicts = lab_verdicts(rows)
+    assert verdicts[0].endswith("20/20, 1 pairs: NOT met")
+    assert verdicts[1] == "- rmader_circle_5m, 10 agents, default planner: travel time 5.00 s <= 5 s: met"

@@ -27,125 +27,24 @@ import argparse
 import csv
 import importlib.util
 import math
-import tempfile
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from swarmplan.bench.swarm_scenarios import MAX_AGENTS, OBSTACLE_FREE, SCENARIOS, scenario_world
-from swarmplan.geometry.compiled import COMPILED_FROM
+from swarmplan.bench.swarm_report import Row
+from swarmplan.bench.swarm_runs import ContactMeter, run_swarmplan, straight_lengths
+from swarmplan.bench.swarm_scenarios import (
+    LAB_SCENARIOS,
+    MAX_AGENTS,
+    OBSTACLE_FREE,
+    SCENARIOS,
+    scenario_world,
+)
+from swarmplan.runtime.compiled import COMPILED_FROM
 
 SYSTEMS = ("planner", "apf", "orca")
-
-
-@dataclass
-class Row:
-    scenario: str
-    agents: int
-    system: str
-    seed: int
-    arrived: int
-    collisions: int
-    min_separation: float
-    path_ratio: float
-    last_arrival: float
-    sim_time: float
-    wall: float
-    rtf: float
-    escapes: int
-
-
-class ContactMeter:
-    """Pairs of agents closer than the sum of their radii between consecutive samples (the
-    relative motion of a step taken as straight), and the minimum surface distance."""
-
-    def __init__(self, radius: np.ndarray):
-        self.radius = np.asarray(radius, dtype=float)
-        self.pairs: set[tuple[int, int]] = set()
-        self.min_gap = math.inf
-
-    def update(self, p0: np.ndarray, p1: np.ndarray) -> None:
-        from scipy.spatial import cKDTree
-
-        move = float(np.linalg.norm(p1 - p0, axis=1).max(initial=0.0))
-        reach = 2.0 * float(self.radius.max()) + 2.0 * move + 5.0
-        pairs = cKDTree(p1).query_pairs(reach, output_type="ndarray")
-        if not len(pairs):
-            return
-        a, b = pairs[:, 0], pairs[:, 1]
-        dp = p0[a] - p0[b]
-        dv = (p1[a] - p1[b]) - dp
-        vv = np.einsum("ij,ij->i", dv, dv)
-        t = np.clip(-np.einsum("ij,ij->i", dp, dv) / np.maximum(vv, 1e-12), 0.0, 1.0)
-        d = np.linalg.norm(dp + t[:, None] * dv, axis=1)
-        gap = d - self.radius[a] - self.radius[b]
-        self.min_gap = min(self.min_gap, float(gap.min()))
-        for k in np.flatnonzero(gap < 0.0):
-            self.pairs.add((int(a[k]), int(b[k])))
-
-
-def _straight(world) -> np.ndarray:  # noqa: ANN001
-    return np.array([np.linalg.norm(np.subtract(a.goal, a.start)) for a in world.agents])
-
-
-class _RunMeter:
-    """Observer of a run (``io.runner.run_episode``): contacts from consecutive positions, the
-    flown paths (every 5th sample) and the wall time of the stepping loop from the end of the
-    first step (start-up and the first step excluded; the meter's own work subtracted)."""
-
-    def __init__(self, radius: np.ndarray, keep_paths: bool):
-        self.meter = ContactMeter(radius)
-        self.keep_paths = keep_paths
-        self.paths: list[np.ndarray] = []
-        self.steps = 0
-        self.wall = 0.0
-        self.t_first = 0.0
-        self._clock = 0.0
-        self._pos: np.ndarray | None = None
-
-    def on_reset(self, result) -> None:  # noqa: ANN001
-        self._pos = result.state.position.copy()
-        if self.keep_paths:
-            self.paths.append(self._pos)
-
-    def on_step(self, result) -> None:  # noqa: ANN001
-        now = time.perf_counter()
-        self.steps += 1
-        if self.steps == 1:
-            self.t_first = result.state.t
-        else:
-            self.wall += now - self._clock
-        pos = result.state.position.copy()
-        self.meter.update(self._pos, pos)
-        self._pos = pos
-        if self.keep_paths and (self.steps % 5 == 0 or result.terminated or result.truncated):
-            self.paths.append(pos)
-        self._clock = time.perf_counter()
-
-
-def run_swarmplan(name: str, agents: int, seed: int, system: str, keep_paths: bool = False):  # noqa: ANN201
-    """One run of swarmplan (``system``: 'planner' or 'apf'), recording its MCAP log as the
-    command line does; (Row, paths (samples, N, 3) or None)."""
-    from swarmplan.io.recording import McapRecorder
-    from swarmplan.io.runner import run_episode
-    from swarmplan.sim import Simulation
-
-    world = scenario_world(name, agents, seed)
-    sim = Simulation(world, planner="world" if system == "planner" else "none")
-    run = _RunMeter(sim.params.radius, keep_paths)
-    with tempfile.TemporaryDirectory() as tmp:
-        run_episode(sim, seed, observers=[run], recorder=McapRecorder(Path(tmp) / "run.mcap"))
-    m = sim.metrics
-    arrived = np.isfinite(m.arrival_time)
-    straight = _straight(world)[arrived]
-    ratio = float(np.mean(m.path_length[arrived] / np.maximum(straight, 1e-9))) if arrived.any() else math.nan
-    flown = sim.state.t - run.t_first
-    row = Row(name, agents, system, seed, int(arrived.sum()), len(run.meter.pairs), run.meter.min_gap, ratio,
-              float(np.nanmax(m.arrival_time)) if arrived.any() else math.nan, sim.state.t, run.wall,
-              flown / run.wall if run.wall > 0 else math.nan, int(m.escapes.sum()))  # fmt: skip
-    return row, (np.array(run.paths) if keep_paths else None)
 
 
 def run_orca(name: str, agents: int, seed: int) -> Row:
@@ -188,7 +87,7 @@ def run_orca(name: str, agents: int, seed: int) -> Row:
         done = np.isnan(arrival) & (np.linalg.norm(goal - pos, axis=1) <= tol)
         arrival[done] = t
     arrived = np.isfinite(arrival)
-    straight = _straight(world)
+    straight = straight_lengths(world)
     ratio = float(np.mean(path[arrived] / np.maximum(straight[arrived], 1e-9))) if arrived.any() else math.nan
     last = float(np.nanmax(arrival)) if arrived.any() else math.nan
     rtf = (t - world.dt) / wall if wall > 0 else math.nan
@@ -207,7 +106,14 @@ def _parse_sizes(text: str) -> list[int] | None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sizes", default="16,64,256,512", help="swarm sizes, comma-separated (each >= 2)")
     parser.add_argument("--seeds", type=int, default=3, help="seeds per scenario and size")
-    parser.add_argument("--scenarios", default=",".join(SCENARIOS), help="scenarios, comma-separated")
+    parser.add_argument(
+        "--scenarios",
+        default=",".join(SCENARIOS),
+        help="scenarios, comma-separated; 'lab' (or lab scenario names: "
+        + ", ".join(LAB_SCENARIOS)
+        + ") flies the literature's lab scenarios at their own sizes, beside their published "
+        "figures, into --out only",
+    )
     parser.add_argument("--peers", default="", help="peer systems to fly beside swarmplan: orca")
     parser.add_argument(
         "--out",
@@ -228,9 +134,11 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
         problems.append(f"--sizes: expected whole numbers >= 2 separated by commas, got {args.sizes!r}")
     if args.seeds < 1:
         problems.append(f"--seeds: must be >= 1, got {args.seeds}")
-    unknown = [s for s in args.scenarios.split(",") if s not in SCENARIOS]
+    named = args.scenarios.split(",")
+    unknown = [s for s in named if s not in SCENARIOS and s not in LAB_SCENARIOS and s != "lab"]
     if unknown:
-        problems.append(f"--scenarios: unknown {', '.join(unknown)} (known: {', '.join(SCENARIOS)})")
+        known = ", ".join([*SCENARIOS, "lab", *LAB_SCENARIOS])
+        problems.append(f"--scenarios: unknown {', '.join(unknown)} (known: {known})")
     peers = [p for p in args.peers.split(",") if p]
     if any(p != "orca" for p in peers):
         problems.append(f"--peers: only 'orca' is known, got {args.peers!r}")
@@ -248,10 +156,18 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
 def main(args: argparse.Namespace) -> int:
     sizes = [16] if args.quick else _parse_sizes(args.sizes)
     seeds = 1 if args.quick else args.seeds
-    scenarios = args.scenarios.split(",")
+    chosen = [n for s in args.scenarios.split(",") for n in (LAB_SCENARIOS if s == "lab" else [s])]
+    scenarios = [n for n in dict.fromkeys(chosen) if n in SCENARIOS]
+    lab = [n for n in dict.fromkeys(chosen) if n in LAB_SCENARIOS]
     orca = "orca" in args.peers.split(",")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if lab:
+        from swarmplan.bench.swarm_lab import run_lab
+
+        run_lab(lab, seeds, out)
+    if not scenarios:
+        return 0
     # Start-up out of the figures: every compiled kernel a run may call (field, checks, escape
     # and smoothing costs, movers) loaded once, by runs whose rows are not kept, at the swarm
     # size from which the step's geometry runs compiled (smaller worlds never load it: where

@@ -3,17 +3,35 @@
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import os
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from swarmplan.bench.swarm_scenarios import scenario_world
 
-if TYPE_CHECKING:
-    from swarmplan.bench.swarm import Row
+
+@dataclass
+class Row:
+    """One run of one system in one scenario (a row of ``swarm.csv``)."""
+
+    scenario: str
+    agents: int
+    system: str
+    seed: int
+    arrived: int
+    collisions: int
+    min_separation: float
+    path_ratio: float
+    last_arrival: float
+    sim_time: float
+    wall: float
+    rtf: float
+    escapes: int
+    mean_arrival: float = math.nan
 
 
 def _commit() -> str:

@@ -15,6 +15,15 @@ straight-line flight at cruise speed plus 30 s.
 - ``sphere_pillars``: the sphere with 8 vertical pillars through its interior.
 - ``forest``: agents cross a forest of pillars in opposite directions while spheres circle
   through it (the moving obstacles of MADER's benchmarks).
+
+The literature's lab scenarios (:data:`LAB_SCENARIOS`, flown at their own sizes
+:data:`LAB_SIZES`), with their own agents:
+
+- ``rmader_circle_<h>m``: RMADER's circle swap (mit-acl/rmader): 10 or 32 drones of radius
+  0.4 m at 5 m/s and 7 m/s² on a 10 m circle at altitude h = 1, 2, 5 or 8 m swap to their
+  antipodes; tolerance 0.5 m, dt 0.05 s.
+- ``crazyswarm_room``: 8, 16 or 49 Crazyflies (radius 0.05 m, 1 m/s) in a room swap their
+  take-off grid through its centre, Crazyswarm's downwash ellipsoid as the separation.
 """
 
 from __future__ import annotations
@@ -300,6 +309,132 @@ SCENARIOS: dict[str, Callable[[int, int], dict[str, Any]]] = {
 }
 """Scenario name -> generator ``(agents, seed) -> world mapping``."""
 
+# ---------------------------------------------------------------- the literature's lab scenarios
+
+RMADER_RADIUS = 0.4
+"""m: half of RMADER's drone bounding box (0.8 x 0.8 x 0.5 m, ``rmader/param/rmader.yaml`` of
+mit-acl/rmader)."""
+RMADER_SPEED = 5.0  # m/s: its v_max
+RMADER_ACCEL = 7.0  # m/s²: its a_max
+RMADER_CIRCLE = 10.0  # m: radius of its circle swap
+RMADER_TOLERANCE = 0.5  # m
+LAB_DT = 0.05  # s
+
+CRAZYFLIE_RADIUS = 0.05  # m
+CRAZYFLIE_SPEED = 1.0  # m/s (Crazyswarm's examples fly at --maxvel 1.0)
+CRAZYFLIE_ACCEL = 2.0  # m/s²
+CRAZYSWARM_ELLIPSOID = (0.125, 0.125, 0.375)
+"""m: the downwash ellipsoid of Crazyswarm's collision avoidance (``RADII`` of its scripts,
+USC-ACTLab/crazyswarm): no other centre inside it. swarmplan's separation adds both radii to the
+larger semi-axes, so the separation asked is these minus two radii."""
+CRAZYSWARM_SPACING = 0.5  # m between neighbours on the take-off grid
+
+
+def _lab_world(
+    name: str,
+    seed: int,
+    starts: np.ndarray,
+    goals: np.ndarray,
+    bounds: tuple[list, list],
+    agent: dict,
+    tol: float,
+) -> dict[str, Any]:
+    """A world of the lab scenarios around ``starts``/``goals`` (N, 3) with ``agent`` as every
+    agent's defaults; ``max_time`` three times the longest straight flight at cruise + 30 s."""
+    straight = float(np.linalg.norm(goals - starts, axis=1).max())
+    horizon = 3.0 * straight / agent["speed"]["cruise"] + 30.0
+    return {
+        "name": name,
+        "seed": int(seed),
+        "bounds": {
+            "min": [round(float(v), 6) for v in bounds[0]],
+            "max": [round(float(v), 6) for v in bounds[1]],
+        },
+        "sim": {
+            "dt": LAB_DT,
+            "max_time": round(math.ceil(horizon * 10.0) / 10.0, 1),
+            "goal_tolerance": tol,
+        },
+        "obstacles": [],
+        "agent_defaults": agent,
+        "agents": [
+            {"id": f"a{i}", "start": [round(float(v), 6) for v in s], "goal": [round(float(v), 6) for v in g]}
+            for i, (s, g) in enumerate(zip(starts, goals, strict=True))
+        ],
+    }
+
+
+def rmader_circle(agents: int, seed: int = 0, altitude: float = 1.0) -> dict[str, Any]:
+    """RMADER's circle swap: ``agents`` drones evenly on a 10 m circle at ``altitude`` swap to
+    their antipodes (radius 0.4 m, 5 m/s, 7 m/s², tolerance 0.5 m, dt 0.05 s; seed 0 starts on
+    the x axis, other seeds turn the circle)."""
+    turn = 0.0 if seed == 0 else np.random.default_rng(seed).uniform()
+    a = 2.0 * math.pi * (np.arange(agents) / agents + turn)
+    u = np.column_stack([np.cos(a), np.sin(a), np.zeros(agents)])
+    centre = np.array([0.0, 0.0, altitude])
+    half = RMADER_CIRCLE + 5.0
+    agent = {
+        "model": "multirotor",
+        "radius": RMADER_RADIUS,
+        "speed": {"min": 0.0, "max": RMADER_SPEED, "cruise": RMADER_SPEED},
+        "max_accel": RMADER_ACCEL,
+        "separation": [0.1, 0.1, 0.1],
+    }
+    bounds = ([-half, -half, 0.0], [half, half, altitude + 5.0])
+    name = f"rmader_circle_{altitude:g}m-{agents}"
+    return _lab_world(name, seed, centre + RMADER_CIRCLE * u, centre - RMADER_CIRCLE * u, bounds, agent,
+                      RMADER_TOLERANCE)  # fmt: skip
+
+
+def crazyswarm_room(agents: int, seed: int = 0) -> dict[str, Any]:
+    """A Crazyswarm-style room: ``agents`` Crazyflies (radius 0.05 m, 1 m/s, 2 m/s²) on a square
+    take-off grid 0.5 m apart, 0.5 m above the floor, each flying to the grid point opposite it
+    through the grid's centre at 1.0 m (a swap of the whole grid); their downwash ellipsoid
+    (0.125, 0.125, 0.375) m as the separation; the room 1.5 m wider than the grid on every
+    side and 2.5 m high; tolerance the agent's radius; the seed jitters the grid by up to 5 cm."""
+    rng = np.random.default_rng(seed)
+    off = _block(agents, CRAZYSWARM_SPACING)
+    if seed:
+        off = off + rng.uniform(-0.05, 0.05, size=off.shape)
+    starts = np.column_stack([off, np.full(agents, 0.5)])
+    goals = np.column_stack([-off, np.full(agents, 1.0)])
+    half = float(np.abs(off).max()) + 1.5
+    sep = [round(e - 2.0 * CRAZYFLIE_RADIUS, 6) for e in CRAZYSWARM_ELLIPSOID]
+    agent = {
+        "model": "multirotor",
+        "radius": CRAZYFLIE_RADIUS,
+        "speed": {"min": 0.0, "max": CRAZYFLIE_SPEED, "cruise": CRAZYFLIE_SPEED},
+        "max_accel": CRAZYFLIE_ACCEL,
+        "separation": sep,
+    }
+    bounds = ([-half, -half, 0.0], [half, half, 2.5])
+    return _lab_world(f"crazyswarm_room-{agents}", seed, starts, goals, bounds, agent, CRAZYFLIE_RADIUS)
+
+
+LAB_SCENARIOS: dict[str, Callable[[int, int], dict[str, Any]]] = {
+    **{
+        f"rmader_circle_{h:g}m": (lambda n, s, h=h: rmader_circle(n, s, altitude=h))
+        for h in (1.0, 2.0, 5.0, 8.0)
+    },
+    "crazyswarm_room": crazyswarm_room,
+}
+"""The literature's lab scenarios: name -> ``(agents, seed) -> world mapping``."""
+
+LAB_SIZES = {
+    **{name: (10, 32) for name in LAB_SCENARIOS if name.startswith("rmader")},
+    "crazyswarm_room": (8, 16, 49),
+}
+"""The swarm sizes each lab scenario is flown at."""
+
+PUBLISHED = {
+    ("rmader_circle", 10): (
+        "mit-acl/rmader, 10-agent circle, no communication delay",
+        [("RMADER", 100.0, 9.65), ("MADER", 97.0, 7.81), ("EGO-Swarm", 38.0, 5.64)],
+    ),
+}
+"""Published (collision-free runs %, mean travel time s) beside a lab scenario family and size."""
+
+
 OBSTACLE_FREE = ("sphere", "circle", "crossing")
 """The scenarios without obstacles (the ones ORCA-3D can fly)."""
 
@@ -312,11 +447,12 @@ def scenario_world(name: str, agents: int, seed: int = 0, planner: dict[str, Any
     ``planner`` section, e.g. ``{"optimizer": {"name": "none"}}``)."""
     from swarmplan.world import parse_world
 
-    if name not in SCENARIOS:
-        raise ValueError(f"unknown scenario '{name}' (known: {', '.join(SCENARIOS)})")
+    known = {**SCENARIOS, **LAB_SCENARIOS}
+    if name not in known:
+        raise ValueError(f"unknown scenario '{name}' (known: {', '.join(known)})")
     if agents < 2:
         raise ValueError(f"agents: at least 2, got {agents}")
-    raw = SCENARIOS[name](agents, seed)
+    raw = known[name](agents, seed)
     if planner is not None:
         raw["planner"] = planner
     return parse_world(raw)

@@ -21,6 +21,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "scale": ("swarmplan.bench.scale", "speed figures at swarm scale, each beside its target"),
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
     "swarm": ("swarmplan.bench.swarm", "dense swarms on the standard scenarios, beside ORCA-3D"),
+    "reach": ("swarmplan.bench.reach", "random worlds of every class: is every reachable goal reached"),
     "docs": ("swarmplan.bench.docs", "re-run the commands behind the docs' tables and rewrite them"),
 }
 

@@ -174,8 +174,8 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
 
-    from swarmplan.track.core import track
     from swarmplan.track.output import plot, write_mcap
+    from swarmplan.track.tracking import track
 
     start = time.perf_counter()
     result = track(rec, cfg, args.agent)

@@ -27,7 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-9  # apf._EPS
 

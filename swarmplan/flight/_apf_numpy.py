@@ -1,5 +1,5 @@
 """The potential field of ``swarmplan.flight.apf`` in numpy, for the first calls of a world
-below swarm size (``swarmplan.geometry.compiled.field_numpy_calls``): :func:`apf_forces` takes
+below swarm size (``swarmplan.runtime.compiled.field_numpy_calls``): :func:`apf_forces` takes
 the arguments of ``swarmplan.flight._apf_kernel.apf_forces`` and writes the same bits.
 
 Why a second implementation: the compiled one needs numba, whose import and the loading of the

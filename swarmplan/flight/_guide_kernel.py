@@ -17,9 +17,9 @@ surfaces are stored (and re-priced by the ways' loads).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from swarmplan.geometry._shape_kernel import sdf
+from swarmplan.runtime.compiled import njit
 
 NO_WAY = -9999
 """The predecessor of a vertex with no way to it (and of the source), as scipy writes it."""

@@ -38,7 +38,7 @@ so the agent can still brake before the goal and before any obstacle surface ahe
 
 The field has two implementations with the same bits: the compiled kernel, and numpy
 (:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below
-swarm size (``swarmplan.geometry.compiled.field_numpy_calls``) while numba is not in the
+swarm size (``swarmplan.runtime.compiled.field_numpy_calls``) while numba is not in the
 process (once something else has loaded it, e.g. the guide's kernels, the kernel costs no more
 to load than its own cached code). The bits are the same, so this is a speed choice only.
 The numpy reference the tests compare both with, sums in another order, lives in
@@ -54,9 +54,8 @@ import numpy as np
 
 from swarmplan.flight import _apf_numpy
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.geometry.compiled import field_numpy_calls
 from swarmplan.geometry.vec3 import dot3, norm3
-from swarmplan.runtime.compiled import kernel_module, numba_loaded
+from swarmplan.runtime.compiled import field_numpy_calls, kernel_module, use_numpy_twin
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -173,7 +172,7 @@ class ApfField:
         if self._any_fixed_wing:
             idx = np.arange(len(vel)) if idx is None else idx
             return np.ascontiguousarray(reach_at_speed(self.params, idx, vel, self.world.dt))
-        if not numba_loaded():  # the kernel's formula in numpy (the same bits): numba stays unloaded
+        if use_numpy_twin():  # the kernel's formula in numpy (the same bits): numba stays unloaded
             v = norm3(vel)
             denominator = self._brake_denominator[: len(vel)] if idx is None else self._brake_denominator[idx]
             return np.ascontiguousarray(v * self.world.dt + v * v / denominator)
@@ -204,7 +203,7 @@ class ApfField:
         )
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach_all = self._reach_at_speed(None, swarm.vel)
-        if self._numpy_calls > 0 and not numba_loaded():
+        if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
         else:
@@ -253,7 +252,7 @@ def commanded_velocity(
     """:func:`commanded_velocity_numpy` in one compiled pass over the rows (the same bits,
     tests/test_apf_compiled.py); numpy itself until numba is in the process (a small world's
     steps never load numba for it)."""
-    if not numba_loaded():
+    if use_numpy_twin():
         return commanded_velocity_numpy(params, idx, force, pos, goal, clearance, clearance_dir)
     f = np.ascontiguousarray
     return kernel_module("swarmplan.flight._apf_kernel").commanded_velocity(

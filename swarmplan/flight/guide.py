@@ -17,9 +17,9 @@ direction, so that in a passage two opposing flows keep to their own right-hand 
 of meeting head-on (the right-hand rule the field applies between agents). Each new way then
 loads the cells near surfaces it runs through (``ONCOMING``: negotiated congestion), so opposing
 flows take separate lanes through a passage (a doorway's tall slot: different heights). Ways in
-the same direction are not spread (``SAME`` = 0): at 0.2 they reached down to the ground's
-repulsion and two agents were held at a doorway's corners (16 agents, pure APF, seeds 0-5: 92/96 -> 96/96
-with 0; 64 agents, seeds 0-5: all arrive either way).
+the same direction are not spread (``SAME`` = 0): spread at 0.2, they reach down to the ground's
+repulsion and hold two agents at a doorway's corners (16 agents, pure APF, seeds 0-5: 92 of 96
+arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
 
 Each step an agent whose straight line to its goal runs through a static obstacle or within
 ``SQUEEZE`` of one (inflated by its radius; checked every ``RECHECK`` steps, a fifth of the
@@ -42,17 +42,16 @@ bit, by the next guide of the same geometry and starts (:mod:`swarmplan.flight.g
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from swarmplan.flight import _guide_numpy, guide_cache
+from swarmplan.flight.guide_graph import AROUND, OFFSETS, Graph, legs
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
-from swarmplan.geometry.compiled import use_compiled
 from swarmplan.geometry.shapes import DISTANCE
-from swarmplan.runtime.compiled import kernel_module, numba_loaded
+from swarmplan.runtime.compiled import kernel_module, use_numpy_twin
 from swarmplan.world.motion import resting_bodies
 
 if TYPE_CHECKING:
@@ -72,53 +71,12 @@ REPULSION = 0.15  # scale of a guided agent's static repulsion (half a segment's
 AHEAD = 2.0  # influence distances of a line an unguided agent checks in flight
 RECHECK = 5  # steps between two line-of-sight checks of an agent
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
+_GRID_ARRAYS = ("clear", "_body_clear", "_gap", "_reach")  # a grid's tables besides its graph
 
 
-@dataclasses.dataclass
-class _Graph:
-    """A graph over the cells in CSR form (row v: the legs into v, by their start cell; rows
-    only for the cells near surfaces: the legs into any other cell cost their lengths)."""
-
-    indptr: np.ndarray  # int32, (cells + 1,)
-    indices: np.ndarray  # int32: the legs' start cells
-    data: np.ndarray  # float64: the legs' costs
-    # What the search needs besides (``_guide_kernel.dijkstra``): per cell the bits of the
-    # offsets of its legs and whether it has a row (near surfaces), per offset the flat delta
-    # and the length.
-    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
-
-
-def _offsets() -> np.ndarray:
-    o = np.array([(a, b, c) for a in (-1, 0, 1) for b in (-1, 0, 1) for c in (-1, 0, 1)])
-    return o[np.abs(o).sum(axis=1) > 0]
-
-
-_OFFSETS = _offsets()  # the 26 neighbours' offsets
-_AROUND = np.vstack([np.zeros((1, 3), dtype=_OFFSETS.dtype), _OFFSETS])  # and the cell itself
-
-
-def _legs(shape: np.ndarray, cell: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The 26 offsets ordered so that the start cells of the legs into a cell ascend, their flat
-    deltas and lengths, per offset its row among the unit vectors to the right of the legs not
-    vertical (-1 for a vertical one), and those vectors."""
-    offsets = _OFFSETS
-    ny, nz = int(shape[1]), int(shape[2])
-    delta = (offsets[:, 0] * ny + offsets[:, 1]) * nz + offsets[:, 2]
-    order = np.argsort(-delta, kind="stable")
-    offsets, delta = offsets[order], delta[order]
-    length = np.empty(len(offsets))
-    row = np.full(len(offsets), -1, dtype=np.int64)
-    rights = []
-    for k, o in enumerate(offsets):
-        step = o * cell
-        length[k] = float(np.linalg.norm(step))
-        e = step / length[k]
-        right = np.array([e[1], -e[0], 0.0])
-        nr = float(np.linalg.norm(right))
-        if nr > 0.2:
-            row[k] = len(rights)
-            rights.append(right / nr)
-    return offsets, delta, length, row, np.array(rights).reshape(-1, 3)
+def _constants() -> dict[str, float]:
+    """This module's constants (tests may change them: a changed constant is another key)."""
+    return {k: v for k, v in globals().items() if k.isupper() and isinstance(v, int | float)}
 
 
 class StaticGuide:
@@ -166,10 +124,33 @@ class StaticGuide:
         self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
         # The grid's tables: those of an earlier guide of the same geometry when at hand (the
         # same bits), else computed here and kept for the next.
-        self._grid_key = guide_cache.grid_key(self)
-        if not guide_cache.load_grid(self, self._grid_key):
+        self._grid_key = guide_cache.grid_key(_constants(), world, self.bodies, self.radius, self.floor)
+        tables = guide_cache.load_grid(self._grid_key, self.n_cells)
+        if tables is None:
             self._compute_grid()
-            guide_cache.store_grid(self, self._grid_key)
+            guide_cache.store_grid(self._grid_key, self.grid_tables())
+        else:
+            self._adopt_grid_tables(tables)
+
+    def grid_tables(self) -> dict[str, np.ndarray]:
+        """The grid's tables as named arrays (what :mod:`~swarmplan.flight.guide_cache` stores)."""
+        g, box = self._reverse, self._box_half
+        return {
+            **{name: getattr(self, name) for name in _GRID_ARRAYS},
+            **{"indptr": g.indptr, "indices": g.indices, "data": g.data, "mask": g.grid[0]},
+            **{"low": np.array(self._low), "gap_max": np.array(self._gap_max)},
+            "has_box_half": np.array(box is not None),
+            "box_half": np.zeros((0, 3)) if box is None else box,
+        }
+
+    def _adopt_grid_tables(self, a: dict[str, np.ndarray]) -> None:
+        """Take the grid's tables from :meth:`grid_tables` of an earlier guide of the same inputs."""
+        for name in _GRID_ARRAYS:
+            setattr(self, name, a[name])
+        self._low, self._gap_max = int(a["low"]), float(a["gap_max"])
+        self._box_half = a["box_half"] if bool(a["has_box_half"]) else None
+        self._proximity()
+        self._adopt_graph(a["indptr"], a["indices"], a["data"], a["mask"])
 
     def _compute_grid(self) -> None:
         """The cells' clearance, the reversed graph and the line-of-sight tables."""
@@ -179,7 +160,7 @@ class StaticGuide:
         # searches run from the goal over reversed legs. Per offset not vertical the cells'
         # normals on the leg's right-hand side (numpy's product over all cells: the bits it
         # gives the legs' end cells); the graph itself in one compiled pass.
-        offsets, delta, length, row, rights = _legs(self.shape, self.cell)
+        offsets, delta, length, row, rights = legs(self.shape, self.cell)
         side = np.empty((len(rights), self.n_cells))
         for k, r in enumerate(rights):
             np.matmul(normal, r, out=side[k])
@@ -204,8 +185,8 @@ class StaticGuide:
 
     def _adopt_graph(self, indptr: np.ndarray, start: np.ndarray, data: np.ndarray, mask: np.ndarray) -> None:
         """Take the reversed graph's arrays (``reverse_graph``'s, computed or read back)."""
-        _, delta, length, _, _ = _legs(self.shape, self.cell)
-        self._reverse = _Graph(indptr, start, data, (mask, self.near, delta, length))
+        _, delta, length, _, _ = legs(self.shape, self.cell)
+        self._reverse = Graph(indptr, start, data, (mask, self.near, delta, length))
         self._base = data.copy()
         # Unit directions of the legs into cells near surfaces (the only ones a way re-prices),
         # found at a cell's first re-pricing (only those rows are ever read).
@@ -269,7 +250,7 @@ class StaticGuide:
     def _kernels(self) -> ModuleType:
         """The per-step kernels: their numpy twins (the same answers) below swarm size while
         numba is not in the process, else the compiled ones."""
-        if not use_compiled(len(self.world.agents)) and not numba_loaded():
+        if use_numpy_twin(len(self.world.agents)):
             return _guide_numpy
         return kernel_module("swarmplan.flight._guide_kernel")
 
@@ -443,7 +424,7 @@ class StaticGuide:
         a, b = np.array(way[:-1]), np.array(way[1:])
         d = self.centres[b] - self.centres[a]
         d /= np.linalg.norm(d, axis=1, keepdims=True)
-        nb = (self.ijk[b][:, None, :] + _AROUND[None]).reshape(-1, 3)
+        nb = (self.ijk[b][:, None, :] + AROUND[None]).reshape(-1, 3)
         ok = ((nb >= 0) & (nb < self.shape)).all(axis=1)
         cells = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
         dirs = np.repeat(d, 27, axis=0)
@@ -475,7 +456,7 @@ class StaticGuide:
         most clearance when the goal's own cell is not free."""
         if self.free[cell]:
             return cell
-        nb = self.ijk[cell] + _OFFSETS
+        nb = self.ijk[cell] + OFFSETS
         nb = nb[((nb >= 0) & (nb < self.shape)).all(axis=1)]
         flat = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
         return int(flat[np.argmax(self.clear[flat])])
@@ -491,15 +472,51 @@ class StaticGuide:
         key = (
             guide_cache.ways_key(self._grid_key, pos, goal, self.can_stop) if not len(self._source) else None
         )
-        if key is not None and guide_cache.load_ways(self, key):
-            return
+        if key is not None:
+            tables = guide_cache.load_ways(key, len(self.guided), self.n_cells, self._reverse.indptr)
+            if tables is not None:
+                self._adopt_ways_tables(tables)
+                return
         rows = np.flatnonzero(self.can_stop[: len(pos)])
         if len(rows):
             self.guided[rows] = self.blocked(pos[rows], goal[rows])
             rows = rows[self.guided[rows]]
             self._rows_for(self.cell_of(goal[rows]), pos[rows])
         if key is not None:
-            guide_cache.store_ways(self, key)
+            guide_cache.store_ways(key, self.ways_tables())
+
+    def ways_tables(self) -> dict[str, np.ndarray]:
+        """What a fresh guide's reset changed (the ways found, the legs they re-priced, the loads
+        and which agents it guides) as named arrays: only the parts that differ from a fresh
+        guide's, so they come to a few MB at most."""
+        g, rows = self._reverse, len(self._source)
+        priced = guide_cache.changed(g.data, self._base)
+        flow = guide_cache.changed(self._flow, np.zeros_like(self._flow))
+        legs = guide_cache.legs_into(g.indptr, np.flatnonzero(self._has_dir))
+        goal_cells = np.flatnonzero(self._row_of >= 0)
+        return {
+            **{"guided": self.guided, "priced": priced, "prices": g.data[priced]},
+            **{"flow_cells": flow, "flow": self._flow[flow], "has_dir": self._has_dir},
+            **{"leg_dir": self._leg_dir[legs], "goal_cells": goal_cells},
+            "goal_rows": self._row_of[goal_cells],
+            **{"next": self._next[:rows], "dist": self._dist[:rows], "capacity": np.array(len(self._next))},
+            "source": self._source,
+        }
+
+    def _adopt_ways_tables(self, a: dict[str, np.ndarray]) -> None:
+        """Take the ways of :meth:`ways_tables` of an earlier fresh guide (checked whole by
+        ``guide_cache.load_ways``) into this fresh one."""
+        rows, n = len(a["source"]), self.n_cells
+        self.guided[:] = a["guided"]
+        self._reverse.data[a["priced"]] = a["prices"]
+        self._flow[a["flow_cells"]] = a["flow"]
+        self._has_dir[:] = a["has_dir"]
+        self._leg_dir[a["legs"]] = a["leg_dir"]
+        self._row_of[a["goal_cells"]] = a["goal_rows"]
+        self._next = np.empty((int(a["capacity"]), n), dtype=np.int32)
+        self._dist = np.empty((int(a["capacity"]), n), dtype=np.float32)
+        self._next[:rows], self._dist[:rows] = a["next"], a["dist"]
+        self._source = a["source"]
 
     def targets(
         self,

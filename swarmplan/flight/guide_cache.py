@@ -8,6 +8,9 @@ it in a small world). Both are stored after they are computed and read back when
 is built for the same inputs, array for array, so a guide read back holds the very bits a
 computed one holds and every run goes on identically (tests/test_guide_cache.py).
 
+This module keys and stores named arrays; the guide says which arrays make its tables
+(``StaticGuide.grid_tables`` / ``ways_tables``) and takes them back itself.
+
 - **The grid** is keyed by what it is computed from: the world's box, its number of agents (the
   grid's resolution), its terrain, the bodies at rest (all their fields), the largest agent
   radius, the lowest altitude and the guide's constants.
@@ -18,7 +21,6 @@ computed one holds and every run goes on identically (tests/test_guide_cache.py)
 
 from __future__ import annotations
 
-import sys
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,66 +28,38 @@ import numpy as np
 from swarmplan.runtime import disk_cache
 
 if TYPE_CHECKING:
-    from swarmplan.flight.guide import StaticGuide
-
-_GRID_ARRAYS = ("clear", "_body_clear", "_gap", "_reach")
-_GRAPH_ARRAYS = ("indptr", "indices", "data")
+    from swarmplan.world.model import Obstacle, World
 
 
-def _constants() -> dict[str, float]:
-    """The guide module's constants (tests may change them: a changed constant is another key)."""
-    module = sys.modules["swarmplan.flight.guide"]
-    return {k: v for k, v in vars(module).items() if k.isupper() and isinstance(v, int | float)}
-
-
-def grid_key(guide: StaticGuide) -> str:
-    """The key of ``guide``'s grid (see the module docstring)."""
-    w = guide.world
+def grid_key(
+    constants: dict[str, float], world: World, bodies: tuple[Obstacle, ...], radius: float, floor: float
+) -> str:
+    """The key of a guide's grid over ``world`` round ``bodies`` for agents of largest ``radius``
+    kept above ``floor``, with the guide's ``constants`` (see the module docstring)."""
     return disk_cache.digest(
         "guide grid",
-        _constants(),
-        w.bounds_min,
-        w.bounds_max,
-        len(w.agents),
-        w.peaks,
-        guide.bodies,
-        guide.radius,
-        guide.floor,
+        constants,
+        world.bounds_min,
+        world.bounds_max,
+        len(world.agents),
+        world.peaks,
+        bodies,
+        radius,
+        floor,
     )
 
 
-def load_grid(guide: StaticGuide, key: str) -> bool:
-    """Set ``guide``'s grid tables from the entry under ``key``; whether there was one."""
+def load_grid(key: str, n_cells: int) -> dict[str, np.ndarray] | None:
+    """The grid tables stored under ``key`` for a grid of ``n_cells`` cells, or None."""
     a = disk_cache.load("guide-grid", key)
-    if a is None or a["clear"].shape != (guide.n_cells,):
-        return False
-    for name in _GRID_ARRAYS:
-        setattr(guide, name, a[name])
-    guide._low, guide._gap_max = int(a["low"]), float(a["gap_max"])
-    guide._box_half = a["box_half"] if bool(a["has_box_half"]) else None
-    guide._proximity()
-    guide._adopt_graph(*(a[name] for name in _GRAPH_ARRAYS), a["mask"])
-    return True
+    if a is None or a["clear"].shape != (n_cells,):
+        return None
+    return a
 
 
-def store_grid(guide: StaticGuide, key: str) -> None:
-    """Store ``guide``'s grid tables (right after they are computed) under ``key``."""
-    g = guide._reverse
-    disk_cache.save(
-        "guide-grid",
-        key,
-        {
-            **{name: getattr(guide, name) for name in _GRID_ARRAYS},
-            "indptr": g.indptr,
-            "indices": g.indices,
-            "data": g.data,
-            "mask": g.grid[0],
-            "low": np.array(guide._low),
-            "gap_max": np.array(guide._gap_max),
-            "has_box_half": np.array(guide._box_half is not None),
-            "box_half": np.zeros((0, 3)) if guide._box_half is None else guide._box_half,
-        },
-    )
+def store_grid(key: str, tables: dict[str, np.ndarray]) -> None:
+    """Store a guide's grid ``tables`` (right after they are computed) under ``key``."""
+    disk_cache.save("guide-grid", key, tables)
 
 
 def ways_key(grid: str, pos: np.ndarray, goal: np.ndarray, can_stop: np.ndarray) -> str:
@@ -94,78 +68,41 @@ def ways_key(grid: str, pos: np.ndarray, goal: np.ndarray, can_stop: np.ndarray)
     return disk_cache.digest("guide ways", grid, np.asarray(pos, float), np.asarray(goal, float), can_stop)
 
 
-def _changed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def changed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Rows where ``a`` and ``b`` differ in any bit (-0.0 against 0.0 included)."""
     x = np.ascontiguousarray(a).view(np.uint8).reshape(len(a), -1)
     y = np.ascontiguousarray(b).view(np.uint8).reshape(len(b), -1)
     return np.flatnonzero((x != y).any(axis=1))
 
 
-def _legs_of(guide: StaticGuide, cells: np.ndarray) -> np.ndarray:
-    """The stored legs into ``cells`` (their rows of the graph's arrays)."""
-    g = guide._reverse
-    lo, count = g.indptr[cells].astype(np.int64), np.diff(g.indptr)[cells].astype(np.int64)
+def legs_into(indptr: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """The rows of a CSR graph's arrays (``indptr``) that hold the legs into ``cells``."""
+    lo, count = indptr[cells].astype(np.int64), np.diff(indptr)[cells].astype(np.int64)
     return np.repeat(lo - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
 
 
-def store_ways(guide: StaticGuide, key: str) -> None:
-    """Store what a fresh ``guide``'s reset changed (the ways found, the legs they re-priced,
-    the loads and which agents it guides) under ``key``: only the parts that differ from a fresh
-    guide's, so an entry is a few MB at most."""
-    g = guide._reverse
-    priced = _changed(g.data, guide._base)
-    flow = _changed(guide._flow, np.zeros_like(guide._flow))
-    legs = _legs_of(guide, np.flatnonzero(guide._has_dir))
-    rows = len(guide._source)
-    goal_cells = np.flatnonzero(guide._row_of >= 0)
-    disk_cache.save(
-        "guide-ways",
-        key,
-        {
-            "guided": guide.guided,
-            "priced": priced,
-            "prices": g.data[priced],
-            "flow_cells": flow,
-            "flow": guide._flow[flow],
-            "has_dir": guide._has_dir,
-            "leg_dir": guide._leg_dir[legs],
-            "goal_cells": goal_cells,
-            "goal_rows": guide._row_of[goal_cells],
-            "next": guide._next[:rows],
-            "dist": guide._dist[:rows],
-            "capacity": np.array(len(guide._next)),
-            "source": guide._source,
-        },
-    )
+def store_ways(key: str, tables: dict[str, np.ndarray]) -> None:
+    """Store what a fresh guide's reset changed (``StaticGuide.ways_tables``) under ``key``."""
+    disk_cache.save("guide-ways", key, tables)
 
 
-def load_ways(guide: StaticGuide, key: str) -> bool:
-    """Put the reset stored under ``key`` into the fresh ``guide``; whether there was one."""
+def load_ways(key: str, agents: int, n_cells: int, indptr: np.ndarray) -> dict[str, np.ndarray] | None:
+    """The reset stored under ``key`` for a guide of ``agents`` agents over ``n_cells`` cells whose
+    reversed graph has ``indptr``, checked whole (every array's shape against the others'), with
+    ``legs``: the graph's rows of its ``leg_dir``; or None."""
     a = disk_cache.load("guide-ways", key)
-    if a is None or a["guided"].shape != guide.guided.shape or a["has_dir"].shape != guide._has_dir.shape:
-        return False
-    n = guide.n_cells
+    if a is None or a["guided"].shape != (agents,) or a["has_dir"].shape != (n_cells,):
+        return None
     rows, capacity = len(a["source"]), int(a["capacity"])
-    legs = _legs_of(guide, np.flatnonzero(a["has_dir"]))
-    # Every part checked before the guide is touched: an entry is taken whole or not at all.
+    a["legs"] = legs_into(indptr, np.flatnonzero(a["has_dir"]))
     if (
-        a["next"].shape != (rows, n)
-        or a["dist"].shape != (rows, n)
+        a["next"].shape != (rows, n_cells)
+        or a["dist"].shape != (rows, n_cells)
         or capacity < rows
-        or len(legs) != len(a["leg_dir"])
+        or len(a["legs"]) != len(a["leg_dir"])
         or len(a["priced"]) != len(a["prices"])
         or len(a["flow_cells"]) != len(a["flow"])
         or len(a["goal_cells"]) != len(a["goal_rows"])
     ):
-        return False
-    guide.guided[:] = a["guided"]
-    guide._reverse.data[a["priced"]] = a["prices"]
-    guide._flow[a["flow_cells"]] = a["flow"]
-    guide._has_dir[:] = a["has_dir"]
-    guide._leg_dir[legs] = a["leg_dir"]
-    guide._row_of[a["goal_cells"]] = a["goal_rows"]
-    guide._next = np.empty((capacity, n), dtype=np.int32)
-    guide._dist = np.empty((capacity, n), dtype=np.float32)
-    guide._next[:rows], guide._dist[:rows] = a["next"], a["dist"]
-    guide._source = a["source"]
-    return True
+        return None
+    return a

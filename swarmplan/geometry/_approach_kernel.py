@@ -13,7 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-9
 _SLACK = 1e-6

@@ -15,8 +15,8 @@ numpy's 3x3 products go through BLAS, whose fused multiply-adds a loop here woul
 reproduce (30 % of the coordinates differed in the last bit). The clearance is exact (the
 same value per pair, a minimum). Meshes stay with their numpy grid.
 
-Imported lazily (:func:`swarmplan.geometry.compiled.field_kernels`): numba is not loaded by
-small worlds, and never at start-up.
+Imported lazily (``runtime.compiled.kernel_module``): numba is not loaded by small worlds,
+and never at start-up.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from swarmplan.geometry._shape_kernel import sdf_grad
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from swarmplan.runtime.compiled import njit
 
 EPS = 1e-12
 """The floor of a normalized vector's length (``shapes._EPS``)."""

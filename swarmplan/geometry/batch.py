@@ -7,7 +7,7 @@ obstacle from Python; :class:`ShapeBatch` groups the obstacles by shape (their t
 broadcast over the group's parameters), so the values equal the per-shape path up to the rounding of the
 batched rotation (tests: 1e-12). Meshes keep their per-obstacle distance grid.
 :meth:`ShapeBatch.distance` skips the gradients where only distances are needed.
-With ``compiled=True`` (the simulation's swarm-sized worlds, ``geometry.compiled``)
+With ``compiled=True`` (the simulation's swarm-sized worlds, ``runtime.compiled.use_compiled``)
 :meth:`ShapeBatch.query` computes every primitive in one compiled pass
 (:mod:`swarmplan.geometry._field_kernels`, the same formulas; tests/test_field_kernels.py).
 """
@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.geometry.bodies import body_table
-from swarmplan.geometry.compiled import field_kernels
 from swarmplan.geometry.shapes import DISTANCE, SDF, distance_and_gradient, mesh_grid
+from swarmplan.runtime.compiled import kernel_module
 
 if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle
@@ -143,7 +143,7 @@ class ShapeBatch:
         d = np.empty((n, m))
         g = np.empty((n, m, 3))
         if self.compiled:
-            kernels = field_kernels()
+            kernels = kernel_module("swarmplan.geometry._field_kernels")
             if len(self.unrotated):
                 kernels.field_query(points, c, self.unrotated, self.code, self.prm, d, g)
             if len(self.rotated):

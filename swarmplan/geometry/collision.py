@@ -20,8 +20,8 @@ import fcl
 import numpy as np
 
 from swarmplan.geometry.bodies import body_table, shape
-from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.vec3 import dot3, norm3
+from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 
 if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle, World
@@ -275,7 +275,7 @@ def first_hits(
     """:meth:`CollisionWorld.first_hit` for many agents at once.
 
     Swarm-sized worlds (``use_compiled_checks``): bounds, ground and terrain are decided in
-    numpy; the bodies by the compiled kernels (``sweep_kernels``: exact geometry, decided only
+    numpy; the bodies by the compiled kernels (``swept_kernels``: exact geometry, decided only
     away from contact), and the agents whose answer the kernels leave undecided (a body within
     ``BAND`` of contact, or a mesh) by :func:`first_hits_fcl`. Smaller worlds:
     :func:`first_hits_fcl` for all (the same answers).
@@ -287,7 +287,7 @@ def first_hits(
     if not use_compiled_checks(len(cw.world.agents)):
         return first_hits_fcl(cw, p0, p1, radii, q0, q1)
     oob, low, ground_name = _bounds_and_ground(cw.world, p0, p1, radii)
-    kind, index = sweep_kernels().sweep_many(
+    kind, index = kernel_module("swarmplan.geometry.swept_kernels").sweep_many(
         np.ascontiguousarray(p0, dtype=float),
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),

@@ -16,8 +16,8 @@ from itertools import chain
 import numpy as np
 
 from swarmplan.geometry.collision import segment_segment_min_distance
-from swarmplan.geometry.compiled import field_kernels, sweep_kernels, use_compiled, use_compiled_checks
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.runtime.compiled import kernel_module, use_compiled, use_compiled_checks
 
 SMALL = 32
 """Up to this many agents every pair is a candidate (cheaper than building a tree, and no
@@ -44,7 +44,7 @@ def agent_contacts_indexed(
     p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, active: np.ndarray, margin: float = 0.0
 ) -> list[tuple[int, int]]:
     """``agent_contacts`` with candidates from a sweep and prune on the step's midpoints (compiled,
-    ``sweep_kernels.agent_contacts``): two points moving along their steps stay within half of
+    ``swept_kernels.agent_contacts``): two points moving along their steps stay within half of
     each step of their midpoints, so a contact needs the midpoints closer than both half-steps
     + both radii + ``margin``; the candidates' distances are ``segment_segment_min_distance``'s
     arithmetic, term for term, and the pairs come in ``np.triu_indices`` order. Below swarm size
@@ -62,7 +62,7 @@ def agent_contacts_indexed(
         d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
         hit = d < radii[i] + radii[j] + margin
         return list(zip(i[hit].tolist(), j[hit].tolist(), strict=True))
-    i, j = sweep_kernels().agent_contacts(
+    i, j = kernel_module("swarmplan.geometry.swept_kernels").agent_contacts(
         np.ascontiguousarray(p0, dtype=float),
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),
@@ -75,7 +75,7 @@ def agent_contacts_indexed(
 def agent_clearance_indexed(pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
     """Per agent: min over the others of |p_i - p_j| - r_i - r_j (inf alone). The nearest
     centre is found first; a farther one can only win by the spread of the radii. Swarms
-    from ``geometry.compiled.COMPILED_FROM`` agents on take a compiled sweep instead of the
+    from ``runtime.compiled.COMPILED_FROM`` agents on take a compiled sweep instead of the
     tree (the same values: each pair's as here, the minimum exact)."""
     n = len(pos)
     if n < 2:
@@ -86,7 +86,8 @@ def agent_clearance_indexed(pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
         return d.min(axis=1)
     if use_compiled(n):
         out = np.empty(n)
-        field_kernels().agent_clearance(np.asarray(pos, dtype=float), np.asarray(radius, dtype=float), out)
+        kernels = kernel_module("swarmplan.geometry._field_kernels")
+        kernels.agent_clearance(np.asarray(pos, dtype=float), np.asarray(radius, dtype=float), out)
         return out
     from scipy.spatial import cKDTree
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 _LIMIT = 2.0**33
 _ZERO, _DOT, _MINUS = 48, 46, 45

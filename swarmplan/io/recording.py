@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from swarmplan.core import AgentStates, Mode, ObstacleStates
-from swarmplan.geometry.compiled import use_compiled
 from swarmplan.io.foxglove_scene import FoxgloveScene
 from swarmplan.io.json_floats import Interleaved
 from swarmplan.io.sink import LogSink
+from swarmplan.runtime.compiled import use_compiled
 
 _NUM3 = {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3}
 

@@ -7,7 +7,7 @@ Each family lives in its own module (``baselines``, ``bat``, ``bat_gauss``, ``be
 (``registry.BUILTIN``).
 """
 
-from swarmplan.optimizers.core import Optimizer, Problem, Result
+from swarmplan.optimizers.base import Optimizer, Problem, Result
 from swarmplan.optimizers.registry import available, defaults, make, optimizer_class, register
 
 __all__ = ["Optimizer", "Problem", "Result", "available", "defaults", "make", "optimizer_class", "register"]

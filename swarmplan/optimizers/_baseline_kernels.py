@@ -16,9 +16,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from swarmplan.optimizers._kernels import fitness_cumsum
+from swarmplan.runtime.compiled import njit
 
 # --------------------------------------------------------------------------- PSO
 

@@ -10,7 +10,7 @@ the random numbers are drawn in numpy in the same order as before and passed in 
 
 from __future__ import annotations
 
-from numba import njit
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True)

@@ -15,9 +15,9 @@ docstrings of :mod:`swarmplan.optimizers.bat` say which equation each step is.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from swarmplan.optimizers._kernels import fitness_cumsum
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True)

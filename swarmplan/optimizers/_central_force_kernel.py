@@ -13,7 +13,8 @@ CFO/MCFO generation (``cache=True`` keeps the compiled code on disk), not with t
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -14,7 +14,8 @@ The numpy definitions these follow are ``fish_swarm.neighbours``, ``swarm_centre
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True)

@@ -1,4 +1,4 @@
-"""Compiled helpers of :class:`swarmplan.optimizers.core.Problem`, usable by every algorithm.
+"""Compiled helpers of :class:`swarmplan.optimizers.base.Problem`, usable by every algorithm.
 
 Why numba here: at the populations the planner uses (30 x d = 50) an optimizer's own cost is
 the number of Python-level numpy calls per generation, not their arithmetic (each call costs
@@ -13,14 +13,15 @@ Rules the kernels follow (so that they stay cheap to compile and to call):
   batched numpy call and pass the array;
 * typed by usage (no explicit signatures), ``cache=True`` (compiled once per machine);
 * this module is imported lazily (numba's import takes ~0.5 s), when the first ``Problem``
-  is built (see :func:`swarmplan.optimizers.core.kernels`); other algorithms may call these
+  is built (see :func:`swarmplan.optimizers.base.kernels`); other algorithms may call these
   kernels too (``core.kernels().clip_into(...)``).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True)

@@ -8,8 +8,8 @@ The random numbers are drawn by numpy in batches (passing the Generator into num
 operations in the same order. Random integers (partners, donors, the forced crossover
 coordinate) come from uniforms of the batch, ``floor(u k)``: one ``integers`` call costs as
 much as ~8 ``random`` calls of its size. An RSCDWOA generation is one ``rng.random`` call,
-plus with the DE stage one more and the normals of the reverse search (before: up to ten
-calls, four of them ``integers``); same distributions, another stream than the numpy code.
+plus with the DE stage one more and the normals of the reverse search; same distributions,
+another stream than the numpy code.
 Which equation each step is: see the docstrings of :mod:`swarmplan.optimizers.whale`.
 """
 
@@ -18,7 +18,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 #: Layout of the per-run constants vector ``c`` (one array instead of a dozen scalar
 #: arguments: each argument costs numba's dispatcher ~0.1 µs).

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.base import Optimizer, Problem, initial_population
 from swarmplan.runtime.compiled import kernel_module
 
 

@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.base import Optimizer, Problem, initial_population
 from swarmplan.runtime.compiled import kernel_module
 
 # --------------------------------------------------------------------------------------

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarmplan.optimizers.base import Optimizer, Problem, initial_population
 from swarmplan.optimizers.bat import WALK_SCALE, _check_bat_params
-from swarmplan.optimizers.core import Optimizer, Problem, initial_population
 from swarmplan.runtime.compiled import kernel_module
 
 

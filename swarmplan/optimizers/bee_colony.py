@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarmplan.optimizers.base import Optimizer, Problem, initial_population
 from swarmplan.optimizers.baselines import baseline_kernels
-from swarmplan.optimizers.core import Optimizer, Problem, initial_population
 
 
 @dataclass

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.base import Optimizer, Problem, initial_population
 from swarmplan.runtime.compiled import kernel_module
 
 _EMPTY = np.empty(0)

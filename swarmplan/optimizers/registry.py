@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from swarmplan.optimizers.core import Optimizer
+from swarmplan.optimizers.base import Optimizer
 
 #: built-in algorithm name -> (module under ``swarmplan.optimizers``, class in it);
 #: tests/test_optimizer_registry.py checks that the classes' ``name`` attributes agree

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.optimizers.core import Optimizer, Problem, initial_population
+from swarmplan.optimizers.base import Optimizer, Problem, initial_population
 
 _N_MIN = 4
 

@@ -9,7 +9,8 @@ other compiled function (numba's cache does not see changes in callees of other 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

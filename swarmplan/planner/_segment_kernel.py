@@ -19,9 +19,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from swarmplan.geometry._shape_kernel import sdf
+from swarmplan.runtime.compiled import njit
 
 # Columns of the kernel's output, in SegmentCost.terms' order.
 LENGTH, TURNING, STATIC, VERTICES, FLOOR_BOUNDS, THREATS, MOVING, AGENTS = range(8)

@@ -1,19 +1,103 @@
-"""The compiled (numba) kernels, loaded in one place, at their first use.
+"""The compiled (numba) kernels: loaded in one place, at their first use, from a cache that
+cannot go stale.
 
 numba's import and the loading of a kernel module's cached machine code cost ~0.5-1 s of CPU
-per process, so no module imports a kernel module (``_*kernel*.py``, ``sweep_kernels.py``) at
+per process, so no module imports a kernel module (``_*kernel*.py``, ``swept_kernels.py``) at
 its top: the code that runs a kernel asks :func:`kernel_module` for it when it first needs it,
-e.g. ``kernel_module("swarmplan.geometry.sweep_kernels")``, and each module is imported once
-per process. Whether a computation runs compiled never depends on what a process happens to
-have loaded already: the world decides (``swarmplan.geometry.compiled.use_compiled``).
+e.g. ``kernel_module("swarmplan.geometry.swept_kernels")``, and each module is imported once
+per process.
+
+**Which path runs: one rule, here.** Below ``COMPILED_FROM`` agents a world's per-step work runs
+numpy (and FCL): numba's one-time load (its import and the cached machine code, ~0.9 s CPU per
+process) costs more than a small world's whole run saves, and a 16-agent world would not reach
+its first step within 0.5 s. From it on (swarm scale) the field, the nearest surfaces, the
+agents' clearance, the swept checks and the recorder's number formatting run compiled
+(:func:`use_compiled`, :func:`use_compiled_checks`). Both paths give the same bits (the kernels
+follow numpy's formulas and order of sums; the swept checks decide exactly what FCL decides),
+so a world runs identically either way, and the choice reads the world's size only, never what
+a process has loaded before. A computation with a numpy twin of the same bits (the potential
+field, the guide's per-step calls) runs the twin while numba is not in the process
+(:func:`use_numpy_twin`); the field does so for its first ``FIELD_NUMPY_CALLS`` calls only
+(:func:`field_numpy_calls`), then loads numba: a small world reaches its first step without
+numba, and a long run pays numba's load once instead of numpy's per-call overhead for good.
+
+**The on-disk cache.** Every kernel module takes :func:`njit` from here (not from numba). numba's
+own cache (``cache=True``) checks only the file of the function it compiled: a kernel that
+calls a compiled function of another file runs its old machine code after that callee is
+edited. So before the first kernel is compiled, numba's cache is pointed at a folder of its
+own per :func:`kernel_digest`, a SHA-256 over the sources of every kernel module and of every
+module of the package they import: an edit in any of them compiles afresh, in a new folder
+(the ``KEEP`` most recent folders are kept, older ones removed). The folders lie in
+``$NUMBA_CACHE_DIR`` when it is set, else in the package's ``__pycache__`` (else numba's
+user-wide cache when that cannot be written). Processes started from this one (a sweep's
+workers) inherit the folder.
 """
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import os
+import re
+import shutil
 import sys
+import tempfile
 from functools import cache
+from pathlib import Path
 from types import ModuleType
+from typing import Any
+
+PACKAGE_ROOT = Path(__file__).resolve().parents[1]
+KEEP = 3
+"""Folders of compiled code (one per digest of the kernel sources) kept beside each other."""
+
+PREFIX = "kernels-"
+"""The name of a folder of compiled code: this prefix and the first 16 digits of its digest."""
+
+_KERNEL = re.compile(
+    r"^(?:from numba import|import numba\b|from swarmplan\.runtime\.compiled import .*\bnjit\b)", re.M
+)
+_IMPORT = re.compile(
+    r"^[ \t]*(?:from[ \t]+([\w.]+)[ \t]+import[ \t]+(\([^)]*\)|[^\n]*)|import[ \t]+([\w., \t]+))", re.M
+)
+
+
+COMPILED_FROM = 49
+"""Swarm size (agents in the world) from which the compiled per-step kernels run."""
+
+FIELD_NUMPY_CALLS = 600
+"""Calls of a world's field that run numpy below ``COMPILED_FROM`` agents before it goes
+compiled: numba's load (~0.3 s of CPU with the field's cached kernel) costs about as much as
+this many numpy calls of a 16-agent field (0.36-0.5 ms each, against 0.04 ms compiled), so no
+run pays more than about twice the cheaper of the two."""
+
+CHECKS_COMPILED_FROM = COMPILED_FROM
+"""Swarm size from which the swept checks (``first_hits``, arrivals, near misses, agent
+contacts, the braking margin's free distances) run compiled: the same rule as the field. Their
+answers are exact on both paths, so this is a speed choice only (its own name lets the tests
+run either path)."""
+
+
+def use_compiled(n_agents: int) -> bool:
+    """Whether a world of ``n_agents`` agents runs its per-step field (and recorder) compiled."""
+    return n_agents >= COMPILED_FROM
+
+
+def use_compiled_checks(n_agents: int) -> bool:
+    """Whether a world of ``n_agents`` agents runs the compiled swept checks."""
+    return n_agents >= CHECKS_COMPILED_FROM
+
+
+def field_numpy_calls(n_agents: int) -> int:
+    """How many calls of the field of a world of ``n_agents`` agents run numpy before it goes
+    compiled (none at swarm size)."""
+    return 0 if use_compiled(n_agents) else FIELD_NUMPY_CALLS
+
+
+def use_numpy_twin(n_agents: int | None = None) -> bool:
+    """Whether a computation with a numpy twin of the same bits runs the twin: while numba is not
+    in the process and, for a world's per-step work (``n_agents`` given), below swarm size."""
+    return not numba_loaded() and (n_agents is None or not use_compiled(n_agents))
 
 
 @cache
@@ -29,3 +113,122 @@ def numba_loaded() -> bool:
     """Whether numba is in the process already (then a kernel whose numpy twin gives the same
     bits costs only its own cached code to load, not numba's)."""
     return "numba" in sys.modules
+
+
+def njit(*args: Any, **kwargs: Any) -> Any:
+    """numba's ``njit``, with numba's on-disk cache pointed at the folder of this package's
+    :func:`kernel_digest` first (see the module docstring)."""
+    use_kernel_cache(PACKAGE_ROOT, "swarmplan")
+    import numba
+
+    return numba.njit(*args, **kwargs)
+
+
+def _module_file(root: Path, package: str, name: str) -> Path | None:
+    """The source file of module ``name`` of ``package`` (whose folder is ``root``), or None."""
+    if name != package and not name.startswith(package + "."):
+        return None
+    rel = Path(*name.split(".")[1:])
+    for path in (root / rel.with_suffix(".py"), root / rel / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+def _imports(root: Path, package: str, text: str) -> set[Path]:
+    """The files of ``package`` that source ``text`` imports (any level, function bodies too)."""
+    out: set[Path] = set()
+    for base, names, plain in _IMPORT.findall(text):
+        candidates = [n.split(" as ")[0].strip() for n in plain.split(",")] if plain else [base]
+        if base:
+            for n in names.strip("()").split(","):
+                n = n.split(" as ")[0].strip()
+                if n and n != "*":
+                    candidates.append(f"{base}.{n}")
+        for name in candidates:
+            path = _module_file(root, package, name)
+            if path is not None:
+                out.add(path)
+    return out
+
+
+def kernel_sources(root: Path = PACKAGE_ROOT, package: str = "swarmplan") -> list[Path]:
+    """The kernel modules of ``package`` (those that import numba or this module's ``njit``)
+    and every module of the package they import, directly or through each other."""
+    texts = {p: p.read_text(encoding="utf-8") for p in root.rglob("*.py") if "__pycache__" not in p.parts}
+    todo = [p for p, text in texts.items() if _KERNEL.search(text)]
+    seen = set(todo)
+    while todo:
+        for dep in _imports(root, package, texts[todo.pop()]):
+            if dep not in seen:
+                seen.add(dep)
+                todo.append(dep)
+    return sorted(seen)
+
+
+def kernel_digest(root: Path = PACKAGE_ROOT, package: str = "swarmplan") -> str:
+    """SHA-256 over the path and content of each of :func:`kernel_sources`."""
+    h = hashlib.sha256()
+    for path in kernel_sources(root, package):
+        data = path.read_bytes()
+        h.update(f"{path.relative_to(root).as_posix()}:{len(data)};".encode())
+        h.update(data)
+    return h.hexdigest()
+
+
+def _writable(folder: Path) -> bool:
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".probe-"):
+            pass
+    except OSError:
+        return False
+    return True
+
+
+def _trim(base: Path, own: Path) -> None:
+    """Remove all but the ``KEEP`` most recently used folders of compiled code in ``base``."""
+    try:
+        folders = sorted(
+            (p for p in base.glob(PREFIX + "*") if p.is_dir() and p != own),
+            key=lambda p: p.stat().st_mtime,
+            reverse=True,
+        )
+    except OSError:
+        return
+    for old in folders[KEEP - 1 :]:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+_POINTED: dict[tuple[Path, str], Path] = {}
+
+
+def use_kernel_cache(root: Path, package: str) -> Path:
+    """Point numba's on-disk cache at the folder of ``package``'s :func:`kernel_digest` (once per
+    process and package; call it before the package's first compiled function is defined)."""
+    key = (root, package)
+    if key in _POINTED:
+        return _POINTED[key]
+    name = PREFIX + kernel_digest(root, package)[:16]
+    inherited = os.environ.get("NUMBA_CACHE_DIR", "")
+    if inherited and Path(inherited).name.startswith(PREFIX):  # set by the process that started this one
+        base = Path(inherited).parent
+    elif inherited:
+        base = Path(inherited)
+    else:
+        base = root / "__pycache__"
+        if not _writable(base):
+            base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "numba"
+    folder = base / name
+    if not folder.is_dir():
+        _trim(base, folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        os.utime(folder)  # recently used: the last to be removed
+    except OSError:  # numba then warns that it cannot cache, and compiles in memory
+        pass
+    os.environ["NUMBA_CACHE_DIR"] = str(folder)
+    if "numba.core.config" in sys.modules:  # already imported: its settings too
+        sys.modules["numba.core.config"].CACHE_DIR = str(folder)
+    _POINTED[key] = folder
+    return folder

@@ -14,9 +14,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from swarmplan.geometry.sweep_kernels import HIT, UNDECIDED, step_status
+from swarmplan.geometry.swept_kernels import HIT, UNDECIDED, step_status
+from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, inline="always")
@@ -62,7 +62,7 @@ def braking_margin(
     """``SafetyFilter.braking_margin`` for multirotor rows: ``rows`` = (pos0, vel0, v_cmd, goal,
     amax, vmax, radii), all arrays by row (``radii`` with the filter's margin); ``times`` =
     (dt, dt2, goal tolerance), ``dt2`` being Python's ``dt ** 2``; ``bounds``: lowest and
-    highest corner; ``statics``, ``movers``: the bodies (``sweep_kernels.sweep_one``). The new
+    highest corner; ``statics``, ``movers``: the bodies (``swept_kernels.sweep_one``). The new
     commands, the velocities they lead to (``kinematics.limit_multirotor``), and False when a
     sweep was undecided (a body within ``BAND`` of contact or a mesh: the caller then runs the
     numpy path, where FCL decides). With ``check_step``, also :func:`touches_many`'s answer for
@@ -171,8 +171,9 @@ def _probe(
     movers: tuple,
     slack: float,
 ) -> int:
-    """``sweep_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
-    UNDECIDED) with the end point in the caller's buffer ``end``, through ``sweep_kernels.step_status``."""
+    """``swept_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
+    UNDECIDED) with the end point in the caller's buffer ``end``, through
+    ``swept_kernels.step_status``."""
     for c in range(3):
         end[c] = start[c] + u[c] * length
     return step_status(start, end, r, bounds, bodies, statics, movers, slack)

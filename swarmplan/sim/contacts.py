@@ -10,11 +10,12 @@ import numpy as np
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
-from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
-from swarmplan.geometry.neighbours import separation_violations
+from swarmplan.geometry.neighbours import agent_contacts_indexed, separation_violations
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import PARKED, mode_in
+from swarmplan.sim.safety import StepWindow
 from swarmplan.sim.scene import Scene
 from swarmplan.world.motion import poses_at
 
@@ -121,7 +122,7 @@ def arrivals(
         rows, dmins = flying[arrive], d[arrive]
     else:
         # Compiled: segment_segment_min_distance to the goal and the speed test, term for term.
-        rows, dmins = sweep_kernels().arrivals(
+        rows, dmins = kernel_module("swarmplan.geometry.swept_kernels").arrivals(
             np.ascontiguousarray(pos0, dtype=float),
             np.ascontiguousarray(pos1, dtype=float),
             np.ascontiguousarray(s.goal, dtype=float),
@@ -163,7 +164,7 @@ class NearMisses:
             pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
             keys = pi.astype(np.int64) * self._n + pj
         else:
-            keys = sweep_kernels().separation_keys(
+            keys = kernel_module("swarmplan.geometry.swept_kernels").separation_keys(
                 np.ascontiguousarray(pos, dtype=float),
                 self._separation,
                 self._radius,
@@ -194,3 +195,49 @@ class NearMisses:
                 )
             )
         return Tally(events=tuple(events), counts=tuple(counts))
+
+
+def agent_collisions(
+    s: SwarmState,
+    ids: tuple[str, ...],
+    pos0: np.ndarray,
+    pos1: np.ndarray,
+    radius: np.ndarray,
+    active: np.ndarray,
+    t1: float,
+) -> Tally:
+    """The collisions of agents whose steps ``pos0`` -> ``pos1`` touch (``active``: who flew; an
+    arrived agent touched is a collision too), each agent of a pair ended in turn."""
+    tally = NOTHING
+    for i, j in agent_contacts_indexed(pos0, pos1, radius, active):
+        for a, b in ((i, j), (j, i)):
+            if s.mode[a] != Mode.COLLIDED:
+                tally = tally + collide(s, ids, a, ids[b], t1)
+    return tally
+
+
+def committed_hits(
+    scene: Scene,
+    s: SwarmState,
+    ids: tuple[str, ...],
+    check: np.ndarray,
+    start: np.ndarray,
+    end: np.ndarray,
+    velocity: np.ndarray,
+    window: StepWindow,
+) -> tuple[Tally, bool]:
+    """Contact on the committed steps ``start`` -> ``end`` of agents ``check`` (those the safety
+    filter did not clear with a margin) ends them: each stops at its crash point (``end`` and
+    ``velocity`` changed in place). The collisions, and whether any step touched."""
+    if not len(check):
+        return NOTHING, False
+    radius, mv, dt = scene.params.radius, scene.moving_mask, scene.world.dt
+    hits = first_hits(scene.collision, start[check], end[check], radius[check], window.q0[mv], window.q1[mv])
+    tally, touched = NOTHING, False
+    for i, hit in zip(check, hits, strict=True):
+        if hit is not None:
+            touched = True
+            tally = tally + collide(s, ids, i, hit, window.t1)
+            end[i] = crash_point(scene, radius[i], start[i], end[i], window.t0, dt)
+            velocity[i] = 0.0
+    return tally, touched

@@ -33,9 +33,8 @@ import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.geometry.compiled import use_compiled_checks
 from swarmplan.geometry.vec3 import dot3, norm3
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import mode_in, mode_table
 from swarmplan.sim.safety import AGENT_MARGIN
@@ -133,6 +132,10 @@ def threat_pairs(
     )
 
 
+FAR_GOAL = np.array([1e9, 0.0, 0.0])
+"""Offset of the goal row an evading agent's braking margin sees: its goal's cap never binds."""
+
+
 class GoalGuard:
     """Which agents guard their goal (arrived multirotors, for the rest of the run) and which of
     them are out of a threat's way this step (reset with :meth:`reset`)."""
@@ -145,6 +148,8 @@ class GoalGuard:
         self.evading = np.zeros(n, dtype=bool)
         self._command = np.zeros((n, 3))
         self._compiled = use_compiled_checks(n)
+        self._stop_speed = np.where(params.fixed_wing, np.inf, params.max_accel * dt)
+        self._stop_speed.setflags(write=False)
 
     def reset(self) -> None:
         self.guarding[:] = False
@@ -161,7 +166,8 @@ class GoalGuard:
         centres (M, 3), velocities (M, 3), bounding radii (M,) and ids; ``surface(rows)`` the
         clearance of agents ``rows`` to their nearest static surface and its outward normal. Arrived agents
         under threat take off (mode ``apf``, an ``evade_start`` event and an ``evasions`` count);
-        agents already away stay evading while threatened. Returns the take-offs."""
+        agents already away stay evading while threatened; an agent that takes off flies straight
+        back to its goal afterwards (the rest of its route is done). Returns the take-offs."""
         self.evading[:] = False
         rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED))
         if not len(rows):
@@ -211,6 +217,8 @@ class GoalGuard:
             if s.mode[i] == Mode.ARRIVED:
                 m = sl.start + int(np.argmin(np.minimum(times[sl, 0], times[sl, 1])))
                 s.mode[i] = Mode.APF
+                if s.route[i] is not None:  # back to the goal straight: the route is done
+                    s.route_index[i] = len(s.route[i])
                 miss_j, in_j = round(float(min(misses[m, 0], misses[m, 1])), 6), round(float(times[m, 0]), 6)
                 j = int(j_of[m])
                 name = ids[j] if j < len(centres) else p.ids[int(who[j])]
@@ -268,11 +276,18 @@ class GoalGuard:
         out[rows] = self._command[idx[rows]]
         return out
 
-    def stop_speeds(self, stop_speed: np.ndarray) -> np.ndarray:
-        """The arrival speeds with evading agents excluded (they cannot arrive while threatened)."""
+    def brake_goals(self, idx: np.ndarray, pos: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """The goals the braking margin of agents ``idx`` (at ``pos``) sees: an evading agent is not
+        slowed by its goal, its row names a point so far off that the goal's cap never binds."""
+        evading = self.evading[idx]
+        return np.where(evading[:, None], pos + FAR_GOAL, goal) if evading.any() else goal
+
+    def stop_speeds(self) -> np.ndarray:
+        """The speeds an arrival (and its stop) needs at most: a one-step stop within max_accel
+        (fixed wings: any); evading agents excluded (they cannot arrive while threatened)."""
         if not self.evading.any():
-            return stop_speed
-        return np.where(self.evading, -1.0, stop_speed)
+            return self._stop_speed
+        return np.where(self.evading, -1.0, self._stop_speed)
 
     def arrived(self, tally: Tally, s: SwarmState) -> Tally:
         """The step's arrivals: first arrivals start guarding (multirotors); a guarding agent back

@@ -95,6 +95,12 @@ class RunMetrics:
         self.positions: list[np.ndarray] = []  # per step (N, 3), for curvature
         self.flying: list[np.ndarray] = []  # per step (N,): who flew it (threat exposure)
 
+    def measure_start(self, obstacle: np.ndarray, agent: np.ndarray, terrain: np.ndarray) -> None:
+        """The clearances at t = 0 (to the obstacles, the other agents, the terrain) count too."""
+        self.min_clearance = np.minimum(self.min_clearance, obstacle)
+        self.min_agent_clearance = np.minimum(self.min_agent_clearance, agent)
+        self.min_terrain_clearance = np.minimum(self.min_terrain_clearance, terrain)
+
     def add_step(
         self,
         pos0: np.ndarray,

@@ -23,7 +23,7 @@ from swarmplan.core import (
     SwarmState,
 )
 from swarmplan.flight.guide import StaticGuide
-from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.kinematics import AgentParams, initial_velocity
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.world.model import World
 
@@ -245,6 +245,34 @@ def failure_reason(reported: tuple[Event, ...]) -> str:
         if e.kind == "hold" and not e.detail.get("possible", True):
             return f"{e.detail.get('reason', 'no way out')}; no free holding pattern"
     return "no valid escape segment"
+
+
+def timeouts(s: SwarmState, ids: tuple[str, ...]) -> Tally:
+    """A ``timeout`` event for every agent still flying at ``s.t`` (the run's time is up)."""
+    events = []
+    for i in np.flatnonzero(s.active):
+        distance = round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6)
+        events.append(Event(s.t, ids[i], "timeout", {"distance_to_goal": distance}))
+    return Tally(events=tuple(events))
+
+
+def initial_state(world: World, params: AgentParams) -> SwarmState:
+    """Every agent at its start at t = 0, flying the field (mode ``apf``) toward its goal."""
+    n = len(world.agents)
+    start = np.array([a.start for a in world.agents], dtype=float)
+    goal = np.array([a.goal for a in world.agents], dtype=float)
+    return SwarmState(
+        t=0.0,
+        step=0,
+        position=start,
+        velocity=initial_velocity(params, start, goal),
+        goal=goal,
+        mode=np.array([Mode.APF] * n, dtype=object),
+        segment=[None] * n,
+        segment_index=np.zeros(n, dtype=int),
+        route=[None] * n,
+        route_index=np.zeros(n, dtype=int),
+    )
 
 
 def distance_to_go(s: SwarmState, rows: np.ndarray | None = None) -> np.ndarray:

@@ -19,11 +19,10 @@ from swarmplan.core import Event, Mode
 from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl, segment_segment_min_distance
-from swarmplan.geometry.compiled import sweep_kernels, use_compiled_checks
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.shapes import distance_and_gradient
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
@@ -265,6 +264,26 @@ class SafetyFilter:
         v_cmd = self.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, goal)
         return v_cmd, limit_velocity(p, vel0[idx], v_cmd, self.world.dt, idx), None
 
+    def fly(
+        self, cmd: Commands, start: AgentMotion, window: StepWindow, modes: np.ndarray, brake_goal: np.ndarray
+    ) -> Filtered:
+        """The step of agents ``cmd.idx`` from ``start``: their commands braked and limited
+        (:meth:`brake_and_limit`, toward ``brake_goal``), flown for one step and filtered
+        (:meth:`filter`); the other agents stay where they are, at rest."""
+        idx, (pos0, vel0), dt = cmd.idx, (start.position, start.velocity), self.world.dt
+        v_cmd, v_new, free = self.brake_and_limit(
+            idx, pos0, vel0, cmd.velocity, window.q0, window.q1, brake_goal
+        )
+        vel1 = np.zeros_like(vel0)
+        if len(idx) == len(pos0):  # every row (the same values as through idx)
+            vel1[:] = v_new
+            pos1 = pos0 + vel1 * dt
+        else:
+            pos1 = pos0.copy()
+            vel1[idx] = v_new
+            pos1[idx] = pos0[idx] + vel1[idx] * dt
+        return self.filter(Commands(idx, v_cmd), start, AgentMotion(pos1, vel1), window, modes, free)
+
     def _braking_margin_compiled(
         self,
         k: np.ndarray,
@@ -336,7 +355,7 @@ class SafetyFilter:
         redo = np.arange(len(start))
         hit_rows, free = [], []
         if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
-            status, lo = sweep_kernels().free_distances(
+            status, lo = kernel_module("swarmplan.geometry.swept_kernels").free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii, self._bounds,
                 cw.kernel_statics(), cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
             )  # fmt: skip

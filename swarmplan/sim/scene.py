@@ -9,10 +9,9 @@ from swarmplan.core import ObstacleStates
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import CollisionWorld
-from swarmplan.geometry.compiled import field_kernels, use_compiled
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.world.model import World
 from swarmplan.world.motion import max_speed, poses_at
 
@@ -26,7 +25,7 @@ class Scene:
         self.collision = CollisionWorld(world)
         # Distances batched by shape type (one array operation per shape, meshes by their grid),
         # equal to ObstacleField's; min_distance stays exact for meshes. Swarm-sized worlds
-        # compute the field and the nearest surfaces compiled (geometry.compiled).
+        # compute the field and the nearest surfaces compiled (runtime.compiled.use_compiled).
         self.compiled = use_compiled(len(world.agents))
         self.field = ShapeBatch(world.obstacles, compiled=self.compiled)
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
@@ -35,7 +34,8 @@ class Scene:
         self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
         self._moving = world.moving_obstacles
         self._moving_idx = np.flatnonzero(self.moving_mask)
-        self._moving_ids = tuple(o.id for o in self._moving)
+        self.mover_ids = tuple(o.id for o in self._moving)
+        self.mover_radii = self.bounding_radius[self.moving_mask]  # read every guarded step
         self._static_pos = np.array([o.position for o in world.obstacles], dtype=float).reshape(-1, 3)
         self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._at_rest: tuple[np.ndarray, np.ndarray] | None = None  # the poses when nothing moves
@@ -75,7 +75,8 @@ class Scene:
         gh = self.world.terrain_gradient(pos[:, :2])
         if self.compiled:
             clear, normal = np.empty(len(idx)), np.empty((len(idx), 3))
-            field_kernels().nearest_surface(d, g, self._static_mask, r, pos[:, 2], h, gh, clear, normal)
+            kernels = kernel_module("swarmplan.geometry._field_kernels")
+            kernels.nearest_surface(d, g, self._static_mask, r, pos[:, 2], h, gh, clear, normal)
             return clear, normal
         clear = pos[:, 2] - h - r
         normal = np.stack([-gh[:, 0], -gh[:, 1], np.ones(len(idx))], axis=1)
@@ -95,6 +96,20 @@ class Scene:
         # Through a k-d tree: equal to the all-pairs minimum (tests/test_geometry_neighbours.py).
         return agent_clearance_indexed(pos, self.params.radius)
 
+    def clearances(
+        self, pos: np.ndarray, q: np.ndarray, d: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per agent at ``pos``: its clearance to the obstacles at poses ``q`` (``d`` their surface
+        distances when at hand; exact for meshes too, whose grid is a lower bound; inf without
+        obstacles), to the other agents and to the terrain."""
+        r = self.params.radius
+        if len(self.world.obstacles):
+            obstacles = self.field.min_distance(pos, q, d) - r
+        else:
+            obstacles = np.full(len(pos), np.inf)
+        terrain = pos[:, 2] - self.world.terrain_height(pos[:, :2]) - r
+        return obstacles, self.agent_clearance(pos), terrain
+
     def obstacle_states(self, t: float) -> ObstacleStates | None:
         """The ``/obstacles/state`` entries at ``t`` (None when nothing moves)."""
         moving = self._moving
@@ -104,5 +119,5 @@ class Scene:
         pos, vel = pos[self._moving_idx], vel[self._moving_idx]
         if self.compiled:  # both roundings in one compiled call (the same bits)
             pos, vel = kernel_module("swarmplan.sim._step_kernels").round6(pos, vel)
-            return ObstacleStates(self._moving_ids, pos, self.moving_quat, vel)
-        return ObstacleStates(self._moving_ids, np.round(pos, 6), self.moving_quat, np.round(vel, 6))
+            return ObstacleStates(self.mover_ids, pos, self.moving_quat, vel)
+        return ObstacleStates(self.mover_ids, np.round(pos, 6), self.moving_quat, np.round(vel, 6))

@@ -9,7 +9,7 @@ The vehicle and gains (``TrackerConfig``, the world's ``tracker:`` section) are 
 world format in :mod:`swarmplan.world.tracker_config`; this package flies them.
 """
 
-from swarmplan.track.core import AgentTrack, TrackResult, track
+from swarmplan.track.tracking import AgentTrack, TrackResult, track
 from swarmplan.world.tracker_config import PID, TrackerConfig, parse_tracker
 
 __all__ = ["PID", "AgentTrack", "TrackResult", "TrackerConfig", "parse_tracker", "track"]

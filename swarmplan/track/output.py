@@ -27,7 +27,7 @@ import numpy as np
 from swarmplan.io.recording import McapRecorder
 from swarmplan.replay import Recording
 
-from .core import TrackResult
+from .tracking import TrackResult
 
 TRACKING_TOPIC = "/tracking"
 TRACKING_SCENE_TOPIC = "/tracking/scene"

@@ -32,9 +32,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from swarmplan.geometry._shape_kernel import SPHERE, exact, half_extents, sdf
+from swarmplan.runtime.compiled import njit
 
 MESH = -1
 """The code of meshes (``bodies.MESH``; the other codes are ``_shape_kernel``'s)."""
@@ -42,7 +42,7 @@ MESH = -1
 BAND = 1e-4
 """Metres either side of contact (``dist == r``) where FCL decides, not the kernel. On tangent
 sweeps FCL's primitive tests agreed with exact geometry at 1e-6 m and beyond and disagreed only
-at 1e-7 m and below (tests/test_sweep_kernels.py checks the band's edge)."""
+at 1e-7 m and below (tests/test_swept_kernels.py checks the band's edge)."""
 
 NO, HIT, UNDECIDED = 0, 1, 2
 

@@ -1,4 +1,4 @@
-"""The compiled swept checks (``geometry.sweep_kernels``) decide exactly what FCL decides.
+"""The compiled swept checks (``geometry.swept_kernels``) decide exactly what FCL decides.
 
 Tangent sweeps are built with a known exact distance ``r + delta`` to a primitive (through a
 supporting plane at a surface point: faces, edges, corners, rims, caps), so the truth of each
@@ -17,7 +17,7 @@ import pytest
 from helpers import base_world, make_world, without_guide
 
 from swarmplan.geometry import _shape_kernel as S
-from swarmplan.geometry import sweep_kernels as K
+from swarmplan.geometry import swept_kernels as K
 from swarmplan.geometry.collision import CollisionWorld, _align_z, first_hits, first_hits_fcl
 from swarmplan.world.motion import poses_at
 
@@ -25,8 +25,8 @@ from swarmplan.world.motion import poses_at
 @pytest.fixture(autouse=True)
 def _compiled(monkeypatch):
     """The compiled path under test, in worlds of any size (by default only swarm-sized
-    worlds take it: ``geometry.compiled.use_compiled_checks``)."""
-    monkeypatch.setattr("swarmplan.geometry.compiled.CHECKS_COMPILED_FROM", 0)
+    worlds take it: ``runtime.compiled.use_compiled_checks``)."""
+    monkeypatch.setattr("swarmplan.runtime.compiled.CHECKS_COMPILED_FROM", 0)
 
 
 SHAPES = [
@@ -314,7 +314,7 @@ def test_braking_bisection_equals_the_fcl_bisection():
 
 
 def test_compiled_arrivals_equal_the_numpy_test():
-    """``sweep_kernels.arrivals`` (used by ``sim.contacts.arrivals``) picks the agents and
+    """``swept_kernels.arrivals`` (used by ``sim.contacts.arrivals``) picks the agents and
     closest approaches the numpy expression does, incl. distances and speeds on the limit."""
     from swarmplan.geometry.collision import segment_segment_min_distance
     from swarmplan.geometry.vec3 import norm3
@@ -356,9 +356,9 @@ def test_the_world_chooses_the_path_not_the_process():
         "    for _ in range(steps):\n"
         "        s.step()\n"
         "run(16, 2)\n"
-        "print('swarmplan.geometry.sweep_kernels' in sys.modules)\n"
+        "print('swarmplan.geometry.swept_kernels' in sys.modules)\n"
         "run(64, 1)\n"
-        "K = sys.modules['swarmplan.geometry.sweep_kernels']\n"
+        "K = sys.modules['swarmplan.geometry.swept_kernels']\n"
         "print(K is not None)\n"
         "def refuse(*args, **kwargs):\n"
         "    raise RuntimeError('a compiled swept check ran in a 16-agent world')\n"
@@ -376,7 +376,7 @@ def test_reference_and_compiled_runs_are_identical(monkeypatch):
     """A whole 24-agent run with every swept check compiled gives the same states and events as
     its default (every check on its reference path: numpy and FCL)."""
     from swarmplan.bench.sim import swarm_world
-    from swarmplan.geometry import compiled as choice
+    from swarmplan.runtime import compiled as choice
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 
@@ -404,7 +404,7 @@ def test_a_crowded_run_is_identical_on_both_paths(monkeypatch):
     smoothing and timeouts all happen) steps to the same bits on both paths: every step's
     positions, velocities and modes and every event, compiled checks against the reference ones."""
     from swarmplan.bench.sim import swap_world
-    from swarmplan.geometry import compiled as choice
+    from swarmplan.runtime import compiled as choice
     from swarmplan.sim import Simulation
     from swarmplan.world import parse_world
 

@@ -1,0 +1,103 @@
+"""The potential field's commands for the flying agents of one step.
+
+The field (threat cores repel like static spheres), the points of attraction (segments and
+routes from :mod:`~swarmplan.sim.navigation`, the guide's ways round static obstacles, whose
+guide is built anew when a mover comes to rest for good), the clearance to the nearest static
+surface and the commanded velocity within each agent's kinematic limits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.core import SwarmState
+from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
+from swarmplan.flight.guide import StaticGuide, make_guide
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.vec3 import norm3
+from swarmplan.sim.metrics import Tally
+from swarmplan.sim.navigation import Navigator
+from swarmplan.sim.scene import Scene
+from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
+from swarmplan.world.model import World
+from swarmplan.world.motion import next_rest
+
+
+@dataclass
+class Commands:
+    """The field's commands for the flying agents ``idx`` (rows in that order)."""
+
+    velocity: np.ndarray  # (n, 3) commanded velocities
+    position: np.ndarray  # (n, 3) the agents' positions
+    goal: np.ndarray  # (n, 3) their goals
+    obstacle_distance: np.ndarray  # (n, obstacles) surface distances at the step's start
+    clearance: np.ndarray  # (n,) to the nearest static surface (threat cores included)
+    ended: Tally  # segments and routes that ended on the way
+
+
+class Steering:
+    """The field, the guide and the navigator of one run (reset with :meth:`reset`)."""
+
+    def __init__(self, world: World, params: AgentParams, scene: Scene):
+        self.world, self.params, self.scene = world, params, scene
+        self.apf = ApfField(world, params)
+        # The way round static obstacles for agents whose straight line is blocked (None without any).
+        self.guide: StaticGuide | None = make_guide(world, params)
+        self._guide_at = 0.0  # the time the guide's bodies are at rest for good from
+        self._rest_at = next_rest(world, 0.0)  # when the next mover comes to rest for good
+        self._threat_cores = threat_cores(world)
+        self.navigator = Navigator(world, params, self.guide)
+
+    def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
+        """Back to the bodies at rest at t = 0 (a mover parked in the last run), the guide's ways
+        from ``start`` to ``goal``."""
+        if self._guide_at > 0.0:
+            self._new_guide(0.0)
+        if self.guide is not None:
+            self.guide.reset(start, goal)
+
+    def _new_guide(self, t: float) -> None:
+        """The guide round the bodies at rest for good at ``t``."""
+        self._guide_at, self._rest_at = t, next_rest(self.world, t)
+        self.guide = self.navigator.guide = make_guide(self.world, self.params, t)
+
+    def commands(
+        self,
+        s: SwarmState,
+        idx: np.ndarray,
+        pos0: np.ndarray,
+        vel0: np.ndarray,
+        field: tuple[np.ndarray, np.ndarray],
+        q0: np.ndarray,
+        qv0: np.ndarray,
+        parked: np.ndarray,
+    ) -> Commands:
+        """The commands of flying agents ``idx`` of state ``s`` at the step's start (every agent
+        at ``pos0`` moving at ``vel0``): ``field`` the distances and gradients of every agent to
+        the obstacles at poses ``q0`` moving at ``qv0``; ``parked`` the agents that no longer fly."""
+        mv = self.scene.moving_mask
+        if len(idx) == len(pos0):  # every agent flies: the rows are the cache's (read only)
+            d, g = field
+            p_idx, v_idx, goal_idx = pos0, vel0, s.goal.copy()
+        else:
+            d, g = field[0][idx], field[1][idx]
+            p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
+        inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
+        if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
+            inputs = with_cores(inputs, p_idx, self._threat_cores)
+        target, rep_scale, ended = self.navigator.attraction_targets(s, idx)
+        if self._rest_at <= s.t:  # a mover parked for good: go round it too
+            self._new_guide(s.t)
+        if self.guide is not None:
+            target, rep_scale = self.guide.targets(s.step, idx, pos0[idx], s.goal[idx], target, rep_scale)
+        flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
+        to_go = norm3(s.goal - pos0)
+        force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
+        clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
+        if self._threat_cores is not None:
+            cores, radius = self._threat_cores, self.params.radius[idx]
+            clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
+        v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
+        return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended)

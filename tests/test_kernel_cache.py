@@ -1,0 +1,83 @@
+"""numba's on-disk cache of the compiled kernels is keyed on the sources of every kernel and of
+what it calls (``swarmplan.runtime.compiled``): an edited callee in another file is compiled
+afresh, never run stale from the cache."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+from swarmplan.runtime import compiled
+
+ROOT = Path(__file__).resolve().parents[1]
+
+RUN = textwrap.dedent(
+    """
+    import sys
+    from pathlib import Path
+    sys.path[:0] = [{root!r}, {tmp!r}]
+    from swarmplan.runtime.compiled import use_kernel_cache
+    folder = use_kernel_cache(Path({tmp!r}) / "kpkg", "kpkg")
+    from kpkg.entry import f
+    print(f(), sum(f.stats.cache_hits.values()), folder.name)
+    """
+)
+
+
+def _run(tmp: Path) -> tuple[int, int, str]:
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    out = subprocess.run(
+        [sys.executable, "-c", RUN.format(root=str(ROOT), tmp=str(tmp))],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+    )
+    value, hits, folder = out.stdout.split()
+    return int(value), int(hits), folder
+
+
+def test_an_edited_callee_in_another_file_is_compiled_afresh(tmp_path: Path) -> None:
+    pkg = tmp_path / "kpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    callee = "from numba import njit\n\n\n@njit(cache=True)\ndef g():\n    return {}\n"
+    (pkg / "callee.py").write_text(callee.format(1))
+    (pkg / "entry.py").write_text(
+        "from numba import njit\n\nfrom kpkg.callee import g\n\n\n"
+        "@njit(cache=True)\ndef f():\n    return g() + 10\n"
+    )
+    first = _run(tmp_path)
+    again = _run(tmp_path)
+    assert first[:2] == (11, 0)  # compiled
+    assert again == (11, 1, first[2])  # read back from the cache
+    # The same size, possibly the same modification time: only the content tells.
+    (pkg / "callee.py").write_text(callee.format(2))
+    edited = _run(tmp_path)
+    assert edited[0] == 12 and edited[2] != first[2]
+    assert _run(tmp_path) == (12, 1, edited[2])
+    # The folder of the first sources is kept (a few are), in the package's __pycache__.
+    assert (pkg / "__pycache__" / first[2]).is_dir() and (pkg / "__pycache__" / edited[2]).is_dir()
+
+
+def test_the_digest_covers_every_kernel_and_the_kernels_it_calls() -> None:
+    sources = {p.relative_to(compiled.PACKAGE_ROOT).as_posix() for p in compiled.kernel_sources()}
+    kernels = {
+        p.relative_to(compiled.PACKAGE_ROOT).as_posix()
+        for p in compiled.PACKAGE_ROOT.rglob("*.py")
+        if "kernel" in p.name
+    }
+    assert kernels and kernels <= sources
+    assert "optimizers/_kernels.py" in sources  # called by the bat's and the baselines' kernels
+
+
+def test_every_compiled_function_takes_njit_from_the_loader() -> None:
+    direct = [
+        p.relative_to(compiled.PACKAGE_ROOT).as_posix()
+        for p in compiled.PACKAGE_ROOT.rglob("*.py")
+        if p.parent.name != "runtime" and "from numba import" in p.read_text(encoding="utf-8")
+    ]
+    assert direct == []
