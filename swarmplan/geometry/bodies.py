@@ -17,12 +17,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from swarmplan.world.model import Obstacle
 
 Values = Mapping[str, Any]
 """A shape's parameters by their world-format keys (an obstacle's ``params``, or an obstacle
@@ -210,8 +207,8 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def body_table(obstacles: Sequence[Obstacle]) -> Bodies:
-    """The :class:`Bodies` of ``obstacles`` (world order)."""
+def body_table(obstacles: Sequence[Any]) -> Bodies:
+    """The :class:`Bodies` of ``obstacles`` (``world.model.Obstacle``, world order)."""
     m = len(obstacles)
     prm = np.zeros((m, 3))
     for j, o in enumerate(obstacles):
