@@ -318,6 +318,19 @@ def _resolve_threat(c: Checker, t: Any, path: str) -> tuple[dict | None, Threat 
     return out, Threat(kind, pos, r_min, r_max, weight, bool(avoid))
 
 
+def _resolve_origin(c: Checker, raw: Any) -> dict[str, float] | None:
+    """``origin``: the geodetic position (WGS-84 latitude and longitude in degrees, altitude in m)
+    of the world's point [0, 0, 0], for geodetic exports; None when the world has none."""
+    if raw is None or not c.keys(raw, "origin", ["lat", "lon", "alt"], ("lat", "lon")):
+        return None
+    lat = c.number(raw, "lat", "origin", None, lo=-90.0, hi=90.0)
+    lon = c.number(raw, "lon", "origin", None, lo=-180.0, hi=180.0)
+    alt = c.number(raw, "alt", "origin", 0.0)
+    if lat is None or lon is None or alt is None:
+        return None
+    return {"lat": lat, "lon": lon, "alt": alt}
+
+
 def parse_world(
     raw: Any,
     base_dir: str | Path = ".",
@@ -343,6 +356,7 @@ def parse_world(
         "planner",
         "log",
         "tracker",
+        "origin",
     ]
     if not c.keys(raw, "", top_keys, required=("name", "bounds", "agents")):
         raise WorldError([p.lstrip(": ") or p for p in c.problems] or ["the file is empty"], label)
@@ -476,6 +490,8 @@ def parse_world(
         path, _, msg = problem.partition(": ")
         c.add(path, msg)
 
+    origin = _resolve_origin(c, raw.get("origin"))
+
     # Geometry checks need a valid frame; run them only when the parts they use are sound.
     check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
 
@@ -495,6 +511,8 @@ def parse_world(
         "log": log,
         "tracker": tracker_cfg.to_dict(),
     }
+    if origin is not None:  # written only when given: logs of worlds without it stay as they were
+        resolved["origin"] = origin
     return World(
         name=name,
         seed=int(seed_raw),
