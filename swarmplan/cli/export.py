@@ -9,7 +9,7 @@ Turns the flown paths of a run log into what vehicles load (``docs/export.md``):
   speed and acceleration limits and at most 31 pieces (the 4096-byte trajectory memory);
 - ``px4``: per agent a QGroundControl ``.plan`` and a ``QGC WPL 110`` ``.waypoints`` list, the
   flown path reduced to waypoints within the goal tolerance (or ``--max-deviation``), in
-  geodetic coordinates from the world's ``origin``;
+  geodetic coordinates from the world's ``origin`` (or ``--origin``);
 - ``csv``: per agent the flown samples ``t,x,y,z,vx,vy,vz``.
 
 A ``manifest.json`` names every file with its agent's start time and the frame. ``--check`` flies
@@ -18,7 +18,7 @@ exported timing (separation, contacts); its report is also written as ``check.js
 
 Exit codes: 0 normally; 1 when ``--check`` finds a limit broken (the files are written); 2 for
 bad input (a missing, unreadable or cut-short log, a log without agents, an unknown agent, a
-geodetic export from a world without ``origin``, a path that cannot be exported as asked, an
+geodetic export from a world without ``origin`` and without ``--origin``, a path that cannot be exported as asked, an
 output folder that cannot be written), with one line on stderr and nothing written.
 """
 
@@ -51,6 +51,12 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--agent", metavar="ID", nargs="+", action="extend", default=None,
                     help="only these agents (default: every agent)")  # fmt: skip
     ap.add_argument("--out", metavar="DIR", required=True, help="output folder (created if missing)")
+    ap.add_argument(
+        "--origin",
+        metavar="LAT,LON[,ALT]",
+        default=None,
+        help="geodetic position of the world's [0, 0, 0] (degrees, m) when the log's world has no origin",
+    )
     ap.add_argument("--check", action="store_true", help="fly the exports again and check the swarm")
     ap.add_argument(
         "--max-deviation",
@@ -70,9 +76,24 @@ def check_args(args: argparse.Namespace) -> None:
         raise InputError(f"{args.log}: not readable")
     if args.max_deviation is not None and not (math.isfinite(args.max_deviation) and args.max_deviation > 0):
         raise InputError(f"--max-deviation {args.max_deviation:g}: must be a number > 0")
+    if args.origin is not None:
+        args.origin = parse_origin(args.origin)
     problem = output_dir_problem("--out", args.out)
     if problem:
         raise InputError(problem)
+
+
+def parse_origin(text: str) -> dict[str, float]:
+    """``LAT,LON[,ALT]`` as the world's ``origin`` mapping (checked like the world key)."""
+    try:
+        parts = [float(v) for v in text.split(",")]
+    except ValueError:
+        parts = []
+    if len(parts) not in (2, 3) or not all(math.isfinite(v) for v in parts):
+        raise InputError(f"--origin {text}: expected LAT,LON or LAT,LON,ALT (numbers)")
+    if not -90 <= parts[0] <= 90 or not -180 <= parts[1] <= 180:
+        raise InputError(f"--origin {text}: latitude must be in [-90, 90], longitude in [-180, 180]")
+    return {"lat": parts[0], "lon": parts[1], "alt": parts[2] if len(parts) == 3 else 0.0}
 
 
 @quiet_on_closed_stdout
@@ -92,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
         except RecordingError as exc:
             raise InputError(str(exc)) from None
         try:
+            if args.origin is not None:
+                rec.world["origin"] = args.origin
             exp = build(rec, args.format, args.agent, args.max_deviation)
         except (ExportError, LimitError) as exc:
             raise InputError(str(exc)) from None

@@ -135,7 +135,7 @@ def origin_of(world: dict[str, Any]) -> dict[str, float]:
     if not isinstance(origin, dict) or "lat" not in origin or "lon" not in origin:
         raise ExportError(
             "the log's world has no origin {lat, lon, alt}: a geodetic export needs one "
-            "(add `origin: {lat: ..., lon: ..., alt: ...}` to the world file and run it again)"
+            "(add `origin: {lat: ..., lon: ..., alt: ...}` to the world file, or give --origin LAT,LON,ALT)"
         )
     return {"lat": float(origin["lat"]), "lon": float(origin["lon"]), "alt": float(origin.get("alt", 0.0))}
 
@@ -201,7 +201,7 @@ def items(mission: Mission, origin: dict[str, float], ground: float) -> tuple[li
         v = float(speeds[k - 1])
         if current is None or v != current:
             out.append(
-                Item(MAV_CMD_DO_CHANGE_SPEED, MAV_FRAME_MISSION, (0.0 if fixed else 1.0, v, -1.0, 0.0, 0, 0, 0))
+                Item(MAV_CMD_DO_CHANGE_SPEED, MAV_FRAME_MISSION, (0.0 if fixed else 1.0, v, -1.0, 0.0, 0.0, 0.0, 0.0))
             )
             current = v
         last = k == len(wp) - 1
@@ -302,16 +302,14 @@ def timed(mission: Mission, step: float | None = None) -> tuple[np.ndarray, np.n
     speeds = mission.commanded_speeds()
     ds = max(min(step * max(float(speeds.min()), 1e-3) / 4.0, total / 4.0), 1e-4)
     s = np.linspace(0.0, total, int(np.ceil(total / ds)) + 1)
-    leg = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+    mid = 0.5 * (s[1:] + s[:-1])  # speeds at the middles of the fine steps: never 0 at a rest end
+    leg = np.clip(np.searchsorted(cum, mid, side="right") - 1, 0, len(seg) - 1)
     v = np.maximum(speeds[leg], 1e-3)
     if not mission.fixed_wing:
         a = max(lim.max_accel, 1e-9)
-        v = np.minimum(v, np.sqrt(2 * a * s) + 1e-9)
-        v = np.minimum(v, np.sqrt(2 * a * (total - s)) + 1e-9)
-        v = np.maximum(v, 1e-3)
-    # time along s: the integral of 1/v (trapezoid on the fine grid)
-    inv = 1.0 / v
-    t_s = np.concatenate([[0.0], np.cumsum(0.5 * (inv[1:] + inv[:-1]) * np.diff(s))])
+        v = np.minimum(v, np.sqrt(2 * a * mid))
+        v = np.minimum(v, np.sqrt(2 * a * (total - mid)))
+    t_s = np.concatenate([[0.0], np.cumsum(np.diff(s) / np.maximum(v, 1e-6))])
     grid = np.arange(0.0, t_s[-1] + 0.5 * step, step)
     grid[-1] = t_s[-1] if grid[-1] > t_s[-1] else grid[-1]
     if grid[-1] < t_s[-1]:
