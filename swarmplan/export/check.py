@@ -69,7 +69,11 @@ class CheckResult:
         return {
             "ok": self.ok,
             "agents": {
-                a.id: {"model": a.model, "max_deviation_m": round(a.max_deviation, 4), "limit_m": round(a.limit, 4)}
+                a.id: {
+                    "model": a.model,
+                    "max_deviation_m": round(a.max_deviation, 4),
+                    "limit_m": round(a.limit, 4),
+                }
                 for a in self.agents
             },
             "min_separation_m": None if self.min_separation is None else round(self.min_separation, 4),
@@ -81,13 +85,18 @@ class CheckResult:
         out = [f"{'agent':<12} {'model':<11} {'max dev m':>10} {'limit m':>9} {'ok':>4}"]
         for a in self.agents:
             out.append(
-                f"{a.id:<12} {a.model:<11} {a.max_deviation:10.4f} {a.limit:9.4f} {'yes' if a.ok else 'NO':>4}"
+                f"{a.id:<12} {a.model:<11} {a.max_deviation:10.4f} {a.limit:9.4f} "
+                f"{'yes' if a.ok else 'NO':>4}"
             )
         sep = "-" if self.min_separation is None else f"{self.min_separation:.4f} m"
         out.append(
             f"swarm: min separation (surface to surface) {sep}; separation ellipsoid entered at "
             f"{self.separation_entries} instants; contacts {len(self.contacts)}"
-            + (f" ({'; '.join(self.contacts[:5])}{' ...' if len(self.contacts) > 5 else ''})" if self.contacts else "")
+            + (
+                f" ({'; '.join(self.contacts[:5])}{' ...' if len(self.contacts) > 5 else ''})"
+                if self.contacts
+                else ""
+            )
         )
         out.append("check: " + ("OK" if self.ok else "LIMIT BROKEN"))
         return out
@@ -118,7 +127,9 @@ def _fly_multirotor(plan: Plan, cfg: TrackerConfig) -> tuple[np.ndarray, np.ndar
     return ref.times, flight.pos[0], ref.pos[0]
 
 
-def _fly_fixed_wing(plan: Plan, world: dict[str, Any], rec_dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def _fly_fixed_wing(
+    plan: Plan, world: dict[str, Any], rec_dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     ac = aircraft_of(world, plan.id)
     flight = fly(plan.times, plan.pos, ac, FixedWingConfig(), rec_dt)
     return flight.times, flight.pos, flight.ref_pos, error_limit(ac)
@@ -178,9 +189,10 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
             k = int(np.argmax(hit[a]))
             contacts.append(f"{ids[a]}-{oid} at t = {grid[k]:.2f} s")
     ground = pos[..., 2] - terrain_height(rec.world, pos[..., :2].reshape(-1, 2)).reshape(pos.shape[:2])
+    surface = "terrain" if (rec.world.get("terrain") or {}).get("peaks") else "ground"
     for a in np.flatnonzero((ground < radii[:, None]).any(axis=1)):
         k = int(np.argmax(ground[a] < radii[a]))
-        contacts.append(f"{ids[a]}-{'terrain' if (rec.world.get('terrain') or {}).get('peaks') else 'ground'} at t = {grid[k]:.2f} s")
+        contacts.append(f"{ids[a]}-{surface} at t = {grid[k]:.2f} s")
     return CheckResult(agents, min_sep, entries, contacts)
 
 

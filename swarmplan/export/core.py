@@ -107,7 +107,9 @@ def _crazyflie(
 ) -> tuple[dict[str, Any], Plan, str]:
     lim = path.limits
     if lim.model != "multirotor":
-        raise ExportError(f"agent {lim.id}: a {lim.model} agent cannot fly a Crazyflie trajectory (multirotors only)")
+        raise ExportError(
+            f"agent {lim.id}: a {lim.model} agent cannot fly a Crazyflie trajectory (multirotors only)"
+        )
     accuracy = crazyflie.accuracy_for(path, max_deviation)
     fit = crazyflie.fit(path, accuracy)
     poly = fit.poly
@@ -141,7 +143,11 @@ def _crazyflie(
         "speed_limit": lim.speed_max,
         "max_accel": round(fit.max_accel, 4),
         "accel_limit": lim.max_accel,
-        "joint_jumps": {"position_m": float(jumps[0]), "velocity_m_s": float(jumps[1]), "accel_m_s2": float(jumps[2])},
+        "joint_jumps": {
+            "position_m": float(jumps[0]),
+            "velocity_m_s": float(jumps[1]),
+            "accel_m_s2": float(jumps[2]),
+        },
     }
     line = (
         f"{lim.id:<12} {name:<16} {poly.n_pieces:3d} pieces ({poly.nbytes} B) {poly.duration:7.2f} s  "

@@ -37,7 +37,8 @@ MEMORY_BYTES = 4096  # the Crazyflie's trajectory memory (TRAJECTORY_MEMORY_SIZE
 MAX_PIECES = MEMORY_BYTES // PIECE_BYTES  # 31
 JOINT_MULTIPLICITY = 4  # interior knots: C(7 - 4) = C3 at every joint
 DEFAULT_ACCURACY = 0.05  # m, at most; a tenth of the agent's smallest separation when smaller
-SNAP_LADDER = (1e-9, 1e-3, 1e-1, 10.0)  # snap penalty, relative to the fit's own scale
+SNAP_LADDER = (0.0, 1e-3, 1e-1, 10.0)  # snap penalty, relative to the fit's own scale
+LIMIT_SEARCH = 6  # pieces beyond the fewest that reach the accuracy, tried for the limits
 SEARCH_FACTOR = 4  # how far past the memory the refusal looks for the pieces the bound needs
 DENSE = 16  # evaluation points per piece (and per recorded step) for deviations and limits
 HEADER = ["Duration"] + [f"{axis}^{j}" for axis in ("x", "y", "z", "yaw") for j in range(COEFFS)]
@@ -219,8 +220,8 @@ def evaluate_fit(poly: Poly4D, path: FlownPath) -> tuple[float, float, float]:
 
 
 LIMIT_TARGET = 0.99  # a peak over a limit is pinned this far below it (room for float32 and the grid)
-MAX_PINS = 40  # rounds of pinning limit peaks before a fit is given up
-PINS_PER_ROUND = 4  # the highest peaks over each limit pinned per round
+MAX_PINS = 12  # rounds of pinning limit peaks before a fit is given up
+PINS_PER_ROUND = 8  # the highest peaks over each limit pinned per round
 
 
 def _fit_pieces(
@@ -318,7 +319,8 @@ def fit(path: FlownPath, accuracy: float, max_pieces: int = MAX_PIECES) -> Fit:
     first = _pieces_needed(path, accuracy, 1, max_pieces * SEARCH_FACTOR)
     over: tuple[float, float] | None = None
     best_dev = math.inf
-    for n in range(first or max_pieces + 1, max_pieces + 1):
+    last = min(max_pieces, (first or max_pieces) + LIMIT_SEARCH)
+    for n in range((first or max_pieces + 1), last + 1):
         for poly, dev, speed, accel, lam in _fit_pieces(path, n):
             if not _within_limits(path, speed, accel):
                 over = (speed, accel)
@@ -329,7 +331,8 @@ def fit(path: FlownPath, accuracy: float, max_pieces: int = MAX_PIECES) -> Fit:
     if first is not None and first <= max_pieces:
         speed, accel = over if over is not None else (math.nan, math.nan)
         raise LimitError(
-            f"agent {aid}: no trajectory of up to {memory} within {accuracy:g} m of the flown path keeps "
+            f"agent {aid}: no trajectory of {first} to {last} pieces within {accuracy:g} m of the flown "
+            "path keeps "
             f"its limits (best: speed {speed:.3f} of {lim.speed_max:g} m/s, acceleration {accel:.3f} of "
             f"{lim.max_accel:g} m/s^2)"
         )

@@ -201,7 +201,11 @@ def items(mission: Mission, origin: dict[str, float], ground: float) -> tuple[li
         v = float(speeds[k - 1])
         if current is None or v != current:
             out.append(
-                Item(MAV_CMD_DO_CHANGE_SPEED, MAV_FRAME_MISSION, (0.0 if fixed else 1.0, v, -1.0, 0.0, 0.0, 0.0, 0.0))
+                Item(
+                    MAV_CMD_DO_CHANGE_SPEED,
+                    MAV_FRAME_MISSION,
+                    (0.0 if fixed else 1.0, v, -1.0, 0.0, 0.0, 0.0, 0.0),
+                )
             )
             current = v
         last = k == len(wp) - 1
