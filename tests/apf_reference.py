@@ -108,10 +108,9 @@ def reference_forces(
     normal = _unit(np.stack([-gh[:, 0], -gh[:, 1], np.ones(n)], axis=1))
     floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
     rho_g = (pos[:, 2] - h) - r
-    rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 2.0)
-    low_goal = goal[:, 2] - world.terrain_height(goal[:, :2]) < floor
+    rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 0.25 * rho0)
     mag_g = _rep(rho_g, rho0_g, g.k_rep)
-    force = force + np.where(low_goal, mag_g * gfac, mag_g)[:, None] * normal
+    force = force + (mag_g * gfac)[:, None] * normal
 
     lo, hi = world.bounds_min, world.bounds_max
     rb0 = min(rho0, 10.0)

@@ -155,7 +155,13 @@ def base_world(**top: Any) -> dict[str, Any]:
             "separation": [4, 4, 2],
         },
         "agents": [{"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]}],
-        "planner": {"optimizer": {"name": "none"}},
+        # the field's gains and the escapes' lengths of a 10 m field (a 5 m/s, 5 m/s² agent), as the
+        # tests that build on this world were written for; left out they scale with the agent
+        "planner": {
+            "optimizer": {"name": "none"},
+            "apf": {"k_rep": 50.0, "quadratic_radius": 10.0},
+            "escape": {"margin": 1.0, "fcl_margin": 0.3},
+        },
         "log": {"foxglove": False},
     }
     raw.update(copy.deepcopy(top))

@@ -43,7 +43,12 @@ def _guide(terrain: bool, agents: int) -> G.StaticGuide:
     raw = base_world(
         obstacles=OBSTACLES,
         agents=[
-            {"id": f"a{k}", "start": [5.0, 5.0 + 0.4 * k, 40.0], "goal": [95.0, 95.0 - 0.4 * k, 40.0]}
+            # a block of agents 2.1 m apart (clear of each other's bodies) by a corner of the box
+            {
+                "id": f"a{k}",
+                "start": [3.0 + 2.1 * (k // 40), 3.0 + 2.1 * (k % 40), 40.0 + 2.1 * (k // 200)],
+                "goal": [97.0 - 2.1 * (k // 40), 97.0 - 2.1 * (k % 40), 40.0 + 2.1 * (k // 200)],
+            }
             for k in range(agents)
         ],
     )

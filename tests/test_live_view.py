@@ -161,3 +161,53 @@ def test_a_closed_log_lets_its_channels_go(tmp_path: Path):
         rec.write_world({"name": "w", "agents": [], "obstacles": [], "bounds": {}, "seed": 0})
         rec.close()
     assert len(foxglove_channel._channels_by_id) == before
+
+
+def test_a_viewer_that_unsubscribes_and_leaves_prints_nothing(tmp_path: Path, capfd, caplog):
+    """A viewer that connects, subscribes, unsubscribes and closes: the server answers every
+    callback the protocol makes (nothing logged, nothing on stderr) and the run goes on."""
+    import logging
+
+    from swarmplan.io.sink import LogSink
+
+    caplog.set_level(logging.DEBUG)
+
+    sink = LogSink(tmp_path / "live.mcap", live=("127.0.0.1", 0))
+    try:
+        channel = sink.register_channel("/a", "json", sink.register_schema("a", "jsonschema", b"{}"))
+        sink.add_message(channel, 1, b"{}")
+
+        async def visit() -> int:
+            got = 0
+            url = f"ws://127.0.0.1:{sink.port}"
+            async with websockets.connect(url, subprotocols=list(SUBPROTOCOLS)) as ws:
+                ids: dict[str, int] = {}
+                while "/a" not in ids:
+                    op = json.loads(await asyncio.wait_for(ws.recv(), 10.0))
+                    if op["op"] == "advertise":
+                        ids.update({c["topic"]: c["id"] for c in op["channels"]})
+                subscription = {"id": 1, "channelId": ids["/a"]}
+                await ws.send(json.dumps({"op": "subscribe", "subscriptions": [subscription]}))
+                for k in range(100):  # until the subscription is in place
+                    sink.add_message(channel, 2 + k, b"{}")
+                    try:
+                        msg = await asyncio.wait_for(ws.recv(), 0.05)
+                    except asyncio.TimeoutError:
+                        continue
+                    if isinstance(msg, bytes) and msg[0] == 0x01:
+                        got += 1
+                        break
+                await ws.send(json.dumps({"op": "unsubscribe", "subscriptionIds": [1]}))
+                await ws.send(json.dumps({"op": "unadvertise", "channelIds": [7]}))
+                await asyncio.sleep(0.2)
+            await asyncio.sleep(0.3)  # the server sees the viewer leave
+            return got
+
+        assert asyncio.run(visit()) == 1
+        sink.add_message(channel, 500, b"{}")
+    finally:
+        sink.close()
+    out, err = capfd.readouterr()
+    assert err == "" and out == ""
+    complaints = [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+    assert complaints == []

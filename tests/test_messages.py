@@ -132,6 +132,22 @@ def test_too_few_seeds_for_significance_is_said():
     assert "no verdict can be significant" not in " ".join(report.table_notes(_rows(3), ["a", "b"], 0.05))
 
 
+def test_agents_home_beside_success_and_a_note_where_no_optimizer_ran():
+    """A failed run may have brought most agents home; rows of runs that called no optimizer are
+    pure APF's, which a note says (only when every run of that optimizer says so)."""
+    rows = [dict(r, success=False, agents="3", arrived="2", optimizer_runs="0") for r in _rows(2)]
+    text = report.table(rows, ["a", "b"])
+    head, _, first, _ = text.splitlines()
+    cells = [c.strip() for c in first.split("|")]
+    assert cells[2:4] == ["0/2 (0%)", "4/6"] and "agents home" in head
+    notes = report.table_notes(rows, ["a", "b"], 0.05)
+    assert any(n.startswith("no optimizer ran in any run of a, b: ") for n in notes)
+    rows[0]["optimizer_runs"] = "5"
+    notes = report.table_notes(rows, ["a", "b"], 0.05)
+    assert any(n.startswith("no optimizer ran in any run of b: ") for n in notes)
+    assert not any("no optimizer ran" in n for n in report.table_notes(_rows(3), ["a", "b"], 0.05))
+
+
 def test_box_plot_has_a_legend_and_tick_labels_that_do_not_overlap():
     rows = []
     labels = []

@@ -151,3 +151,12 @@ def test_rotations_follow_the_world_contract_to_1e12():
     assert np.allclose(euler_deg_to_quat([0, 0, 90]), [0, 0, math.sqrt(0.5), math.sqrt(0.5)], atol=1e-15)
     assert quat_to_matrix(np.zeros((2, 4))).shape == (2, 3, 3)
     assert np.array_equal(quat_to_matrix([0, 0, 0, 0]), np.eye(3))
+
+
+def test_animate_shows_no_progress_bar_off_a_terminal(log, tmp_path, capsys):
+    """Captured output (stderr not a terminal) gets no progress bar, as with ``run``."""
+    gif = tmp_path / "a.gif"
+    assert cli_main([str(log), "--animate", str(gif), "--max-frames", "3"]) == 0
+    out, err = capsys.readouterr()
+    assert gif.stat().st_size > 1000 and f"wrote {gif}" in out
+    assert err == "" and "\r" not in out

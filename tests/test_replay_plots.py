@@ -151,3 +151,37 @@ def test_one_step_smoothing_segment_is_visible(tmp_path):
 def test_long_segments_get_no_dot(rich):
     gids = _gids(plots.plot_top(rich).axes[0])
     assert "mode:escape:uav1" in gids and not any(g.startswith("mode-dot:escape") for g in gids)
+
+
+def test_curvature_line_shows_the_turn_flown_and_each_fixed_wings_limit(tmp_path):
+    """A multirotor turning by 0.05 rad every other 1 m step (per step: 0.05 and 0 1/m in turn)
+    flies a curvature of 0.025 1/m, which the line shows; a fixed wing's limit (1 / 40 m) is a
+    dashed line, a multirotor has none (its limit is a lateral acceleration)."""
+    n = 200
+    times = np.round(np.arange(n) * 0.1, 10)
+    heading = np.concatenate([[0.0], np.cumsum(np.where(np.arange(n - 1) % 2 == 0, 0.05, 0.0))])[:-1]
+    steps = np.stack([np.cos(heading), np.sin(heading), np.zeros(n - 1)], axis=1)
+    rotor = np.vstack([[0.0, 0.0, 10.0], [0.0, 0.0, 10.0] + np.cumsum(steps, axis=0)])
+    ang = np.arange(n) * 0.01  # 1 m steps on a circle of 100 m
+    wing = np.stack([100 * np.sin(ang), 100 - 100 * np.cos(ang), np.full(n, 20.0)], axis=1)
+    pos = np.stack([rotor, wing])
+    agents = [
+        {"id": "mr", "start": rotor[0].tolist(), "goal": rotor[-1].tolist()},
+        {"id": "fw", "model": "fixed_wing", "min_turn_radius": 40.0, "start": wing[0].tolist(),
+         "goal": wing[-1].tolist(), "speed": {"min": 8.0, "max": 15.0, "cruise": 10.0}},
+    ]  # fmt: skip
+    world = base_world(agents, bounds={"min": [-300, -300, 0], "max": [300, 300, 50]})
+    goals = [rotor[-1].tolist(), wing[-1].tolist()]
+    states = states_from_arrays(times, ["mr", "fw"], pos, goals=goals)
+    rec = load(write_log(tmp_path / "turns.mcap", world, states))
+    ax = analysis_plots.plot_curvature(rec).axes[0]
+    lines = {ln.get_gid(): ln for ln in ax.lines if ln.get_gid()}
+    assert [g for g in lines if g.startswith("limit:")] == ["limit:0.025"]
+    assert lines["limit:0.025"].get_ydata()[0] == pytest.approx(0.025)
+    flown = np.asarray(lines["path:mr"].get_ydata())[20:-20]  # a whole window on either side
+    assert np.allclose(flown, 0.025, rtol=0.06), (flown.min(), flown.max())
+    step = np.asarray(lines["step:mr"].get_ydata())
+    assert step.max() == pytest.approx(0.05, rel=1e-3) and step.min() < 1e-9  # per step: in turn
+    circle = np.asarray(lines["path:fw"].get_ydata())[20:-20]
+    assert np.allclose(circle, 0.01, rtol=1e-3)
+    assert any(lbl.startswith("fixed-wing limit 0.025") for lbl in _labels(ax))

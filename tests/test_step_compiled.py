@@ -31,7 +31,8 @@ def _bits(a: np.ndarray) -> np.ndarray:
 
 def _swarm_world(n: int):
     agents = [
-        {"id": f"a{i}", "start": [5.0 + i, 5.0, 30.0], "goal": [5.0 + i, 590.0, 30.0]} for i in range(n)
+        {"id": f"a{i}", "start": [5.0 + 2.5 * i, 5.0, 30.0], "goal": [5.0 + 2.5 * i, 590.0, 30.0]}
+        for i in range(n)
     ]
     raw = base_world(
         bounds={"min": [0, 0, 0], "max": [3000, 600, 80]},

@@ -366,6 +366,12 @@ def test_compare_is_a_front_end_of_the_engine(cluster, tmp_path, capsys):
     table = [ln for ln in captured.out.splitlines() if ln.startswith("| ")]
     assert table[2].startswith("| woa ") and "2/2 (100%)" in table[2] and "(reference)" in table[2]
     assert table[3].startswith("| none ") and len(sorted(out.glob("runs/*.mcap"))) == 4
+    home = [c.strip() for c in table[0].split("|")].index("agents home")
+    assert [c.strip() for c in table[2].split("|")][home] == "4/4"  # 2 agents x 2 seeds
+    # the open world never needs an optimizer: said, and each note once
+    said = captured.out + captured.err
+    assert "note: no optimizer ran in any run of woa: " in captured.out and "(the same as `none`'s)" in said
+    assert said.count("no verdict can be significant") == 1 and said.count("rank-sum") == 1
     assert compare_main([str(world), "--optimizers", "woa,nope", "--seeds", "0"]) == 2
     err = capsys.readouterr().err
     assert "--seeds: must be >= 1" in err and "--optimizers: unknown optimizer 'nope'" in err, err

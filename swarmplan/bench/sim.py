@@ -81,10 +81,14 @@ def swarm_world(agents: int, movers: int, statics: int, seed: int = 0) -> dict[s
             "radius": 1.0,
             "speed": {"min": 0, "max": 12, "cruise": 8},
             "max_accel": 4,
+            "min_altitude": 5,
             "separation": [4, 4, 2],
         },
         "agents": agent_list,
-        "planner": {"apf": {"influence": 20.0}},
+        "planner": {
+            "apf": {"influence": 20.0, "k_rep": 50.0, "quadratic_radius": 10.0},
+            "escape": {"margin": 1.0, "fcl_margin": 0.3},
+        },
     }
 
 
@@ -132,7 +136,8 @@ def swap_world(agents: int = 32, movers: int = 1, seed: int = 0, max_time: float
         },
         "agents": agent_list,
         "planner": {
-            "apf": {"k_att": 1.0, "k_rep": 50.0, "influence": 8.0, "k_agent": 20.0},
+            "apf": {"k_att": 1.0, "k_rep": 50.0, "influence": 8.0, "k_agent": 20.0, "quadratic_radius": 10.0},
+            "escape": {"margin": 1.0, "fcl_margin": 0.3},
             "stuck": {"window": 2.0, "min_progress": 0.5},
             "optimizer": {"name": "rscdwoa", "population": 30, "iterations": 100},
         },

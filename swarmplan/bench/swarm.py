@@ -1,7 +1,7 @@
 """Dense swarms on the field's standard scenarios, side by side with ORCA-3D.
 
 ``python -m swarmplan.bench swarm [--sizes 16,64,256,512] [--seeds K] [--peers orca] [--out DIR]
-[--docs DIR] [--quick]`` flies every scenario of :mod:`swarmplan.bench.swarm_scenarios` (sphere,
+[--quick] [--docs DIR]`` flies every scenario of :mod:`swarmplan.bench.swarm_scenarios` (sphere,
 circle, crossing, doorway (up to 64 agents), sphere_pillars, forest) at every size and seed with
 swarmplan's default planner and with pure APF (``--optimizer none``), and, with ``--peers orca``,
 ORCA-3D (RVO2-3D through the ``jt-pyrvo23d`` package: ``pip install -e '.[orca]'``) on the
@@ -16,8 +16,9 @@ the last arrival; real-time factor of the stepping loop (simulated over wall sec
 the first step excluded, swarmplan recording its MCAP log); escapes. Each run's horizon is three
 times the longest straight-line flight at cruise speed plus 30 s.
 
-Writes ``swarm.csv`` (one row per run) to ``--out`` and ``swarm-benchmarks.md`` with the table
-and one picture per scenario (``swarm-<scenario>.png``, flown paths) to ``--docs``.
+Writes ``swarm.csv`` (one row per run), ``swarm-benchmarks.md`` with the table and one picture
+per scenario (``swarm-<scenario>.png``, flown paths) to ``--out``; with ``--docs DIR`` the page and
+its pictures go to DIR instead (``--docs docs`` rewrites the shipped docs/swarm-benchmarks.md).
 """
 
 from __future__ import annotations
@@ -208,10 +209,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=3, help="seeds per scenario and size")
     parser.add_argument("--scenarios", default=",".join(SCENARIOS), help="scenarios, comma-separated")
     parser.add_argument("--peers", default="", help="peer systems to fly beside swarmplan: orca")
-    parser.add_argument("--out", default="logs/bench-swarm", help="folder of the CSV (one row per run)")
-    parser.add_argument("--docs", default="docs", help="folder of swarm-benchmarks.md and its pictures")
-    parser.add_argument("--no-docs", action="store_true", help="write the CSV only")
+    parser.add_argument(
+        "--out",
+        default="logs/bench-swarm",
+        help="folder of the CSV (one row per run), the page and its pictures",
+    )
     parser.add_argument("--quick", action="store_true", help="16 agents, one seed (a smoke test)")
+    parser.add_argument(
+        "--docs",
+        metavar="DIR",
+        help="write swarm-benchmarks.md and its pictures to DIR instead of --out (docs: the shipped page)",
+    )
 
 
 def check_arguments(args: argparse.Namespace) -> list[str]:
@@ -229,6 +237,8 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
     elif peers and importlib.util.find_spec("rvo23d") is None:
         problems.append("--peers orca: ORCA-3D is not installed (pip install -e '.[orca]')")
     for flag in ("out", "docs"):
+        if getattr(args, flag) is None:
+            continue
         path = Path(getattr(args, flag))
         if path.exists() and not path.is_dir():
             problems.append(f"--{flag}: {path} is a file, expected a folder")
@@ -244,9 +254,10 @@ def main(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     # Start-up out of the figures: every compiled kernel a run may call (field, checks, escape
     # and smoothing costs, movers) loaded once, by runs whose rows are not kept, at the swarm
-    # size from which the step's geometry runs compiled (smaller worlds never load it).
+    # size from which the step's geometry runs compiled (smaller worlds never load it: where
+    # every size flown is smaller, at the largest of them).
     for warm in ("sphere_pillars", "forest"):
-        run_swarmplan(warm, COMPILED_FROM, 0, "planner")
+        run_swarmplan(warm, min(COMPILED_FROM, max(sizes)), 0, "planner")
     rows: list[Row] = []
     pictures: dict[str, tuple[int, np.ndarray]] = {}
     print(
@@ -283,14 +294,11 @@ def main(args: argparse.Namespace) -> int:
     verdicts = done_verdicts(rows)
     print(table)
     print("\n".join(verdicts))
-    if not args.no_docs:
-        from swarmplan.bench.swarm_report import write_docs
+    from swarmplan.bench.swarm_report import write_docs
 
-        write_docs(Path(args.docs), rows, table, verdicts, pictures, sizes, seeds, orca)
-    print(
-        f"wrote {out / 'swarm.csv'}"
-        + ("" if args.no_docs else f" and {Path(args.docs) / 'swarm-benchmarks.md'}")
-    )
+    page = out if args.docs is None else Path(args.docs)
+    write_docs(page, rows, table, verdicts, pictures, sizes, seeds, orca, args.docs)
+    print(f"wrote {out / 'swarm.csv'} and {page / 'swarm-benchmarks.md'}")
     return 0
 
 

@@ -71,10 +71,14 @@ def write_docs(
     sizes: list[int],
     seeds: int,
     orca: bool,
+    docs: str | None = None,
 ) -> None:
+    """The page and its pictures in ``folder``; ``docs``: the ``--docs`` folder the command
+    named (the page's command line says it)."""
     folder.mkdir(parents=True, exist_ok=True)
     command = f"python -m swarmplan.bench swarm --sizes {','.join(map(str, sizes))} --seeds {seeds}"
     command += " --peers orca" if orca else ""
+    command += f" --docs {docs}" if docs is not None else ""
     lines = [
         "# Dense swarms: the field's standard scenarios",
         "",

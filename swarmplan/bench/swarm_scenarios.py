@@ -35,6 +35,7 @@ DT = 0.1
 GOAL_TOLERANCE = 2.0
 FLOOR = 15.0  # m: lowest start/goal height (clear of the ground's repulsion)
 MARGIN = 15.0  # m between the swarm and the faces of the bounds
+MIN_ALTITUDE = 5.0  # m: the soft floor the published tables were flown with
 
 
 def _world(
@@ -62,6 +63,7 @@ def _world(
             "radius": RADIUS,
             "speed": dict(SPEED),
             "separation": list(SEPARATION),
+            "min_altitude": MIN_ALTITUDE,
         },
         "agents": [
             {"id": f"a{i}", "start": [round(float(v), 6) for v in s], "goal": [round(float(v), 6) for v in g]}

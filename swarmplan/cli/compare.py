@@ -102,14 +102,6 @@ def main(argv: list[str] | None = None) -> int:
         for p in problems:
             print(f"error: {p}", file=sys.stderr)
         return 2
-    from swarmplan.sweep.report import seeds_needed
-
-    if len(names) > 1 and args.seeds < seeds_needed(args.alpha):
-        print(
-            f"note: with {args.seeds} seed(s) per optimizer no rank-sum verdict can reach p < {args.alpha:g}"
-            f" (it takes at least {seeds_needed(args.alpha)} seeds); the table shows the figures only",
-            file=sys.stderr,
-        )
     tmp = tempfile.TemporaryDirectory(prefix="swarmplan-compare-") if args.out_dir == "none" else None
     out_dir = Path(tmp.name if tmp is not None else args.out_dir)
     try:

@@ -168,6 +168,15 @@ def describe(rec: Recording) -> list[str]:
     return lines
 
 
+def _turn(m: AgentMetrics) -> str:
+    """Max curvature and its limit for a fixed wing; '-' for a multirotor, whose turn limit is
+    the lateral acceleration (it may turn the tighter the slower it flies: a hovering one's
+    millimetre steps make any turn a curvature in the hundreds)."""
+    if m.lateral_accel_limit is not None:
+        return f"{'-':>8} {'-':>7}"
+    return f"{m.max_curvature:>8.4f} {_f(m.curvature_limit, '{:.4f}'):>7}"
+
+
 def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
     head = (
         f"{'agent':<10} {'arrived':>7} {'t_arr':>8} {'path_m':>9} {'min_clear':>9} {'closest':<12}"
@@ -181,8 +190,8 @@ def metrics_table(metrics: list[AgentMetrics]) -> list[str]:
     for m in metrics:
         out.append(
             f"{m.id:<10} {('yes' if m.arrived else 'no'):>7} {_f(m.arrival_time):>8} {m.path_length:>9.2f}"
-            f" {_f(m.min_clearance, '{:.3f}'):>9} {str(m.closest_body or '-'):<12} {m.max_curvature:>8.4f}"
-            f" {_f(m.curvature_limit, '{:.4f}'):>7} {m.max_lateral_accel:>7.2f}"
+            f" {_f(m.min_clearance, '{:.3f}'):>9} {str(m.closest_body or '-'):<12} {_turn(m)}"
+            f" {m.max_lateral_accel:>7.2f}"
             f" {_f(m.lateral_accel_limit, '{:.2f}'):>5}"
             f" {m.cusps:>5} {m.collisions:>4} {m.escapes:>3} {m.stuck_events:>5}"
             + (
@@ -246,6 +255,7 @@ def _write_outputs(rec: Recording, args: argparse.Namespace, agent_ids: list[str
                 max_frames=args.max_frames,
                 speed=args.speed,
                 agents=agent_ids,
+                progress=sys.stderr.isatty(),  # no bar in a captured log (as run)
             )
         )
     return outputs

@@ -20,6 +20,7 @@ from typing import Any
 
 from swarmplan import optimizers
 from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout, write_failure, writer_messages
+from swarmplan.io.compile_notice import CompileNotice, said_marker
 from swarmplan.io.runner import LiveView, apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
 from swarmplan.sim.threats import exposure_warnings
@@ -59,16 +60,40 @@ def check_writable(path: Path, label: str) -> None:
         ) from None
 
 
+TURN_RULES = (
+    (True, "fixed wing: curvature over 1.05 / min_turn_radius"),
+    (False, "multirotor: lateral acceleration over 1.05 max_accel"),
+)
+"""(fixed wing or not, the rule its broken turn limit is): a table names only the rules of the
+models whose limit was broken."""
+
+
+def _fixed_wing(a: dict[str, Any]) -> bool:
+    """A summary entry of a fixed wing (its turn limit is a curvature, not an acceleration)."""
+    return a.get("lateral_accel_limit") is None
+
+
+def _curvature(a: dict[str, Any]) -> tuple[str, str]:
+    """(max curvature, its limit) for a fixed wing; '-' for a multirotor: it may turn the tighter
+    the slower it flies (a hovering one's steps of millimetres make any turn a curvature in the
+    hundreds), so its turn limit is the lateral acceleration beside it."""
+    if not _fixed_wing(a):
+        return "-", "-"
+    limit = a.get("curvature_limit")
+    return f"{a['max_curvature']:.3g}", "-" if limit is None else f"{limit:.3g}"
+
+
 def _lateral(a: dict[str, Any]) -> str:
     """Max lateral acceleration beside the multirotor's max_accel; '!' marks a broken turn limit."""
     flag = " !" if a.get("curvature_violation") else ""
-    if a.get("lateral_accel_limit") is None:  # fixed wing: its limit is the curvature
+    if _fixed_wing(a):  # its limit is the curvature
         return ("-" if a.get("max_lateral_accel") is None else f"{a['max_lateral_accel']:.2f}") + flag
     return f"{a['max_lateral_accel']:.2f}/{a['lateral_accel_limit']:.2f}{flag}"
 
 
-def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
-    """The per-agent table printed at the end of a run."""
+def format_summary(summary: dict[str, Any], log_path: Path | None, compiled: bool = False) -> str:
+    """The per-agent table printed at the end of a run (``compiled``: its wall time includes
+    compiling the kernels, which the speed figure says)."""
     head = (
         "agent",
         "arrived",
@@ -77,7 +102,7 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
         "ratio",
         "min clear m",
         "max curv 1/m",
-        "limit 1/m",
+        "curv limit 1/m",
         "lat acc m/s2",
         "cusps",
         "collisions",
@@ -94,8 +119,7 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
                 f"{a['path_length']:.1f}",
                 "-" if a["length_ratio"] is None else f"{a['length_ratio']:.3f}",
                 "-" if a["min_clearance"] is None else f"{a['min_clearance']:.2f}",
-                f"{a['max_curvature']:.3g}",
-                "-" if a.get("curvature_limit") is None else f"{a['curvature_limit']:.3g}",
+                *_curvature(a),
                 _lateral(a),
                 str(a.get("cusps", 0)),
                 str(a["collisions"]),
@@ -112,12 +136,10 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
     widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(head)]
     line = lambda cells: "  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True))  # noqa: E731
     out = [line(head), line(["-" * w for w in widths])] + [line(r) for r in rows]
-    broken = [a["id"] for a in summary["agents"] if a.get("curvature_violation")]
+    broken = [a for a in summary["agents"] if a.get("curvature_violation")]
     if broken:
-        out.append(
-            f"TURN LIMIT BROKEN (!): {', '.join(broken)} (fixed wing: curvature over 1.05 / min_turn_radius; "
-            "multirotor: lateral acceleration over 1.05 max_accel)"
-        )
+        rules = [rule for fixed, rule in TURN_RULES if any(_fixed_wing(a) == fixed for a in broken)]
+        out.append(f"TURN LIMIT BROKEN (!): {', '.join(a['id'] for a in broken)} ({'; '.join(rules)})")
     out += exposure_warnings(summary)
     verdict = "SUCCESS" if summary["success"] else ("INTERRUPTED" if summary["interrupted"] else "FAILED")
     out.append("")
@@ -125,7 +147,9 @@ def format_summary(summary: dict[str, Any], log_path: Path | None) -> str:
         f"{verdict}: {summary['arrived']}/{summary['agents_total']} arrived, "
         f"{summary['collisions']} collision(s), "
         f"sim {summary['sim_time']:.1f} s in {summary['wall_time']:.2f} s wall "
-        f"({summary['sim_time'] / max(summary['wall_time'], 1e-9):.1f} sim-s/s), "
+        f"({summary['sim_time'] / max(summary['wall_time'], 1e-9):.1f} sim-s/s"
+        + (", compiling included" if compiled else "")
+        + "), "
         f"world {summary['world']!r}, seed {summary['seed']}, optimizer {summary['optimizer']}"
     )
     if log_path is not None:
@@ -232,6 +256,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {p}", file=sys.stderr)
         return EXIT_BAD_INPUT
     complaints = None
+    notice = None if args.quiet else CompileNotice(marker=said_marker())
     try:
         with writer_messages() as complaints:
             summary = simulate(
@@ -241,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
                 progress=not args.quiet and sys.stderr.isatty(),
                 stop_on_signals=True,
                 live=live,
-                notices=not args.quiet,
+                notices=notice or False,
             )
     except (RuntimeError, OSError) as exc:
         reason = write_failure(exc, complaints)
@@ -258,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\ninterrupted: the log {log_path} was closed with every step so far", file=sys.stderr)
         return EXIT_FAILED
     if not args.quiet:
-        print(format_summary(summary, log_path))
+        print(format_summary(summary, log_path, compiled=notice is not None and notice.compiled))
     return EXIT_OK if summary["success"] else EXIT_FAILED
 
 

@@ -168,7 +168,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     fmax = -np.inf
     for i in range(n):
         fmax = max(fmax, max(min_altitude[idx[i]], terrain_floor))
-    rho0_g = max(min(rho0, 3.0 * fmax), 2.0)
+    rho0_g = max(min(rho0, 3.0 * fmax), 0.25 * rho0)
     rb0 = min(rho0, 10.0)
     k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
@@ -290,13 +290,11 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     fy += mag * wy
                     fz += mag * wz
 
-        # Terrain / ground, pushing only while it is not the way to the goal.
+        # Terrain / ground, with the goal factor (a goal near the ground stays reachable).
         nx, ny, nz = _unit(-gh[i, 0], -gh[i, 1], 1.0)
-        floor = max(min_altitude[idx[i]], terrain_floor)
         rho_g = (pz - h[i]) - ri
         mag = k_rep * (1.0 / max(rho_g, 0.05) - 1.0 / rho0_g) if rho_g < rho0_g else 0.0
-        if goal[i, 2] - h_goal[i] < floor:
-            mag = mag * gfac
+        mag = mag * gfac
         fx, fy, fz = fx + mag * nx, fy + mag * ny, fz + mag * nz
 
         # Faces of the flight volume (the floor is the ground's).
@@ -419,6 +417,8 @@ def commanded_velocity(amax, cruise, force, pos, goal, clearance, normal, out): 
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         toward = -(vx * nx + vy * ny + vz * nz)
         allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - 0.5, 0.0))
+        if dg < clearance[i]:  # a goal nearer than the surface: its own cap stops the agent short of it
+            allowed = _maximum(allowed, speed)
         excess = _maximum(toward - allowed, 0.0)
         out[i, 0] = vx + excess * nx
         out[i, 1] = vy + excess * ny

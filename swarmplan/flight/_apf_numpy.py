@@ -117,7 +117,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     if n == 0:
         return
     floor = np.maximum(min_altitude[idx], terrain_floor)
-    rho0_g = max(min(rho0, 3.0 * float(floor.max())), 2.0)
+    rho0_g = max(min(rho0, 3.0 * float(floor.max())), 0.25 * rho0)
     rb0 = min(rho0, 10.0)
     ri = radius[idx]
 
@@ -144,11 +144,11 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             static_scale,
         )
 
-    # Terrain / ground, pushing only while it is not the way to the goal.
+    # Terrain / ground, with the goal factor (a goal near the ground stays reachable).
     normal = _unit(_vec(-gh[:, 0], -gh[:, 1], np.ones(n)))
     rho_g = (pos[:, 2] - h) - ri
     mag = np.where(rho_g < rho0_g, k_rep * (1.0 / np.maximum(rho_g, 0.05) - 1.0 / rho0_g), 0.0)
-    mag = np.where(goal[:, 2] - h_goal < floor, mag * gfac, mag)
+    mag = mag * gfac
     f = f + mag[:, None] * normal
 
     # Faces of the flight volume (the floor is the ground's).

@@ -273,7 +273,10 @@ def commanded_velocity_numpy(
     clearance_dir: np.ndarray,
 ) -> np.ndarray:
     """Velocity command from the force: cruise speed along it, slowed to brake before the goal
-    and before the nearest surface ahead (``clearance`` (n,), outward normal ``clearance_dir``)."""
+    and before the nearest surface ahead (``clearance`` (n,), outward normal ``clearance_dir``).
+    Towards a surface the speed is what still brakes 0.5 m short of it, unless the goal is nearer
+    than the surface: the goal's cap (a stop within 0.8 of the goal's distance) then keeps the
+    agent off the surface, and a goal closer to a wall or the ground than 0.5 m stays reachable."""
     amax = params.max_accel[idx]
     speed = params.speed_cruise[idx].copy()
     dg = norm3(goal - pos)
@@ -282,5 +285,6 @@ def commanded_velocity_numpy(
     # Component towards the nearest surface may not exceed what can still be braked.
     toward = -dot3(v, clearance_dir)
     allowed = np.sqrt(2.0 * 0.8 * amax * np.maximum(clearance - 0.5, 0.0))
+    allowed = np.where(dg < clearance, np.maximum(allowed, speed), allowed)
     excess = np.maximum(toward - allowed, 0.0)
     return v + excess[:, None] * clearance_dir

@@ -61,7 +61,6 @@ if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle, World
 
 MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~6 ms per goal for a search)
-MIN_CELL = 1.0  # m: finest cell (small worlds)
 NEAR = 2.0  # extra cost per metre at a surface (fading out at C0)
 RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
 SAME = 0.0  # the same per way already through it in the same direction (see the docstring)
@@ -140,7 +139,8 @@ class StaticGuide:
         size = np.maximum(hi - lo, 1e-6)
         # A way per goal: with many agents the grid is coarser (the searches cost in proportion).
         cells = MAX_CELLS * min(1.0, math.sqrt(64.0 / max(len(world.agents), 1)))
-        h = max((float(np.prod(size)) / cells) ** (1.0 / 3.0), MIN_CELL)
+        # No cell finer than the smallest body that flies through it (a small world's grid).
+        h = max((float(np.prod(size)) / cells) ** (1.0 / 3.0), float(np.min(params.radius)))
         self.shape = np.maximum(np.ceil(size / h).astype(np.int64), 1)
         self.cell = size / self.shape
         self._sample_step = 0.5 * float(self.cell.min())  # ``blocked``'s spacing of samples

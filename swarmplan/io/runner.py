@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from swarmplan.core import Event, Observer, Recorder, ResetResult, StepResult
-from swarmplan.io.compile_notice import CompileNotice
+from swarmplan.io.compile_notice import CompileNotice, said_marker
 from swarmplan.planner import make_planner, validate_planner_settings
 from swarmplan.sim import Simulation
 from swarmplan.world import World, WorldError
@@ -189,7 +189,7 @@ def simulate(
     stream: TextIO = sys.stderr,
     stop_on_signals: bool = False,
     live: LiveView | None = None,
-    notices: bool = False,
+    notices: bool | CompileNotice = False,
 ) -> dict[str, Any]:
     """Run ``world`` to its end with ``seed``, recording to ``log_path``; returns the summary.
 
@@ -199,8 +199,9 @@ def simulate(
     summary says ``interrupted``; a second signal stops at once. With ``live`` the log's
     channels are also served live (its address is printed on ``stream``), the run paced as
     it says; the server stops when the log is closed. With ``notices``, a run that compiles
-    kernels (the first on a machine) says so on ``stream`` (``CompileNotice``). The progress
-    bar ends at 100 % when the run ends by itself.
+    kernels (the first on a machine) says so on ``stream`` (``CompileNotice``: pass one to learn
+    afterwards whether it compiled, its ``compiled``). The progress bar ends at 100 % when the run ends
+    by itself.
     """
     from swarmplan.io.recording import McapRecorder  # here: the writer's import costs start-up
 
@@ -245,7 +246,12 @@ def simulate(
         bar.update(result.state.t - bar.n)
         bar.set_postfix_str(f"{int(result.state.active.sum())} flying", refresh=False)
 
-    notice = CompileNotice(lambda text: tqdm.write(text, file=stream)).start() if notices else None
+    notice = notices if isinstance(notices, CompileNotice) else None
+    if notice is None and notices:
+        notice = CompileNotice(marker=said_marker())
+    if notice is not None:
+        notice.write = lambda text: tqdm.write(text, file=stream)  # past the progress bar
+        notice.start()
     try:
         with _stop_requests(stop_on_signals) as stop_requested:
             observers: list[Observer | StepObserver] = [show]

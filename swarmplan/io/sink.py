@@ -21,7 +21,7 @@ from pathlib import Path
 import foxglove
 from foxglove import channel as foxglove_channel
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-from foxglove.websocket import Capability, ChannelView, Client
+from foxglove.websocket import Capability, ChannelView, Client, ServerListener
 
 CHUNK_BYTES = 256 * 1024
 # zstd level 1: ~20 % less CPU than the default level for ~4 % more bytes (64 agents +
@@ -31,8 +31,9 @@ LATCHED = ("/world", "/scene/world", "/scene/paths/overview")
 """Topics whose latest message a viewer that subscribes late gets again."""
 
 
-class _Subscriptions:
-    """Notes that a viewer subscribed (the next message re-sends the latched ones)."""
+class _Subscriptions(ServerListener):
+    """Notes that a viewer subscribed (the next message re-sends the latched ones); every other
+    callback of the protocol (unsubscribe, a viewer leaving, ...) is ServerListener's no-op."""
 
     def __init__(self) -> None:
         self.pending = False

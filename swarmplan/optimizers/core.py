@@ -44,6 +44,15 @@ class Result:
     wall_time: float
     algorithm: str = ""
 
+    def __repr__(self) -> str:
+        """One line: the best cost, the budget used and the point's size (``x`` and the
+        per-iteration ``history`` are attributes to read, too long to print)."""
+        return (
+            f"Result(algorithm={self.algorithm!r}, f={self.f!r}, evaluations={self.evaluations}, "
+            f"iterations={self.iterations}, x: {np.shape(self.x)[0] if np.ndim(self.x) else 1} values, "
+            f"history: {len(self.history)} iterations, wall_time={self.wall_time:.3g} s)"
+        )
+
 
 _F64 = np.dtype(np.float64)
 _kernels: Any = None

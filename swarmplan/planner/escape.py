@@ -25,8 +25,8 @@ point off the other's path, optimized the same way), the other one goes through.
 Every optimizer run is logged with ``sim.record_optimizer(i, "escape", name, result)``.
 
 Settings (``planner.escape``, all optional): ``waypoints`` (K, 4), ``horizon`` (m, default
-2 × apf influence, at least 15), ``margin`` (m of clearance beyond the radius, 1.0),
-``fcl_margin`` (m, 0.3), ``retries`` (2), ``growth`` (1.5, horizon and budget factor per
+2 × apf influence), ``margin`` (m of clearance beyond the radius, influence / 10),
+``fcl_margin`` (m, 3 % of the influence), ``retries`` (2), ``growth`` (1.5, horizon and budget factor per
 retry), ``max_escapes`` (per agent before it holds, 25), ``rounds`` (3: planning rounds in a
 row, each with its retries, that find no valid segment before the agent holds; between
 rounds the agent holds on under APF — other agents and moving obstacles move on, so a later
@@ -54,7 +54,13 @@ from swarmplan.core import (
 from swarmplan.flight.apf import current_reach, stopping_reach
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
-from swarmplan.planner.escape_gates import CROWD, guided, held_by_obstacles, queued, under_way
+from swarmplan.planner.escape_gates import (
+    CROWD,
+    STAND_DOWN_WINDOWS,
+    held_by,
+    held_by_obstacles,
+    stand_down_gate,
+)
 from swarmplan.planner.hold import hold_waypoints
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
 from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
@@ -191,6 +197,7 @@ class EscapePlanner:
         self.holds: dict[int, int] = {}  # holding patterns flown, per agent (each widens the search)
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
+        self._stood_down: dict[int, int] = {}  # stuck windows in a row a gate let the field have
 
     # ------------------------------------------------------------------ validation
 
@@ -346,7 +353,7 @@ class EscapePlanner:
         rho0 = w.planner_config.apf.influence
         rb0 = min(rho0, 10.0)
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
-        rho0_g = max(min(rho0, 3.0 * floor), 2.0)
+        rho0_g = max(min(rho0, 3.0 * floor), 0.25 * rho0)
         lo = w.bounds_min + r + rb0
         hi = w.bounds_max - r - rb0
         lo[2] = max(w.bounds_min[2] + r, floor + r + rho0_g)
@@ -393,7 +400,7 @@ class EscapePlanner:
             grow = float(cfg["growth"]) ** attempt * widen
             end = end_fn(horizon * grow)
             L = float(np.linalg.norm(end - sim.state.position[i]))
-            width = 1.25 * max(L, horizon * grow, 10.0)
+            width = 1.25 * max(L, horizon * grow)
             poly, f, _ = self.optimize_segment(sim, i, end, purpose, width, grow, extra, ignore)
             costs.append(f)
             if self.segment_hit(sim, i, poly, start_clear) is None:
@@ -472,11 +479,15 @@ class EscapePlanner:
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
-        start = self._escaped_at.get(i)  # cheapest test first (same answers in any order)
-        if under_way(sim, i) or (start is not None and queued(sim, i, start, self.agents_near(sim, i))):
+        gate = None
+        if self._stood_down.get(i, 0) < STAND_DOWN_WINDOWS:
+            near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
+            gate = stand_down_gate(sim, i, self._escaped_at.get(i), near, crowd)
+        if gate is not None:
+            self._stood_down[i] = self._stood_down.get(i, 0) + 1
+            sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})
             return None
-        if self.only_agents_around(sim, i) or guided(sim, i):
-            return None
+        self._stood_down[i] = 0
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
             self.escapes[i] = 0  # after holding, escapes are tried again (with wider searches)
@@ -484,7 +495,7 @@ class EscapePlanner:
         self.escapes[i] = n_done + 1
         self._escaped_at[i] = float(np.linalg.norm(sim.state.goal[i] - sim.state.position[i]))
         r = float(sim.params.radius[i])
-        need = r + float(self.cfg["margin"]) + 1.0
+        need = r + 2.0 * float(self.cfg["margin"])
         s = sim.state
         partners = [
             j for j in self.deadlock_partners(sim, i) if s.mode[j] == Mode.APF and j not in self.pending
@@ -511,7 +522,8 @@ class EscapePlanner:
             if failures >= int(self.cfg["rounds"]):
                 self.failures[i] = 0
                 return self.hold(sim, i, f"no valid escape segment in {failures} rounds")
-            sim.note_event(i, "escape_deferred", {"round": failures, "attempts": out.attempts})
+            detail = {"round": failures, "attempts": out.attempts, "held_by": held_by(sim, i)}
+            sim.note_event(i, "escape_deferred", detail)
             return None
         self.failures[i] = 0
         return PlannedSegment(out.waypoints, mode=Mode.ESCAPE)
@@ -530,10 +542,10 @@ class EscapePlanner:
             model_turn_radius(sim, i),
             lambda poly: self.segment_hit(sim, i, poly, start_clear) is not None,
         )
+        detail = {"reason": reason, "round": rounds, "possible": pts is not None, "held_by": held_by(sim, i)}
+        sim.note_event(i, "hold", detail)
         if pts is None:
-            sim.note_event(i, "hold", {"reason": reason, "round": rounds, "possible": False})
             return FAILED
-        sim.note_event(i, "hold", {"reason": reason, "round": rounds, "possible": True})
         return PlannedSegment(pts, mode=Mode.ESCAPE)
 
     def take_pending(self, sim: PlanningContext) -> dict[int, PlannedSegment]:
@@ -544,7 +556,8 @@ class EscapePlanner:
 
     def _yield_distance(self, sim: PlanningContext, i: int) -> float:
         p = sim.params
-        return max(8.0, 2.0 * (float(np.linalg.norm(p.separation[i])) + 2.0 * float(p.radius[i])))
+        rho0 = float(sim.world.planner_config.apf.influence)
+        return max(0.8 * rho0, 2.0 * (float(np.linalg.norm(p.separation[i])) + 2.0 * float(p.radius[i])))
 
 
 def _intent_of(sim: PlanningContext, j: int, waypoints: np.ndarray) -> Intent:

@@ -4,6 +4,8 @@ obstacles leads it, or it waits in a queue."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from swarmplan.core import PlanningContext
@@ -13,6 +15,11 @@ from swarmplan.world.motion import poses_at
 #: crowd: it plans no escape of its own (doorway, 64 agents: escapes of single agents through
 #: the crowd at the gap took arrivals from 36 to 32 and the real-time factor from 11x to 3x).
 CROWD = 3
+
+#: Stuck windows in a row for which the gates below may let the field, not an escape, free an
+#: agent: after that many, a stuck agent is offered its optimizer whatever the gates say (a
+#: crowd or queue that has not dissolved in two windows is holding it, not passing it).
+STAND_DOWN_WINDOWS = 1
 
 
 def under_way(sim: PlanningContext, i: int) -> bool:
@@ -78,3 +85,55 @@ def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     push = apf.k_rep * (1.0 / np.maximum(rho[near], 0.05) - 1.0 / apf.influence) * gfac
     along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
     return bool(pull + float(push @ along) < 0.5 * pull)
+
+
+def stand_down_gate(
+    sim: PlanningContext,
+    i: int,
+    escaped_at: float | None,
+    agents_near: Callable[[], np.ndarray],
+    only_agents_around: Callable[[], bool],
+) -> str | None:
+    """The reason to let the field, not an escape, free stuck agent ``i`` this window, if any:
+    ``under_way`` (it still flies at half its cruise speed or more), ``queue`` (its last escape,
+    started ``escaped_at`` m from its goal, left it no nearer while others are near), ``crowd``
+    (other agents, not a trap, hold it) or ``guided`` (the guide leads it round static
+    obstacles). The tests run cheapest first (the same answer in any order)."""
+    if under_way(sim, i):
+        return "under_way"
+    if escaped_at is not None and queued(sim, i, escaped_at, agents_near()):
+        return "queue"
+    if only_agents_around():
+        return "crowd"
+    if guided(sim, i):
+        return "guided"
+    return None
+
+
+def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
+    """What holds agent ``i``: the nearest of the ground (or terrain), the faces of the flight
+    volume, the obstacles (at their poses now) and the other agents, by clearance from the
+    agent's body. ``{"by": "ground" | "bounds" | "body" | "agent", "id": ..., "clearance": m}``
+    (``id`` names the body or agent; ``by: "none"`` when the nearest lies beyond the field's
+    influence: nothing holds the agent but its own field, e.g. the pull of a moving obstacle's
+    predicted approach)."""
+    w, s, p = sim.world, sim.state, sim.params
+    pos, r = s.position[i], float(p.radius[i])
+    h = float(w.terrain_height(pos[None, :2])[0])
+    found: list[tuple[float, str, str | None]] = [(float(pos[2] - h) - r, "ground", None)]
+    faces = np.concatenate([pos - w.bounds_min, w.bounds_max - pos])
+    faces[2] = np.inf  # the floor is the ground's
+    found.append((float(faces.min()) - r, "bounds", None))
+    if w.obstacles:
+        d, _ = sim.field.query(pos[None], poses_at(w.obstacles, s.t)[0])
+        k = int(np.argmin(d[0]))
+        found.append((float(d[0, k]) - r, "body", w.obstacles[k].id))
+    others = np.flatnonzero(np.arange(len(s.position)) != i)
+    if len(others):
+        gap = np.linalg.norm(s.position[others] - pos, axis=1) - p.radius[others] - r
+        k = int(np.argmin(gap))
+        found.append((float(gap[k]), "agent", str(p.ids[others[k]])))
+    clearance, by, ident = min(found, key=lambda f: f[0])
+    if clearance > float(w.planner_config.apf.influence):  # nothing within the field's reach
+        by, ident = "none", None
+    return {"by": by, "id": ident, "clearance": round(clearance, 6)}

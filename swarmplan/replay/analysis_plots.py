@@ -6,40 +6,53 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from .metrics import active_mask, curvature_series
+from .metrics import active_mask, curvature_over, curvature_series, fixed_wing_turn_limit
 from .plots import _mode_runs, _select, _title, agent_colors, new_figure
 from .recording import Recording
 
+CURVATURE_WINDOW = 1.0
+"""Seconds of flight the plotted curvature line is taken over (see ``curvature_over``)."""
+
 
 def plot_curvature(rec: Recording, agents: list[str] | None = None, fig: Figure | None = None):
-    """Discrete curvature of each flown path vs time (same definition as the metrics).
+    """Curvature of each flown path vs time: a line over :data:`CURVATURE_WINDOW` seconds of
+    flight (the turn over the distance), the discrete per-step values (same definition as the
+    metrics) as faint dots; a dashed line at each fixed wing's limit (1 / min_turn_radius).
 
-    A cusp (a turn-back, curvature orders of magnitude above the rest) would flatten every
-    other curve on a linear axis, so the axis is clipped at 1.5 times the 98th percentile of
-    all values and every value above it is marked by a triangle at the top edge (its value in
-    the legend).
+    A step-by-step path may alternate turns at its limit with straight steps, which per step
+    reads as noise between 0 and the limit; the line shows the turn it flies. A cusp (a
+    turn-back, curvature orders of magnitude above the rest) would flatten every other curve
+    on a linear axis, so the axis is clipped at 1.5 times the 98th percentile of all values and
+    every value above it is marked by a triangle at the top edge (its value in the legend).
     """
     fig = fig or new_figure(figsize=(10, 5))
     ax = fig.add_subplot()
     colors = agent_colors(rec.n_agents)
     active = active_mask(rec)
     idx = _select(rec, agents)
-    series = []
+    series, lines = [], []
     for i in idx:
         pts = np.where(active[i][:, None], rec.positions[i], np.nan)
         series.append(curvature_series(pts, rec.times))
+        lines.append(curvature_over(pts, rec.times, CURVATURE_WINDOW))
+    limits = sorted({v for i in idx if (v := fixed_wing_turn_limit(rec, i)) is not None})
     values = np.concatenate([k[np.isfinite(k)] for _t, k in series] or [np.zeros(0)])
     top = None
     if len(values):
         cap = 1.5 * float(np.percentile(values, 98))
         if cap > 0 and values.max() > cap:
-            top = cap
+            top = max(cap, 1.1 * max(limits, default=0.0))
     n_cusps, worst = 0, 0.0
-    for i, (t, k) in zip(idx, series, strict=True):
+    for i, (t, k), (tw, kw) in zip(idx, series, lines, strict=True):
         aid = rec.agent_ids[i]
         ax.plot(
-            t, k if top is None else np.minimum(k, top), color=colors[i], lw=1.0, label=aid, gid=f"path:{aid}"
-        )
+            t, k if top is None else np.minimum(k, top), color=colors[i], marker=".", ms=2, ls="none",
+            alpha=0.35, gid=f"step:{aid}"
+        )  # fmt: skip
+        ax.plot(
+            tw, kw if top is None else np.minimum(kw, top), color=colors[i], lw=1.4, label=aid,
+            gid=f"path:{aid}"
+        )  # fmt: skip
         if top is not None:
             over = np.isfinite(k) & (k > top)
             if over.any():
@@ -51,6 +64,8 @@ def plot_curvature(rec: Recording, agents: list[str] | None = None, fig: Figure 
         for a, b, mode in _mode_runs(rec.modes[i], np.ones(rec.n_steps, bool)):
             if mode == "escape":
                 ax.axvspan(rec.times[a], rec.times[b], color=colors[i], alpha=0.08, lw=0)
+    for v in limits:
+        ax.axhline(v, color="0.3", ls="--", lw=1.0, gid=f"limit:{v:g}", label=f"fixed-wing limit {v:.3g} 1/m")
     handles, _labels = ax.get_legend_handles_labels()
     if top is not None:
         ax.set_ylim(0, top * 1.02)
@@ -65,7 +80,11 @@ def plot_curvature(rec: Recording, agents: list[str] | None = None, fig: Figure 
         ax.legend(
             handles=handles[:21], fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0
         )
-    ax.set_title(_title(rec) + " - path curvature (shaded: escape)", fontsize=10)
+    ax.set_title(
+        f"{_title(rec)} - path curvature (line: over {CURVATURE_WINDOW:g} s; dots: per step; "
+        "shaded: escape)",
+        fontsize=10,
+    )
     return fig
 
 

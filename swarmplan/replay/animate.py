@@ -1,7 +1,8 @@
 """Animated playback of a recorded run: GIF (Pillow) or MP4 (when ffmpeg is installed).
 
 Frames are subsampled from the recorded steps (``fps``, ``max_frames``, ``speed``) so a
-long run still renders in seconds; a progress bar (tqdm) is shown on stderr while rendering.
+long run still renders in seconds; a progress bar (tqdm) is shown on stderr while rendering
+(the command line shows it only when stderr is a terminal).
 """
 
 from __future__ import annotations

@@ -152,6 +152,24 @@ def curvature_cusps(
     return t, curv, cusp
 
 
+def curvature_over(
+    points: np.ndarray, times: np.ndarray, window: float, min_step: float = MIN_STEP
+) -> tuple[np.ndarray, np.ndarray]:
+    """(times, curvature over ``window`` seconds) at the non-cusp interior points: the turn flown
+    in the ``window`` round each point (after ``t - window / 2``, up to ``t + window / 2``: a
+    whole number of steps) over the distance flown there (sum of turn angles over sum of mean
+    steps). A path that turns at its limit every other step and straight between has half that
+    curvature at this scale, which is what it flies."""
+    t, curv, cusp, mean = _turns(points, times, min_step)
+    t, mean = t[~cusp], mean[~cusp]
+    turn = np.concatenate([[0.0], np.cumsum(curv[~cusp] * mean)])
+    run = np.concatenate([[0.0], np.cumsum(mean)])
+    edge = 1e-9 * max(window, 1.0)  # times are rounded: a point on the edge is on it
+    lo = np.searchsorted(t, t - 0.5 * window + edge, side="left")
+    hi = np.searchsorted(t, t + 0.5 * window + edge, side="right")
+    return t, (turn[hi] - turn[lo]) / (run[hi] - run[lo])
+
+
 def lateral_accel(points: np.ndarray, times: np.ndarray, dt: float, min_step: float = MIN_STEP) -> float:
     """Max lateral acceleration (m/s²) over the non-cusp vertices: ``v² κ`` in its one-step
     form ``2 v sin(θ / 2) / dt`` (θ the turn, ``v`` = mean length of the two steps / ``dt``)."""
@@ -410,6 +428,12 @@ def _curvature_limit(rec: Recording, i: int) -> float | None:
         return float(a["max_accel"]) / float(a["speed"]["cruise"]) ** 2
     except (KeyError, TypeError, ValueError, ZeroDivisionError):
         return None
+
+
+def fixed_wing_turn_limit(rec: Recording, i: int) -> float | None:
+    """Agent ``i``'s curvature limit (1/min_turn_radius) when it is a fixed wing, else None (a
+    multirotor's limit on a turn is its lateral acceleration: the slower, the tighter)."""
+    return _curvature_limit(rec, i) if _lateral_accel_limit(rec, i) is None else None
 
 
 def _lateral_accel_limit(rec: Recording, i: int) -> float | None:

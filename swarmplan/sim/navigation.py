@@ -49,18 +49,22 @@ class Navigator:
     def to_go(self, s: SwarmState, rows: np.ndarray | None = None) -> np.ndarray:
         """:func:`distance_to_go` (of ``rows``, default all), along the guide's way round static
         obstacles for the agents it guides (flying along a wall to its gap is progress, though
-        the goal gets no nearer)."""
+        the goal gets no nearer); straight within the field's influence of the goal (where the
+        goal factor, not the guide's grid, governs the approach) and where the guide finds no way
+        (a goal closer to a surface than its grid's clearance)."""
         rows = np.arange(len(s.route)) if rows is None else np.asarray(rows)
         dg = distance_to_go(s, rows)
         if self.guide is not None:
+            near = float(self.world.planner_config.apf.influence)
             led = [
                 k
                 for k, i in enumerate(rows.tolist())
-                if self.guide.guided[i] and s.active[i] and s.route[i] is None
+                if self.guide.guided[i] and s.active[i] and s.route[i] is None and dg[k] > near
             ]
             if led:
                 i = rows[led]
-                dg[led] = self.guide.way_length(s.position[i], s.goal[i])
+                way = self.guide.way_length(s.position[i], s.goal[i])
+                dg[led] = np.where(np.isfinite(way), way, dg[led])
         return dg
 
     def attraction_targets(self, s: SwarmState, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, Tally]:

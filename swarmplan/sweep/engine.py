@@ -48,6 +48,7 @@ METRICS = [
     "arrival_time_mean",
     "planning_ms",
     "plan_cost",
+    "optimizer_runs",
     "log",
     "error",
 ]
@@ -70,7 +71,8 @@ def metrics_row(summary: dict[str, Any], optimizer_runs: list[dict[str, Any]]) -
     Length, ratio, curvature and arrival time are means over the agents that arrived (NaN when
     none did); ``escape_ms_median`` is over every escape of every agent; ``planning_ms`` is the
     wall time of all the run's optimizer calls; ``plan_cost`` the mean best cost of its global
-    plans (NaN in the reactive mode, which makes none).
+    plans (NaN in the reactive mode, which makes none); ``optimizer_runs`` how many optimizer
+    calls it made (escapes, smoothing, global plans: 0 when it flew pure APF throughout).
     """
     agents = summary["agents"]
     arrived = [a for a in agents if a["arrived"]]
@@ -92,6 +94,7 @@ def metrics_row(summary: dict[str, Any], optimizer_runs: list[dict[str, Any]]) -
         "arrival_time_mean": _mean([a["arrival_time"] for a in arrived]),
         "planning_ms": float(sum(m["wall_ms"] for m in optimizer_runs)),
         "plan_cost": _mean([m["best_cost"] for m in global_runs]),
+        "optimizer_runs": len(optimizer_runs),
         "error": "",
     }
 
@@ -107,7 +110,7 @@ def task_row(task: Task, metrics: dict[str, Any], log: str) -> dict[str, Any]:
 def error_row(task: Task, message: str, log: str = "") -> dict[str, Any]:
     metrics = {k: math.nan for k in METRICS}
     metrics.update(status="error", success=False, error=message)
-    for k in ("agents", "arrived", "collisions", "escapes"):
+    for k in ("agents", "arrived", "collisions", "escapes", "optimizer_runs"):
         metrics[k] = ""
     return task_row(task, metrics, log)
 

@@ -102,20 +102,51 @@ def _success(rows: list[dict[str, Any]]) -> str:
     return f"{ok}/{len(rows)} ({pct:.0f}%)" + (f", {errors} error(s)" if errors else "")
 
 
+def _home(rows: list[dict[str, Any]]) -> str:
+    """Agents that arrived over all agents of the finished runs ('4/6'): a run that failed may
+    still have brought most of its agents home."""
+    counts = [(_int(r.get("arrived")), _int(r.get("agents"))) for r in rows if r.get("status") == "ok"]
+    counts = [(a, n) for a, n in counts if a is not None and n is not None]
+    if not counts:
+        return NO_VALUE
+    return f"{sum(a for a, _ in counts)}/{sum(n for _, n in counts)}"
+
+
+def _int(value: Any) -> int | None:
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        return None
+
+
+def _no_optimizer_ran(rows: list[dict[str, Any]]) -> bool:
+    """Every finished run (at least one) says it made no optimizer call (pure APF throughout)."""
+    runs = [_int(r.get("optimizer_runs")) for r in rows if r.get("status") == "ok"]
+    return bool(runs) and all(n == 0 for n in runs)
+
+
+def _alike(rows: list[dict[str, Any]]) -> bool:
+    """The finished runs (two or more) flew alike: the same figures but for the timing ones."""
+    keys = ("arrived", "collisions", "sim_time", "path_length_mean", "arrival_time_mean", "curvature_mean")
+    seen = {tuple(str(r.get(k)) for k in keys) for r in rows if r.get("status") == "ok"}
+    return len([r for r in rows if r.get("status") == "ok"]) > 1 and len(seen) == 1
+
+
 def table(rows: list[dict[str, Any]], optimizers: list[str], alpha: float = 0.05) -> str:
     """A markdown table: one line per optimizer (in the given order; the first is the reference)."""
     by = {n: [r for r in rows if r["optimizer"] == n] for n in optimizers}
     ref = optimizers[0]
     stats = [s for s in STATS if s[0] != "plan_cost" or _vals(rows, "plan_cost")]
-    head = ["optimizer", "success", *(h for _, h, _ in stats), *(f"{h} vs {ref}" for _, h in VERDICTS)]
+    head = ["optimizer", "success", "agents home", *(h for _, h, _ in stats)]
+    head += [f"{h} vs {ref}" for _, h in VERDICTS]
     if any(s[0] == "plan_cost" for s in stats):
         head.append(f"cost vs {ref}")
     out_rows = []
     for n in optimizers:
         rs = by[n]
-        cells = [n, _success(rs), *(mean_std(_vals(rs, c), f) for c, _, f in stats)]
+        cells = [n, _success(rs), _home(rs), *(mean_std(_vals(rs, c), f) for c, _, f in stats)]
         cols = [c for c, _ in VERDICTS] + (
-            ["plan_cost"] if len(head) > 2 + len(stats) + len(VERDICTS) else []
+            ["plan_cost"] if len(head) > 3 + len(stats) + len(VERDICTS) else []
         )
         for c in cols:
             cells.append("(reference)" if n == ref else verdict(_vals(by[ref], c), _vals(rs, c), alpha))
@@ -137,6 +168,17 @@ def table_notes(rows: list[dict[str, Any]], optimizers: list[str], alpha: float 
             "`planner.mode: reactive`; the cost is that of `mode: global`'s plans)"
         )
     by = {n: [r for r in rows if r["optimizer"] == n] for n in optimizers}
+    idle = [n for n, rs in by.items() if n != "none" and _no_optimizer_ran(rs)]
+    if idle:
+        same = "none" in by and _no_optimizer_ran(by["none"])
+        alike = all(_alike(by[n]) for n in idle)
+        notes.append(
+            f"no optimizer ran in any run of {', '.join(idle)}: no agent got stuck, needed smoothing or "
+            "a global plan, so these rows are pure APF's"
+            + (" (the same as `none`'s)" if same else "")
+            + (", every seed's the same" if alike else "")
+            + "; the optimizers are compared only where they run (a harder world, or more agents)"
+        )
     empty = [n for n, rs in by.items() if rs and not _vals(rs, "path_length_mean")]
     if empty:
         notes.append(

@@ -42,6 +42,37 @@ def check_placements(
                 ground = float(terrain.height(peaks, point[:2]))
                 if point[2] - ground < a.radius:
                     c.add(f"{p}.{key}", f"below the terrain (terrain height {ground:.2f} m at this point)")
+            elif point[2] < a.radius:
+                c.add(f"{p}.{key}", f"touching the ground (z = {point[2]:g} m, radius {a.radius:g} m)")
+    for key in ("start", "goal"):
+        for k, j, gap, need in _overlaps(agents, key):
+            p = f"agents[{index.get(agents[k].id, '?')}]"
+            c.add(
+                f"{p}.{key}",
+                f"overlaps agent '{agents[j].id}' ({key}s {gap:.3g} m apart; their bodies need {need:.3g} m)",
+            )
+
+
+def _overlaps(agents: list[AgentSpec], key: str) -> list[tuple[int, int, float, float]]:
+    """Pairs ``(k, j, distance, r_k + r_j)``, ``k < j``, of agents whose ``key`` points (start or
+    goal) are closer than their two radii: their bodies would overlap there."""
+    if len(agents) < 2:
+        return []
+    pts = np.array([getattr(a, key) for a in agents], dtype=float)
+    radii = np.array([a.radius for a in agents], dtype=float)
+    if len(agents) <= 64:  # every pair (a small world starts without scipy.spatial)
+        k, j = np.triu_indices(len(agents), 1)
+        pairs = np.column_stack([k, j])
+    else:
+        from scipy.spatial import cKDTree
+
+        pairs = cKDTree(pts).query_pairs(2.0 * float(radii.max()), output_type="ndarray")
+    out = []
+    for k, j in sorted(map(tuple, pairs.tolist())):
+        gap, need = float(np.linalg.norm(pts[k] - pts[j])), float(radii[k] + radii[j])
+        if gap < need:
+            out.append((k, j, gap, need))
+    return out
 
 
 def _distances(obstacles: list[Obstacle], points: list[np.ndarray]) -> np.ndarray:

@@ -48,9 +48,9 @@ COST_WEIGHTS: dict[str, dict[str, float]] = {
 
 ESCAPE_DEFAULTS = {
     "waypoints": 4,
-    "horizon": None,
-    "margin": 1.0,
-    "fcl_margin": 0.3,
+    "horizon": None,  # m; left out: 2 influence
+    "margin": None,  # m; left out: influence / 10
+    "fcl_margin": None,  # m; left out: 3 % of the influence
     "retries": 2,
     "growth": 1.5,
     "max_escapes": 25,
@@ -72,8 +72,12 @@ def check_escape(planner: dict[str, Any]) -> dict[str, Any]:
             problems.append(f"planner.escape.{k}: unknown key ({hint})")
     cfg = dict(ESCAPE_DEFAULTS)
     cfg.update({k: v for k, v in raw.items() if k in ESCAPE_DEFAULTS and v is not None})
-    if cfg["horizon"] is None:
-        cfg["horizon"] = max(15.0, 2.0 * float(planner["apf"]["influence"]))
+    # Lengths left out scale with the field's influence (four braking distances of the agents):
+    # at 10 m they are the classic 20 m horizon, 1 m margin and 0.3 m FCL margin.
+    rho0 = float(planner["apf"]["influence"])
+    for k, share in (("horizon", 2.0), ("margin", 0.1), ("fcl_margin", 0.03)):
+        if cfg[k] is None:
+            cfg[k] = share * rho0
     counts = {"waypoints": 1, "retries": 0, "max_escapes": 1, "rounds": 1}
     for k, v in cfg.items():
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):

@@ -44,18 +44,18 @@ AGENT_DEFAULTS: dict[str, Any] = {
     "max_accel": 5.0,
     "min_turn_radius": 20.0,
     "max_climb_angle": 45.0,
-    "min_altitude": 5.0,
-    "separation": [5.0, 5.0, 2.0],
+    "min_altitude": None,  # m; left out: from the agent (default_min_altitude)
+    "separation": None,  # m; left out: the agent's diameter on each axis (default_separation)
 }
 
 PLANNER_DEFAULTS: dict[str, Any] = {
     "mode": "reactive",
     "apf": {
         "k_att": 1.0,
-        "k_rep": 50.0,
+        "k_rep": None,  # m^2 (times k_att); left out: 0.5 k_att influence^2 (default_field_scale)
         "influence": None,  # m; left out: from the agents (default_influence)
         "k_agent": 20.0,
-        "quadratic_radius": 10.0,  # m: attraction is quadratic inside, conic outside
+        "quadratic_radius": None,  # m: attraction is quadratic inside, conic outside; left out: influence
         "goal_power": 2.0,  # n of the goal-distance factor rho_goal^n in the repulsion
         "k_moving": 2.0,  # weight of the relative-velocity term for moving obstacles
         "horizon": 4.0,  # s: how far ahead moving obstacles and agents are predicted
@@ -69,15 +69,60 @@ PLANNER_DEFAULTS: dict[str, Any] = {
 
 def default_influence(agents: list[AgentSpec]) -> float:
     """``planner.apf.influence`` left out: ``2 v^2 / a`` (four braking distances from cruise
-    speed) of the agent that needs the most room, at least 2 m. The field's repulsion starts
-    where it leaves room to turn or stop; 40 m for the default agent (10 m/s, 5 m/s^2), 10 m for
-    a 5 m/s multirotor braking at 5 m/s^2. A longer range sums the pushes of whole forests
-    and crowds into walls that hold agents away from their goals."""
-    need = [2.0 * a.speed_cruise**2 / max(a.max_accel, 1e-9) for a in agents]
-    return max(2.0, max(need, default=40.0))
+    speed) of the agent that needs the most room, and at least two of its radii. The field's
+    repulsion starts where it leaves room to turn or stop; 40 m for the default agent (10 m/s,
+    5 m/s^2), 10 m for a 5 m/s multirotor braking at 5 m/s^2, 0.64 m for a 0.8 m/s lab drone
+    braking at 2 m/s^2. A longer range sums the pushes of whole forests and crowds into walls
+    that hold agents away from their goals."""
+    need = [max(2.0 * a.speed_cruise**2 / max(a.max_accel, 1e-9), 2.0 * a.radius) for a in agents]
+    return max(need, default=40.0)
 
 
-SIM_DEFAULTS = {"dt": 0.1, "max_time": 120.0, "goal_tolerance": 2.0}
+def default_field_scale(apf: dict[str, Any]) -> None:
+    """Fill ``planner.apf.k_rep`` and ``quadratic_radius`` left out, from the influence ``rho0``:
+    ``k_rep = 0.5 k_att rho0^2`` and ``quadratic_radius = rho0``. The attraction grows as
+    ``k_att d`` (metres) and the repulsion as ``k_rep / rho`` (1/metres), so only gains that scale
+    with the square of the field's length keep its shape at every size: a wall between an
+    agent and its goal holds it a third of the influence off whatever the scale (a 0.05 m lab
+    drone as a 100 km fixed wing). At ``rho0 = 10 m`` these are the classic 50 and 10 m."""
+    rho0 = float(apf["influence"])
+    if apf.get("quadratic_radius") is None:
+        apf["quadratic_radius"] = rho0
+    if apf.get("k_rep") is None:
+        apf["k_rep"] = 0.5 * float(apf["k_att"]) * rho0 * rho0
+
+
+def default_min_altitude(params: dict[str, Any]) -> float:
+    """``min_altitude`` left out: the height an agent needs to level out above the ground at
+    its limits, plus its radius. A multirotor descending at cruise speed brakes to a stop in
+    ``v^2 / (2 a)``; a fixed wing diving at its largest climb angle ``g`` pulls out on its
+    minimum turn radius in ``R (1 - cos g)``. 11.5 m for the default multirotor (10 m/s,
+    5 m/s^2, radius 1.5 m), 0.21 m for a 0.05 m lab drone at 0.8 m/s and 2 m/s^2."""
+    if params["model"] == "fixed_wing":
+        g = math.radians(float(params["max_climb_angle"]))
+        need = float(params["min_turn_radius"]) * (1.0 - math.cos(g))
+    else:
+        v = float(params["speed"]["cruise"])
+        need = v * v / (2.0 * max(float(params["max_accel"]), 1e-9))
+    return need + float(params["radius"])
+
+
+def default_separation(radius: float) -> list[float]:
+    """``separation`` left out: the agent's diameter on each axis. The pair's ellipsoid has
+    semi-axes ``max(separation) + r_i + r_j``; the agents' bodies touch at half of it, so two
+    agents of one size keep one body of air between them at the repulsion's steepest."""
+    return [2.0 * float(radius)] * 3
+
+
+def default_goal_tolerance(agents: list[AgentSpec]) -> float:
+    """``sim.goal_tolerance`` left out: the arrival radius the agent that needs the most allows:
+    a multirotor its own radius (its body covers the goal), a fixed wing a quarter of its
+    minimum turn radius (it cannot hover; it passes over the goal)."""
+    need = [a.min_turn_radius / 4.0 if a.model == "fixed_wing" else a.radius for a in agents]
+    return max(need, default=2.0)
+
+
+SIM_DEFAULTS = {"dt": 0.1, "max_time": 120.0, "goal_tolerance": None}  # tolerance: default_goal_tolerance
 
 LOG_DEFAULTS = {"path": "logs/{name}-{seed}.mcap", "foxglove": True, "flush_interval": 1.0}
 
@@ -382,6 +427,8 @@ def parse_world(
     sim = dict(SIM_DEFAULTS)
     if raw.get("sim") is not None and c.keys(raw["sim"], "sim", list(SIM_DEFAULTS)):
         for k, dv in SIM_DEFAULTS.items():
+            if dv is None and raw["sim"].get(k) is None:
+                continue  # derived from the agents once they are known
             sim[k] = c.number(raw["sim"], k, "sim", dv, positive=True)
 
     peaks: list[Peak] = []
@@ -448,6 +495,10 @@ def parse_world(
         start = c.vector(a, "start", p, 3) if "start" in a else None
         goal = c.vector(a, "goal", p, 3) if "goal" in a else None
         params = _resolve_agent_params(c, a, p, defaults)
+        if params["separation"] is None and params["radius"] is not None:
+            params["separation"] = default_separation(params["radius"])
+        if params["min_altitude"] is None and None not in _flat_values({**params, "min_altitude": 0.0}):
+            params["min_altitude"] = round(default_min_altitude(params), 6)
         if "speed" in a or "model" in a:  # what the agent inherits is checked once, in agent_defaults
             _check_agent_params(c, params, p)
         resolved = {"id": aid, "start": _lst(start), "goal": _lst(goal), **copy.deepcopy(params)}
@@ -476,6 +527,9 @@ def parse_world(
     planner = _resolve_planner(c, raw.get("planner"), optimizer_names)
     if planner["apf"]["influence"] is None:
         planner["apf"]["influence"] = default_influence(agents)
+    default_field_scale(planner["apf"])
+    if sim["goal_tolerance"] is None:
+        sim["goal_tolerance"] = default_goal_tolerance(agents)
     _check_planner_sections(c, planner)
 
     log = dict(LOG_DEFAULTS)
