@@ -34,6 +34,7 @@ from swarmplan.world.model import (
     World,
     WorldError,
 )
+from swarmplan.world.origin import resolve_origin
 from swarmplan.world.planner_config import check_escape, check_global, planner_config
 from swarmplan.world.tracker_config import parse_tracker
 
@@ -363,19 +364,6 @@ def _resolve_threat(c: Checker, t: Any, path: str) -> tuple[dict | None, Threat 
     return out, Threat(kind, pos, r_min, r_max, weight, bool(avoid))
 
 
-def _resolve_origin(c: Checker, raw: Any) -> dict[str, float] | None:
-    """``origin``: the geodetic position (WGS-84 latitude and longitude in degrees, altitude in m)
-    of the world's point [0, 0, 0], for geodetic exports; None when the world has none."""
-    if raw is None or not c.keys(raw, "origin", ["lat", "lon", "alt"], ("lat", "lon")):
-        return None
-    lat = c.number(raw, "lat", "origin", None, lo=-90.0, hi=90.0)
-    lon = c.number(raw, "lon", "origin", None, lo=-180.0, hi=180.0)
-    alt = c.number(raw, "alt", "origin", 0.0)
-    if lat is None or lon is None or alt is None:
-        return None
-    return {"lat": lat, "lon": lon, "alt": alt}
-
-
 def parse_world(
     raw: Any,
     base_dir: str | Path = ".",
@@ -544,7 +532,7 @@ def parse_world(
         path, _, msg = problem.partition(": ")
         c.add(path, msg)
 
-    origin = _resolve_origin(c, raw.get("origin"))
+    origin = resolve_origin(c, raw.get("origin"))
 
     # Geometry checks need a valid frame; run them only when the parts they use are sound.
     check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
