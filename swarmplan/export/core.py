@@ -17,6 +17,7 @@ import numpy as np
 
 from swarmplan.replay import Recording
 from swarmplan.replay.geometry import terrain_height
+from swarmplan.track.fixed_wing import aircraft_of, error_limit
 from swarmplan.world.tracker_config import TrackerConfig
 
 from . import crazyflie, mission
@@ -46,9 +47,16 @@ def file_stem(agent_id: str, taken: set[str]) -> str:
     return stem
 
 
-def _mission_bound(rec: Recording, max_deviation: float | None) -> float:
-    tol = tolerance_of(rec.world)
-    return min(tol, max_deviation) if max_deviation is not None else tol
+def _mission_bound(rec: Recording, path: FlownPath, max_deviation: float | None) -> float:
+    """How far the waypoints may reduce the flown path: the goal tolerance or ``max_deviation``;
+    for a fixed wing also at most half its tracking bound max(5 m, 0.05 R_min), so the reduction
+    and the aircraft's own tracking share that bound."""
+    bound = tolerance_of(rec.world)
+    if max_deviation is not None:
+        bound = min(bound, max_deviation)
+    if path.limits.model == "fixed_wing":
+        bound = min(bound, 0.5 * error_limit(aircraft_of(rec.world, path.limits.id)))
+    return bound
 
 
 def build(
@@ -73,9 +81,9 @@ def build(
         if fmt == "crazyflie":
             entry, plan, line = _crazyflie(path, stem, files, max_deviation)
         elif fmt == "px4":
-            entry, plan, line = _px4(rec, path, stem, files, origin, _mission_bound(rec, max_deviation))
+            entry, plan, line = _px4(rec, path, stem, files, origin, _mission_bound(rec, path, max_deviation))
         else:
-            entry, plan, line = _csv(path, stem, files, _mission_bound(rec, max_deviation))
+            entry, plan, line = _csv(path, stem, files, _mission_bound(rec, path, max_deviation))
         entries.append(entry)
         plans.append(plan)
         lines.append(line)
