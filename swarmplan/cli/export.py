@@ -19,8 +19,8 @@ exported timing (separation, contacts); its report is also written as ``check.js
 Exit codes: 0 normally; 1 when ``--check`` finds a limit broken (the files are written); 2 for
 bad input (a missing, unreadable or cut-short log, a log without agents, an unknown agent, a
 geodetic export from a world without ``origin`` and without ``--origin``, a path that cannot be
-exported as asked, an
-output folder that cannot be written), with one line on stderr and nothing written.
+exported as asked, an output folder that cannot be written), with one line on stderr and
+nothing written.
 """
 
 from __future__ import annotations
