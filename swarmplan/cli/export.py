@@ -104,7 +104,6 @@ def main(argv: list[str] | None = None) -> int:
     from swarmplan.export.core import build, run_check, write
     from swarmplan.export.source import ExportError, LimitError
     from swarmplan.replay import RecordingError, load
-    from swarmplan.track.core import agent_model
     from swarmplan.world.tracker_config import parse_tracker
 
     try:
@@ -133,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"export: cannot write {args.out}: {exc.strerror or exc}", file=sys.stderr)
         return 2
-    models = {agent_model(rec.world, p.id) for p in exp.plans}
+    models = {p.model for p in exp.plans}
     print(f"{args.format} export of {len(exp.plans)} agent(s) ({', '.join(sorted(models))}) to {args.out}:")
     print("\n".join(exp.lines))
     if result is not None:
