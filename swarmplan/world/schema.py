@@ -35,6 +35,7 @@ from swarmplan.world.model import (
     World,
     WorldError,
 )
+from swarmplan.world.origin import resolve_origin
 from swarmplan.world.planner_config import check_escape, check_global, planner_config
 from swarmplan.world.tracker_config import parse_tracker
 
@@ -394,6 +395,7 @@ def parse_world(
         "planner",
         "log",
         "tracker",
+        "origin",
     ]
     if not c.keys(raw, "", top_keys, required=("name", "bounds", "agents")):
         raise WorldError([p.lstrip(": ") or p for p in c.problems] or ["the file is empty"], label)
@@ -536,6 +538,8 @@ def parse_world(
         path, _, msg = problem.partition(": ")
         c.add(path, msg)
 
+    origin = resolve_origin(c, raw.get("origin"))
+
     # Geometry checks need a valid frame; run them only when the parts they use are sound.
     check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
 
@@ -555,6 +559,8 @@ def parse_world(
         "log": log,
         "tracker": tracker_cfg.to_dict(),
     }
+    if origin is not None:  # written only when given: logs of worlds without it stay as they were
+        resolved["origin"] = origin
     return World(
         name=name,
         seed=int(seed_raw),
