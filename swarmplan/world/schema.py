@@ -39,8 +39,6 @@ from swarmplan.world.origin import resolve_origin
 from swarmplan.world.planner_config import check_escape, check_global, planner_config
 from swarmplan.world.tracker_config import parse_tracker
 
-_OBSTACLE_FIELDS = ("radius", "size", "height")
-
 AGENT_DEFAULTS: dict[str, Any] = {
     "model": "multirotor",
     "radius": 1.5,
@@ -301,14 +299,10 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
     kw: dict[str, Any] = {}
     params: dict[str, Any] = {}
     for key in bodies.shape(shape).keys if shape is not None else ():
-        if key.vector:
-            params[key.name] = c.vector(o, key.name, path, 3, positive=key.positive, nonneg=True)
-            out[key.name] = _lst(params[key.name])
-        else:
-            params[key.name] = c.number(o, key.name, path, None, positive=key.positive, nonneg=True)
-            out[key.name] = params[key.name]
-    # The shapes' keys that are fields of the model too (radius, size, height).
-    kw.update({k: v for k, v in params.items() if k in _OBSTACLE_FIELDS})
+        args = (o, key.name, path, 3 if key.vector else None)  # a vector's length, a number's default
+        params[key.name] = (c.vector if key.vector else c.number)(*args, positive=key.positive, nonneg=True)
+        out[key.name] = _lst(params[key.name]) if key.vector else params[key.name]
+    kw.update({k: v for k, v in params.items() if k in ("radius", "size", "height")})  # model fields too
     if shape == "mesh":
         file = c.string(o, "file", path)
         scale_raw = o.get("scale", 1.0)
