@@ -222,6 +222,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("io",),  # MCAP logs, Foxglove scene, running a world to a log
     ("replay", "sweep"),  # reading logs back; studies over worlds x optimizers x seeds
     ("track", "bench"),  # flying logs with a quadrotor; benchmarks
+    ("export",),  # flown paths as vehicle files (Crazyflie, PX4/ArduPilot), flown again to check them
     ("cli",),  # the command-line programs
 )
 """Bottom to top: a package imports only from layers below its own (the root package, which

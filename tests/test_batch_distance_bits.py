@@ -1,5 +1,5 @@
-"""``ShapeBatch``'s distance formulas, written per component, give the bits of the reductions
-they replace (``np.linalg.norm`` and ``max`` over the last axis): random points at several
+"""The shapes' numpy distances (``shapes.DISTANCE``), written per component, give the bits of
+the reductions they replace (``np.linalg.norm`` and ``max`` over the last axis): random points at several
 scales, zeros of both signs, C and Fortran order."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from swarmplan.geometry import batch
+from swarmplan.geometry import batch, shapes
 
 
 def _sphere(p, r):  # noqa: ANN001, ANN202
@@ -36,15 +36,15 @@ def test_distances_equal_the_reductions_bit_for_bit(seed):
         p = np.asfortranarray(p)
     r, h, half = rng.uniform(0.1, 5, m), rng.uniform(0.1, 5, m), rng.uniform(0.1, 5, (m, 3))
     for new, old, args in (
-        (batch._dist_sphere, _sphere, (r,)),
-        (batch._dist_box, _box, (half,)),
-        (batch._dist_capsule, _capsule, (r, h)),
+        (shapes.dist_sphere, _sphere, (r,)),
+        (shapes.dist_box, _box, (half,)),
+        (shapes.dist_capsule, _capsule, (r, h)),
     ):
         got, want = new(p, *args), old(p, *args)
         assert got.shape == want.shape == (n, m)
         assert got.tobytes() == want.tobytes()
     # inside and outside both present
-    assert (batch._dist_box(p, half) < 0).any() and (batch._dist_box(p, half) > 0).any()
+    assert (shapes.dist_box(p, half) < 0).any() and (shapes.dist_box(p, half) > 0).any()
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (37, 3), (2000, 8), (500, 17)])

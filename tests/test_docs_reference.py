@@ -41,6 +41,7 @@ SHAPES = [
     {"shape": "box", "size": [2, 2, 2]},
     {"shape": "cylinder", "radius": 1, "height": 3},
     {"shape": "capsule", "radius": 1, "height": 3},
+    {"shape": "ellipsoid", "semi_axes": [2, 1.5, 1]},
     {"shape": "mesh", "file": "meshes/hangar.stl", "scale": 0.05},
 ]
 
@@ -84,6 +85,7 @@ def everything_world() -> dict:
         planner=planner,
         log={"path": "logs/x.mcap", "foxglove": False, "flush_interval": 1.0},
         tracker={"mass": 1.5, "position": {"kp": 6}, "attitude": {"kp": 12}, "rate": {"kp": 40}},
+        origin={"lat": 47.4, "lon": 8.5, "alt": 400},
     )  # fmt: skip
 
 

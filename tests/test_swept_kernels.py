@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from helpers import base_world, make_world, without_guide
 
+from swarmplan.geometry import _shape_kernel as S
 from swarmplan.geometry import swept_kernels as K
 from swarmplan.geometry.collision import CollisionWorld, _align_z, first_hits, first_hits_fcl
 from swarmplan.world.motion import poses_at
@@ -29,14 +30,14 @@ def _compiled(monkeypatch):
 
 
 SHAPES = [
-    (K.SPHERE, (2.0, 0.0, 0.0)),
-    (K.SPHERE, (0.02, 0.0, 0.0)),
-    (K.BOX, (0.025, 3.0, 4.0)),  # a 5 cm wall
-    (K.BOX, (1.0, 1.5, 0.7)),
-    (K.CYLINDER, (2.0, 5.0, 0.0)),
-    (K.CYLINDER, (0.03, 4.0, 0.0)),  # a thin pole
-    (K.CAPSULE, (0.5, 2.0, 0.0)),
-    (K.CAPSULE, (1.0, 0.0, 0.0)),  # no straight section
+    (S.SPHERE, (2.0, 0.0, 0.0)),
+    (S.SPHERE, (0.02, 0.0, 0.0)),
+    (S.BOX, (0.025, 3.0, 4.0)),  # a 5 cm wall
+    (S.BOX, (1.0, 1.5, 0.7)),
+    (S.CYLINDER, (2.0, 5.0, 0.0)),
+    (S.CYLINDER, (0.03, 4.0, 0.0)),  # a thin pole
+    (S.CAPSULE, (0.5, 2.0, 0.0)),
+    (S.CAPSULE, (1.0, 0.0, 0.0)),  # no straight section
 ]
 
 
@@ -44,11 +45,11 @@ def surface_point(rng: np.random.Generator, code: int, dims) -> tuple[np.ndarray
     """A point on the body's surface (local frame) and an outward unit normal there (for edges,
     corners and rims any normal of the cone)."""
     d0, d1, d2 = dims
-    if code == K.SPHERE:
+    if code == S.SPHERE:
         n = rng.normal(size=3)
         n /= np.linalg.norm(n)
         return d0 * n, n
-    if code == K.BOX:
+    if code == S.BOX:
         h = np.array([d0, d1, d2])
         sign = rng.choice([-1.0, 1.0], 3)
         x = rng.uniform(-h, h)
@@ -57,7 +58,7 @@ def surface_point(rng: np.random.Generator, code: int, dims) -> tuple[np.ndarray
             x[a] = sign[a] * h[a]
             n[a] = sign[a] * rng.uniform(0.1, 1.0)
         return x, n / np.linalg.norm(n)
-    if code == K.CYLINDER:
+    if code == S.CYLINDER:
         phi = rng.uniform(0, 2 * np.pi)
         radial = np.array([np.cos(phi), np.sin(phi), 0.0])
         top = np.array([0.0, 0.0, rng.choice([-1.0, 1.0])])
@@ -92,10 +93,10 @@ def tangent_sweep(rng, code, dims, r, delta, length):
 def fcl_touches(code, dims, a, b, r) -> bool:
     """FCL's answer, as ``CollisionWorld`` builds it (a capsule, a sphere for a zero-length step)."""
     geometry = {
-        K.SPHERE: lambda: fcl.Sphere(dims[0]),
-        K.BOX: lambda: fcl.Box(*(2 * np.asarray(dims))),
-        K.CYLINDER: lambda: fcl.Cylinder(dims[0], 2 * dims[1]),
-        K.CAPSULE: lambda: fcl.Capsule(dims[0], 2 * dims[1]),
+        S.SPHERE: lambda: fcl.Sphere(dims[0]),
+        S.BOX: lambda: fcl.Box(*(2 * np.asarray(dims))),
+        S.CYLINDER: lambda: fcl.Cylinder(dims[0], 2 * dims[1]),
+        S.CAPSULE: lambda: fcl.Capsule(dims[0], 2 * dims[1]),
     }[code]()
     body = fcl.CollisionObject(geometry, fcl.Transform())
     d = b - a

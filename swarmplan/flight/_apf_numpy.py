@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from swarmplan.flight.field_law import NEAREST, bounds_range, goal_factor, ground_range, power, repulsion
+
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
 
@@ -50,29 +52,6 @@ def _across(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return _vec(y / n, -x / n, 0.0)
 
 
-def _pow1(x: float, p: float) -> float:
-    try:
-        return math.pow(x, p)
-    except (ValueError, OverflowError):  # C's pow answers (inf, nan) where Python raises
-        with np.errstate(all="ignore"):
-            return float(np.power(x, p))
-
-
-def _power(x: np.ndarray, p: float) -> np.ndarray:
-    """The kernel's ``_power`` elementwise (numpy's fast paths, else C's ``pow``)."""
-    if p == 2.0:
-        return x * x
-    if p == 1.0:
-        return x.copy()
-    if p == 0.5:
-        return np.sqrt(x)
-    if p == -1.0:
-        return 1.0 / x
-    if p == 0.0:
-        return np.ones_like(x)
-    return np.array([_pow1(float(v), p) for v in x.ravel()]).reshape(x.shape)
-
-
 def _right(v: np.ndarray) -> np.ndarray:
     """The kernel's ``_right`` of each vector of ``v`` (..., 3): ``_unit(y, -x, 0.0)`` or
     ``_unit(0.0, z, -y)``, whose norms' sums drop their exact ``+ 0.0``."""
@@ -99,7 +78,7 @@ def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: 
     sign = np.array([[1.0], [-1.0]])
     offset = np.stack([pos - lo, pos - hi], axis=1)
     rho_b = sign * offset - r[:, None, None]
-    mag = np.where(rho_b < rb0, k_rep * (1.0 / np.maximum(rho_b, 0.05) - 1.0 / rb0), 0.0)
+    mag = repulsion(rho_b, k_rep, rb0)
     terms = sign * mag * gfac[:, None, None]
     terms[:, 0, 2] = _SKIP
     return terms
@@ -117,8 +96,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     if n == 0:
         return
     floor = np.maximum(min_altitude[idx], terrain_floor)
-    rho0_g = max(min(rho0, 3.0 * float(floor.max())), 0.25 * rho0)
-    rb0 = min(rho0, 10.0)
+    rho0_g = ground_range(rho0, float(floor.max()))
+    rb0 = bounds_range(rho0)
     ri = radius[idx]
 
     # Attraction (quadratic well only at the goal itself).
@@ -130,8 +109,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     well = (dt <= dq) & to_goal
     f = np.where(well[:, None], k_att * t, k_att * (dq * t / np.maximum(dt, _EPS)[:, None]))
     ratio = np.minimum(1.0, dg / rho0)
-    gfac = _power(ratio, npow)
-    gfac_d = np.where(dg < rho0, npow * _power(ratio, npow - 1.0) / rho0, 0.0)
+    gfac = goal_factor(dg, rho0, npow)
+    gfac_d = np.where(dg < rho0, npow * power(ratio, npow - 1.0) / rho0, 0.0)
 
     # Obstacle surfaces (static ones scaled per agent), the goal factor's companion term, the
     # turn along blocking bodies and the movers' predicted closest approach.
@@ -147,7 +126,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     # Terrain / ground, with the goal factor (a goal near the ground stays reachable).
     normal = _unit(_vec(-gh[:, 0], -gh[:, 1], np.ones(n)))
     rho_g = (pos[:, 2] - h) - ri
-    mag = np.where(rho_g < rho0_g, k_rep * (1.0 / np.maximum(rho_g, 0.05) - 1.0 / rho0_g), 0.0)
+    mag = repulsion(rho_g, k_rep, rho0_g)
     mag = mag * gfac
     f = f + mag[:, None] * normal
 
@@ -185,7 +164,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     active = rho < rho0
     static = active & ~moving
     k = np.where(moving, k_rep, (k_rep * static_scale)[:, None])
-    x = 1.0 / np.maximum(rho, 0.05) - 1.0 / rho0
+    x = 1.0 / np.maximum(rho, NEAREST) - 1.0 / rho0  # the law's terms (field_law.repulsion)
     w = k * x * gfac[:, None]
     block = _dot(ax, grad)
     terms = np.empty((n, m, 5))
@@ -219,7 +198,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         d = np.sqrt(_sq(sp))
         r_o = o_radius[mv]
         rho_m = d - r_o - ri[:, None]
-        rep = np.where(rho_m < rho0, k_mv * (1.0 / np.maximum(rho_m, 0.05) - 1.0 / rho0), 0.0)
+        rep = repulsion(rho_m, k_mv, rho0)
         mag = rep * (1.0 - tau / (horizon + _EPS))
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)

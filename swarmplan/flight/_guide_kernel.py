@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from swarmplan.geometry._shape_kernel import sdf
 from swarmplan.runtime.compiled import njit
 
 NO_WAY = -9999
@@ -280,10 +281,10 @@ def body_distance(
     prm: np.ndarray,
 ) -> np.ndarray:
     """The distance from each point ``p`` (n, 3) in ``cells`` to the nearest body its cell
-    ``reach``-es (every body with ``every``; inf when none), for spheres, boxes, cylinders and
-    capsules (``code`` 0-3; ``prm``: radius, half sizes, or radius and half height): per pair
-    the operations of ``rotate_rows_of`` and ``SHAPE_DISTANCE`` on the same numbers, in their
-    order (the same bits as ``StaticGuide._body_distance``'s numpy)."""
+    ``reach``-es (every body with ``every``; inf when none), for the analytic shapes (``code``
+    and ``prm``: ``bodies.body_table``): per pair the operations of ``rotate_rows_of`` and the
+    shapes' distance ``_shape_kernel.sdf`` (numpy twin ``shapes.DISTANCE``) on the same
+    numbers, in their order (the same bits as ``StaticGuide._body_distance``'s numpy)."""
     n, m = len(p), len(position)
     out = np.full(n, np.inf)
     for i in range(n):
@@ -296,21 +297,7 @@ def body_distance(
             x = r0 * rot[0, 0] + r1 * rot[1, 0] + r2 * rot[2, 0] + 0.0
             y = r0 * rot[0, 1] + r1 * rot[1, 1] + r2 * rot[2, 1] + 0.0
             z = r0 * rot[0, 2] + r1 * rot[1, 2] + r2 * rot[2, 2] + 0.0
-            c = code[b]
-            if c == 0:
-                d = np.sqrt(x * x + y * y + z * z) - prm[b, 0]
-            elif c == 1:
-                qx, qy, qz = abs(x) - prm[b, 0], abs(y) - prm[b, 1], abs(z) - prm[b, 2]
-                ux, uy, uz = max(qx, 0.0), max(qy, 0.0), max(qz, 0.0)
-                d = np.sqrt(ux * ux + uy * uy + uz * uz) + min(max(max(qx, qy), qz), 0.0)
-            elif c == 2:
-                dr = np.sqrt(x * x + y * y) - prm[b, 0]
-                dz = abs(z) - prm[b, 1]
-                d = np.hypot(max(dr, 0.0), max(dz, 0.0)) + min(max(dr, dz), 0.0)
-            else:
-                h = prm[b, 1]
-                dz = z - min(max(z, -h), h)
-                d = np.sqrt(x * x + y * y + dz * dz) - prm[b, 0]
+            d = sdf(code[b], x, y, z, prm[b, 0], prm[b, 1], prm[b, 2])
             if d < best:
                 best = d
         out[i] = best

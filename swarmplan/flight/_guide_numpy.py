@@ -20,19 +20,19 @@ or numpy evaluates it), and where the kernel passes over work its skips are exac
   blocked whichever sample the kernel met first, and its other samples are not measured.
   The samples left to measure are the kernel's, in its order (row by row, along each line).
 - ``body_distance``: per pair of a sample and a body the operations of ``rotate_rows_of`` and
-  ``SHAPE_DISTANCE`` (which the kernel repeats), the least over the bodies the sample's cell
-  reaches (every body with ``every``).
+  ``shapes.DISTANCE`` (the twin of the kernel's ``_shape_kernel.sdf``), the least over the
+  bodies the sample's cell reaches (every body with ``every``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from swarmplan.geometry.batch import SHAPE_DISTANCE, rotate_rows_of
+from swarmplan.geometry.batch import rotate_rows_of
+from swarmplan.geometry.shapes import DISTANCE
 
 _MARGIN = 1e-6  # _guide_kernel._MARGIN: the margin of the bounds the samples are judged by
 _SAMPLES = 1 << 20  # samples per block of lines (a few arrays of this many doubles at once)
-_SHAPES = ("sphere", "box", "cylinder", "capsule")  # the kernel's codes 0-3
 
 
 def cells_of(pts: np.ndarray, lo: np.ndarray, cell: np.ndarray, shape: np.ndarray) -> np.ndarray:
@@ -135,7 +135,7 @@ def body_distance(
 ) -> np.ndarray:
     """The distance from each point ``p`` (n, 3) in ``cells`` to the nearest body its cell
     ``reach``-es (every body with ``every``; inf when none): the kernel's ``body_distance``,
-    per pair the operations of ``rotate_rows_of`` and ``SHAPE_DISTANCE`` (its own)."""
+    per pair the operations of ``rotate_rows_of`` and ``shapes.DISTANCE``."""
     n, m = len(p), len(position)
     out = np.full(n, np.inf)
     if n == 0 or m == 0:
@@ -149,13 +149,9 @@ def body_distance(
     c = position[body]
     local = rotate_rows_of(*(p[pt, k] - c[:, k] for k in range(3)), rotation[body])
     dist = np.empty(len(pt))
-    for k, shape in enumerate(_SHAPES):
+    for k in np.unique(code[body]):
         sel = np.flatnonzero(code[body] == k)
-        if not len(sel):
-            continue
-        b = body[sel]
-        args = {"sphere": (prm[b, 0],), "box": (prm[b, :3],)}.get(shape, (prm[b, 0], prm[b, 1]))
-        dist[sel] = SHAPE_DISTANCE[shape](local[sel], *args)
+        dist[sel] = DISTANCE[int(k)](local[sel], prm[body[sel]])
     first = np.flatnonzero(np.diff(pt, prepend=-1))  # the pairs come point by point
     out[pt[first]] = np.minimum.reduceat(dist, first)
     return out

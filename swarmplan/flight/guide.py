@@ -50,7 +50,8 @@ import numpy as np
 
 from swarmplan.flight import _guide_numpy, guide_cache
 from swarmplan.flight.guide_graph import AROUND, OFFSETS, Graph, legs
-from swarmplan.geometry.batch import SHAPE_DISTANCE, ShapeBatch, rotate_rows_of
+from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
+from swarmplan.geometry.shapes import DISTANCE
 from swarmplan.runtime.compiled import kernel_module, use_numpy_twin
 from swarmplan.world.motion import resting_bodies
 
@@ -358,10 +359,10 @@ class StaticGuide:
         c = b.position[body]
         local = rotate_rows_of(*(p[pt, k] - c[:, k] for k in range(3)), b.rotation[body])
         d = np.empty(len(pt))
-        for code, shape in enumerate(("sphere", "box", "cylinder", "capsule")):
+        for code in b.groups:
             sel = np.flatnonzero(b.code[body] == code)
             if len(sel):
-                d[sel] = SHAPE_DISTANCE[shape](local[sel], *(v[body[sel]] for v in b.by_obstacle[shape]))
+                d[sel] = DISTANCE[code](local[sel], b.prm[body[sel]])
         mesh = np.flatnonzero(b.code[body] < 0)  # and the meshes from their grids, as ``distance`` does
         d[mesh] = b.pair_distance(p[pt[mesh]], body[mesh])
         first = np.flatnonzero(np.diff(pt, prepend=-1))  # pairs come row by row

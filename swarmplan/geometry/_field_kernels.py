@@ -7,16 +7,16 @@ Why numba: at 64-256 agents and 40 obstacles each of these was a dozen or more n
 on (agents, obstacles, 3) temporaries per step (``ShapeBatch.query`` alone ~1.1 ms at 64
 agents, 2.2 ms at 256, mostly per-call overhead and temporaries; the clearance a k-d tree
 build and query per step); one loop per point and obstacle computes each value where it is
-used. The formulas and their order are those of ``shapes.sdf_*`` and the numpy callers,
-so the values are theirs bit for bit (tests/test_field_kernels.py): rotated bodies get their
+used. The distances are ``_shape_kernel.sdf_grad`` (the shapes' one compiled distance, whose
+numpy twin ``shapes.SDF`` the numpy callers use), so the values are theirs bit for bit
+(tests/test_field_kernels.py): rotated bodies get their
 local points and their gradients' rotation back from numpy (``ShapeBatch.query``), because
 numpy's 3x3 products go through BLAS, whose fused multiply-adds a loop here would not
 reproduce (30 % of the coordinates differed in the last bit). The clearance is exact (the
 same value per pair, a minimum). Meshes stay with their numpy grid.
 
-Imported lazily (``runtime.compiled.kernel_module``): numba is not loaded by
-small worlds, and never at start-up. Every compiled function of these queries is in this
-file: numba's cache does not see changes of callees in other files.
+Imported lazily (``runtime.compiled.kernel_module``): numba is not loaded by small worlds,
+and never at start-up.
 """
 
 from __future__ import annotations
@@ -25,71 +25,8 @@ import math
 
 import numpy as np
 
+from swarmplan.geometry._shape_kernel import sdf_grad
 from swarmplan.runtime.compiled import njit
-
-_EPS = 1e-12  # shapes._EPS: the floor of a normalized vector's length
-
-SPHERE, BOX, CYLINDER, CAPSULE = range(4)  # batch._SHAPES order
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _sdf_grad(code, x, y, z, a, b, c):  # noqa: ANN001, ANN202
-    """Signed distance and local gradient of (x, y, z) to a sphere (radius a), box (half
-    sizes a, b, c), cylinder or capsule (radius a, half height b): ``shapes.sdf_*``."""
-    if code == SPHERE:
-        n = math.sqrt(x * x + y * y + z * z)
-        m = max(n, _EPS)
-        return n - a, x / m, y / m, z / m
-    if code == BOX:
-        sx = 1.0 if x >= 0 else -1.0
-        sy = 1.0 if y >= 0 else -1.0
-        sz = 1.0 if z >= 0 else -1.0
-        qx = abs(x) - a
-        qy = abs(y) - b
-        qz = abs(z) - c
-        px = max(qx, 0.0)
-        py = max(qy, 0.0)
-        pz = max(qz, 0.0)
-        outside = math.sqrt(px * px + py * py + pz * pz)
-        qmax = max(qx, qy, qz)
-        d = outside + min(qmax, 0.0)
-        if outside > 0:
-            m = max(outside, _EPS)
-            return d, px / m * sx, py / m * sy, pz / m * sz
-        # Inside or on the surface: the face of the largest q (the first on ties, np.argmax).
-        if qx >= qy and qx >= qz:
-            return d, sx, 0.0, 0.0
-        if qy >= qz:
-            return d, 0.0, sy, 0.0
-        return d, 0.0, 0.0, sz
-    if code == CYLINDER:
-        rxy = math.sqrt(x * x + y * y)
-        dr = rxy - a
-        dz = abs(z) - b
-        out_r = max(dr, 0.0)
-        out_z = max(dz, 0.0)
-        outside = math.hypot(out_r, out_z)
-        d = outside + min(max(dr, dz), 0.0)
-        m = max(rxy, _EPS)
-        ux = x / m
-        uy = y / m
-        zd = 1.0 if z >= 0 else -1.0
-        if outside > 0:
-            # radial * out_r + zdir * out_z, component by component as numpy adds them (the
-            # zero terms decide the sign of a zero).
-            vx = ux * out_r + 0.0 * out_z
-            vy = uy * out_r + 0.0 * out_z
-            vz = 0.0 * out_r + zd * out_z
-            n = max(math.sqrt(vx * vx + vy * vy + vz * vz), _EPS)
-            return d, vx / n, vy / n, vz / n
-        if dr > dz:
-            return d, ux, uy, 0.0
-        return d, 0.0, 0.0, zd
-    # capsule: to the closest point of its axis segment
-    vz = z - min(max(z, -b), b)
-    n = math.sqrt(x * x + y * y + vz * vz)
-    m = max(n, _EPS)
-    return n - a, x / m, y / m, vz / m
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -107,7 +44,7 @@ def field_query(points, centers, cols, code, prm, d, g):  # noqa: ANN001, ANN201
             x = (px - centers[j, 0]) + 0.0
             y = (py - centers[j, 1]) + 0.0
             z = (pz - centers[j, 2]) + 0.0
-            dist, gx, gy, gz = _sdf_grad(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
+            dist, gx, gy, gz = sdf_grad(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
             d[i, j] = dist
             g[i, j, 0] = gx + 0.0
             g[i, j, 1] = gy + 0.0
@@ -121,7 +58,7 @@ def field_query_local(local, cols, code, prm, d, g_local):  # noqa: ANN001, ANN2
     for k in range(cols.shape[0]):
         j = cols[k]
         for i in range(local.shape[1]):
-            dist, gx, gy, gz = _sdf_grad(
+            dist, gx, gy, gz = sdf_grad(
                 code[j], local[k, i, 0], local[k, i, 1], local[k, i, 2], prm[j, 0], prm[j, 1], prm[j, 2]
             )
             d[i, j] = dist

@@ -1,10 +1,10 @@
 """Signed distances from many points to many obstacles, batched by shape type.
 
 :class:`swarmplan.geometry.shapes.ObstacleField` calls ``distance_and_gradient`` once per
-obstacle from Python; :class:`ShapeBatch` groups the obstacles by shape (all spheres, all
-boxes, all cylinders, all capsules) and evaluates each group as one array operation over
-``(points, obstacles)``, with the same formulas (``shapes.sdf_*`` broadcast over the
-group's parameters), so the values equal the per-shape path up to the rounding of the
+obstacle from Python; :class:`ShapeBatch` groups the obstacles by shape (their table,
+``bodies.body_table``) and evaluates each group as one array operation over
+``(points, obstacles)``, with the same formulas (``shapes.SDF`` and ``shapes.DISTANCE``
+broadcast over the group's parameters), so the values equal the per-shape path up to the rounding of the
 batched rotation (tests: 1e-12). Meshes keep their per-obstacle distance grid.
 :meth:`ShapeBatch.distance` skips the gradients where only distances are needed.
 With ``compiled=True`` (the simulation's swarm-sized worlds, ``runtime.compiled.use_compiled``)
@@ -19,60 +19,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.geometry.shapes import (
-    distance_and_gradient,
-    mesh_grid,
-    sdf_box,
-    sdf_capsule,
-    sdf_cylinder,
-    sdf_sphere,
-)
-from swarmplan.geometry.vec3 import norm3
+from swarmplan.geometry.bodies import body_table
+from swarmplan.geometry.shapes import DISTANCE, SDF, distance_and_gradient, mesh_grid
 from swarmplan.runtime.compiled import kernel_module
 
 if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle
-
-_SHAPES = ("sphere", "box", "cylinder", "capsule")
-
-
-# The distances written per component (``vec3.norm3``: ``np.linalg.norm`` over the last axis,
-# the same bits; the largest of three by two ``np.maximum``): a reduction over a length-3 axis
-# costs several times the arithmetic (the static guide measures thousands of points a step).
-
-
-def _max3(q: np.ndarray) -> np.ndarray:
-    return np.maximum(np.maximum(q[..., 0], q[..., 1]), q[..., 2])
-
-
-def _dist_sphere(p: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    return norm3(p) - radius
-
-
-def _dist_box(p: np.ndarray, half: np.ndarray) -> np.ndarray:
-    q = np.abs(p) - half
-    return norm3(np.maximum(q, 0.0)) + np.minimum(_max3(q), 0.0)
-
-
-def _dist_cylinder(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) -> np.ndarray:
-    x, y = p[..., 0], p[..., 1]
-    dr = np.sqrt(x * x + y * y) - radius
-    dz = np.abs(p[..., 2]) - half_height
-    return np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0)) + np.minimum(np.maximum(dr, dz), 0.0)
-
-
-def _dist_capsule(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) -> np.ndarray:
-    x, y, z = p[..., 0], p[..., 1], p[..., 2]
-    dz = z - np.clip(z, -half_height, half_height)  # to the closest point of the axis segment
-    return np.sqrt(x * x + y * y + dz * dz) - radius
-
-
-SHAPE_DISTANCE = {
-    "sphere": _dist_sphere,
-    "box": _dist_box,
-    "cylinder": _dist_cylinder,
-    "capsule": _dist_capsule,
-}
 
 
 def rotate_rows_of(r0: np.ndarray, r1: np.ndarray, r2: np.ndarray, rotation: np.ndarray) -> np.ndarray:
@@ -104,52 +56,23 @@ class ShapeBatch:
     def __init__(self, obstacles: Sequence[Obstacle], compiled: bool = False):
         self.obstacles = tuple(obstacles)
         self.compiled = compiled
-        self.groups: dict[str, np.ndarray] = {}
-        for shape in _SHAPES:
-            idx = np.array([j for j, o in enumerate(self.obstacles) if o.shape == shape], dtype=int)
-            if len(idx):
-                self.groups[shape] = idx
-        # Shape code of each obstacle (index into _SHAPES, -1 for meshes) for subset queries.
-        self.code = np.array(
-            [_SHAPES.index(o.shape) if o.shape in _SHAPES else -1 for o in self.obstacles], dtype=int
-        )
-        self.meshes = [j for j, o in enumerate(self.obstacles) if o.shape not in _SHAPES]
+        self.bodies = body_table(self.obstacles)
+        # Shape code of each obstacle (-1 for meshes), its pose and its kernel parameters.
+        self.code = self.bodies.code
+        self.position = self.bodies.position
+        self.rotation = self.bodies.rotation
+        self.identity = self.bodies.identity  # the identity needs no matmul (most boxes, spheres)
+        self.prm = self.bodies.prm
+        # The obstacles of each analytic shape, by code.
+        self.groups: dict[int, np.ndarray] = {}
+        for code in np.unique(self.code[self.code >= 0]):
+            self.groups[int(code)] = np.flatnonzero(self.code == code)
+        self.meshes = [int(j) for j in np.flatnonzero(self.code < 0)]
         self.mesh_grids = {j: mesh_grid(self.obstacles[j]) for j in self.meshes}
-        self.position = np.array([o.position for o in self.obstacles], dtype=float).reshape(-1, 3)
-        self.rotation = np.array([o.rotation for o in self.obstacles], dtype=float).reshape(-1, 3, 3)
-        # Rotations that are the identity (most boxes and every sphere) need no matmul.
-        self.identity = np.array([np.array_equal(R, np.eye(3)) for R in self.rotation], dtype=bool)
-        self.params: dict[str, tuple[np.ndarray, ...]] = {}
-        for shape, idx in self.groups.items():
-            obs = [self.obstacles[j] for j in idx]
-            if shape == "sphere":
-                self.params[shape] = (np.array([o.radius for o in obs]),)
-            elif shape == "box":
-                self.params[shape] = (np.array([o.size for o in obs]) / 2,)
-            else:
-                self.params[shape] = (
-                    np.array([o.radius for o in obs]),
-                    np.array([o.height for o in obs]) / 2,
-                )
-
-        # The same parameters indexed by obstacle (pair queries gather them directly).
-        self.by_obstacle: dict[str, tuple[np.ndarray, ...]] = {}
-        for shape, idx in self.groups.items():
-            cols = []
-            for v in self.params[shape]:
-                full = np.zeros((len(self.obstacles),) + v.shape[1:])
-                full[idx] = v
-                cols.append(full)
-            self.by_obstacle[shape] = tuple(cols)
-        # The compiled query's view: the primitives with and without a rotation, and up to
-        # three parameters per obstacle.
+        # The compiled query's view: the primitives with and without a rotation.
         self.primitives = np.flatnonzero(self.code >= 0)
         self.unrotated = np.flatnonzero((self.code >= 0) & self.identity)
         self.rotated = np.flatnonzero((self.code >= 0) & ~self.identity)
-        self.prm = np.zeros((len(self.obstacles), 3))
-        for shape, idx in self.groups.items():
-            cols = np.column_stack(self.by_obstacle[shape])[idx]
-            self.prm[idx, : cols.shape[1]] = cols
 
     def __len__(self) -> int:
         return len(self.obstacles)
@@ -178,25 +101,12 @@ class ShapeBatch:
         c = self.position if centers is None else np.asarray(centers, dtype=float)
         cols = np.arange(len(self.obstacles)) if subset is None else np.asarray(subset, dtype=int)
         d = np.empty((len(points), len(cols)))
-        for shape, idx in self.groups.items():
-            pos = np.flatnonzero(self.code[cols] == _SHAPES.index(shape)) if subset is not None else idx
+        for code, idx in self.groups.items():
+            pos = np.flatnonzero(self.code[cols] == code) if subset is not None else idx
             if not len(pos):
                 continue
             sel = cols[pos]
-            local = self._local(points, sel, c)
-            prm = (
-                self.params[shape]
-                if subset is None
-                else tuple(a[np.searchsorted(idx, sel)] for a in self.params[shape])
-            )
-            if shape == "sphere":
-                d[:, pos] = _dist_sphere(local, prm[0])
-            elif shape == "box":
-                d[:, pos] = _dist_box(local, prm[0])
-            elif shape == "cylinder":
-                d[:, pos] = _dist_cylinder(local, *prm)
-            else:
-                d[:, pos] = _dist_capsule(local, *prm)
+            d[:, pos] = DISTANCE[code](self._local(points, sel, c), self.prm[sel])
         for j in self.meshes:
             for col in np.flatnonzero(cols == j):
                 d[:, col] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])[0]
@@ -211,22 +121,14 @@ class ShapeBatch:
         bodies = np.asarray(bodies, dtype=int)
         c = self.position if centers is None else np.asarray(centers, dtype=float)
         d = np.empty(len(points))
-        for shape in self.groups:
-            sel = np.flatnonzero(self.code[bodies] == _SHAPES.index(shape))
+        for code in self.groups:
+            sel = np.flatnonzero(self.code[bodies] == code)
             if not len(sel):
                 continue
             b = bodies[sel]
             rel = points[sel] - c[b]
             local = rel if self.identity[b].all() else np.einsum("nk,nkl->nl", rel, self.rotation[b])
-            prm = tuple(v[b] for v in self.by_obstacle[shape])
-            if shape == "sphere":
-                d[sel] = _dist_sphere(local, prm[0])
-            elif shape == "box":
-                d[sel] = _dist_box(local, prm[0])
-            elif shape == "cylinder":
-                d[sel] = _dist_cylinder(local, *prm)
-            else:
-                d[sel] = _dist_capsule(local, *prm)
+            d[sel] = DISTANCE[code](local, self.prm[b])
         for j in self.meshes:
             sel = np.flatnonzero(bodies == j)
             if len(sel):
@@ -254,17 +156,9 @@ class ShapeBatch:
             for j in self.meshes:
                 d[:, j], g[:, j] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])
             return d, g
-        for shape, idx in self.groups.items():
+        for code, idx in self.groups.items():
             local = self._local_exact(points, idx, c)  # (m, N, 3)
-            prm = tuple(v[:, None] for v in self.params[shape])
-            if shape == "sphere":
-                dj, gj = sdf_sphere(local, prm[0])
-            elif shape == "box":
-                dj, gj = sdf_box(local, prm[0])
-            elif shape == "cylinder":
-                dj, gj = sdf_cylinder(local, *prm)
-            else:
-                dj, gj = sdf_capsule(local, *prm)
+            dj, gj = SDF[code](local, self.prm[idx][:, None, :])
             d[:, idx] = dj.T
             g[:, idx] = (np.ascontiguousarray(gj) @ self.rotation[idx].transpose(0, 2, 1)).transpose(1, 0, 2)
         for j in self.meshes:

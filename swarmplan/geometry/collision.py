@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import fcl
 import numpy as np
 
+from swarmplan.geometry.bodies import body_table, shape
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 
@@ -34,33 +35,16 @@ SLACK = 1e-3
 
 
 def shape_table(obstacles: list[Obstacle]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per obstacle the kernels' shape code, rotation (k, 3, 3) and dimensions (k, 3): sphere
-    radius; box half-extents; cylinder radius and half-height; capsule radius and half-length
-    (FCL's shapes are centred on their local origin, axis along local z)."""
-    codes = {"sphere": 0, "box": 1, "cylinder": 2, "capsule": 3}
-    code = np.array([codes.get(o.shape, 4) for o in obstacles], dtype=np.int64)
-    rot = np.array([np.asarray(o.rotation, dtype=float) for o in obstacles]).reshape(-1, 3, 3)
-    dims = np.zeros((len(obstacles), 3))
-    for k, o in enumerate(obstacles):
-        if o.shape == "box":
-            dims[k] = np.asarray(o.size, dtype=float) / 2
-        elif o.shape in ("cylinder", "capsule"):
-            dims[k, :2] = o.radius, o.height / 2
-        elif o.shape == "sphere":
-            dims[k, 0] = o.radius
-    return code, np.ascontiguousarray(rot), dims
+    """Per obstacle the kernels' shape code, rotation (k, 3, 3) and parameters (k, 3), from
+    ``bodies.body_table`` (FCL's shapes are centred on their local origin, axis along local z)."""
+    table = body_table(obstacles)
+    return table.code, table.rotation, table.prm
 
 
 def fcl_geometry(o: Obstacle) -> fcl.CollisionGeometry:
     """The fcl geometry of an obstacle in its local frame."""
-    if o.shape == "sphere":
-        return fcl.Sphere(o.radius)
-    if o.shape == "box":
-        return fcl.Box(*o.size)
-    if o.shape == "cylinder":
-        return fcl.Cylinder(o.radius, o.height)
-    if o.shape == "capsule":
-        return fcl.Capsule(o.radius, o.height)
+    if o.shape != "mesh":
+        return shape(o.shape).fcl(o.shape_params)
     model = fcl.BVHModel()
     model.beginModel(len(o.vertices), len(o.faces))
     model.addSubModel(
@@ -200,7 +184,8 @@ class CollisionWorld:
         return self._kernel_statics
 
     def kernel_movers(self, q0: np.ndarray, q1: np.ndarray) -> tuple[np.ndarray, ...]:
-        """The moving bodies at ``q0`` -> ``q1`` as the kernels take them."""
+        """The moving bodies at ``q0`` -> ``q1`` as the kernels take them: positions at both
+        ends, bounding radii, shape table."""
         return (
             np.ascontiguousarray(q0, dtype=float).reshape(-1, 3),
             np.ascontiguousarray(q1, dtype=float).reshape(-1, 3),
@@ -307,8 +292,8 @@ def first_hits(
         np.ascontiguousarray(p1, dtype=float),
         np.ascontiguousarray(radii, dtype=float),
         oob | low,
-        *cw.kernel_statics(),
-        *cw.kernel_movers(q0, q1),
+        cw.kernel_statics(),
+        cw.kernel_movers(q0, q1),
         SLACK,
     )
     fcl_rows = []

@@ -1,10 +1,15 @@
-"""Analytic signed distances (and their gradients) from points to obstacle shapes.
+"""Analytic signed distances (and their gradients) from points to obstacle shapes, in numpy.
 
 Used by the potential field and the planners' costs, where thousands of point/obstacle
 pairs are scored per call; FCL (``collision.py``) remains the authority on contact.
 Distances are to the surface: positive outside, negative inside. Meshes use a signed
 distance grid built once (voxelization + Euclidean distance transform), so their
 distances are approximate to about one voxel.
+
+``SDF[code]`` (distance and gradient) and ``DISTANCE[code]`` (distance only) are the numpy
+twins of the compiled ``_shape_kernel.sdf_grad`` and ``sdf``, the same bits (tests/
+test_shape_distance.py): each takes local points ``p`` (..., 3) and the kernel parameters
+``prm`` (..., 3) of ``bodies.Shape.params``, broadcast against the points.
 """
 
 from __future__ import annotations
@@ -14,6 +19,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from swarmplan.geometry import bodies
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime import disk_cache
 
 if TYPE_CHECKING:
@@ -70,6 +77,121 @@ def sdf_capsule(p: np.ndarray, radius: float, half_height: float) -> tuple[np.nd
     closest[..., 2] = np.clip(p[..., 2], -half_height, half_height)
     v = p - closest
     return np.linalg.norm(v, axis=-1) - radius, _normalize(v)
+
+
+ROOT_STEPS = 200  # _shape_kernel.ROOT_STEPS
+
+
+def sdf_ellipsoid(
+    p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance and gradient to the ellipsoid of semi-axes a, b, c: exact outside,
+    minus an upper bound of the depth inside (``_shape_kernel._ellipsoid``, its operations
+    element by element: the bisection runs on the points whose bracket is still open)."""
+    x, y, z, a, b, c = np.broadcast_arrays(p[..., 0], p[..., 1], p[..., 2], a, b, c)
+    ux, uy, uz = x / a, y / b, z / c
+    k = np.sqrt(ux * ux + uy * uy + uz * uz)
+    n = np.sqrt(x * x + y * y + z * z)
+    ea, eb, ec = a * a, b * b, c * c
+    d = np.empty(x.shape)
+    g = np.empty(x.shape + (3,))
+    out = np.flatnonzero(k.ravel() > 1.0)
+    if len(out):
+        X, Y, Z, A, B, C, EA, EB, EC = (v.ravel()[out] for v in (x, y, z, a, b, c, ea, eb, ec))
+        s0 = np.zeros(len(out))
+        s1 = np.maximum(np.maximum(A, B), C) * n.ravel()[out]
+        s = s0.copy()
+        rows = np.arange(len(out))  # the points whose bracket is open
+        for _ in range(ROOT_STEPS):
+            if not len(rows):
+                break
+            lo, hi = s0[rows], s1[rows]
+            mid = 0.5 * (lo + hi)
+            s[rows] = mid
+            go = (mid != lo) & (mid != hi)
+            rows, mid = rows[go], mid[go]
+            r0 = A[rows] * X[rows] / (mid + EA[rows])
+            r1 = B[rows] * Y[rows] / (mid + EB[rows])
+            r2 = C[rows] * Z[rows] / (mid + EC[rows])
+            f = r0 * r0 + r1 * r1 + r2 * r2 - 1.0
+            s0[rows[f > 0.0]] = mid[f > 0.0]
+            s1[rows[f < 0.0]] = mid[f < 0.0]
+            rows = rows[(f > 0.0) | (f < 0.0)]
+        dx = X - EA * X / (s + EA)
+        dy = Y - EB * Y / (s + EB)
+        dz = Z - EC * Z / (s + EC)
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        m = np.maximum(dist, _EPS)
+        d.ravel()[out] = dist
+        g.reshape(-1, 3)[out] = np.stack([dx / m, dy / m, dz / m], axis=-1)
+    inside = np.flatnonzero(~(k.ravel() > 1.0))
+    if len(inside):
+        X, Y, Z, A, B, C, EA, EB, EC = (v.ravel()[inside] for v in (x, y, z, a, b, c, ea, eb, ec))
+        K, N = k.ravel()[inside], n.ravel()[inside]
+        depth = np.minimum(np.minimum(A, B), C)
+        pos = K > 0.0
+        depth[pos] = np.minimum(N[pos] / K[pos] - N[pos], depth[pos])
+        vx, vy, vz = X / EA, Y / EB, Z / EC
+        m = np.maximum(np.sqrt(vx * vx + vy * vy + vz * vz), _EPS)
+        d.ravel()[inside] = -depth
+        g.reshape(-1, 3)[inside] = np.stack([vx / m, vy / m, vz / m], axis=-1)
+    return d, g
+
+
+# The distances alone, written per component (``vec3.norm3``: ``np.linalg.norm`` over the last
+# axis, the same bits; the largest of three by two ``np.maximum``): a reduction over a length-3
+# axis costs several times the arithmetic (the static guide measures thousands of points a step).
+
+
+def _max3(q: np.ndarray) -> np.ndarray:
+    return np.maximum(np.maximum(q[..., 0], q[..., 1]), q[..., 2])
+
+
+def dist_sphere(p: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    return norm3(p) - radius
+
+
+def dist_box(p: np.ndarray, half: np.ndarray) -> np.ndarray:
+    q = np.abs(p) - half
+    return norm3(np.maximum(q, 0.0)) + np.minimum(_max3(q), 0.0)
+
+
+def dist_cylinder(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) -> np.ndarray:
+    x, y = p[..., 0], p[..., 1]
+    dr = np.sqrt(x * x + y * y) - radius
+    dz = np.abs(p[..., 2]) - half_height
+    return np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0)) + np.minimum(np.maximum(dr, dz), 0.0)
+
+
+def dist_capsule(p: np.ndarray, radius: np.ndarray, half_height: np.ndarray) -> np.ndarray:
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    dz = z - np.clip(z, -half_height, half_height)  # to the closest point of the axis segment
+    return np.sqrt(x * x + y * y + dz * dz) - radius
+
+
+SDF: dict[int, Any] = {
+    0: lambda p, prm: sdf_sphere(p, prm[..., 0]),
+    1: lambda p, prm: sdf_box(p, prm[..., :3]),
+    2: lambda p, prm: sdf_cylinder(p, prm[..., 0], prm[..., 1]),
+    3: lambda p, prm: sdf_capsule(p, prm[..., 0], prm[..., 1]),
+    4: lambda p, prm: sdf_ellipsoid(p, prm[..., 0], prm[..., 1], prm[..., 2]),
+}
+"""Shape code -> ``(p, prm) -> (distance, gradient)``: ``_shape_kernel.sdf_grad``'s twin."""
+
+DISTANCE: dict[int, Any] = {
+    0: lambda p, prm: dist_sphere(p, prm[..., 0]),
+    1: lambda p, prm: dist_box(p, prm[..., :3]),
+    2: lambda p, prm: dist_cylinder(p, prm[..., 0], prm[..., 1]),
+    3: lambda p, prm: dist_capsule(p, prm[..., 0], prm[..., 1]),
+    4: lambda p, prm: sdf_ellipsoid(p, prm[..., 0], prm[..., 1], prm[..., 2])[0],
+}
+"""Shape code -> ``(p, prm) -> distance``: ``_shape_kernel.sdf``'s twin."""
+
+
+def distance_of(code: int, p: np.ndarray, prm: np.ndarray) -> np.ndarray:
+    """Signed distance of local points ``p`` (..., 3) to the shape ``code`` with parameters
+    ``prm`` (3,) or (..., 3)."""
+    return DISTANCE[int(code)](np.asarray(p, dtype=float), np.asarray(prm, dtype=float))
 
 
 def point_triangle_distance(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -230,15 +352,10 @@ def mesh_grid(o: Obstacle) -> MeshGrid:
 
 
 def _local_sdf(o: Obstacle, local: np.ndarray, grid: MeshGrid | None) -> tuple[np.ndarray, np.ndarray]:
-    if o.shape == "sphere":
-        return sdf_sphere(local, o.radius)
-    if o.shape == "box":
-        return sdf_box(local, o.size / 2)
-    if o.shape == "cylinder":
-        return sdf_cylinder(local, o.radius, o.height / 2)
-    if o.shape == "capsule":
-        return sdf_capsule(local, o.radius, o.height / 2)
-    return (grid if grid is not None else mesh_grid(o)).query(local)
+    if o.shape == "mesh":
+        return (grid if grid is not None else mesh_grid(o)).query(local)
+    s = bodies.shape(o.shape)
+    return SDF[s.code](local, np.array(s.params(o.shape_params)))
 
 
 def distance_and_gradient(

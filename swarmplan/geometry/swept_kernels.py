@@ -33,10 +33,11 @@ import math
 
 import numpy as np
 
+from swarmplan.geometry._shape_kernel import SPHERE, exact, half_extents, sdf
 from swarmplan.runtime.compiled import njit
 
-SPHERE, BOX, CYLINDER, CAPSULE, MESH = 0, 1, 2, 3, 4
-"""Shape codes of :func:`shape_code`."""
+MESH = -1
+"""The code of meshes (``bodies.MESH``; the other codes are ``_shape_kernel``'s)."""
 
 BAND = 1e-4
 """Metres either side of contact (``dist == r``) where FCL decides, not the kernel. On tangent
@@ -53,33 +54,8 @@ then within ``BAND + _RESOLVE`` of contact and goes to FCL."""
 
 @njit(cache=True)
 def _point_distance(x: float, y: float, z: float, code: int, d0: float, d1: float, d2: float) -> float:
-    """Distance from a local-frame point to the body (0 inside): box half-extents (d0, d1, d2);
-    cylinder radius d0, half-height d1; capsule radius d0, half-length d1; sphere radius d0."""
-    if code == BOX:
-        dx = max(abs(x) - d0, 0.0)
-        dy = max(abs(y) - d1, 0.0)
-        dz = max(abs(z) - d2, 0.0)
-        return math.sqrt(dx * dx + dy * dy + dz * dz)
-    if code == CYLINDER:
-        dr = max(math.sqrt(x * x + y * y) - d0, 0.0)
-        dz = max(abs(z) - d1, 0.0)
-        return math.sqrt(dr * dr + dz * dz)
-    if code == CAPSULE:
-        zc = min(max(z, -d1), d1)
-        return max(math.sqrt(x * x + y * y + (z - zc) * (z - zc)) - d0, 0.0)
-    return max(math.sqrt(x * x + y * y + z * z) - d0, 0.0)
-
-
-@njit(cache=True)
-def _aabb_half(code: int, d0: float, d1: float, d2: float) -> tuple[float, float, float]:
-    """Half-extents of the body's local bounding box."""
-    if code == BOX:
-        return d0, d1, d2
-    if code == CYLINDER:
-        return d0, d0, d1
-    if code == CAPSULE:
-        return d0, d0, d1 + d0
-    return d0, d0, d0
+    """Distance from a local-frame point to the body, 0 inside (``_shape_kernel.sdf``)."""
+    return max(sdf(code, x, y, z, d0, d1, d2), 0.0)
 
 
 @njit(cache=True)
@@ -99,13 +75,15 @@ def classify(
     """NO, HIT or UNDECIDED for the sphere of radius ``r`` swept ``a -> b`` (body's local frame)."""
     if code == MESH:
         return UNDECIDED
-    hx, hy, hz = _aabb_half(code, d0, d1, d2)
+    hx, hy, hz = half_extents(code, d0, d1, d2)
     # Lower bound 1: the gap between the segment's bounding box and the body's.
     gx = max(min(ax, bx) - hx, -hx - max(ax, bx), 0.0)
     gy = max(min(ay, by) - hy, -hy - max(ay, by), 0.0)
     gz = max(min(az, bz) - hz, -hz - max(az, bz), 0.0)
     if math.sqrt(gx * gx + gy * gy + gz * gz) > r + BAND:
         return NO
+    if not exact(code):  # no exact distance to bracket: FCL decides
+        return UNDECIDED
     ux, uy, uz = bx - ax, by - ay, bz - az
     length = math.sqrt(ux * ux + uy * uy + uz * uz)
     if code == SPHERE:
@@ -162,16 +140,14 @@ def _classify_body(
     by: float,
     bz: float,
     r: float,
-    cx: float,
-    cy: float,
-    cz: float,
+    c: np.ndarray,
     rot: np.ndarray,
     code: int,
     dims: np.ndarray,
 ) -> int:
     """:func:`classify` for a body at ``c`` rotated by ``rot`` (world = rot @ local + c)."""
-    ax, ay, az = ax - cx, ay - cy, az - cz
-    bx, by, bz = bx - cx, by - cy, bz - cz
+    ax, ay, az = ax - c[0], ay - c[1], az - c[2]
+    bx, by, bz = bx - c[0], by - c[1], bz - c[2]
     la = (
         rot[0, 0] * ax + rot[1, 0] * ay + rot[2, 0] * az,
         rot[0, 1] * ax + rot[1, 1] * ay + rot[2, 1] * az,
@@ -241,17 +217,8 @@ def sweep_one(
     a: np.ndarray,
     b: np.ndarray,
     r: float,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    statics: tuple,
+    movers: tuple,
     slack: float,
     first: bool,
 ) -> tuple[int, int]:
@@ -260,7 +227,12 @@ def sweep_one(
     Returns (kind, index): kind 0 none, 1 static ``index``, 2 mover ``index``, 3 undecided (FCL
     must decide). With ``first`` the answer is the first body in order that touches (an
     undecided body before it makes the whole answer undecided); without, any body that
-    certainly touches is enough (a yes/no question)."""
+    certainly touches is enough (a yes/no question). ``statics``: (centres, bounding radii,
+    shape codes, rotations, parameters) of the static bodies (``CollisionWorld.kernel_statics``);
+    ``movers``: (positions at the step's start and end, bounding radii, codes, rotations,
+    parameters) of the moving ones (``CollisionWorld.kernel_movers``)."""
+    s_center, s_radius, s_code, s_rot, s_dims = statics
+    q0, q1, m_radius, m_code, m_rot, m_dims = movers
     undecided = False
     for k in range(len(s_radius)):
         # The cheap reject (twice the slack: it only saves work) before the previous prefilter.
@@ -271,10 +243,7 @@ def sweep_one(
             continue
         if _point_segment(s_center[k, 0], s_center[k, 1], s_center[k, 2], a, b) - s_radius[k] > r + slack:
             continue
-        c = _classify_body(
-            a[0], a[1], a[2], b[0], b[1], b[2], r, s_center[k, 0], s_center[k, 1], s_center[k, 2],
-            s_rot[k], s_code[k], s_dims[k],
-        )  # fmt: skip
+        c = _classify_body(a[0], a[1], a[2], b[0], b[1], b[2], r, s_center[k], s_rot[k], s_code[k], s_dims[k])
         if c == HIT:
             if first and undecided:
                 return 3, -1
@@ -293,7 +262,7 @@ def sweep_one(
         c = _classify_body(
             a[0], a[1], a[2],
             b[0] - (q1[k, 0] - q0[k, 0]), b[1] - (q1[k, 1] - q0[k, 1]), b[2] - (q1[k, 2] - q0[k, 2]),
-            r, q0[k, 0], q0[k, 1], q0[k, 2], m_rot[k], m_code[k], m_dims[k],
+            r, q0[k], m_rot[k], m_code[k], m_dims[k],
         )  # fmt: skip
         if c == HIT:
             if first and undecided:
@@ -310,17 +279,8 @@ def sweep_many(
     p1: np.ndarray,
     radii: np.ndarray,
     skip: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    statics: tuple,
+    movers: tuple,
     slack: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`sweep_one` (first body in order) for each row not ``skip``ped: kinds and indices."""
@@ -330,10 +290,7 @@ def sweep_many(
     for i in range(n):
         if skip[i]:
             continue
-        kind[i], index[i] = sweep_one(
-            p0[i], p1[i], radii[i], s_center, s_radius, s_code, s_rot, s_dims,
-            q0, q1, m_radius, m_code, m_rot, m_dims, slack, True,
-        )  # fmt: skip
+        kind[i], index[i] = sweep_one(p0[i], p1[i], radii[i], statics, movers, slack, True)
     return kind, index
 
 
@@ -343,38 +300,45 @@ def _touches(
     u: np.ndarray,
     length: float,
     r: float,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    bounds: tuple,
+    statics: tuple,
+    movers: tuple,
     slack: float,
 ) -> int:
     """NO / HIT / UNDECIDED for the sweep ``start -> start + u * length`` over flat ground:
-    ``first_hits``' bounds, ground and body checks as a yes/no question."""
+    ``first_hits``' bounds (``bounds``: lowest and highest corner), ground and body checks as a
+    yes/no question."""
     end = np.empty(3)
     for c in range(3):
         end[c] = start[c] + u[c] * length
+    return step_status(start, end, r, bounds, True, statics, movers, slack)
+
+
+@njit(cache=True, inline="always")
+def step_status(
+    a: np.ndarray,
+    b: np.ndarray,
+    r: float,
+    bounds: tuple,
+    bodies: bool,
+    statics: tuple,
+    movers: tuple,
+    slack: float,
+) -> int:
+    """NO, HIT or UNDECIDED for the step ``a -> b`` over flat ground: ``first_hits``' bounds
+    (``bounds``: lowest and highest corner), ground and body checks as a yes/no question
+    (``bodies``: the world has obstacles; without, the bodies' check is skipped, its answer
+    being NO)."""
+    lo_b, hi_b = bounds
     for c in range(3):
-        if end[c] < lo_b[c] - 1e-9 or end[c] > hi_b[c] + 1e-9:
+        if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
             return HIT
-    if min(start[2], end[2]) < r - 1e-9:
+    if min(a[2], b[2]) < r - 1e-9:
         return HIT
-    kind, _ = sweep_one(
-        start, end, r, s_center, s_radius, s_code, s_rot, s_dims,
-        q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
-    )  # fmt: skip
-    if kind == 3:
-        return UNDECIDED
-    return NO if kind == 0 else HIT
+    if not bodies:
+        return NO
+    kind, _ = sweep_one(a, b, r, statics, movers, slack, False)
+    return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
 
 
 @njit(cache=True)
@@ -383,19 +347,9 @@ def free_distances(
     u: np.ndarray,
     reach: np.ndarray,
     radii: np.ndarray,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    bounds: tuple,
+    statics: tuple,
+    movers: tuple,
     slack: float,
     halvings: int,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -407,10 +361,7 @@ def free_distances(
     status = np.zeros(n, np.int64)
     free = np.zeros(n)
     for i in range(n):
-        h = _touches(
-            start[i], u[i], reach[i], radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
-            q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-        )  # fmt: skip
+        h = _touches(start[i], u[i], reach[i], radii[i], bounds, statics, movers, slack)
         if h != HIT:
             status[i] = h
             continue
@@ -418,10 +369,7 @@ def free_distances(
         lo, hi = 0.0, reach[i]
         for _ in range(halvings):
             mid = 0.5 * (lo + hi)
-            h = _touches(
-                start[i], u[i], mid, radii[i], lo_b, hi_b, s_center, s_radius, s_code, s_rot, s_dims,
-                q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-            )  # fmt: skip
+            h = _touches(start[i], u[i], mid, radii[i], bounds, statics, movers, slack)
             if h == UNDECIDED:
                 status[i] = 2
                 break

@@ -17,7 +17,7 @@ FRAME = "world"
 OBSTACLE_RGBA = (0.55, 0.58, 0.65, 0.8)
 MOVING_RGBA = (0.9, 0.45, 0.1, 0.85)
 # Shapes drawn with one primitive (a moving one keeps its layout: only time and pose change).
-ONE_PRIMITIVE = ("sphere", "box", "cylinder")
+ONE_PRIMITIVE = ("sphere", "box", "cylinder", "ellipsoid")
 
 
 def set_pose(pose, position, quat=(0.0, 0.0, 0.0, 1.0)) -> None:
@@ -66,6 +66,11 @@ def fill_obstacle(e, obst, position=None, quat=None, rgba=OBSTACLE_RGBA) -> None
         set_pose(s.pose, pos, q)
         d = 2.0 * float(obst["radius"])
         s.size.x = s.size.y = s.size.z = d
+        set_color(s.color, rgba)
+    elif shape == "ellipsoid":  # a sphere primitive sized per axis
+        s = e.spheres.add()
+        set_pose(s.pose, pos, q)
+        s.size.x, s.size.y, s.size.z = (2.0 * float(v) for v in obst["semi_axes"])
         set_color(s.color, rgba)
     elif shape == "box":
         c = e.cubes.add()

@@ -9,9 +9,9 @@ where it provably adds zero: bodies and intents culled per candidate, then per l
 the sample's position (exact signed distances; a mover or another agent also moves, at most
 ``vstep`` per grid step or ``v_max``), so a sample at distance D proves the next
 (D - reach) / spacing samples out of reach; they are skipped (``_SLACK`` covers rounding).
-Meshes, terrain peaks and threats are left to numpy (``SegmentCost``'s fallbacks).
-Every compiled function is in this file: numba's cache does not see changes of callees in
-other files. docs/performance.md ("Escape planning") has the measurements.
+Meshes, terrain peaks and threats are left to numpy (``SegmentCost``'s fallbacks). The
+bodies' distances are the shapes' one compiled distance (``_shape_kernel.sdf``).
+docs/performance.md ("Escape planning") has the measurements.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from swarmplan.geometry._shape_kernel import sdf
 from swarmplan.runtime.compiled import njit
 
 # Columns of the kernel's output, in SegmentCost.terms' order.
@@ -32,39 +33,15 @@ _SLACK = 1e-6
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _sdf(code, x, y, z, a, b, c):  # noqa: ANN001, ANN202
-    """Signed distance of the local point (x, y, z) to a sphere (code 0, radius a), a box (1,
-    half sizes a, b, c), a cylinder (2, radius a, half height b) or a capsule (3, radius a,
-    half height b): the formulas of ``swarmplan.geometry.batch``."""
-    if code == 0:
-        return math.sqrt(x * x + y * y + z * z) - a
-    if code == 1:
-        qx = abs(x) - a
-        qy = abs(y) - b
-        qz = abs(z) - c
-        ox = max(qx, 0.0)
-        oy = max(qy, 0.0)
-        oz = max(qz, 0.0)
-        return math.sqrt(ox * ox + oy * oy + oz * oz) + min(max(qx, qy, qz), 0.0)
-    if code == 2:
-        dr = math.sqrt(x * x + y * y) - a
-        dz = abs(z) - b
-        return math.hypot(max(dr, 0.0), max(dz, 0.0)) + min(max(dr, dz), 0.0)
-    zc = min(max(z, -b), b)
-    dz = z - zc
-    return math.sqrt(x * x + y * y + dz * dz) - a
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def _body_distance(code, rot, ident, prm, j, rx, ry, rz):  # noqa: ANN001, ANN202
     """Signed distance to body ``j`` of the point at ``(rx, ry, rz)`` from its centre."""
     if ident[j]:
-        return _sdf(code[j], rx, ry, rz, prm[j, 0], prm[j, 1], prm[j, 2])
+        return sdf(code[j], rx, ry, rz, prm[j, 0], prm[j, 1], prm[j, 2])
     R = rot[j]
     x = rx * R[0, 0] + ry * R[1, 0] + rz * R[2, 0]
     y = rx * R[0, 1] + ry * R[1, 1] + rz * R[2, 1]
     z = rx * R[0, 2] + ry * R[1, 2] + rz * R[2, 2]
-    return _sdf(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
+    return sdf(code[j], x, y, z, prm[j, 0], prm[j, 1], prm[j, 2])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -83,14 +60,15 @@ def _point_gap(lo, hi, p):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _agents(P, c, lens, per, f, w, times_, points_, nk_, scale, contact_, reach_, vmax, ibox):  # noqa: ANN001, ANN202
-    """Other-agents term of candidate ``c``: per sample and intent j,
+def _agents(P, c, lens, per, f, w, intents, ibox):  # noqa: ANN001, ANN202
+    """Other-agents term of candidate ``c`` (``intents``: ``segment_terms``'): per sample and intent j,
     ``w_agents * max(1.2 - |(p - q) / scale_j|, 0) * ds + w_coll * (|p - q| < contact_j) * ds``
     with q the intent's position at the sample's time (``np.interp`` of its knots, clamped).
 
     Intent by intent, the legs are walked in time order with a knot pointer that only moves
     on; a leg whose samples' box stays beyond ``reach_j`` of the intent's box over the
     samples' time window adds exactly zero, and so do samples skipped by tracing."""
+    times_, points_, nk_, scale, contact_, reach_, vmax = intents
     m = P.shape[1]
     t0, speed, w_agents, w_coll = f[4], f[3], w[8], w[1]
     acc = 0.0
@@ -303,35 +281,7 @@ def _turning(P, c, lens, f, w, heading):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
-    P,
-    f,
-    w,
-    heading,
-    bmin,
-    bmax,
-    flags,
-    s_code,
-    s_pos,
-    s_rot,
-    s_ident,
-    s_prm,
-    s_bound,
-    m_code,
-    m_rot,
-    m_ident,
-    m_prm,
-    m_bound,
-    i_times,
-    i_points,
-    i_nk,
-    i_scale,
-    i_contact,
-    i_reach,
-    i_vmax,
-    centers,
-    vstep,
-):
+def segment_terms(P, f, w, heading, bounds, flags, statics, movers, intents, centers, vstep):  # noqa: ANN001, ANN201, PLR0912, PLR0915, C901
     """Terms (n, 8) of polylines ``P`` (n, m, 3), columns as ``SegmentCost.terms``, and their
     sum in that order (column 8); and 0, or the length of the movers' grid the candidates need
     when ``centers`` is shorter (then nothing was computed).
@@ -339,12 +289,19 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
     ``f``: r, required, start_clearance, speed, t0, spacing, turn_radius, max_climb,
     has_heading, fixed_wing, vertex_clearance, floor, max_samples, pose_step.
     ``w``: clearance, collision, floor, bounds, turn, turn_radius, climb, moving, agents, vertex.
+    ``bounds``: lowest and highest corner of the world.
     ``flags``: static term here, vertex term here, floor/bounds term here (1 or 0).
-    Static bodies ``s_*`` (code, centre, rotation, identity flag, shape parameters, bounding
-    radius); moving ones ``m_*`` with their predicted ``centers`` (T, Mm, 3) on the
-    ``pose_step`` grid from t0 and ``vstep`` (Mm,), a bound on a centre's move per grid step;
-    intents ``i_*`` as ``_segment_pack.pack_intents`` with ``i_vmax`` their largest speed.
+    ``statics``: the static bodies (code, centre, rotation, identity flag, shape parameters,
+    bounding radius: ``_segment_pack.pack_bodies``); ``movers``: the moving ones (code,
+    rotation, identity flag, parameters, bounding radius) with their predicted ``centers``
+    (T, Mm, 3) on the ``pose_step`` grid from t0 and ``vstep`` (Mm,), a bound on a centre's move
+    per grid step; ``intents``: (times, points, knots, scale, contact, reach, largest speed) as
+    ``_segment_pack.pack_intents``.
     """
+    bmin, bmax = bounds
+    s_code, s_pos, s_rot, s_ident, s_prm, s_bound = statics
+    m_code, m_rot, m_ident, m_prm, m_bound = movers
+    i_nk = intents[2]
     n, m, _ = P.shape
     out = np.zeros((n, N_TERMS + 1))
     if n == 0:
@@ -400,7 +357,7 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
     ibox = np.empty((Mi, 6))
     if Mi:
         for j in range(Mi):
-            _intent_box(i_times[j], i_points[j], i_nk[j], t0, t0 + longest_total / speed, ibox[j])
+            _intent_box(intents[0][j], intents[1][j], i_nk[j], t0, t0 + longest_total / speed, ibox[j])
     # Each mover's box over the grid (every sample's grid time is in it).
     mbox = np.empty((Mm, 6))
     for j in range(Mm):
@@ -566,9 +523,7 @@ def segment_terms(  # noqa: ANN201, PLR0913, PLR0912, PLR0915, C901
 
         # -------------------------------------------------------------------- other agents
         if Mi:
-            out[c, AGENTS] = _agents(
-                P, c, lens[c], per, f, w, i_times, i_points, i_nk, i_scale, i_contact, i_reach, i_vmax, ibox
-            )
+            out[c, AGENTS] = _agents(P, c, lens[c], per, f, w, intents, ibox)
 
         # -------------------------------------------------------------------- free waypoints
         if do_vertex:

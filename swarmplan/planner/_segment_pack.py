@@ -7,36 +7,26 @@ from collections.abc import Sequence
 
 import numpy as np
 
-# Shape codes of the kernel's signed distances; meshes have none (numpy computes them).
-SHAPE_CODES = {"sphere": 0, "box": 1, "cylinder": 2, "capsule": 3}
+from swarmplan.geometry.bodies import body_table, code_of
 
 
 def analytic(obstacles: Sequence) -> bool:
     """Whether every obstacle has a shape the kernel measures exactly (no mesh)."""
-    return all(o.shape in SHAPE_CODES for o in obstacles)
+    return all(code_of(o.shape) >= 0 for o in obstacles)
 
 
 def pack_bodies(obstacles: Sequence) -> dict[str, np.ndarray]:
     """Shape code, centre, rotation (local = (p - centre) @ rotation, as ``ShapeBatch``),
-    identity flag, parameters (sphere: radius; box: half sizes; cylinder and capsule: radius,
-    half height) and bounding radius of each obstacle (all of them analytic)."""
-    M = len(obstacles)
-    prm = np.zeros((M, 3))
-    for j, o in enumerate(obstacles):
-        if o.shape == "sphere":
-            prm[j, 0] = o.radius
-        elif o.shape == "box":
-            prm[j] = np.asarray(o.size, dtype=float) / 2
-        else:
-            prm[j, :2] = o.radius, o.height / 2
-    rot = np.array([o.rotation for o in obstacles], dtype=float).reshape(M, 3, 3)
+    identity flag, kernel parameters and bounding radius of each obstacle (all of them
+    analytic): their rows of ``bodies.body_table``."""
+    t = body_table(obstacles)
     return {
-        "code": np.array([SHAPE_CODES[o.shape] for o in obstacles], dtype=np.int64),
-        "pos": np.array([o.position for o in obstacles], dtype=float).reshape(M, 3),
-        "rot": rot,
-        "ident": np.array([np.array_equal(R, np.eye(3)) for R in rot], dtype=np.bool_),
-        "prm": prm,
-        "bound": np.array([o.bounding_radius for o in obstacles], dtype=float),
+        "code": t.code,
+        "pos": t.position,
+        "rot": t.rotation,
+        "ident": t.identity,
+        "prm": t.prm,
+        "bound": t.bound,
     }
 
 

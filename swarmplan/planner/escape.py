@@ -53,6 +53,7 @@ from swarmplan.core import (
     StuckOutcome,
 )
 from swarmplan.flight.apf import current_reach, stopping_reach
+from swarmplan.flight.field_law import bounds_range, clearance_at, ground_range
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import (
@@ -321,11 +322,10 @@ class EscapePlanner:
     @staticmethod
     def vertex_clearance(sim: PlanningContext) -> float:
         """Clearance a waypoint needs so the agent can reach it: the static repulsion the
-        simulation keeps along a segment (SEGMENT_REPULSION_SCALE k_rep (1/rho - 1/rho0)) must not exceed the
-        attraction k_att * 1.5 m at the waypoint (it counts as reached within ~2 m)."""
+        simulation keeps along a segment (the field's law with SEGMENT_REPULSION_SCALE k_rep)
+        must not exceed the attraction k_att * 1.5 m at the waypoint (reached within ~2 m)."""
         apf = sim.world.planner_config.apf
-        k = SEGMENT_REPULSION_SCALE * apf.k_rep
-        return 1.0 / (1.5 * apf.k_att / k + 1.0 / apf.influence)
+        return clearance_at(1.5 * apf.k_att, SEGMENT_REPULSION_SCALE * apf.k_rep, apf.influence)
 
     def _intents(self, sim: PlanningContext, i: int, extra: dict[int, Intent] | None) -> dict[int, Intent]:
         others = [j for j in range(sim.n) if j != i and sim.state.mode[j] not in (Mode.COLLIDED, Mode.FAILED)]
@@ -352,9 +352,9 @@ class EscapePlanner:
         # Keep waypoints where the potential field lets the agent reach them: out of the
         # repulsion of the bounds' faces and of the ground (see swarmplan.flight.apf).
         rho0 = w.planner_config.apf.influence
-        rb0 = min(rho0, 10.0)
+        rb0 = bounds_range(rho0)
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
-        rho0_g = max(min(rho0, 3.0 * floor), 0.25 * rho0)
+        rho0_g = ground_range(rho0, floor)
         lo = w.bounds_min + r + rb0
         hi = w.bounds_max - r - rb0
         lo[2] = max(w.bounds_min[2] + r, floor + r + rho0_g)

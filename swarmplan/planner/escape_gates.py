@@ -9,6 +9,7 @@ from collections.abc import Callable
 import numpy as np
 
 from swarmplan.core import PlanningContext
+from swarmplan.flight.field_law import goal_factor, repulsion
 from swarmplan.world.motion import poses_at
 
 #: Flying agents within the reach of the field's agent term from which a stuck agent is in a
@@ -66,8 +67,9 @@ def queued(sim: PlanningContext, i: int, escaped_at: float, near: np.ndarray) ->
 
 
 def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
-    """Whether the obstacles' push (static and moving, at their poses now) along agent
-    ``i``'s pull towards its goal takes more than half of the pull."""
+    """Whether the obstacles' push (static and moving, at their poses now; the field's law,
+    ``flight.field_law``) along agent ``i``'s pull towards its goal takes more than half of the
+    pull."""
     w = sim.world
     if not w.obstacles:
         return False
@@ -81,8 +83,8 @@ def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     near = rho < apf.influence
     if not near.any():
         return False
-    gfac = min(1.0, to_goal / apf.influence) ** apf.goal_power
-    push = apf.k_rep * (1.0 / np.maximum(rho[near], 0.05) - 1.0 / apf.influence) * gfac
+    gfac = float(goal_factor(np.asarray(to_goal), apf.influence, apf.goal_power))
+    push = repulsion(rho[near], apf.k_rep, apf.influence) * gfac
     along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
     return bool(pull + float(push @ along) < 0.5 * pull)
 

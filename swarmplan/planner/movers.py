@@ -25,8 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from swarmplan.geometry.bodies import code_of
 from swarmplan.geometry.collision import segment_segment_min_distance
-from swarmplan.geometry.shapes import distance_and_gradient
+from swarmplan.geometry.shapes import DISTANCE, distance_and_gradient
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.world.motion import _waypoint_path
 
 EARLY = 0.5  # s the agent may be ahead of the clock
@@ -141,7 +143,7 @@ def moving_clearance(
         poses, which = _distinct_poses(centers[:, m].round(9))
         reach = cap + radius + o.bounding_radius
         if o.shape == "sphere" and np.array_equal(o.rotation, np.eye(3)):
-            # Every (point, pose) pair at once: the distance is |p - c| - r, as
+            # Every (point, pose) pair at once: the sphere's distance (``shapes.DISTANCE``), as
             # distance_and_gradient gives it (its product with the identity is exact).
             # Only points within reach of the poses' box can be within reach of a pose (a margin
             # covers the rounding of the norms).
@@ -159,8 +161,9 @@ def moving_clearance(
             for u0 in range(0, len(poses), chunk):
                 part = poses[u0 : u0 + chunk]
                 sees = sees_all[:, u0 : u0 + len(part)]
-                dist = np.linalg.norm(pts[rows, None, :] - part[None, :, :], axis=-1)
-                d = np.where(sees & (dist <= reach), dist - o.radius - radius, np.inf).min(axis=1)
+                rel = pts[rows, None, :] - part[None, :, :]
+                body = DISTANCE[code_of("sphere")](rel, np.array([o.radius, 0.0, 0.0]))
+                d = np.where(sees & (norm3(rel) <= reach), body - radius, np.inf).min(axis=1)
                 out[rows] = np.minimum(out[rows], d)
             continue
         for u, c in enumerate(poses):

@@ -243,12 +243,11 @@ class SegmentCost:
             np.array(f, dtype=float),
             np.array(wv + [w.vertex], dtype=float),
             _ZERO3 if self.heading is None else np.ascontiguousarray(self.heading, dtype=float),
-            np.asarray(world.bounds_min, dtype=float),
-            np.asarray(world.bounds_max, dtype=float),
+            (np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)),
             np.array(flags, dtype=np.int64),
-            *(sp[k] for k in ("code", "pos", "rot", "ident", "prm", "bound")),
-            *(mp[k] for k in ("code", "rot", "ident", "prm", "bound")),
-            *(ip[k] for k in ("times", "points", "nk", "scale", "contact", "reach", "vmax")),
+            tuple(sp[k] for k in ("code", "pos", "rot", "ident", "prm", "bound")),
+            tuple(mp[k] for k in ("code", "rot", "ident", "prm", "bound")),
+            tuple(ip[k] for k in ("times", "points", "nk", "scale", "contact", "reach", "vmax")),
         )
         self._args_key = key
         return self._args

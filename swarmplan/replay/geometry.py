@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from swarmplan.geometry import bodies, shapes
+
 
 def _euler(rpy) -> Rotation:
     """R = Rz(yaw) Ry(pitch) Rx(roll): extrinsic x, then y, then z ("xyz" in scipy)."""
@@ -43,29 +45,17 @@ def quat_to_matrix(q) -> np.ndarray:
 
 
 def primitive_distance(local: np.ndarray, obst: dict[str, Any]) -> np.ndarray | None:
-    """Signed distance from points (N,3) in the obstacle's frame to its surface (<0 inside).
-
-    Returns None for meshes and unknown shapes.
-    """
-    shape = obst.get("shape")
-    p = np.asarray(local, float)
-    if shape == "sphere":
-        return np.linalg.norm(p, axis=1) - float(obst["radius"])
-    if shape == "box":
-        half = np.asarray(obst["size"], float) / 2.0
-        q = np.abs(p) - half
-        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(np.max(q, axis=1), 0.0)
-    if shape == "cylinder":
-        r, h = float(obst["radius"]), float(obst["height"]) / 2.0
-        d = np.stack([np.linalg.norm(p[:, :2], axis=1) - r, np.abs(p[:, 2]) - h], axis=1)
-        return np.minimum(np.max(d, axis=1), 0.0) + np.linalg.norm(np.maximum(d, 0.0), axis=1)
-    if shape == "capsule":
-        r = float(obst["radius"])
-        h = float(obst.get("height", obst.get("length", 0.0))) / 2.0
-        axis = np.zeros_like(p)
-        axis[:, 2] = np.clip(p[:, 2], -h, h)
-        return np.linalg.norm(p - axis, axis=1) - r
-    return None
+    """Signed distance from points (N,3) in the obstacle's frame to its surface (<0 inside):
+    the shapes' numpy distance (``swarmplan.geometry.shapes.DISTANCE``) with the parameters
+    the obstacle of the log gives (its world-format keys; a capsule's ``length`` read as its
+    ``height``, as older logs name it). Returns None for meshes and unknown shapes."""
+    s = bodies.BY_NAME.get(str(obst.get("shape")))
+    if s is None or s.code < 0:
+        return None
+    values = dict(obst)
+    if "height" not in values and "length" in values:
+        values["height"] = values["length"]
+    return shapes.distance_of(s.code, np.asarray(local, float), np.array(s.params(values)))
 
 
 class MeshDistance:

@@ -25,6 +25,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Polygon
 
+from swarmplan.geometry import bodies
+
 from .geometry import euler_deg_to_matrix, quat_to_matrix, terrain_height
 from .metrics import active_mask
 from .recording import Recording
@@ -110,8 +112,6 @@ def _mode_runs(modes: np.ndarray, valid: np.ndarray):
 
 def obstacle_mesh(obst: dict[str, Any], position=None, quat=None):
     """(vertices (N,3) world, faces (M,3)) of an obstacle at a pose (default: its world pose)."""
-    import trimesh
-
     shape = obst.get("shape")
     if shape == "mesh":
         if "vertices" not in obst:
@@ -124,17 +124,13 @@ def obstacle_mesh(obst: dict[str, Any], position=None, quat=None):
             r = quat_to_matrix(quat) if quat is not None else r0
             v = (v - c0) @ r0 @ r.T + np.asarray(position, float)
         return v, f
-    if shape == "sphere":
-        m = trimesh.creation.icosphere(subdivisions=2, radius=float(obst["radius"]))
-    elif shape == "box":
-        m = trimesh.creation.box(extents=np.asarray(obst["size"], float))
-    elif shape == "cylinder":
-        m = trimesh.creation.cylinder(radius=float(obst["radius"]), height=float(obst["height"]), sections=24)
-    elif shape == "capsule":
-        h = float(obst.get("height", obst.get("length", 0.0)))
-        m = trimesh.creation.capsule(height=max(h, 1e-6), radius=float(obst["radius"]), count=[16, 16])
-    else:
+    s = bodies.BY_NAME.get(str(shape))
+    if s is None or s.code < 0:
         return None
+    values = dict(obst)
+    if "height" not in values and "length" in values:  # older logs name a capsule's height so
+        values["height"] = values["length"]
+    m = s.surface(values)
     c = np.asarray(obst.get("position", [0, 0, 0]) if position is None else position, float)
     r = quat_to_matrix(quat) if quat is not None else euler_deg_to_matrix(obst.get("rotation") or [0, 0, 0])
     return np.asarray(m.vertices) @ r.T + c, np.asarray(m.faces)

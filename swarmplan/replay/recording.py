@@ -311,7 +311,7 @@ def load(path: str | Path) -> Recording:
     for k, msg in enumerate(states):
         agents = msg.get("agents", [])
         ids_k = [str(a.get("id")) for a in agents]
-        if ids_k == full_order:  # fast path: every agent, in world order
+        if ids_k == full_order and agents:  # fast path: every agent, in world order
             positions[:, k] = [(a.get("position") or nan3)[:3] for a in agents]
             velocities[:, k] = [(a.get("velocity") or nan3)[:3] for a in agents]
             modes[:, k] = [str(a.get("mode", "")) for a in agents]

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from swarmplan.geometry.swept_kernels import HIT, NO, UNDECIDED, sweep_one
+from swarmplan.geometry.swept_kernels import HIT, UNDECIDED, step_status
 from swarmplan.runtime.compiled import njit
 
 
@@ -49,46 +49,32 @@ def _limit(v0: np.ndarray, c: np.ndarray, vmax: float, amax_dt: float, out: np.n
 
 @njit(cache=True)
 def braking_margin(
-    pos0: np.ndarray,
-    vel0: np.ndarray,
-    v_cmd: np.ndarray,
-    goal: np.ndarray,
+    rows: tuple,
     use_goal: bool,
-    amax: np.ndarray,
-    vmax: np.ndarray,
-    radii: np.ndarray,
-    dt: float,
-    dt2: float,
-    tolerance: float,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    times: tuple,
+    bounds: tuple,
+    statics: tuple,
+    movers: tuple,
     slack: float,
     halvings: int,
     check_step: bool,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
-    """``SafetyFilter.braking_margin`` for multirotor rows (all arrays by row; ``radii`` with
-    the filter's margin; ``dt2`` is Python's ``dt ** 2``): the new commands, the velocities
-    they lead to (``kinematics.limit_multirotor``), and False when a sweep was undecided (a
-    body within ``BAND`` of contact or a mesh: the caller then runs the numpy path, where FCL
-    decides). With ``check_step``, also :func:`touches_many`'s answer for each row's step
-    ``pos0 -> pos0 + vel1 dt`` (the safety filter's first check, same radii)."""
+    """``SafetyFilter.braking_margin`` for multirotor rows: ``rows`` = (pos0, vel0, v_cmd, goal,
+    amax, vmax, radii), all arrays by row (``radii`` with the filter's margin); ``times`` =
+    (dt, dt2, goal tolerance), ``dt2`` being Python's ``dt ** 2``; ``bounds``: lowest and
+    highest corner; ``statics``, ``movers``: the bodies (``swept_kernels.sweep_one``). The new
+    commands, the velocities they lead to (``kinematics.limit_multirotor``), and False when a
+    sweep was undecided (a body within ``BAND`` of contact or a mesh: the caller then runs the
+    numpy path, where FCL decides). With ``check_step``, also :func:`touches_many`'s answer for
+    each row's step ``pos0 -> pos0 + vel1 dt`` (the safety filter's first check, same radii)."""
+    pos0, vel0, v_cmd, goal, amax, vmax, radii = rows
+    dt, dt2, tolerance = times
     n = len(pos0)
     out = np.empty((n, 3))
     vel1 = np.empty((n, 3))
     status = np.zeros(n, np.int64)
     end = np.empty(3)
-    bodies = len(s_radius) + len(m_radius) > 0
+    bodies = len(statics[1]) + len(movers[2]) > 0
     v1 = np.empty(3)
     c = np.empty(3)
     u = np.empty(3)
@@ -111,20 +97,14 @@ def braking_margin(
             for k in range(3):
                 u[k] = v1[k] / speed
             reach = speed * speed / (2.0 * a) + speed * dt
-            h = _probe(
-                pos0[i], u, reach, radii[i], lo_b, hi_b, bodies, end, s_center, s_radius, s_code, s_rot,
-                s_dims, q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-            )  # fmt: skip
+            h = _probe(pos0[i], u, reach, radii[i], bounds, bodies, end, statics, movers, slack)
             if h == UNDECIDED:
                 return out, vel1, status, False
             if h == HIT:
                 lo, hi = 0.0, reach
                 for _ in range(halvings):
                     mid = 0.5 * (lo + hi)
-                    h = _probe(
-                        pos0[i], u, mid, radii[i], lo_b, hi_b, bodies, end, s_center, s_radius, s_code,
-                        s_rot, s_dims, q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-                    )  # fmt: skip
+                    h = _probe(pos0[i], u, mid, radii[i], bounds, bodies, end, statics, movers, slack)
                     if h == UNDECIDED:
                         return out, vel1, status, False
                     if h == HIT:
@@ -154,10 +134,7 @@ def braking_margin(
         if check_step:
             for k in range(3):
                 end[k] = pos0[i, k] + vel1[i, k] * dt
-            status[i] = _step_status(
-                pos0[i], end, radii[i], lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
-                q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-            )  # fmt: skip
+            status[i] = step_status(pos0[i], end, radii[i], bounds, bodies, statics, movers, slack)
     return out, vel1, status, True
 
 
@@ -166,69 +143,19 @@ def touches_many(
     p0: np.ndarray,
     p1: np.ndarray,
     radii: np.ndarray,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    bounds: tuple,
+    statics: tuple,
+    movers: tuple,
     slack: float,
 ) -> np.ndarray:
     """Per step ``p0 -> p1`` over flat ground: whether it touches something (``first_hits``'
     bounds, ground and bodies as a yes/no question): NO, HIT or UNDECIDED (FCL must decide)."""
     n = len(p0)
     out = np.empty(n, np.int64)
-    bodies = len(s_radius) + len(m_radius) > 0
+    bodies = len(statics[1]) + len(movers[2]) > 0
     for i in range(n):
-        out[i] = _step_status(
-            p0[i], p1[i], radii[i], lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
-            q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-        )  # fmt: skip
+        out[i] = step_status(p0[i], p1[i], radii[i], bounds, bodies, statics, movers, slack)
     return out
-
-
-@njit(cache=True, inline="always")
-def _step_status(
-    a: np.ndarray,
-    b: np.ndarray,
-    r: float,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
-    bodies: bool,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
-    slack: float,
-) -> int:
-    """One step of :func:`touches_many`: NO, HIT or UNDECIDED (``bodies``: the world has
-    obstacles; without, the bodies' check is skipped, its answer being NO)."""
-    for c in range(3):
-        if b[c] < lo_b[c] - 1e-9 or b[c] > hi_b[c] + 1e-9:
-            return HIT
-    if min(a[2], b[2]) < r - 1e-9:
-        return HIT
-    if not bodies:
-        return NO
-    kind, _ = sweep_one(
-        a, b, r, s_center, s_radius, s_code, s_rot, s_dims,
-        q0, q1, m_radius, m_code, m_rot, m_dims, slack, False,
-    )  # fmt: skip
-    return UNDECIDED if kind == 3 else (NO if kind == 0 else HIT)
 
 
 @njit(cache=True, inline="always")
@@ -237,31 +164,19 @@ def _probe(
     u: np.ndarray,
     length: float,
     r: float,
-    lo_b: np.ndarray,
-    hi_b: np.ndarray,
+    bounds: tuple,
     bodies: bool,
     end: np.ndarray,
-    s_center: np.ndarray,
-    s_radius: np.ndarray,
-    s_code: np.ndarray,
-    s_rot: np.ndarray,
-    s_dims: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    m_radius: np.ndarray,
-    m_code: np.ndarray,
-    m_rot: np.ndarray,
-    m_dims: np.ndarray,
+    statics: tuple,
+    movers: tuple,
     slack: float,
 ) -> int:
     """``swept_kernels._touches`` (the sweep ``start -> start + u * length``: NO / HIT /
-    UNDECIDED) with the end point in the caller's buffer ``end``, through :func:`_step_status`."""
+    UNDECIDED) with the end point in the caller's buffer ``end``, through
+    ``swept_kernels.step_status``."""
     for c in range(3):
         end[c] = start[c] + u[c] * length
-    return _step_status(
-        start, end, r, lo_b, hi_b, bodies, s_center, s_radius, s_code, s_rot, s_dims,
-        q0, q1, m_radius, m_code, m_rot, m_dims, slack,
-    )  # fmt: skip
+    return step_status(start, end, r, bounds, bodies, statics, movers, slack)
 
 
 @njit(cache=True)

@@ -347,15 +347,18 @@ class SafetyFilter:
         else:
             start, v0, amax, vmax = pos0[rows], vel0[rows], p.max_accel[rows], p.speed_max[rows]
             radii = self._checked_radius[rows]
-        out, vel1, status, decided = step_kernels().braking_margin(
+        row_arrays = (
             np.ascontiguousarray(start, dtype=float),
             np.ascontiguousarray(v0, dtype=float),
             np.ascontiguousarray(v_cmd if all_rows else v_cmd[k], dtype=float),
             np.ascontiguousarray(start if goal is None else goal[k], dtype=float),
-            goal is not None,
-            amax, vmax, radii,
-            dt, dt**2, float(self.world.goal_tolerance), self._bounds[0], self._bounds[1],
-            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6, check_step and all_rows,
+            amax,
+            vmax,
+            radii,
+        )
+        out, vel1, status, decided = step_kernels().braking_margin(
+            row_arrays, goal is not None, (dt, dt**2, float(self.world.goal_tolerance)), self._bounds,
+            cw.kernel_statics(), cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6, check_step and all_rows,
         )  # fmt: skip
         if not decided:
             return None
@@ -388,9 +391,8 @@ class SafetyFilter:
         hit_rows, free = [], []
         if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
             status, lo = kernel_module("swarmplan.geometry.swept_kernels").free_distances(
-                np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii,
-                self._bounds[0], self._bounds[1],
-                *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
+                np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii, self._bounds,
+                cw.kernel_statics(), cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
             )  # fmt: skip
             hit_rows.append(np.flatnonzero(status == 1))
             free.append(lo[status == 1])
@@ -438,8 +440,8 @@ class SafetyFilter:
             return np.array([h is None for h in first_hits(cw, p0, p1, radii, q0[mv], q1[mv])], dtype=bool)
         status = step_kernels().touches_many(
             np.ascontiguousarray(p0, dtype=float), np.ascontiguousarray(p1, dtype=float),
-            np.ascontiguousarray(radii, dtype=float), self._bounds[0], self._bounds[1],
-            *cw.kernel_statics(), *cw.kernel_movers(q0[mv], q1[mv]), SLACK,
+            np.ascontiguousarray(radii, dtype=float), self._bounds,
+            cw.kernel_statics(), cw.kernel_movers(q0[mv], q1[mv]), SLACK,
         )  # fmt: skip
         free = status == 0
         undecided = np.flatnonzero(status == 2)

@@ -31,6 +31,15 @@ def fixed_wing_defaults(params: dict[str, Any]) -> dict[str, float]:
     return out
 
 
+def fixed_wing_spec(params: dict[str, Any]) -> dict[str, float]:
+    """The fixed-wing keys of an agent's resolved keys ``params`` as its ``AgentSpec`` takes them:
+    ``roll_rate`` in rad/s (0: none, a multirotor's), ``clearance`` in m (a multirotor's: its radius)."""
+    return {
+        "roll_rate": math.radians(params.get("roll_rate", 0.0)),
+        "clearance": params.get("clearance", params["radius"]),
+    }
+
+
 def airframe_keys(params: dict[str, Any], complete: bool) -> dict[str, Any]:
     """An agent's resolved keys: a multirotor's without the fixed-wing keys; a fixed wing's with
     their defaults when ``complete`` (every other key resolved, none missing)."""

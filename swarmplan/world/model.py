@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,11 +17,12 @@ from typing import Any
 import numpy as np
 
 from swarmplan import __version__
+from swarmplan.geometry import bodies
 from swarmplan.world import terrain
 from swarmplan.world.errors import WorldError as WorldError  # re-exported: the model module names it too
 from swarmplan.world.planner_config import PlannerConfig, planner_config
 
-SHAPES = ("sphere", "box", "cylinder", "capsule", "mesh")
+SHAPES = bodies.NAMES
 
 MOTIONS = ("linear", "waypoints", "circle")
 
@@ -58,23 +58,26 @@ class Obstacle:
     vertices: np.ndarray | None = None  # mesh vertices in the local frame, scale applied
     faces: np.ndarray | None = None
     motion: Motion | None = None
+    params: dict[str, Any] | None = None  # the shape's keys as validated (``bodies.Shape.keys``)
 
     @property
     def moving(self) -> bool:
         return self.motion is not None
 
     @property
+    def shape_params(self) -> dict[str, Any]:
+        """The shape's parameters by their world-format keys: ``params``, or for an obstacle
+        built without them, its ``radius``, ``size`` and ``height`` as the shape takes them."""
+        if self.params is not None:
+            return self.params
+        return {k.name: getattr(self, k.name) for k in bodies.shape(self.shape).keys}
+
+    @property
     def bounding_radius(self) -> float:
         """Radius of a sphere about ``position`` containing the whole shape."""
-        if self.shape == "sphere":
-            return self.radius
-        if self.shape == "box":
-            return float(np.linalg.norm(self.size) / 2)
-        if self.shape == "cylinder":
-            return math.hypot(self.radius, self.height / 2)
-        if self.shape == "capsule":
-            return self.radius + self.height / 2
-        return float(np.max(np.linalg.norm(self.vertices, axis=1)))
+        if self.shape == "mesh":
+            return float(np.max(np.linalg.norm(self.vertices, axis=1)))
+        return bodies.shape(self.shape).bound(self.shape_params)
 
 
 @dataclass(frozen=True)

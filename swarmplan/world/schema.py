@@ -2,8 +2,7 @@
 :class:`~swarmplan.world.model.World`, with defaults applied and every problem collected.
 
 Each section has its resolver; :func:`parse_world` walks them, runs the cross-field checks
-(:mod:`swarmplan.world.checks`) and raises one :class:`WorldError` listing every problem.
-"""
+(:mod:`swarmplan.world.checks`) and raises one :class:`WorldError` listing every problem."""
 
 from __future__ import annotations
 
@@ -16,8 +15,9 @@ from typing import Any
 import numpy as np
 
 from swarmplan import optimizers
+from swarmplan.geometry import bodies
 from swarmplan.geometry.rotation import rotation_matrix
-from swarmplan.world.airframe import FIXED_WING_KEYS, airframe_keys
+from swarmplan.world.airframe import FIXED_WING_KEYS, airframe_keys, fixed_wing_spec
 from swarmplan.world.checker import Checker, join, typename
 from swarmplan.world.checks import check_placements
 from swarmplan.world.meshes import load_mesh
@@ -35,6 +35,7 @@ from swarmplan.world.model import (
     World,
     WorldError,
 )
+from swarmplan.world.origin import resolve_origin
 from swarmplan.world.planner_config import check_escape, check_global, planner_config
 from swarmplan.world.tracker_config import parse_tracker
 
@@ -195,10 +196,7 @@ def _resolve_agent_params(c: Checker, node: dict, path: str, base: dict[str, Any
     out = copy.deepcopy(base)
     if "model" in node:
         out["model"] = c.string(node, "model", path, base["model"], MODELS)
-    for k in ("radius", "max_accel", "min_turn_radius"):
-        if k in node:
-            out[k] = c.number(node, k, path, base[k], positive=True)
-    for k in FIXED_WING_KEYS:  # fixed wings' own keys: written to the resolved world for them only
+    for k in ("radius", "max_accel", "min_turn_radius", *FIXED_WING_KEYS):  # fixed wings' own: theirs only
         if k in node:
             out[k] = c.number(node, k, path, base.get(k), positive=True)
     if "min_altitude" in node:
@@ -287,13 +285,8 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
         c.add(path, f"expected a mapping, got {typename(o)}")
         return None, None
     shape = c.string(o, "shape", path, None, SHAPES)
-    per_shape = {
-        "sphere": ["radius"],
-        "box": ["size"],
-        "cylinder": ["radius", "height"],
-        "capsule": ["radius", "height"],
-        "mesh": ["file", "scale"],
-    }
+    per_shape = {s.name: [k.name for k in s.keys] for s in bodies.SHAPES}
+    per_shape["mesh"] = ["file", "scale"]
     common = ["id", "shape", "position", "rotation", "motion"]
     if shape is None:
         c.keys(o, path, common + sorted({k for v in per_shape.values() for k in v}))
@@ -304,15 +297,12 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
     rot = c.vector(o, "rotation", path, 3, [0.0, 0.0, 0.0])
     out: dict[str, Any] = {"id": oid, "shape": shape, "position": _lst(pos), "rotation": _lst(rot)}
     kw: dict[str, Any] = {}
-    if shape in ("sphere", "cylinder", "capsule"):
-        kw["radius"] = c.number(o, "radius", path, None, positive=True)
-        out["radius"] = kw["radius"]
-    if shape in ("cylinder", "capsule"):
-        kw["height"] = c.number(o, "height", path, None, positive=shape == "cylinder", nonneg=True)
-        out["height"] = kw["height"]
-    if shape == "box":
-        kw["size"] = c.vector(o, "size", path, 3, positive=True)
-        out["size"] = _lst(kw["size"])
+    params: dict[str, Any] = {}
+    for key in bodies.shape(shape).keys if shape is not None else ():
+        args = (o, key.name, path, 3 if key.vector else None)  # a vector's length, a number's default
+        params[key.name] = (c.vector if key.vector else c.number)(*args, positive=key.positive, nonneg=True)
+        out[key.name] = _lst(params[key.name]) if key.vector else params[key.name]
+    kw.update({k: v for k, v in params.items() if k in ("radius", "size", "height")})  # model fields too
     if shape == "mesh":
         file = c.string(o, "file", path)
         scale_raw = o.get("scale", 1.0)
@@ -331,13 +321,20 @@ def _resolve_obstacle(c: Checker, o: Any, path: str, base_dir: Path) -> tuple[di
     motion = None
     if o.get("motion") is not None:
         out["motion"], motion = _resolve_motion(c, o["motion"], f"{path}.motion")
-    if any(v is None for v in (oid, shape, pos, rot, *kw.values())):
+    if any(v is None for v in (oid, shape, pos, rot, *kw.values(), *params.values())):
         return out, None
     if shape == "mesh" and "vertices" not in kw:
         return out, None
     R = rotation_matrix(rot)
     obst = Obstacle(
-        id=oid, shape=shape, position=pos, rotation=R, rotation_deg=tuple(rot.tolist()), motion=motion, **kw
+        id=oid,
+        shape=shape,
+        position=pos,
+        rotation=R,
+        rotation_deg=tuple(rot.tolist()),
+        motion=motion,
+        params=params if shape != "mesh" else None,
+        **kw,
     )
     if shape == "mesh":
         # The log inlines mesh geometry in world coordinates (scale, rotation, position applied).
@@ -392,6 +389,7 @@ def parse_world(
         "planner",
         "log",
         "tracker",
+        "origin",
     ]
     if not c.keys(raw, "", top_keys, required=("name", "bounds", "agents")):
         raise WorldError([p.lstrip(": ") or p for p in c.problems] or ["the file is empty"], label)
@@ -511,8 +509,7 @@ def parse_world(
                 max_climb_angle=math.radians(params["max_climb_angle"]),
                 min_altitude=params["min_altitude"],
                 separation=np.asarray(params["separation"], dtype=float),
-                roll_rate=math.radians(params.get("roll_rate", 0.0)),
-                clearance=params.get("clearance", params["radius"]),
+                **fixed_wing_spec(params),
             )
         )
     _check_defaults_alone(c, defaults)
@@ -537,6 +534,8 @@ def parse_world(
         path, _, msg = problem.partition(": ")
         c.add(path, msg)
 
+    origin = resolve_origin(c, raw.get("origin"))
+
     # Geometry checks need a valid frame; run them only when the parts they use are sound.
     check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
 
@@ -556,6 +555,8 @@ def parse_world(
         "log": log,
         "tracker": tracker_cfg.to_dict(),
     }
+    if origin is not None:  # written only when given: logs of worlds without it stay as they were
+        resolved["origin"] = origin
     return World(
         name=name,
         seed=int(seed_raw),

@@ -1,0 +1,200 @@
+"""``--check``: fly every exported trajectory again with the vehicle models of ``track`` (the
+quadrotor under its cascaded PID, the fixed wing under L1 guidance and its energy loop), following
+the export and not the log, then look at the swarm together on the exported timing.
+
+Per agent: the largest distance between the flown vehicle and the planned position at the same
+instant (the export's own timing), against its limit: max(5 m, 0.05 R_min) for a fixed wing
+(``track``'s bound), the export's accuracy bound for a multirotor. For the swarm: the smallest
+surface distance between two agents, whether any pair came inside its separation ellipsoid,
+and any contact with an obstacle (moving ones where the log has them), the ground or terrain.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from swarmplan.geometry.neighbours import separation_violations
+from swarmplan.replay import Recording
+from swarmplan.replay.geometry import terrain_height
+from swarmplan.replay.metrics import obstacle_distances
+from swarmplan.track.fixed_wing import FixedWingConfig, aircraft_of, error_limit, fly
+from swarmplan.track.quadrotor import simulate
+from swarmplan.track.reference import Reference, build_reference
+from swarmplan.world.tracker_config import TrackerConfig
+
+
+@dataclass(frozen=True)
+class Plan:
+    """One agent's exported trajectory on its own timing: ``times`` (K,) from the log's t = 0,
+    positions (K, 3); ``vel``/``acc`` when the export defines them (a polynomial), else None."""
+
+    id: str
+    model: str
+    radius: float
+    separation: tuple[float, float, float]
+    times: np.ndarray
+    pos: np.ndarray
+    bound: float  # the export's accuracy bound (m)
+    vel: np.ndarray | None = None
+    acc: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class AgentCheck:
+    id: str
+    model: str
+    max_deviation: float
+    limit: float
+
+    @property
+    def ok(self) -> bool:
+        return self.max_deviation <= self.limit
+
+
+@dataclass
+class CheckResult:
+    agents: list[AgentCheck]
+    min_separation: float | None  # m, smallest surface distance between two agents
+    separation_entries: int  # grid steps with some pair inside its separation ellipsoid
+    contacts: list[str] = field(default_factory=list)  # "agent-obstacle at t"
+
+    @property
+    def ok(self) -> bool:
+        return all(a.ok for a in self.agents) and not self.contacts and self.separation_entries == 0
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "ok": self.ok,
+            "agents": {
+                a.id: {
+                    "model": a.model,
+                    "max_deviation_m": round(a.max_deviation, 4),
+                    "limit_m": round(a.limit, 4),
+                }
+                for a in self.agents
+            },
+            "min_separation_m": None if self.min_separation is None else round(self.min_separation, 4),
+            "separation_entries": self.separation_entries,
+            "contacts": list(self.contacts),
+        }
+
+    def lines(self) -> list[str]:
+        out = [f"{'agent':<12} {'model':<11} {'max dev m':>10} {'limit m':>9} {'ok':>4}"]
+        for a in self.agents:
+            out.append(
+                f"{a.id:<12} {a.model:<11} {a.max_deviation:10.4f} {a.limit:9.4f} "
+                f"{'yes' if a.ok else 'NO':>4}"
+            )
+        sep = "-" if self.min_separation is None else f"{self.min_separation:.4f} m"
+        out.append(
+            f"swarm: min separation (surface to surface) {sep}; separation ellipsoid entered at "
+            f"{self.separation_entries} instants; contacts {len(self.contacts)}"
+            + (
+                f" ({'; '.join(self.contacts[:5])}{' ...' if len(self.contacts) > 5 else ''})"
+                if self.contacts
+                else ""
+            )
+        )
+        out.append("check: " + ("OK" if self.ok else "LIMIT BROKEN"))
+        return out
+
+
+def _fly_multirotor(plan: Plan, cfg: TrackerConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Flown positions on the plan's times (and the planned ones), quadrotor from hover."""
+    dt = cfg.dt
+    t = plan.times
+    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+    if plan.vel is not None and plan.acc is not None:
+        interp = lambda a: np.column_stack([np.interp(grid, t, a[:, j]) for j in range(3)])  # noqa: E731
+        ref = Reference(grid, interp(plan.pos)[None], interp(plan.vel)[None], interp(plan.acc)[None])
+    else:
+        ref = build_reference(t, plan.pos[None], np.zeros((1, 2, 3)), dt, "velocity")
+    # Hover at the end for the settle time: the stop belongs to the flight.
+    n_hold = int(np.ceil(cfg.settle_time / dt))
+    if n_hold:
+        times = np.concatenate([ref.times, ref.times[-1] + dt * np.arange(1, n_hold + 1)])
+        hold = lambda a, v: np.concatenate([a, np.repeat(v, n_hold, axis=1)], axis=1)  # noqa: E731
+        ref = Reference(
+            times,
+            hold(ref.pos, ref.pos[:, -1:]),
+            hold(ref.vel, np.zeros_like(ref.vel[:, -1:])),
+            hold(ref.acc, np.zeros_like(ref.acc[:, -1:])),
+        )
+    flight = simulate(ref, cfg)
+    return ref.times, flight.pos[0], ref.pos[0]
+
+
+def _fly_fixed_wing(
+    plan: Plan, world: dict[str, Any], rec_dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    ac = aircraft_of(world, plan.id)
+    flight = fly(plan.times, plan.pos, ac, FixedWingConfig(), rec_dt)
+    return flight.times, flight.pos, flight.ref_pos, error_limit(ac)
+
+
+def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
+    """Fly ``plans`` and check them one by one and together (module docstring)."""
+    flown: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    agents: list[AgentCheck] = []
+    for plan in plans:
+        if plan.model == "fixed_wing":
+            times, pos, ref_pos, limit = _fly_fixed_wing(plan, rec.world, rec.dt)
+        else:
+            times, pos, ref_pos = _fly_multirotor(plan, cfg)
+            limit = plan.bound
+        dev = float(np.linalg.norm(pos - ref_pos, axis=1).max())
+        agents.append(AgentCheck(plan.id, plan.model, dev, limit))
+        flown[plan.id] = (times, pos)
+    radii = np.array([p.radius for p in plans])
+    speeds = [np.linalg.norm(np.diff(p.pos, axis=0), axis=1) / np.diff(p.times) for p in plans]
+    vmax = max(float(s.max()) if len(s) else 0.0 for s in speeds)
+    # Contacts between samples: the grid moves an agent at most half its radius per step.
+    step = min(rec.dt, float(radii.min()) / (2.0 * max(vmax, 1e-9)))
+    end = max(float(flown[p.id][0][-1]) for p in plans)
+    grid = np.arange(0.0, end + 0.5 * step, step)
+    pos = np.stack(
+        [np.column_stack([np.interp(grid, *_tp(flown[p.id], j)) for j in range(3)]) for p in plans]
+    )  # (A, T, 3): before its start an agent is where it starts, after its end where it ends
+    min_sep = None
+    entries = 0
+    if len(plans) >= 2:
+        i, j = np.triu_indices(len(plans), 1)
+        d = np.linalg.norm(pos[i] - pos[j], axis=2) - (radii[i] + radii[j])[:, None]
+        min_sep = float(d.min())
+        sep = np.array([p.separation for p in plans], float)
+        active = np.ones(len(plans), bool)
+        for k in range(len(grid)):
+            pi, _ = separation_violations(pos[:, k], sep, radii, active)
+            entries += int(len(pi) > 0)
+    contacts: list[str] = []
+    ids = [p.id for p in plans]
+    shadow = Recording(
+        file=rec.file,
+        world=rec.world,
+        times=grid,
+        agent_ids=ids,
+        positions=pos,
+        velocities=np.full_like(pos, np.nan),
+        modes=np.full(pos.shape[:2], "apf"),
+        goals=pos[:, -1].copy(),
+        radii=radii,
+        obstacle_tracks=rec.obstacle_tracks,
+    )
+    for oid, dist in obstacle_distances(shadow).items():
+        hit = dist - radii[:, None] < 0
+        for a in np.flatnonzero(hit.any(axis=1)):
+            k = int(np.argmax(hit[a]))
+            contacts.append(f"{ids[a]}-{oid} at t = {grid[k]:.2f} s")
+    ground = pos[..., 2] - terrain_height(rec.world, pos[..., :2].reshape(-1, 2)).reshape(pos.shape[:2])
+    surface = "terrain" if (rec.world.get("terrain") or {}).get("peaks") else "ground"
+    for a in np.flatnonzero((ground < radii[:, None]).any(axis=1)):
+        k = int(np.argmax(ground[a] < radii[a]))
+        contacts.append(f"{ids[a]}-{surface} at t = {grid[k]:.2f} s")
+    return CheckResult(agents, min_sep, entries, contacts)
+
+
+def _tp(tp: tuple[np.ndarray, np.ndarray], j: int) -> tuple[np.ndarray, np.ndarray]:
+    return tp[0], tp[1][:, j]

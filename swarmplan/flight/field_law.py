@@ -1,0 +1,71 @@
+"""The potential field's repulsion law, its ranges and its goal factor, in one place.
+
+The numpy field (``_apf_numpy``) computes its terms with these; the escape planner's gates and
+waypoint limits call them to ask what the field would do (``planner.escape_gates``,
+``planner.escape``). The compiled field (``_apf_kernel``: ``_rep``, ``_power``, its ranges) is
+their twin, held to the numpy field bit for bit by tests/test_apf_numpy.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+NEAREST = 0.05
+"""m: the clearance below which the repulsion stops growing (a body touched, or passed into)."""
+
+BOUNDS_RANGE = 10.0
+"""m: the longest range of the repulsion of the flight volume's faces."""
+
+
+def repulsion(rho: np.ndarray, k: float, rho0: float) -> np.ndarray:
+    """The push at clearance ``rho``: ``k (1 / max(rho, NEAREST) - 1 / rho0)`` within the range
+    ``rho0``, nothing beyond."""
+    return np.where(rho < rho0, k * (1.0 / np.maximum(rho, NEAREST) - 1.0 / rho0), 0.0)
+
+
+def clearance_at(push: float, k: float, rho0: float) -> float:
+    """The clearance (above ``NEAREST``) at which :func:`repulsion` pushes with ``push``."""
+    return 1.0 / (push / k + 1.0 / rho0)
+
+
+def ground_range(influence: float, floor: float) -> float:
+    """The range of the ground's repulsion: the influence, down to three times the floor (the
+    least altitude flown), never below a quarter of the influence."""
+    return max(min(influence, 3.0 * floor), 0.25 * influence)
+
+
+def bounds_range(influence: float) -> float:
+    """The range of the repulsion of the flight volume's faces."""
+    return min(influence, BOUNDS_RANGE)
+
+
+def _pow1(x: float, p: float) -> float:
+    try:
+        return math.pow(x, p)
+    except (ValueError, OverflowError):  # C's pow answers (inf, nan) where Python raises
+        with np.errstate(all="ignore"):
+            return float(np.power(x, p))
+
+
+def power(x: np.ndarray, p: float) -> np.ndarray:
+    """``x ** p`` elementwise as the compiled field's ``_power`` (numpy's fast paths, else C's
+    ``pow``)."""
+    if p == 2.0:
+        return x * x
+    if p == 1.0:
+        return x.copy()
+    if p == 0.5:
+        return np.sqrt(x)
+    if p == -1.0:
+        return 1.0 / x
+    if p == 0.0:
+        return np.ones_like(x)
+    return np.array([_pow1(float(v), p) for v in x.ravel()]).reshape(x.shape)
+
+
+def goal_factor(to_goal: np.ndarray, influence: float, goal_power: float) -> np.ndarray:
+    """The factor on the repulsion of an agent ``to_goal`` m from its goal: ``min(1, to_goal /
+    influence) ** goal_power`` (a goal near a body stays reachable)."""
+    return power(np.minimum(1.0, to_goal / influence), goal_power)

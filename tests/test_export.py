@@ -1,0 +1,328 @@
+"""Exports of flown paths: Crazyflie polynomials, PX4/ArduPilot missions, CSV; ``--check``."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from conftest_replay import base_world, states_from_arrays, write_log  # noqa: E402
+
+from swarmplan.cli.export import main as cli_main  # noqa: E402
+from swarmplan.export import crazyflie, mission  # noqa: E402
+from swarmplan.export.source import AgentLimits, FlownPath, LimitError  # noqa: E402
+from swarmplan.world import WorldError, load_world  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+DT = 0.05
+ORIGIN = {"lat": 47.3977, "lon": 8.5456, "alt": 488.0}
+
+
+def min_jerk(t: np.ndarray, t1: float) -> np.ndarray:
+    s = np.clip(t / t1, 0.0, 1.0)
+    return 10 * s**3 - 15 * s**4 + 6 * s**5
+
+
+def limits(**over) -> AgentLimits:
+    base = dict(
+        id="cf",
+        model="multirotor",
+        radius=0.05,
+        speed_min=0.0,
+        speed_max=1.0,
+        speed_cruise=0.8,
+        max_accel=1.5,
+        min_turn_radius=0.5,
+        max_climb_angle_deg=45.0,
+        separation=(0.5, 0.5, 0.5),
+    )
+    base.update(over)
+    return AgentLimits(**base)
+
+
+def line_path(**over) -> FlownPath:
+    t = DT * np.arange(161)  # 8 s, rest to rest
+    a, b = np.array([0.5, 0.5, 1.0]), np.array([3.5, 2.5, 1.5])
+    pos = a + min_jerk(t, 8.0)[:, None] * (b - a)
+    return FlownPath(limits(**over), t, pos, True)
+
+
+def circle_path(**over) -> FlownPath:
+    t = DT * np.arange(241)  # one turn of radius 1 m in 12 s, rest to rest
+    th = 2 * np.pi * min_jerk(t, 12.0)
+    pos = np.column_stack([2 + np.cos(th), 2 + np.sin(th), np.full_like(th, 1.2)])
+    return FlownPath(limits(**over), t, pos, True)
+
+
+def test_memory_holds_31_pieces_of_132_bytes():
+    assert crazyflie.PIECE_BYTES == 132  # 33 float32: 4 x 8 coefficients and the duration
+    assert crazyflie.MAX_PIECES == 31 == 4096 // 132
+
+
+def test_straight_line_fits_in_one_piece_exactly():
+    path = line_path()
+    fit = crazyflie.fit(path, 0.05)
+    assert fit.poly.n_pieces == 1  # a minimum-jerk line is a polynomial of degree 5
+    # Exact up to float32 against the line itself (against the recorded polygon, between the
+    # samples, the deviation is the polygon's own: a dt^2 / 8 = 1e-4 m)
+    t = np.linspace(0.0, 8.0, 2001)
+    a, b = path.positions[0], path.positions[-1]
+    exact = a + min_jerk(t, 8.0)[:, None] * (b - a)
+    assert np.abs(fit.poly.evaluate(t)[:, :3] - exact).max() < 2e-5
+    assert fit.max_deviation < 1.1e-4
+    end = fit.poly.evaluate(np.array([fit.poly.duration]))[0, :3]
+    assert np.allclose(end, path.positions[-1], atol=1e-5)
+    assert np.allclose(fit.poly.evaluate(np.array([0.0]), 1)[0, :3], 0.0, atol=1e-6)  # from rest
+
+
+def test_circle_fits_continuous_to_acceleration_within_limits():
+    path = circle_path()
+    fit = crazyflie.fit(path, 0.005)
+    assert 1 < fit.poly.n_pieces <= crazyflie.MAX_PIECES
+    assert fit.max_deviation <= 0.005
+    jumps = fit.poly.joint_jumps()
+    assert jumps[0] < 1e-5 and jumps[1] < 1e-4 and jumps[2] < 1e-3  # float32 rounding only
+    t = np.linspace(0.0, fit.poly.duration, 4001)
+    r = np.linalg.norm(fit.poly.evaluate(t)[:, :2] - 2.0, axis=1)
+    assert np.abs(r - 1.0).max() <= 0.005
+    assert np.linalg.norm(fit.poly.evaluate(t, 1)[:, :3], axis=1).max() <= 1.0
+    assert np.linalg.norm(fit.poly.evaluate(t, 2)[:, :3], axis=1).max() <= 1.5
+
+
+def test_csv_round_trip_and_header():
+    fit = crazyflie.fit(circle_path(), 0.01)
+    text = crazyflie.csv_text(fit.poly)
+    header = text.splitlines()[0].split(",")
+    assert header[:3] == ["Duration", "x^0", "x^1"] and header[-1] == "yaw^7" and len(header) == 33
+    back = crazyflie.read_csv(text)
+    assert np.array_equal(back.coeffs, fit.poly.coeffs) and np.array_equal(back.durations, fit.poly.durations)
+
+
+def test_a_path_beyond_the_limits_is_refused():
+    with pytest.raises(LimitError, match="keeps its limits"):
+        crazyflie.fit(line_path(max_accel=0.2), 0.01)  # the line needs 0.33 m/s^2
+
+
+def test_a_path_beyond_the_memory_is_refused_with_what_would_fit():
+    with pytest.raises(LimitError) as err:
+        crazyflie.fit(circle_path(), 0.002, max_pieces=2)
+    msg = str(err.value)
+    assert "2 pieces (264 of the 4096-byte trajectory memory)" in msg
+    assert "pieces (" in msg and "would reach 0.002 m" in msg and "--max-deviation" in msg
+    assert "\n" not in msg
+
+
+def test_rdp_keeps_every_point_within_the_bound():
+    rng = np.random.default_rng(4)
+    pts = np.cumsum(rng.normal(size=(400, 3)), axis=0)
+    for bound in (0.5, 2.0, 5.0):
+        idx = mission.rdp(pts, bound)
+        assert idx[0] == 0 and idx[-1] == len(pts) - 1
+        assert mission.polyline_distance(pts, pts[idx]).max() <= bound
+    assert len(mission.rdp(np.linspace([0, 0, 0], [10, 5, 2], 50), 0.01)) == 2  # a straight line
+
+
+def test_geodetic_round_trip():
+    xyz = np.array([[0.0, 0.0, 0.0], [1000.0, -2000.0, 150.0], [-5000.0, 8000.0, 30.0]])
+    geo = mission.to_geodetic(xyz, ORIGIN)
+    assert np.allclose(geo[0], [ORIGIN["lat"], ORIGIN["lon"], ORIGIN["alt"]])
+    assert geo[1, 0] < ORIGIN["lat"] and geo[1, 1] > ORIGIN["lon"]  # south-east: y north, x east
+    assert np.abs(mission.from_geodetic(geo, ORIGIN) - xyz).max() < 1e-6
+
+
+def test_origin_is_validated():
+    raw = {"name": "w", "bounds": {"min": [0, 0, 0], "max": [10, 10, 10]}, "origin": {"lat": 91, "lon": 8},
+           "agents": [{"id": "a", "start": [1, 1, 6], "goal": [9, 9, 6]}]}  # fmt: skip
+    path = Path(os.environ.get("TMPDIR", "/tmp")) / "swarmplan-origin-test.yaml"
+    import yaml
+
+    path.write_text(yaml.safe_dump(raw))
+    try:
+        with pytest.raises(WorldError, match=r"origin.lat: must be <= 90"):
+            load_world(path)
+        raw["origin"] = {"lat": 47.0, "lon": 8.0}
+        path.write_text(yaml.safe_dump(raw))
+        assert load_world(path).resolved["origin"] == {"lat": 47.0, "lon": 8.0, "alt": 0.0}
+    finally:
+        path.unlink()
+
+
+# ---------------------------------------------------------------------- logs and the command
+
+
+def make_log(path: Path, origin: bool = True, cut: bool = False, agents: int = 2) -> str:
+    t = DT * np.arange(161)
+    pos = []
+    for i in range(agents):
+        a, b = np.array([0.5, 0.5 + 1.0 * i, 1.0]), np.array([3.5, 0.5 + 1.0 * i, 1.2])
+        pos.append(a + min_jerk(t, 7.0)[:, None] * (b - a))
+    pos = np.array(pos).reshape(agents, len(t), 3)
+    ids = [f"cf{i + 1}" for i in range(agents)]
+    specs = [{"id": ids[i], "start": pos[i, 0].tolist(), "goal": pos[i, -1].tolist(), "radius": 0.05,
+              "speed": {"min": 0.0, "max": 1.0, "cruise": 0.8}, "max_accel": 1.5,
+              "separation": [0.5, 0.5, 0.5]} for i in range(agents)]  # fmt: skip
+    extra = {"origin": ORIGIN} if origin else {}
+    world = base_world(specs, **extra)
+    world["bounds"] = {"min": [0, 0, 0], "max": [4, 4, 3]}
+    world["sim"] = {"dt": DT, "max_time": 10.0, "goal_tolerance": 0.1}
+    modes = [["apf"] * 140 + ["arrived"] * 21 for _ in range(agents)]
+    states = (
+        states_from_arrays(t, ids, pos, modes=modes, goals=pos[:, -1])
+        if agents
+        else [{"t": float(x), "agents": []} for x in t]
+    )
+    summary = {"interrupted": False, "success": True, "wall_time": 0.1, "agents": []}
+    out = write_log(path, world, states, summary=summary)
+    if cut:
+        data = Path(out).read_bytes()
+        Path(out).write_bytes(data[: len(data) * 2 // 3])
+    return out
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory) -> dict[str, str]:
+    d = tmp_path_factory.mktemp("export")
+    return {
+        "ok": make_log(d / "ok.mcap"),
+        "no_origin": make_log(d / "no_origin.mcap", origin=False),
+        "cut": make_log(d / "cut.mcap", cut=True),
+        "empty": make_log(d / "empty.mcap", agents=0),
+    }
+
+
+def run(capsys, *args: str) -> tuple[int, str, str]:
+    code = cli_main(list(args))
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def test_px4_plan_and_waypoints_read_back_with_pymavlink(logs, tmp_path, capsys):
+    mavwp = pytest.importorskip("pymavlink.mavwp")
+    out = tmp_path / "px4"
+    code, text, err = run(capsys, logs["ok"], "--format", "px4", "--out", str(out))
+    assert code == 0, err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [a["id"] for a in manifest["agents"]] == ["cf1", "cf2"]
+    for entry in manifest["agents"]:
+        assert entry["max_deviation_m"] <= entry["bound_m"] == 0.1
+        plan = json.loads((out / entry["file"]).read_text())
+        assert plan["fileType"] == "Plan" and plan["mission"]["version"] == 2
+        items = plan["mission"]["items"]
+        assert items[0]["command"] == mission.MAV_CMD_NAV_TAKEOFF
+        assert items[-1]["command"] == mission.MAV_CMD_NAV_WAYPOINT
+        assert mission.MAV_CMD_DO_CHANGE_SPEED in [it["command"] for it in items]
+        loader = mavwp.MAVWPLoader()
+        n = loader.load(str(out / entry["waypoint_list"]))
+        assert n == len(items) + 1  # the home position first
+        cmds = [loader.wp(k).command for k in range(n)]
+        assert cmds[1:] == [it["command"] for it in items]
+        last = loader.wp(n - 1)
+        back = mission.from_geodetic(np.array([[last.x, last.y, ORIGIN["alt"] + last.z]]), ORIGIN)[0]
+        assert np.allclose(back[:2], [3.5, 0.5 + (entry["id"] == "cf2")], atol=1e-3)
+        assert abs(last.z - 1.2) < 1e-6  # relative to the ground under the start
+
+
+def test_crazyflie_export_and_check(logs, tmp_path, capsys):
+    out = tmp_path / "cf"
+    code, text, err = run(capsys, logs["ok"], "--format", "crazyflie", "--out", str(out), "--check")
+    assert code == 0, text + err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["crazyflie"]["max_pieces"] == 31
+    for entry in manifest["agents"]:
+        assert entry["pieces"] <= 31 and entry["max_deviation_m"] <= entry["accuracy_m"] == 0.05
+        assert entry["max_accel"] <= entry["accel_limit"] and entry["max_speed"] <= entry["speed_limit"]
+        poly = crazyflie.read_csv((out / entry["file"]).read_text())
+        assert poly.n_pieces == entry["pieces"]
+    report = json.loads((out / "check.json").read_text())
+    assert report["ok"] and report["contacts"] == [] and report["separation_entries"] == 0
+    assert report["min_separation_m"] == pytest.approx(0.9, abs=0.01)
+    assert all(a["max_deviation_m"] <= a["limit_m"] for a in report["agents"].values())
+
+
+def test_csv_export_of_one_agent(logs, tmp_path, capsys):
+    out = tmp_path / "csv"
+    code, _, err = run(capsys, logs["ok"], "--format", "csv", "--agent", "cf2", "--out", str(out))
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == ["cf2.csv", "manifest.json"]
+    rows = (out / "cf2.csv").read_text().splitlines()
+    assert rows[0] == "t,x,y,z,vx,vy,vz" and len(rows) == 1 + 141
+
+
+@pytest.mark.parametrize(
+    ("case", "extra", "needle"),
+    [
+        ("empty", (), "has no agents"),
+        ("ok", ("--agent", "nobody"), "--agent nobody: no such agent"),
+        ("cut", (), "cut short"),
+        ("no_origin", (), "no origin"),
+        ("ok", ("--max-deviation", "-1"), "must be a number > 0"),
+        ("ok", ("--origin", "95,8"), "latitude must be in [-90, 90]"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_nothing_written(logs, tmp_path, capsys, case, extra, needle):
+    out = tmp_path / "out"
+    code, text, err = run(capsys, logs[case], "--format", "px4", "--out", str(out), *extra)
+    assert code == 2
+    assert needle in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".out")]
+
+
+def test_an_output_folder_that_cannot_be_written(logs, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code, _, err = run(capsys, logs["ok"], "--format", "csv", "--out", str(blocker / "sub"))
+    assert code == 2 and "is a file, not a directory" in err and len(err.strip().splitlines()) == 1
+
+
+def test_check_fails_when_the_swarm_meets(tmp_path, capsys):
+    # Two agents on the same line a second apart in time: flown again, they meet.
+    t = DT * np.arange(161)
+    a, b = np.array([0.5, 1.0, 1.0]), np.array([3.5, 1.0, 1.0])
+    p1 = a + min_jerk(t, 7.0)[:, None] * (b - a)
+    p2 = b + min_jerk(t, 7.0)[:, None] * (a - b)
+    ids = ["cf1", "cf2"]
+    specs = [{"id": i, "start": p[0].tolist(), "goal": p[-1].tolist(), "radius": 0.05,
+              "speed": {"min": 0.0, "max": 1.0, "cruise": 0.8}, "max_accel": 1.5,
+              "separation": [0.5, 0.5, 0.5]} for i, p in zip(ids, (p1, p2), strict=True)]  # fmt: skip
+    world = base_world(specs)
+    world["sim"] = {"dt": DT, "max_time": 10.0, "goal_tolerance": 0.1}
+    pos = np.stack([p1, p2])
+    states = states_from_arrays(t, ids, pos, modes=[["apf"] * 161] * 2, goals=pos[:, -1])
+    log = write_log(tmp_path / "meet.mcap", world, states, summary={"interrupted": False, "agents": []})
+    code, text, _ = run(capsys, log, "--format", "crazyflie", "--out", str(tmp_path / "o"), "--check")
+    assert code == 1 and "LIMIT BROKEN" in text
+    report = json.loads((tmp_path / "o" / "check.json").read_text())
+    assert report["min_separation_m"] < 0 and report["separation_entries"] > 0
+
+
+@pytest.mark.skipif(not (ROOT / "worlds" / "crazyflie_room.yaml").exists(), reason="needs the shipped world")
+def test_the_room_of_crazyflies_exports_and_checks(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    log = tmp_path / "room.mcap"
+    world = str(ROOT / "worlds" / "crazyflie_room.yaml")
+    run_ = subprocess.run(
+        [sys.executable, "-m", "swarmplan.run", world, "--out", str(log), "--quiet"],
+        capture_output=True, text=True, env=env, timeout=600,
+    )  # fmt: skip
+    assert run_.returncode == 0, run_.stdout + run_.stderr
+    out = str(tmp_path / "cf")
+    exp = subprocess.run(
+        [sys.executable, "-m", "swarmplan.export", str(log), "--format", "crazyflie", "--out", out,
+         "--check"],
+        capture_output=True, text=True, env=env, timeout=600,
+    )  # fmt: skip
+    assert exp.returncode == 0, exp.stdout + exp.stderr
+    manifest = json.loads((tmp_path / "cf" / "manifest.json").read_text())
+    for entry in manifest["agents"]:
+        assert entry["max_deviation_m"] <= 0.05 and entry["pieces"] <= 31
+        assert entry["joint_jumps"]["accel_m_s2"] < 1e-3
+    assert json.loads((tmp_path / "cf" / "check.json").read_text())["contacts"] == []
+    assert math.isfinite(manifest["agents"][0]["duration"])
