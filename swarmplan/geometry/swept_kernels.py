@@ -315,6 +315,19 @@ def _touches(
 
 
 @njit(cache=True, inline="always")
+def _closest_gap(w0x: float, w0y: float, w0z: float, dwx: float, dwy: float, dwz: float) -> float:
+    """Smallest ``|w0 + s dw|`` over ``s`` in [0, 1]: the closest approach of two points that
+    start ``w0`` apart and move ``dw`` relative to each other in one step
+    (``segment_segment_min_distance``'s terms)."""
+    aa = dwx * dwx + dwy * dwy + dwz * dwz
+    s = 0.0
+    if aa > 1e-18:
+        s = min(max(-(w0x * dwx + w0y * dwy + w0z * dwz) / max(aa, 1e-18), 0.0), 1.0)
+    ex, ey, ez = w0x + s * dwx, w0y + s * dwy, w0z + s * dwz
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit(cache=True, inline="always")
 def step_status(
     a: np.ndarray,
     b: np.ndarray,
@@ -432,12 +445,7 @@ def agent_contacts(
             dwx = (p1[a, 0] - p0[a, 0]) - (p1[b, 0] - p0[b, 0])
             dwy = (p1[a, 1] - p0[a, 1]) - (p1[b, 1] - p0[b, 1])
             dwz = (p1[a, 2] - p0[a, 2]) - (p1[b, 2] - p0[b, 2])
-            aa = dwx * dwx + dwy * dwy + dwz * dwz
-            s = 0.0
-            if aa > 1e-18:
-                s = min(max(-(w0x * dwx + w0y * dwy + w0z * dwz) / max(aa, 1e-18), 0.0), 1.0)
-            ex, ey, ez = w0x + s * dwx, w0y + s * dwy, w0z + s * dwz
-            if math.sqrt(ex * ex + ey * ey + ez * ez) < radii[a] + radii[b] + margin:
+            if _closest_gap(w0x, w0y, w0z, dwx, dwy, dwz) < radii[a] + radii[b] + margin:
                 found.append(a * n + b)
     if len(found):
         keys = np.sort(np.array(found, np.int64))
@@ -512,12 +520,7 @@ def arrivals(
         dwx = (pos1[i, 0] - pos0[i, 0]) - (goal[i, 0] - goal[i, 0])
         dwy = (pos1[i, 1] - pos0[i, 1]) - (goal[i, 1] - goal[i, 1])
         dwz = (pos1[i, 2] - pos0[i, 2]) - (goal[i, 2] - goal[i, 2])
-        aa = dwx * dwx + dwy * dwy + dwz * dwz
-        s = 0.0
-        if aa > 1e-18:
-            s = min(max(-(w0x * dwx + w0y * dwy + w0z * dwz) / max(aa, 1e-18), 0.0), 1.0)
-        ex, ey, ez = w0x + s * dwx, w0y + s * dwy, w0z + s * dwz
-        d = math.sqrt(ex * ex + ey * ey + ez * ez)
+        d = _closest_gap(w0x, w0y, w0z, dwx, dwy, dwz)
         speed = math.sqrt(vel1[i, 0] * vel1[i, 0] + vel1[i, 1] * vel1[i, 1] + vel1[i, 2] * vel1[i, 2])
         if d <= tolerance and speed <= stop_speed[i] * (1.0 + 1e-9):
             rows.append(i)
