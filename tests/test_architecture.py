@@ -1,6 +1,7 @@
 """The package's shape: no import cycles between modules or between packages (function-level
 imports included), layers that point one way, command-line programs only in ``cli/`` and its
-thin entry points, and no module over the size a reader can hold in mind.
+thin entry points, no module over the size a reader can hold in mind, and no function with
+more parameters than a reader can hold in mind either.
 
 The import graph counts every import that can run (``if TYPE_CHECKING:`` blocks left out) and
 the two dynamic forms the package uses: ``kernel_module("swarmplan....")`` (the loader of
@@ -15,6 +16,7 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "swarmplan"
 MAX_LINES = 600
+MAX_PARAMETERS = 12
 
 
 def module_name(path: Path) -> str:
@@ -194,6 +196,40 @@ def test_file_circle_finder_sees_annotations_and_lookups(tmp_path: Path, monkeyp
 def test_no_module_over_max_lines() -> None:
     sizes = {module_name(p): len(p.read_text(encoding="utf-8").splitlines()) for p in PACKAGE.rglob("*.py")}
     assert {m: n for m, n in sizes.items() if n > MAX_LINES} == {}
+
+
+def parameter_count(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    """The parameters a caller passes: every kind (``*args`` and ``**kwargs`` one each), less a
+    method's ``self`` or ``cls``."""
+    a = node.args
+    n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) + (a.kwarg is not None)
+    first = (a.posonlyargs + a.args)[:1]
+    return n - (bool(first) and first[0].arg in ("self", "cls"))
+
+
+def long_parameter_lists(root: Path) -> dict[str, int]:
+    out = {}
+    for path in root.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            if parameter_count(node) > MAX_PARAMETERS:
+                out[f"{path.relative_to(root).as_posix()}:{node.name}"] = parameter_count(node)
+    return out
+
+
+def test_no_function_takes_more_than_max_parameters() -> None:
+    """Values that travel together travel as one (a tuple into a kernel, a dataclass elsewhere)."""
+    assert long_parameter_lists(PACKAGE) == {}
+
+
+def test_parameter_count_sees_every_kind_and_skips_self(tmp_path: Path) -> None:
+    names = ", ".join(f"a{k}" for k in range(10))
+    (tmp_path / "m.py").write_text(
+        f"def f({names}, *rest, key, **kw): pass\n"
+        f"class C:\n    def g(self, {names}, x, y): pass\n    def h(self, {names}, x, y, z): pass\n"
+    )
+    assert long_parameter_lists(tmp_path) == {"m.py:f": 13, "m.py:h": 13}
 
 
 def test_every_module_imports() -> None:

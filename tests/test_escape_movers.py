@@ -13,7 +13,7 @@ from swarmplan.cli.run import main as run_main
 from swarmplan.io.runner import apply_overrides, simulate
 from swarmplan.planner.escape import choose_subgoal, mover_leg_hit
 from swarmplan.planner.movers import EscapeClock, moving_clearance, positions_at
-from swarmplan.planner.segment_cost import SegmentCost
+from swarmplan.planner.segment_cost import Flyer, SegmentCost
 from swarmplan.sim import Simulation
 from swarmplan.world import load_world
 from swarmplan.world.motion import pose_at
@@ -176,15 +176,15 @@ def test_fcl_validation_sees_movers_at_the_time_the_agent_passes():
 def test_segment_cost_scores_movers_at_their_predicted_poses():
     """The cost's moving term looks at the plug where it is when the agent gets there."""
     world = corridor_sim(0.0).world
-    args = dict(radius=1.0, speed=7.0, turn_radius=12.0, max_climb=np.radians(45), min_altitude=3.0)
+    flyer = Flyer(radius=1.0, speed=7.0, turn_radius=12.0, max_climb=np.radians(45), min_altitude=3.0)
     through = np.array([[[20.0, 40.0, 15.0], [100.0, 40.0, 15.0]]])
-    parked = SegmentCost(world, t0=10.0, **args)
+    parked = SegmentCost(world, flyer, t0=10.0)
     assert parked.terms(through)["moving"][0] > parked.w.collision * 4.0  # 4 m inside the plug
     # From t = 0 at 7 m/s the agent reaches x = 60 at 5.7 s: parked by then, the same hit.
-    assert SegmentCost(world, t0=0.0, **args).terms(through)["moving"][0] > parked.w.collision * 4.0
+    assert SegmentCost(world, flyer, t0=0.0).terms(through)["moving"][0] > parked.w.collision * 4.0
     # Along y = 76 (the plug's start) from x = 40: at x = 60 at 2.9 s, the plug has left (y < 63).
     north = np.array([[[40.0, 76.0, 15.0], [100.0, 76.0, 15.0]]])
-    assert SegmentCost(world, t0=0.0, **args).terms(north)["moving"][0] == 0.0
+    assert SegmentCost(world, flyer, t0=0.0).terms(north)["moving"][0] == 0.0
 
 
 # ----------------------------------------------------------------------------- seeds

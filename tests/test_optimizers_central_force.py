@@ -280,10 +280,8 @@ def test_compiled_masses_and_move_match_the_numpy_operators():
         assert ((new < 0) | (new > 1)).any()  # the repair is exercised
         Unew, X = np.empty_like(U), np.empty_like(U)
         move = K.move_probes_steps if steps else K.move_probes
-        move(
-            U, W @ U, W.sum(axis=1), s if mcfo else np.empty(0), dt**2, pb, gb, r, c1, c2, frep,
-            lower, span, upper, Unew, X,
-        )  # fmt: skip
+        memory = (s if mcfo else np.empty(0), pb, gb, r, c1, c2)
+        move(U, W @ U, W.sum(axis=1), dt**2, memory, frep, (lower, span, upper), (Unew, X))
         np.testing.assert_array_equal(Unew, expected)
         np.testing.assert_array_equal(X, np.clip(lower + expected * span, lower, upper))
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,7 @@ from helpers import base_world, make_world, without_guide
 from swarmplan.core import Mode, PlannedSegment
 from swarmplan.planner import RefinementPlanner
 from swarmplan.planner.escape import EscapePlanner, choose_subgoal
-from swarmplan.planner.segment_cost import SegmentCost, SegmentEncoding
+from swarmplan.planner.segment_cost import Flyer, SegmentCost, SegmentEncoding
 from swarmplan.sim import Simulation
 from swarmplan.world import WorldError
 
@@ -20,9 +21,10 @@ SPHERE = {"id": "ball", "shape": "sphere", "radius": 5.0, "position": [50, 50, 2
 
 
 def cost_for(world, **kw) -> SegmentCost:
-    args = dict(radius=1.0, speed=8.0, turn_radius=16.0, max_climb=np.radians(45), min_altitude=5.0)
-    args.update(kw)
-    return SegmentCost(world, **args)
+    """A cost for a 1 m multirotor at 8 m/s; ``kw``: the flyer's fields or the cost's settings."""
+    flyer = Flyer(radius=1.0, speed=8.0, turn_radius=16.0, max_climb=np.radians(45), min_altitude=5.0)
+    fields = {k: kw.pop(k) for k in list(kw) if k in Flyer.__dataclass_fields__}
+    return SegmentCost(world, replace(flyer, **fields), **kw)
 
 
 def test_straight_free_segment_costs_exactly_its_length():

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding
+from swarmplan.planner.segment_cost import Flyer, Intent, SegmentCost, SegmentEncoding
 from swarmplan.world import parse_world
 
 
@@ -51,11 +51,7 @@ def test_culled_agent_term_equals_brute_force_on_random_populations(seed, crowd)
     t0 = float(rng.uniform(0, 50))
     cost = SegmentCost(
         _world(),
-        radius=1.0,
-        speed=float(rng.uniform(3, 12)),
-        turn_radius=5.0,
-        max_climb=0.8,
-        min_altitude=3.0,
+        Flyer(radius=1.0, speed=float(rng.uniform(3, 12)), turn_radius=5.0, max_climb=0.8, min_altitude=3.0),
         t0=t0,
         intents=_random_intents(rng, crowd, t0 - float(rng.uniform(0, 3))),
     )
@@ -92,7 +88,9 @@ def test_culling_keeps_an_agent_just_within_reach(inside):
     )
     for it in (still, mover):
         cost = SegmentCost(
-            _world(), radius=r, speed=speed, turn_radius=5.0, max_climb=0.8, min_altitude=3.0, intents=[it]
+            _world(),
+            Flyer(radius=r, speed=speed, turn_radius=5.0, max_climb=0.8, min_altitude=3.0),
+            intents=[it],
         )
         cost.spacing = 0.5
         pts, ds, s = cost.sample(P)
@@ -115,7 +113,9 @@ def test_culling_drops_only_far_agents():
     crossing = Intent(np.array([0.0, 10.0]), np.array([[50.0, -50.0, 20.0], [50.0, 50.0, 20.0]]), 1.0, sep)
     for it, positive in ((far, False), (early, False), (crossing, True), (late, False)):
         cost = SegmentCost(
-            _world(), radius=1.0, speed=speed, turn_radius=5.0, max_climb=0.8, min_altitude=3.0, intents=[it]
+            _world(),
+            Flyer(radius=1.0, speed=speed, turn_radius=5.0, max_climb=0.8, min_altitude=3.0),
+            intents=[it],
         )
         pts, ds, s = cost.sample(P)
         ref = cost.agent_penalty_reference(pts, ds, s)
@@ -158,7 +158,10 @@ def test_culled_obstacle_terms_equal_brute_force(seed):
     rng = np.random.default_rng(seed)
     world = _cluttered_world(rng)
     cost = SegmentCost(
-        world, radius=1.0, speed=6.0, turn_radius=5.0, max_climb=0.8, min_altitude=3.0, t0=2.0, margin=2.0
+        world,
+        Flyer(radius=1.0, speed=6.0, turn_radius=5.0, max_climb=0.8, min_altitude=3.0),
+        t0=2.0,
+        margin=2.0,
     )
     P = _population(rng, 30)
     pts, ds, s = cost.sample(P)
@@ -260,11 +263,7 @@ def test_tracing_never_skips_a_sample_the_brute_force_counts(seed):
     world = _thin_world(rng)
     cost = SegmentCost(
         world,
-        radius=0.3,
-        speed=float(rng.uniform(3, 12)),
-        turn_radius=5.0,
-        max_climb=0.8,
-        min_altitude=3.0,
+        Flyer(radius=0.3, speed=float(rng.uniform(3, 12)), turn_radius=5.0, max_climb=0.8, min_altitude=3.0),
         t0=float(rng.uniform(0, 5)),
         margin=float(rng.uniform(0.1, 1.5)),
         start_clearance=float(rng.uniform(0, 2)),
@@ -285,13 +284,15 @@ def test_floor_bounds_turning_and_length_equal_numpy():
     for fixed_wing in (False, True):
         cost = SegmentCost(
             _world(),
-            radius=1.0,
-            speed=7.0,
-            turn_radius=12.0,
-            max_climb=0.4,
-            min_altitude=8.0,
+            Flyer(
+                radius=1.0,
+                speed=7.0,
+                turn_radius=12.0,
+                max_climb=0.4,
+                min_altitude=8.0,
+                fixed_wing=fixed_wing,
+            ),
             heading=np.array([1.0, -0.3, 0.1]),
-            fixed_wing=fixed_wing,
         )
         enc = SegmentEncoding(np.array([20.0, 170, 14]), np.array([120.0, 185, 50]), 4, width=30, height=10)
         P = enc.decode(rng.uniform(enc.lower, enc.upper, (50, enc.dim)))
@@ -330,7 +331,9 @@ def test_meshes_terrain_and_threats_take_the_numpy_terms():
     raw["threats"] = [{"kind": "radar", "position": [110, 80, 15], "r_min": 5, "r_max": 25}]
     world = parse_world(raw, base_dir=worlds)
     rng = np.random.default_rng(3)
-    cost = SegmentCost(world, radius=1.0, speed=6.0, turn_radius=5.0, max_climb=0.8, min_altitude=3.0, t0=1.0)
+    cost = SegmentCost(
+        world, Flyer(radius=1.0, speed=6.0, turn_radius=5.0, max_climb=0.8, min_altitude=3.0), t0=1.0
+    )
     cost.vertex_clearance = 2.0
     enc = SegmentEncoding(np.array([60.0, 60, 12]), np.array([180.0, 140, 20]), 4, width=50, height=15)
     P = enc.decode(rng.uniform(enc.lower, enc.upper, (30, enc.dim)))

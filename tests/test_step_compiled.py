@@ -1,7 +1,7 @@
 """The compiled paths of the step give the bits of the paths they replace, on random inputs:
 the field's agent term over a window along x against every agent, the commanded velocity and
-the reach at speed against their numpy formulas, the roundings of the messages, the goal
-guard's horizons, and the metrics' step with every agent measured against the general
+the reach at speed against their numpy formulas, the roundings of the messages, the
+evasion's horizons, and the metrics' step with every agent measured against the general
 selection."""
 
 from __future__ import annotations
@@ -185,11 +185,11 @@ def test_compiled_rounding_equals_numpy(seed):
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_compiled_guard_horizons_equal_numpy(seed):
-    """The goal guard's horizons (``HORIZON_FACTOR * sideways_time(...) + 3 dt``) in one
+def test_compiled_evasion_horizons_equal_numpy(seed):
+    """The evasion's horizons (``HORIZON_FACTOR * sideways_time(...) + 3 dt``) in one
     compiled pass: numpy's bits, on both sides of the top-speed switch and at zero distance."""
     from swarmplan.runtime.compiled import kernel_module
-    from swarmplan.sim.guard import HORIZON_FACTOR, sideways_time
+    from swarmplan.sim.evasion import HORIZON_FACTOR, sideways_time
 
     rng = np.random.default_rng(seed)
     n = 400

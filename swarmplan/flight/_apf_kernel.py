@@ -72,11 +72,16 @@ def _face(offset, sign, r, rb0, k_rep, gfac):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near):  # noqa: ANN001, ANN202
-    """``near[b]`` = False when ``|d + t v| >= reach`` for every t in [0, horizon], d and v the
-    position and velocity of (px, py, pz) relative to agent b (a margin covers rounding): the
-    closest approach of the segment from squared lengths only, no division and no branch, so
-    the loop over the swarm is vectorized."""
+def _near(p, v, at, vel, horizon, reach, near):  # noqa: ANN001, ANN202
+    """``near[b]`` = False when ``|d + t w| >= reach`` for every t in [0, horizon], d and w the
+    position and velocity of the point ``p = (px, py, pz)`` moving at ``v = (vx, vy, vz)``
+    relative to agent b, whose coordinates are ``at = (X, Y, Z)`` and ``vel = (VX, VY, VZ)``
+    (a margin covers rounding): the closest approach of the segment from squared lengths only,
+    no division and no branch, so the loop over the swarm is vectorized."""
+    px, py, pz = p
+    vx, vy, vz = v
+    X, Y, Z = at
+    VX, VY, VZ = vel
     r2 = reach * reach
     r2_end = r2 * (1.0 + 1e-9)
     for b in range(X.shape[0]):
@@ -317,7 +322,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 w_hi = np.searchsorted(XS, px + half, side="right")
                 w = w_hi - w_lo
                 sl = slice(w_lo, w_hi)
-                _near(px, py, pz, vx, vy, vz, XS[sl], YS[sl], ZS[sl], VXS[sl], VYS[sl], VZS[sl],
+                _near((px, py, pz), (vx, vy, vz), (XS[sl], YS[sl], ZS[sl]), (VXS[sl], VYS[sl], VZS[sl]),
                       horizon, reach, near)  # fmt: skip
                 for c in range(w):
                     if near[c]:
@@ -325,7 +330,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         k += 1
                 _index_order(rows, k)  # the full scan's order of the sums
             else:
-                _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
+                _near((px, py, pz), (vx, vy, vz), (X, Y, Z), (VX, VY, VZ), horizon, reach, near)
                 for b in range(n_all):
                     if near[b]:
                         rows[k] = b

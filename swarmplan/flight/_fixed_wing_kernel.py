@@ -51,11 +51,16 @@ def _cos_factor(g0, g1):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def fly_step(vx, vy, vz, cx, cy, cz, kh, kv, vmin, vmax, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
-    """One step of one fixed wing at velocity (vx, vy, vz) with turn state (kh, kv), commanded
-    (cx, cy, cz); ``roll`` its roll rate (rad/s; inf: none). Returns the new velocity and turn
+def fly_step(v, cmd, kappa, limits, dt):  # noqa: ANN001, ANN201
+    """One step of one fixed wing at velocity ``v = (vx, vy, vz)`` with turn state ``kappa =
+    (kh, kv)``, commanded ``cmd = (cx, cy, cz)``, within ``limits = (vmin, vmax, amax, radius,
+    climb, roll)`` (``roll`` its roll rate, rad/s; inf: none). Returns the new velocity and turn
     state. A command of (near) zero keeps the direction; a vertical one keeps the heading and
     asks for the full climb or dive."""
+    vx, vy, vz = v
+    cx, cy, cz = cmd
+    kh, kv = kappa
+    vmin, vmax, amax, radius, climb, roll = limits
     speed0 = math.sqrt(vx * vx + vy * vy + vz * vz)
     psi0 = math.atan2(vy, vx)
     gamma0 = _clip(math.atan2(vz, math.hypot(vx, vy)), -climb, climb)
@@ -108,10 +113,9 @@ def fly_steps(v0, v_cmd, kappa, vmin, vmax, amax, radius, climb, roll, dt):  # n
     v1 = np.empty((n, 3))
     k1 = np.empty((n, 2))
     for i in range(n):
-        a, b, c, d, e = fly_step(
-            v0[i, 0], v0[i, 1], v0[i, 2], v_cmd[i, 0], v_cmd[i, 1], v_cmd[i, 2], kappa[i, 0], kappa[i, 1],
-            vmin[i], vmax[i], amax[i], radius[i], climb[i], roll[i], dt,
-        )  # fmt: skip
+        v, cmd = (v0[i, 0], v0[i, 1], v0[i, 2]), (v_cmd[i, 0], v_cmd[i, 1], v_cmd[i, 2])
+        limits = (vmin[i], vmax[i], amax[i], radius[i], climb[i], roll[i])
+        a, b, c, d, e = fly_step(v, cmd, (kappa[i, 0], kappa[i, 1]), limits, dt)
         v1[i, 0], v1[i, 1], v1[i, 2], k1[i, 0], k1[i, 1] = a, b, c, d, e
     return v1, k1
 
@@ -156,8 +160,8 @@ def rollouts(pos, vel, kappa, turn, up, amax, radius, climb, roll, steps, dt):  
             for k in range(steps):
                 a = math.atan2(vy, vx) + turn[i, c] * _HALF_PI
                 vx, vy, vz, kh, kv = fly_step(
-                    vx, vy, vz, speed * cg * math.cos(a), speed * cg * math.sin(a), speed * sg, kh, kv,
-                    speed, speed, amax[i], radius[i], climb[i], roll[i], dt,
+                    (vx, vy, vz), (speed * cg * math.cos(a), speed * cg * math.sin(a), speed * sg), (kh, kv),
+                    (speed, speed, amax[i], radius[i], climb[i], roll[i]), dt,
                 )  # fmt: skip
                 x, y, z = x + vx * dt, y + vy * dt, z + vz * dt
                 out[i, c, k, 0], out[i, c, k, 1], out[i, c, k, 2] = x, y, z

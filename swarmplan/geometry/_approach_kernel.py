@@ -1,11 +1,11 @@
 """Compiled (numba) closest approaches of moving points to fixed points, for the pairs that can
-come close: the goal guard's threat test (``swarmplan.sim.guard``) at swarm size.
+come close: the evasion's threat test (``swarmplan.sim.evasion``) at swarm size.
 
 A threat ``j`` at ``c_j`` moving at ``u_j`` passes a fixed point ``p`` no closer than
 ``|c_j - p| - H |u_j|`` within a horizon ``H``; it can only come within ``need`` of ``p`` if
 ``|c_j - p| < need + H |u_j|``, so ``|x_j - x_p|`` is below that too. A sweep along x keeps the
 pairs within that reach (with a relative slack far above rounding) and runs the exact test, with
-numpy's formulas term for term (``guard._approach``), on them only.
+numpy's formulas term for term (``evasion._approach``), on them only.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ def threat_pairs(
     horizon: np.ndarray,
     keep_neg_zero: bool,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The pairs (guarding agent ``k``, threat ``j``) whose closest approach within
+    """The pairs (watching agent ``k``, threat ``j``) whose closest approach within
     ``horizon[k]`` to ``position[k]`` or ``goal[k]`` is below ``margin[j] + radius[k]``
     (``who[j] != rows[k]``), sorted by ``k * T + j``: their keys (P,), times (P, 2) (to the
     position, to the goal), misses (P, 2) and the offsets at the closest approach to the
@@ -123,8 +123,8 @@ def _maximum(a: float, b: float) -> float:
 def horizons(
     need: float, radius: np.ndarray, amax: np.ndarray, vmax: np.ndarray, factor: float, extra: float
 ) -> np.ndarray:
-    """``factor * guard.sideways_time(need + radius, amax, vmax) + extra`` per row, numpy's
-    operations in numpy's order (the guard's horizon of each guarding agent)."""
+    """``factor * evasion.sideways_time(need + radius, amax, vmax) + extra`` per row, numpy's
+    operations in numpy's order (the evasion's horizon of each watching agent)."""
     out = np.empty(len(radius))
     for k in range(len(radius)):
         d = _maximum(need + radius[k], 0.0)

@@ -371,12 +371,8 @@ def _put_point(out: np.ndarray, pos: int, pts: np.ndarray, raw: np.ndarray, r: i
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def line_entities(
-    stamp: np.ndarray,
-    fixed: np.ndarray,
-    head: np.ndarray,
-    color: np.ndarray,
-    prefix: np.ndarray,
-    prefix_at: np.ndarray,
+    fields: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    ids: tuple[np.ndarray, np.ndarray],
     entity_slot: np.ndarray,
     index: np.ndarray,
     join: np.ndarray,
@@ -391,8 +387,10 @@ def line_entities(
     prefix_at[s + 1]]`` followed by the decimal ``index[s]`` (none when negative), and one line
     primitive: ``head``, its points (a Point3 field each, +0.0 coordinates left out as proto3
     does: ``join[s]`` first when ``index[s] > 0``, then ``pts[slot_start[s]:slot_end[s]]``),
-    then ``color``. Returns the bytes written (``out`` must hold them; ``pts`` and ``join``
-    C-contiguous)."""
+    then ``color``; ``fields = (stamp, fixed, head, color)``, ``ids = (prefix, prefix_at)``.
+    Returns the bytes written (``out`` must hold them; ``pts`` and ``join`` C-contiguous)."""
+    stamp, fixed, head, color = fields
+    prefix, prefix_at = ids
     raw = pts.reshape(-1).view(np.uint8)
     join_raw = join.reshape(-1).view(np.uint8)
     pos = 0

@@ -191,13 +191,13 @@ class PathTrails:
         """The entities' records by ``kernels.line_entities`` (the bytes of :func:`_line_entities`):
         per slot ``counts`` of the rows of ``pts`` (in slot order), after its chunk's first point
         (the last sent) when ``index`` says it is not the first chunk."""
-        prefix, prefix_at = ids
+        prefix_at = ids[1]
         end = np.cumsum(counts)
         per_entity = 72 + len(stamp) + len(_FRAME_FIELD) + len(_LINE_HEAD) + len(_LINE_COLOR)
         out = np.empty(len(entity_slot) * per_entity + int(prefix_at[-1]) + 29 * len(pts), dtype=np.uint8)
+        fields = (np.frombuffer(stamp, dtype=np.uint8), _U8["frame"], _U8[head], _U8["color"])
         size = kernels.line_entities(
-            np.frombuffer(stamp, dtype=np.uint8), _U8["frame"], _U8[head], _U8["color"], prefix,
-            prefix_at, entity_slot, index, self._sent_last, np.ascontiguousarray(pts, dtype=float),
+            fields, ids, entity_slot, index, self._sent_last, np.ascontiguousarray(pts, dtype=float),
             end - counts, end, out,
         )  # fmt: skip
         return out[:size].tobytes()

@@ -14,14 +14,19 @@ from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True)
-def move_bats(X, V, best, cm, fit, op, w, f_lo, f_span, u, N, r, scale, lower, upper, cand):  # noqa: ANN001, ANN201
-    """Steps 1-2 of a generation, in place on ``V``, ``cm`` and ``cand``.
+def move_bats(bats, best, op, w, freq, u, N, scale, box, cand):  # noqa: ANN001, ANN201
+    """Steps 1-2 of a generation, in place on ``V``, ``cm`` and ``cand``; ``bats = (X, V, cm,
+    fit, r)`` (positions, velocities, chaotic maps, costs, pulse rates), ``freq = (f_lo,
+    f_span)``, ``box = (lower, upper)``.
 
     ``cm <- (4 cm)(1 - cm)``; ``V <- w V + mix`` with operator ``op`` (0: eq 18, 1: eqs 19-20,
     2: eq 21 with the worst bat); ``cand = X + V``, or where ``u[-1, i] > r_i`` the walk
     ``best + 0.5 (N[0, k] + 2 N[1, k]) * scale`` (eq 15), ``k`` counting the walking bats in
     order (``N`` has one row per walking bat); then clipped into the box. ``u[0]`` is the
     frequency draw ``beta`` of eqs 18 and 21 (unused by the chaotic operator)."""
+    X, V, cm, fit, r = bats
+    f_lo, f_span = freq
+    lower, upper = box
     n, d = X.shape
     last = u.shape[0] - 1
     worst = 0

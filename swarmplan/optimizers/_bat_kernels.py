@@ -105,10 +105,11 @@ def bat_move(X, V, best_x, A, r, u, c, box, cand):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def _accept(X, fit, A, r, cand, fc, u, off, best_x, best_f, r_new, c, changed):  # noqa: ANN001, ANN202
-    """Eq 10 (see ``bat._bat_acceptance``) then ``X*`` update (``bat._update_best``); returns
-    the new best cost. ``u[off + i]`` is bat ``i``'s ``rand_2``; accepted bats are marked in
-    ``changed``."""
+def _accept(bats, cand, fc, u, off, best_x, best_f, r_new, c, changed):  # noqa: ANN001, ANN202
+    """Eq 10 (see ``bat._bat_acceptance``) then ``X*`` update (``bat._update_best``) on ``bats
+    = (X, fit, A, r)`` (positions, costs, loudness, pulse rates); returns the new best cost.
+    ``u[off + i]`` is bat ``i``'s ``rand_2``; accepted bats are marked in ``changed``."""
+    X, fit, A, r = bats
     n, d = X.shape
     use_best = c[C_USE_BEST] != 0.0
     alpha, floor = c[C_ALPHA], c[C_FLOOR]
@@ -133,15 +134,16 @@ def _accept(X, fit, A, r, cand, fc, u, off, best_x, best_f, r_new, c, changed): 
 
 
 @njit(cache=True, nogil=True)
-def bat_accept(X, fit, A, r, cand, fc, u, best_x, best_f, r_new, c, changed):  # noqa: ANN001, ANN201
-    """Eq 10 and the ``X*`` update after the BA step; returns the new best cost.
+def bat_accept(bats, cand, fc, u, best_x, best_f, r_new, c, changed):  # noqa: ANN001, ANN201
+    """Eq 10 and the ``X*`` update after the BA step on ``bats = (X, fit, A, r)``; returns the
+    new best cost.
 
     ``rand_2`` follows ``bat_move``'s draws in ``u``; ``changed`` is cleared, then marks the
     accepted bats.
     """
-    n, d = X.shape
+    n, d = bats[0].shape
     changed[:] = False
-    return _accept(X, fit, A, r, cand, fc, u, n * (d + 2), best_x, best_f, r_new, c, changed)
+    return _accept(bats, cand, fc, u, n * (d + 2), best_x, best_f, r_new, c, changed)
 
 
 @njit(cache=True, nogil=True)
@@ -163,16 +165,18 @@ def _nth_not_in(t, ne, e0, e1, e2):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True)
-def iba_onlookers(X, fit, A, r, cand, fc, u, best_x, best_f, r_new, c, box, on, src, changed):  # noqa: ANN001, ANN201
-    """The employed bees' acceptance (as :func:`bat_accept`), then the onlookers' candidates
-    (eqs 11-13) into ``on`` and their sources into ``src``; returns the new best cost.
+def iba_onlookers(bats, cand, fc, u, best_x, best_f, r_new, c, box, on, src, changed):  # noqa: ANN001, ANN201
+    """The employed bees' acceptance (as :func:`bat_accept`, ``bats = (X, fit, A, r)``), then the
+    onlookers' candidates (eqs 11-13) into ``on`` and their sources into ``src``; returns the
+    new best cost.
 
     ``u[ne (d + 3):]`` holds, per onlooker in blocks of ``m``: roulette, dimension, three
     donors, ``rand_3``, ``eps`` (``u[:ne (d + 3)]`` was the employed bees' BA step).
     """
+    X, fit, A, r = bats
     ne, d = X.shape
     m = on.shape[0]
-    best_f = bat_accept(X, fit, A, r, cand, fc, u, best_x, best_f, r_new, c, changed)
+    best_f = bat_accept(bats, cand, fc, u, best_x, best_f, r_new, c, changed)
     # eq 11 with the fitness of eq 20 (bat.roulette_probabilities): cumulative weights
     cdf = np.empty(ne)
     total = fitness_cumsum(fit, cdf)

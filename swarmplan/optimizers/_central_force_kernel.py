@@ -104,12 +104,17 @@ def rank_masses(F, out):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def move_probes(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lower, span, upper, Unew, Xnew):  # noqa: ANN001, ANN201, E501
+def move_probes(U, WU, rowsum, dt2, memory, frep, box, out):  # noqa: ANN001, ANN201
     """One CFO/MCFO move for every probe, in the arithmetic order of the numpy expressions
     it replaces (bit-identical): gravity ``a = WU - rowsum * U`` (eq 14); CFO (``s`` empty)
     ``U + (0.5 * a) * dt2``; MCFO (eq 23) ``U + ((s_i * 0.5) * dt2) * a + (c1 * r1_i) *
-    (pbest - U) + (c2 * r2_i) * (gbest - U)`` with ``r1 = r[0], r2 = r[1]``; eq 16 repair in
-    the unit box (old position ``U``), then the box position ``clip(lower + u * span)``."""
+    (pbest - U) + (c2 * r2_i) * (gbest - U)`` with ``r1 = r[0], r2 = r[1]``, ``memory = (s,
+    pbest, gbest, r, c1, c2)``; eq 16 repair in the unit box (old position ``U``), then the box
+    position ``clip(lower + u * span)``, ``box = (lower, span, upper)``, into ``out = (Unew,
+    Xnew)``."""
+    s, pbest, gbest, r, c1, c2 = memory
+    lower, span, upper = box
+    Unew, Xnew = out
     n, d = U.shape
     mcfo = s.shape[0] > 0
     for i in range(n):
@@ -122,18 +127,21 @@ def move_probes(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lower, spa
                 x = x + (c2 * r[1, i]) * (gbest[j] - u)
             else:
                 x = u + (0.5 * a) * dt2
-            out = _repair(x, u, frep)
-            Unew[i, j] = out
-            Xnew[i, j] = _to_box(out, lower[j], span[j], upper[j])
+            x = _repair(x, u, frep)
+            Unew[i, j] = x
+            Xnew[i, j] = _to_box(x, lower[j], span[j], upper[j])
 
 
 @njit(cache=True, nogil=True)
-def move_probes_steps(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lower, span, upper, Unew, Xnew):  # noqa: ANN001, ANN201, E501
+def move_probes_steps(U, WU, rowsum, dt2, memory, frep, box, out):  # noqa: ANN001, ANN201
     """MCFO's move with 004 step 4 read as two moves (``update="steps"``), arguments as
     :func:`move_probes`: first the gravity move ``y = U + ((s_i * 0.5) * dt2) * a`` repaired
     with eq 16 (old position ``U``), then eq 18 on it, ``y + (c1 * r1_i) * (pbest - y) +
     (c2 * r2_i) * (gbest - y)``, repaired with old position ``y``. A kernel of its own so that
     the default move's loop stays as it was (a flag in it cost CFO ~0.1 µs per evaluation)."""
+    s, pbest, gbest, r, c1, c2 = memory
+    lower, span, upper = box
+    Unew, Xnew = out
     n, d = U.shape
     for i in range(n):
         for j in range(d):
@@ -143,9 +151,9 @@ def move_probes_steps(U, WU, rowsum, s, dt2, pbest, gbest, r, c1, c2, frep, lowe
             u = x
             x = x + (c1 * r[0, i]) * (pbest[i, j] - u)
             x = x + (c2 * r[1, i]) * (gbest[j] - u)
-            out = _repair(x, u, frep)
-            Unew[i, j] = out
-            Xnew[i, j] = _to_box(out, lower[j], span[j], upper[j])
+            x = _repair(x, u, frep)
+            Unew[i, j] = x
+            Xnew[i, j] = _to_box(x, lower[j], span[j], upper[j])
 
 
 @njit(cache=True, nogil=True)

@@ -148,35 +148,22 @@ def _toward(U, i, tgt, k, scale, M, row):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True)
-def fish_moves(
-    U,
-    centres,
-    best,
-    flags,
-    prey_pos,
-    target,
-    found,
-    best_U,
-    step,
-    rand_radius,
-    u,
-    G,
-    mode,
-    enhanced,
-    M,
-    X,
-    lower,
-    span,
-    rows,
-):  # noqa: ANN001, ANN201, E501
+def fish_moves(U, centres, best, flags, prey, best_U, steps, draws, enhanced, box, out, rows):  # noqa: ANN001, ANN201
     """All moves of a generation, one row each, fish by fish: swarm (eq 20, towards
     ``centres[i]``), follow (eq 18; ``enhanced``: IAFSA's eqs 29-30 with the bulletin board
-    ``best_U``), prey (eq 17 towards ``target``) or, when no try was better, a random move of
-    at most ``rand_radius`` (eq 21: ``Step``, or ``Visual`` with ``random_move="visual"``;
-    directions from ``G`` row by row as ``mode`` says). ``u[row]`` is the move's
-    ``rand(0, 1)`` (IAFSA following: its ``R``; random move: its length). Rows are clipped to
-    the unit box (``M``) and mapped to the box (``X``). ``rows[0, i]`` / ``rows[1, i]`` are
-    the rows of fish ``i``'s swarming / following outcome (the prey row when it fell back)."""
+    ``best_U``), prey (eq 17 towards ``target``, ``prey = (prey_pos, target, found)``) or, when
+    no try was better, a random move of at most ``rand_radius`` (eq 21: ``Step``, or ``Visual``
+    with ``random_move="visual"``; ``steps = (step, rand_radius)``; directions from ``G`` row by
+    row as ``mode`` says). ``u[row]`` is the move's ``rand(0, 1)`` (IAFSA following: its ``R``;
+    random move: its length; ``draws = (u, G, mode)``). Rows are clipped to the unit box (``M``)
+    and mapped to the box (``X``; ``box = (lower, span)``, ``out = (M, X)``). ``rows[0, i]`` /
+    ``rows[1, i]`` are the rows of fish ``i``'s swarming / following outcome (the prey row when
+    it fell back)."""
+    prey_pos, target, found = prey
+    step, rand_radius = steps
+    u, G, mode = draws
+    lower, span = box
+    M, X = out
     n, d = U.shape
     row = 0
     g = 0

@@ -266,7 +266,7 @@ class BatAlgorithm(Optimizer):
         k.bat_move(state.X, state.V, state.best_x, state.A, state.r, u, state.kit.c, state.kit.box, cand)
         fc = problem.evaluate(cand)
         state.best_f = k.bat_accept(
-            state.X, state.fit, state.A, state.r, cand, fc, u, state.best_x, state.best_f,
+            (state.X, state.fit, state.A, state.r), cand, fc, u, state.best_x, state.best_f,
             _pulse(self.params, iteration), state.kit.c, state.kit.changed,
         )  # fmt: skip
 
@@ -442,7 +442,7 @@ class IbaAbc(Optimizer):
         # 2. onlookers: roulette (eq 11), one-dimension mutation (eq 12), local search (eq 13)
         on = kit.on
         state.best_f = k.iba_onlookers(
-            state.X, state.fit, state.A, state.r, cand, fc, u, state.best_x, state.best_f,
+            (state.X, state.fit, state.A, state.r), cand, fc, u, state.best_x, state.best_f,
             _pulse(p, iteration), kit.c, kit.box, on, kit.src, kit.changed,
         )  # fmt: skip
         fo = problem.evaluate(on)

@@ -198,9 +198,10 @@ class IbaGauss(Optimizer):
         N = rng.standard_normal((2, int(np.count_nonzero(u[-1] > state.r)), d))
         scale = state.A.mean() * p["walk_scale"] * problem.span
         cand = np.empty((n, d))
+        bats = (state.X, state.V, state.cm, state.fit, state.r)
         K.move_bats(
-            state.X, state.V, state.best_x, state.cm, state.fit, state.operator, float(w),
-            float(f_lo), float(f_span), u, N, state.r, scale, problem.lower, problem.upper, cand,
+            bats, state.best_x, state.operator, float(w), (float(f_lo), float(f_span)), u, N, scale,
+            (problem.lower, problem.upper), cand,
         )  # fmt: skip
 
         # 3. evaluate, accept (eqs 6-7; bat._bat_acceptance and _update_best, compiled)

@@ -292,10 +292,9 @@ class CentralForce(Optimizer):
         c1, c2 = float(p.get("c1", 0.0)), float(p.get("c2", 0.0))
         K = _kernel()
         move = K.move_probes_steps if p.get("update") == "steps" else K.move_probes
-        move(
-            U, W @ U, theta, s, float(p["dt"]) ** 2, pbest, gbest, r, c1, c2,
-            float(p["frep"]), problem.lower, problem.span, problem.upper, Unew, X,
-        )  # fmt: skip
+        memory = (s, pbest, gbest, r, c1, c2)
+        box = (problem.lower, problem.span, problem.upper)
+        move(U, W @ U, theta, float(p["dt"]) ** 2, memory, float(p["frep"]), box, (Unew, X))
         return Unew, X
 
     def iterate(self, state: _CFOState, problem: Problem, rng: np.random.Generator, iteration: int) -> None:

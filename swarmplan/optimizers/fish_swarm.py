@@ -299,10 +299,10 @@ class _FishBase(Optimizer):
             u, G = buf[:rows_n], buf[rows_n:].reshape(g_n, d)
         M, X = np.empty((rows_n, d)), np.empty((rows_n, d))
         rows = np.empty((2, n), dtype=np.int64)
+        steps = (stp, vis if p["random_move"] == "visual" else stp)
         K.fish_moves(
-            U, centres, best, flags, prey_pos, target, found, state.best_U, stp,
-            vis if p["random_move"] == "visual" else stp, u, G, mode,
-            self.enhanced_following, M, X, lower, span, rows,
+            U, centres, best, flags, (prey_pos, target, found), state.best_U, steps, (u, G, mode),
+            self.enhanced_following, (lower, span), (M, X), rows,
         )  # fmt: skip
         FM = problem.evaluate(X)
         # per fish: outcome of swarming (or its prey fallback) vs following (or its fallback)

@@ -65,7 +65,7 @@ from swarmplan.planner.escape_gates import (
 )
 from swarmplan.planner.hold import holding_pattern
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
-from swarmplan.planner.segment_cost import Intent, SegmentCost, SegmentEncoding, agent_intents
+from swarmplan.planner.segment_cost import Flyer, Intent, SegmentCost, SegmentEncoding, agent_intents
 
 
 def escape_settings(world) -> dict:
@@ -303,19 +303,16 @@ class EscapePlanner:
         start_clear = float(static_clearance(sim, s.position[i], r)[0])
         v = s.velocity[i]
         intents = [it for j, it in self._intents(sim, i, extra).items() if not ignore or j not in ignore]
+        speed, climb, floor = float(p.speed_cruise[i]), float(p.max_climb[i]), float(p.min_altitude[i])
+        flyer = Flyer(r, speed, model_turn_radius(sim, i), climb, floor, bool(p.fixed_wing[i]))
         return SegmentCost(
             sim.world,
-            radius=r,
-            speed=float(p.speed_cruise[i]),
-            turn_radius=model_turn_radius(sim, i),
-            max_climb=float(p.max_climb[i]),
-            min_altitude=float(p.min_altitude[i]),
+            flyer,
             t0=s.t,
             margin=margin,
             heading=v if np.linalg.norm(v) > 0.5 else None,
             start_clearance=start_clear,
             intents=intents,
-            fixed_wing=bool(p.fixed_wing[i]),
             vertex_clearance=self.vertex_clearance(sim),
         )
 

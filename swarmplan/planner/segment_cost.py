@@ -156,18 +156,26 @@ class SegmentEncoding:
         return np.clip(off.reshape(-1), self.lower, self.upper)
 
 
+@dataclass(frozen=True)
+class Flyer:
+    """The agent whose segments are scored: its radius and its flight limits."""
+
+    radius: float  # m
+    speed: float  # m/s, the cruise speed the segment is flown at
+    turn_radius: float  # m
+    max_climb: float  # rad, the steepest flight-path angle
+    min_altitude: float  # m above the ground
+    fixed_wing: bool = False
+
+
 class SegmentCost:
-    """Scores candidate polylines of one agent; build with :meth:`for_agent` from a simulation."""
+    """Scores candidate polylines of one agent (a simulation's: ``EscapePlanner.make_cost``)."""
 
     def __init__(
         self,
         world,  # noqa: ANN001 - swarmplan.world.World
+        flyer: Flyer,
         *,
-        radius: float,
-        speed: float,
-        turn_radius: float,
-        max_climb: float,
-        min_altitude: float,
         t0: float = 0.0,
         margin: float = 1.0,
         heading: np.ndarray | None = None,
@@ -175,22 +183,21 @@ class SegmentCost:
         intents: list[Intent] | None = None,
         weights: Weights | None = None,
         spacing: float | None = None,
-        fixed_wing: bool = False,
         vertex_clearance: float = 0.0,
     ):
         self.world = world
-        self.r = float(radius)
-        self.speed = max(float(speed), 0.1)
-        self.turn_radius = float(turn_radius)
-        self.max_climb = float(max_climb)
-        self.min_alt = float(min_altitude)
+        self.r = float(flyer.radius)
+        self.speed = max(float(flyer.speed), 0.1)
+        self.turn_radius = float(flyer.turn_radius)
+        self.max_climb = float(flyer.max_climb)
+        self.min_alt = float(flyer.min_altitude)
         self.t0 = float(t0)
         self.margin = float(margin)
         self.heading = None if heading is None else _unit(np.asarray(heading, dtype=float))
         self.intents = intents or []
         self.w = weights or Weights()
         self.spacing = spacing if spacing is not None else max(0.5 * self.r, 0.25)
-        self.fixed_wing = fixed_wing
+        self.fixed_wing = bool(flyer.fixed_wing)
         self.vertex_clearance = float(vertex_clearance)
         self.static = [o for o in world.obstacles if not o.moving]
         self.moving = [o for o in world.obstacles if o.moving]

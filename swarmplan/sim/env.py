@@ -11,7 +11,7 @@ This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.sce
 distances), :mod:`~swarmplan.sim.steering` (the field's commands, the guide, the loiters of arrived fixed
 wings), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection), :mod:`~swarmplan.sim.safety`
 (safety filter, deconfliction, fixed-wing guard), :mod:`~swarmplan.sim.contacts` (collisions, crash point,
-arrival, near misses), :mod:`~swarmplan.sim.guard` (arrived multirotors out of a mover's way and back),
+arrival, near misses), :mod:`~swarmplan.sim.evasion` (arrived multirotors out of a mover's way and back),
 :mod:`~swarmplan.sim.records` (random streams, events and optimizer runs).
 """
 
@@ -38,7 +38,7 @@ from swarmplan.flight.kinematics import AgentParams
 from swarmplan.planner import make_planner
 from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.contacts import NearMisses, agent_collisions, arrivals, committed_hits, parked_contacts
-from swarmplan.sim.guard import GoalGuard
+from swarmplan.sim.evasion import Evasion
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
@@ -83,7 +83,7 @@ class Simulation:
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.scene)
         self._compiled = use_compiled_checks(self.n)  # swarm size: compiled per-step helpers
-        self.guard = GoalGuard(self.params, world.dt)
+        self.evasion = Evasion(self.params, world.dt)
         self.state: SwarmState | None = None
         self.seed: int | None = None
         self.metrics: RunMetrics | None = None
@@ -115,7 +115,7 @@ class Simulation:
         self.metrics.measure_start(*self.scene.clearances(start, self.scene.poses(0.0)[0]))
         self.steering.reset(start, goal)
         self.navigator.reset(self.state)
-        self.guard.reset()
+        self.evasion.reset()
         self.safety.turn[:] = 0.0  # fixed wings start straight and level
         self.near_misses = NearMisses(self.params)
         self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
@@ -177,8 +177,8 @@ class Simulation:
         q1, _ = self.scene.poses(t1)
         # Arrived multirotors under threat take off again (mode apf) to get out of its way.
         flying_before = s.mode != Mode.ARRIVED
-        if self.guard.guarding.any():
-            self._merge(self._guard_goals(s, q0, qv0))
+        if self.evasion.watching.any():
+            self._merge(self._watch_goals(s, q0, qv0))
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
         idx = np.flatnonzero(flying_now)
@@ -190,7 +190,7 @@ class Simulation:
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
         if self.planner is not None and len(idx):
             for i, seg in self.planner.on_step(self).items():
-                if s.mode[i] == Mode.APF and not self.guard.guarding[i]:
+                if s.mode[i] == Mode.APF and not self.evasion.watching[i]:
                     touched |= seg.mode in DONE_MODES  # not a segment's mode: ask the modes again
                     self._merge(nav.start_segment(s, i, seg))
 
@@ -203,12 +203,12 @@ class Simulation:
             # Parked: not flying (modes changed above stay flying ones: arrivals come later).
             cmd = self.steering.commands(s, idx, pos0, vel0, self._field_cache, q0, qv0, ~flying_now)
             self._merge(cmd.ended)
-            v_cmd = self.guard.commands(idx, cmd.velocity)
+            v_cmd = self.evasion.commands(idx, cmd.velocity)
             v_cmd, guarded = self.safety.guard_fixed_wings(
                 idx, pos0, vel0, v_cmd, cmd.obstacle_distance, cmd.clearance, t0
             )
             self._merge(guarded)
-            brake_goal = self.guard.brake_goals(idx, cmd.position, cmd.goal)
+            brake_goal = self.evasion.brake_goals(idx, cmd.position, cmd.goal)
             window = StepWindow(t0, t1, q0, q1)
             filtered = self.safety.fly(
                 Commands(idx, v_cmd), AgentMotion(pos0, vel0), window, s.mode, brake_goal
@@ -228,14 +228,14 @@ class Simulation:
 
         # Arrival (and its stop) only at a speed a one-step stop can take within max_accel.
         # Agents out of a threat's way cannot arrive; one back at its goal ends its evasion.
-        stop_speed = self.guard.stop_speeds()
+        stop_speed = self.evasion.stop_speeds()
         # Only a collision ends an agent between the step's start and here (segments, their ends and
-        # the guard's take-offs keep agents flying): who still flies is known without asking every mode.
+        # the evasions' take-offs keep agents flying): who still flies is known without asking every mode.
         flying = s.active if touched else active
         flown = vel1.copy() if self.loiter.fixed_wings else None
         arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying)
         self.loiter.fly_on(arrived.arrivals, s, vel1, flown, self.safety.turn, self.scene)
-        self._merge(self.guard.arrived(arrived, s))
+        self._merge(self.evasion.arrived(arrived, s))
 
         # Clearances at the committed positions (also the next step's distances).
         self._field_cache = self.field.query(pos1, q1)
@@ -249,7 +249,7 @@ class Simulation:
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
         on_stuck = None if self.planner is None else self._ask_planner
-        self._merge(nav.detect_stuck(s, on_stuck, exempt=self.guard.guarding))
+        self._merge(nav.detect_stuck(s, on_stuck, exempt=self.evasion.watching))
 
         terminated = not s.active.any()
         truncated = (not terminated) and t1 >= w.max_time - 1e-9
@@ -263,8 +263,8 @@ class Simulation:
         """The id of the obstacle nearest to agent ``i`` at the step's end."""
         return self.world.obstacles[int(np.argmin(self._field_cache[0][i]))].id
 
-    def _guard_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
-        """The goal guard's threat test at the step's start (``swarmplan.sim.guard``)."""
+    def _watch_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
+        """The evasion's threat test at the step's start (``swarmplan.sim.evasion``)."""
         if self._field_cache is None:
             self._field_cache = self.field.query(s.position, q0)
         cache, mv = self._field_cache, self.moving_mask
@@ -273,7 +273,7 @@ class Simulation:
         def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             return self.scene.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])
 
-        return self.guard.update(s, movers, surface)
+        return self.evasion.update(s, movers, surface)
 
     # ------------------------------------------------------------------ reports
 

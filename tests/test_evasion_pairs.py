@@ -1,6 +1,6 @@
-"""The goal guard's threat pairs from the compiled sweep (only pairs within a threat's reach get
+"""The evasion's threat pairs from the compiled sweep (only pairs within a threat's reach get
 the exact test) are the all-pairs numpy test's, bit for bit: random configurations, pairs
-exactly at the bound and a run whose guard takes the compiled path; and the near misses
+exactly at the bound and a run whose evasion takes the compiled path; and the near misses
 found by binary search on the sorted pair keys are the entries into the separation ellipsoids."""
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from helpers import events_of, run_to_end
-from test_goal_guard import _crossing, _world
+from test_evasion import _crossing, _world
 
-from swarmplan.sim import contacts, guard
-from swarmplan.sim.guard import threat_pairs
+from swarmplan.sim import contacts, evasion
+from swarmplan.sim.evasion import threat_pairs
 
 
 def _same(a: tuple, b: tuple) -> None:
@@ -97,7 +97,7 @@ def test_standing_threats_keep_numpys_zero_times():
 def test_a_run_with_the_compiled_pairs_is_the_same_run(tmp_path, monkeypatch, speed):
     world = _world(_crossing(speed, at=8.0))
     base = run_to_end(world, log_path=tmp_path / "dense.mcap")
-    monkeypatch.setattr(guard, "use_compiled_checks", lambda n: True)
+    monkeypatch.setattr(evasion, "use_compiled_checks", lambda n: True)
     swept = run_to_end(world, log_path=tmp_path / "swept.mcap")
     assert base[1]["agents"][0]["evasions"] == 1
     drop = {"wall_time"}

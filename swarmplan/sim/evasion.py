@@ -2,17 +2,17 @@
 of a moving obstacle (or of another agent) whose predicted path passes through it, and flies
 back to its goal once the threat has passed.
 
-The threat test, per guarding agent ``i`` (a multirotor that has arrived) and per mover or
+The threat test, per watching agent ``i`` (a multirotor that has arrived) and per mover or
 flying agent ``j``: ``j`` goes on at its current velocity, ``i`` is held where it is; the
 closest approach of ``j`` within the horizon ``H_i``, to ``i`` or to ``i``'s goal, is closer than
-``need = R_j + r_i + GUARD_MARGIN`` (a mover: its bounding radius; an agent: its radius, and
-``AGENT_MARGIN`` instead of ``GUARD_MARGIN``). ``H_i`` is the time ``i`` needs to move sideways
+``need = R_j + r_i + EVADE_MARGIN`` (a mover: its bounding radius; an agent: its radius, and
+``AGENT_MARGIN`` instead of ``EVADE_MARGIN``). ``H_i`` is the time ``i`` needs to move sideways
 by the largest such ``need`` from rest at ``max_accel`` and ``speed.max``, times
 ``HORIZON_FACTOR``, plus three steps of reaction.
 
 The evasion command moves the agent across the threat's path, away from its point of closest
 approach (head-on: to the threat's right, or to the side away from the nearest surface), until
-the predicted miss is ``need + GUARD_MARGIN``, at a speed it can stop from before it gets there;
+the predicted miss is ``need + EVADE_MARGIN``, at a speed it can stop from before it gets there;
 clear of every threat where it is, it hovers there until its goal is clear as well. The braking
 margin and the safety filter check the evasion step as every other step (static obstacles,
 bounds, other agents). While away the agent flies in mode ``apf`` (a log's audit covers it as
@@ -39,14 +39,14 @@ from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import mode_in, mode_table
 from swarmplan.sim.safety import AGENT_MARGIN
 
-GUARD_MARGIN = 0.5
+EVADE_MARGIN = 0.5
 """Metres an arrived agent keeps between its body and a mover's bounding sphere."""
 
 HORIZON_FACTOR = 1.5
 """The threat horizon over the time a sideways move by the needed distance takes."""
 
 _EPS = 1e-9
-_GUARDED = mode_table(Mode.ARRIVED, Mode.APF)  # the guard's agents: at their goals or in the field
+_WATCHED = mode_table(Mode.ARRIVED, Mode.APF)  # the watching agents: at their goals or in the field
 
 
 def _approach(
@@ -87,7 +87,7 @@ def threat_pairs_dense(
     horizon: np.ndarray,
 ) -> Pairs:
     """Every threat ``j`` (centres ``c``, velocities ``u``, ``margin``, agent index ``who`` or -1)
-    against every guarding agent ``k`` (index ``rows``, ``radius``, ``position``, ``goal``,
+    against every watching agent ``k`` (index ``rows``, ``radius``, ``position``, ``goal``,
     ``horizon``): the pairs whose closest approach to the agent or its goal is below
     ``margin[j] + radius[k]``, the agent itself left out."""
     t_star, closest, miss = _approach(c, u, position, horizon)
@@ -136,15 +136,15 @@ FAR_GOAL = np.array([1e9, 0.0, 0.0])
 """Offset of the goal row an evading agent's braking margin sees: its goal's cap never binds."""
 
 
-class GoalGuard:
-    """Which agents guard their goal (arrived multirotors, for the rest of the run) and which of
+class Evasion:
+    """Which agents watch over their goal (arrived multirotors, for the rest of the run) and which of
     them are out of a threat's way this step (reset with :meth:`reset`)."""
 
     def __init__(self, params: AgentParams, dt: float):
         self.params = params
         self.dt = dt
         n = len(params.ids)
-        self.guarding = np.zeros(n, dtype=bool)
+        self.watching = np.zeros(n, dtype=bool)
         self.evading = np.zeros(n, dtype=bool)
         self._command = np.zeros((n, 3))
         self._compiled = use_compiled_checks(n)
@@ -152,7 +152,7 @@ class GoalGuard:
         self._stop_speed.setflags(write=False)
 
     def reset(self) -> None:
-        self.guarding[:] = False
+        self.watching[:] = False
         self.evading[:] = False
         self._command[:] = 0.0
 
@@ -162,14 +162,14 @@ class GoalGuard:
         threats: tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]],
         surface: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
     ) -> Tally:
-        """Threat test for every guarding agent at the step's start. ``threats`` are the movers'
+        """Threat test for every watching agent at the step's start. ``threats`` are the movers'
         centres (M, 3), velocities (M, 3), bounding radii (M,) and ids; ``surface(rows)`` the
         clearance of agents ``rows`` to their nearest static surface and its outward normal. Arrived agents
         under threat take off (mode ``apf``, an ``evade_start`` event and an ``evasions`` count);
         agents already away stay evading while threatened; an agent that takes off flies straight
         back to its goal afterwards (the rest of its route is done). Returns the take-offs."""
         self.evading[:] = False
-        rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED))
+        rows = np.flatnonzero(self.watching & mode_in(s.mode, _WATCHED))
         if not len(rows):
             return NOTHING
         p = self.params
@@ -178,7 +178,7 @@ class GoalGuard:
         flying = np.flatnonzero(s.active)
         c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
         u = np.concatenate((velocities, s.velocity[flying]))
-        margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + AGENT_MARGIN])
+        margin = np.concatenate([radii + EVADE_MARGIN, p.radius[flying] + AGENT_MARGIN])
         who = np.concatenate([np.full(len(centres), -1), flying])
         if not len(c):
             return NOTHING
@@ -258,7 +258,7 @@ class GoalGuard:
                 e = e / np.linalg.norm(e)
                 if np.isfinite(clearance) and e @ normal < 0.0:
                     e = -e
-            move += e * max(need[j] + GUARD_MARGIN - gap, 0.0)
+            move += e * max(need[j] + EVADE_MARGIN - gap, 0.0)
         if np.isfinite(clearance) and move @ normal < 0.0 and clearance < np.linalg.norm(move) + p.radius[i]:
             move -= (move @ normal) * normal  # slide along the nearest surface, never into it
         length = float(np.linalg.norm(move))
@@ -290,15 +290,15 @@ class GoalGuard:
         return np.where(self.evading, -1.0, self._stop_speed)
 
     def arrived(self, tally: Tally, s: SwarmState) -> Tally:
-        """The step's arrivals: first arrivals start guarding (multirotors); a guarding agent back
+        """The step's arrivals: first arrivals start watching (multirotors); a watching agent back
         at its goal gives an ``evade_end`` instead of a second ``arrived`` (and keeps its first
         arrival time)."""
         if not tally.arrivals:
             return tally
-        back = {i for i, _t in tally.arrivals if self.guarding[i]}
+        back = {i for i, _t in tally.arrivals if self.watching[i]}
         for i, _t in tally.arrivals:
             if not self.params.fixed_wing[i]:
-                self.guarding[i] = True
+                self.watching[i] = True
         if not back:
             return tally
         names = {self.params.ids[i] for i in back}
