@@ -258,7 +258,7 @@ class PlanningContext(Protocol):
     n: int
     params: Any  # swarmplan.flight.kinematics.AgentParams
     collision: Any  # swarmplan.geometry.collision.CollisionWorld
-    field: Any  # swarmplan.geometry.shapes.ObstacleField
+    distances: Any  # the obstacles' distance field: swarmplan.geometry.shapes.ObstacleField
     moving_mask: np.ndarray
     guide: Any  # swarmplan.flight.guide.StaticGuide, None in worlds without static obstacles
 

@@ -41,7 +41,7 @@ def _states(rng: np.random.Generator, sim: Simulation, n: int):
 def test_compiled_braking_margin_equals_the_numpy_path(sim, seed, monkeypatch):
     rng = np.random.default_rng(seed)
     n = len(sim.params.ids)
-    q0, q1 = sim.scene.poses(1.0)[0], sim.scene.poses(1.1)[0]
+    q0, q1 = sim.obstacles.poses(1.0)[0], sim.obstacles.poses(1.1)[0]
     changed = checked = 0
     for _ in range(10):
         pos, vel, cmd, goal = _states(rng, sim, n)
@@ -95,15 +95,15 @@ def test_steps_free_answers_as_first_hits(sim, seed):
     from swarmplan.geometry.collision import first_hits_fcl
 
     rng = np.random.default_rng(seed)
-    q0, q1 = sim.scene.poses(2.0)[0], sim.scene.poses(2.1)[0]
+    q0, q1 = sim.obstacles.poses(2.0)[0], sim.obstacles.poses(2.1)[0]
     n = 600
     pos, _, cmd, _ = _states(rng, sim, n)
     end = pos + cmd * rng.choice([0.1, 0.5, 2.0], (n, 1))
     radii = rng.uniform(0.5, 1.5, n)
     free = sim.safety.steps_free(pos, end, radii, q0, q1)
-    mv = sim.scene.moving_mask
+    mv = sim.obstacles.moving_mask
     truth = np.array(
-        [h is None for h in first_hits_fcl(sim.scene.collision, pos, end, radii, q0[mv], q1[mv])]
+        [h is None for h in first_hits_fcl(sim.obstacles.collision, pos, end, radii, q0[mv], q1[mv])]
     )
     assert 50 < (~truth).sum() < n - 50
     np.testing.assert_array_equal(free, truth)

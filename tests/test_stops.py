@@ -76,8 +76,8 @@ def test_braking_margin_caps_the_speed_towards_a_wall_exactly(gap):
     idx = np.array([0])
     pos0 = sim.state.position.copy()
     vel0 = np.array([[8.0, 0.0, 0.0]])
-    q0, _ = sim.scene.poses(0.0)
-    q1, _ = sim.scene.poses(DT)
+    q0, _ = sim.obstacles.poses(0.0)
+    q1, _ = sim.obstacles.poses(DT)
     out = sim.safety.braking_margin(idx, pos0, vel0, np.array([[8.0, 0.0, 0.0]]), q0, q1)
     free = gap - float(sim.safety.margin(0))  # centre travel before the radius + margin touches
     need = 8.0**2 / (2 * A_MAX) + 8.0 * DT  # 8.8 m
@@ -92,7 +92,7 @@ def test_braking_margin_caps_the_speed_towards_a_wall_exactly(gap):
 
 def test_braking_margin_leaves_commands_away_from_the_wall_alone():
     sim = wall_world(3.0)
-    q0, _ = sim.scene.poses(0.0)
+    q0, _ = sim.obstacles.poses(0.0)
     cmd = np.array([[-8.0, 0.0, 0.0]])
     out = sim.safety.braking_margin(
         np.array([0]), sim.state.position.copy(), np.array([[-8.0, 0, 0]]), cmd, q0, q0

@@ -284,10 +284,10 @@ def test_braking_bisection_equals_the_fcl_bisection():
     w = _world(3)
     sim = Simulation(w)
     sim.reset(seed=0)
-    safety, cw = sim.safety, sim.scene.collision
-    mv = sim.scene.moving_mask
+    safety, cw = sim.safety, sim.obstacles.collision
+    mv = sim.obstacles.moving_mask
     rng = np.random.default_rng(3)
-    q0, q1 = sim.scene.poses(0.0)[0], sim.scene.poses(0.1)[0]
+    q0, q1 = sim.obstacles.poses(0.0)[0], sim.obstacles.poses(0.1)[0]
     start = rng.uniform(5, 95, (300, 3))
     start[:, 2] = rng.uniform(2, 48, 300)
     target = np.array([o.position for o in w.obstacles])[rng.integers(len(w.obstacles), size=300)]

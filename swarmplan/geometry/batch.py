@@ -9,7 +9,7 @@ batched rotation (tests: 1e-12). Meshes keep their per-obstacle distance grid.
 :meth:`ShapeBatch.distance` skips the gradients where only distances are needed.
 With ``compiled=True`` (the simulation's swarm-sized worlds, ``runtime.compiled.use_compiled``)
 :meth:`ShapeBatch.query` computes every primitive in one compiled pass
-(:mod:`swarmplan.geometry._field_kernels`, the same formulas; tests/test_field_kernels.py).
+(:mod:`swarmplan.geometry._distance_kernels`, the same formulas; tests/test_distance_kernels.py).
 """
 
 from __future__ import annotations
@@ -143,15 +143,15 @@ class ShapeBatch:
         d = np.empty((n, m))
         g = np.empty((n, m, 3))
         if self.compiled:
-            kernels = kernel_module("swarmplan.geometry._field_kernels")
+            kernels = kernel_module("swarmplan.geometry._distance_kernels")
             if len(self.unrotated):
-                kernels.field_query(points, c, self.unrotated, self.code, self.prm, d, g)
+                kernels.distance_query(points, c, self.unrotated, self.code, self.prm, d, g)
             if len(self.rotated):
                 # The 3x3 products in numpy (BLAS), as below: the same bits.
                 rot = self.rotated
                 local = self._local_exact(points, rot, c)
                 g_local = np.empty_like(local)
-                kernels.field_query_local(local, rot, self.code, self.prm, d, g_local)
+                kernels.distance_query_local(local, rot, self.code, self.prm, d, g_local)
                 g[:, rot] = (g_local @ self.rotation[rot].transpose(0, 2, 1)).transpose(1, 0, 2)
             for j in self.meshes:
                 d[:, j], g[:, j] = distance_and_gradient(self.obstacles[j], points, c[j], self.mesh_grids[j])

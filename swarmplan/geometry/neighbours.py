@@ -86,7 +86,7 @@ def agent_clearance_indexed(pos: np.ndarray, radius: np.ndarray) -> np.ndarray:
         return d.min(axis=1)
     if use_compiled(n):
         out = np.empty(n)
-        kernels = kernel_module("swarmplan.geometry._field_kernels")
+        kernels = kernel_module("swarmplan.geometry._distance_kernels")
         kernels.agent_clearance(np.asarray(pos, dtype=float), np.asarray(radius, dtype=float), out)
         return out
     from scipy.spatial import cKDTree

@@ -78,10 +78,10 @@ class PathContext:
     agent: AgentSpec
     margin: float = 0.0  # extra clearance beyond the agent's radius (m)
     ramp: float = 0.0  # m from the start/goal over which the altitude floor rises (0: half climb slope)
-    field: ObstacleField = field(init=False)
+    distances: ObstacleField = field(init=False)
 
     def __post_init__(self) -> None:
-        self.field = ObstacleField(self.world.static_obstacles)
+        self.distances = ObstacleField(self.world.static_obstacles)
         self.radius = float(self.agent.radius)
         self.need = self.radius + float(self.margin)
         self.fixed_wing = self.agent.model == "fixed_wing"
@@ -98,13 +98,13 @@ class PathContext:
         # rest are farther than the margin anyway (their clearance is then under-reported as
         # the bounding-sphere gap, which is still beyond the margin).
         reach = self.need + 1.0
-        for j, o in enumerate(self.field.obstacles):
+        for j, o in enumerate(self.distances.obstacles):
             gap = np.linalg.norm(pts - o.position, axis=1) - o.bounding_radius
             near = gap < reach
             d = gap
             if near.any():
                 d = gap.copy()
-                d[near] = distance_and_gradient(o, pts[near], None, self.field.mesh_grids.get(j))[0]
+                d[near] = distance_and_gradient(o, pts[near], None, self.distances.mesh_grids.get(j))[0]
             clear = np.minimum(clear, d)
         return (clear - self.radius).reshape(n, p)
 

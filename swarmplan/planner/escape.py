@@ -96,7 +96,7 @@ def static_clearance(sim: PlanningContext, pts: np.ndarray, radius: float) -> np
     clear = np.minimum(clear, (np.minimum(pts - w.bounds_min, w.bounds_max - pts) - radius).min(axis=1))
     static = ~sim.moving_mask
     if static.any():
-        d, _ = sim.field.query(pts)
+        d, _ = sim.distances.query(pts)
         clear = np.minimum(clear, d[:, static].min(axis=1) - radius)
     return clear
 

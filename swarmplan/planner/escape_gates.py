@@ -78,7 +78,7 @@ def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     pos, goal = s.position[i], s.goal[i]
     to_goal = float(np.linalg.norm(goal - pos))
     pull = apf.k_att * min(to_goal, apf.quadratic_radius)
-    d, g = sim.field.query(pos[None], poses_at(w.obstacles, s.t)[0])
+    d, g = sim.distances.query(pos[None], poses_at(w.obstacles, s.t)[0])
     rho = d[0] - float(sim.params.radius[i])
     near = rho < apf.influence
     if not near.any():
@@ -127,7 +127,7 @@ def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
     faces[2] = np.inf  # the floor is the ground's
     found.append((float(faces.min()) - r, "bounds", None))
     if w.obstacles:
-        d, _ = sim.field.query(pos[None], poses_at(w.obstacles, s.t)[0])
+        d, _ = sim.distances.query(pos[None], poses_at(w.obstacles, s.t)[0])
         k = int(np.argmin(d[0]))
         found.append((float(d[0, k]) - r, "body", w.obstacles[k].id))
     others = np.flatnonzero(np.arange(len(s.position)) != i)

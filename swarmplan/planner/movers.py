@@ -170,7 +170,7 @@ def moving_clearance(
             sel = np.flatnonzero(inside[:, which == u].any(axis=1))
             sel = sel[np.linalg.norm(pts[sel] - c, axis=1) <= reach]
             if len(sel):
-                grid_j = sim.field.mesh_grids.get(int(j))
+                grid_j = sim.distances.mesh_grids.get(int(j))
                 d = distance_and_gradient(o, pts[sel], c, grid_j)[0] - radius
                 out[sel] = np.minimum(out[sel], d)
     return out

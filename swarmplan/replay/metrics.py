@@ -271,7 +271,7 @@ def compute_metrics(rec: Recording, contact_tol: float = CONTACT_TOL) -> list[Ag
 
     # agent-agent distances minus radii at every step, to every other agent: one that has
     # arrived (or stopped) still hovers where it is, as in the simulation's own metrics
-    # (Simulation.step: Scene.agent_clearance over all agents)
+    # (Simulation.step: Obstacles.agent_clearance over all agents)
     agent_clear = np.full((A, T), np.inf)
     agent_closest = np.full((A, T), -1, int)
     contacts: dict[int, dict[str, np.ndarray]] = {i: {} for i in range(A)}

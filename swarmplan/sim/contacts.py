@@ -15,8 +15,8 @@ from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import PARKED, mode_in
+from swarmplan.sim.obstacles import Obstacles
 from swarmplan.sim.safety import StepWindow
-from swarmplan.sim.scene import Scene
 from swarmplan.world.motion import poses_at
 
 CRASH_DEPTH = 0.02
@@ -27,7 +27,7 @@ CONTACT_TOL = 1e-3
 
 
 def crash_point(
-    scene: Scene, radius: np.float64, p0: np.ndarray, p1: np.ndarray, t0: float, dt: float
+    obstacles: Obstacles, radius: np.float64, p0: np.ndarray, p1: np.ndarray, t0: float, dt: float
 ) -> np.ndarray:
     """Where the agent strikes on the step ``p0 → p1``: it stops there instead of flying on.
 
@@ -35,7 +35,7 @@ def crash_point(
     ``CRASH_DEPTH`` past it (bodies overlap in a crash), so an audit from positions alone
     sees the contact, and an agent never appears on the far side of a thin obstacle.
     """
-    mv = scene.moving_mask
+    mv = obstacles.moving_mask
     r = radius
     step = p1 - p0
     length = float(np.linalg.norm(step))
@@ -43,9 +43,11 @@ def crash_point(
         return p1.copy()
 
     def hits(s: float) -> bool:
-        qa = poses_at(scene.world.obstacles, t0)[0][mv]
-        qb = poses_at(scene.world.obstacles, t0 + s * dt)[0][mv]
-        return first_hits(scene.collision, p0[None], (p0 + s * step)[None], r[None], qa, qb)[0] is not None
+        qa = poses_at(obstacles.world.obstacles, t0)[0][mv]
+        qb = poses_at(obstacles.world.obstacles, t0 + s * dt)[0][mv]
+        return (
+            first_hits(obstacles.collision, p0[None], (p0 + s * step)[None], r[None], qa, qb)[0] is not None
+        )
 
     lo, hi = 0.0, 1.0
     if not hits(hi):  # a contact only another check saw (e.g. agent-agent): keep the step
@@ -217,7 +219,7 @@ def agent_collisions(
 
 
 def committed_hits(
-    scene: Scene,
+    obstacles: Obstacles,
     s: SwarmState,
     ids: tuple[str, ...],
     check: np.ndarray,
@@ -231,13 +233,15 @@ def committed_hits(
     ``velocity`` changed in place). The collisions, and whether any step touched."""
     if not len(check):
         return NOTHING, False
-    radius, mv, dt = scene.params.radius, scene.moving_mask, scene.world.dt
-    hits = first_hits(scene.collision, start[check], end[check], radius[check], window.q0[mv], window.q1[mv])
+    radius, mv, dt = obstacles.params.radius, obstacles.moving_mask, obstacles.world.dt
+    hits = first_hits(
+        obstacles.collision, start[check], end[check], radius[check], window.q0[mv], window.q1[mv]
+    )
     tally, touched = NOTHING, False
     for i, hit in zip(check, hits, strict=True):
         if hit is not None:
             touched = True
             tally = tally + collide(s, ids, i, hit, window.t1)
-            end[i] = crash_point(scene, radius[i], start[i], end[i], window.t0, dt)
+            end[i] = crash_point(obstacles, radius[i], start[i], end[i], window.t0, dt)
             velocity[i] = 0.0
     return tally, touched

@@ -7,7 +7,7 @@ agent) → arrival, stuck and near-miss detection → the step's result (everyth
 events, optimizer runs; the simulation writes nothing itself, observers of the results do). ``terminated``
 means every agent arrived, collided or failed; ``truncated`` means the world's ``sim.max_time`` ran out.
 
-This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.scene` (obstacles,
+This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.obstacles` (obstacles,
 distances), :mod:`~swarmplan.sim.steering` (the field's commands, the guide, the loiters of arrived fixed
 wings), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection), :mod:`~swarmplan.sim.safety`
 (safety filter, deconfliction, fixed-wing guard), :mod:`~swarmplan.sim.contacts` (collisions, crash point,
@@ -42,9 +42,9 @@ from swarmplan.sim.evasion import Evasion
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
+from swarmplan.sim.obstacles import Obstacles
 from swarmplan.sim.records import RunRecords, agent_states
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
-from swarmplan.sim.scene import Scene
 from swarmplan.sim.steering import Steering
 from swarmplan.world.model import World
 
@@ -72,16 +72,16 @@ class Simulation:
             raise ValueError(f"planner: expected 'world', 'none' or a Planner, got {planner!r}")
         self.planner = planner
         self.params = AgentParams.from_world(world)
-        self.scene = Scene(world, self.params)
-        self.steering = st = Steering(world, self.params, self.scene)
+        self.obstacles = Obstacles(world, self.params)
+        self.steering = st = Steering(world, self.params, self.obstacles)
         self.apf, self.navigator, self.loiter = st.apf, st.navigator, st.loiter
         # What planners read (see swarmplan.core.PlanningContext).
-        self.collision = self.scene.collision
-        self.field = self.scene.field
-        self.moving_mask = self.scene.moving_mask
+        self.collision = self.obstacles.collision
+        self.distances = self.obstacles.distances
+        self.moving_mask = self.obstacles.moving_mask
         self.n = len(world.agents)
         self.ids = self.params.ids
-        self.safety = SafetyFilter(world, self.params, self.scene)
+        self.safety = SafetyFilter(world, self.params, self.obstacles)
         self._compiled = use_compiled_checks(self.n)  # swarm size: compiled per-step helpers
         self.evasion = Evasion(self.params, world.dt)
         self.state: SwarmState | None = None
@@ -112,13 +112,13 @@ class Simulation:
         self.metrics.positions.append(start.copy())
         # The clearances at the start count too (a log's replay measures every sample from t = 0:
         # an agent that starts nearer to something than it ever flies was reported farther).
-        self.metrics.measure_start(*self.scene.clearances(start, self.scene.poses(0.0)[0]))
+        self.metrics.measure_start(*self.obstacles.clearances(start, self.obstacles.poses(0.0)[0]))
         self.steering.reset(start, goal)
         self.navigator.reset(self.state)
         self.evasion.reset()
         self.safety.turn[:] = 0.0  # fixed wings start straight and level
         self.near_misses = NearMisses(self.params)
-        self._field_cache: tuple[np.ndarray, np.ndarray] | None = None
+        self._distance_cache: tuple[np.ndarray, np.ndarray] | None = None
         self.wall_start = time.perf_counter()
         world_message = self.world.to_message(self.seed)
         records: list[OptimizerRun | Event] = []
@@ -132,7 +132,7 @@ class Simulation:
                 self.state.route[i] = np.asarray(route, dtype=float)
             self.navigator.reset(self.state)
         agents = agent_states(self.ids, self.state, self._compiled)
-        return ResetResult(self.state, world_message, records, agents, self.scene.obstacle_states(0.0))
+        return ResetResult(self.state, world_message, records, agents, self.obstacles.obstacle_states(0.0))
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
         """The random stream of one purpose for one agent (:meth:`RunRecords.rng_for`)."""
@@ -173,8 +173,8 @@ class Simulation:
         dt = w.dt
         nav = self.navigator
         t0, t1 = s.t, (s.step + 1) * dt
-        q0, qv0 = self.scene.poses(t0)
-        q1, _ = self.scene.poses(t1)
+        q0, qv0 = self.obstacles.poses(t0)
+        q1, _ = self.obstacles.poses(t1)
         # Arrived multirotors under threat take off again (mode apf) to get out of its way.
         flying_before = s.mode != Mode.ARRIVED
         if self.evasion.watching.any():
@@ -198,10 +198,10 @@ class Simulation:
         pos1, vel1 = pos0.copy(), np.zeros_like(vel0)  # the step of agents that do not fly
         if len(idx):
             # The previous step already measured every agent's distances at this position and time.
-            if self._field_cache is None:
-                self._field_cache = self.field.query(pos0, q0)
+            if self._distance_cache is None:
+                self._distance_cache = self.distances.query(pos0, q0)
             # Parked: not flying (modes changed above stay flying ones: arrivals come later).
-            cmd = self.steering.commands(s, idx, pos0, vel0, self._field_cache, q0, qv0, ~flying_now)
+            cmd = self.steering.commands(s, idx, pos0, vel0, self._distance_cache, q0, qv0, ~flying_now)
             self._merge(cmd.ended)
             v_cmd = self.evasion.commands(idx, cmd.velocity)
             v_cmd, guarded = self.safety.guard_fixed_wings(
@@ -218,7 +218,7 @@ class Simulation:
             # Contact on the committed step ends the agent. Steps the filter cleared with a
             # margin cannot touch anything; the rest (stops, agent-conflict brakes) are checked.
             hits, touched_any = committed_hits(
-                self.scene, s, self.ids, idx[~validated], pos0, pos1, vel1, window
+                self.obstacles, s, self.ids, idx[~validated], pos0, pos1, vel1, window
             )
             touched |= touched_any
             self._merge(hits)
@@ -234,12 +234,12 @@ class Simulation:
         flying = s.active if touched else active
         flown = vel1.copy() if self.loiter.fixed_wings else None
         arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying)
-        self.loiter.fly_on(arrived.arrivals, s, vel1, flown, self.safety.turn, self.scene)
+        self.loiter.fly_on(arrived.arrivals, s, vel1, flown, self.safety.turn, self.obstacles)
         self._merge(self.evasion.arrived(arrived, s))
 
         # Clearances at the committed positions (also the next step's distances).
-        self._field_cache = self.field.query(pos1, q1)
-        obst_clear, agent_clear, terr_clear = self.scene.clearances(pos1, q1, self._field_cache[0])
+        self._distance_cache = self.distances.query(pos1, q1)
+        obst_clear, agent_clear, terr_clear = self.obstacles.clearances(pos1, q1, self._distance_cache[0])
         parked = mode_in(s.mode, PARKED)
         if len(self.world.obstacles) and parked.any():
             # Arrived and failed agents stay in the air: an obstacle moving through one is a collision.
@@ -257,21 +257,21 @@ class Simulation:
             self._merge(timeouts(s, self.ids))
         events, runs = self.records.take()
         agents = agent_states(self.ids, self.state, self._compiled)
-        return StepResult(s, events, terminated, truncated, agents, self.scene.obstacle_states(t1), runs)
+        return StepResult(s, events, terminated, truncated, agents, self.obstacles.obstacle_states(t1), runs)
 
     def _nearest_obstacle(self, i: int) -> str:
         """The id of the obstacle nearest to agent ``i`` at the step's end."""
-        return self.world.obstacles[int(np.argmin(self._field_cache[0][i]))].id
+        return self.world.obstacles[int(np.argmin(self._distance_cache[0][i]))].id
 
     def _watch_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
         """The evasion's threat test at the step's start (``swarmplan.sim.evasion``)."""
-        if self._field_cache is None:
-            self._field_cache = self.field.query(s.position, q0)
-        cache, mv = self._field_cache, self.moving_mask
-        movers = (q0[mv], qv0[mv], self.scene.mover_radii, self.scene.mover_ids)
+        if self._distance_cache is None:
+            self._distance_cache = self.distances.query(s.position, q0)
+        cache, mv = self._distance_cache, self.moving_mask
+        movers = (q0[mv], qv0[mv], self.obstacles.mover_radii, self.obstacles.mover_ids)
 
         def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return self.scene.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])
+            return self.obstacles.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])
 
         return self.evasion.update(s, movers, surface)
 

@@ -29,7 +29,7 @@ from swarmplan.flight.kinematics import AgentParams
 from swarmplan.planner.hold import LOITER_FACTORS
 
 if TYPE_CHECKING:
-    from swarmplan.sim.scene import Scene
+    from swarmplan.sim.obstacles import Obstacles
 
 LEAD = math.radians(30.0)
 """How far ahead on the circle (rad) a loitering fixed wing's field pulls it."""
@@ -71,7 +71,7 @@ class Loiter:
         velocity: np.ndarray,
         flown: np.ndarray | None,
         turn: np.ndarray,
-        scene: Scene,
+        obstacles: Obstacles,
     ) -> None:
         """The fixed wings among ``arrivals`` (agent, time) cannot stop: each flies on at its
         step's velocity (its row of ``flown`` back into ``velocity``, which the arrival zeroed)
@@ -79,7 +79,7 @@ class Loiter:
         for i, _t in arrivals if flown is not None else ():
             if self.params.fixed_wing[i]:
                 velocity[i] = flown[i]
-                self.start(i, s.goal[i], turn[i], clear_of_statics(scene, i))
+                self.start(i, s.goal[i], turn[i], clear_of_statics(obstacles, i))
 
     def start(
         self, i: int, goal: np.ndarray, turn: np.ndarray, clearance: Callable[[np.ndarray], np.ndarray]
@@ -112,18 +112,18 @@ class Loiter:
         return np.column_stack([c[:, 0] + r * np.cos(theta), c[:, 1] + r * np.sin(theta), c[:, 2]])
 
 
-def clear_of_statics(scene: Scene, i: int) -> Callable[[np.ndarray], np.ndarray]:
+def clear_of_statics(obstacles: Obstacles, i: int) -> Callable[[np.ndarray], np.ndarray]:
     """``clearance(points) -> (P,)`` of agent ``i``'s body at ``points``: from the terrain and the
     bounds beyond its radius, from the static obstacles beyond its ``clearance``."""
-    w, p, field = scene.world, scene.params, scene.field
-    static = np.flatnonzero(~scene.moving_mask)
+    w, p, distances = obstacles.world, obstacles.params, obstacles.distances
+    static = np.flatnonzero(~obstacles.moving_mask)
 
     def clearance(points: np.ndarray) -> np.ndarray:
         r = p.radius[i]
         c = points[:, 2] - w.terrain_height(points[:, :2]) - r
         c = np.minimum(c, np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1) - r)
         if len(static):
-            c = np.minimum(c, field.distance(points, None, static).min(axis=1) - p.clearance[i])
+            c = np.minimum(c, distances.distance(points, None, static).min(axis=1) - p.clearance[i])
         return c
 
     return clearance

@@ -23,7 +23,7 @@ from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
-from swarmplan.sim.scene import Scene
+from swarmplan.sim.obstacles import Obstacles
 from swarmplan.world.model import World
 from swarmplan.world.motion import poses_at
 
@@ -71,10 +71,10 @@ class Filtered:
 class SafetyFilter:
     """Turns commanded velocities into steps that touch nothing (or stops, and says so)."""
 
-    def __init__(self, world: World, params: AgentParams, scene: Scene):
+    def __init__(self, world: World, params: AgentParams, obstacles: Obstacles):
         self.world = world
         self.params = params
-        self.scene = scene
+        self.obstacles = obstacles
         self._bounds = (
             np.ascontiguousarray(world.bounds_min, dtype=float),
             np.ascontiguousarray(world.bounds_max, dtype=float),
@@ -114,7 +114,7 @@ class SafetyFilter:
         speed = np.linalg.norm(vel0[idx], axis=1)
         horizon = horizon_steps(p, idx[fw], speed[fw], dt) * dt
         required = p.radius[idx]
-        reach = (speed + self.scene.max_obstacle_speed) * horizon + p.clearance[idx] + p.radius[idx]
+        reach = (speed + self.obstacles.max_obstacle_speed) * horizon + p.clearance[idx] + p.radius[idx]
         obstacle_clear = (d - p.radius[idx, None]).min(axis=1) if d.shape[1] else np.full(len(idx), np.inf)
         q = pos0[idx]
         bounds_clear = (
@@ -127,7 +127,7 @@ class SafetyFilter:
         close = np.flatnonzero((d[rows] < reach[rows, None]).any(axis=0)) if d.shape[1] else np.array([], int)
         obstacles = self.world.obstacles
 
-        field = self.scene.field
+        bodies = self.obstacles.distances
         static = [j for j in close if not obstacles[j].moving]
         movers = [j for j in close if obstacles[j].moving]
 
@@ -140,16 +140,16 @@ class SafetyFilter:
             inside = np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1)
             c = np.minimum(c, inside - radii)
             if static:
-                c = np.minimum(c, field.distance(points, None, np.array(static)).min(axis=1) - radii - extra)
+                c = np.minimum(c, bodies.distance(points, None, np.array(static)).min(axis=1) - radii - extra)
             if movers:
                 # Movers translate: a point's distance to one at time t is that of the point
                 # shifted by the mover's way since t = 0 to the mover where it started.
                 when, which = np.unique(np.rint(times / dt).astype(np.int64), return_inverse=True)
-                rows = np.searchsorted(np.flatnonzero(self.scene.moving_mask), movers)
+                rows = np.searchsorted(np.flatnonzero(self.obstacles.moving_mask), movers)
                 centers = self._predicted_centers(when)[:, rows]  # (T, movers, 3)
                 for k, j in enumerate(movers):
                     shifted = points - (centers[which, k] - obstacles[j].position)
-                    dj = field.distance(shifted, None, np.array([j]))[:, 0]
+                    dj = bodies.distance(shifted, None, np.array([j]))[:, 0]
                     c = np.minimum(c, dj - radii - extra)
             return c
 
@@ -288,8 +288,8 @@ class SafetyFilter:
                     rows = idx[undecided]
                     ends = pos0[rows] + vel1[undecided] * self.world.dt
                     radii = p.radius[rows] + self.margin(rows)
-                    mv = self.scene.moving_mask
-                    hits = first_hits_fcl(self.scene.collision, pos0[rows], ends, radii, q0[mv], q1[mv])
+                    mv = self.obstacles.moving_mask
+                    hits = first_hits_fcl(self.obstacles.collision, pos0[rows], ends, radii, q0[mv], q1[mv])
                     free[undecided] = [h is None for h in hits]
                 return out, vel1, free
         v_cmd = self.braking_margin(idx, pos0, vel0, v_cmd, q0, q1, goal)
@@ -337,8 +337,8 @@ class SafetyFilter:
         at that velocity (0 free, 1 touches, 2 FCL must decide); None when a braking sweep
         needs FCL's decision (then the numpy path runs)."""
         p = self.params
-        mv = self.scene.moving_mask
-        cw = self.scene.collision
+        mv = self.obstacles.moving_mask
+        cw = self.obstacles.collision
         dt = self.world.dt
         all_rows = len(k) == len(v_cmd)
         every = all_rows and len(rows) == len(pos0) and bool((rows == self._every).all())
@@ -385,8 +385,8 @@ class SafetyFilter:
         rows where it cannot decide a check (a body within ``BAND`` of contact, or a mesh),
         terrain worlds and smaller worlds run the same bisection through :func:`first_hits`
         (FCL decides)."""
-        mv = self.scene.moving_mask
-        cw = self.scene.collision
+        mv = self.obstacles.moving_mask
+        cw = self.obstacles.collision
         redo = np.arange(len(start))
         hit_rows, free = [], []
         if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
@@ -422,9 +422,9 @@ class SafetyFilter:
         return np.minimum(0.25, 0.2 * self.params.radius[i])
 
     def step_is_safe(self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> bool:
-        mv = self.scene.moving_mask
+        mv = self.obstacles.moving_mask
         return (
-            self.scene.collision.first_hit(p0, p1, self.params.radius[i] + self.margin(i), q0[mv], q1[mv])
+            self.obstacles.collision.first_hit(p0, p1, self.params.radius[i] + self.margin(i), q0[mv], q1[mv])
             is None
         )
 
@@ -434,8 +434,8 @@ class SafetyFilter:
         """Per step ``p0 -> p1`` (swept radius ``radii``, obstacles at ``q0`` -> ``q1``, all
         obstacles' rows): whether it touches nothing (``first_hits`` is None). At swarm size over
         flat ground one compiled call answers, FCL the steps it leaves undecided."""
-        mv = self.scene.moving_mask
-        cw = self.scene.collision
+        mv = self.obstacles.moving_mask
+        cw = self.obstacles.collision
         if not self._batched:
             return np.array([h is None for h in first_hits(cw, p0, p1, radii, q0[mv], q1[mv])], dtype=bool)
         status = step_kernels().touches_many(

@@ -22,7 +22,7 @@ from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
-from swarmplan.sim.scene import Scene
+from swarmplan.sim.obstacles import Obstacles
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
 from swarmplan.world.motion import next_rest
@@ -43,8 +43,8 @@ class Commands:
 class Steering:
     """The field, the guide, the navigator and the loiter circles of one run (reset with :meth:`reset`)."""
 
-    def __init__(self, world: World, params: AgentParams, scene: Scene):
-        self.world, self.params, self.scene = world, params, scene
+    def __init__(self, world: World, params: AgentParams, obstacles: Obstacles):
+        self.world, self.params, self.obstacles = world, params, obstacles
         self.apf = ApfField(world, params)
         # The way round static obstacles for agents whose straight line is blocked (None without any).
         self.guide: StaticGuide | None = make_guide(world, params)
@@ -85,14 +85,14 @@ class Steering:
         """The commands of flying agents ``idx`` of state ``s`` at the step's start (every agent
         at ``pos0`` moving at ``vel0``): ``field`` the distances and gradients of every agent to
         the obstacles at poses ``q0`` moving at ``qv0``; ``parked`` the agents that no longer fly."""
-        mv = self.scene.moving_mask
+        mv = self.obstacles.moving_mask
         if len(idx) == len(pos0):  # every agent flies: the rows are the cache's (read only)
             d, g = field
             p_idx, v_idx, goal_idx = pos0, vel0, s.goal.copy()
         else:
             d, g = field[0][idx], field[1][idx]
             p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
-        inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
+        inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.obstacles.bounding_radius, q0)
         if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
             inputs = with_cores(inputs, p_idx, self._threat_cores)
         target, rep_scale, ended = self.navigator.attraction_targets(s, idx)
@@ -110,7 +110,7 @@ class Steering:
         flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
         to_go = norm3(s.goal - pos0)
         force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
-        clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
+        clearance, normal = self.obstacles.nearest_surface(idx, p_idx, d, g)
         if self._threat_cores is not None:
             cores, radius = self._threat_cores, self.params.radius[idx]
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)

@@ -1,5 +1,6 @@
-"""The papers' scenarios (worlds/papers) run to arrival, pass the log audit (replay's recomputation,
-plus check_log.py where it exists) and respect the kinematics."""
+"""The papers' scenarios (worlds/papers) run to arrival, pass the log audit (replay's recomputation
+agrees with ``/summary``, as ``replay --strict`` asks; plus check_log.py where it exists) and
+respect the kinematics, the turn limits of ``/summary`` included."""
 
 from __future__ import annotations
 
@@ -53,6 +54,9 @@ def _check_paper_run(path: Path, seed: int | None, tmp_path: Path) -> None:
     problems, _notes, stats = audit(log)
     assert problems == [], problems
     assert stats["arrived"] == stats["agents"] == len(world.agents) and stats["collisions"] == 0
+    # A fixed wing's curvature within 1.05 / R_min, a multirotor's lateral acceleration within
+    # 1.05 max_accel (as for every shipped world, tests/test_strict_all_worlds.py).
+    assert [a["id"] for a in summary["agents"] if a.get("curvature_violation")] == []
     t, pos, vel, modes = _states(log)
     dt = world.dt
     for i, a in enumerate(world.agents):

@@ -1,6 +1,6 @@
 """Compiled per-step geometry of swarm-sized worlds: the distance field of every primitive
 obstacle (``ShapeBatch.query``), the nearest static surface per agent
-(``Scene.nearest_surface``) and the agents' clearance to each other
+(``Obstacles.nearest_surface``) and the agents' clearance to each other
 (``neighbours.agent_clearance_indexed``).
 
 Why numba: at 64-256 agents and 40 obstacles each of these was a dozen or more numpy calls
@@ -9,7 +9,7 @@ agents, 2.2 ms at 256, mostly per-call overhead and temporaries; the clearance a
 build and query per step); one loop per point and obstacle computes each value where it is
 used. The distances are ``_shape_kernel.sdf_grad`` (the shapes' one compiled distance, whose
 numpy twin ``shapes.SDF`` the numpy callers use), so the values are theirs bit for bit
-(tests/test_field_kernels.py): rotated bodies get their
+(tests/test_distance_kernels.py): rotated bodies get their
 local points and their gradients' rotation back from numpy (``ShapeBatch.query``), because
 numpy's 3x3 products go through BLAS, whose fused multiply-adds a loop here would not
 reproduce (30 % of the coordinates differed in the last bit). The clearance is exact (the
@@ -30,7 +30,7 @@ from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def field_query(points, centers, cols, code, prm, d, g):  # noqa: ANN001, ANN201
+def distance_query(points, centers, cols, code, prm, d, g):  # noqa: ANN001, ANN201
     """``d[i, j], g[i, j]`` (signed distance, world-frame gradient) of ``points[i]`` to the
     unrotated primitive obstacle ``j`` placed at ``centers[j]``, for every ``j`` in ``cols``.
     numpy multiplies by the identity through BLAS, whose sums start from +0.0: its products
@@ -52,7 +52,7 @@ def field_query(points, centers, cols, code, prm, d, g):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def field_query_local(local, cols, code, prm, d, g_local):  # noqa: ANN001, ANN201
+def distance_query_local(local, cols, code, prm, d, g_local):  # noqa: ANN001, ANN201
     """``d[i, cols[k]]`` and the local gradient ``g_local[k, i]`` of the local points
     ``local[k, i]`` (point i in the frame of obstacle ``cols[k]``)."""
     for k in range(cols.shape[0]):
@@ -69,7 +69,7 @@ def field_query_local(local, cols, code, prm, d, g_local):  # noqa: ANN001, ANN2
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def nearest_surface(d, g, static, r, pz, h, gh, clear, normal):  # noqa: ANN001, ANN201
-    """``Scene.nearest_surface``: per row, the terrain clearance ``pz - h - r`` and its unit
+    """``Obstacles.nearest_surface``: per row, the terrain clearance ``pz - h - r`` and its unit
     normal, replaced by the closest static obstacle (the first on ties) when that is closer."""
     n, m = d.shape
     for i in range(n):

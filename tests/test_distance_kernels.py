@@ -16,7 +16,7 @@ from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.shapes import ObstacleField
 from swarmplan.runtime.compiled import COMPILED_FROM
-from swarmplan.sim.scene import Scene
+from swarmplan.sim.obstacles import Obstacles
 from swarmplan.world import load_world, parse_world
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -134,22 +134,22 @@ def _swarm_world(n, peaks):
 @pytest.mark.parametrize("peaks", [False, True])
 def test_compiled_nearest_surface_equals_numpy(peaks):
     world = _swarm_world(COMPILED_FROM, peaks)
-    scene = Scene(world, AgentParams.from_world(world))
-    assert scene.compiled
+    obstacles = Obstacles(world, AgentParams.from_world(world))
+    assert obstacles.compiled
     rng = np.random.default_rng(1)
     n = len(world.agents)
     pos = rng.uniform([0, 0, 0], [300, 200, 60], (n, 3))
     pos[0] = [100, 100, 30]  # at the sphere's centre
     pos[1] = [100, 100, 11.0]  # below the sphere: as far from it as from the ground (a tie)
     pos[2] = [60, 150, 2.0]  # on the cylinder's axis, near the ground
-    q, _ = scene.poses(0.0)
-    d, g = scene.field.query(pos, q)
+    q, _ = obstacles.poses(0.0)
+    d, g = obstacles.distances.query(pos, q)
     idx = np.sort(rng.choice(n, n - 5, replace=False))
     idx[:3] = [0, 1, 2]
     idx = np.unique(idx)
-    got = scene.nearest_surface(idx, pos[idx], d[idx], g[idx])
-    scene.compiled = False
-    ref = scene.nearest_surface(idx, pos[idx], d[idx], g[idx])
+    got = obstacles.nearest_surface(idx, pos[idx], d[idx], g[idx])
+    obstacles.compiled = False
+    ref = obstacles.nearest_surface(idx, pos[idx], d[idx], g[idx])
     assert (ref[0] < pos[idx, 2]).any()  # some agents are nearer an obstacle than the ground
     np.testing.assert_array_equal(got[0], ref[0])
     np.testing.assert_array_equal(got[1], ref[1])

@@ -16,7 +16,7 @@ from swarmplan.world.model import World
 from swarmplan.world.motion import max_speed, poses_at
 
 
-class Scene:
+class Obstacles:
     """Everything about a world's obstacles that stays fixed over a run."""
 
     def __init__(self, world: World, params: AgentParams):
@@ -27,7 +27,7 @@ class Scene:
         # equal to ObstacleField's; min_distance stays exact for meshes. Swarm-sized worlds
         # compute the field and the nearest surfaces compiled (runtime.compiled.use_compiled).
         self.compiled = use_compiled(len(world.agents))
-        self.field = ShapeBatch(world.obstacles, compiled=self.compiled)
+        self.distances = ShapeBatch(world.obstacles, compiled=self.compiled)
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
         self._static_mask = ~self.moving_mask
         self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
@@ -75,7 +75,7 @@ class Scene:
         gh = self.world.terrain_gradient(pos[:, :2])
         if self.compiled:
             clear, normal = np.empty(len(idx)), np.empty((len(idx), 3))
-            kernels = kernel_module("swarmplan.geometry._field_kernels")
+            kernels = kernel_module("swarmplan.geometry._distance_kernels")
             kernels.nearest_surface(d, g, self._static_mask, r, pos[:, 2], h, gh, clear, normal)
             return clear, normal
         clear = pos[:, 2] - h - r
@@ -104,7 +104,7 @@ class Scene:
         obstacles), to the other agents and to the terrain."""
         r = self.params.radius
         if len(self.world.obstacles):
-            obstacles = self.field.min_distance(pos, q, d) - r
+            obstacles = self.distances.min_distance(pos, q, d) - r
         else:
             obstacles = np.full(len(pos), np.inf)
         terrain = pos[:, 2] - self.world.terrain_height(pos[:, :2]) - r
