@@ -40,7 +40,7 @@ class InputError(Exception):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from swarmplan.export.core import FORMATS
+    from swarmplan.export.files import FORMATS
 
     ap = argparse.ArgumentParser(
         prog="python -m swarmplan.export",
@@ -101,7 +101,7 @@ def parse_origin(text: str) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     limit_blas_threads()
-    from swarmplan.export.core import build, run_check, write
+    from swarmplan.export.files import build, run_check, write
     from swarmplan.export.source import ExportError, LimitError
     from swarmplan.replay import RecordingError, load
     from swarmplan.world.tracker_config import parse_tracker

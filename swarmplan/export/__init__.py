@@ -8,7 +8,7 @@ each checked by flying it again (``docs/export.md``).
 >>> write(exp, "out/room")  # doctest: +SKIP
 """
 
-from .core import FORMATS, Export, build, run_check, write
+from .files import FORMATS, Export, build, run_check, write
 from .source import ExportError, LimitError
 
 __all__ = ["FORMATS", "Export", "ExportError", "LimitError", "build", "run_check", "write"]
