@@ -101,12 +101,17 @@ class Swarm:
     """Every agent of the world (``pos``/``vel`` (N, 3)); ``parked`` (N,) marks those that no
     longer fly (arrived, stopped), which repel as static bodies (with the goal factor);
     ``goal_distance`` (N,) each one's distance to its goal (default: none nearer than any
-    flyer to its own, i.e. no priority between flying agents)."""
+    flyer to its own, i.e. no priority between flying agents).
+
+    With ``known`` (flyers, N), the swarm as each flyer believes it: ``pos``/``vel`` (flyers,
+    N, 3), ``parked`` and ``goal_distance`` (flyers, N), row k what flyer k believes of every
+    agent, and ``known[k, b]`` whether it knows of agent b at all (``swarmplan.sim.network``)."""
 
     pos: np.ndarray
     vel: np.ndarray
     parked: np.ndarray | None = None
     goal_distance: np.ndarray | None = None
+    known: np.ndarray | None = None
 
 
 def reach_at_speed(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:
@@ -196,13 +201,21 @@ class ApfField:
         # A target equal to the goal is the same field as no target (the quadratic well included).
         tgt = goal if flyers.target is None else flyers.target
         scale = np.ones(n) if flyers.static_scale is None else np.asarray(flyers.static_scale, dtype=float)
-        parked = np.zeros(len(swarm.pos), dtype=bool) if swarm.parked is None else swarm.parked
+        all_pos, all_vel, shape = swarm.pos, swarm.vel, swarm.pos.shape[:-1]
+        parked = np.zeros(shape, dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
-        goal_dist = (
-            np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
-        )
+        goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
-        reach_all = self._reach_at_speed(None, swarm.vel)
+        if swarm.known is None:  # one swarm for every flyer
+            view = np.zeros((0, 0), dtype=np.int64)
+            reach_all = self._reach_at_speed(None, all_vel)
+        else:  # each flyer's own beliefs: its rows of the flattened tables
+            n_all = shape[1]
+            rows = np.arange(n * n_all, dtype=np.int64).reshape(n, n_all)
+            view = np.where(swarm.known, rows, -1)
+            all_pos, all_vel = all_pos.reshape(-1, 3), all_vel.reshape(-1, 3)
+            parked, goal_dist = parked.reshape(-1), goal_dist.reshape(-1)
+            reach_all = self._reach_at_speed(np.tile(np.arange(n_all), n), all_vel)
         if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
@@ -214,11 +227,11 @@ class ApfField:
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              field.obstacle_center, field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (swarm.pos, swarm.vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all),
+            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view),
             self._reach * (1.0 + 1e-9) + 1e-9,
             self._gains,
             out,
-            len(swarm.pos) >= WINDOW_FROM,
+            shape[-1] >= WINDOW_FROM,
         )  # fmt: skip
         return out
 

@@ -42,6 +42,7 @@ from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
+from swarmplan.sim.network import Network
 from swarmplan.sim.records import RunRecords, agent_states
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
@@ -89,6 +90,9 @@ class Simulation:
         self.metrics: RunMetrics | None = None
         self.wall_start = 0.0
         self.records = RunRecords(self.ids)
+        # What each agent has heard of the others (None: every agent knows the truth).
+        self.network = None if world.comms is None else Network(world.comms, world.sensing, self.n, world.dt)
+        self.steering.network = self.network
 
     @property
     def guide(self) -> StaticGuide | None:
@@ -114,6 +118,8 @@ class Simulation:
         # an agent that starts nearer to something than it ever flies was reported farther).
         self.metrics.measure_start(*self.scene.clearances(start, self.scene.poses(0.0)[0]))
         self.steering.reset(start, goal)
+        if self.network is not None:
+            self.network.reset(self.rng_for("comms"), start, np.linalg.norm(goal - start, axis=1))
         self.navigator.reset(self.state)
         self.guard.reset()
         self.safety.turn[:] = 0.0  # fixed wings start straight and level
@@ -175,6 +181,8 @@ class Simulation:
         t0, t1 = s.t, (s.step + 1) * dt
         q0, qv0 = self.scene.poses(t0)
         q1, _ = self.scene.poses(t1)
+        if self.network is not None:
+            self.network.deliver(t0)
         # Arrived multirotors under threat take off again (mode apf) to get out of its way.
         flying_before = s.mode != Mode.ARRIVED
         if self.guard.guarding.any():
@@ -210,8 +218,9 @@ class Simulation:
             self._merge(guarded)
             brake_goal = self.guard.brake_goals(idx, cmd.position, cmd.goal)
             window = StepWindow(t0, t1, q0, q1)
+            agreed = None if self.network is None else self.network.agreed(t0)
             filtered = self.safety.fly(
-                Commands(idx, v_cmd), AgentMotion(pos0, vel0), window, s.mode, brake_goal
+                Commands(idx, v_cmd, cmd.beliefs, agreed), AgentMotion(pos0, vel0), window, s.mode, brake_goal
             )
             pos1, vel1, validated = filtered.end.position, filtered.end.velocity, filtered.validated
             self._merge(filtered.tally)
@@ -248,6 +257,9 @@ class Simulation:
         self._merge(self.near_misses.update(pos1, active, t1))
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
+        if self.network is not None:
+            parked_now = ~self.loiter.flying(s, s.active)
+            self.network.broadcast(t0, t1, pos1, vel1, parked_now, np.linalg.norm(s.goal - pos1, axis=1))
         on_stuck = None if self.planner is None else self._ask_planner
         self._merge(nav.detect_stuck(s, on_stuck, exempt=self.guard.guarding))
 

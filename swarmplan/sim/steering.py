@@ -22,6 +22,7 @@ from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
+from swarmplan.sim.network import Beliefs, Network
 from swarmplan.sim.scene import Scene
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
@@ -38,6 +39,7 @@ class Commands:
     obstacle_distance: np.ndarray  # (n, obstacles) surface distances at the step's start
     clearance: np.ndarray  # (n,) to the nearest static surface (threat cores included)
     ended: Tally  # segments and routes that ended on the way
+    beliefs: Beliefs | None = None  # with comms: what they believe of the others
 
 
 class Steering:
@@ -54,6 +56,7 @@ class Steering:
         self.navigator = Navigator(world, params, self.guide)
         self.loiter = Loiter(params)  # arrived fixed wings circle their goals
         self.sight = Sight(len(world.agents))  # fixed wings' clear lines (swarmplan.flight.sight)
+        self.network: Network | None = None  # with comms: each agent's beliefs of the others
 
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
         """Back to the bodies at rest at t = 0 (a mover parked in the last run), the guide's ways
@@ -109,10 +112,16 @@ class Steering:
             target[rows] = goal_idx[rows] = ahead
         flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
         to_go = norm3(s.goal - pos0)
-        force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
+        b = None
+        if self.network is None:
+            swarm = Swarm(pos0, vel0, parked, to_go)
+        else:  # each flyer's own beliefs of the others
+            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go)
+            swarm = Swarm(b.pos, b.vel, b.parked, b.goal_distance, b.known)
+        force = self.apf.forces(flyers, inputs, swarm)
         clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
         if self._threat_cores is not None:
             cores, radius = self._threat_cores, self.params.radius[idx]
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
         v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
-        return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended)
+        return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b)

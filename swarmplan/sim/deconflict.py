@@ -1,0 +1,151 @@
+"""Each agent's own deconfliction on what it believes of the others (worlds with ``comms``).
+
+Without ``comms`` the safety filter deconflicts every pair on both agents' committed steps (a
+perfect network lets them agree within the step). With it, two agents agree that way only when
+each heard the other's state of this very step (an instantaneous network); every other pair is
+judged by the flyer alone: its own step against the other's believed motion over the step
+(the last state heard, moved on by its velocity), with a margin for what the other may have
+done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
+A multirotor that would come within both radii, ``AGENT_MARGIN`` and that margin brakes
+(``max_accel``) when braking clears, else stops (an ``emergency_stop``).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from swarmplan.core import Event, Mode
+from swarmplan.geometry.collision import segment_segment_min_distance
+from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.sim.network import Beliefs
+
+AGENT_MARGIN = 0.2
+"""Metres kept between two agents' swept bodies by deconfliction."""
+
+if TYPE_CHECKING:
+    from swarmplan.sim.safety import Commands, SafetyFilter, StepWindow
+
+
+def deconflict(
+    filt: SafetyFilter,
+    commands: Commands,
+    start: tuple[np.ndarray, np.ndarray],
+    end: tuple[np.ndarray, np.ndarray],
+    mode: np.ndarray,
+    window: StepWindow,
+) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
+    """The flying agents' (``commands.idx``) steps from ``start`` to ``end`` (positions,
+    velocities; ``end`` changed in place) deconflicted: a pair that would come within both
+    radii and ``AGENT_MARGIN`` stops its multirotor(s), braking (``max_accel``) where braking
+    clears, until no conflict remains; with ``comms`` only the pairs that can agree within the
+    step, and then each agent alone on its beliefs (:func:`belief_conflicts`). Returns the
+    events, the stop counters and which agents braked or stopped."""
+    (pos0, vel0), (pos1, vel1) = start, end
+    p, dt, ids = filt.params, filt.world.dt, filt.params.ids
+    events: list[Event] = []
+    counts: list[tuple[str, int]] = []
+    n = len(ids)
+    active = np.zeros(n, dtype=bool)
+    active[commands.idx] = True
+    stopped = np.zeros(n, dtype=bool)
+    present = active | (mode == Mode.ARRIVED)  # no mode changes below
+    for _ in range(n):
+        pairs = agent_contacts_indexed(pos0, pos1, p.radius, present, AGENT_MARGIN)
+        if commands.beliefs is not None:  # together only the pairs that can agree within the step
+            pairs = [(a, b) for a, b in pairs if commands.agreed is not None and commands.agreed[a, b]]
+        changed = False
+        for a, b in pairs:
+            for i in (a, b):
+                if active[i] and not stopped[i] and not p.fixed_wing[i]:
+                    safe_brake = filt.brake(i, vel0[i])
+                    p_brake = pos0[i] + safe_brake * dt
+                    other = b if i == a else a
+                    d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
+                    if d >= p.radius[i] + p.radius[other] + AGENT_MARGIN and filt.step_is_safe(
+                        i, pos0[i], p_brake, window.q0, window.q1
+                    ):
+                        vel1[i] = safe_brake
+                    else:
+                        vel1[i] = 0.0
+                        counts += filt.stop_counts(i, vel0[i])
+                        events.append(Event(window.t1, ids[i], "emergency_stop", {"other": ids[other]}))
+                    pos1[i] = pos0[i] + vel1[i] * dt
+                    stopped[i] = True
+                    changed = True
+        if not changed:
+            break
+    if commands.beliefs is not None:  # the rest: each agent alone, on what it believes
+        deciding = active & ~stopped & ~p.fixed_wing
+        more = belief_conflicts(filt, commands.beliefs, start, end, deciding, commands.agreed, window)
+        events, counts, stopped = events + more[0], counts + more[1], stopped | more[2]
+    return events, counts, stopped
+
+
+def belief_margin(max_accel: np.ndarray, age: np.ndarray, dt: float) -> np.ndarray:
+    """How far an agent may be from where it is believed at the end of a step: accelerating at
+    ``max_accel`` since its state was true, ``age`` seconds before the step's start."""
+    a = np.where(np.isfinite(age), age, 0.0) + dt
+    return 0.5 * max_accel * a * a
+
+
+def belief_conflicts(
+    filt: SafetyFilter,
+    beliefs: Beliefs,
+    start: tuple[np.ndarray, np.ndarray],
+    end: tuple[np.ndarray, np.ndarray],
+    deciding: np.ndarray,
+    agreed: np.ndarray | None,
+    window: StepWindow,
+) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
+    """Stops and brakes of the multirotors ``deciding`` (bool, per agent) whose step from
+    ``start`` to ``end`` (positions, velocities; ``end`` changed in place) would meet another
+    agent's believed motion. ``agreed`` (N, N): the pairs already deconflicted together.
+    Returns the events, the stop counters and which agents braked or stopped."""
+    p, dt = filt.params, filt.world.dt
+    (pos0, vel0), (pos1, vel1) = start, end
+    events: list[Event] = []
+    counts: list[tuple[str, int]] = []
+    stopped = np.zeros(len(pos0), dtype=bool)
+    rows = np.flatnonzero(deciding[beliefs.idx])
+    if not len(rows):
+        return events, counts, stopped
+    idx = beliefs.idx[rows]
+    b0 = beliefs.pos[rows]
+    b1 = b0 + beliefs.vel[rows] * dt
+    others = beliefs.known[rows].copy()
+    others[np.arange(len(idx)), idx] = False
+    if agreed is not None:
+        others &= ~agreed[idx]
+    need = (
+        p.radius[idx][:, None] + p.radius[None, :] + AGENT_MARGIN
+        + belief_margin(p.max_accel[None, :], beliefs.age[rows], dt)
+    )  # fmt: skip
+    # Candidates: within both steps of each other at the start (a pair farther apart cannot meet).
+    reach = np.linalg.norm(pos1[idx] - pos0[idx], axis=1)[:, None] + np.linalg.norm(b1 - b0, axis=-1) + need
+    near = others & (np.linalg.norm(b0 - pos0[idx][:, None, :], axis=-1) < reach)
+    for k in np.flatnonzero(near.any(axis=1)):
+        i, js = int(idx[k]), np.flatnonzero(near[k])
+        n = len(js)
+        d = segment_segment_min_distance(
+            np.repeat(pos0[i][None], n, 0), np.repeat(pos1[i][None], n, 0), b0[k, js], b1[k, js]
+        )
+        meet = d < need[k, js]
+        if not meet.any():
+            continue
+        brake = filt.brake(i, vel0[i])
+        p_brake = pos0[i] + brake * dt
+        d_brake = segment_segment_min_distance(
+            np.repeat(pos0[i][None], n, 0), np.repeat(p_brake[None], n, 0), b0[k, js], b1[k, js]
+        )
+        other = filt.params.ids[js[int(np.argmin(d - need[k, js]))]]
+        if (d_brake >= need[k, js]).all() and filt.step_is_safe(i, pos0[i], p_brake, window.q0, window.q1):
+            vel1[i] = brake
+        else:
+            vel1[i] = 0.0
+            counts += filt.stop_counts(i, vel0[i])
+            events.append(Event(window.t1, filt.params.ids[i], "emergency_stop", {"other": other}))
+        pos1[i] = pos0[i] + vel1[i] * dt
+        stopped[i] = True
+    return events, counts, stopped

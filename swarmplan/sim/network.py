@@ -1,0 +1,189 @@
+"""What each agent knows of the others when the world has ``comms``: the last state it heard
+from each, extrapolated by its age, and what it senses itself.
+
+Every agent broadcasts its state (position, velocity, whether it still flies, its distance to
+its goal) ``comms.rate`` times a second, at the end of a step (agent k's broadcasts are spread
+over the period by k/N of it, so the swarm does not all speak at once). Each receiver gets a
+copy after ``delay`` (+- a uniform ``jitter``), unless it is lost (probability ``loss``) or the
+two are farther apart than ``range`` when it is sent. A receiver keeps the newest state it has
+received from each sender and acts on it, moved on by the sender's velocity for the state's age.
+With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
+(onboard sensing: no age).
+
+The draws (losses, delays) come from their own seeded stream, one per run, drawn for every
+(broadcast, receiver) pair whatever happens to it: the same seed gives the same messages.
+Before flight every agent has heard every other agent within range (their starts, at t = 0).
+
+The simulator keeps the truth; :class:`Network` only answers what each agent believes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from swarmplan.world.comms import Comms, Sensing
+
+_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class Beliefs:
+    """What flyers ``idx`` believe of every agent at one time: ``pos``/``vel`` (flyers, N, 3),
+    ``parked`` and ``goal_distance`` (flyers, N), ``known`` (flyers, N) whether a flyer has
+    heard of (or senses) that agent, ``age`` (flyers, N) seconds since the state was true
+    (inf: never heard). A flyer's own row is its true state (age 0)."""
+
+    idx: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    parked: np.ndarray
+    goal_distance: np.ndarray
+    known: np.ndarray
+    age: np.ndarray
+
+
+@dataclass
+class _Sent:
+    """One step's broadcasts: ``senders`` (k,), their states at ``t``, and per (sender,
+    receiver) when the copy arrives (inf: lost, or out of range)."""
+
+    t: float
+    senders: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    parked: np.ndarray
+    goal_distance: np.ndarray
+    arrives: np.ndarray  # (k, N)
+
+
+class Network:
+    """The messages of one run and every agent's beliefs (reset with :meth:`reset`)."""
+
+    def __init__(self, comms: Comms, sensing: Sensing | None, n: int, dt: float):
+        self.comms, self.n, self.dt = comms, n, dt
+        self.sensing_range = math.inf if sensing is None else sensing.range
+        self.period = comms.period(dt)
+        # Agent k speaks at (m + k / N) periods: spread over the period.
+        self._phase = np.arange(n) / max(n, 1)
+        self.instant = comms.delay == 0.0 and comms.jitter == 0.0
+
+    def reset(self, rng: np.random.Generator, pos: np.ndarray, goal_distance: np.ndarray) -> None:
+        """At t = 0: every agent has heard every other within range, at rest at its start."""
+        n = self.n
+        self.rng = rng
+        self.t_heard = np.full((n, n), -np.inf)  # (receiver, sender): when the state was true
+        self.pos = np.zeros((n, n, 3))
+        self.vel = np.zeros((n, n, 3))
+        self.parked = np.zeros((n, n), dtype=bool)
+        self.goal_distance = np.zeros((n, n))
+        self.pending: list[_Sent] = []
+        self.sent = self.lost = self.out_of_range = 0
+        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
+        heard = d <= self.comms.range
+        self.t_heard[heard] = 0.0
+        self.pos[:] = pos[None, :, :]
+        self.goal_distance[:] = goal_distance[None, :]
+
+    def speakers(self, t0: float, t1: float) -> np.ndarray:
+        """The agents whose broadcast falls in the step (t0, t1]."""
+        k0 = np.floor(t0 / self.period - self._phase + _EPS)
+        k1 = np.floor(t1 / self.period - self._phase + _EPS)
+        return np.flatnonzero(k1 > k0)
+
+    def broadcast(
+        self,
+        t0: float,
+        t1: float,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        parked: np.ndarray,
+        goal_distance: np.ndarray,
+    ) -> None:
+        """The states at the end of the step (t0, t1] of the agents that speak in it."""
+        who = self.speakers(t0, t1)
+        if not len(who):
+            return
+        c, n = self.comms, self.n
+        # Every draw is made whatever becomes of the message: the stream stays in step.
+        lost = self.rng.random((len(who), n)) < c.loss
+        spread = self.rng.uniform(-1.0, 1.0, (len(who), n))
+        arrives = t1 + c.delay + c.jitter * spread
+        far = np.linalg.norm(pos[who][:, None, :] - pos[None, :, :], axis=-1) > c.range
+        arrives[lost | far] = np.inf
+        arrives[np.arange(len(who)), who] = np.inf  # nobody listens to itself
+        listeners = n - 1
+        self.sent += len(who) * listeners
+        self.lost += int((lost & ~far).sum() - (lost & ~far)[np.arange(len(who)), who].sum())
+        self.out_of_range += int(far.sum() - far[np.arange(len(who)), who].sum())
+        self.pending.append(
+            _Sent(
+                t1,
+                who,
+                pos[who].copy(),
+                vel[who].copy(),
+                parked[who].copy(),
+                goal_distance[who].copy(),
+                arrives,
+            )
+        )
+
+    def deliver(self, t: float) -> None:
+        """Every copy that has arrived by ``t`` replaces an older state of its sender."""
+        keep: list[_Sent] = []
+        for m in self.pending:  # oldest broadcasts first: a newer state overwrites an older one
+            due = m.arrives <= t + _EPS
+            k, r = np.nonzero(due)
+            if len(k):
+                s = m.senders[k]
+                newer = self.t_heard[r, s] < m.t
+                k, r, s = k[newer], r[newer], s[newer]
+                self.t_heard[r, s] = m.t
+                self.pos[r, s] = m.pos[k]
+                self.vel[r, s] = m.vel[k]
+                self.parked[r, s] = m.parked[k]
+                self.goal_distance[r, s] = m.goal_distance[k]
+            m.arrives[due] = np.inf
+            if np.isfinite(m.arrives).any():
+                keep.append(m)
+        self.pending = keep
+
+    def agreed(self, t: float) -> np.ndarray | None:
+        """(N, N): the pairs that heard each other's state of ``t`` over an instantaneous network,
+        who can agree on their steps within the step from ``t``; None when messages take time."""
+        if not self.instant:
+            return None
+        fresh = self.t_heard == t
+        return fresh & fresh.T
+
+    def beliefs(
+        self,
+        idx: np.ndarray,
+        t: float,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        parked: np.ndarray,
+        goal_distance: np.ndarray,
+    ) -> Beliefs:
+        """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
+        ``goal_distance`` of every agent give each flyer its own row and what it senses)."""
+        age = t - self.t_heard[idx]  # inf where never heard
+        known = np.isfinite(age)
+        a = np.where(known, age, 0.0)
+        bpos = self.pos[idx] + self.vel[idx] * a[..., None]
+        bvel = self.vel[idx].copy()
+        bparked = self.parked[idx].copy()
+        bgoal = self.goal_distance[idx].copy()
+        rows = np.arange(len(idx))
+        sensed = np.zeros_like(known)
+        sensed[rows, idx] = True
+        if math.isfinite(self.sensing_range):
+            d = np.linalg.norm(pos[idx][:, None, :] - pos[None, :, :], axis=-1)
+            sensed |= d <= self.sensing_range
+        r, b = np.nonzero(sensed)
+        bpos[r, b], bvel[r, b] = pos[b], vel[b]
+        bparked[r, b], bgoal[r, b] = parked[b], goal_distance[b]
+        age = np.where(sensed, 0.0, age)
+        return Beliefs(idx, bpos, bvel, bparked, bgoal, known | sensed, age)
