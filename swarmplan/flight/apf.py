@@ -172,6 +172,12 @@ class ApfField:
         self._any_fixed_wing = bool(params.fixed_wing.any())
         self._numpy_calls = field_numpy_calls(len(world.agents))  # then the compiled kernel
 
+    @property
+    def agent_reach(self) -> float:
+        """Distance between centres beyond which another agent's current repulsion is zero
+        (:func:`current_reach`)."""
+        return self._reach
+
     def _reach_at_speed(self, idx: np.ndarray | None, vel: np.ndarray) -> np.ndarray:
         """:func:`reach_at_speed` of agents ``idx`` (None: the first ``len(vel)``, in order)."""
         if self._any_fixed_wing:

@@ -6,8 +6,9 @@ each heard the other's state of this very step (an instantaneous network); every
 judged by the flyer alone: its own step against the other's believed motion over the step
 (the last state heard, moved on by its velocity), with a margin for what the other may have
 done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
-A multirotor that would come within both radii, ``AGENT_MARGIN`` and that margin brakes
-(``max_accel``) when braking clears, else stops (an ``emergency_stop``).
+A multirotor whose step closes in on another agent's believed motion to within both radii,
+``AGENT_MARGIN`` and that margin brakes (``max_accel``) when braking clears, else stops (an
+``emergency_stop``); a step that only widens the gap is no conflict.
 """
 
 from __future__ import annotations
@@ -131,7 +132,10 @@ def belief_conflicts(
         d = segment_segment_min_distance(
             np.repeat(pos0[i][None], n, 0), np.repeat(pos1[i][None], n, 0), b0[k, js], b1[k, js]
         )
-        meet = d < need[k, js]
+        # Within reach of the other's believed motion and closing in on it (a step away from
+        # an agent already within the margin is no conflict: it only widens the gap).
+        now = np.linalg.norm(b0[k, js] - pos0[i], axis=1)
+        meet = (d < need[k, js]) & (d < now * (1.0 - 1e-9))
         if not meet.any():
             continue
         brake = filt.brake(i, vel0[i])
@@ -140,7 +144,9 @@ def belief_conflicts(
             np.repeat(pos0[i][None], n, 0), np.repeat(p_brake[None], n, 0), b0[k, js], b1[k, js]
         )
         other = filt.params.ids[js[int(np.argmin(d - need[k, js]))]]
-        if (d_brake >= need[k, js]).all() and filt.step_is_safe(i, pos0[i], p_brake, window.q0, window.q1):
+        if ((d_brake >= need[k, js]) | (d_brake >= now * (1.0 - 1e-9))).all() and filt.step_is_safe(
+            i, pos0[i], p_brake, window.q0, window.q1
+        ):
             vel1[i] = brake
         else:
             vel1[i] = 0.0

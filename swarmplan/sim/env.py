@@ -204,6 +204,7 @@ class Simulation:
 
         pos0, vel0 = s.position.copy(), s.velocity.copy()
         pos1, vel1 = pos0.copy(), np.zeros_like(vel0)  # the step of agents that do not fly
+        oldest = None  # with comms: the oldest state each flyer acted on
         if len(idx):
             # The previous step already measured every agent's distances at this position and time.
             if self._field_cache is None:
@@ -211,6 +212,7 @@ class Simulation:
             # Parked: not flying (modes changed above stay flying ones: arrivals come later).
             cmd = self.steering.commands(s, idx, pos0, vel0, self._field_cache, q0, qv0, ~flying_now)
             self._merge(cmd.ended)
+            oldest = cmd.oldest
             v_cmd = self.guard.commands(idx, cmd.velocity)
             v_cmd, guarded = self.safety.guard_fixed_wings(
                 idx, pos0, vel0, v_cmd, cmd.obstacle_distance, cmd.clearance, t0
@@ -269,7 +271,10 @@ class Simulation:
             self._merge(timeouts(s, self.ids))
         events, runs = self.records.take()
         agents = agent_states(self.ids, self.state, self._compiled)
-        return StepResult(s, events, terminated, truncated, agents, self.scene.obstacle_states(t1), runs)
+        comms = None if self.network is None else self.network.message(t1, self.ids, idx, oldest)
+        return StepResult(
+            s, events, terminated, truncated, agents, self.scene.obstacle_states(t1), runs, comms
+        )
 
     def _nearest_obstacle(self, i: int) -> str:
         """The id of the obstacle nearest to agent ``i`` at the step's end."""
@@ -295,7 +300,7 @@ class Simulation:
 
     def summary(self, interrupted: bool = False) -> dict[str, Any]:
         """Per-agent and overall metrics for ``/summary`` and the CLI table."""
-        return summary_report(
+        report = summary_report(
             self.world,
             self.state,
             self.metrics,
@@ -304,6 +309,9 @@ class Simulation:
             wall_time=time.perf_counter() - self.wall_start,
             interrupted=interrupted,
         )
+        if self.network is not None:
+            report["comms"] = self.network.run_report()
+        return report
 
     @property
     def optimizer_name(self) -> str:

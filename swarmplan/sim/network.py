@@ -81,6 +81,7 @@ class Network:
         self.goal_distance = np.zeros((n, n))
         self.pending: list[_Sent] = []
         self.sent = self.lost = self.out_of_range = 0
+        self.oldest_max, self.oldest_sum, self.oldest_count = 0.0, 0.0, 0
         d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
         heard = d <= self.comms.range
         self.t_heard[heard] = 0.0
@@ -157,6 +158,51 @@ class Network:
             return None
         fresh = self.t_heard == t
         return fresh & fresh.T
+
+    def oldest(self, beliefs: Beliefs, reach: float) -> np.ndarray:
+        """Per flyer of ``beliefs``: the age of the oldest state it acts on, of the agents it
+        believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
+        when it believes none that near."""
+        d = np.linalg.norm(
+            beliefs.pos - beliefs.pos[np.arange(len(beliefs.idx)), beliefs.idx][:, None, :], axis=-1
+        )
+        near = beliefs.known & (d <= reach)
+        near[np.arange(len(beliefs.idx)), beliefs.idx] = False
+        age = np.where(near, beliefs.age, -np.inf).max(axis=1)
+        return np.where(np.isfinite(age), age, np.nan)
+
+    def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
+        """The ``/comms`` message of the step ending at ``t``: flyers ``idx`` acted on states at
+        most ``oldest`` (rows of ``idx``) old."""
+        age = np.full(self.n, np.nan)
+        if oldest is not None:
+            age[idx] = oldest
+            acted = oldest[~np.isnan(oldest)]
+            if len(acted):
+                self.oldest_max = max(self.oldest_max, float(acted.max()))
+                self.oldest_sum, self.oldest_count = (
+                    self.oldest_sum + float(acted.sum()),
+                    self.oldest_count + len(acted),
+                )
+        agents = [
+            {"id": a, "age": None if math.isnan(x) else round(float(x), 6)}
+            for a, x in zip(ids, age, strict=True)
+        ]
+        return {"t": round(t, 9), "agents": agents, **self.counts()}
+
+    def counts(self) -> dict[str, int]:
+        """The run's messages so far: copies sent (one per listener), lost, and out of range."""
+        return {"sent": self.sent, "lost": self.lost, "out_of_range": self.out_of_range}
+
+    def run_report(self) -> dict[str, float | int]:
+        """``/summary`` ``comms``: the run's messages, and the largest and mean age of the oldest
+        state an agent acted on (over the steps and flyers that acted on any)."""
+        mean = self.oldest_sum / self.oldest_count if self.oldest_count else 0.0
+        return {
+            **self.counts(),
+            "oldest_age_max": round(self.oldest_max, 6),
+            "oldest_age_mean": round(mean, 6),
+        }
 
     def beliefs(
         self,

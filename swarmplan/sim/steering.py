@@ -40,6 +40,7 @@ class Commands:
     clearance: np.ndarray  # (n,) to the nearest static surface (threat cores included)
     ended: Tally  # segments and routes that ended on the way
     beliefs: Beliefs | None = None  # with comms: what they believe of the others
+    oldest: np.ndarray | None = None  # with comms: per row the oldest state acted on (s; nan: none)
 
 
 class Steering:
@@ -112,16 +113,17 @@ class Steering:
             target[rows] = goal_idx[rows] = ahead
         flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
         to_go = norm3(s.goal - pos0)
-        b = None
+        b = oldest = None
         if self.network is None:
             swarm = Swarm(pos0, vel0, parked, to_go)
         else:  # each flyer's own beliefs of the others
             b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go)
             swarm = Swarm(b.pos, b.vel, b.parked, b.goal_distance, b.known)
+            oldest = self.network.oldest(b, self.apf.agent_reach)
         force = self.apf.forces(flyers, inputs, swarm)
         clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
         if self._threat_cores is not None:
             cores, radius = self._threat_cores, self.params.radius[idx]
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
         v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
-        return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b)
+        return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b, oldest)
