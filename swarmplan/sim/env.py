@@ -42,7 +42,7 @@ from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
-from swarmplan.sim.network import Network
+from swarmplan.sim.network import AgentView, Network
 from swarmplan.sim.records import RunRecords, agent_states
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
@@ -119,7 +119,7 @@ class Simulation:
         self.metrics.measure_start(*self.scene.clearances(start, self.scene.poses(0.0)[0]))
         self.steering.reset(start, goal)
         if self.network is not None:
-            self.network.reset(self.rng_for("comms"), start, np.linalg.norm(goal - start, axis=1))
+            self.network.reset(self.rng_for("comms"), self.state)
         self.navigator.reset(self.state)
         self.guard.reset()
         self.safety.turn[:] = 0.0  # fixed wings start straight and level
@@ -164,7 +164,8 @@ class Simulation:
 
     def _ask_planner(self, i: int) -> tuple[StuckOutcome, tuple[Event, ...]]:
         """The planner's answer for stuck agent ``i`` and the events it reported meanwhile."""
-        return self.records.ask(lambda: self.planner.on_stuck(self, i))
+        context = self if self.network is None else AgentView(self, i)  # with comms: what i knows
+        return self.records.ask(lambda: self.planner.on_stuck(context, i))
 
     def world_message(self) -> dict[str, Any]:
         return self.world.to_message(self.seed)
@@ -260,8 +261,7 @@ class Simulation:
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
         if self.network is not None:
-            parked_now = ~self.loiter.flying(s, s.active)
-            self.network.broadcast(t0, t1, pos1, vel1, parked_now, np.linalg.norm(s.goal - pos1, axis=1))
+            self.network.broadcast(t0, s, ~self.loiter.flying(s, s.active))
         on_stuck = None if self.planner is None else self._ask_planner
         self._merge(nav.detect_stuck(s, on_stuck, exempt=self.guard.guarding))
 

@@ -2,8 +2,9 @@
 from each, extrapolated by its age, and what it senses itself.
 
 Every agent broadcasts its state (position, velocity, whether it still flies, its distance to
-its goal) ``comms.rate`` times a second, at the end of a step (agent k's broadcasts are spread
-over the period by k/N of it, so the swarm does not all speak at once). Each receiver gets a
+its goal, its mode and its plan: the route or escape segment it follows) ``comms.rate`` times
+a second, at the end of a step (agent k's broadcasts are spread over the period by k/N of it,
+so the swarm does not all speak at once). Each receiver gets a
 copy after ``delay`` (+- a uniform ``jitter``), unless it is lost (probability ``loss``) or the
 two are farther apart than ``range`` when it is sent. A receiver keeps the newest state it has
 received from each sender and acts on it, moved on by the sender's velocity for the state's age.
@@ -14,19 +15,34 @@ The draws (losses, delays) come from their own seeded stream, one per run, drawn
 (broadcast, receiver) pair whatever happens to it: the same seed gives the same messages.
 Before flight every agent has heard every other agent within range (their starts, at t = 0).
 
-The simulator keeps the truth; :class:`Network` only answers what each agent believes.
+Each agent's field, deconfliction (``swarmplan.sim.deconflict``) and the planner deciding its
+escapes (through :class:`AgentView`) read these beliefs. Static bodies are the known map, and
+moving obstacles are known as the world describes them. The simulator keeps the truth and alone
+judges contacts and arrivals; :class:`Network` only answers what each agent believes.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from swarmplan.core import Mode, SwarmState
 from swarmplan.world.comms import Comms, Sensing
 
 _EPS = 1e-9
+
+Plan = tuple[Mode, "np.ndarray | None", int, "np.ndarray | None", int]
+"""An agent's mode, segment and index on it, route and index on it (as :class:`SwarmState` has them)."""
+
+
+def plans_of(s: SwarmState, rows: np.ndarray) -> list[Plan]:
+    """The plans of agents ``rows`` in state ``s`` (the arrays are replaced, never changed, on a new plan)."""
+    return [
+        (s.mode[i], s.segment[i], int(s.segment_index[i]), s.route[i], int(s.route_index[i])) for i in rows
+    ]
 
 
 @dataclass(frozen=True)
@@ -56,6 +72,7 @@ class _Sent:
     vel: np.ndarray
     parked: np.ndarray
     goal_distance: np.ndarray
+    plans: np.ndarray  # (k,) the senders' plans, rows of Network.plans
     arrives: np.ndarray  # (k, N)
 
 
@@ -70,8 +87,10 @@ class Network:
         self._phase = np.arange(n) / max(n, 1)
         self.instant = comms.delay == 0.0 and comms.jitter == 0.0
 
-    def reset(self, rng: np.random.Generator, pos: np.ndarray, goal_distance: np.ndarray) -> None:
+    def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
         """At t = 0: every agent has heard every other within range, at rest at its start."""
+        pos = s.position
+        goal_distance = np.linalg.norm(s.goal - pos, axis=1)
         n = self.n
         self.rng = rng
         self.t_heard = np.full((n, n), -np.inf)  # (receiver, sender): when the state was true
@@ -87,6 +106,8 @@ class Network:
         self.t_heard[heard] = 0.0
         self.pos[:] = pos[None, :, :]
         self.goal_distance[:] = goal_distance[None, :]
+        self.plans: list[Plan] = plans_of(s, np.arange(n))  # every plan sent
+        self.plan = np.tile(np.arange(n), (n, 1))  # (receiver, sender): the sender's plan heard
 
     def speakers(self, t0: float, t1: float) -> np.ndarray:
         """The agents whose broadcast falls in the step (t0, t1]."""
@@ -94,16 +115,11 @@ class Network:
         k1 = np.floor(t1 / self.period - self._phase + _EPS)
         return np.flatnonzero(k1 > k0)
 
-    def broadcast(
-        self,
-        t0: float,
-        t1: float,
-        pos: np.ndarray,
-        vel: np.ndarray,
-        parked: np.ndarray,
-        goal_distance: np.ndarray,
-    ) -> None:
-        """The states at the end of the step (t0, t1] of the agents that speak in it."""
+    def broadcast(self, t0: float, s: SwarmState, parked: np.ndarray) -> None:
+        """The states at the end of the step from ``t0`` to ``s.t`` (``parked``: the agents that
+        no longer fly) of the agents that speak in it."""
+        t1, pos, vel = s.t, s.position, s.velocity
+        goal_distance = np.linalg.norm(s.goal - pos, axis=1)
         who = self.speakers(t0, t1)
         if not len(who):
             return
@@ -127,9 +143,16 @@ class Network:
                 vel[who].copy(),
                 parked[who].copy(),
                 goal_distance[who].copy(),
+                self._book(plans_of(s, who)),
                 arrives,
-            )
+            )  # fmt: skip
         )
+
+    def _book(self, plans: list[Plan]) -> np.ndarray:
+        """``plans`` kept; their rows."""
+        first = len(self.plans)
+        self.plans += plans
+        return np.arange(first, len(self.plans))
 
     def deliver(self, t: float) -> None:
         """Every copy that has arrived by ``t`` replaces an older state of its sender."""
@@ -146,6 +169,7 @@ class Network:
                 self.vel[r, s] = m.vel[k]
                 self.parked[r, s] = m.parked[k]
                 self.goal_distance[r, s] = m.goal_distance[k]
+                self.plan[r, s] = m.plans[k]
             m.arrives[due] = np.inf
             if np.isfinite(m.arrives).any():
                 keep.append(m)
@@ -233,3 +257,36 @@ class Network:
         bparked[r, b], bgoal[r, b] = parked[b], goal_distance[b]
         age = np.where(sensed, 0.0, age)
         return Beliefs(idx, bpos, bvel, bparked, bgoal, known | sensed, age)
+
+    def state_for(self, i: int, s: SwarmState, parked: np.ndarray) -> SwarmState:
+        """The state ``s`` as agent ``i`` knows it (``parked``: the agents that no longer fly):
+        its own row true, every other agent's as heard (moved on by its age, its mode and plan
+        as sent) or sensed; an agent it knows nothing of is absent (``collided``)."""
+        b = self.beliefs(
+            np.array([i]), s.t, s.position, s.velocity, parked, np.linalg.norm(s.goal - s.position, axis=1)
+        )
+        mode, segment, route = s.mode.copy(), list(s.segment), list(s.route)
+        seg_index, route_index = s.segment_index.copy(), s.route_index.copy()
+        for j in range(self.n):
+            if j == i:
+                continue
+            if not b.known[0, j]:
+                mode[j] = Mode.COLLIDED
+                continue
+            mode[j], segment[j], seg_index[j], route[j], route_index[j] = self.plans[self.plan[i, j]]
+        return SwarmState(
+            s.t, s.step, b.pos[0], b.vel[0], s.goal, mode, segment, seg_index, route, route_index
+        )
+
+
+class AgentView:
+    """The running simulation as agent ``agent`` knows it, for the planner deciding for it in a
+    world with ``comms``: ``state`` is :meth:`Network.state_for`; everything else (the world,
+    the bodies, the random streams, the reports) is the simulation's."""
+
+    def __init__(self, sim: Any, agent: int):
+        self._sim = sim
+        self.state = sim.network.state_for(agent, sim.state, ~sim.loiter.flying(sim.state, sim.state.active))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._sim, name)
