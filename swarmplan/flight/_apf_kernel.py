@@ -271,7 +271,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
                 speed = math.sqrt(vx * vx + vy * vy + vz * vz)
                 for j in range(m):
-                    if not moving[j]:
+                    if not moving[j] or not math.isfinite(dist[i, j]):  # inf: a mover it does not see
                         continue
                     dpx, dpy, dpz = px - o_center[j, 0], py - o_center[j, 1], pz - o_center[j, 2]
                     # A mover farther than the influence, both radii and both motions over the

@@ -204,7 +204,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)
         way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)
-        live = (tau > 0.0) & (mag != 0.0)
+        live = (tau > 0.0) & (mag != 0.0) & np.isfinite(dist[:, mv])  # inf: a mover it does not see
         f = _sum_in_order(f, np.where(live[..., None], mag[..., None] * way, _SKIP))
     return f, bend, hold
 

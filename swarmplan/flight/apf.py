@@ -71,7 +71,8 @@ of each flyer (``_apf_kernel.apf_forces``: the same forces, fewer pair tests).""
 
 @dataclass(frozen=True)
 class FieldInputs:
-    """Geometry seen by the active agents this step (computed by the simulation)."""
+    """Geometry seen by the active agents this step (computed by the simulation); a moving
+    obstacle at distance inf is one that agent does not see (beyond its sensing range)."""
 
     obstacle_distance: np.ndarray  # (N, M) signed distance from agent centre to obstacle surface
     obstacle_gradient: np.ndarray  # (N, M, 3)

@@ -9,6 +9,7 @@ the nearest static surface and the commanded velocity within each agent's kinema
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +59,7 @@ class Steering:
         self.loiter = Loiter(params)  # arrived fixed wings circle their goals
         self.sight = Sight(len(world.agents))  # fixed wings' clear lines (swarmplan.flight.sight)
         self.network: Network | None = None  # with comms: each agent's beliefs of the others
+        self.sensing_range = math.inf if world.sensing is None else world.sensing.range
 
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
         """Back to the bodies at rest at t = 0 (a mover parked in the last run), the guide's ways
@@ -96,6 +98,8 @@ class Steering:
         else:
             d, g = field[0][idx], field[1][idx]
             p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
+        if self.sensing_range < math.inf and mv.any():  # movers beyond sensing range are not seen
+            d = np.where(mv[None, :] & (d > self.sensing_range), np.inf, d)
         inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
         if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
             inputs = with_cores(inputs, p_idx, self._threat_cores)
