@@ -13,29 +13,59 @@ A multirotor whose step closes in on another agent's believed motion to within b
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from swarmplan.core import Event, Mode
+from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.sim.network import Beliefs
+from swarmplan.world.model import World
 
 AGENT_MARGIN = 0.2
 """Metres kept between two agents' swept bodies by deconfliction."""
 
-if TYPE_CHECKING:
-    from swarmplan.sim.safety import Commands, SafetyFilter, StepWindow
+
+class Stopper(Protocol):
+    """What deconfliction asks of the safety filter (``swarmplan.sim.safety.SafetyFilter``)."""
+
+    params: AgentParams
+    world: World
+
+    def brake(self, i: int, v0: np.ndarray) -> np.ndarray: ...
+    def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]: ...
+    def step_is_safe(
+        self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray
+    ) -> bool: ...
+
+
+class Step(Protocol):
+    """The step from ``t0`` to ``t1`` and the obstacles' poses at both ends (``safety.StepWindow``)."""
+
+    t0: float
+    t1: float
+    q0: np.ndarray
+    q1: np.ndarray
+
+
+class Flyers(Protocol):
+    """The flying agents ``idx``; with ``comms`` their beliefs and the pairs that can agree
+    within the step (``safety.Commands``)."""
+
+    idx: np.ndarray
+    beliefs: Beliefs | None
+    agreed: np.ndarray | None
 
 
 def deconflict(
-    filt: SafetyFilter,
-    commands: Commands,
+    filt: Stopper,
+    commands: Flyers,
     start: tuple[np.ndarray, np.ndarray],
     end: tuple[np.ndarray, np.ndarray],
     mode: np.ndarray,
-    window: StepWindow,
+    window: Step,
 ) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
     """The flying agents' (``commands.idx``) steps from ``start`` to ``end`` (positions,
     velocities; ``end`` changed in place) deconflicted: a pair that would come within both
@@ -92,13 +122,13 @@ def belief_margin(max_accel: np.ndarray, age: np.ndarray, dt: float) -> np.ndarr
 
 
 def belief_conflicts(
-    filt: SafetyFilter,
+    filt: Stopper,
     beliefs: Beliefs,
     start: tuple[np.ndarray, np.ndarray],
     end: tuple[np.ndarray, np.ndarray],
     deciding: np.ndarray,
     agreed: np.ndarray | None,
-    window: StepWindow,
+    window: Step,
 ) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
     """Stops and brakes of the multirotors ``deciding`` (bool, per agent) whose step from
     ``start`` to ``end`` (positions, velocities; ``end`` changed in place) would meet another

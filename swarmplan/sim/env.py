@@ -1,18 +1,16 @@
 """The multi-UAV simulation: ``reset(seed=...)`` / ``step()`` in the manner of Gymnasium.
 
-Each step, for every flying agent at once: potential-field command (or segment following while
-escaping/smoothing) → kinematic limits → a swept FCL safety check of the step (alternative feasible
-commands when the step would touch something) → the committed step is checked again (contact ends the
-agent) → arrival, stuck and near-miss detection → the step's result (everything a log needs: states,
-events, optimizer runs; the simulation writes nothing itself, observers of the results do). ``terminated``
-means every agent arrived, collided or failed; ``truncated`` means the world's ``sim.max_time`` ran out.
+Each step, for every flying agent at once: field command (or segment following) → kinematic limits
+→ swept FCL check of the step (feasible alternatives when it would touch something) and
+deconfliction → the committed step checked again (contact ends the agent) → arrival, stuck and
+near-miss detection → the step's result (everything a log needs; observers write it). ``terminated``:
+every agent arrived, collided or failed; ``truncated``: the world's ``sim.max_time`` ran out.
 
-This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.scene` (obstacles,
-distances), :mod:`~swarmplan.sim.steering` (the field's commands, the guide, the loiters of arrived fixed
-wings), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection), :mod:`~swarmplan.sim.safety`
-(safety filter, deconfliction, fixed-wing guard), :mod:`~swarmplan.sim.contacts` (collisions, crash point,
-arrival, near misses), :mod:`~swarmplan.sim.guard` (arrived multirotors out of a mover's way and back),
-:mod:`~swarmplan.sim.records` (random streams, events and optimizer runs).
+This module only orchestrates; the jobs live beside it: ``scene`` (obstacles, distances),
+``steering`` (the field's commands, the guide, loiters), ``navigation`` (plans, stuck detection),
+``safety`` and ``deconflict`` (the step's checks), ``contacts`` (collisions, arrival, near misses),
+``guard`` (arrived multirotors out of a mover's way), ``network`` (what each agent has heard, with
+``comms``), ``records`` (random streams, events, optimizer runs).
 """
 
 from __future__ import annotations
@@ -42,7 +40,7 @@ from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
-from swarmplan.sim.network import AgentView, Network
+from swarmplan.sim.network import AgentView
 from swarmplan.sim.records import RunRecords, agent_states
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
@@ -90,9 +88,7 @@ class Simulation:
         self.metrics: RunMetrics | None = None
         self.wall_start = 0.0
         self.records = RunRecords(self.ids)
-        # What each agent has heard of the others (None: every agent knows the truth).
-        self.network = None if world.comms is None else Network(world.comms, world.sensing, self.n, world.dt)
-        self.steering.network = self.network
+        self.network = st.network  # what each agent has heard of the others (None: it knows the truth)
 
     @property
     def guide(self) -> StaticGuide | None:
@@ -182,12 +178,13 @@ class Simulation:
         t0, t1 = s.t, (s.step + 1) * dt
         q0, qv0 = self.scene.poses(t0)
         q1, _ = self.scene.poses(t1)
-        if self.network is not None:
-            self.network.deliver(t0)
         # Arrived multirotors under threat take off again (mode apf) to get out of its way.
         flying_before = s.mode != Mode.ARRIVED
         if self.guard.guarding.any():
-            self._merge(self._guard_goals(s, q0, qv0))
+            if self._field_cache is None:
+                self._field_cache = self.field.query(s.position, q0)
+            movers, surface = self.scene.movers(q0, qv0), self.scene.surface_of(s.position, self._field_cache)
+            self._merge(self.guard.update(s, movers, surface))  # (swarmplan.sim.guard)
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
         idx = np.flatnonzero(flying_now)
@@ -279,18 +276,6 @@ class Simulation:
     def _nearest_obstacle(self, i: int) -> str:
         """The id of the obstacle nearest to agent ``i`` at the step's end."""
         return self.world.obstacles[int(np.argmin(self._field_cache[0][i]))].id
-
-    def _guard_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
-        """The goal guard's threat test at the step's start (``swarmplan.sim.guard``)."""
-        if self._field_cache is None:
-            self._field_cache = self.field.query(s.position, q0)
-        cache, mv = self._field_cache, self.moving_mask
-        movers = (q0[mv], qv0[mv], self.scene.mover_radii, self.scene.mover_ids)
-
-        def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return self.scene.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])
-
-        return self.guard.update(s, movers, surface)
 
     # ------------------------------------------------------------------ reports
 

@@ -180,6 +180,7 @@ class Network:
         who can agree on their steps within the step from ``t``; None when messages take time."""
         if not self.instant:
             return None
+        self.deliver(t)
         fresh = self.t_heard == t
         return fresh & fresh.T
 
@@ -238,7 +239,9 @@ class Network:
         goal_distance: np.ndarray,
     ) -> Beliefs:
         """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
-        ``goal_distance`` of every agent give each flyer its own row and what it senses)."""
+        ``goal_distance`` of every agent give each flyer its own row and what it senses), with
+        every copy that has arrived by ``t`` taken in."""
+        self.deliver(t)
         age = t - self.t_heard[idx]  # inf where never heard
         known = np.isfinite(age)
         a = np.where(known, age, 0.0)

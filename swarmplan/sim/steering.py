@@ -58,7 +58,10 @@ class Steering:
         self.navigator = Navigator(world, params, self.guide)
         self.loiter = Loiter(params)  # arrived fixed wings circle their goals
         self.sight = Sight(len(world.agents))  # fixed wings' clear lines (swarmplan.flight.sight)
-        self.network: Network | None = None  # with comms: each agent's beliefs of the others
+        # With comms: what each agent has heard of the others.
+        self.network = (
+            None if world.comms is None else Network(world.comms, world.sensing, len(world.agents), world.dt)
+        )
         self.sensing_range = math.inf if world.sensing is None else world.sensing.range
 
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
