@@ -7,8 +7,9 @@ judged by the flyer alone: its own step against the other's believed motion over
 (the last state heard, moved on by its velocity), with a margin for what the other may have
 done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
 A multirotor whose step closes in on another agent's believed motion to within both radii,
-``AGENT_MARGIN`` and that margin brakes (``max_accel``) when braking clears, else stops (an
-``emergency_stop``); a step that only widens the gap is no conflict.
+``AGENT_MARGIN`` and that margin slides (its step without the part towards those agents, when
+that is within its acceleration limit), else brakes (``max_accel``) when braking clears, else
+stops (an ``emergency_stop``); a step that only widens the gap is no conflict.
 """
 
 from __future__ import annotations
@@ -143,8 +144,6 @@ def belief_conflicts(
     if not len(rows):
         return events, counts, stopped
     idx = beliefs.idx[rows]
-    b0 = beliefs.pos[rows]
-    b1 = b0 + beliefs.vel[rows] * dt
     others = beliefs.known[rows].copy()
     others[np.arange(len(idx)), idx] = False
     if agreed is not None:
@@ -154,34 +153,57 @@ def belief_conflicts(
         + belief_margin(p.max_accel[None, :], beliefs.age[rows], dt)
     )  # fmt: skip
     # Candidates: within both steps of each other at the start (a pair farther apart cannot meet).
-    reach = np.linalg.norm(pos1[idx] - pos0[idx], axis=1)[:, None] + np.linalg.norm(b1 - b0, axis=-1) + need
-    near = others & (np.linalg.norm(b0 - pos0[idx][:, None, :], axis=-1) < reach)
-    for k in np.flatnonzero(near.any(axis=1)):
-        i, js = int(idx[k]), np.flatnonzero(near[k])
-        n = len(js)
-        d = segment_segment_min_distance(
-            np.repeat(pos0[i][None], n, 0), np.repeat(pos1[i][None], n, 0), b0[k, js], b1[k, js]
-        )
-        # Within reach of the other's believed motion and closing in on it (a step away from
-        # an agent already within the margin is no conflict: it only widens the gap).
-        now = np.linalg.norm(b0[k, js] - pos0[i], axis=1)
-        meet = (d < need[k, js]) & (d < now * (1.0 - 1e-9))
-        if not meet.any():
-            continue
+    step = np.linalg.norm(pos1[idx] - pos0[idx], axis=1)
+    now = beliefs.distance[rows]
+    reach = step[:, None] + np.linalg.norm(beliefs.vel[rows], axis=-1) * dt + need
+    k, j = np.nonzero(others & (now < reach))
+    if not len(k):
+        return events, counts, stopped
+    b0 = beliefs.pos[rows[k], j]
+    b1 = b0 + beliefs.vel[rows[k], j] * dt
+    d = segment_segment_min_distance(pos0[idx[k]], pos1[idx[k]], b0, b1)
+    # Within reach of the other's believed motion and closing in on it (a step away from an
+    # agent already within the margin is no conflict: it only widens the gap).
+    closing = now[k, j] * (1.0 - 1e-9)
+    meet = (d < need[k, j]) & (d < closing)
+    amax = p.max_accel
+    for f in np.unique(k[meet]):
+        i, mine = int(idx[f]), np.flatnonzero(k == f)
+        n = len(mine)
+        at = np.repeat(pos0[i][None], n, 0)
+        need_f, toward = need[f, j[mine]], b0[mine] - pos0[i]
+        believed = (b0[mine], b1[mine], need_f, closing[mine])
+
+        def clears(v: np.ndarray, i: int = i, at: np.ndarray = at, believed: tuple = believed) -> bool:
+            return _clears(filt, i, pos0[i], at, v * dt, believed, window)
+
+        # Slide: the step without its part towards the others it would close in on (within the
+        # acceleration limit of its last velocity), else brake, else stop.
+        unit = toward / np.maximum(np.linalg.norm(toward, axis=1), 1e-9)[:, None]
+        slide = vel1[i] - np.maximum(unit @ vel1[i], 0.0) @ unit
         brake = filt.brake(i, vel0[i])
-        p_brake = pos0[i] + brake * dt
-        d_brake = segment_segment_min_distance(
-            np.repeat(pos0[i][None], n, 0), np.repeat(p_brake[None], n, 0), b0[k, js], b1[k, js]
-        )
-        other = filt.params.ids[js[int(np.argmin(d - need[k, js]))]]
-        if ((d_brake >= need[k, js]) | (d_brake >= now * (1.0 - 1e-9))).all() and filt.step_is_safe(
-            i, pos0[i], p_brake, window.q0, window.q1
-        ):
+        other = p.ids[j[mine][int(np.argmin(d[mine] - need_f))]]
+        if np.linalg.norm(slide - vel0[i]) <= amax[i] * dt * (1.0 + 1e-9) and clears(slide):
+            vel1[i] = slide
+        elif clears(brake):
             vel1[i] = brake
         else:
             vel1[i] = 0.0
             counts += filt.stop_counts(i, vel0[i])
-            events.append(Event(window.t1, filt.params.ids[i], "emergency_stop", {"other": other}))
+            events.append(Event(window.t1, p.ids[i], "emergency_stop", {"other": other}))
         pos1[i] = pos0[i] + vel1[i] * dt
         stopped[i] = True
     return events, counts, stopped
+
+
+def _clears(
+    filt: Stopper, i: int, p0: np.ndarray, at: np.ndarray, move: np.ndarray, believed: tuple, window: Step
+) -> bool:
+    """Whether agent ``i``'s step ``move`` from ``p0`` (``at``: ``p0`` once per pair) keeps out of
+    the believed motions ``believed`` (from, to, the distance needed, the distance now; one
+    row per other agent: far enough, or not closing in) and touches no body."""
+    b0, b1, need, now = believed
+    d = segment_segment_min_distance(at, at + move, b0, b1)
+    return bool(((d >= need) | (d >= now)).all()) and filt.step_is_safe(
+        i, p0, p0 + move, window.q0, window.q1
+    )

@@ -50,7 +50,8 @@ class Beliefs:
     """What flyers ``idx`` believe of every agent at one time: ``pos``/``vel`` (flyers, N, 3),
     ``parked`` and ``goal_distance`` (flyers, N), ``known`` (flyers, N) whether a flyer has
     heard of (or senses) that agent, ``age`` (flyers, N) seconds since the state was true
-    (inf: never heard). A flyer's own row is its true state (age 0)."""
+    (inf: never heard), ``distance`` (flyers, N) between the flyer and where it believes each
+    agent is. A flyer's own row is its true state (age 0)."""
 
     idx: np.ndarray
     pos: np.ndarray
@@ -59,21 +60,48 @@ class Beliefs:
     goal_distance: np.ndarray
     known: np.ndarray
     age: np.ndarray
+    distance: np.ndarray
+
+
+class _Table:
+    """Every state sent, one row each (row 0: nothing heard), grown by doubling."""
+
+    def __init__(self, n: int):
+        self.size = 1
+        self.t = np.full(4 * n + 1, -np.inf)
+        self.pos = np.zeros((4 * n + 1, 3))
+        self.vel = np.zeros((4 * n + 1, 3))
+        self.parked = np.zeros(4 * n + 1, dtype=bool)
+        self.goal_distance = np.zeros(4 * n + 1)
+        self.plan = np.zeros(4 * n + 1, dtype=np.int64)
+
+    def add(self, t: float, pos: np.ndarray, vel: np.ndarray, parked: np.ndarray, to_go: np.ndarray,
+            plan: np.ndarray) -> np.ndarray:  # fmt: skip
+        """Rows for ``len(pos)`` states true at ``t``; returns their row numbers."""
+        k, first = len(pos), self.size
+        if first + k > len(self.t):
+            grow = max(len(self.t), k)
+            for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("parked", False),
+                               ("goal_distance", 0.0), ("plan", 0)):  # fmt: skip
+                old = getattr(self, name)
+                setattr(
+                    self, name, np.concatenate([old, np.full((grow, *old.shape[1:]), fill, dtype=old.dtype)])
+                )
+        rows = np.arange(first, first + k)
+        self.t[rows], self.pos[rows], self.vel[rows] = t, pos, vel
+        self.parked[rows], self.goal_distance[rows], self.plan[rows] = parked, to_go, plan
+        self.size += k
+        return rows
 
 
 @dataclass
 class _Sent:
-    """One step's broadcasts: ``senders`` (k,), their states at ``t``, and per (sender,
-    receiver) when the copy arrives (inf: lost, or out of range)."""
+    """One step's broadcasts: ``senders`` (k,), the table ``rows`` of their states, and per
+    (receiver, sender) when the copy arrives (N, k; inf: lost, or out of range)."""
 
-    t: float
     senders: np.ndarray
-    pos: np.ndarray
-    vel: np.ndarray
-    parked: np.ndarray
-    goal_distance: np.ndarray
-    plans: np.ndarray  # (k,) the senders' plans, rows of Network.plans
-    arrives: np.ndarray  # (k, N)
+    rows: np.ndarray
+    arrives: np.ndarray
 
 
 class Network:
@@ -89,25 +117,30 @@ class Network:
 
     def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
         """At t = 0: every agent has heard every other within range, at rest at its start."""
-        pos = s.position
-        goal_distance = np.linalg.norm(s.goal - pos, axis=1)
         n = self.n
         self.rng = rng
-        self.t_heard = np.full((n, n), -np.inf)  # (receiver, sender): when the state was true
-        self.pos = np.zeros((n, n, 3))
-        self.vel = np.zeros((n, n, 3))
-        self.parked = np.zeros((n, n), dtype=bool)
-        self.goal_distance = np.zeros((n, n))
+        self.table = _Table(n)
+        self.plans: list[Plan] = []  # every plan sent
+        pos = s.position
+        start = self.table.add(
+            0.0,
+            pos,
+            np.zeros((n, 3)),
+            np.zeros(n, dtype=bool),
+            np.linalg.norm(s.goal - pos, axis=1),
+            self._book(plans_of(s, np.arange(n))),
+        )
+        # (receiver, sender): the table row of the newest state heard (0: none)
+        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
+        self.heard = np.where(d <= self.comms.range, start[None, :], 0)
         self.pending: list[_Sent] = []
         self.sent = self.lost = self.out_of_range = 0
         self.oldest_max, self.oldest_sum, self.oldest_count = 0.0, 0.0, 0
-        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
-        heard = d <= self.comms.range
-        self.t_heard[heard] = 0.0
-        self.pos[:] = pos[None, :, :]
-        self.goal_distance[:] = goal_distance[None, :]
-        self.plans: list[Plan] = plans_of(s, np.arange(n))  # every plan sent
-        self.plan = np.tile(np.arange(n), (n, 1))  # (receiver, sender): the sender's plan heard
+
+    @property
+    def t_heard(self) -> np.ndarray:
+        """(receiver, sender): when the newest state heard was true (-inf: none heard)."""
+        return self.table.t[self.heard]
 
     def speakers(self, t0: float, t1: float) -> np.ndarray:
         """The agents whose broadcast falls in the step (t0, t1]."""
@@ -119,37 +152,38 @@ class Network:
         """The states at the end of the step from ``t0`` to ``s.t`` (``parked``: the agents that
         no longer fly) of the agents that speak in it."""
         t1, pos, vel = s.t, s.position, s.velocity
-        goal_distance = np.linalg.norm(s.goal - pos, axis=1)
         who = self.speakers(t0, t1)
         if not len(who):
             return
-        c, n = self.comms, self.n
+        c, n, k = self.comms, self.n, len(who)
         # Every draw is made whatever becomes of the message: the stream stays in step.
-        lost = self.rng.random((len(who), n)) < c.loss
-        spread = self.rng.uniform(-1.0, 1.0, (len(who), n))
-        arrives = t1 + c.delay + c.jitter * spread
-        far = np.linalg.norm(pos[who][:, None, :] - pos[None, :, :], axis=-1) > c.range
+        lost = self.rng.random((n, k)) < c.loss
+        arrives = np.full((n, k), t1 + c.delay)
+        if c.jitter > 0.0:
+            arrives += c.jitter * self.rng.uniform(-1.0, 1.0, (n, k))
+        itself = who, np.arange(k)  # nobody listens to itself
+        far = np.zeros((n, k), dtype=bool)
+        if math.isfinite(c.range):
+            far = np.linalg.norm(pos[:, None, :] - pos[who][None, :, :], axis=-1) > c.range
+            far[itself] = False
+        lost[itself] = False
         arrives[lost | far] = np.inf
-        arrives[np.arange(len(who)), who] = np.inf  # nobody listens to itself
-        listeners = n - 1
-        self.sent += len(who) * listeners
-        self.lost += int((lost & ~far).sum() - (lost & ~far)[np.arange(len(who)), who].sum())
-        self.out_of_range += int(far.sum() - far[np.arange(len(who)), who].sum())
-        self.pending.append(
-            _Sent(
-                t1,
-                who,
-                pos[who].copy(),
-                vel[who].copy(),
-                parked[who].copy(),
-                goal_distance[who].copy(),
-                self._book(plans_of(s, who)),
-                arrives,
-            )  # fmt: skip
+        arrives[itself] = np.inf
+        self.sent += k * (n - 1)
+        self.out_of_range += int(far.sum())
+        self.lost += int((lost & ~far).sum())
+        rows = self.table.add(
+            t1,
+            pos[who],
+            vel[who],
+            parked[who],
+            np.linalg.norm(s.goal[who] - pos[who], axis=1),
+            self._book(plans_of(s, who)),
         )
+        self.pending.append(_Sent(who, rows, arrives))
 
     def _book(self, plans: list[Plan]) -> np.ndarray:
-        """``plans`` kept; their rows."""
+        """``plans`` kept; their numbers."""
         first = len(self.plans)
         self.plans += plans
         return np.arange(first, len(self.plans))
@@ -157,20 +191,13 @@ class Network:
     def deliver(self, t: float) -> None:
         """Every copy that has arrived by ``t`` replaces an older state of its sender."""
         keep: list[_Sent] = []
-        for m in self.pending:  # oldest broadcasts first: a newer state overwrites an older one
+        for m in self.pending:  # oldest broadcasts first: a newer state replaces an older one
             due = m.arrives <= t + _EPS
-            k, r = np.nonzero(due)
-            if len(k):
-                s = m.senders[k]
-                newer = self.t_heard[r, s] < m.t
-                k, r, s = k[newer], r[newer], s[newer]
-                self.t_heard[r, s] = m.t
-                self.pos[r, s] = m.pos[k]
-                self.vel[r, s] = m.vel[k]
-                self.parked[r, s] = m.parked[k]
-                self.goal_distance[r, s] = m.goal_distance[k]
-                self.plan[r, s] = m.plans[k]
-            m.arrives[due] = np.inf
+            if due.any():
+                cur = self.heard[:, m.senders]
+                take = due & (self.table.t[cur] < self.table.t[m.rows][None, :])
+                self.heard[:, m.senders] = np.where(take, m.rows[None, :], cur)
+                m.arrives[due] = np.inf
             if np.isfinite(m.arrives).any():
                 keep.append(m)
         self.pending = keep
@@ -188,12 +215,9 @@ class Network:
         """Per flyer of ``beliefs``: the age of the oldest state it acts on, of the agents it
         believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
         when it believes none that near."""
-        d = np.linalg.norm(
-            beliefs.pos - beliefs.pos[np.arange(len(beliefs.idx)), beliefs.idx][:, None, :], axis=-1
-        )
-        near = beliefs.known & (d <= reach)
+        near = beliefs.known & (beliefs.distance <= reach)
         near[np.arange(len(beliefs.idx)), beliefs.idx] = False
-        age = np.where(near, beliefs.age, -np.inf).max(axis=1)
+        age = np.where(near, beliefs.age, -np.inf).max(axis=1, initial=-np.inf)
         return np.where(np.isfinite(age), age, np.nan)
 
     def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
@@ -211,7 +235,7 @@ class Network:
                 )
         agents = [
             {"id": a, "age": None if math.isnan(x) else round(float(x), 6)}
-            for a, x in zip(ids, age, strict=True)
+            for a, x in zip(ids, age.tolist(), strict=True)
         ]
         return {"t": round(t, 9), "agents": agents, **self.counts()}
 
@@ -242,24 +266,28 @@ class Network:
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in."""
         self.deliver(t)
-        age = t - self.t_heard[idx]  # inf where never heard
-        known = np.isfinite(age)
-        a = np.where(known, age, 0.0)
-        bpos = self.pos[idx] + self.vel[idx] * a[..., None]
-        bvel = self.vel[idx].copy()
-        bparked = self.parked[idx].copy()
-        bgoal = self.goal_distance[idx].copy()
-        rows = np.arange(len(idx))
-        sensed = np.zeros_like(known)
-        sensed[rows, idx] = True
+        tb, rows = self.table, self.heard[idx]
+        age = t - tb.t[rows]  # inf where never heard
+        known = rows > 0
+        bvel = tb.vel[rows]
+        bpos = tb.pos[rows] + bvel * np.where(known, age, 0.0)[..., None]
+        bparked, bgoal = tb.parked[rows], tb.goal_distance[rows]
+        k = np.arange(len(idx))
+        bpos[k, idx], bvel[k, idx], bparked[k, idx], bgoal[k, idx] = (
+            pos[idx],
+            vel[idx],
+            parked[idx],
+            goal_distance[idx],
+        )
+        age[k, idx], known[k, idx] = 0.0, True
         if math.isfinite(self.sensing_range):
-            d = np.linalg.norm(pos[idx][:, None, :] - pos[None, :, :], axis=-1)
-            sensed |= d <= self.sensing_range
-        r, b = np.nonzero(sensed)
-        bpos[r, b], bvel[r, b] = pos[b], vel[b]
-        bparked[r, b], bgoal[r, b] = parked[b], goal_distance[b]
-        age = np.where(sensed, 0.0, age)
-        return Beliefs(idx, bpos, bvel, bparked, bgoal, known | sensed, age)
+            sensed = np.linalg.norm(pos[idx][:, None, :] - pos[None, :, :], axis=-1) <= self.sensing_range
+            r, b = np.nonzero(sensed)
+            bpos[r, b], bvel[r, b] = pos[b], vel[b]
+            bparked[r, b], bgoal[r, b] = parked[b], goal_distance[b]
+            age[r, b], known[r, b] = 0.0, True
+        distance = np.sqrt(np.einsum("fnd,fnd->fn", bpos - pos[idx][:, None, :], bpos - pos[idx][:, None, :]))
+        return Beliefs(idx, bpos, bvel, bparked, bgoal, known, age, distance)
 
     def state_for(self, i: int, s: SwarmState, parked: np.ndarray) -> SwarmState:
         """The state ``s`` as agent ``i`` knows it (``parked``: the agents that no longer fly):
@@ -276,7 +304,9 @@ class Network:
             if not b.known[0, j]:
                 mode[j] = Mode.COLLIDED
                 continue
-            mode[j], segment[j], seg_index[j], route[j], route_index[j] = self.plans[self.plan[i, j]]
+            mode[j], segment[j], seg_index[j], route[j], route_index[j] = self.plans[
+                self.table.plan[self.heard[i, j]]
+            ]
         return SwarmState(
             s.t, s.step, b.pos[0], b.vel[0], s.goal, mode, segment, seg_index, route, route_index
         )
