@@ -212,7 +212,10 @@ def test_each_flyers_own_view_of_the_swarm():
     known[rows, idx] = True
     inputs = FieldInputs(f[0][idx], f[1][idx], *f[2:])
     flyers = Flyers(idx, pos[idx], vel[idx], goal[idx])
-    believed = Swarm(bpos, bvel, parked, to_go, known)
+    # As a table: flyer k's belief of agent b in row k N + b.
+    view = np.where(known, np.arange(n * N).reshape(n, N), -1)
+    table = (bpos.reshape(-1, 3), bvel.reshape(-1, 3), parked.reshape(-1), to_go.reshape(-1))
+    believed = Swarm(*table, view, np.tile(np.arange(N), n))
     compiled, plain = _both(field, flyers, inputs, believed)
     _same_bits(plain, compiled)
     assert np.all(np.isfinite(compiled)) and np.abs(compiled).sum() > 0

@@ -147,11 +147,15 @@ def test_ages_and_extrapolation_with_a_fixed_delay():
             np.arange(4), t, sim.state.position, sim.state.velocity, np.zeros(4, bool), np.zeros(4)
         )
         off = ~np.eye(4, dtype=bool)
-        np.testing.assert_allclose(b.age[off], 0.2, atol=1e-9)
+        rows = b.view
+        assert (rows >= 0).all()
+        np.testing.assert_array_equal(b.agent[rows], np.broadcast_to(np.arange(4), (4, 4)))
+        np.testing.assert_allclose(b.age[rows[off]], 0.2, atol=1e-9)
         p, v = history[-3]
-        expected = p[None] + v[None] * b.age[..., None]
-        np.testing.assert_allclose(b.pos[off], np.broadcast_to(expected, (4, 4, 3))[off], atol=1e-12)
-        np.testing.assert_array_equal(b.pos[~off], sim.state.position)
+        expected = p[None] + v[None] * 0.2
+        np.testing.assert_allclose(b.pos[rows][off], np.broadcast_to(expected, (4, 4, 3))[off], atol=1e-12)
+        np.testing.assert_array_equal(b.pos[rows][~off], sim.state.position)
+        np.testing.assert_array_equal(b.age[rows][~off], 0.0)
 
 
 def test_schedule_losses_and_range_are_counted():

@@ -104,15 +104,17 @@ class Swarm:
     ``goal_distance`` (N,) each one's distance to its goal (default: none nearer than any
     flyer to its own, i.e. no priority between flying agents).
 
-    With ``known`` (flyers, N), the swarm as each flyer believes it: ``pos``/``vel`` (flyers,
-    N, 3), ``parked`` and ``goal_distance`` (flyers, N), row k what flyer k believes of every
-    agent, and ``known[k, b]`` whether it knows of agent b at all (``swarmplan.sim.network``)."""
+    With ``view`` (flyers, N), the swarm as each flyer believes it (``swarmplan.sim.network``):
+    ``pos``, ``vel``, ``parked`` and ``goal_distance`` are a table of believed states, one row
+    each, ``row_agent`` (rows,) whose state each row is, and ``view[k, b]`` the row flyer k holds
+    of agent b (-1: it knows nothing of b)."""
 
     pos: np.ndarray
     vel: np.ndarray
     parked: np.ndarray | None = None
     goal_distance: np.ndarray | None = None
-    known: np.ndarray | None = None
+    view: np.ndarray | None = None
+    row_agent: np.ndarray | None = None
 
 
 def reach_at_speed(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:
@@ -213,16 +215,12 @@ class ApfField:
         goal_dist = swarm.goal_distance
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
-        if swarm.known is None:  # one swarm for every flyer
+        if swarm.view is None:  # one swarm for every flyer
             view = np.zeros((0, 0), dtype=np.int64)
             reach_all = self._reach_at_speed(None, all_vel)
-        else:  # each flyer's own beliefs: its rows of the flattened tables
-            n_all = shape[1]
-            rows = np.arange(n * n_all, dtype=np.int64).reshape(n, n_all)
-            view = np.where(swarm.known, rows, -1)
-            all_pos, all_vel = all_pos.reshape(-1, 3), all_vel.reshape(-1, 3)
-            parked, goal_dist = parked.reshape(-1), goal_dist.reshape(-1)
-            reach_all = self._reach_at_speed(np.tile(np.arange(n_all), n), all_vel)
+        else:  # each flyer's own beliefs: its rows of the table
+            view = np.ascontiguousarray(swarm.view, dtype=np.int64)
+            reach_all = self._reach_at_speed(np.asarray(swarm.row_agent, dtype=np.int64), all_vel)
         if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
@@ -238,7 +236,7 @@ class ApfField:
             self._reach * (1.0 + 1e-9) + 1e-9,
             self._gains,
             out,
-            shape[-1] >= WINDOW_FROM,
+            (view.shape[1] if swarm.view is not None else len(all_pos)) >= WINDOW_FROM,
         )  # fmt: skip
         return out
 

@@ -9,7 +9,8 @@ done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the 
 A multirotor whose step closes in on another agent's believed motion to within both radii,
 ``AGENT_MARGIN`` and that margin slides (its step without the part towards those agents, when
 that is within its acceleration limit), else brakes (``max_accel``) when braking clears, else
-stops (an ``emergency_stop``); a step that only widens the gap is no conflict.
+stops (an ``emergency_stop``); a step that only widens the gap is no conflict. A belief whose
+margin exceeds both agents' stopping reach (``apf.stopping_reach``) is too old to act on.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import Protocol
 import numpy as np
 
 from swarmplan.core import Event, Mode
+from swarmplan.flight.apf import stopping_reach
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
@@ -140,49 +142,48 @@ def belief_conflicts(
     events: list[Event] = []
     counts: list[tuple[str, int]] = []
     stopped = np.zeros(len(pos0), dtype=bool)
-    rows = np.flatnonzero(deciding[beliefs.idx])
-    if not len(rows):
+    if not deciding[beliefs.idx].any():
         return events, counts, stopped
-    idx = beliefs.idx[rows]
-    others = beliefs.known[rows].copy()
-    others[np.arange(len(idx)), idx] = False
-    if agreed is not None:
-        others &= ~agreed[idx]
-    need = (
-        p.radius[idx][:, None] + p.radius[None, :] + AGENT_MARGIN
-        + belief_margin(p.max_accel[None, :], beliefs.age[rows], dt)
+    # A belief whose margin exceeds both agents' stopping reach says nothing the pair can act on.
+    cap = stopping_reach(p, dt)
+    widest = min(2.0 * float(cap.max()), float(belief_margin(p.max_accel.max(), beliefs.age.max(), dt)))
+    radius = float(
+        np.linalg.norm(pos1[beliefs.idx] - pos0[beliefs.idx], axis=1).max()
+        + np.linalg.norm(beliefs.vel, axis=1).max() * dt
+        + 2.0 * p.radius.max() + AGENT_MARGIN + widest
     )  # fmt: skip
-    # Candidates: within both steps of each other at the start (a pair farther apart cannot meet).
-    step = np.linalg.norm(pos1[idx] - pos0[idx], axis=1)
-    now = beliefs.distance[rows]
-    reach = step[:, None] + np.linalg.norm(beliefs.vel[rows], axis=-1) * dt + need
-    k, j = np.nonzero(others & (now < reach))
-    if not len(k):
-        return events, counts, stopped
-    b0 = beliefs.pos[rows[k], j]
-    b1 = b0 + beliefs.vel[rows[k], j] * dt
-    d = segment_segment_min_distance(pos0[idx[k]], pos1[idx[k]], b0, b1)
+    k, j, rows, now = beliefs.near(radius)
+    idx = beliefs.idx[k]
+    margin = belief_margin(p.max_accel[j], beliefs.age[rows], dt)
+    keep = deciding[idx] & (margin <= cap[idx] + cap[j])
+    if agreed is not None:
+        keep &= ~agreed[idx, j]
+    k, j, rows, now, idx, margin = k[keep], j[keep], rows[keep], now[keep], idx[keep], margin[keep]
+    need = p.radius[idx] + p.radius[j] + AGENT_MARGIN + margin
+    b0 = beliefs.pos[rows]
+    b1 = b0 + beliefs.vel[rows] * dt
+    d = segment_segment_min_distance(pos0[idx], pos1[idx], b0, b1)
     # Within reach of the other's believed motion and closing in on it (a step away from an
     # agent already within the margin is no conflict: it only widens the gap).
-    closing = now[k, j] * (1.0 - 1e-9)
-    meet = (d < need[k, j]) & (d < closing)
+    closing = now * (1.0 - 1e-9)
+    meet = (d < need) & (d < closing)
     amax = p.max_accel
     for f in np.unique(k[meet]):
-        i, mine = int(idx[f]), np.flatnonzero(k == f)
-        n = len(mine)
+        mine = np.flatnonzero(k == f)
+        i, n = int(beliefs.idx[f]), len(mine)
         at = np.repeat(pos0[i][None], n, 0)
-        need_f, toward = need[f, j[mine]], b0[mine] - pos0[i]
-        believed = (b0[mine], b1[mine], need_f, closing[mine])
+        believed = (b0[mine], b1[mine], need[mine], closing[mine])
 
         def clears(v: np.ndarray, i: int = i, at: np.ndarray = at, believed: tuple = believed) -> bool:
             return _clears(filt, i, pos0[i], at, v * dt, believed, window)
 
         # Slide: the step without its part towards the others it would close in on (within the
         # acceleration limit of its last velocity), else brake, else stop.
+        toward = b0[mine] - pos0[i]
         unit = toward / np.maximum(np.linalg.norm(toward, axis=1), 1e-9)[:, None]
         slide = vel1[i] - np.maximum(unit @ vel1[i], 0.0) @ unit
         brake = filt.brake(i, vel0[i])
-        other = p.ids[j[mine][int(np.argmin(d[mine] - need_f))]]
+        other = p.ids[j[mine][int(np.argmin(d[mine] - need[mine]))]]
         if np.linalg.norm(slide - vel0[i]) <= amax[i] * dt * (1.0 + 1e-9) and clears(slide):
             vel1[i] = slide
         elif clears(brake):

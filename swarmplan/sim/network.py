@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -47,20 +48,49 @@ def plans_of(s: SwarmState, rows: np.ndarray) -> list[Plan]:
 
 @dataclass(frozen=True)
 class Beliefs:
-    """What flyers ``idx`` believe of every agent at one time: ``pos``/``vel`` (flyers, N, 3),
-    ``parked`` and ``goal_distance`` (flyers, N), ``known`` (flyers, N) whether a flyer has
-    heard of (or senses) that agent, ``age`` (flyers, N) seconds since the state was true
-    (inf: never heard), ``distance`` (flyers, N) between the flyer and where it believes each
-    agent is. A flyer's own row is its true state (age 0)."""
+    """What flyers ``idx`` (at ``at``, (n, 3)) believe of every agent at one time, as a table of
+    believed states, one row each: ``pos``/``vel`` (M, 3) (moved on to now), ``parked``,
+    ``goal_distance``, ``age`` (s since the state was true; 0 for a flyer's own and sensed rows)
+    and ``agent`` (M,); ``view`` (n, N) the row flyer k holds of agent b (-1: it knows nothing
+    of b). A flyer's own row is its true state."""
 
     idx: np.ndarray
+    at: np.ndarray
     pos: np.ndarray
     vel: np.ndarray
     parked: np.ndarray
     goal_distance: np.ndarray
-    known: np.ndarray
     age: np.ndarray
-    distance: np.ndarray
+    agent: np.ndarray
+    view: np.ndarray
+
+    @cached_property
+    def _tree(self) -> Any:
+        """A k-d tree of the table's positions (scipy's, imported at the first need)."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.pos)
+
+    def near(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every (flyer row k, agent j, table row, distance) with agent j believed by flyer k
+        closer than ``radius`` to it (itself left out)."""
+        n, n_all = self.view.shape
+        if n * n_all <= 4096 or len(self.pos) <= 64:  # every pair (no tree to build)
+            k, j = np.nonzero(self.view >= 0)
+            rows = self.view[k, j]
+        else:  # the rows of the table within the radius, from two k-d trees
+            from scipy.spatial import cKDTree
+
+            pairs = cKDTree(self.at).sparse_distance_matrix(self._tree, radius, output_type="ndarray")
+            k, rows = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+            j = self.agent[rows]
+            held = self.view[k, j] == rows
+            k, j, rows = k[held], j[held], rows[held]
+        keep = j != self.idx[k]
+        k, j, rows = k[keep], j[keep], rows[keep]
+        d = np.linalg.norm(self.pos[rows] - self.at[k], axis=1)
+        inside = d < radius
+        return k[inside], j[inside], rows[inside], d[inside]
 
 
 class _Table:
@@ -74,15 +104,16 @@ class _Table:
         self.parked = np.zeros(4 * n + 1, dtype=bool)
         self.goal_distance = np.zeros(4 * n + 1)
         self.plan = np.zeros(4 * n + 1, dtype=np.int64)
+        self.agent = np.full(4 * n + 1, -1, dtype=np.int64)
 
-    def add(self, t: float, pos: np.ndarray, vel: np.ndarray, parked: np.ndarray, to_go: np.ndarray,
-            plan: np.ndarray) -> np.ndarray:  # fmt: skip
-        """Rows for ``len(pos)`` states true at ``t``; returns their row numbers."""
+    def add(self, t: float, agent: np.ndarray, pos: np.ndarray, vel: np.ndarray, parked: np.ndarray,
+            to_go: np.ndarray, plan: np.ndarray) -> np.ndarray:  # fmt: skip
+        """Rows for the states of agents ``agent`` true at ``t``; returns their row numbers."""
         k, first = len(pos), self.size
         if first + k > len(self.t):
             grow = max(len(self.t), k)
             for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("parked", False),
-                               ("goal_distance", 0.0), ("plan", 0)):  # fmt: skip
+                               ("goal_distance", 0.0), ("plan", 0), ("agent", -1)):  # fmt: skip
                 old = getattr(self, name)
                 setattr(
                     self, name, np.concatenate([old, np.full((grow, *old.shape[1:]), fill, dtype=old.dtype)])
@@ -90,6 +121,7 @@ class _Table:
         rows = np.arange(first, first + k)
         self.t[rows], self.pos[rows], self.vel[rows] = t, pos, vel
         self.parked[rows], self.goal_distance[rows], self.plan[rows] = parked, to_go, plan
+        self.agent[rows] = agent
         self.size += k
         return rows
 
@@ -124,6 +156,7 @@ class Network:
         pos = s.position
         start = self.table.add(
             0.0,
+            np.arange(n),
             pos,
             np.zeros((n, 3)),
             np.zeros(n, dtype=bool),
@@ -133,6 +166,7 @@ class Network:
         # (receiver, sender): the table row of the newest state heard (0: none)
         d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
         self.heard = np.where(d <= self.comms.range, start[None, :], 0)
+        np.fill_diagonal(self.heard, 0)  # an agent knows itself, it hears nothing of itself
         self.pending: list[_Sent] = []
         self.sent = self.lost = self.out_of_range = 0
         self.oldest_max, self.oldest_sum, self.oldest_count = 0.0, 0.0, 0
@@ -174,6 +208,7 @@ class Network:
         self.lost += int((lost & ~far).sum())
         rows = self.table.add(
             t1,
+            who,
             pos[who],
             vel[who],
             parked[who],
@@ -194,9 +229,13 @@ class Network:
         for m in self.pending:  # oldest broadcasts first: a newer state replaces an older one
             due = m.arrives <= t + _EPS
             if due.any():
-                cur = self.heard[:, m.senders]
+                every = len(m.senders) == self.n  # every agent spoke: the whole matrix, in place
+                cur = self.heard if every else self.heard[:, m.senders]
                 take = due & (self.table.t[cur] < self.table.t[m.rows][None, :])
-                self.heard[:, m.senders] = np.where(take, m.rows[None, :], cur)
+                if every:
+                    np.copyto(self.heard, m.rows[None, :], where=take)
+                else:
+                    self.heard[:, m.senders] = np.where(take, m.rows[None, :], cur)
                 m.arrives[due] = np.inf
             if np.isfinite(m.arrives).any():
                 keep.append(m)
@@ -215,9 +254,9 @@ class Network:
         """Per flyer of ``beliefs``: the age of the oldest state it acts on, of the agents it
         believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
         when it believes none that near."""
-        near = beliefs.known & (beliefs.distance <= reach)
-        near[np.arange(len(beliefs.idx)), beliefs.idx] = False
-        age = np.where(near, beliefs.age, -np.inf).max(axis=1, initial=-np.inf)
+        k, _, rows, _ = beliefs.near(reach)
+        age = np.full(len(beliefs.idx), -np.inf)
+        np.maximum.at(age, k, beliefs.age[rows])
         return np.where(np.isfinite(age), age, np.nan)
 
     def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
@@ -266,28 +305,35 @@ class Network:
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in."""
         self.deliver(t)
-        tb, rows = self.table, self.heard[idx]
-        age = t - tb.t[rows]  # inf where never heard
-        known = rows > 0
-        bvel = tb.vel[rows]
-        bpos = tb.pos[rows] + bvel * np.where(known, age, 0.0)[..., None]
-        bparked, bgoal = tb.parked[rows], tb.goal_distance[rows]
-        k = np.arange(len(idx))
-        bpos[k, idx], bvel[k, idx], bparked[k, idx], bgoal[k, idx] = (
+        tb, heard, n = self.table, self.heard[idx], len(idx)
+        used = np.zeros(tb.size, dtype=bool)
+        used[heard] = True
+        used[0] = False  # nothing heard
+        live = np.flatnonzero(used)
+        remap = np.full(tb.size, -1, dtype=np.int64)
+        remap[live] = np.arange(len(live))
+        view = remap[heard]
+        age = t - tb.t[live]
+        # The rows heard (moved on by their age), then the true states: of the flyers, or with
+        # sensing of every agent (a flyer senses agents within range as they are).
+        sensing = math.isfinite(self.sensing_range)
+        truth = np.arange(self.n) if sensing else idx
+        first = len(live)
+        view[np.arange(n), idx] = first + (idx if sensing else np.arange(n))
+        if sensing:
+            k, j = _within(pos[idx], pos, self.sensing_range)
+            view[k, j] = first + j
+        return Beliefs(
+            idx,
             pos[idx],
-            vel[idx],
-            parked[idx],
-            goal_distance[idx],
+            np.concatenate([tb.pos[live] + tb.vel[live] * age[:, None], pos[truth]]),
+            np.concatenate([tb.vel[live], vel[truth]]),
+            np.concatenate([tb.parked[live], parked[truth]]),
+            np.concatenate([tb.goal_distance[live], goal_distance[truth]]),
+            np.concatenate([age, np.zeros(len(truth))]),
+            np.concatenate([tb.agent[live], truth]),
+            view,
         )
-        age[k, idx], known[k, idx] = 0.0, True
-        if math.isfinite(self.sensing_range):
-            sensed = np.linalg.norm(pos[idx][:, None, :] - pos[None, :, :], axis=-1) <= self.sensing_range
-            r, b = np.nonzero(sensed)
-            bpos[r, b], bvel[r, b] = pos[b], vel[b]
-            bparked[r, b], bgoal[r, b] = parked[b], goal_distance[b]
-            age[r, b], known[r, b] = 0.0, True
-        distance = np.sqrt(np.einsum("fnd,fnd->fn", bpos - pos[idx][:, None, :], bpos - pos[idx][:, None, :]))
-        return Beliefs(idx, bpos, bvel, bparked, bgoal, known, age, distance)
 
     def state_for(self, i: int, s: SwarmState, parked: np.ndarray) -> SwarmState:
         """The state ``s`` as agent ``i`` knows it (``parked``: the agents that no longer fly):
@@ -296,19 +342,22 @@ class Network:
         b = self.beliefs(
             np.array([i]), s.t, s.position, s.velocity, parked, np.linalg.norm(s.goal - s.position, axis=1)
         )
+        rows = b.view[0]
+        position, velocity = b.pos[rows], b.vel[rows]
         mode, segment, route = s.mode.copy(), list(s.segment), list(s.route)
         seg_index, route_index = s.segment_index.copy(), s.route_index.copy()
         for j in range(self.n):
             if j == i:
                 continue
-            if not b.known[0, j]:
+            if rows[j] < 0:
                 mode[j] = Mode.COLLIDED
                 continue
             mode[j], segment[j], seg_index[j], route[j], route_index[j] = self.plans[
                 self.table.plan[self.heard[i, j]]
             ]
+        position[rows < 0], velocity[rows < 0] = s.position[rows < 0], 0.0  # absent, never read
         return SwarmState(
-            s.t, s.step, b.pos[0], b.vel[0], s.goal, mode, segment, seg_index, route, route_index
+            s.t, s.step, position, velocity, s.goal, mode, segment, seg_index, route, route_index
         )
 
 
@@ -323,3 +372,16 @@ class AgentView:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._sim, name)
+
+
+def _within(at: np.ndarray, pos: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (row of ``at``, row of ``pos``) closer than ``radius``."""
+    if len(at) * len(pos) <= 4096:
+        k, j = np.nonzero(np.linalg.norm(at[:, None, :] - pos[None, :, :], axis=-1) <= radius)
+        return k, j
+    from scipy.spatial import cKDTree
+
+    found = cKDTree(pos).query_ball_point(at, radius)
+    counts = np.fromiter(map(len, found), dtype=np.int64, count=len(at))
+    k = np.repeat(np.arange(len(at)), counts)
+    return k, np.fromiter((r for f in found for r in f), dtype=np.int64, count=int(counts.sum()))

@@ -125,7 +125,7 @@ class Steering:
             swarm = Swarm(pos0, vel0, parked, to_go)
         else:  # each flyer's own beliefs of the others
             b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go)
-            swarm = Swarm(b.pos, b.vel, b.parked, b.goal_distance, b.known)
+            swarm = Swarm(b.pos, b.vel, b.parked, b.goal_distance, b.view, b.agent)
             oldest = self.network.oldest(b, self.apf.agent_reach)
         force = self.apf.forces(flyers, inputs, swarm)
         clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
