@@ -75,17 +75,3 @@ def resolve_sensing(c: Checker, raw: Any) -> tuple[dict[str, Any] | None, Sensin
         return None, None
     seen = c.number(raw, "range", "sensing", math.inf, positive=True)
     return {"range": seen}, Sensing(seen)
-
-
-def comms_of(resolved: dict[str, Any]) -> tuple[Comms | None, Sensing | None]:
-    """The sections back from a ``/world`` message (replay and tools read logs)."""
-    comms = sensing = None
-    if resolved.get("comms") is not None:
-        r = resolved["comms"]
-        d = r.get("delay") or {}
-        heard = r.get("range")
-        comms = Comms(r.get("rate"), float(d.get("mean", 0.0)), float(d.get("jitter", 0.0)),
-                      float(r.get("loss", 0.0)), math.inf if heard is None else float(heard))  # fmt: skip
-    if resolved.get("sensing") is not None:
-        sensing = Sensing(float(resolved["sensing"]["range"]))
-    return comms, sensing
