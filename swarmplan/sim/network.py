@@ -73,7 +73,17 @@ class Beliefs:
 
     def near(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every (flyer row k, agent j, table row, distance) with agent j believed by flyer k
-        closer than ``radius`` to it (itself left out)."""
+        closer than ``radius`` to it (itself left out). The widest answer is kept: a narrower
+        question is answered from it."""
+        kept = self.__dict__.get("_near")
+        if kept is not None and radius <= kept[0]:
+            inside = kept[1][3] < radius
+            return tuple(a[inside] for a in kept[1])  # type: ignore[return-value]
+        out = self._pairs(radius)
+        self.__dict__["_near"] = (radius, out)
+        return out
+
+    def _pairs(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         n, n_all = self.view.shape
         if n * n_all <= 4096 or len(self.pos) <= 64:  # every pair (no tree to build)
             k, j = np.nonzero(self.view >= 0)
