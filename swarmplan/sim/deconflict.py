@@ -8,8 +8,10 @@ judged by the flyer alone: its own step against the other's believed motion over
 done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
 A multirotor whose step closes in on another agent's believed motion to within both radii,
 ``AGENT_MARGIN`` and that margin slides (its step without the part towards those agents, when
-that is within its acceleration limit), else brakes (``max_accel``) when braking clears, else
-stops (an ``emergency_stop``); a step that only widens the gap is no conflict. A belief whose
+that is within its acceleration limit), else brakes (``max_accel``); it stops (an
+``emergency_stop``) only at rest or where braking would touch a body: the margins of the others
+hold only while every agent keeps to its acceleration limit. A step that only widens the gap is
+no conflict. A belief whose
 margin exceeds both agents' stopping reach (``apf.stopping_reach``) is too old to act on.
 """
 
@@ -187,6 +189,11 @@ def belief_conflicts(
         if np.linalg.norm(slide - vel0[i]) <= amax[i] * dt * (1.0 + 1e-9) and clears(slide):
             vel1[i] = slide
         elif clears(brake):
+            vel1[i] = brake
+        elif filt.step_is_safe(i, pos0[i], pos0[i] + brake * dt, window.q0, window.q1) and np.any(brake):
+            # Braking within max_accel even where it does not clear: the others' margins hold
+            # only while every agent keeps to its limit (a stop beyond it is what they cannot
+            # foresee).
             vel1[i] = brake
         else:
             vel1[i] = 0.0

@@ -1,13 +1,16 @@
 """What each agent knows of the others when the world has ``comms``: the last state it heard
 from each, extrapolated by its age, and what it senses itself.
 
-Every agent broadcasts its state (position, velocity, whether it still flies, its distance to
-its goal, its mode and its plan: the route or escape segment it follows) ``comms.rate`` times
+Every agent broadcasts its state (position, velocity, acceleration over its last step within
+its limit, whether it still flies, its distance to its goal, its mode and its plan: the route
+or escape segment it follows) ``comms.rate`` times
 a second, at the end of a step (agent k's broadcasts are spread over the period by k/N of it,
 so the swarm does not all speak at once). Each receiver gets a
 copy after ``delay`` (+- a uniform ``jitter``), unless it is lost (probability ``loss``) or the
 two are farther apart than ``range`` when it is sent. A receiver keeps the newest state it has
-received from each sender and acts on it, moved on by the sender's velocity for the state's age.
+received from each sender and acts on it, moved on for the state's age: its field by the
+velocity and acceleration sent, its deconfliction by the velocity sent (with a margin for any
+acceleration within the sender's limit since).
 With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
 (onboard sensing: no age).
 
@@ -49,10 +52,13 @@ def plans_of(s: SwarmState, rows: np.ndarray) -> list[Plan]:
 @dataclass(frozen=True)
 class Beliefs:
     """What flyers ``idx`` (at ``at``, (n, 3)) believe of every agent at one time, as a table of
-    believed states, one row each: ``pos``/``vel`` (M, 3) (moved on to now), ``parked``,
-    ``goal_distance``, ``age`` (s since the state was true; 0 for a flyer's own and sensed rows)
-    and ``agent`` (M,); ``view`` (n, N) the row flyer k holds of agent b (-1: it knows nothing
-    of b). A flyer's own row is its true state."""
+    believed states, one row each: ``pos``/``vel`` (M, 3) moved on to now at the velocity sent
+    (the reference the deconfliction's margin bounds: an agent within its acceleration limit
+    is at most ``max_accel age^2 / 2`` from it), ``expected_pos``/``expected_vel`` moved on with
+    the acceleration sent too (the field's best guess), ``parked``, ``goal_distance``, ``age``
+    (s since the state was true; 0 for a flyer's own and sensed rows) and ``agent`` (M,);
+    ``view`` (n, N) the row flyer k holds of agent b (-1: it knows nothing of b). A flyer's own
+    row is its true state."""
 
     idx: np.ndarray
     at: np.ndarray
@@ -63,6 +69,8 @@ class Beliefs:
     age: np.ndarray
     agent: np.ndarray
     view: np.ndarray
+    expected_pos: np.ndarray
+    expected_vel: np.ndarray
 
     @cached_property
     def _tree(self) -> Any:
@@ -111,6 +119,7 @@ class _Table:
         self.t = np.full(4 * n + 1, -np.inf)
         self.pos = np.zeros((4 * n + 1, 3))
         self.vel = np.zeros((4 * n + 1, 3))
+        self.acc = np.zeros((4 * n + 1, 3))
         self.parked = np.zeros(4 * n + 1, dtype=bool)
         self.goal_distance = np.zeros(4 * n + 1)
         self.plan = np.zeros(4 * n + 1, dtype=np.int64)
@@ -122,7 +131,7 @@ class _Table:
         k, first = len(pos), self.size
         if first + k > len(self.t):
             grow = max(len(self.t), k)
-            for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("parked", False),
+            for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("acc", 0.0), ("parked", False),
                                ("goal_distance", 0.0), ("plan", 0), ("agent", -1)):  # fmt: skip
                 old = getattr(self, name)
                 setattr(
@@ -149,12 +158,13 @@ class _Sent:
 class Network:
     """The messages of one run and every agent's beliefs (reset with :meth:`reset`)."""
 
-    def __init__(self, comms: Comms, sensing: Sensing | None, n: int, dt: float):
-        self.comms, self.n, self.dt = comms, n, dt
+    def __init__(self, comms: Comms, sensing: Sensing | None, max_accel: np.ndarray, dt: float):
+        self.comms, self.n, self.dt = comms, len(max_accel), dt
+        self.max_accel = np.maximum(np.asarray(max_accel, dtype=float), 1e-9)
         self.sensing_range = math.inf if sensing is None else sensing.range
         self.period = comms.period(dt)
         # Agent k speaks at (m + k / N) periods: spread over the period.
-        self._phase = np.arange(n) / max(n, 1)
+        self._phase = np.arange(self.n) / max(self.n, 1)
         self.instant = comms.delay == 0.0 and comms.jitter == 0.0
 
     def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
@@ -192,9 +202,10 @@ class Network:
         k1 = np.floor(t1 / self.period - self._phase + _EPS)
         return np.flatnonzero(k1 > k0)
 
-    def broadcast(self, t0: float, s: SwarmState, parked: np.ndarray) -> None:
+    def broadcast(self, t0: float, s: SwarmState, parked: np.ndarray, acc: np.ndarray) -> None:
         """The states at the end of the step from ``t0`` to ``s.t`` (``parked``: the agents that
-        no longer fly) of the agents that speak in it."""
+        no longer fly; ``acc``: each agent's acceleration over the step) of the agents that speak
+        in it."""
         t1, pos, vel = s.t, s.position, s.velocity
         who = self.speakers(t0, t1)
         if not len(who):
@@ -225,6 +236,9 @@ class Network:
             np.linalg.norm(s.goal[who] - pos[who], axis=1),
             self._book(plans_of(s, who)),
         )
+        # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
+        over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
+        self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
         self.pending.append(_Sent(who, rows, arrives))
 
     def _book(self, plans: list[Plan]) -> np.ndarray:
@@ -324,6 +338,7 @@ class Network:
         remap[live] = np.arange(len(live))
         view = remap[heard]
         age = t - tb.t[live]
+        moved = tb.pos[live] + tb.vel[live] * age[:, None]
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).
         sensing = math.isfinite(self.sensing_range)
@@ -336,13 +351,15 @@ class Network:
         return Beliefs(
             idx,
             pos[idx],
-            np.concatenate([tb.pos[live] + tb.vel[live] * age[:, None], pos[truth]]),
+            np.concatenate([moved, pos[truth]]),
             np.concatenate([tb.vel[live], vel[truth]]),
             np.concatenate([tb.parked[live], parked[truth]]),
             np.concatenate([tb.goal_distance[live], goal_distance[truth]]),
             np.concatenate([age, np.zeros(len(truth))]),
             np.concatenate([tb.agent[live], truth]),
             view,
+            np.concatenate([moved + 0.5 * tb.acc[live] * (age * age)[:, None], pos[truth]]),
+            np.concatenate([tb.vel[live] + tb.acc[live] * age[:, None], vel[truth]]),
         )
 
     def state_for(self, i: int, s: SwarmState, parked: np.ndarray) -> SwarmState:

@@ -60,7 +60,7 @@ class Steering:
         self.sight = Sight(len(world.agents))  # fixed wings' clear lines (swarmplan.flight.sight)
         # With comms: what each agent has heard of the others.
         self.network = (
-            None if world.comms is None else Network(world.comms, world.sensing, len(world.agents), world.dt)
+            None if world.comms is None else Network(world.comms, world.sensing, params.max_accel, world.dt)
         )
         self.sensing_range = math.inf if world.sensing is None else world.sensing.range
 
@@ -125,7 +125,7 @@ class Steering:
             swarm = Swarm(pos0, vel0, parked, to_go)
         else:  # each flyer's own beliefs of the others
             b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go)
-            swarm = Swarm(b.pos, b.vel, b.parked, b.goal_distance, b.view, b.agent)
+            swarm = Swarm(b.expected_pos, b.expected_vel, b.parked, b.goal_distance, b.view, b.agent)
             oldest = self.network.oldest(b, self.apf.agent_reach)
         force = self.apf.forces(flyers, inputs, swarm)
         clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
