@@ -21,6 +21,7 @@ from swarmplan.core import Mode
 from swarmplan.sim import Simulation
 from swarmplan.sim.deconflict import belief_margin
 from swarmplan.sim.network import AgentView
+from swarmplan.sim.safety import AgentMotion, Commands, StepWindow
 from swarmplan.world import WorldError, parse_world
 
 
@@ -212,9 +213,10 @@ def test_same_seed_same_messages_and_run():
     seed=st.integers(0, 2**16),
 )
 def test_decisions_read_only_what_an_agent_heard(n, steps, delay, loss, sensing, seed):
-    """After some steps of a circle swap, the command of every flyer, its deconflicted step and
-    the state its planner sees stay the same when the other agents' true states are moved,
-    except those it senses (within ``sensing.range``, left where they are)."""
+    """After some steps of a circle swap, the command of every flyer, the step its safety filter
+    makes of it (deconflicted on its beliefs) and the state its planner sees stay the same when
+    the other agents' true states are moved, except those it senses (within ``sensing.range``,
+    left where they are)."""
     raw = _circle(n, seed % 7, {"rate": 20, "delay": delay, "loss": loss},
                   None if sensing is None else {"range": sensing})  # fmt: skip
     sim = Simulation(parse_world(raw), "world")
@@ -233,12 +235,13 @@ def test_decisions_read_only_what_an_agent_heard(n, steps, delay, loss, sensing,
         parked = ~sim.loiter.flying(s, s.active)
         cmd = sim.steering.commands(s, idx, s.position, s.velocity, field, q0, qv0, parked)
         views = [AgentView(sim, int(i)).state for i in idx]
-        return (
-            idx,
-            cmd.velocity,
-            [(v.position[i], v.velocity[i], v.mode[i]) for v, i in zip(views, idx, strict=True)],
-            views,
-        )
+        own = [(v.position[i], v.velocity[i], v.mode[i]) for v, i in zip(views, idx, strict=True)]
+        # The step its own safety filter makes of its command (deconflicted on its beliefs).
+        window = StepWindow(s.t, s.t + sim.world.dt, q0, sim.scene.poses(s.t + sim.world.dt)[0])
+        brake_goal = sim.guard.brake_goals(idx, cmd.position, cmd.goal)
+        commands = Commands(idx, cmd.velocity, cmd.beliefs, sim.network.agreed(s.t))
+        flown = sim.safety.fly(commands, AgentMotion(s.position, s.velocity), window, s.mode, brake_goal)
+        return idx, np.hstack([cmd.velocity, flown.end.velocity[idx]]), own, views
 
     for i in np.flatnonzero(s.active):
         idx, v_before, own_before, views_before = decisions()
@@ -300,3 +303,49 @@ def test_circle_swaps_with_delay_and_loss_stay_clear():
         sim, _, _ = _fly(_circle(10, seed, {"rate": 20, "delay": 0.3, "loss": 0.1}), seed=seed)
         s = sim.summary()
         assert s["collisions"] == 0 and s["arrived"] == 10, (seed, s["collisions"], s["arrived"])
+
+
+def _two(believed_x: float, age: float = 0.0, vel: tuple = (2.0, 0.0, 0.0)) -> tuple[np.ndarray, list]:
+    """Agent a (radius 1, 4 m/s², dt 0.1) at x = 10 flying +x at 2 m/s, and what its
+    deconfliction makes of that step when it believes agent b at rest at ``believed_x``."""
+    from swarmplan.sim.deconflict import belief_conflicts
+    from swarmplan.sim.network import Beliefs
+
+    agents = [{"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]},
+              {"id": "b", "start": [60, 50, 20], "goal": [60, 90, 20]}]  # fmt: skip
+    sim = Simulation(make_world(base_world(agents=agents, comms={"delay": 0.1})), "none")
+    sim.reset(0)
+    pos0 = np.array([[10.0, 50, 20], [60.0, 50, 20]])  # b's truth: far away
+    vel0 = np.array([vel, [0.0, 0, 0]])
+    pos1, vel1 = pos0 + vel0 * 0.1, vel0.copy()
+    table = np.array([pos0[0], [believed_x, 50.0, 20.0]])
+    rest, ages = np.zeros((2, 3)), np.array([0.0, age])
+    beliefs = Beliefs(np.array([0]), pos0[:1], table, rest, np.zeros(2, bool), np.zeros(2), ages,
+                      np.array([0, 1]), np.array([[0, 1]]), table, rest)  # fmt: skip
+    q = sim.scene.poses(0.0)[0]
+    window = StepWindow(0.0, 0.1, q, q)
+    events, _, stopped = belief_conflicts(
+        sim.safety, beliefs, (pos0, vel0), (pos1, vel1), np.array([True, False]), None, window
+    )
+    return vel1[0], events
+
+
+def test_deconfliction_on_beliefs_exact_geometry():
+    """need = 1 + 1 + 0.2 + 4 (age + 0.1)^2 / 2. Believed at x = 12.3 (2.3 m, closing to 2.1 m
+    < 2.22 m): the slide (no x at all) is beyond one step's 0.4 m/s, braking to 1.6 m/s still
+    closes within 2.22 m, so it brakes within its limit (no stop, no event). Believed at 30 m:
+    the step stands, wherever b truly is. Believed at 12.3 m with age 0.5 s (need 2.92 m):
+    the same brake. Believed just behind at x = 8: the step widens the gap, no conflict. Flying
+    (0.3, 2, 0) with b believed at x = 12.1: it slides, its x part dropped (0.3 m/s: within one
+    step's change)."""
+    v, events = _two(12.3)
+    np.testing.assert_allclose(v, [1.6, 0, 0])
+    assert events == []
+    v, _ = _two(30.0)
+    np.testing.assert_array_equal(v, [2.0, 0, 0])
+    v, _ = _two(12.3, age=0.5)
+    np.testing.assert_allclose(v, [1.6, 0, 0])
+    v, _ = _two(8.0)
+    np.testing.assert_array_equal(v, [2.0, 0, 0])
+    v, _ = _two(12.1, vel=(0.3, 2.0, 0.0))
+    np.testing.assert_allclose(v, [0.0, 2.0, 0.0])
