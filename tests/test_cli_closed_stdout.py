@@ -25,8 +25,15 @@ def run_into_closed_pipe(args: list[str], cwd: Path) -> subprocess.CompletedProc
     read_end, write_end = os.pipe()
     os.close(read_end)
     try:
+        env = dict(os.environ, PYTHONPATH=str(ROOT))  # this checkout's package, wherever cwd is
         return subprocess.run(
-            [sys.executable, *args], stdout=write_end, stderr=subprocess.PIPE, text=True, cwd=cwd, timeout=120
+            [sys.executable, *args],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=cwd,
+            timeout=120,
+            env=env,
         )
     finally:
         os.close(write_end)

@@ -27,6 +27,7 @@ def run(args: list[str], cwd: Path, stdout=None, close_stdout: bool = False) -> 
         stderr=subprocess.PIPE,
         text=True,
         cwd=cwd,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),  # this checkout's package, wherever cwd is
         timeout=120,
         preexec_fn=(lambda: os.close(1)) if close_stdout else None,
     )

@@ -3,6 +3,7 @@ the independent checker accepts."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -39,6 +40,7 @@ def test_bad_world_subprocess_exit_2_no_traceback_no_log(tmp_path):
     r = subprocess.run(
         [sys.executable, "-m", "swarmplan.run", str(world), "--out", str(tmp_path / "out.mcap")],
         cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),  # this checkout's package, wherever cwd is
         capture_output=True,
         text=True,
         timeout=120,

@@ -457,6 +457,7 @@ def test_tracker_is_a_known_top_level_key_and_is_resolved_into_the_world_message
 
 
 def test_bad_tracker_key_in_a_world_file_exits_2_naming_it(tmp_path):
+    import os
     import subprocess
     import sys
 
@@ -465,6 +466,7 @@ def test_bad_tracker_key_in_a_world_file_exits_2_naming_it(tmp_path):
     r = subprocess.run(
         [sys.executable, "-m", "swarmplan.run", str(world), "--out", str(tmp_path / "out.mcap")],
         cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1])),  # this checkout's package
         capture_output=True,
         text=True,
         timeout=120,
