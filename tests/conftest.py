@@ -29,10 +29,12 @@ ROOT = Path(__file__).resolve().parents[1]
 _FOLDER: list[str] = []
 
 WARM_UP: tuple[tuple[str, ...], ...] = (
-    (  # a small world (field, guide), a fixed wing, an escape (segment costs, decoder)
+    (  # a small world (field, guide), a fixed wing, an escape (segment costs, decoder), then a
+        # sphere of 64 agents flown home (the arrived agents' evasion and swept checks at swarm size)
         "-m swarmplan.run worlds/quickstart.yaml --max-time 1 --out {tmp}/q.mcap --quiet",
         "-m swarmplan.run worlds/fixed_wing.yaml --max-time 1 --out {tmp}/f.mcap --quiet",
         "-m swarmplan.run worlds/traps/u_pocket.yaml --max-time 12 --no-guide --out {tmp}/u.mcap --quiet",
+        "-m swarmplan.bench swarm --sizes 64 --seeds 1 --scenarios sphere --out {tmp}/swarm",
     ),
     (  # every optimizer, then a swarm of 64 agents among movers (the swarm-size kernels)
         "-m swarmplan.bench overhead --evals 2000 --repeats 1",
