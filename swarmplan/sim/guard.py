@@ -6,7 +6,7 @@ The threat test, per guarding agent ``i`` (a multirotor that has arrived) and pe
 flying agent ``j``: ``j`` goes on at its current velocity, ``i`` is held where it is; the
 closest approach of ``j`` within the horizon ``H_i``, to ``i`` or to ``i``'s goal, is closer than
 ``need = R_j + r_i + GUARD_MARGIN`` (a mover: its bounding radius; an agent: its radius, and
-``AGENT_MARGIN`` instead of ``GUARD_MARGIN``). ``H_i`` is the time ``i`` needs to move sideways
+twice its safety margin, ``safety.safety_margin``, instead of ``GUARD_MARGIN``). ``H_i`` is the time ``i`` needs to move sideways
 by the largest such ``need`` from rest at ``max_accel`` and ``speed.max``, times
 ``HORIZON_FACTOR``, plus three steps of reaction.
 
@@ -37,7 +37,7 @@ from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import mode_in, mode_table
-from swarmplan.sim.safety import AGENT_MARGIN
+from swarmplan.sim.safety import safety_margin
 
 GUARD_MARGIN = 0.5
 """Metres an arrived agent keeps between its body and a mover's bounding sphere."""
@@ -178,7 +178,7 @@ class GoalGuard:
         flying = np.flatnonzero(s.active)
         c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
         u = np.concatenate((velocities, s.velocity[flying]))
-        margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + AGENT_MARGIN])
+        margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + 2.0 * safety_margin(p.radius[flying])])
         who = np.concatenate([np.full(len(centres), -1), flying])
         if not len(c):
             return NOTHING

@@ -27,8 +27,19 @@ from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
 from swarmplan.world.motion import poses_at
 
-AGENT_MARGIN = 0.2
-"""Metres kept between two agents' swept bodies by deconfliction."""
+MARGIN_FRACTION = 0.2
+"""The safety margin of an agent's body as a fraction of its radius (at most ``MAX_MARGIN``):
+kept from every obstacle surface, and between two agents' swept bodies (each its own)."""
+
+MAX_MARGIN = 0.25
+"""m: the largest safety margin of an agent's body."""
+
+
+def safety_margin(radius: np.ndarray) -> np.ndarray:
+    """The safety margin of bodies of ``radius``: ``MARGIN_FRACTION`` of it, at most ``MAX_MARGIN``.
+    Scaled to the agent, a 5 cm drone keeps 1 cm (a margin in metres sized for 0.5 m agents kept
+    crazyflies further apart than the separation they asked for, and froze them there)."""
+    return np.minimum(MAX_MARGIN, MARGIN_FRACTION * radius)
 
 
 @dataclass(frozen=True)
@@ -419,7 +430,7 @@ class SafetyFilter:
         return rows[order], lo[order]
 
     def margin(self, i: int | np.ndarray) -> np.ndarray:
-        return np.minimum(0.25, 0.2 * self.params.radius[i])
+        return safety_margin(self.params.radius[i])
 
     def step_is_safe(self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> bool:
         mv = self.scene.moving_mask
@@ -507,25 +518,32 @@ class SafetyFilter:
                     Event(t1, ids[i], "emergency_stop", {"speed": round(float(np.linalg.norm(vel0[i])), 6)})
                 )
             pos1[i] = pos0[i] + vel1[i] * dt
-        # Agents: conflicting pairs stop the multirotor(s) involved, until no conflict remains.
+        # Agents: conflicting pairs stop the multirotor(s) involved, until no conflict remains. A
+        # conflict is a pair whose bodies, each inflated by its safety margin, touch during the step
+        # while closing in; a pair already that close that keeps its distance or opens it is let
+        # go (stopped, it could never part again: the pair froze for good).
         n = len(ids)
         active = np.zeros(n, dtype=bool)
         active[idx] = True
         stopped = np.zeros(n, dtype=bool)
         present = active | (mode == Mode.ARRIVED)  # no mode changes below
+        checked = self._checked_radius
         for _ in range(n):
-            pairs = agent_contacts_indexed(pos0, pos1, self.params.radius, present, AGENT_MARGIN)
+            pairs = agent_contacts_indexed(pos0, pos1, checked, present)
             changed = False
             for a, b in pairs:
+                if _parting(pos0[a] - pos0[b], (pos1[a] - pos0[a]) - (pos1[b] - pos0[b])):
+                    continue
                 for i in (a, b):
                     if active[i] and not stopped[i] and not self.params.fixed_wing[i]:
                         safe_brake = self.brake(i, vel0[i])
                         p_brake = pos0[i] + safe_brake * dt
                         other = b if i == a else a
+                        w0 = pos0[i] - pos0[other]
+                        dw = (p_brake - pos0[i]) - (pos1[other] - pos0[other])
                         d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
-                        if d >= self.params.radius[i] + self.params.radius[
-                            other
-                        ] + AGENT_MARGIN and self.step_is_safe(i, pos0[i], p_brake, q0, q1):
+                        clear = d >= checked[i] + checked[other] or _parting(w0, dw)
+                        if clear and self.step_is_safe(i, pos0[i], p_brake, q0, q1):
                             vel1[i] = safe_brake
                         else:
                             vel1[i] = 0.0
@@ -582,6 +600,12 @@ class SafetyFilter:
         rows = np.full(len(cmds), i)
         v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, rows, self.turn[rows])
         return list(v)
+
+
+def _parting(w0: np.ndarray, dw: np.ndarray) -> bool:
+    """Whether two points ``w0`` apart (one minus the other) moving ``dw`` relative to each other
+    in a step never come closer than they start (the closest approach of the step is its start)."""
+    return float(w0 @ dw) >= 0.0
 
 
 def step_kernels():  # noqa: ANN201
