@@ -42,6 +42,10 @@ from swarmplan.sim.safety import safety_margin
 GUARD_MARGIN = 0.5
 """Metres an arrived agent keeps between its body and a mover's bounding sphere."""
 
+CLEAR_BY = 1.0
+"""Radii of its own body by which a threat must clear an agent away from its goal (evading, or
+on its way back) before it comes back: the hysteresis between ``evade_start`` and ``evade_end``."""
+
 HORIZON_FACTOR = 1.5
 """The threat horizon over the time a sideways move by the needed distance takes."""
 
@@ -146,6 +150,9 @@ class GoalGuard:
         n = len(params.ids)
         self.guarding = np.zeros(n, dtype=bool)
         self.evading = np.zeros(n, dtype=bool)
+        # Agents that arrived (or came back) at the end of the last step: the arrival's stop takes
+        # the step after it, so they are threats' targets only from the one after.
+        self.settling = np.zeros(n, dtype=bool)
         self._command = np.zeros((n, 3))
         self._compiled = use_compiled_checks(n)
         self._stop_speed = np.where(params.fixed_wing, np.inf, params.max_accel * dt)
@@ -154,6 +161,7 @@ class GoalGuard:
     def reset(self) -> None:
         self.guarding[:] = False
         self.evading[:] = False
+        self.settling[:] = False
         self._command[:] = 0.0
 
     def update(
@@ -169,7 +177,8 @@ class GoalGuard:
         agents already away stay evading while threatened; an agent that takes off flies straight
         back to its goal afterwards (the rest of its route is done). Returns the take-offs."""
         self.evading[:] = False
-        rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED))
+        rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED) & ~self.settling)
+        self.settling[:] = False
         if not len(rows):
             return NOTHING
         p = self.params
@@ -192,9 +201,14 @@ class GoalGuard:
         else:
             horizon = HORIZON_FACTOR * sideways_time(margin.max() + radius, amax, vmax) + 3.0 * self.dt
         # Each threat's own motion against the agent held where it is (its evasion is what it
-        # controls), and against its goal: it stays out until the goal is clear again.
+        # controls), and against its goal: it stays out until the goal is clear again, by one more
+        # of its bodies (CLEAR_BY radii): an agent away comes back only once the threat clears its
+        # goal by that much, so a prediction wavering about the need does not send it out and
+        # back again step after step.
+        away = s.mode[rows] == Mode.APF
+        reach = radius + CLEAR_BY * radius * away if away.any() else radius
         pairs = threat_pairs(
-            c, u, margin, who, rows, radius, s.position[rows], s.goal[rows], horizon, self._compiled
+            c, u, margin, who, rows, reach, s.position[rows], s.goal[rows], horizon, self._compiled
         )
         key, times, misses, offsets = pairs
         self._command[rows] = 0.0
@@ -209,11 +223,11 @@ class GoalGuard:
             i = int(rows[k])
             sl = slice(int(bounds[n]), int(bounds[n + 1]))
             js = j_of[sl]
-            threat = misses[sl, 0] < margin[js] + radius[k]
+            threat = misses[sl, 0] < margin[js] + reach[k]
             self.evading[i] = True
             side = (float(clearance[n]), normal[n])
             # Clear of every threat where it is: it hovers there until its goal is clear.
-            self._command[i] = self._evasion(i, threat, offsets[sl], u[js], margin[js] + radius[k], side)
+            self._command[i] = self._evasion(i, threat, offsets[sl], u[js], margin[js] + reach[k], side)
             if s.mode[i] == Mode.ARRIVED:
                 m = sl.start + int(np.argmin(np.minimum(times[sl, 0], times[sl, 1])))
                 s.mode[i] = Mode.APF
@@ -299,6 +313,7 @@ class GoalGuard:
         for i, _t in tally.arrivals:
             if not self.params.fixed_wing[i]:
                 self.guarding[i] = True
+                self.settling[i] = True
         if not back:
             return tally
         names = {self.params.ids[i] for i in back}
