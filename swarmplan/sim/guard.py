@@ -6,9 +6,9 @@ The threat test, per guarding agent ``i`` (a multirotor that has arrived) and pe
 flying agent ``j``: ``j`` goes on at its current velocity, ``i`` is held where it is; the
 closest approach of ``j`` within the horizon ``H_i``, to ``i`` or to ``i``'s goal, is closer than
 ``need = R_j + r_i + GUARD_MARGIN`` (a mover: its bounding radius; an agent: its radius, and
-twice its safety margin, ``safety.safety_margin``, instead of ``GUARD_MARGIN``). ``H_i`` is the time ``i`` needs to move sideways
-by the largest such ``need`` from rest at ``max_accel`` and ``speed.max``, times
-``HORIZON_FACTOR``, plus three steps of reaction.
+twice its safety margin, ``safety.safety_margin``, instead of ``GUARD_MARGIN``). ``H_i`` is the
+time ``i`` needs to move sideways by the largest such ``need`` from rest at ``max_accel`` and
+``speed.max``, times ``HORIZON_FACTOR``, plus three steps of reaction.
 
 The evasion command moves the agent across the threat's path, away from its point of closest
 approach (head-on: to the threat's right, or to the side away from the nearest surface), until
@@ -16,9 +16,13 @@ the predicted miss is ``need + GUARD_MARGIN``, at a speed it can stop from befor
 clear of every threat where it is, it hovers there until its goal is clear as well. The braking
 margin and the safety filter check the evasion step as every other step (static obstacles,
 bounds, other agents). While away the agent flies in mode ``apf`` (a log's audit covers it as
-any flying agent) and cannot re-arrive; once no threat is left it flies the potential field
-back to its goal and re-enters mode ``arrived`` with an ``evade_end`` event (its
-``arrival_time`` stays its first arrival).
+any flying agent) and cannot re-arrive; once every threat clears it and its goal by
+``CLEAR_BY`` more of its radii (the hysteresis that keeps a wavering prediction from sending it
+out and back step after step) it flies the potential field back to its goal and re-enters mode
+``arrived`` with an ``evade_end`` event (its ``arrival_time`` stays its first arrival). An
+arrival freezes the agent from a speed one step can stop: that stop takes the step after it, so
+an agent that has just arrived (or come back) is tested for threats from the step after that,
+and its evasion starts from rest (no velocity change beyond ``max_accel`` between two steps).
 
 Fixed wings cannot hover: at their goal they loiter (``swarmplan.sim.loiter``), flown as every
 flying aircraft (the field, the turn-ahead guard, the safety filter); a contact with one there
@@ -187,7 +191,8 @@ class GoalGuard:
         flying = np.flatnonzero(s.active)
         c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
         u = np.concatenate((velocities, s.velocity[flying]))
-        margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + 2.0 * safety_margin(p.radius[flying])])
+        agent_margin = p.radius[flying] + 2.0 * safety_margin(p.radius[flying])
+        margin = np.concatenate([radii + GUARD_MARGIN, agent_margin])
         who = np.concatenate([np.full(len(centres), -1), flying])
         if not len(c):
             return NOTHING
