@@ -10,8 +10,8 @@ from helpers import make_world, run_to_end
 
 from swarmplan.bench import swarm_scenarios as S
 from swarmplan.bench.swarm_runs import ContactMeter
+from swarmplan.flight.kinematics import MAX_MARGIN, safety_margin
 from swarmplan.sim import Simulation
-from swarmplan.sim.safety import MAX_MARGIN, safety_margin
 
 
 def test_the_safety_margin_follows_the_body():

@@ -6,7 +6,7 @@ The threat test, per guarding agent ``i`` (a multirotor that has arrived) and pe
 flying agent ``j``: ``j`` goes on at its current velocity, ``i`` is held where it is; the
 closest approach of ``j`` within the horizon ``H_i``, to ``i`` or to ``i``'s goal, is closer than
 ``need = R_j + r_i + GUARD_MARGIN`` (a mover: its bounding radius; an agent: its radius, and
-twice its safety margin, ``safety.safety_margin``, instead of ``GUARD_MARGIN``). ``H_i`` is the
+twice its safety margin, ``kinematics.safety_margin``, instead of ``GUARD_MARGIN``). ``H_i`` is the
 time ``i`` needs to move sideways by the largest such ``need`` from rest at ``max_accel`` and
 ``speed.max``, times ``HORIZON_FACTOR``, plus three steps of reaction.
 
@@ -36,12 +36,11 @@ from collections.abc import Callable
 import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
-from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import mode_in, mode_table
-from swarmplan.sim.safety import safety_margin
 
 GUARD_MARGIN = 0.5
 """Metres an arrived agent keeps between its body and a mover's bounding sphere."""

@@ -15,31 +15,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.core import Event, Mode
-from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity, turn_states
+from swarmplan.core import Event
+from swarmplan.flight.kinematics import (
+    AgentParams,
+    limit_multirotor,
+    limit_velocity,
+    safety_margin,
+    turn_states,
+)
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
-from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl, segment_segment_min_distance
-from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
+from swarmplan.sim.deconflict import deconflict
 from swarmplan.sim.metrics import NOTHING, Tally
+from swarmplan.sim.network import Beliefs
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
 from swarmplan.world.motion import poses_at
-
-MARGIN_FRACTION = 0.2
-"""The safety margin of an agent's body as a fraction of its radius (at most ``MAX_MARGIN``):
-kept from every obstacle surface, and between two agents' swept bodies (each its own)."""
-
-MAX_MARGIN = 0.25
-"""m: the largest safety margin of an agent's body."""
-
-
-def safety_margin(radius: np.ndarray) -> np.ndarray:
-    """The safety margin of bodies of ``radius``: ``MARGIN_FRACTION`` of it, at most ``MAX_MARGIN``.
-    Scaled to the agent, a 5 cm drone keeps 1 cm (a margin in metres sized for 0.5 m agents kept
-    crazyflies further apart than the separation they asked for, and froze them there)."""
-    return np.minimum(MAX_MARGIN, MARGIN_FRACTION * radius)
 
 
 @dataclass(frozen=True)
@@ -52,10 +45,14 @@ class AgentMotion:
 
 @dataclass(frozen=True)
 class Commands:
-    """The flying agents (``idx``, agent indices) and their commanded velocities (rows of ``idx``)."""
+    """The flying agents (``idx``, agent indices) and their commanded velocities (rows of ``idx``);
+    with ``comms``, what they believe of the others and the pairs (N, N) that can agree on their
+    steps within this one (``swarmplan.sim.deconflict``)."""
 
     idx: np.ndarray
     velocity: np.ndarray
+    beliefs: Beliefs | None = None
+    agreed: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -324,7 +321,9 @@ class SafetyFilter:
             pos1 = pos0.copy()
             vel1[idx] = v_new
             pos1[idx] = pos0[idx] + vel1[idx] * dt
-        out = self.filter(Commands(idx, v_cmd), start, AgentMotion(pos1, vel1), window, modes, free)
+        out = self.filter(
+            Commands(idx, v_cmd, cmd.beliefs, cmd.agreed), start, AgentMotion(pos1, vel1), window, modes, free
+        )
         fw = idx[self.params.fixed_wing[idx]]
         if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
             self.turn[fw] = turn_states(self.params, vel0[fw], out.end.velocity[fw], dt, fw)
@@ -518,42 +517,9 @@ class SafetyFilter:
                     Event(t1, ids[i], "emergency_stop", {"speed": round(float(np.linalg.norm(vel0[i])), 6)})
                 )
             pos1[i] = pos0[i] + vel1[i] * dt
-        # Agents: conflicting pairs stop the multirotor(s) involved, until no conflict remains. A
-        # conflict is a pair whose bodies, each inflated by its safety margin, touch during the step
-        # while closing in; a pair already that close that keeps its distance or opens it is let
-        # go (stopped, it could never part again: the pair froze for good).
-        n = len(ids)
-        active = np.zeros(n, dtype=bool)
-        active[idx] = True
-        stopped = np.zeros(n, dtype=bool)
-        present = active | (mode == Mode.ARRIVED)  # no mode changes below
-        checked = self._checked_radius
-        for _ in range(n):
-            pairs = agent_contacts_indexed(pos0, pos1, checked, present)
-            changed = False
-            for a, b in pairs:
-                if _parting(pos0[a] - pos0[b], (pos1[a] - pos0[a]) - (pos1[b] - pos0[b])):
-                    continue
-                for i in (a, b):
-                    if active[i] and not stopped[i] and not self.params.fixed_wing[i]:
-                        safe_brake = self.brake(i, vel0[i])
-                        p_brake = pos0[i] + safe_brake * dt
-                        other = b if i == a else a
-                        w0 = pos0[i] - pos0[other]
-                        dw = (p_brake - pos0[i]) - (pos1[other] - pos0[other])
-                        d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
-                        clear = d >= checked[i] + checked[other] or _parting(w0, dw)
-                        if clear and self.step_is_safe(i, pos0[i], p_brake, q0, q1):
-                            vel1[i] = safe_brake
-                        else:
-                            vel1[i] = 0.0
-                            counts += self.stop_counts(i, vel0[i])
-                            events.append(Event(t1, ids[i], "emergency_stop", {"other": ids[other]}))
-                        pos1[i] = pos0[i] + vel1[i] * dt
-                        stopped[i] = True
-                        changed = True
-            if not changed:
-                break
+        # Agents: conflicting pairs stop the multirotor(s) involved (swarmplan.sim.deconflict).
+        stops = deconflict(self, commands, (pos0, vel0), (pos1, vel1), mode, window)
+        events, counts, stopped = events + stops[0], counts + stops[1], stops[2]
         tally = Tally(events=tuple(events), counts=tuple(counts)) if events or counts else NOTHING
         if stopped.any():
             validated &= ~stopped[idx]
@@ -600,12 +566,6 @@ class SafetyFilter:
         rows = np.full(len(cmds), i)
         v = limit_velocity(p, np.repeat(v0[None], len(cmds), 0), cmds, dt, rows, self.turn[rows])
         return list(v)
-
-
-def _parting(w0: np.ndarray, dw: np.ndarray) -> bool:
-    """Whether two points ``w0`` apart (one minus the other) moving ``dw`` relative to each other
-    in a step never come closer than they start (the closest approach of the step is its start)."""
-    return float(w0 @ dw) >= 0.0
 
 
 def step_kernels():  # noqa: ANN201
