@@ -227,6 +227,7 @@ class StepResult:
     agents: AgentStates | None = None
     obstacles: ObstacleStates | None = None  # None when nothing moves
     optimizer_runs: list[OptimizerRun] = field(default_factory=list)
+    comms: dict[str, Any] | None = None  # the ``/comms`` message (worlds with ``comms`` only)
 
 
 @dataclass
@@ -303,5 +304,8 @@ class Recorder(Protocol):
 
     def write_event(self, event: dict[str, Any]) -> None: ...
     def write_optimizer(self, msg: dict[str, Any]) -> None: ...
+    def write_comms(self, msg: dict[str, Any]) -> None:
+        """One ``/comms`` message (worlds with ``comms``)."""
+
     def write_summary(self, summary: dict[str, Any]) -> None: ...
     def close(self) -> None: ...

@@ -190,3 +190,49 @@ def test_a_small_swarm_flies_the_same_on_both_fields():
         _same_bits(v0, v1)
         assert e0 == e1
     assert np.abs(runs[0][-1][0] - runs[0][0][0]).max() > 10.0  # the agents went somewhere
+
+
+def test_each_flyers_own_view_of_the_swarm():
+    """With ``Swarm.known`` every flyer reads its own rows (its beliefs of the swarm): the force
+    on each is the force it gets alone on a shared swarm of its rows with the agents it does not
+    know of far away, bit for bit, in both implementations; moving bodies at distance inf (out
+    of its sight) change its force and keep it finite."""
+    world = _world(False)
+    params, pos, vel, goal, f, rng = _inputs(world, 3)
+    field = ApfField(world, params)
+    idx = np.sort(rng.choice(N, 12, replace=False))
+    n, rows = len(idx), np.arange(12)
+    # Each flyer believes the swarm moved on by its own noise, and does not know of some agents.
+    bpos = pos[None] + rng.normal(0.0, 2.0, (n, N, 3))
+    bvel = vel[None] + rng.normal(0.0, 1.0, (n, N, 3))
+    bpos[rows, idx], bvel[rows, idx] = pos[idx], vel[idx]
+    parked = rng.random((n, N)) < 0.3
+    to_go = rng.uniform(0.0, 80.0, (n, N))
+    known = rng.random((n, N)) < 0.8
+    known[rows, idx] = True
+    inputs = FieldInputs(f[0][idx], f[1][idx], *f[2:])
+    flyers = Flyers(idx, pos[idx], vel[idx], goal[idx])
+    # As a table: flyer k's belief of agent b in row k N + b.
+    view = np.where(known, np.arange(n * N).reshape(n, N), -1)
+    table = (bpos.reshape(-1, 3), bvel.reshape(-1, 3), parked.reshape(-1), to_go.reshape(-1))
+    believed = Swarm(*table, view, np.tile(np.arange(N), n))
+    compiled, plain = _both(field, flyers, inputs, believed)
+    _same_bits(plain, compiled)
+    assert np.all(np.isfinite(compiled)) and np.abs(compiled).sum() > 0
+    for k, i in enumerate(idx):
+        away = bpos[k].copy()
+        away[~known[k]] = 1e7 + 100.0 * np.arange(N)[~known[k], None]
+        one = field.forces(
+            Flyers(idx[k : k + 1], pos[i : i + 1], vel[i : i + 1], goal[i : i + 1]),
+            FieldInputs(f[0][i : i + 1], f[1][i : i + 1], *f[2:]),
+            Swarm(away, bvel[k], parked[k], to_go[k]),
+        )
+        _same_bits(one[0], compiled[k])
+    moving = f[3]
+    assert moving.any()
+    blind = f[0][idx].copy()
+    blind[:, moving] = np.inf
+    unseen_c, unseen_p = _both(field, flyers, FieldInputs(blind, f[1][idx], *f[2:]), believed)
+    _same_bits(unseen_c, unseen_p)
+    assert np.all(np.isfinite(unseen_c))
+    assert not np.array_equal(compiled, unseen_c)

@@ -86,6 +86,8 @@ def everything_world() -> dict:
         log={"path": "logs/x.mcap", "foxglove": False, "flush_interval": 1.0},
         tracker={"mass": 1.5, "position": {"kp": 6}, "attitude": {"kp": 12}, "rate": {"kp": 40}},
         origin={"lat": 47.4, "lon": 8.5, "alt": 400},
+        comms={"rate": 20, "delay": {"mean": 0.1, "jitter": 0.02}, "loss": 0.1, "range": 50},
+        sensing={"range": 15},
     )  # fmt: skip
 
 

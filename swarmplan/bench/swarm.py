@@ -104,7 +104,11 @@ def _parse_sizes(text: str) -> list[int] | None:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--sizes", default="16,64,256,512", help="swarm sizes, comma-separated (each >= 2)")
+    parser.add_argument(
+        "--sizes",
+        default=None,
+        help="swarm sizes, comma-separated (each >= 2; default 16,64,256,512, with --delays 64)",
+    )
     parser.add_argument("--seeds", type=int, default=3, help="seeds per scenario and size")
     parser.add_argument(
         "--scenarios",
@@ -122,14 +126,42 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--quick", action="store_true", help="16 agents, one seed (a smoke test)")
     parser.add_argument(
+        "--delays",
+        help="communication delays in s, comma-separated: fly RMADER's circle and the sphere on what each "
+        "agent hears (the world's comms), beside the published figures, instead of the scenarios",
+    )
+    parser.add_argument(
+        "--loss", default="0", help="with --delays: message losses, comma-separated, each in [0, 1)"
+    )
+    parser.add_argument(
+        "--rate", type=float, default=20.0, help="with --delays: broadcasts per agent and second"
+    )
+    parser.add_argument(
         "--docs",
         metavar="DIR",
         help="write swarm-benchmarks.md and its pictures to DIR instead of --out (docs: the shipped page)",
     )
 
 
+def _parse_numbers(text: str | None, lo: float, hi: float) -> list[float] | None:
+    try:
+        values = [float(v) for v in (text or "").split(",") if v.strip()]
+    except ValueError:
+        return None
+    return values if values and all(lo <= v < hi for v in values) else None
+
+
 def check_arguments(args: argparse.Namespace) -> list[str]:
     problems = []
+    if args.sizes is None:
+        args.sizes = "64" if args.delays is not None else "16,64,256,512"
+    if args.delays is not None:
+        if _parse_numbers(args.delays, 0.0, math.inf) is None:
+            problems.append(f"--delays: expected numbers >= 0 (s) separated by commas, got {args.delays!r}")
+        if _parse_numbers(args.loss, 0.0, 1.0) is None:
+            problems.append(f"--loss: expected numbers in [0, 1) separated by commas, got {args.loss!r}")
+        if not (args.rate > 0 and math.isfinite(args.rate)):
+            problems.append(f"--rate: must be > 0, got {args.rate:g}")
     if _parse_sizes(args.sizes) is None:
         problems.append(f"--sizes: expected whole numbers >= 2 separated by commas, got {args.sizes!r}")
     if args.seeds < 1:
@@ -162,6 +194,12 @@ def main(args: argparse.Namespace) -> int:
     orca = "orca" in args.peers.split(",")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.delays is not None:
+        from swarmplan.bench.swarm_comms import run_comms
+
+        delays, losses = _parse_numbers(args.delays, 0.0, math.inf), _parse_numbers(args.loss, 0.0, 1.0)
+        run_comms(sizes, seeds, delays, losses, args.rate, out, args.docs)
+        return 0
     if lab:
         from swarmplan.bench.swarm_lab import run_lab
 

@@ -442,9 +442,16 @@ MAX_AGENTS = {"doorway": 64}
 """Scenarios flown only up to a swarm size (one gap serialises the swap)."""
 
 
-def scenario_world(name: str, agents: int, seed: int = 0, planner: dict[str, Any] | None = None) -> World:
+def scenario_world(
+    name: str,
+    agents: int,
+    seed: int = 0,
+    planner: dict[str, Any] | None = None,
+    comms: dict[str, Any] | None = None,
+) -> World:
     """The parsed ``World`` of scenario ``name`` with ``agents`` agents (``planner``: an optional
-    ``planner`` section, e.g. ``{"optimizer": {"name": "none"}}``)."""
+    ``planner`` section, e.g. ``{"optimizer": {"name": "none"}}``; ``comms``: an optional
+    ``comms`` section)."""
     from swarmplan.world import parse_world
 
     known = {**SCENARIOS, **LAB_SCENARIOS}
@@ -455,4 +462,6 @@ def scenario_world(name: str, agents: int, seed: int = 0, planner: dict[str, Any
     raw = known[name](agents, seed)
     if planner is not None:
         raw["planner"] = planner
+    if comms is not None:
+        raw["comms"] = comms
     return parse_world(raw)

@@ -222,3 +222,14 @@ def plain(doc: str) -> str:
     (``:mod:`x```, ````x````) become their text."""
     doc = re.sub(r":[a-z]+:`~?([^`]+)`", r"\1", doc)
     return doc.replace("``", "").strip()
+
+
+def comms_line(counts: dict[str, Any], oldest_max: float, oldest_mean: float) -> str:
+    """One line on a run's messages (``/summary`` or ``/comms`` counts) and the ages acted on."""
+    sent = int(counts.get("sent", 0))
+    lost, far = int(counts.get("lost", 0)), int(counts.get("out_of_range", 0))
+    share = f" ({100.0 * lost / sent:.1f} %)" if sent else ""
+    return (
+        f"comms: {sent} messages sent, {lost} lost{share}, {far} out of range; oldest state acted on: "
+        f"{oldest_max:.3f} s at most, {oldest_mean:.3f} s on average"
+    )

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout
+from swarmplan.cli.common import HelpFormatter, comms_line, quiet_on_closed_stdout
 from swarmplan.replay.metrics import AgentMetrics, Tolerances, compare_with_summary, compute_metrics
 from swarmplan.replay.recording import Recording, RecordingError, load
 from swarmplan.runtime.paths import output_file_problem
@@ -155,6 +155,9 @@ def describe(rec: Recording) -> list[str]:
             "NOTICE: this file was cut short (no summary section/footer, e.g. the run was hard-killed);"
             f" replaying the {rec.n_steps} steps up to its last complete chunk."
         )
+    if rec.comms:  # the ages each agent acted on, read from /comms (the counts from its last message)
+        ages = [a["age"] for m in rec.comms for a in m.get("agents", []) if a.get("age") is not None]
+        lines.append(comms_line(rec.comms[-1], max(ages, default=0.0), float(np.mean(ages)) if ages else 0.0))
     s = rec.summary
     if s is None:
         lines.append("recorded /summary: none")

@@ -19,7 +19,13 @@ from pathlib import Path
 from typing import Any
 
 from swarmplan import optimizers
-from swarmplan.cli.common import HelpFormatter, quiet_on_closed_stdout, write_failure, writer_messages
+from swarmplan.cli.common import (
+    HelpFormatter,
+    comms_line,
+    quiet_on_closed_stdout,
+    write_failure,
+    writer_messages,
+)
 from swarmplan.io.compile_notice import CompileNotice, said_marker
 from swarmplan.io.runner import LiveView, apply_overrides, simulate
 from swarmplan.runtime.blas import limit_blas_threads
@@ -141,6 +147,9 @@ def format_summary(summary: dict[str, Any], log_path: Path | None, compiled: boo
         rules = [rule for fixed, rule in TURN_RULES if any(_fixed_wing(a) == fixed for a in broken)]
         out.append(f"TURN LIMIT BROKEN (!): {', '.join(a['id'] for a in broken)} ({'; '.join(rules)})")
     out += exposure_warnings(summary)
+    if "comms" in summary:
+        c = summary["comms"]
+        out.append(comms_line(c, c["oldest_age_max"], c["oldest_age_mean"]))
     verdict = "SUCCESS" if summary["success"] else ("INTERRUPTED" if summary["interrupted"] else "FAILED")
     out.append("")
     out.append(

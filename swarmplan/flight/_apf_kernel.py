@@ -146,18 +146,22 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
     terrain clearance (0 without peaks), bounds min, bounds max); ``swarm``: (positions,
-    velocities, parked, distance to the goal, reach at the current speed) of every agent;
+    velocities, parked, distance to the goal, reach at the current speed) of every agent, and
+    a view (flyers, agents) of row numbers into those arrays, -1 for an agent the flyer does
+    not know of (each flyer's own beliefs of the others), or an empty (0, 0) view: row b is
+    agent b for every flyer;
     ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
     ``window``: test only the agents within each flyer's window along x (the same forces)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    all_pos, all_vel, parked, goal_dist, reach_all = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
+    viewed = view.shape[0] > 0
     k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
     m = dist.shape[1]
-    n_all = all_pos.shape[0]
+    n_all = view.shape[1] if viewed else all_pos.shape[0]
     any_moving = False
     m_speed = np.zeros(m)  # each mover's speed (the bound that dismisses far movers)
     for j in range(m):
@@ -173,8 +177,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     rb0 = min(rho0, 10.0)
     k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
-    X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
-    VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
+    if viewed:  # filled per flyer from its view
+        X, Y, Z, VX, VY, VZ = (np.zeros(n_all), np.zeros(n_all), np.zeros(n_all),
+                               np.zeros(n_all), np.zeros(n_all), np.zeros(n_all))  # fmt: skip
+    else:
+        X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
+        VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
     near = np.empty(n_all, dtype=np.bool_)
     rows = np.empty(n_all, dtype=np.int64)
     # With ``window``: the swarm sorted along x, and its top speed, for each flyer's window.
@@ -183,7 +191,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     for b in range(n_all):
         v_all = max(v_all, math.sqrt(VX[b] * VX[b] + VY[b] * VY[b] + VZ[b] * VZ[b]))
         finite = finite and math.isfinite(X[b] + Y[b] + Z[b] + VX[b] + VY[b] + VZ[b])
-    window = window and n_all >= 2 and finite and math.isfinite(v_all) and 0.0 <= horizon < np.inf
+    window = window and not viewed and n_all >= 2 and finite
+    window = window and math.isfinite(v_all) and 0.0 <= horizon < np.inf
     order = np.argsort(X) if window else np.arange(n_all)
     XS, YS, ZS = X[order], Y[order], Z[order]
     VXS, VYS, VZS = VX[order], VY[order], VZ[order]
@@ -262,7 +271,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
                 speed = math.sqrt(vx * vx + vy * vy + vz * vz)
                 for j in range(m):
-                    if not moving[j]:
+                    if not moving[j] or not math.isfinite(dist[i, j]):  # inf: a mover it does not see
                         continue
                     dpx, dpy, dpz = px - o_center[j, 0], py - o_center[j, 1], pz - o_center[j, 2]
                     # A mover farther than the influence, both radii and both motions over the
@@ -325,6 +334,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         k += 1
                 _index_order(rows, k)  # the full scan's order of the sums
             else:
+                if viewed:  # this flyer's beliefs of the others (an unknown one: where it is itself)
+                    for b in range(n_all):
+                        rb = view[i, b]
+                        rb = rb if rb >= 0 else view[i, ia]
+                        X[b], Y[b], Z[b] = all_pos[rb, 0], all_pos[rb, 1], all_pos[rb, 2]
+                        VX[b], VY[b], VZ[b] = all_vel[rb, 0], all_vel[rb, 1], all_vel[rb, 2]
                 _near(px, py, pz, vx, vy, vz, X, Y, Z, VX, VY, VZ, horizon, reach, near)
                 for b in range(n_all):
                     if near[b]:
@@ -332,10 +347,11 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         k += 1
             for c in range(k):
                 b = rows[c]
-                if b == ia:
+                rb = view[i, b] if viewed else b
+                if b == ia or rb < 0:
                     continue
-                dpx, dpy, dpz = px - all_pos[b, 0], py - all_pos[b, 1], pz - all_pos[b, 2]
-                dwx, dwy, dwz = vx - all_vel[b, 0], vy - all_vel[b, 1], vz - all_vel[b, 2]
+                dpx, dpy, dpz = px - all_pos[rb, 0], py - all_pos[rb, 1], pz - all_pos[rb, 2]
+                dwx, dwy, dwz = vx - all_vel[rb, 0], vy - all_vel[rb, 1], vz - all_vel[rb, 2]
                 rr = radius[ia] + radius[b]
                 cx = max(separation[ia, 0], separation[b, 0]) + rr
                 cy = max(separation[ia, 1], separation[b, 1]) + rr
@@ -348,10 +364,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 # parked agent is at rest, only the flyer's braking counts. A fixed wing (it
                 # cannot stop) keeps the full range from cruise speed.
                 pair_reach = stop_reach[ia] + stop_reach[b]
-                if parked[b] and can_stop[ia]:
+                if parked[rb] and can_stop[ia]:
                     pair_reach = reach_now[i]
                 elif can_stop[ia] and can_stop[b]:
-                    pair_reach = min(pair_reach, reach_now[i] + reach_all[b])
+                    pair_reach = min(pair_reach, reach_now[i] + reach_all[rb])
                 e0 = 1.0 + min(pair_reach, rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz
@@ -370,7 +386,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 # Priority: a parked agent, or one farther from its goal, repels as a static
                 # body does (with the goal factor): near its goal an agent that can stop goes
                 # on through the crowd and the others give way.
-                if can_stop[ia] and (parked[b] or dg <= goal_dist[b]):
+                if can_stop[ia] and (parked[rb] or dg <= goal_dist[rb]):
                     mag = mag * gfac
                     mag_p = mag_p * gfac
                 wx, wy, wz = _unit(sx * cx, sy * cy, sz * cz)

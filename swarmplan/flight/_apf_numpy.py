@@ -135,7 +135,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     f = f + faces[:, 0] + faces[:, 1]  # per axis: the low face, then the high one
 
     # Other agents.
-    if swarm[0].shape[0] >= 2:
+    view = swarm[5]
+    if (view.shape[1] if view.shape[0] else swarm[0].shape[0]) >= 2:
         terms = _agent_terms(
             (pos, vel, idx, reach_now, dg, gfac),
             (radius, separation, stop_reach, can_stop),
@@ -203,7 +204,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)
         way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)
-        live = (tau > 0.0) & (mag != 0.0)
+        live = (tau > 0.0) & (mag != 0.0) & np.isfinite(dist[:, mv])  # inf: a mover it does not see
         f = _sum_in_order(f, np.where(live[..., None], mag[..., None] * way, _SKIP))
     return f, bend, hold
 
@@ -213,9 +214,19 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     ``-0.0`` where the kernel adds nothing."""
     pos, vel, idx, reach_now, dg, gfac = fl
     radius, separation, stop_reach, can_stop = agents
-    all_pos, all_vel, parked, goal_dist, reach_all = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
     reach, rho0, k_agent, horizon = g
-    n, n_all = len(pos), len(all_pos)
+    n = len(pos)
+    if view.shape[0]:  # each flyer's own rows (an unknown agent: its own row, and not tested)
+        known = view >= 0
+        rows_of = np.where(known, view, view[np.arange(n), idx][:, None])
+        all_pos, all_vel = all_pos[rows_of], all_vel[rows_of]
+        parked, goal_dist, reach_all = parked[rows_of], goal_dist[rows_of], reach_all[rows_of]
+    else:  # every flyer's row b is agent b
+        known = np.ones((n, len(all_pos)), dtype=bool)
+        shared = (parked, goal_dist, reach_all)
+        parked, goal_dist, reach_all = (np.broadcast_to(a, (n, len(a))) for a in shared)
+    n_all = known.shape[1]
     dp = pos[:, None, :] - all_pos
     dw = vel[:, None, :] - all_vel
     # The kernel's _near: pairs whose closest approach within the horizon may lie inside reach.
@@ -228,6 +239,7 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
         | ((-bb < a * horizon) & (dd * a - bb * bb >= r2 * a + 1e-9 * dd * a))
     )
     far[np.arange(n), idx] = True  # an agent and itself
+    far |= ~known
     rows, b = np.nonzero(~far)
     terms = np.full((n, n_all, 3), _SKIP)
     if len(rows) == 0:
@@ -240,9 +252,9 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     stop_a, stop_b = can_stop[ia], can_stop[b]
     pair_reach = stop_reach[ia] + stop_reach[b]
     pair_reach = np.where(
-        parked[b] & stop_a,
+        parked[rows, b] & stop_a,
         reach_now[rows],
-        np.where(stop_a & stop_b, np.minimum(pair_reach, reach_now[rows] + reach_all[b]), pair_reach),
+        np.where(stop_a & stop_b, np.minimum(pair_reach, reach_now[rows] + reach_all[rows, b]), pair_reach),
     )
     e0 = 1.0 + np.minimum(pair_reach, rho0) / np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
     dv = dw / c
@@ -255,7 +267,7 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     mag_p = np.where(predicted, k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     mag_p = mag_p * (1.0 - tau / (horizon + _EPS))
     # Priority: a parked agent, or one farther from its goal, repels with the goal factor.
-    factored = stop_a & (parked[b] | (dg[rows] <= goal_dist[b]))
+    factored = stop_a & (parked[rows, b] | (dg[rows] <= goal_dist[rows, b]))
     mag = np.where(factored, mag * gfac[rows], mag)
     mag_p = np.where(factored, mag_p * gfac[rows], mag_p)
     side = _right(dw)

@@ -71,7 +71,8 @@ of each flyer (``_apf_kernel.apf_forces``: the same forces, fewer pair tests).""
 
 @dataclass(frozen=True)
 class FieldInputs:
-    """Geometry seen by the active agents this step (computed by the simulation)."""
+    """Geometry seen by the active agents this step (computed by the simulation); a moving
+    obstacle at distance inf is one that agent does not see (beyond its sensing range)."""
 
     obstacle_distance: np.ndarray  # (N, M) signed distance from agent centre to obstacle surface
     obstacle_gradient: np.ndarray  # (N, M, 3)
@@ -101,12 +102,19 @@ class Swarm:
     """Every agent of the world (``pos``/``vel`` (N, 3)); ``parked`` (N,) marks those that no
     longer fly (arrived, stopped), which repel as static bodies (with the goal factor);
     ``goal_distance`` (N,) each one's distance to its goal (default: none nearer than any
-    flyer to its own, i.e. no priority between flying agents)."""
+    flyer to its own, i.e. no priority between flying agents).
+
+    With ``view`` (flyers, N), the swarm as each flyer believes it (``swarmplan.sim.network``):
+    ``pos``, ``vel``, ``parked`` and ``goal_distance`` are a table of believed states, one row
+    each, ``row_agent`` (rows,) whose state each row is, and ``view[k, b]`` the row flyer k holds
+    of agent b (-1: it knows nothing of b)."""
 
     pos: np.ndarray
     vel: np.ndarray
     parked: np.ndarray | None = None
     goal_distance: np.ndarray | None = None
+    view: np.ndarray | None = None
+    row_agent: np.ndarray | None = None
 
 
 def reach_at_speed(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:
@@ -167,6 +175,12 @@ class ApfField:
         self._any_fixed_wing = bool(params.fixed_wing.any())
         self._numpy_calls = field_numpy_calls(len(world.agents))  # then the compiled kernel
 
+    @property
+    def agent_reach(self) -> float:
+        """Distance between centres beyond which another agent's current repulsion is zero
+        (:func:`current_reach`)."""
+        return self._reach
+
     def _reach_at_speed(self, idx: np.ndarray | None, vel: np.ndarray) -> np.ndarray:
         """:func:`reach_at_speed` of agents ``idx`` (None: the first ``len(vel)``, in order)."""
         if self._any_fixed_wing:
@@ -196,13 +210,17 @@ class ApfField:
         # A target equal to the goal is the same field as no target (the quadratic well included).
         tgt = goal if flyers.target is None else flyers.target
         scale = np.ones(n) if flyers.static_scale is None else np.asarray(flyers.static_scale, dtype=float)
-        parked = np.zeros(len(swarm.pos), dtype=bool) if swarm.parked is None else swarm.parked
+        all_pos, all_vel, shape = swarm.pos, swarm.vel, swarm.pos.shape[:-1]
+        parked = np.zeros(shape, dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
-        goal_dist = (
-            np.full(len(swarm.pos), -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
-        )
+        goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
-        reach_all = self._reach_at_speed(None, swarm.vel)
+        if swarm.view is None:  # one swarm for every flyer
+            view = np.zeros((0, 0), dtype=np.int64)
+            reach_all = self._reach_at_speed(None, all_vel)
+        else:  # each flyer's own beliefs: its rows of the table
+            view = np.ascontiguousarray(swarm.view, dtype=np.int64)
+            reach_all = self._reach_at_speed(np.asarray(swarm.row_agent, dtype=np.int64), all_vel)
         if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
@@ -214,11 +232,11 @@ class ApfField:
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              field.obstacle_center, field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (swarm.pos, swarm.vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all),
+            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view),
             self._reach * (1.0 + 1e-9) + 1e-9,
             self._gains,
             out,
-            len(swarm.pos) >= WINDOW_FROM,
+            (view.shape[1] if swarm.view is not None else len(all_pos)) >= WINDOW_FROM,
         )  # fmt: skip
         return out
 

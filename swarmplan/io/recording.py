@@ -277,6 +277,29 @@ class _ObstacleEncoder:
         return self._text.fill(values)
 
 
+COMMS_SCHEMA: dict[str, Any] = {
+    "title": "swarmplan.Comms",
+    "type": "object",
+    "required": ["t", "agents", "sent", "lost", "out_of_range"],
+    "properties": {
+        "t": {"type": "number"},
+        "agents": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "required": ["id", "age"],
+                "properties": {"id": {"type": "string"}, "age": {"type": ["number", "null"]}},
+            },
+        },
+        "sent": {"type": "integer"},
+        "lost": {"type": "integer"},
+        "out_of_range": {"type": "integer"},
+    },
+}
+"""``/comms``: per step and agent the age of the oldest state of another agent it acted on
+(null: none near, or not flying), and the run's messages so far."""
+
+
 def _ns(t: float) -> int:
     return int(round(t * 1e9))
 
@@ -401,6 +424,12 @@ class McapRecorder:
 
     def write_optimizer(self, msg: dict[str, Any]) -> None:
         self._write("/optimizer", float(msg["t"]), msg)
+
+    def write_comms(self, msg: dict[str, Any]) -> None:
+        """One ``/comms`` message (its channel added with the first: worlds without comms have none)."""
+        if "/comms" not in self._channels:
+            self.add_json_channel("/comms", COMMS_SCHEMA)
+        self._write("/comms", float(msg["t"]), msg)
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         self._write("/summary", self._last_t, summary)

@@ -52,6 +52,8 @@ class RecordingObserver:
         for run in result.optimizer_runs:
             rec.write_optimizer(run.to_json())
         rec.write_state(result.state.t, result.agents, result.obstacles)
+        if result.comms is not None:
+            rec.write_comms(result.comms)
         for e in result.events:
             rec.write_event(e.to_json())
 

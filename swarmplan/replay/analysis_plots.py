@@ -81,8 +81,7 @@ def plot_curvature(rec: Recording, agents: list[str] | None = None, fig: Figure 
             handles=handles[:21], fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0
         )
     ax.set_title(
-        f"{_title(rec)} - path curvature (line: over {CURVATURE_WINDOW:g} s; dots: per step; "
-        "shaded: escape)",
+        f"{_title(rec)} - path curvature (line: over {CURVATURE_WINDOW:g} s; dots: per step; shaded: escape)",
         fontsize=10,
     )
     return fig

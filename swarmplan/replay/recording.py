@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-TOPICS = ("/world", "/agents/state", "/obstacles/state", "/events", "/optimizer", "/summary")
+TOPICS = ("/world", "/agents/state", "/obstacles/state", "/events", "/optimizer", "/summary", "/comms")
 MODES = ("apf", "escape", "smoothing", "arrived", "collided", "failed")
 
 
@@ -120,6 +120,7 @@ class Recording:
     summary: dict[str, Any] | None = None
     truncated: bool = False
     topic_counts: dict[str, int] = field(default_factory=dict)
+    comms: list[dict[str, Any]] = field(default_factory=list)  # the /comms messages (worlds with comms)
 
     # ------------------------------------------------------------------ helpers
     @property
@@ -368,4 +369,5 @@ def load(path: str | Path) -> Recording:
         summary=summaries[-1] if summaries else None,
         truncated=truncated,
         topic_counts={k: len(v) for k, v in raw.items()},
+        comms=_decode(raw.get("/comms", [])),
     )

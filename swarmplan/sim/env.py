@@ -1,18 +1,16 @@
 """The multi-UAV simulation: ``reset(seed=...)`` / ``step()`` in the manner of Gymnasium.
 
-Each step, for every flying agent at once: potential-field command (or segment following while
-escaping/smoothing) → kinematic limits → a swept FCL safety check of the step (alternative feasible
-commands when the step would touch something) → the committed step is checked again (contact ends the
-agent) → arrival, stuck and near-miss detection → the step's result (everything a log needs: states,
-events, optimizer runs; the simulation writes nothing itself, observers of the results do). ``terminated``
-means every agent arrived, collided or failed; ``truncated`` means the world's ``sim.max_time`` ran out.
+Each step, for every flying agent at once: field command (or segment following) → kinematic limits
+→ swept FCL check of the step (feasible alternatives when it would touch something) and
+deconfliction → the committed step checked again (contact ends the agent) → arrival, stuck and
+near-miss detection → the step's result (everything a log needs; observers write it). ``terminated``:
+every agent arrived, collided or failed; ``truncated``: the world's ``sim.max_time`` ran out.
 
-This module only orchestrates; the jobs live beside it: :mod:`~swarmplan.sim.scene` (obstacles,
-distances), :mod:`~swarmplan.sim.steering` (the field's commands, the guide, the loiters of arrived fixed
-wings), :mod:`~swarmplan.sim.navigation` (plan following, stuck detection), :mod:`~swarmplan.sim.safety`
-(safety filter, deconfliction, fixed-wing guard), :mod:`~swarmplan.sim.contacts` (collisions, crash point,
-arrival, near misses), :mod:`~swarmplan.sim.guard` (arrived multirotors out of a mover's way and back),
-:mod:`~swarmplan.sim.records` (random streams, events and optimizer runs).
+This module only orchestrates; the jobs live beside it: ``scene`` (obstacles, distances),
+``steering`` (the field's commands, the guide, loiters), ``navigation`` (plans, stuck detection),
+``safety`` and ``deconflict`` (the step's checks), ``contacts`` (collisions, arrival, near misses),
+``guard`` (arrived multirotors out of a mover's way), ``network`` (what each agent has heard, with
+``comms``), ``records`` (random streams, events, optimizer runs).
 """
 
 from __future__ import annotations
@@ -42,6 +40,7 @@ from swarmplan.sim.guard import GoalGuard
 from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
+from swarmplan.sim.network import AgentView
 from swarmplan.sim.records import RunRecords, agent_states
 from swarmplan.sim.safety import AgentMotion, Commands, SafetyFilter, StepWindow
 from swarmplan.sim.scene import Scene
@@ -89,6 +88,7 @@ class Simulation:
         self.metrics: RunMetrics | None = None
         self.wall_start = 0.0
         self.records = RunRecords(self.ids)
+        self.network = st.network  # what each agent has heard of the others (None: it knows the truth)
 
     @property
     def guide(self) -> StaticGuide | None:
@@ -114,6 +114,8 @@ class Simulation:
         # an agent that starts nearer to something than it ever flies was reported farther).
         self.metrics.measure_start(*self.scene.clearances(start, self.scene.poses(0.0)[0]))
         self.steering.reset(start, goal)
+        if self.network is not None:
+            self.network.reset(self.rng_for("comms"), self.state)
         self.navigator.reset(self.state)
         self.guard.reset()
         self.safety.turn[:] = 0.0  # fixed wings start straight and level
@@ -158,7 +160,8 @@ class Simulation:
 
     def _ask_planner(self, i: int) -> tuple[StuckOutcome, tuple[Event, ...]]:
         """The planner's answer for stuck agent ``i`` and the events it reported meanwhile."""
-        return self.records.ask(lambda: self.planner.on_stuck(self, i))
+        context = self if self.network is None else AgentView(self, i)  # with comms: what i knows
+        return self.records.ask(lambda: self.planner.on_stuck(context, i))
 
     def world_message(self) -> dict[str, Any]:
         return self.world.to_message(self.seed)
@@ -178,7 +181,10 @@ class Simulation:
         # Arrived multirotors under threat take off again (mode apf) to get out of its way.
         flying_before = s.mode != Mode.ARRIVED
         if self.guard.guarding.any():
-            self._merge(self._guard_goals(s, q0, qv0))
+            if self._field_cache is None:
+                self._field_cache = self.field.query(s.position, q0)
+            movers, surface = self.scene.movers(q0, qv0), self.scene.surface_of(s.position, self._field_cache)
+            self._merge(self.guard.update(s, movers, surface))  # (swarmplan.sim.guard)
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
         idx = np.flatnonzero(flying_now)
@@ -196,6 +202,7 @@ class Simulation:
 
         pos0, vel0 = s.position.copy(), s.velocity.copy()
         pos1, vel1 = pos0.copy(), np.zeros_like(vel0)  # the step of agents that do not fly
+        oldest = None  # with comms: the oldest state each flyer acted on
         if len(idx):
             # The previous step already measured every agent's distances at this position and time.
             if self._field_cache is None:
@@ -203,6 +210,7 @@ class Simulation:
             # Parked: not flying (modes changed above stay flying ones: arrivals come later).
             cmd = self.steering.commands(s, idx, pos0, vel0, self._field_cache, q0, qv0, ~flying_now)
             self._merge(cmd.ended)
+            oldest = cmd.oldest
             v_cmd = self.guard.commands(idx, cmd.velocity)
             v_cmd, guarded = self.safety.guard_fixed_wings(
                 idx, pos0, vel0, v_cmd, cmd.obstacle_distance, cmd.clearance, t0
@@ -210,8 +218,9 @@ class Simulation:
             self._merge(guarded)
             brake_goal = self.guard.brake_goals(idx, cmd.position, cmd.goal)
             window = StepWindow(t0, t1, q0, q1)
+            agreed = None if self.network is None else self.network.agreed(t0)
             filtered = self.safety.fly(
-                Commands(idx, v_cmd), AgentMotion(pos0, vel0), window, s.mode, brake_goal
+                Commands(idx, v_cmd, cmd.beliefs, agreed), AgentMotion(pos0, vel0), window, s.mode, brake_goal
             )
             pos1, vel1, validated = filtered.end.position, filtered.end.velocity, filtered.validated
             self._merge(filtered.tally)
@@ -248,6 +257,8 @@ class Simulation:
         self._merge(self.near_misses.update(pos1, active, t1))
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
+        if self.network is not None:
+            self.network.broadcast(t0, s, ~self.loiter.flying(s, s.active), (vel1 - vel0) / dt)
         on_stuck = None if self.planner is None else self._ask_planner
         self._merge(nav.detect_stuck(s, on_stuck, exempt=self.guard.guarding))
 
@@ -257,23 +268,14 @@ class Simulation:
             self._merge(timeouts(s, self.ids))
         events, runs = self.records.take()
         agents = agent_states(self.ids, self.state, self._compiled)
-        return StepResult(s, events, terminated, truncated, agents, self.scene.obstacle_states(t1), runs)
+        comms = None if self.network is None else self.network.message(t1, self.ids, idx, oldest)
+        return StepResult(
+            s, events, terminated, truncated, agents, self.scene.obstacle_states(t1), runs, comms
+        )
 
     def _nearest_obstacle(self, i: int) -> str:
         """The id of the obstacle nearest to agent ``i`` at the step's end."""
         return self.world.obstacles[int(np.argmin(self._field_cache[0][i]))].id
-
-    def _guard_goals(self, s: SwarmState, q0: np.ndarray, qv0: np.ndarray) -> Tally:
-        """The goal guard's threat test at the step's start (``swarmplan.sim.guard``)."""
-        if self._field_cache is None:
-            self._field_cache = self.field.query(s.position, q0)
-        cache, mv = self._field_cache, self.moving_mask
-        movers = (q0[mv], qv0[mv], self.scene.mover_radii, self.scene.mover_ids)
-
-        def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return self.scene.nearest_surface(rows, s.position[rows], cache[0][rows], cache[1][rows])
-
-        return self.guard.update(s, movers, surface)
 
     # ------------------------------------------------------------------ reports
 
@@ -283,7 +285,7 @@ class Simulation:
 
     def summary(self, interrupted: bool = False) -> dict[str, Any]:
         """Per-agent and overall metrics for ``/summary`` and the CLI table."""
-        return summary_report(
+        report = summary_report(
             self.world,
             self.state,
             self.metrics,
@@ -292,6 +294,9 @@ class Simulation:
             wall_time=time.perf_counter() - self.wall_start,
             interrupted=interrupted,
         )
+        if self.network is not None:
+            report["comms"] = self.network.run_report()
+        return report
 
     @property
     def optimizer_name(self) -> str:

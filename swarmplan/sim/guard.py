@@ -35,9 +35,9 @@ from swarmplan.core import Event, Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
+from swarmplan.sim.deconflict import AGENT_MARGIN
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import mode_in, mode_table
-from swarmplan.sim.safety import AGENT_MARGIN
 
 GUARD_MARGIN = 0.5
 """Metres an arrived agent keeps between its body and a mover's bounding sphere."""

@@ -15,20 +15,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from swarmplan.core import Event, Mode
+from swarmplan.core import Event
 from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity, turn_states
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
-from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl, segment_segment_min_distance
-from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
+from swarmplan.sim.deconflict import deconflict
 from swarmplan.sim.metrics import NOTHING, Tally
+from swarmplan.sim.network import Beliefs
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
 from swarmplan.world.motion import poses_at
-
-AGENT_MARGIN = 0.2
-"""Metres kept between two agents' swept bodies by deconfliction."""
 
 
 @dataclass(frozen=True)
@@ -41,10 +39,14 @@ class AgentMotion:
 
 @dataclass(frozen=True)
 class Commands:
-    """The flying agents (``idx``, agent indices) and their commanded velocities (rows of ``idx``)."""
+    """The flying agents (``idx``, agent indices) and their commanded velocities (rows of ``idx``);
+    with ``comms``, what they believe of the others and the pairs (N, N) that can agree on their
+    steps within this one (``swarmplan.sim.deconflict``)."""
 
     idx: np.ndarray
     velocity: np.ndarray
+    beliefs: Beliefs | None = None
+    agreed: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -313,7 +315,9 @@ class SafetyFilter:
             pos1 = pos0.copy()
             vel1[idx] = v_new
             pos1[idx] = pos0[idx] + vel1[idx] * dt
-        out = self.filter(Commands(idx, v_cmd), start, AgentMotion(pos1, vel1), window, modes, free)
+        out = self.filter(
+            Commands(idx, v_cmd, cmd.beliefs, cmd.agreed), start, AgentMotion(pos1, vel1), window, modes, free
+        )
         fw = idx[self.params.fixed_wing[idx]]
         if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
             self.turn[fw] = turn_states(self.params, vel0[fw], out.end.velocity[fw], dt, fw)
@@ -507,35 +511,9 @@ class SafetyFilter:
                     Event(t1, ids[i], "emergency_stop", {"speed": round(float(np.linalg.norm(vel0[i])), 6)})
                 )
             pos1[i] = pos0[i] + vel1[i] * dt
-        # Agents: conflicting pairs stop the multirotor(s) involved, until no conflict remains.
-        n = len(ids)
-        active = np.zeros(n, dtype=bool)
-        active[idx] = True
-        stopped = np.zeros(n, dtype=bool)
-        present = active | (mode == Mode.ARRIVED)  # no mode changes below
-        for _ in range(n):
-            pairs = agent_contacts_indexed(pos0, pos1, self.params.radius, present, AGENT_MARGIN)
-            changed = False
-            for a, b in pairs:
-                for i in (a, b):
-                    if active[i] and not stopped[i] and not self.params.fixed_wing[i]:
-                        safe_brake = self.brake(i, vel0[i])
-                        p_brake = pos0[i] + safe_brake * dt
-                        other = b if i == a else a
-                        d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
-                        if d >= self.params.radius[i] + self.params.radius[
-                            other
-                        ] + AGENT_MARGIN and self.step_is_safe(i, pos0[i], p_brake, q0, q1):
-                            vel1[i] = safe_brake
-                        else:
-                            vel1[i] = 0.0
-                            counts += self.stop_counts(i, vel0[i])
-                            events.append(Event(t1, ids[i], "emergency_stop", {"other": ids[other]}))
-                        pos1[i] = pos0[i] + vel1[i] * dt
-                        stopped[i] = True
-                        changed = True
-            if not changed:
-                break
+        # Agents: conflicting pairs stop the multirotor(s) involved (swarmplan.sim.deconflict).
+        stops = deconflict(self, commands, (pos0, vel0), (pos1, vel1), mode, window)
+        events, counts, stopped = events + stops[0], counts + stops[1], stops[2]
         tally = Tally(events=tuple(events), counts=tuple(counts)) if events or counts else NOTHING
         if stopped.any():
             validated &= ~stopped[idx]

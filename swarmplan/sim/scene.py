@@ -3,6 +3,8 @@ field for the potential field and clearances, which obstacles move, and their po
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from swarmplan.core import ObstacleStates
@@ -65,6 +67,24 @@ class Scene:
             del self._poses[next(iter(self._poses))]
         self._poses[t] = (pos, vel)
         return pos, vel
+
+    def movers(
+        self, q: np.ndarray, qv: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]]:
+        """The moving obstacles at poses ``q`` moving at ``qv``: centres, velocities, bounding radii, ids."""
+        mv = self.moving_mask
+        return q[mv], qv[mv], self.mover_radii, self.mover_ids
+
+    def surface_of(
+        self, pos: np.ndarray, field: tuple[np.ndarray, np.ndarray]
+    ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """``rows -> (clearance, normal)`` of :meth:`nearest_surface` for agents ``rows`` at ``pos``
+        with the field's distances and gradients ``field`` of every agent."""
+
+        def surface(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return self.nearest_surface(rows, pos[rows], field[0][rows], field[1][rows])
+
+        return surface
 
     def nearest_surface(
         self, idx: np.ndarray, pos: np.ndarray, d: np.ndarray, g: np.ndarray

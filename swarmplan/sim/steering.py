@@ -9,6 +9,7 @@ the nearest static surface and the commanded velocity within each agent's kinema
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +23,7 @@ from swarmplan.geometry.vec3 import norm3
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
+from swarmplan.sim.network import Beliefs, Network
 from swarmplan.sim.scene import Scene
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
@@ -38,6 +40,8 @@ class Commands:
     obstacle_distance: np.ndarray  # (n, obstacles) surface distances at the step's start
     clearance: np.ndarray  # (n,) to the nearest static surface (threat cores included)
     ended: Tally  # segments and routes that ended on the way
+    beliefs: Beliefs | None = None  # with comms: what they believe of the others
+    oldest: np.ndarray | None = None  # with comms: per row the oldest state acted on (s; nan: none)
 
 
 class Steering:
@@ -54,6 +58,11 @@ class Steering:
         self.navigator = Navigator(world, params, self.guide)
         self.loiter = Loiter(params)  # arrived fixed wings circle their goals
         self.sight = Sight(len(world.agents))  # fixed wings' clear lines (swarmplan.flight.sight)
+        # With comms: what each agent has heard of the others.
+        self.network = (
+            None if world.comms is None else Network(world.comms, world.sensing, params.max_accel, world.dt)
+        )
+        self.sensing_range = math.inf if world.sensing is None else world.sensing.range
 
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
         """Back to the bodies at rest at t = 0 (a mover parked in the last run), the guide's ways
@@ -92,6 +101,8 @@ class Steering:
         else:
             d, g = field[0][idx], field[1][idx]
             p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
+        if self.sensing_range < math.inf and mv.any():  # movers beyond sensing range are not seen
+            d = np.where(mv[None, :] & (d > self.sensing_range), np.inf, d)
         inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.scene.bounding_radius, q0)
         if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
             inputs = with_cores(inputs, p_idx, self._threat_cores)
@@ -109,10 +120,17 @@ class Steering:
             target[rows] = goal_idx[rows] = ahead
         flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
         to_go = norm3(s.goal - pos0)
-        force = self.apf.forces(flyers, inputs, Swarm(pos0, vel0, parked, to_go))
+        b = oldest = None
+        if self.network is None:
+            swarm = Swarm(pos0, vel0, parked, to_go)
+        else:  # each flyer's own beliefs of the others
+            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go)
+            swarm = Swarm(b.expected_pos, b.expected_vel, b.parked, b.goal_distance, b.view, b.agent)
+            oldest = self.network.oldest(b, self.apf.agent_reach)
+        force = self.apf.forces(flyers, inputs, swarm)
         clearance, normal = self.scene.nearest_surface(idx, p_idx, d, g)
         if self._threat_cores is not None:
             cores, radius = self._threat_cores, self.params.radius[idx]
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
         v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
-        return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended)
+        return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b, oldest)

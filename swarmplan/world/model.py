@@ -19,6 +19,7 @@ import numpy as np
 from swarmplan import __version__
 from swarmplan.geometry import bodies
 from swarmplan.world import terrain
+from swarmplan.world.comms import Comms, Sensing
 from swarmplan.world.errors import WorldError as WorldError  # re-exported: the model module names it too
 from swarmplan.world.planner_config import PlannerConfig, planner_config
 
@@ -134,6 +135,8 @@ class World:
     log_path: str
     resolved: dict[str, Any] = field(repr=False)  # the /world message but planner (before seed/version)
     source: Path | None = None
+    comms: Comms | None = None  # state broadcasts between agents (None: every agent knows the truth)
+    sensing: Sensing | None = None  # onboard sensing range (None: unlimited)
 
     @property
     def planner(self) -> dict[str, Any]:

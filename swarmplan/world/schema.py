@@ -20,6 +20,7 @@ from swarmplan.geometry.rotation import rotation_matrix
 from swarmplan.world.airframe import FIXED_WING_KEYS, airframe_keys, fixed_wing_spec
 from swarmplan.world.checker import Checker, join, typename
 from swarmplan.world.checks import check_placements
+from swarmplan.world.comms import resolve_comms, resolve_sensing
 from swarmplan.world.meshes import load_mesh
 from swarmplan.world.model import (
     MODELS,
@@ -376,21 +377,8 @@ def parse_world(
     base_dir = Path(base_dir)
     label = str(source) if source is not None else "world"
     c = Checker()
-    top_keys = [
-        "name",
-        "seed",
-        "bounds",
-        "sim",
-        "terrain",
-        "obstacles",
-        "threats",
-        "agent_defaults",
-        "agents",
-        "planner",
-        "log",
-        "tracker",
-        "origin",
-    ]
+    top_keys = ["name", "seed", "bounds", "sim", "terrain", "obstacles", "threats", "agent_defaults",
+                "agents", "planner", "log", "tracker", "origin", "comms", "sensing"]  # fmt: skip
     if not c.keys(raw, "", top_keys, required=("name", "bounds", "agents")):
         raise WorldError([p.lstrip(": ") or p for p in c.problems] or ["the file is empty"], label)
 
@@ -535,6 +523,8 @@ def parse_world(
         c.add(path, msg)
 
     origin = resolve_origin(c, raw.get("origin"))
+    comms_out, comms = resolve_comms(c, raw.get("comms"))
+    sensing_out, sensing = resolve_sensing(c, raw.get("sensing"))
 
     # Geometry checks need a valid frame; run them only when the parts they use are sound.
     check_placements(c, agents, agent_list, obstacles, bmin, bmax, peaks)
@@ -555,8 +545,9 @@ def parse_world(
         "log": log,
         "tracker": tracker_cfg.to_dict(),
     }
-    if origin is not None:  # written only when given: logs of worlds without it stay as they were
-        resolved["origin"] = origin
+    for key, value in (("origin", origin), ("comms", comms_out), ("sensing", sensing_out)):
+        if value is not None:  # written only when given: logs of worlds without them stay as they were
+            resolved[key] = value
     return World(
         name=name,
         seed=int(seed_raw),
@@ -574,6 +565,8 @@ def parse_world(
         log_path=log["path"],
         resolved=resolved,
         source=Path(source) if source is not None else None,
+        comms=comms,
+        sensing=sensing,
     )
 
 

@@ -1,0 +1,217 @@
+"""Each agent's own deconfliction on what it believes of the others (worlds with ``comms``).
+
+Without ``comms`` the safety filter deconflicts every pair on both agents' committed steps (a
+perfect network lets them agree within the step). With it, two agents agree that way only when
+each heard the other's state of this very step (an instantaneous network); every other pair is
+judged by the flyer alone: its own step against the other's believed motion over the step
+(the last state heard, moved on by its velocity), with a margin for what the other may have
+done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
+A multirotor whose step closes in on another agent's believed motion to within both radii,
+``AGENT_MARGIN`` and that margin slides (its step without the part towards those agents, when
+that is within its acceleration limit), else brakes (``max_accel``); it stops (an
+``emergency_stop``) only at rest or where braking would touch a body: the margins of the others
+hold only while every agent keeps to its acceleration limit. A step that only widens the gap is
+no conflict. A belief whose
+margin exceeds both agents' stopping reach (``apf.stopping_reach``) is too old to act on.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from swarmplan.core import Event, Mode
+from swarmplan.flight.apf import stopping_reach
+from swarmplan.flight.kinematics import AgentParams
+from swarmplan.geometry.collision import segment_segment_min_distance
+from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.sim.network import Beliefs
+from swarmplan.world.model import World
+
+AGENT_MARGIN = 0.2
+"""Metres kept between two agents' swept bodies by deconfliction."""
+
+
+class Stopper(Protocol):
+    """What deconfliction asks of the safety filter (``swarmplan.sim.safety.SafetyFilter``)."""
+
+    params: AgentParams
+    world: World
+
+    def brake(self, i: int, v0: np.ndarray) -> np.ndarray: ...
+    def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]: ...
+    def step_is_safe(
+        self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray
+    ) -> bool: ...
+
+
+class Step(Protocol):
+    """The step from ``t0`` to ``t1`` and the obstacles' poses at both ends (``safety.StepWindow``)."""
+
+    t0: float
+    t1: float
+    q0: np.ndarray
+    q1: np.ndarray
+
+
+class Flyers(Protocol):
+    """The flying agents ``idx``; with ``comms`` their beliefs and the pairs that can agree
+    within the step (``safety.Commands``)."""
+
+    idx: np.ndarray
+    beliefs: Beliefs | None
+    agreed: np.ndarray | None
+
+
+def deconflict(
+    filt: Stopper,
+    commands: Flyers,
+    start: tuple[np.ndarray, np.ndarray],
+    end: tuple[np.ndarray, np.ndarray],
+    mode: np.ndarray,
+    window: Step,
+) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
+    """The flying agents' (``commands.idx``) steps from ``start`` to ``end`` (positions,
+    velocities; ``end`` changed in place) deconflicted: a pair that would come within both
+    radii and ``AGENT_MARGIN`` stops its multirotor(s), braking (``max_accel``) where braking
+    clears, until no conflict remains; with ``comms`` only the pairs that can agree within the
+    step, and then each agent alone on its beliefs (:func:`belief_conflicts`). Returns the
+    events, the stop counters and which agents braked or stopped."""
+    (pos0, vel0), (pos1, vel1) = start, end
+    p, dt, ids = filt.params, filt.world.dt, filt.params.ids
+    events: list[Event] = []
+    counts: list[tuple[str, int]] = []
+    n = len(ids)
+    active = np.zeros(n, dtype=bool)
+    active[commands.idx] = True
+    stopped = np.zeros(n, dtype=bool)
+    present = active | (mode == Mode.ARRIVED)  # no mode changes below
+    for _ in range(n):
+        pairs = agent_contacts_indexed(pos0, pos1, p.radius, present, AGENT_MARGIN)
+        if commands.beliefs is not None:  # together only the pairs that can agree within the step
+            pairs = [(a, b) for a, b in pairs if commands.agreed is not None and commands.agreed[a, b]]
+        changed = False
+        for a, b in pairs:
+            for i in (a, b):
+                if active[i] and not stopped[i] and not p.fixed_wing[i]:
+                    safe_brake = filt.brake(i, vel0[i])
+                    p_brake = pos0[i] + safe_brake * dt
+                    other = b if i == a else a
+                    d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
+                    if d >= p.radius[i] + p.radius[other] + AGENT_MARGIN and filt.step_is_safe(
+                        i, pos0[i], p_brake, window.q0, window.q1
+                    ):
+                        vel1[i] = safe_brake
+                    else:
+                        vel1[i] = 0.0
+                        counts += filt.stop_counts(i, vel0[i])
+                        events.append(Event(window.t1, ids[i], "emergency_stop", {"other": ids[other]}))
+                    pos1[i] = pos0[i] + vel1[i] * dt
+                    stopped[i] = True
+                    changed = True
+        if not changed:
+            break
+    if commands.beliefs is not None:  # the rest: each agent alone, on what it believes
+        deciding = active & ~stopped & ~p.fixed_wing
+        more = belief_conflicts(filt, commands.beliefs, start, end, deciding, commands.agreed, window)
+        events, counts, stopped = events + more[0], counts + more[1], stopped | more[2]
+    return events, counts, stopped
+
+
+def belief_margin(max_accel: np.ndarray, age: np.ndarray, dt: float) -> np.ndarray:
+    """How far an agent may be from where it is believed at the end of a step: accelerating at
+    ``max_accel`` since its state was true, ``age`` seconds before the step's start."""
+    a = np.where(np.isfinite(age), age, 0.0) + dt
+    return 0.5 * max_accel * a * a
+
+
+def belief_conflicts(
+    filt: Stopper,
+    beliefs: Beliefs,
+    start: tuple[np.ndarray, np.ndarray],
+    end: tuple[np.ndarray, np.ndarray],
+    deciding: np.ndarray,
+    agreed: np.ndarray | None,
+    window: Step,
+) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
+    """Stops and brakes of the multirotors ``deciding`` (bool, per agent) whose step from
+    ``start`` to ``end`` (positions, velocities; ``end`` changed in place) would meet another
+    agent's believed motion. ``agreed`` (N, N): the pairs already deconflicted together.
+    Returns the events, the stop counters and which agents braked or stopped."""
+    p, dt = filt.params, filt.world.dt
+    (pos0, vel0), (pos1, vel1) = start, end
+    events: list[Event] = []
+    counts: list[tuple[str, int]] = []
+    stopped = np.zeros(len(pos0), dtype=bool)
+    if not deciding[beliefs.idx].any():
+        return events, counts, stopped
+    # A belief whose margin exceeds both agents' stopping reach says nothing the pair can act on.
+    cap = stopping_reach(p, dt)
+    widest = min(2.0 * float(cap.max()), float(belief_margin(p.max_accel.max(), beliefs.age.max(), dt)))
+    radius = float(
+        np.linalg.norm(pos1[beliefs.idx] - pos0[beliefs.idx], axis=1).max()
+        + np.linalg.norm(beliefs.vel, axis=1).max() * dt
+        + 2.0 * p.radius.max() + AGENT_MARGIN + widest
+    )  # fmt: skip
+    k, j, rows, now = beliefs.near(radius)
+    idx = beliefs.idx[k]
+    margin = belief_margin(p.max_accel[j], beliefs.age[rows], dt)
+    keep = deciding[idx] & (margin <= cap[idx] + cap[j])
+    if agreed is not None:
+        keep &= ~agreed[idx, j]
+    k, j, rows, now, idx, margin = k[keep], j[keep], rows[keep], now[keep], idx[keep], margin[keep]
+    need = p.radius[idx] + p.radius[j] + AGENT_MARGIN + margin
+    b0 = beliefs.pos[rows]
+    b1 = b0 + beliefs.vel[rows] * dt
+    d = segment_segment_min_distance(pos0[idx], pos1[idx], b0, b1)
+    # Within reach of the other's believed motion and closing in on it (a step away from an
+    # agent already within the margin is no conflict: it only widens the gap).
+    closing = now * (1.0 - 1e-9)
+    meet = (d < need) & (d < closing)
+    amax = p.max_accel
+    for f in np.unique(k[meet]):
+        mine = np.flatnonzero(k == f)
+        i, n = int(beliefs.idx[f]), len(mine)
+        at = np.repeat(pos0[i][None], n, 0)
+        believed = (b0[mine], b1[mine], need[mine], closing[mine])
+
+        def clears(v: np.ndarray, i: int = i, at: np.ndarray = at, believed: tuple = believed) -> bool:
+            return _clears(filt, i, pos0[i], at, v * dt, believed, window)
+
+        # Slide: the step without its part towards the others it would close in on (within the
+        # acceleration limit of its last velocity), else brake, else stop.
+        toward = b0[mine] - pos0[i]
+        unit = toward / np.maximum(np.linalg.norm(toward, axis=1), 1e-9)[:, None]
+        slide = vel1[i] - np.maximum(unit @ vel1[i], 0.0) @ unit
+        brake = filt.brake(i, vel0[i])
+        other = p.ids[j[mine][int(np.argmin(d[mine] - need[mine]))]]
+        if np.linalg.norm(slide - vel0[i]) <= amax[i] * dt * (1.0 + 1e-9) and clears(slide):
+            vel1[i] = slide
+        elif clears(brake):
+            vel1[i] = brake
+        elif filt.step_is_safe(i, pos0[i], pos0[i] + brake * dt, window.q0, window.q1) and np.any(brake):
+            # Braking within max_accel even where it does not clear: the others' margins hold
+            # only while every agent keeps to its limit (a stop beyond it is what they cannot
+            # foresee).
+            vel1[i] = brake
+        else:
+            vel1[i] = 0.0
+            counts += filt.stop_counts(i, vel0[i])
+            events.append(Event(window.t1, p.ids[i], "emergency_stop", {"other": other}))
+        pos1[i] = pos0[i] + vel1[i] * dt
+        stopped[i] = True
+    return events, counts, stopped
+
+
+def _clears(
+    filt: Stopper, i: int, p0: np.ndarray, at: np.ndarray, move: np.ndarray, believed: tuple, window: Step
+) -> bool:
+    """Whether agent ``i``'s step ``move`` from ``p0`` (``at``: ``p0`` once per pair) keeps out of
+    the believed motions ``believed`` (from, to, the distance needed, the distance now; one
+    row per other agent: far enough, or not closing in) and touches no body."""
+    b0, b1, need, now = believed
+    d = segment_segment_min_distance(at, at + move, b0, b1)
+    return bool(((d >= need) | (d >= now)).all()) and filt.step_is_safe(
+        i, p0, p0 + move, window.q0, window.q1
+    )

@@ -1,0 +1,414 @@
+"""What each agent knows of the others when the world has ``comms``: the last state it heard
+from each, extrapolated by its age, and what it senses itself.
+
+Every agent broadcasts its state (position, velocity, acceleration over its last step within
+its limit, whether it still flies, its distance to its goal, its mode and its plan: the route
+or escape segment it follows) ``comms.rate`` times
+a second, at the end of a step (agent k's broadcasts are spread over the period by k/N of it,
+so the swarm does not all speak at once). Each receiver gets a
+copy after ``delay`` (+- a uniform ``jitter``), unless it is lost (probability ``loss``) or the
+two are farther apart than ``range`` when it is sent. A receiver keeps the newest state it has
+received from each sender and acts on it, moved on for the state's age: its field by the
+velocity and acceleration sent, its deconfliction by the velocity sent (with a margin for any
+acceleration within the sender's limit since).
+With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
+(onboard sensing: no age).
+
+The draws (losses, delays) come from their own seeded stream, one per run, drawn for every
+(broadcast, receiver) pair whatever happens to it: the same seed gives the same messages.
+Before flight every agent has heard every other agent within range (their starts, at t = 0).
+
+Each agent's field, deconfliction (``swarmplan.sim.deconflict``) and the planner deciding its
+escapes (through :class:`AgentView`) read these beliefs. Static bodies are the known map, and
+moving obstacles are known as the world describes them. The simulator keeps the truth and alone
+judges contacts and arrivals; :class:`Network` only answers what each agent believes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from swarmplan.core import Mode, SwarmState
+from swarmplan.world.comms import Comms, Sensing
+
+_EPS = 1e-9
+
+Plan = tuple[Mode, "np.ndarray | None", int, "np.ndarray | None", int]
+"""An agent's mode, segment and index on it, route and index on it (as :class:`SwarmState` has them)."""
+
+
+def plans_of(s: SwarmState, rows: np.ndarray) -> list[Plan]:
+    """The plans of agents ``rows`` in state ``s`` (the arrays are replaced, never changed, on a new plan)."""
+    return [
+        (s.mode[i], s.segment[i], int(s.segment_index[i]), s.route[i], int(s.route_index[i])) for i in rows
+    ]
+
+
+@dataclass(frozen=True)
+class Beliefs:
+    """What flyers ``idx`` (at ``at``, (n, 3)) believe of every agent at one time, as a table of
+    believed states, one row each: ``pos``/``vel`` (M, 3) moved on to now at the velocity sent
+    (the reference the deconfliction's margin bounds: an agent within its acceleration limit
+    is at most ``max_accel age^2 / 2`` from it), ``expected_pos``/``expected_vel`` moved on with
+    the acceleration sent too (the field's best guess), ``parked``, ``goal_distance``, ``age``
+    (s since the state was true; 0 for a flyer's own and sensed rows) and ``agent`` (M,);
+    ``view`` (n, N) the row flyer k holds of agent b (-1: it knows nothing of b). A flyer's own
+    row is its true state."""
+
+    idx: np.ndarray
+    at: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    parked: np.ndarray
+    goal_distance: np.ndarray
+    age: np.ndarray
+    agent: np.ndarray
+    view: np.ndarray
+    expected_pos: np.ndarray
+    expected_vel: np.ndarray
+
+    @cached_property
+    def _tree(self) -> Any:
+        """A k-d tree of the table's positions (scipy's, imported at the first need)."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.pos)
+
+    def near(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every (flyer row k, agent j, table row, distance) with agent j believed by flyer k
+        closer than ``radius`` to it (itself left out). The widest answer is kept: a narrower
+        question is answered from it."""
+        kept = self.__dict__.get("_near")
+        if kept is not None and radius <= kept[0]:
+            inside = kept[1][3] < radius
+            return tuple(a[inside] for a in kept[1])  # type: ignore[return-value]
+        out = self._pairs(radius)
+        self.__dict__["_near"] = (radius, out)
+        return out
+
+    def _pairs(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        n, n_all = self.view.shape
+        if n * n_all <= 4096 or len(self.pos) <= 64:  # every pair (no tree to build)
+            k, j = np.nonzero(self.view >= 0)
+            rows = self.view[k, j]
+        else:  # the rows of the table within the radius, from two k-d trees
+            from scipy.spatial import cKDTree
+
+            pairs = cKDTree(self.at).sparse_distance_matrix(self._tree, radius, output_type="ndarray")
+            k, rows = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+            j = self.agent[rows]
+            held = self.view[k, j] == rows
+            k, j, rows = k[held], j[held], rows[held]
+        keep = j != self.idx[k]
+        k, j, rows = k[keep], j[keep], rows[keep]
+        d = np.linalg.norm(self.pos[rows] - self.at[k], axis=1)
+        inside = d < radius
+        return k[inside], j[inside], rows[inside], d[inside]
+
+
+class _Table:
+    """Every state sent, one row each (row 0: nothing heard), grown by doubling."""
+
+    def __init__(self, n: int):
+        self.size = 1
+        self.t = np.full(4 * n + 1, -np.inf)
+        self.pos = np.zeros((4 * n + 1, 3))
+        self.vel = np.zeros((4 * n + 1, 3))
+        self.acc = np.zeros((4 * n + 1, 3))
+        self.parked = np.zeros(4 * n + 1, dtype=bool)
+        self.goal_distance = np.zeros(4 * n + 1)
+        self.plan = np.zeros(4 * n + 1, dtype=np.int64)
+        self.agent = np.full(4 * n + 1, -1, dtype=np.int64)
+
+    def add(self, t: float, agent: np.ndarray, pos: np.ndarray, vel: np.ndarray, parked: np.ndarray,
+            to_go: np.ndarray, plan: np.ndarray) -> np.ndarray:  # fmt: skip
+        """Rows for the states of agents ``agent`` true at ``t``; returns their row numbers."""
+        k, first = len(pos), self.size
+        if first + k > len(self.t):
+            grow = max(len(self.t), k)
+            for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("acc", 0.0), ("parked", False),
+                               ("goal_distance", 0.0), ("plan", 0), ("agent", -1)):  # fmt: skip
+                old = getattr(self, name)
+                setattr(
+                    self, name, np.concatenate([old, np.full((grow, *old.shape[1:]), fill, dtype=old.dtype)])
+                )
+        rows = np.arange(first, first + k)
+        self.t[rows], self.pos[rows], self.vel[rows] = t, pos, vel
+        self.parked[rows], self.goal_distance[rows], self.plan[rows] = parked, to_go, plan
+        self.agent[rows] = agent
+        self.size += k
+        return rows
+
+
+@dataclass
+class _Sent:
+    """One step's broadcasts: ``senders`` (k,), the table ``rows`` of their states, and per
+    (receiver, sender) when the copy arrives (N, k; inf: lost, or out of range)."""
+
+    senders: np.ndarray
+    rows: np.ndarray
+    arrives: np.ndarray
+
+
+class Network:
+    """The messages of one run and every agent's beliefs (reset with :meth:`reset`)."""
+
+    def __init__(self, comms: Comms, sensing: Sensing | None, max_accel: np.ndarray, dt: float):
+        self.comms, self.n, self.dt = comms, len(max_accel), dt
+        self.max_accel = np.maximum(np.asarray(max_accel, dtype=float), 1e-9)
+        self.sensing_range = math.inf if sensing is None else sensing.range
+        self.period = comms.period(dt)
+        # Agent k speaks at (m + k / N) periods: spread over the period.
+        self._phase = np.arange(self.n) / max(self.n, 1)
+        self.instant = comms.delay == 0.0 and comms.jitter == 0.0
+
+    def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
+        """At t = 0: every agent has heard every other within range, at rest at its start."""
+        n = self.n
+        self.rng = rng
+        self.table = _Table(n)
+        self.plans: list[Plan] = []  # every plan sent
+        pos = s.position
+        start = self.table.add(
+            0.0,
+            np.arange(n),
+            pos,
+            np.zeros((n, 3)),
+            np.zeros(n, dtype=bool),
+            np.linalg.norm(s.goal - pos, axis=1),
+            self._book(plans_of(s, np.arange(n))),
+        )
+        # (receiver, sender): the table row of the newest state heard (0: none)
+        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
+        self.heard = np.where(d <= self.comms.range, start[None, :], 0)
+        np.fill_diagonal(self.heard, 0)  # an agent knows itself, it hears nothing of itself
+        self.pending: list[_Sent] = []
+        self.sent = self.lost = self.out_of_range = 0
+        self.oldest_max, self.oldest_sum, self.oldest_count = 0.0, 0.0, 0
+
+    @property
+    def t_heard(self) -> np.ndarray:
+        """(receiver, sender): when the newest state heard was true (-inf: none heard)."""
+        return self.table.t[self.heard]
+
+    def speakers(self, t0: float, t1: float) -> np.ndarray:
+        """The agents whose broadcast falls in the step (t0, t1]."""
+        k0 = np.floor(t0 / self.period - self._phase + _EPS)
+        k1 = np.floor(t1 / self.period - self._phase + _EPS)
+        return np.flatnonzero(k1 > k0)
+
+    def broadcast(self, t0: float, s: SwarmState, parked: np.ndarray, acc: np.ndarray) -> None:
+        """The states at the end of the step from ``t0`` to ``s.t`` (``parked``: the agents that
+        no longer fly; ``acc``: each agent's acceleration over the step) of the agents that speak
+        in it."""
+        t1, pos, vel = s.t, s.position, s.velocity
+        who = self.speakers(t0, t1)
+        if not len(who):
+            return
+        c, n, k = self.comms, self.n, len(who)
+        # Every draw is made whatever becomes of the message: the stream stays in step.
+        lost = self.rng.random((n, k)) < c.loss
+        arrives = np.full((n, k), t1 + c.delay)
+        if c.jitter > 0.0:
+            arrives += c.jitter * self.rng.uniform(-1.0, 1.0, (n, k))
+        itself = who, np.arange(k)  # nobody listens to itself
+        far = np.zeros((n, k), dtype=bool)
+        if math.isfinite(c.range):
+            far = np.linalg.norm(pos[:, None, :] - pos[who][None, :, :], axis=-1) > c.range
+            far[itself] = False
+        lost[itself] = False
+        arrives[lost | far] = np.inf
+        arrives[itself] = np.inf
+        self.sent += k * (n - 1)
+        self.out_of_range += int(far.sum())
+        self.lost += int((lost & ~far).sum())
+        rows = self.table.add(
+            t1,
+            who,
+            pos[who],
+            vel[who],
+            parked[who],
+            np.linalg.norm(s.goal[who] - pos[who], axis=1),
+            self._book(plans_of(s, who)),
+        )
+        # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
+        over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
+        self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
+        self.pending.append(_Sent(who, rows, arrives))
+
+    def _book(self, plans: list[Plan]) -> np.ndarray:
+        """``plans`` kept; their numbers."""
+        first = len(self.plans)
+        self.plans += plans
+        return np.arange(first, len(self.plans))
+
+    def deliver(self, t: float) -> None:
+        """Every copy that has arrived by ``t`` replaces an older state of its sender."""
+        keep: list[_Sent] = []
+        for m in self.pending:  # oldest broadcasts first: a newer state replaces an older one
+            due = m.arrives <= t + _EPS
+            if due.any():
+                every = len(m.senders) == self.n  # every agent spoke: the whole matrix, in place
+                cur = self.heard if every else self.heard[:, m.senders]
+                take = due & (self.table.t[cur] < self.table.t[m.rows][None, :])
+                if every:
+                    np.copyto(self.heard, m.rows[None, :], where=take)
+                else:
+                    self.heard[:, m.senders] = np.where(take, m.rows[None, :], cur)
+                m.arrives[due] = np.inf
+            if np.isfinite(m.arrives).any():
+                keep.append(m)
+        self.pending = keep
+
+    def agreed(self, t: float) -> np.ndarray | None:
+        """(N, N): the pairs that heard each other's state of ``t`` over an instantaneous network,
+        who can agree on their steps within the step from ``t``; None when messages take time."""
+        if not self.instant:
+            return None
+        self.deliver(t)
+        fresh = self.t_heard == t
+        return fresh & fresh.T
+
+    def oldest(self, beliefs: Beliefs, reach: float) -> np.ndarray:
+        """Per flyer of ``beliefs``: the age of the oldest state it acts on, of the agents it
+        believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
+        when it believes none that near."""
+        k, _, rows, _ = beliefs.near(reach)
+        age = np.full(len(beliefs.idx), -np.inf)
+        np.maximum.at(age, k, beliefs.age[rows])
+        return np.where(np.isfinite(age), age, np.nan)
+
+    def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
+        """The ``/comms`` message of the step ending at ``t``: flyers ``idx`` acted on states at
+        most ``oldest`` (rows of ``idx``) old."""
+        age = np.full(self.n, np.nan)
+        if oldest is not None:
+            age[idx] = oldest
+            acted = oldest[~np.isnan(oldest)]
+            if len(acted):
+                self.oldest_max = max(self.oldest_max, float(acted.max()))
+                self.oldest_sum, self.oldest_count = (
+                    self.oldest_sum + float(acted.sum()),
+                    self.oldest_count + len(acted),
+                )
+        agents = [
+            {"id": a, "age": None if math.isnan(x) else round(float(x), 6)}
+            for a, x in zip(ids, age.tolist(), strict=True)
+        ]
+        return {"t": round(t, 9), "agents": agents, **self.counts()}
+
+    def counts(self) -> dict[str, int]:
+        """The run's messages so far: copies sent (one per listener), lost, and out of range."""
+        return {"sent": self.sent, "lost": self.lost, "out_of_range": self.out_of_range}
+
+    def run_report(self) -> dict[str, float | int]:
+        """``/summary`` ``comms``: the run's messages, and the largest and mean age of the oldest
+        state an agent acted on (over the steps and flyers that acted on any)."""
+        mean = self.oldest_sum / self.oldest_count if self.oldest_count else 0.0
+        return {
+            **self.counts(),
+            "oldest_age_max": round(self.oldest_max, 6),
+            "oldest_age_mean": round(mean, 6),
+        }
+
+    def beliefs(
+        self,
+        idx: np.ndarray,
+        t: float,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        parked: np.ndarray,
+        goal_distance: np.ndarray,
+    ) -> Beliefs:
+        """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
+        ``goal_distance`` of every agent give each flyer its own row and what it senses), with
+        every copy that has arrived by ``t`` taken in."""
+        self.deliver(t)
+        tb, heard, n = self.table, self.heard[idx], len(idx)
+        used = np.zeros(tb.size, dtype=bool)
+        used[heard] = True
+        used[0] = False  # nothing heard
+        live = np.flatnonzero(used)
+        remap = np.full(tb.size, -1, dtype=np.int64)
+        remap[live] = np.arange(len(live))
+        view = remap[heard]
+        age = t - tb.t[live]
+        moved = tb.pos[live] + tb.vel[live] * age[:, None]
+        # The rows heard (moved on by their age), then the true states: of the flyers, or with
+        # sensing of every agent (a flyer senses agents within range as they are).
+        sensing = math.isfinite(self.sensing_range)
+        truth = np.arange(self.n) if sensing else idx
+        first = len(live)
+        view[np.arange(n), idx] = first + (idx if sensing else np.arange(n))
+        if sensing:
+            k, j = _within(pos[idx], pos, self.sensing_range)
+            view[k, j] = first + j
+        return Beliefs(
+            idx,
+            pos[idx],
+            np.concatenate([moved, pos[truth]]),
+            np.concatenate([tb.vel[live], vel[truth]]),
+            np.concatenate([tb.parked[live], parked[truth]]),
+            np.concatenate([tb.goal_distance[live], goal_distance[truth]]),
+            np.concatenate([age, np.zeros(len(truth))]),
+            np.concatenate([tb.agent[live], truth]),
+            view,
+            np.concatenate([moved + 0.5 * tb.acc[live] * (age * age)[:, None], pos[truth]]),
+            np.concatenate([tb.vel[live] + tb.acc[live] * age[:, None], vel[truth]]),
+        )
+
+    def state_for(self, i: int, s: SwarmState, parked: np.ndarray) -> SwarmState:
+        """The state ``s`` as agent ``i`` knows it (``parked``: the agents that no longer fly):
+        its own row true, every other agent's as heard (moved on by its age, its mode and plan
+        as sent) or sensed; an agent it knows nothing of is absent (``collided``)."""
+        b = self.beliefs(
+            np.array([i]), s.t, s.position, s.velocity, parked, np.linalg.norm(s.goal - s.position, axis=1)
+        )
+        rows = b.view[0]
+        position, velocity = b.pos[rows], b.vel[rows]
+        mode, segment, route = s.mode.copy(), list(s.segment), list(s.route)
+        seg_index, route_index = s.segment_index.copy(), s.route_index.copy()
+        for j in range(self.n):
+            if j == i:
+                continue
+            if rows[j] < 0:
+                mode[j] = Mode.COLLIDED
+                continue
+            mode[j], segment[j], seg_index[j], route[j], route_index[j] = self.plans[
+                self.table.plan[self.heard[i, j]]
+            ]
+        position[rows < 0], velocity[rows < 0] = s.position[rows < 0], 0.0  # absent, never read
+        return SwarmState(
+            s.t, s.step, position, velocity, s.goal, mode, segment, seg_index, route, route_index
+        )
+
+
+class AgentView:
+    """The running simulation as agent ``agent`` knows it, for the planner deciding for it in a
+    world with ``comms``: ``state`` is :meth:`Network.state_for`; everything else (the world,
+    the bodies, the random streams, the reports) is the simulation's."""
+
+    def __init__(self, sim: Any, agent: int):
+        self._sim = sim
+        self.state = sim.network.state_for(agent, sim.state, ~sim.loiter.flying(sim.state, sim.state.active))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._sim, name)
+
+
+def _within(at: np.ndarray, pos: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (row of ``at``, row of ``pos``) closer than ``radius``."""
+    if len(at) * len(pos) <= 4096:
+        k, j = np.nonzero(np.linalg.norm(at[:, None, :] - pos[None, :, :], axis=-1) <= radius)
+        return k, j
+    from scipy.spatial import cKDTree
+
+    found = cKDTree(pos).query_ball_point(at, radius)
+    counts = np.fromiter(map(len, found), dtype=np.int64, count=len(at))
+    k = np.repeat(np.arange(len(at)), counts)
+    return k, np.fromiter((r for f in found for r in f), dtype=np.int64, count=int(counts.sum()))
