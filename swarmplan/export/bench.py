@@ -35,6 +35,11 @@ from typing import Any
 
 from swarmplan.bench.random_worlds import CLASSES
 from swarmplan.bench.reach import fly, world_of
+from swarmplan.replay import load
+from swarmplan.world.tracker_config import parse_tracker
+
+from .core import build, run_check
+from .source import ExportError, LimitError
 
 ORIGIN = {"lat": 0.0, "lon": 0.0, "alt": 0.0}
 """Where the random worlds' missions are placed on the Earth."""
@@ -48,12 +53,6 @@ def formats_of(kind: str) -> tuple[str, ...]:
 
 def export_world(raw: dict[str, Any], folder: Path) -> dict[str, Any]:
     """Fly one world into a log in ``folder``, export and check it in every format of its class."""
-    from swarmplan.replay import load
-    from swarmplan.world.tracker_config import parse_tracker
-
-    from .core import build, run_check
-    from .source import ExportError, LimitError
-
     log = folder / f"{raw['name']}.mcap"
     if not log.exists():
         fly(raw, log=log)
