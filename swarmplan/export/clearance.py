@@ -93,29 +93,33 @@ def leg_allowance(
     return np.maximum(_per_segment(free, seg, len(pos) - 1) - 0.5 * spacing, 0.0)
 
 
+TERRAIN_TOLERANCE = 0.01
+"""Of the agent's radius: how far below its samples' heights a leg over terrain may dip between them."""
+
+
 def terrain_test(
     world: dict[str, Any], pos: np.ndarray, radius: float, margin: float
 ) -> Callable[[int, int], bool] | None:
     """A test of a straight leg from ``pos[a]`` to ``pos[b]`` over terrain: it keeps the height
-    ``radius + margin``, or where the path between flew lower, the lowest height it flew there.
-    The leg is sampled ``radius / (2 L)`` apart (L = sqrt(1 + G^2), G the slope bound), so its
-    height between samples is at most ``radius / 4`` below theirs; the samples must clear the
-    height by that. None on flat ground: there a leg is never lower than its lower end."""
+    ``radius + margin``, or where the path between flew lower, the lowest height it flew there
+    (the path's points at most ``radius / 2`` apart). The leg is sampled ``2 t radius / L``
+    apart (t = TERRAIN_TOLERANCE, L = sqrt(1 + G^2), G the slope bound), so between its samples
+    it is at most ``t radius`` lower than they are. None on flat ground: there a leg is never
+    lower than its lower end."""
     slope = terrain_slope(world)
     if slope == 0.0:
         return None
-    lip = math.sqrt(1.0 + slope**2)
     spacing = _spacing(pos, radius)
     _, p, seg = densify_path(np.zeros(len(pos)), pos, spacing)
     low = _per_segment(heights(world, p), seg, len(pos) - 1)
     keep = radius + margin
-    step = spacing / lip
+    step = 4.0 * TERRAIN_TOLERANCE * spacing / math.sqrt(1.0 + slope**2)  # 2 t radius / L
 
     def fits(a: int, b: int) -> bool:
         target = min(keep, float(low[a:b].min()))
         n = int(np.ceil(np.linalg.norm(pos[b] - pos[a]) / step)) + 1
         chord = pos[a] + np.linspace(0.0, 1.0, n)[:, None] * (pos[b] - pos[a])
-        return bool(heights(world, chord).min() >= target + 0.5 * spacing)
+        return bool(heights(world, chord).min() >= target)
 
     return fits
 
