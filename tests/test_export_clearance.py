@@ -199,3 +199,31 @@ def test_the_timed_mission_passes_a_corner_at_its_corner_speed():
     corner = np.linalg.norm(0.5 * (pos[1:] + pos[:-1]) - m.waypoints[1], axis=1).argmin()
     assert speed[corner] <= mission.corner_speeds(m)[1] + 2.0 * 0.01 * 2.0  # within a step's change
     assert speed.max() <= path.limits.speed_max + 1e-9
+
+
+def test_bench_export_counts_per_class_and_format():
+    from swarmplan.export.bench import markdown, table
+
+    def entry(ok: bool, contacts: int = 0, sep: int = 0, dev: float = 0.5) -> dict:
+        return {"ok": ok, "contacts": contacts, "separation_entries": sep, "deviation_over_limit": dev,
+                "deviation_over_bound": 0.9, "waypoints": 7}  # fmt: skip
+
+    records = [
+        {"name": "w0", "agents": 2, "flight_contacts": 0, "px4": entry(True)},
+        {"name": "w1", "agents": 3, "flight_contacts": 1, "px4": entry(False, contacts=2)},
+        {"name": "w2", "agents": 1, "flight_contacts": 0, "px4": entry(False, dev=1.5)},
+        {"name": "w3", "agents": 1, "flight_contacts": 0, "px4": {"refused": "agent a: ..."}},
+    ]
+    t = table("lab", "px4", records)
+    assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (4, 3, 1, 2, 1)
+    assert (t["safe"], t["with_contact"], t["separation_lost"], t["deviation_broken"]) == (2, 1, 0, 1)
+    assert t["check_deviation_over_limit"] == 1.5 and t["waypoints"] == 7 and t["pieces"] is None
+    assert "| lab | px4 | 3/4 | 1/3 | 1/2 | 2/3 | 1 | 0 | 1 |" in markdown([t])
+
+
+def test_bench_export_refuses_bad_arguments(capsys):
+    from swarmplan.cli.bench import main
+
+    assert main(["export", "--worlds", "0", "--class", "moon"]) == 2
+    err = capsys.readouterr().err
+    assert "--worlds: must be >= 1" in err and "--class: expected one of" in err

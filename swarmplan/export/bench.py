@@ -13,8 +13,9 @@ and format:
   worlds whose check passed (no deviation beyond its limit, no contact, no separation lost),
   also among the worlds whose flight itself had no contact (an export flies the flown path: a
   contact there is the flight's);
-- the worlds with a contact in the check, with a separation lost, and with a vehicle farther
-  from its export than the check's limit;
+- the worlds flown again with no contact and no separation lost; the worlds with a contact in
+  the check, with a separation lost, and with a vehicle farther from its export than the
+  check's limit;
 - Crazyflie: the largest deviation from the flown path over its bound, the most pieces, the
   largest speed and acceleration over their limits and the largest jump of the acceleration at
   a joint; PX4: the largest deviation of a mission from the flown path over its bound and the
@@ -109,6 +110,7 @@ def table(kind: str, fmt: str, records: list[dict[str, Any]]) -> dict[str, Any]:
         "ok": sum(e["ok"] for e in done),
         "clean_flights": len(clean),
         "ok_of_clean": sum(e["ok"] for e in clean),
+        "safe": sum(e["contacts"] == 0 and e["separation_entries"] == 0 for e in done),
         "with_contact": sum(e["contacts"] > 0 for e in done),
         "separation_lost": sum(e["separation_entries"] > 0 for e in done),
         "deviation_broken": sum(e["deviation_over_limit"] > 1.0 for e in done),
@@ -128,15 +130,17 @@ def _f(x: float | None, digits: int = 3) -> str:
 
 def markdown(tables: list[dict[str, Any]]) -> str:
     lines = [
-        "| class | format | exported | check passed | passed, flights without contact | with contact "
+        "| class | format | exported | check passed | passed, flights without contact "
+        "| no contact, separation kept | with contact "
         "| separation lost | check deviation broken | deviation / bound | check deviation / limit "
         "| pieces | speed / limit | accel / limit | accel jump m/s² | waypoints |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for t in tables:
         lines.append(
             f"| {t['class']} | {t['format']} | {t['exported']}/{t['worlds']} | {t['ok']}/{t['exported']} | "
-            f"{t['ok_of_clean']}/{t['clean_flights']} | {t['with_contact']} | {t['separation_lost']} | "
+            f"{t['ok_of_clean']}/{t['clean_flights']} | {t['safe']}/{t['exported']} | {t['with_contact']} | "
+            f"{t['separation_lost']} | "
             f"{t['deviation_broken']} | "
             f"{_f(t['deviation_over_bound'])} | {_f(t['check_deviation_over_limit'])} | {_f(t['pieces'])} | "
             f"{_f(t['speed_over_limit'])} | {_f(t['accel_over_limit'])} | {_f(t['accel_jump'], 5)} | "
