@@ -97,7 +97,9 @@ def run_comms(
         "(`comms` in docs/world-format.md): broadcasts at the rate given, each copy delayed and lost "
         "as given; its field, escapes and deconfliction read only its beliefs, and the simulator "
         "judges contacts on the truth. Network `none`: the world without `comms` (every agent "
-        "knows the truth at once). swarmplan's default planner, no tuning.",
+        "knows the truth at once). swarmplan's default planner, no tuning. Agents act at step starts: "
+        "a copy counts from the first step after it arrives (dt 0.05 s on the circle, 0.1 s on the "
+        "sphere, where 50 and 100 ms give the same runs).",
         "",
         "Columns: collision-free runs (no pair of agents closer than the sum of their radii, swept "
         "between samples); runs with every agent home; mean travel time (each agent's arrival time, "
