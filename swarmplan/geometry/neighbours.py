@@ -11,6 +11,7 @@ contains every pair the exact test can accept, and the exact test then runs on t
 
 from __future__ import annotations
 
+from functools import cache
 from itertools import chain
 
 import numpy as np
@@ -24,12 +25,20 @@ SMALL = 32
 scipy.spatial import at start-up); the exact tests that follow give the same answers."""
 
 
+@cache
+def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n, 1)``, kept per ``n`` (read-only)."""
+    i, j = np.triu_indices(n, 1)
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return i, j
+
+
 def _pairs(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (i, j), i < j, sorted as ``np.triu_indices`` lists them: every pair closer than
     ``radius`` (and, for small or unbounded queries, the others too)."""
     if len(points) <= SMALL or not np.isfinite(radius):
-        i, j = np.triu_indices(len(points), 1)
-        return i, j
+        return _all_pairs(len(points))
     from scipy.spatial import cKDTree
 
     p = cKDTree(points).query_pairs(radius, output_type="ndarray")

@@ -18,6 +18,7 @@ import numpy as np
 from swarmplan.core import Event
 from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity, turn_states
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
+from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
@@ -70,6 +71,41 @@ class Filtered:
     tally: Tally
 
 
+def guard_clearance(
+    field: ShapeBatch,
+    points: np.ndarray,
+    radii: np.ndarray,
+    extra: np.ndarray,
+    ground: np.ndarray,
+    bmin: np.ndarray,
+    bmax: np.ndarray,
+    static: np.ndarray,
+    movers: np.ndarray,
+    origin: np.ndarray,
+    centers: np.ndarray,
+    row: np.ndarray,
+) -> np.ndarray:
+    """The turn-ahead guard's clearance of ``points`` (P, 3) of body radii ``radii``: the least
+    of the height above ``ground`` (P,) and the distance inside the bounds ``bmin``..``bmax``
+    (each less the radius) and of the distances to the bodies ``static`` and ``movers`` of
+    ``field`` (less the radius and ``extra`` (P,), the gap kept from bodies). Mover
+    ``movers[k]`` started at ``origin[k]`` and is at ``centers[row[i], k]`` at point i's time:
+    movers translate, so a point's distance to one is that of the point shifted back by the
+    mover's way to the mover where it started. The numpy twin of ``_guard_kernel.clearances``
+    (the same bits; it also measures meshes)."""
+    c = points[:, 2] - ground - radii
+    # Leaving the flight volume counts as a collision ('bounds') as well.
+    inside = np.minimum(points - bmin, bmax - points).min(axis=1)
+    c = np.minimum(c, inside - radii)
+    if len(static):
+        c = np.minimum(c, field.distance(points, None, static).min(axis=1) - radii - extra)
+    for k, j in enumerate(movers.tolist()):
+        shifted = points - (centers[row, k] - origin[k])
+        dj = field.distance(shifted, None, np.array([j]))[:, 0]
+        c = np.minimum(c, dj - radii - extra)
+    return c
+
+
 class SafetyFilter:
     """Turns commanded velocities into steps that touch nothing (or stops, and says so)."""
 
@@ -90,7 +126,10 @@ class SafetyFilter:
         # The fixed wings' turn states (the curvature of their last step, rows by agent; :meth:`fly`
         # keeps them, the simulation's reset zeroes them): every fixed-wing step rolls on from them.
         self.turn = np.zeros((len(params.radius), 2))
-        self._centers: dict[int, np.ndarray] = {}  # movers' centres by step number (predictions)
+        # Movers' centres by step number from a first one (the guard's predictions).
+        self._centers = (np.zeros((0, len(world.moving_obstacles), 3)), 0)
+        # Meshes have no compiled distance: a guard near one measures in numpy.
+        self.field_meshes = set(scene.field.meshes)
         # Per fixed wing, the guard's manoeuvre last found safe (checked first: the same answers).
         self._prefer = np.zeros(len(params.radius), dtype=np.int64)
 
@@ -133,27 +172,31 @@ class SafetyFilter:
         static = [j for j in close if not obstacles[j].moving]
         movers = [j for j in close if obstacles[j].moving]
 
+        moving = np.flatnonzero(self.scene.moving_mask)
+        static_cols = np.array(static, dtype=np.int64)
+        mover_cols = np.array(movers, dtype=np.int64)
+        origin = np.array([obstacles[j].position for j in movers], dtype=float).reshape(-1, 3)
+        compiled = not (self.field_meshes & set(close))
+        bodies = (field.bodies.code, field.bodies.prm, field.position, field.rotation, field.identity)
+
         def clearance_at(
             points: np.ndarray, radii: np.ndarray, times: np.ndarray, extra: np.ndarray
         ) -> np.ndarray:
             w = self.world
-            c = points[:, 2] - w.terrain_height(points[:, :2]) - radii
-            # Leaving the flight volume counts as a collision ('bounds') as well.
-            inside = np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1)
-            c = np.minimum(c, inside - radii)
-            if static:
-                c = np.minimum(c, field.distance(points, None, np.array(static)).min(axis=1) - radii - extra)
+            ground = w.terrain_height(points[:, :2])
             if movers:
-                # Movers translate: a point's distance to one at time t is that of the point
-                # shifted by the mover's way since t = 0 to the mover where it started.
-                when, which = np.unique(np.rint(times / dt).astype(np.int64), return_inverse=True)
-                rows = np.searchsorted(np.flatnonzero(self.scene.moving_mask), movers)
-                centers = self._predicted_centers(when)[:, rows]  # (T, movers, 3)
-                for k, j in enumerate(movers):
-                    shifted = points - (centers[which, k] - obstacles[j].position)
-                    dj = field.distance(shifted, None, np.array([j]))[:, 0]
-                    c = np.minimum(c, dj - radii - extra)
-            return c
+                steps = np.rint(times / dt).astype(np.int64)
+                table, base = self._predicted_centers(int(steps.min()), int(steps.max()))
+                centers = table[:, np.searchsorted(moving, mover_cols)]  # (T, movers, 3)
+                row = steps - base
+            else:
+                centers, row = np.zeros((1, 0, 3)), np.zeros(len(points), dtype=np.int64)
+            args = (points, radii, extra, ground, self._bounds[0], self._bounds[1], static_cols, mover_cols,
+                    origin, centers, row)  # fmt: skip
+            if compiled:
+                f = np.ascontiguousarray
+                return kernel_module("swarmplan.sim._guard_kernel").clearances(*(f(a) for a in args), bodies)
+            return guard_clearance(field, *args)
 
         agents = idx[rows]
         prefer = self._prefer[agents]
@@ -166,22 +209,21 @@ class SafetyFilter:
         out[rows] = guarded
         return out, Tally(counts=tuple(("guard_steps", i) for i in idx[rows][replaced].tolist()))
 
-    def _predicted_centers(self, steps: np.ndarray) -> np.ndarray:
-        """The moving obstacles' centres (T, movers, 3) at the times ``steps * dt`` (``steps``
-        (T,) sorted step numbers), kept per step number: the guard's predictions of one step
-        overlap the next one's but for a step (those before the first asked for are dropped)."""
-        dt, cache = self.world.dt, self._centers
-        first = int(steps[0])
-        for k in [k for k in cache if k < first]:
-            del cache[k]
-        movers = self.world.moving_obstacles
-        out = np.empty((len(steps), len(movers), 3))
-        for r, k in enumerate(steps.tolist()):
-            hit = cache.get(k)
-            if hit is None:
-                hit = cache[k] = poses_at(movers, k * dt)[0]
-            out[r] = hit
-        return out
+    def _predicted_centers(self, first: int, last: int) -> tuple[np.ndarray, int]:
+        """The moving obstacles' centres (T, movers, 3) at the step numbers ``first`` to at
+        least ``last`` (times ``k * dt``, row ``k - first``) and ``first``, kept from call to
+        call: the guard's predictions of one step overlap the next one's but for a step (those
+        before ``first`` are dropped)."""
+        table, base = self._centers
+        if first < base or first > base + len(table):
+            table, base = table[:0], first
+        table, base = table[first - base :], first
+        if last >= base + len(table):
+            movers, dt = self.world.moving_obstacles, self.world.dt
+            new = [poses_at(movers, k * dt)[0] for k in range(base + len(table), last + 1)]
+            table = np.concatenate([table, np.stack(new)])
+        self._centers = (table, base)
+        return table, base
 
     def braking_margin(
         self,
