@@ -79,3 +79,34 @@ def test_predicted_centres_are_the_movers_poses_at_each_step() -> None:
         assert base == first and base + len(table) >= last + 1
         want = np.stack([poses_at(movers, k * world.dt)[0] for k in range(base, base + len(table))])
         assert table.tobytes() == want.tobytes()
+
+
+def test_a_fixed_wing_world_logs_the_same_compiled_and_in_numpy(monkeypatch, tmp_path) -> None:
+    """Worlds with fixed wings run their per-step work compiled at any size; the log (every
+    state, event and summary, wall clock frozen) is the one numpy and FCL make, bit for bit,
+    through turns the guard makes among pillars and two patrolling intruders."""
+    import importlib.util
+
+    import swarmplan.runtime.compiled as compiled
+    from swarmplan.flight.kinematics import AgentParams
+    from swarmplan.io.runner import apply_overrides, simulate
+    from swarmplan.sim.scene import Scene
+
+    spec = importlib.util.spec_from_file_location("golden", ROOT / "tests" / "golden" / "golden.py")
+    golden = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(golden)
+    world = apply_overrides(load_world(ROOT / "worlds" / "fixed_wing_crossing.yaml"), None, 25.0)
+
+    assert Scene(world, AgentParams.from_world(world)).compiled
+
+    def log(name: str) -> tuple[dict, int]:
+        with golden.frozen_clock():
+            summary = simulate(world, 0, tmp_path / f"{name}.mcap")
+        guarded = sum(a["guard_steps"] for a in summary["agents"])
+        return golden.describe(tmp_path / f"{name}.mcap"), guarded
+
+    fast = log("compiled")
+    assert fast[1] > 0  # the guard turned some of them
+    monkeypatch.setattr(compiled, "FIXED_WINGS_COMPILED", False)
+    assert not Scene(world, AgentParams.from_world(world)).compiled
+    assert log("numpy") == fast

@@ -50,7 +50,12 @@ def _pairs(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def agent_contacts_indexed(
-    p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, active: np.ndarray, margin: float = 0.0
+    p0: np.ndarray,
+    p1: np.ndarray,
+    radii: np.ndarray,
+    active: np.ndarray,
+    margin: float = 0.0,
+    compiled: bool | None = None,
 ) -> list[tuple[int, int]]:
     """``agent_contacts`` with candidates from a sweep and prune on the step's midpoints (compiled,
     ``swept_kernels.agent_contacts``): two points moving along their steps stay within half of
@@ -58,11 +63,12 @@ def agent_contacts_indexed(
     + both radii + ``margin``; the candidates' distances are ``segment_segment_min_distance``'s
     arithmetic, term for term, and the pairs come in ``np.triu_indices`` order. Below swarm size
     (``use_compiled_checks``, all ``n`` agents of the world in ``p0``) a tree's candidates and
-    numpy's test give the same pairs."""
+    numpy's test give the same pairs. ``compiled``: the compiled path or not (None: by size; a
+    world with fixed wings runs it at any size, ``runtime.compiled.use_compiled_checks``)."""
     n = len(p0)
     if n < 2:
         return []
-    if not use_compiled_checks(n):
+    if not (use_compiled_checks(n) if compiled is None else compiled):
         half = 0.5 * norm3(p1 - p0)
         reach = 2.0 * float(half.max()) + 2.0 * float(radii.max()) + margin
         i, j = _pairs(0.5 * (p0 + p1), reach * (1.0 + 1e-9) + 1e-9)

@@ -23,17 +23,16 @@ from swarmplan.geometry._shape_kernel import sdf
 from swarmplan.runtime.compiled import njit
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _body_distance(x, y, z, j, code, prm, position, rotation, identity):  # noqa: ANN001, ANN202
     """Signed distance of the world point (x, y, z) to primitive body ``j`` placed at ``position[j]``."""
     r0 = x - position[j, 0]
     r1 = y - position[j, 1]
     r2 = z - position[j, 2]
     if not identity[j]:
-        m = rotation[j]
-        a = (r0 * m[0, 0] + r1 * m[1, 0]) + r2 * m[2, 0]
-        b = (r0 * m[0, 1] + r1 * m[1, 1]) + r2 * m[2, 1]
-        c = (r0 * m[0, 2] + r1 * m[1, 2]) + r2 * m[2, 2]
+        a = (r0 * rotation[j, 0, 0] + r1 * rotation[j, 1, 0]) + r2 * rotation[j, 2, 0]
+        b = (r0 * rotation[j, 0, 1] + r1 * rotation[j, 1, 1]) + r2 * rotation[j, 2, 1]
+        c = (r0 * rotation[j, 0, 2] + r1 * rotation[j, 1, 2]) + r2 * rotation[j, 2, 2]
         r0, r1, r2 = a + 0.0, b + 0.0, c + 0.0
     return sdf(code[j], r0, r1, r2, prm[j, 0], prm[j, 1], prm[j, 2])
 

@@ -81,7 +81,8 @@ class Simulation:
         self.n = len(world.agents)
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.scene)
-        self._compiled = use_compiled_checks(self.n)  # swarm size: compiled per-step helpers
+        # Swarm size or fixed wings: compiled per-step helpers (runtime.compiled).
+        self._compiled = use_compiled_checks(self.n, bool(self.params.fixed_wing.any()))
         self.guard = GoalGuard(self.params, world.dt)
         self.state: SwarmState | None = None
         self.seed: int | None = None
@@ -231,7 +232,9 @@ class Simulation:
             )
             touched |= touched_any
             self._merge(hits)
-        contacts = agent_collisions(s, self.ids, pos0, pos1, self.params.radius, flying_now, t1)
+        contacts = agent_collisions(
+            s, self.ids, pos0, pos1, self.params.radius, flying_now, t1, compiled=self._compiled
+        )
         touched |= bool(contacts.contacts)
         self._merge(contacts)
 
@@ -242,7 +245,9 @@ class Simulation:
         # the guard's take-offs keep agents flying): who still flies is known without asking every mode.
         flying = s.active if touched else active
         flown = vel1.copy() if self.loiter.fixed_wings else None
-        arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying)
+        arrived = arrivals(
+            s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying, compiled=self._compiled
+        )
         self.loiter.fly_on(arrived.arrivals, s, vel1, flown, self.safety.turn, self.scene)
         self._merge(self.guard.arrived(arrived, s))
 

@@ -118,7 +118,8 @@ class SafetyFilter:
             np.ascontiguousarray(world.bounds_max, dtype=float),
         )
         # Swarm-sized worlds over flat ground check many steps in one compiled call.
-        self._batched = use_compiled_checks(len(params.ids)) and not world.peaks
+        self._compiled = use_compiled_checks(len(params.ids), bool(params.fixed_wing.any()))
+        self._batched = self._compiled and not world.peaks
         # Every agent's radius with its safety margin (radius + margin), read every step.
         self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
@@ -435,7 +436,7 @@ class SafetyFilter:
         cw = self.scene.collision
         redo = np.arange(len(start))
         hit_rows, free = [], []
-        if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
+        if self._compiled and not self.world.peaks:
             status, lo = kernel_module("swarmplan.geometry.swept_kernels").free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii, self._bounds,
                 cw.kernel_statics(), cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
