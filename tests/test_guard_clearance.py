@@ -74,7 +74,17 @@ def test_predicted_centres_are_the_movers_poses_at_each_step() -> None:
     params = AgentParams.from_world(world)
     safety = SafetyFilter(world, params, Scene(world, params))
     movers = world.moving_obstacles
-    for first, last in ((3, 40), (4, 41), (4, 45), (10, 12), (2, 30), (200, 260)):
+    for first, last in (
+        (3, 40),
+        (4, 41),
+        (4, 45),
+        (10, 12),
+        (2, 30),
+        (200, 260),
+        (198, 250),
+        (199, 262),
+        (300, 301),
+    ):
         table, base = safety._predicted_centers(first, last)
         assert base == first and base + len(table) >= last + 1
         want = np.stack([poses_at(movers, k * world.dt)[0] for k in range(base, base + len(table))])

@@ -213,18 +213,20 @@ class SafetyFilter:
     def _predicted_centers(self, first: int, last: int) -> tuple[np.ndarray, int]:
         """The moving obstacles' centres (T, movers, 3) at the step numbers ``first`` to at
         least ``last`` (times ``k * dt``, row ``k - first``) and ``first``, kept from call to
-        call: the guard's predictions of one step overlap the next one's but for a step (those
-        before ``first`` are dropped)."""
+        call: the guard's predictions of one step overlap the next one's but for a step or two
+        (those before ``first`` are dropped; the missing ones computed)."""
         table, base = self._centers
-        if first < base or first > base + len(table):
-            table, base = table[:0], first
-        table, base = table[first - base :], first
-        if last >= base + len(table):
-            movers, dt = self.world.moving_obstacles, self.world.dt
-            new = [poses_at(movers, k * dt)[0] for k in range(base + len(table), last + 1)]
-            table = np.concatenate([table, np.stack(new)])
-        self._centers = (table, base)
-        return table, base
+        end = base + len(table)
+        if last < base or first > end:  # nothing in common: start afresh
+            table, base, end = table[:0], first, first
+        movers, dt = self.world.moving_obstacles, self.world.dt
+        head = [poses_at(movers, k * dt)[0][None] for k in range(first, base)]
+        tail = [poses_at(movers, k * dt)[0][None] for k in range(end, last + 1)]
+        table = table[max(first - base, 0) :]
+        if head or tail:
+            table = np.concatenate([*head, table, *tail])
+        self._centers = (table, first)
+        return table, first
 
     def braking_margin(
         self,
