@@ -28,6 +28,21 @@ if TYPE_CHECKING:
     from swarmplan.world.model import World
 
 
+MARGIN_FRACTION = 0.2
+"""The safety margin of an agent's body as a fraction of its radius (at most ``MAX_MARGIN``):
+kept from every obstacle surface, and between two agents' swept bodies (each its own)."""
+
+MAX_MARGIN = 0.25
+"""m: the largest safety margin of an agent's body."""
+
+
+def safety_margin(radius: np.ndarray) -> np.ndarray:
+    """The safety margin of bodies of ``radius``: ``MARGIN_FRACTION`` of it, at most ``MAX_MARGIN``.
+    Scaled to the agent, a 5 cm drone keeps 1 cm (a margin in metres sized for 0.5 m agents kept
+    crazyflies further apart than the separation they asked for, and froze them there)."""
+    return np.minimum(MAX_MARGIN, MARGIN_FRACTION * radius)
+
+
 @dataclass(frozen=True)
 class AgentParams:
     """Per-agent limits as arrays of shape (N,) (``separation`` (N, 3)), in SI units and radians."""

@@ -6,12 +6,12 @@ each heard the other's state of this very step (an instantaneous network); every
 judged by the flyer alone: its own step against the other's believed motion over the step
 (the last state heard, moved on by its velocity), with a margin for what the other may have
 done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
-A multirotor whose step closes in on another agent's believed motion to within both radii,
-``AGENT_MARGIN`` and that margin slides (its step without the part towards those agents, when
-that is within its acceleration limit), else brakes (``max_accel``); it stops (an
-``emergency_stop``) only at rest or where braking would touch a body: the margins of the others
-hold only while every agent keeps to its acceleration limit. A step that only widens the gap is
-no conflict. A belief whose
+A multirotor whose step closes in on another agent's believed motion to within both bodies,
+each inflated by its safety margin (``kinematics.safety_margin``), and that margin slides (its
+step without the part towards those agents, when that is within its acceleration limit), else
+brakes (``max_accel``); it stops (an ``emergency_stop``) only at rest or where braking would
+touch a body: the margins of the others hold only while every agent keeps to its acceleration
+limit. A step that only widens the gap is no conflict. A belief whose
 margin exceeds both agents' stopping reach (``apf.stopping_reach``) is too old to act on.
 """
 
@@ -23,15 +23,12 @@ import numpy as np
 
 from swarmplan.core import Event, Mode
 from swarmplan.flight.apf import stopping_reach
-from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.network import Beliefs
 from swarmplan.world.model import World
-
-AGENT_MARGIN = 0.2
-"""Metres kept between two agents' swept bodies by deconfliction."""
 
 
 class Stopper(Protocol):
@@ -74,9 +71,11 @@ def deconflict(
     window: Step,
 ) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
     """The flying agents' (``commands.idx``) steps from ``start`` to ``end`` (positions,
-    velocities; ``end`` changed in place) deconflicted: a pair that would come within both
-    radii and ``AGENT_MARGIN`` stops its multirotor(s), braking (``max_accel``) where braking
-    clears, until no conflict remains; with ``comms`` only the pairs that can agree within the
+    velocities; ``end`` changed in place) deconflicted: a pair whose bodies, each inflated by its
+    safety margin, would touch during the step while closing in stops its multirotor(s), braking
+    (``max_accel``) where braking clears, until no conflict remains (a pair already that close
+    that keeps its distance or opens it is let go: stopped, it could never part again, and a lab
+    swarm froze for good); with ``comms`` only the pairs that can agree within the
     step, and then each agent alone on its beliefs (:func:`belief_conflicts`). Returns the
     events, the stop counters and which agents braked or stopped."""
     (pos0, vel0), (pos1, vel1) = start, end
@@ -88,22 +87,26 @@ def deconflict(
     active[commands.idx] = True
     stopped = np.zeros(n, dtype=bool)
     present = active | (mode == Mode.ARRIVED)  # no mode changes below
+    checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
     compiled = use_compiled_checks(n, bool(p.fixed_wing.any()))
     for _ in range(n):
-        pairs = agent_contacts_indexed(pos0, pos1, p.radius, present, AGENT_MARGIN, compiled)
+        pairs = agent_contacts_indexed(pos0, pos1, checked, present, compiled=compiled)
         if commands.beliefs is not None:  # together only the pairs that can agree within the step
             pairs = [(a, b) for a, b in pairs if commands.agreed is not None and commands.agreed[a, b]]
         changed = False
         for a, b in pairs:
+            if _parting(pos0[a] - pos0[b], (pos1[a] - pos0[a]) - (pos1[b] - pos0[b])):
+                continue
             for i in (a, b):
                 if active[i] and not stopped[i] and not p.fixed_wing[i]:
                     safe_brake = filt.brake(i, vel0[i])
                     p_brake = pos0[i] + safe_brake * dt
                     other = b if i == a else a
+                    w0 = pos0[i] - pos0[other]
+                    dw = (p_brake - pos0[i]) - (pos1[other] - pos0[other])
                     d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
-                    if d >= p.radius[i] + p.radius[other] + AGENT_MARGIN and filt.step_is_safe(
-                        i, pos0[i], p_brake, window.q0, window.q1
-                    ):
+                    clear = d >= checked[i] + checked[other] or _parting(w0, dw)
+                    if clear and filt.step_is_safe(i, pos0[i], p_brake, window.q0, window.q1):
                         vel1[i] = safe_brake
                     else:
                         vel1[i] = 0.0
@@ -148,13 +151,14 @@ def belief_conflicts(
     stopped = np.zeros(len(pos0), dtype=bool)
     if not deciding[beliefs.idx].any():
         return events, counts, stopped
+    checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
     # A belief whose margin exceeds both agents' stopping reach says nothing the pair can act on.
     cap = stopping_reach(p, dt)
     widest = min(2.0 * float(cap.max()), float(belief_margin(p.max_accel.max(), beliefs.age.max(), dt)))
     radius = float(
         np.linalg.norm(pos1[beliefs.idx] - pos0[beliefs.idx], axis=1).max()
         + np.linalg.norm(beliefs.vel, axis=1).max() * dt
-        + 2.0 * p.radius.max() + AGENT_MARGIN + widest
+        + 2.0 * float(checked.max()) + widest
     )  # fmt: skip
     k, j, rows, now = beliefs.near(radius)
     idx = beliefs.idx[k]
@@ -163,7 +167,7 @@ def belief_conflicts(
     if agreed is not None:
         keep &= ~agreed[idx, j]
     k, j, rows, now, idx, margin = k[keep], j[keep], rows[keep], now[keep], idx[keep], margin[keep]
-    need = p.radius[idx] + p.radius[j] + AGENT_MARGIN + margin
+    need = checked[idx] + checked[j] + margin
     b0 = beliefs.pos[rows]
     b1 = b0 + beliefs.vel[rows] * dt
     d = segment_segment_min_distance(pos0[idx], pos1[idx], b0, b1)
@@ -204,6 +208,12 @@ def belief_conflicts(
         pos1[i] = pos0[i] + vel1[i] * dt
         stopped[i] = True
     return events, counts, stopped
+
+
+def _parting(w0: np.ndarray, dw: np.ndarray) -> bool:
+    """Whether two points ``w0`` apart (one minus the other) moving ``dw`` relative to each other
+    in a step never come closer than they start (the closest approach of the step is its start)."""
+    return float(w0 @ dw) >= 0.0
 
 
 def _clears(

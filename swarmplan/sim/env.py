@@ -274,9 +274,8 @@ class Simulation:
         events, runs = self.records.take()
         agents = agent_states(self.ids, self.state, self._compiled)
         comms = None if self.network is None else self.network.message(t1, self.ids, idx, oldest)
-        return StepResult(
-            s, events, terminated, truncated, agents, self.scene.obstacle_states(t1), runs, comms
-        )
+        obstacles = self.scene.obstacle_states(t1)
+        return StepResult(s, events, terminated, truncated, agents, obstacles, runs, comms)
 
     def _nearest_obstacle(self, i: int) -> str:
         """The id of the obstacle nearest to agent ``i`` at the step's end."""
@@ -290,15 +289,10 @@ class Simulation:
 
     def summary(self, interrupted: bool = False) -> dict[str, Any]:
         """Per-agent and overall metrics for ``/summary`` and the CLI table."""
-        report = summary_report(
-            self.world,
-            self.state,
-            self.metrics,
-            seed=self.seed,
-            optimizer=self.optimizer_name,
-            wall_time=time.perf_counter() - self.wall_start,
-            interrupted=interrupted,
-        )
+        wall = time.perf_counter() - self.wall_start
+        report = summary_report(self.world, self.state, self.metrics, seed=self.seed,
+                                optimizer=self.optimizer_name, wall_time=wall,
+                                interrupted=interrupted)  # fmt: skip
         if self.network is not None:
             report["comms"] = self.network.run_report()
         return report

@@ -6,9 +6,9 @@ The threat test, per guarding agent ``i`` (a multirotor that has arrived) and pe
 flying agent ``j``: ``j`` goes on at its current velocity, ``i`` is held where it is; the
 closest approach of ``j`` within the horizon ``H_i``, to ``i`` or to ``i``'s goal, is closer than
 ``need = R_j + r_i + GUARD_MARGIN`` (a mover: its bounding radius; an agent: its radius, and
-``AGENT_MARGIN`` instead of ``GUARD_MARGIN``). ``H_i`` is the time ``i`` needs to move sideways
-by the largest such ``need`` from rest at ``max_accel`` and ``speed.max``, times
-``HORIZON_FACTOR``, plus three steps of reaction.
+twice its safety margin, ``kinematics.safety_margin``, instead of ``GUARD_MARGIN``). ``H_i`` is the
+time ``i`` needs to move sideways by the largest such ``need`` from rest at ``max_accel`` and
+``speed.max``, times ``HORIZON_FACTOR``, plus three steps of reaction.
 
 The evasion command moves the agent across the threat's path, away from its point of closest
 approach (head-on: to the threat's right, or to the side away from the nearest surface), until
@@ -16,9 +16,13 @@ the predicted miss is ``need + GUARD_MARGIN``, at a speed it can stop from befor
 clear of every threat where it is, it hovers there until its goal is clear as well. The braking
 margin and the safety filter check the evasion step as every other step (static obstacles,
 bounds, other agents). While away the agent flies in mode ``apf`` (a log's audit covers it as
-any flying agent) and cannot re-arrive; once no threat is left it flies the potential field
-back to its goal and re-enters mode ``arrived`` with an ``evade_end`` event (its
-``arrival_time`` stays its first arrival).
+any flying agent) and cannot re-arrive; once every threat clears it and its goal by
+``CLEAR_BY`` more of its radii (the hysteresis that keeps a wavering prediction from sending it
+out and back step after step) it flies the potential field back to its goal and re-enters mode
+``arrived`` with an ``evade_end`` event (its ``arrival_time`` stays its first arrival). An
+arrival freezes the agent from a speed one step can stop: that stop takes the step after it, so
+an agent that has just arrived (or come back) is tested for threats from the step after that,
+and its evasion starts from rest (no velocity change beyond ``max_accel`` between two steps).
 
 Fixed wings cannot hover: at their goal they loiter (``swarmplan.sim.loiter``), flown as every
 flying aircraft (the field, the turn-ahead guard, the safety filter); a contact with one there
@@ -32,15 +36,18 @@ from collections.abc import Callable
 import numpy as np
 
 from swarmplan.core import Event, Mode, SwarmState
-from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
-from swarmplan.sim.deconflict import AGENT_MARGIN
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import mode_in, mode_table
 
 GUARD_MARGIN = 0.5
 """Metres an arrived agent keeps between its body and a mover's bounding sphere."""
+
+CLEAR_BY = 1.0
+"""Radii of its own body by which a threat must clear an agent away from its goal (evading, or
+on its way back) before it comes back: the hysteresis between ``evade_start`` and ``evade_end``."""
 
 HORIZON_FACTOR = 1.5
 """The threat horizon over the time a sideways move by the needed distance takes."""
@@ -146,6 +153,9 @@ class GoalGuard:
         n = len(params.ids)
         self.guarding = np.zeros(n, dtype=bool)
         self.evading = np.zeros(n, dtype=bool)
+        # Agents that arrived (or came back) at the end of the last step: the arrival's stop takes
+        # the step after it, so they are threats' targets only from the one after.
+        self.settling = np.zeros(n, dtype=bool)
         self._command = np.zeros((n, 3))
         self._compiled = use_compiled_checks(n, bool(params.fixed_wing.any()))
         self._stop_speed = np.where(params.fixed_wing, np.inf, params.max_accel * dt)
@@ -154,6 +164,7 @@ class GoalGuard:
     def reset(self) -> None:
         self.guarding[:] = False
         self.evading[:] = False
+        self.settling[:] = False
         self._command[:] = 0.0
 
     def update(
@@ -169,7 +180,8 @@ class GoalGuard:
         agents already away stay evading while threatened; an agent that takes off flies straight
         back to its goal afterwards (the rest of its route is done). Returns the take-offs."""
         self.evading[:] = False
-        rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED))
+        rows = np.flatnonzero(self.guarding & mode_in(s.mode, _GUARDED) & ~self.settling)
+        self.settling[:] = False
         if not len(rows):
             return NOTHING
         p = self.params
@@ -178,7 +190,8 @@ class GoalGuard:
         flying = np.flatnonzero(s.active)
         c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
         u = np.concatenate((velocities, s.velocity[flying]))
-        margin = np.concatenate([radii + GUARD_MARGIN, p.radius[flying] + AGENT_MARGIN])
+        agent_margin = p.radius[flying] + 2.0 * safety_margin(p.radius[flying])
+        margin = np.concatenate([radii + GUARD_MARGIN, agent_margin])
         who = np.concatenate([np.full(len(centres), -1), flying])
         if not len(c):
             return NOTHING
@@ -192,9 +205,14 @@ class GoalGuard:
         else:
             horizon = HORIZON_FACTOR * sideways_time(margin.max() + radius, amax, vmax) + 3.0 * self.dt
         # Each threat's own motion against the agent held where it is (its evasion is what it
-        # controls), and against its goal: it stays out until the goal is clear again.
+        # controls), and against its goal: it stays out until the goal is clear again, by one more
+        # of its bodies (CLEAR_BY radii): an agent away comes back only once the threat clears its
+        # goal by that much, so a prediction wavering about the need does not send it out and
+        # back again step after step.
+        away = s.mode[rows] == Mode.APF
+        reach = radius + CLEAR_BY * radius * away if away.any() else radius
         pairs = threat_pairs(
-            c, u, margin, who, rows, radius, s.position[rows], s.goal[rows], horizon, self._compiled
+            c, u, margin, who, rows, reach, s.position[rows], s.goal[rows], horizon, self._compiled
         )
         key, times, misses, offsets = pairs
         self._command[rows] = 0.0
@@ -209,11 +227,11 @@ class GoalGuard:
             i = int(rows[k])
             sl = slice(int(bounds[n]), int(bounds[n + 1]))
             js = j_of[sl]
-            threat = misses[sl, 0] < margin[js] + radius[k]
+            threat = misses[sl, 0] < margin[js] + reach[k]
             self.evading[i] = True
             side = (float(clearance[n]), normal[n])
             # Clear of every threat where it is: it hovers there until its goal is clear.
-            self._command[i] = self._evasion(i, threat, offsets[sl], u[js], margin[js] + radius[k], side)
+            self._command[i] = self._evasion(i, threat, offsets[sl], u[js], margin[js] + reach[k], side)
             if s.mode[i] == Mode.ARRIVED:
                 m = sl.start + int(np.argmin(np.minimum(times[sl, 0], times[sl, 1])))
                 s.mode[i] = Mode.APF
@@ -299,6 +317,7 @@ class GoalGuard:
         for i, _t in tally.arrivals:
             if not self.params.fixed_wing[i]:
                 self.guarding[i] = True
+                self.settling[i] = True
         if not back:
             return tally
         names = {self.params.ids[i] for i in back}

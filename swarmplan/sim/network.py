@@ -28,15 +28,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Any
 
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
+from swarmplan.runtime.compiled import kernel_module
 from swarmplan.world.comms import Comms, Sensing
 
 _EPS = 1e-9
+SWARM_PAIRS = 4096
+"""(flyer, agent) pairs from which the network's per-pair passes run compiled."""
 
 Plan = tuple[Mode, "np.ndarray | None", int, "np.ndarray | None", int]
 """An agent's mode, segment and index on it, route and index on it (as :class:`SwarmState` has them)."""
@@ -72,13 +74,6 @@ class Beliefs:
     expected_pos: np.ndarray
     expected_vel: np.ndarray
 
-    @cached_property
-    def _tree(self) -> Any:
-        """A k-d tree of the table's positions (scipy's, imported at the first need)."""
-        from scipy.spatial import cKDTree
-
-        return cKDTree(self.pos)
-
     def near(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every (flyer row k, agent j, table row, distance) with agent j believed by flyer k
         closer than ``radius`` to it (itself left out). The widest answer is kept: a narrower
@@ -93,20 +88,16 @@ class Beliefs:
 
     def _pairs(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         n, n_all = self.view.shape
-        if n * n_all <= 4096 or len(self.pos) <= 64:  # every pair (no tree to build)
-            k, j = np.nonzero(self.view >= 0)
-            rows = self.view[k, j]
-        else:  # the rows of the table within the radius, from two k-d trees
-            from scipy.spatial import cKDTree
-
-            pairs = cKDTree(self.at).sparse_distance_matrix(self._tree, radius, output_type="ndarray")
-            k, rows = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
-            j = self.agent[rows]
-            held = self.view[k, j] == rows
-            k, j, rows = k[held], j[held], rows[held]
+        if n * n_all > SWARM_PAIRS:  # one compiled pass over every (flyer, agent) pair
+            return kernel_module("swarmplan.sim._network_kernel").held_pairs(
+                self.view, self.pos, self.at, np.asarray(self.idx, dtype=np.int64), float(radius)
+            )
+        k, j = np.nonzero(self.view >= 0)
+        rows = self.view[k, j]
         keep = j != self.idx[k]
         k, j, rows = k[keep], j[keep], rows[keep]
-        d = np.linalg.norm(self.pos[rows] - self.at[k], axis=1)
+        dp = self.pos[rows] - self.at[k]
+        d = np.sqrt((dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1]) + dp[:, 2] * dp[:, 2])
         inside = d < radius
         return k[inside], j[inside], rows[inside], d[inside]
 
@@ -250,7 +241,13 @@ class Network:
     def deliver(self, t: float) -> None:
         """Every copy that has arrived by ``t`` replaces an older state of its sender."""
         keep: list[_Sent] = []
+        compiled = self.n * self.n > SWARM_PAIRS
         for m in self.pending:  # oldest broadcasts first: a newer state replaces an older one
+            if compiled:
+                kernel = kernel_module("swarmplan.sim._network_kernel")
+                if kernel.deliver(self.heard, m.senders, m.rows, m.arrives, self.table.t, t, _EPS):
+                    keep.append(m)
+                continue
             due = m.arrives <= t + _EPS
             if due.any():
                 every = len(m.senders) == self.n  # every agent spoke: the whole matrix, in place

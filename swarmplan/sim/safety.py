@@ -16,7 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan.core import Event
-from swarmplan.flight.kinematics import AgentParams, limit_multirotor, limit_velocity, turn_states
+from swarmplan.flight.kinematics import (
+    AgentParams,
+    limit_multirotor,
+    limit_velocity,
+    safety_margin,
+    turn_states,
+)
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
@@ -468,7 +474,7 @@ class SafetyFilter:
         return rows[order], lo[order]
 
     def margin(self, i: int | np.ndarray) -> np.ndarray:
-        return np.minimum(0.25, 0.2 * self.params.radius[i])
+        return safety_margin(self.params.radius[i])
 
     def step_is_safe(self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> bool:
         mv = self.scene.moving_mask

@@ -55,7 +55,7 @@ def resolve_comms(c: Checker, raw: Any) -> tuple[dict[str, Any] | None, Comms | 
                 c.add("comms.delay.jitter", f"must be <= the mean ({delay:g} s): a delay is never negative")
     else:
         delay = c.number(raw, "delay", "comms", 0.0, nonneg=True)
-    loss = c.number(raw, "loss", "comms", 0.0, lo=0.0, hi=1.0)
+    loss = c.number(raw, "loss", "comms", 0.0, lo=0.0)
     if loss >= 1.0:
         c.add("comms.loss", "must be < 1 (every message lost: nobody hears anybody)")
     heard = c.number(raw, "range", "comms", math.inf, positive=True)
