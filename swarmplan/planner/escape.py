@@ -61,6 +61,7 @@ from swarmplan.planner.escape_gates import (
     STAND_DOWN_WINDOWS,
     held_by,
     held_by_obstacles,
+    lining_up,
     stand_down_gate,
 )
 from swarmplan.planner.hold import holding_pattern
@@ -200,6 +201,7 @@ class EscapePlanner:
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
         self._stood_down: dict[int, int] = {}  # stuck windows in a row a gate let the field have
+        self._lining_up: dict[int, float] = {}  # since when a fixed wing lines up with its way
 
     # ------------------------------------------------------------------ validation
 
@@ -484,6 +486,10 @@ class EscapePlanner:
         if self._stood_down.get(i, 0) < STAND_DOWN_WINDOWS:
             near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
             gate = stand_down_gate(sim, i, self._escaped_at.get(i), near, crowd)
+        if gate is None and lining_up(sim, i, self._lining_up.setdefault(i, sim.state.t)):
+            gate = "lining_up"  # window after window, within its allowance
+        elif gate is None:
+            self._lining_up.pop(i, None)
         if gate is not None:
             self._stood_down[i] = self._stood_down.get(i, 0) + 1
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})

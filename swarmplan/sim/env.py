@@ -33,6 +33,7 @@ from swarmplan.core import (
 )
 from swarmplan.flight.guide import StaticGuide
 from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.sight import Sight
 from swarmplan.planner import make_planner
 from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.contacts import NearMisses, agent_collisions, arrivals, committed_hits, parked_contacts
@@ -95,6 +96,11 @@ class Simulation:
     def guide(self) -> StaticGuide | None:
         """The way round static obstacles for agents whose straight line is blocked (None without any)."""
         return self.steering.guide
+
+    @property
+    def sight(self) -> Sight:
+        """Per fixed wing: whether its line to its goal is clear, else the point of its way in sight."""
+        return self.steering.sight
 
     # ------------------------------------------------------------------ lifecycle
 
