@@ -22,6 +22,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("swarmplan.bench.sim", "simulated seconds per wall second; wall time of the shipped worlds"),
     "swarm": ("swarmplan.bench.swarm", "dense swarms on the standard scenarios, beside ORCA-3D"),
     "reach": ("swarmplan.bench.reach", "random worlds of every class: is every reachable goal reached"),
+    "export": (
+        "swarmplan.export.bench",
+        "random worlds exported to vehicles and flown again: --check pass rates",
+    ),
     "docs": ("swarmplan.bench.docs", "re-run the commands behind the docs' tables and rewrite them"),
 }
 

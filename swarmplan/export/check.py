@@ -18,12 +18,12 @@ import numpy as np
 
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.replay import Recording
-from swarmplan.replay.geometry import terrain_height
-from swarmplan.replay.metrics import obstacle_distances
 from swarmplan.track.fixed_wing import FixedWingConfig, aircraft_of, error_limit, fly
 from swarmplan.track.quadrotor import simulate
 from swarmplan.track.reference import Reference, build_reference
 from swarmplan.world.tracker_config import TrackerConfig
+
+from .clearance import body_distances, heights
 
 
 @dataclass(frozen=True)
@@ -171,24 +171,12 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
             entries += int(len(pi) > 0)
     contacts: list[str] = []
     ids = [p.id for p in plans]
-    shadow = Recording(
-        file=rec.file,
-        world=rec.world,
-        times=grid,
-        agent_ids=ids,
-        positions=pos,
-        velocities=np.full_like(pos, np.nan),
-        modes=np.full(pos.shape[:2], "apf"),
-        goals=pos[:, -1].copy(),
-        radii=radii,
-        obstacle_tracks=rec.obstacle_tracks,
-    )
-    for oid, dist in obstacle_distances(shadow).items():
+    for oid, dist in body_distances(rec, ids, grid, pos, radii).items():
         hit = dist - radii[:, None] < 0
         for a in np.flatnonzero(hit.any(axis=1)):
             k = int(np.argmax(hit[a]))
             contacts.append(f"{ids[a]}-{oid} at t = {grid[k]:.2f} s")
-    ground = pos[..., 2] - terrain_height(rec.world, pos[..., :2].reshape(-1, 2)).reshape(pos.shape[:2])
+    ground = heights(rec.world, pos)
     surface = "terrain" if (rec.world.get("terrain") or {}).get("peaks") else "ground"
     for a in np.flatnonzero((ground < radii[:, None]).any(axis=1)):
         k = int(np.argmax(ground[a] < radii[a]))

@@ -20,7 +20,7 @@ from swarmplan.replay.geometry import terrain_height
 from swarmplan.track.fixed_wing import aircraft_of, error_limit
 from swarmplan.world.tracker_config import TrackerConfig
 
-from . import crazyflie, mission
+from . import clearance, crazyflie, mission
 from .check import CheckResult, Plan, check
 from .source import ExportError, FlownPath, check_log, flown_path, select_agents, tolerance_of
 
@@ -165,11 +165,24 @@ def _crazyflie(
     return entry, plan, line
 
 
+def _mission(rec: Recording, path: FlownPath, bound: float) -> mission.Mission:
+    """The agent's mission within ``bound`` of its flown path, each leg also within what the
+    path's clearance allows there (:func:`clearance.leg_allowance`, ``terrain_test``): the legs
+    keep the agent's radius plus its acceptance radius (the room the vehicle takes round a
+    waypoint) from every body, the ground and the terrain, or where the flown path came closer,
+    as close as it came."""
+    lim = path.limits
+    margin = mission.acceptance_radius_of(lim)
+    allow = clearance.leg_allowance(rec, lim.id, path.times, path.positions, lim.radius, margin)
+    fits = clearance.terrain_test(rec.world, path.positions, lim.radius, margin)
+    return mission.mission_of(path, bound, allow, fits)
+
+
 def _px4(
     rec: Recording, path: FlownPath, stem: str, files: dict[str, str], origin: dict[str, float], bound: float
 ) -> tuple[dict[str, Any], Plan, str]:
     lim = path.limits
-    m = mission.mission_of(path, bound)
+    m = _mission(rec, path, bound)
     ground = float(terrain_height(rec.world, m.waypoints[:1, :2])[0])
     its, home = mission.items(m, origin, ground)
     files[f"{stem}.plan"] = mission.plan_text(m, its, home)

@@ -222,6 +222,7 @@ def evaluate_fit(poly: Poly4D, path: FlownPath) -> tuple[float, float, float]:
 LIMIT_TARGET = 0.99  # a peak over a limit is pinned this far below it (room for float32 and the grid)
 MAX_PINS = 12  # rounds of pinning limit peaks before a fit is given up
 PINS_PER_ROUND = 8  # the highest peaks over each limit pinned per round
+PIN_RESIDUAL = 1e-6  # relative: a solve missing its equalities by more has contradictory pins
 
 
 def _fit_pieces(
@@ -260,8 +261,14 @@ def _fit_pieces(
     for lam in ladder:
         h = np.kron(eye3, a + lam * scale * gram)
         rows, rhs = rows0, rhs0
+        coef = None
         for _ in range(MAX_PINS if pin else 1):
-            coef = _kkt(h, g, rows, rhs).reshape(3, nc).T  # (nc, 3)
+            flat = _kkt(h, g, rows, rhs)
+            if coef is not None and np.abs(rows @ flat - rhs).max() > PIN_RESIDUAL * max(
+                1.0, np.abs(rhs).max()
+            ):
+                break  # the pins contradict each other: keep the last consistent fit (over a limit)
+            coef = flat.reshape(3, nc).T  # (nc, 3)
             vel, acc = d1 @ coef, d2 @ coef
             new_rows, new_rhs = [], []
             for deriv, values, limit in ((d1, vel, lim.speed_max), (d2, acc, lim.max_accel)):
@@ -323,7 +330,9 @@ def fit(path: FlownPath, accuracy: float, max_pieces: int = MAX_PIECES) -> Fit:
     for n in range((first or max_pieces + 1), last + 1):
         for poly, dev, speed, accel, lam in _fit_pieces(path, n):
             if not _within_limits(path, speed, accel):
-                over = (speed, accel)
+                ratio = max(speed / lim.speed_max, accel / lim.max_accel)
+                if over is None or ratio < max(over[0] / lim.speed_max, over[1] / lim.max_accel):
+                    over = (speed, accel)  # the one closest to its limits
                 continue
             best_dev = min(best_dev, dev)
             if dev <= accuracy:

@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from .source import ExportError, FlownPath
+from .source import AgentLimits, ExportError, FlownPath
 
 # MAVLink commands and frames (common.xml)
 MAV_CMD_NAV_WAYPOINT = 16
@@ -66,19 +67,31 @@ class Mission:
         return out
 
     def acceptance_radius(self) -> float:
-        """A multirotor's waypoint is reached when its body covers it (its radius); a fixed wing
-        passes through within the tracking bound max(5 m, 0.05 R_min)."""
-        lim = self.path.limits
-        return max(5.0, 0.05 * lim.min_turn_radius) if self.fixed_wing else lim.radius
+        return acceptance_radius_of(self.path.limits)
 
     def loiter_radius(self) -> float:
         return self.path.limits.min_turn_radius
 
 
-def rdp(points: np.ndarray, bound: float) -> np.ndarray:
-    """Indices of the points Ramer-Douglas-Peucker keeps (3D, distance to the chord segment):
-    every dropped point lies within ``bound`` of the polyline through the kept ones."""
+def acceptance_radius_of(lim: AgentLimits) -> float:
+    """A multirotor's waypoint is reached when its body covers it (its radius); a fixed wing
+    passes through within the tracking bound max(5 m, 0.05 R_min)."""
+    return max(5.0, 0.05 * lim.min_turn_radius) if lim.model == "fixed_wing" else lim.radius
+
+
+def rdp(
+    points: np.ndarray, bound: float | np.ndarray, fits: Callable[[int, int], bool] | None = None
+) -> np.ndarray:
+    """Indices of the points Ramer-Douglas-Peucker keeps (3D, distance to the chord segment).
+
+    ``bound`` is a number or one per segment of the polyline (N - 1,): the chord from point a to
+    point b may lie at most min(bound[a:b]) from the points between (and then, as every point
+    of the polyline between lies that close to the chord, every point of the chord lies that
+    close to the polyline between: each chord point has one with the same projection on it).
+    ``fits(a, b)``, when given, is a further test every kept chord passes; two neighbours
+    always pass."""
     n = len(points)
+    allow = np.broadcast_to(np.asarray(bound, float), (max(n - 1, 0),))
     keep = np.zeros(n, bool)
     keep[0] = keep[-1] = True
     stack = [(0, n - 1)]
@@ -88,8 +101,9 @@ def rdp(points: np.ndarray, bound: float) -> np.ndarray:
             continue
         d = segment_distances(points[a + 1 : b], points[a], points[b])
         k = int(np.argmax(d))
-        if d[k] > bound:
-            m = a + 1 + k
+        far = d[k] > float(allow[a:b].min())
+        if far or (fits is not None and not fits(a, b)):
+            m = a + 1 + k if far else (a + b) // 2
             keep[m] = True
             stack.extend([(a, m), (m, b)])
     return np.flatnonzero(keep)
@@ -113,9 +127,17 @@ def polyline_distance(p: np.ndarray, vertices: np.ndarray) -> np.ndarray:
     return out
 
 
-def mission_of(path: FlownPath, bound: float) -> Mission:
-    """The agent's mission: waypoints within ``bound`` of its flown path, leg speeds on its timing."""
-    idx = rdp(path.positions, bound)
+def mission_of(
+    path: FlownPath,
+    bound: float,
+    allowance: np.ndarray | None = None,
+    fits: Callable[[int, int], bool] | None = None,
+) -> Mission:
+    """The agent's mission: waypoints within ``bound`` of its flown path (and within
+    ``allowance`` (K - 1,) of each segment a leg spans, passing ``fits``: see :func:`rdp`), leg
+    speeds on its timing."""
+    limit = bound if allowance is None else np.minimum(bound, allowance)
+    idx = rdp(path.positions, limit, fits)
     wp = path.positions[idx]
     lengths = np.linalg.norm(np.diff(wp, axis=0), axis=1)
     durations = np.diff(path.times[idx])
@@ -289,11 +311,50 @@ def plan_text(mission: Mission, its: list[Item], home: list[float]) -> str:
     return json.dumps(plan_json(mission, its, home), indent=2) + "\n"
 
 
+def corner_speeds(mission: Mission) -> np.ndarray:
+    """The speed a multirotor passes each waypoint at (W,): 0 at the first and the last (from
+    rest, to rest) and PX4's corner speed sqrt(a d tan(alpha / 2)) at the others, alpha the
+    angle between the legs there (pi straight on), a the agent's max_accel and d the acceptance
+    radius: the turn at acceleration a on the circle tangent to both legs within d of the
+    waypoint (PX4's ``computeMaxSpeedInWaypoint``)."""
+    wp = mission.waypoints
+    out = np.zeros(len(wp))
+    if len(wp) > 2:
+        u = wp[:-2] - wp[1:-1]
+        w = wp[2:] - wp[1:-1]
+        nu, nw = np.linalg.norm(u, axis=1), np.linalg.norm(w, axis=1)
+        cos = np.clip(np.einsum("ij,ij->i", u, w) / np.maximum(nu * nw, 1e-300), -1.0, 1.0)
+        half = 0.5 * np.arccos(cos)
+        d = mission.acceptance_radius()
+        with np.errstate(divide="ignore", over="ignore"):
+            out[1:-1] = np.sqrt(mission.path.limits.max_accel * d * np.tan(np.minimum(half, 0.5 * np.pi)))
+        out[1:-1][(nu == 0) | (nw == 0)] = np.inf  # a repeated point is no corner
+    return out
+
+
+def speed_profile(
+    s: np.ndarray, caps: np.ndarray, at: np.ndarray, at_speeds: np.ndarray, accel: float
+) -> np.ndarray:
+    """The fastest speeds at arc lengths ``s`` (sorted) within ``caps`` there and ``at_speeds``
+    at the arc lengths ``at``, changing at most at ``accel``: v(s)^2 = min over every cap
+    (c_i, s_i) of c_i^2 + 2 accel |s - s_i| (two running minima)."""
+    pts = np.concatenate([s, at])
+    c2 = np.concatenate([caps, at_speeds]) ** 2
+    order = np.argsort(pts, kind="stable")
+    pts, c2 = pts[order], c2[order]
+    fwd = np.minimum.accumulate(c2 - 2 * accel * pts)
+    bwd = np.minimum.accumulate((c2 + 2 * accel * pts)[::-1])[::-1]
+    i = np.searchsorted(pts, s, side="right") - 1
+    j = np.searchsorted(pts, s, side="left")
+    return np.sqrt(np.maximum(np.minimum(fwd[i] + 2 * accel * s, bwd[j] - 2 * accel * s), 0.0))
+
+
 def timed(mission: Mission, step: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The mission flown on its own timing: times (K,) from its start and positions (K, 3) along
     the waypoint polyline, every ``step`` s (default: the log's step). Each leg at its commanded
-    speed; a multirotor starts from rest and stops at the end at its max_accel (a fixed wing is
-    at speed throughout)."""
+    speed; a multirotor changes speed at its max_accel, from rest at the start to rest at the
+    end, and passes each waypoint at most at its corner speed (:func:`corner_speeds`); a fixed
+    wing is at speed throughout."""
     lim = mission.path.limits
     wp = mission.waypoints
     if step is None:
@@ -310,9 +371,7 @@ def timed(mission: Mission, step: float | None = None) -> tuple[np.ndarray, np.n
     leg = np.clip(np.searchsorted(cum, mid, side="right") - 1, 0, len(seg) - 1)
     v = np.maximum(speeds[leg], 1e-3)
     if not mission.fixed_wing:
-        a = max(lim.max_accel, 1e-9)
-        v = np.minimum(v, np.sqrt(2 * a * mid))
-        v = np.minimum(v, np.sqrt(2 * a * (total - mid)))
+        v = speed_profile(mid, v, cum, corner_speeds(mission), max(lim.max_accel, 1e-9))
     t_s = np.concatenate([[0.0], np.cumsum(np.diff(s) / np.maximum(v, 1e-6))])
     grid = np.arange(0.0, t_s[-1] + 0.5 * step, step)
     grid[-1] = t_s[-1] if grid[-1] > t_s[-1] else grid[-1]
