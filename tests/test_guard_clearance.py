@@ -1,5 +1,5 @@
 """The turn-ahead guard's clearance: compiled (``sim._guard_kernel.clearances``) and numpy
-(``sim.safety.guard_clearance``) give the same bits on random points, bodies of every
+(``sim.guard_clearance.guard_clearance``) give the same bits on random points, bodies of every
 primitive shape (rotated or not), movers and terrain; the movers' predicted centres kept from
 step to step are those of their motion at each step."""
 
@@ -12,7 +12,7 @@ from test_field_kernels import ROOT, _random_obstacles
 
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.runtime.compiled import kernel_module
-from swarmplan.sim.safety import guard_clearance
+from swarmplan.sim.guard_clearance import MoverCentres, guard_clearance
 from swarmplan.world import load_world
 from swarmplan.world.motion import poses_at
 
@@ -66,13 +66,8 @@ def test_compiled_guard_clearance_without_bodies() -> None:
 
 
 def test_predicted_centres_are_the_movers_poses_at_each_step() -> None:
-    from swarmplan.flight.kinematics import AgentParams
-    from swarmplan.sim.safety import SafetyFilter
-    from swarmplan.sim.scene import Scene
-
     world = load_world(ROOT / "worlds" / "fixed_wing.yaml")
-    params = AgentParams.from_world(world)
-    safety = SafetyFilter(world, params, Scene(world, params))
+    centres = MoverCentres(world)
     movers = world.moving_obstacles
     for first, last in (
         (3, 40),
@@ -85,7 +80,7 @@ def test_predicted_centres_are_the_movers_poses_at_each_step() -> None:
         (199, 262),
         (300, 301),
     ):
-        table, base = safety._predicted_centers(first, last)
+        table, base = centres.at_steps(first, last)
         assert base == first and base + len(table) >= last + 1
         want = np.stack([poses_at(movers, k * world.dt)[0] for k in range(base, base + len(table))])
         assert table.tobytes() == want.tobytes()

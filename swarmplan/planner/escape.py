@@ -58,10 +58,8 @@ from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import (
     CROWD,
-    STAND_DOWN_WINDOWS,
     held_by,
     held_by_obstacles,
-    lining_up,
     stand_down_gate,
 )
 from swarmplan.planner.hold import holding_pattern
@@ -482,14 +480,9 @@ class EscapePlanner:
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
-        gate = None
-        if self._stood_down.get(i, 0) < STAND_DOWN_WINDOWS:
-            near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
-            gate = stand_down_gate(sim, i, self._escaped_at.get(i), near, crowd)
-        if gate is None and lining_up(sim, i, self._lining_up.setdefault(i, sim.state.t)):
-            gate = "lining_up"  # window after window, within its allowance
-        elif gate is None:
-            self._lining_up.pop(i, None)
+        near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
+        in_row, since = self._stood_down.get(i, 0), self._lining_up
+        gate = stand_down_gate(sim, i, self._escaped_at.get(i), near, crowd, in_row, since)
         if gate is not None:
             self._stood_down[i] = self._stood_down.get(i, 0) + 1
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})

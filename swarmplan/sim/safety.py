@@ -24,16 +24,15 @@ from swarmplan.flight.kinematics import (
     turn_states,
 )
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
-from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.deconflict import deconflict
+from swarmplan.sim.guard_clearance import MoverCentres, guard_clearance
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.network import Beliefs
 from swarmplan.sim.scene import Scene
 from swarmplan.world.model import World
-from swarmplan.world.motion import poses_at
 
 
 @dataclass(frozen=True)
@@ -77,41 +76,6 @@ class Filtered:
     tally: Tally
 
 
-def guard_clearance(
-    field: ShapeBatch,
-    points: np.ndarray,
-    radii: np.ndarray,
-    extra: np.ndarray,
-    ground: np.ndarray,
-    bmin: np.ndarray,
-    bmax: np.ndarray,
-    static: np.ndarray,
-    movers: np.ndarray,
-    origin: np.ndarray,
-    centers: np.ndarray,
-    row: np.ndarray,
-) -> np.ndarray:
-    """The turn-ahead guard's clearance of ``points`` (P, 3) of body radii ``radii``: the least
-    of the height above ``ground`` (P,) and the distance inside the bounds ``bmin``..``bmax``
-    (each less the radius) and of the distances to the bodies ``static`` and ``movers`` of
-    ``field`` (less the radius and ``extra`` (P,), the gap kept from bodies). Mover
-    ``movers[k]`` started at ``origin[k]`` and is at ``centers[row[i], k]`` at point i's time:
-    movers translate, so a point's distance to one is that of the point shifted back by the
-    mover's way to the mover where it started. The numpy twin of ``_guard_kernel.clearances``
-    (the same bits; it also measures meshes)."""
-    c = points[:, 2] - ground - radii
-    # Leaving the flight volume counts as a collision ('bounds') as well.
-    inside = np.minimum(points - bmin, bmax - points).min(axis=1)
-    c = np.minimum(c, inside - radii)
-    if len(static):
-        c = np.minimum(c, field.distance(points, None, static).min(axis=1) - radii - extra)
-    for k, j in enumerate(movers.tolist()):
-        shifted = points - (centers[row, k] - origin[k])
-        dj = field.distance(shifted, None, np.array([j]))[:, 0]
-        c = np.minimum(c, dj - radii - extra)
-    return c
-
-
 class SafetyFilter:
     """Turns commanded velocities into steps that touch nothing (or stops, and says so)."""
 
@@ -134,7 +98,7 @@ class SafetyFilter:
         # keeps them, the simulation's reset zeroes them): every fixed-wing step rolls on from them.
         self.turn = np.zeros((len(params.radius), 2))
         # Movers' centres by step number from a first one (the guard's predictions).
-        self._centers = (np.zeros((0, len(world.moving_obstacles), 3)), 0)
+        self._centers = MoverCentres(world)
         # Meshes have no compiled distance: a guard near one measures in numpy.
         self.field_meshes = set(scene.field.meshes)
         # Per fixed wing, the guard's manoeuvre last found safe (checked first: the same answers).
@@ -193,7 +157,7 @@ class SafetyFilter:
             ground = w.terrain_height(points[:, :2])
             if movers:
                 steps = np.rint(times / dt).astype(np.int64)
-                table, base = self._predicted_centers(int(steps.min()), int(steps.max()))
+                table, base = self._centers.at_steps(int(steps.min()), int(steps.max()))
                 centers = table[:, np.searchsorted(moving, mover_cols)]  # (T, movers, 3)
                 row = steps - base
             else:
@@ -215,24 +179,6 @@ class SafetyFilter:
         out = v_cmd.copy()
         out[rows] = guarded
         return out, Tally(counts=tuple(("guard_steps", i) for i in idx[rows][replaced].tolist()))
-
-    def _predicted_centers(self, first: int, last: int) -> tuple[np.ndarray, int]:
-        """The moving obstacles' centres (T, movers, 3) at the step numbers ``first`` to at
-        least ``last`` (times ``k * dt``, row ``k - first``) and ``first``, kept from call to
-        call: the guard's predictions of one step overlap the next one's but for a step or two
-        (those before ``first`` are dropped; the missing ones computed)."""
-        table, base = self._centers
-        end = base + len(table)
-        if last < base or first > end:  # nothing in common: start afresh
-            table, base, end = table[:0], first, first
-        movers, dt = self.world.moving_obstacles, self.world.dt
-        head = [poses_at(movers, k * dt)[0][None] for k in range(first, base)]
-        tail = [poses_at(movers, k * dt)[0][None] for k in range(end, last + 1)]
-        table = table[max(first - base, 0) :]
-        if head or tail:
-            table = np.concatenate([*head, table, *tail])
-        self._centers = (table, first)
-        return table, first
 
     def braking_margin(
         self,
