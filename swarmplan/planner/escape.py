@@ -60,7 +60,7 @@ from swarmplan.planner.escape_gates import (
     CROWD,
     held_by,
     held_by_obstacles,
-    stand_down_gate,
+    stand_down,
 )
 from swarmplan.planner.hold import holding_pattern
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
@@ -482,7 +482,7 @@ class EscapePlanner:
             return self.pending.pop(i)
         near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
         in_row, since = self._stood_down.get(i, 0), self._lining_up
-        gate = stand_down_gate(sim, i, self._escaped_at.get(i), near, crowd, in_row, since)
+        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, since)
         if gate is not None:
             self._stood_down[i] = self._stood_down.get(i, 0) + 1
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})

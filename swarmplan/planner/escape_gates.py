@@ -122,30 +122,44 @@ def stand_down_gate(
     escaped_at: float | None,
     agents_near: Callable[[], np.ndarray],
     only_agents_around: Callable[[], bool],
-    in_row: int = 0,
-    lining_since: dict[int, float] | None = None,
 ) -> str | None:
     """The reason to let the field, not an escape, free stuck agent ``i`` this window, if any:
     ``under_way`` (it still flies at half its cruise speed or more), ``queue`` (its last escape,
     started ``escaped_at`` m from its goal, left it no nearer while others are near), ``crowd``
     (other agents, not a trap, hold it) or ``guided`` (the guide leads it round static
-    obstacles), these only while it has stood down fewer than ``STAND_DOWN_WINDOWS`` windows
-    in a row (``in_row``); else ``lining_up`` (:func:`lining_up`, window after window within
-    its allowance; ``lining_since``, per agent since when, is kept here). The tests run
-    cheapest first (the same answer in any order)."""
+    obstacles). The tests run cheapest first (the same answer in any order)."""
+    if under_way(sim, i):
+        return "under_way"
+    if escaped_at is not None and queued(sim, i, escaped_at, agents_near()):
+        return "queue"
+    if only_agents_around():
+        return "crowd"
+    if guided(sim, i):
+        return "guided"
+    return None
+
+
+def stand_down(
+    sim: PlanningContext,
+    i: int,
+    escaped_at: float | None,
+    agents_near: Callable[[], np.ndarray],
+    only_agents_around: Callable[[], bool],
+    in_row: int,
+    lining_since: dict[int, float],
+) -> str | None:
+    """The reason to leave stuck agent ``i`` to the field this window, if any: a gate of
+    :func:`stand_down_gate` while it has stood down fewer than ``STAND_DOWN_WINDOWS`` windows
+    in a row (``in_row``: an agent still stuck after that is offered its optimizer whatever
+    those gates say), else ``lining_up`` (:func:`lining_up`, window after window within its
+    allowance; ``lining_since``, per agent since when, is kept here)."""
     if in_row < STAND_DOWN_WINDOWS:
-        if under_way(sim, i):
-            return "under_way"
-        if escaped_at is not None and queued(sim, i, escaped_at, agents_near()):
-            return "queue"
-        if only_agents_around():
-            return "crowd"
-        if guided(sim, i):
-            return "guided"
-    since = {} if lining_since is None else lining_since
-    if lining_up(sim, i, since.setdefault(i, sim.state.t)):
+        gate = stand_down_gate(sim, i, escaped_at, agents_near, only_agents_around)
+        if gate is not None:
+            return gate
+    if lining_up(sim, i, lining_since.setdefault(i, sim.state.t)):
         return "lining_up"
-    since.pop(i, None)
+    lining_since.pop(i, None)
     return None
 
 
