@@ -262,6 +262,7 @@ class PlanningContext(Protocol):
     distances: Any  # the obstacles' distance field: swarmplan.geometry.shapes.ObstacleField
     moving_mask: np.ndarray
     guide: Any  # swarmplan.flight.guide.StaticGuide, None in worlds without static obstacles
+    sight: Any  # swarmplan.flight.sight.Sight: fixed wings' clear lines and points of their ways
 
     def rng_for(self, purpose: str, agent: int | None = None) -> np.random.Generator:
         """The seeded random stream of one purpose ('global', 'escape', ...) for one agent."""

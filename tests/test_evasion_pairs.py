@@ -97,7 +97,7 @@ def test_standing_threats_keep_numpys_zero_times():
 def test_a_run_with_the_compiled_pairs_is_the_same_run(tmp_path, monkeypatch, speed):
     world = _world(_crossing(speed, at=8.0))
     base = run_to_end(world, log_path=tmp_path / "dense.mcap")
-    monkeypatch.setattr(evasion, "use_compiled_checks", lambda n: True)
+    monkeypatch.setattr(evasion, "use_compiled_checks", lambda n, fixed_wings=False: True)
     swept = run_to_end(world, log_path=tmp_path / "swept.mcap")
     assert base[1]["agents"][0]["evasions"] == 1
     drop = {"wall_time"}
@@ -113,13 +113,14 @@ def test_a_run_with_the_compiled_pairs_is_the_same_run(tmp_path, monkeypatch, sp
 def test_near_misses_are_the_entries_into_the_separation_ellipsoid(monkeypatch, compiled):
     # A random walk of 60 agents in a small box: each step's near misses are the pairs inside
     # now that were not inside at the step before (all pairs, by hand), in row-major order.
-    monkeypatch.setattr(contacts, "use_compiled_checks", lambda n: compiled)
+    monkeypatch.setattr(contacts, "use_compiled_checks", lambda n, fixed_wings=False: compiled)
     rng = np.random.default_rng(3)
     n = 60
     params = SimpleNamespace(
         ids=tuple(f"a{i}" for i in range(n)),
         separation=rng.uniform(0.5, 2.0, (n, 3)),
         radius=rng.uniform(0.1, 0.4, n),
+        fixed_wing=np.zeros(n, dtype=bool),
     )
     near = contacts.NearMisses(params)
     pos = rng.uniform(0.0, 15.0, (n, 3))

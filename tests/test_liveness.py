@@ -123,7 +123,7 @@ def test_a_stuck_agent_gets_its_optimizer_after_one_stood_down_window(monkeypatc
     from helpers import default_planner
 
     from swarmplan.io.runner import run_episode
-    from swarmplan.planner import escape
+    from swarmplan.planner import escape_gates
     from swarmplan.sim import Simulation
 
     # the U-shaped pocket: the bare field holds the agent in front of the wall
@@ -137,7 +137,7 @@ def test_a_stuck_agent_gets_its_optimizer_after_one_stood_down_window(monkeypatc
                       "apf": {"guide": False}}  # fmt: skip
     raw["sim"]["max_time"] = 20.0
     world = make_world(raw)
-    monkeypatch.setattr(escape, "stand_down_gate", lambda *args: "crowd")
+    monkeypatch.setattr(escape_gates, "stand_down_gate", lambda *args: "crowd")
     kinds: list[str] = []
     runs: list[int] = []
 

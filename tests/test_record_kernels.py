@@ -83,7 +83,7 @@ def test_a_swarm_log_is_the_same_with_and_without_the_kernels(tmp_path: Path, mo
     raw["sim"]["max_time"] = 3.0
     logs = []
     for compiled in (True, False):
-        monkeypatch.setattr(recording, "use_compiled", lambda n, c=compiled: c)
+        monkeypatch.setattr(recording, "use_compiled", lambda n, fixed_wings=False, c=compiled: c)
         path = tmp_path / f"{compiled}.mcap"
         run_episode(Simulation(parse_world(raw), planner="none"), 0, recorder=McapRecorder(path))
         logs.append(read_log(path))

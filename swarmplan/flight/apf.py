@@ -173,7 +173,7 @@ class ApfField:
         # reach_at_speed's constant parts, computed once: the same floats in the same order.
         self._brake_denominator = 2.0 * np.maximum(params.max_accel, _EPS)
         self._any_fixed_wing = bool(params.fixed_wing.any())
-        self._numpy_calls = field_numpy_calls(len(world.agents))  # then the compiled kernel
+        self._numpy_calls = field_numpy_calls(len(world.agents), self._any_fixed_wing)  # then compiled
 
     @property
     def agent_reach(self) -> float:

@@ -138,8 +138,15 @@ def fly_fixed_wing(
     roll = np.full(n, np.inf) if roll is None else f(roll, dtype=float)
     return fixed_wing_model().fly_steps(
         f(v0, dtype=float), f(v_cmd, dtype=float), kappa,
-        *(f(np.broadcast_to(x, (n,)), dtype=float) for x in (vmin, vmax, amax, turn_radius, climb)), roll, dt,
+        *(_per_row(x, n) for x in (vmin, vmax, amax, turn_radius, climb)), roll, dt,
     )  # fmt: skip
+
+
+def _per_row(x: np.ndarray | float, n: int) -> np.ndarray:
+    """``x`` as a contiguous float array (n,), broadcast when it is not one already."""
+    if isinstance(x, np.ndarray) and x.shape == (n,) and x.dtype == float and x.flags.c_contiguous:
+        return x
+    return np.ascontiguousarray(np.broadcast_to(x, (n,)), dtype=float)
 
 
 def limit_fixed_wing(

@@ -284,7 +284,7 @@ def first_hits(
     out: list[str | None] = [None] * n
     if n == 0:
         return out
-    if not use_compiled_checks(len(cw.world.agents)):
+    if not use_compiled_checks(len(cw.world.agents), any(a.model == "fixed_wing" for a in cw.world.agents)):
         return first_hits_fcl(cw, p0, p1, radii, q0, q1)
     oob, low, ground_name = _bounds_and_ground(cw.world, p0, p1, radii)
     kind, index = kernel_module("swarmplan.geometry.swept_kernels").sweep_many(

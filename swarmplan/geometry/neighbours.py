@@ -11,6 +11,7 @@ contains every pair the exact test can accept, and the exact test then runs on t
 
 from __future__ import annotations
 
+from functools import cache
 from itertools import chain
 
 import numpy as np
@@ -24,12 +25,20 @@ SMALL = 32
 scipy.spatial import at start-up); the exact tests that follow give the same answers."""
 
 
+@cache
+def _all_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n, 1)``, kept per ``n`` (read-only)."""
+    i, j = np.triu_indices(n, 1)
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return i, j
+
+
 def _pairs(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (i, j), i < j, sorted as ``np.triu_indices`` lists them: every pair closer than
     ``radius`` (and, for small or unbounded queries, the others too)."""
     if len(points) <= SMALL or not np.isfinite(radius):
-        i, j = np.triu_indices(len(points), 1)
-        return i, j
+        return _all_pairs(len(points))
     from scipy.spatial import cKDTree
 
     p = cKDTree(points).query_pairs(radius, output_type="ndarray")
@@ -41,7 +50,12 @@ def _pairs(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def agent_contacts_indexed(
-    p0: np.ndarray, p1: np.ndarray, radii: np.ndarray, active: np.ndarray, margin: float = 0.0
+    p0: np.ndarray,
+    p1: np.ndarray,
+    radii: np.ndarray,
+    active: np.ndarray,
+    margin: float = 0.0,
+    compiled: bool | None = None,
 ) -> list[tuple[int, int]]:
     """``agent_contacts`` with candidates from a sweep and prune on the step's midpoints (compiled,
     ``swept_kernels.agent_contacts``): two points moving along their steps stay within half of
@@ -49,11 +63,12 @@ def agent_contacts_indexed(
     + both radii + ``margin``; the candidates' distances are ``segment_segment_min_distance``'s
     arithmetic, term for term, and the pairs come in ``np.triu_indices`` order. Below swarm size
     (``use_compiled_checks``, all ``n`` agents of the world in ``p0``) a tree's candidates and
-    numpy's test give the same pairs."""
+    numpy's test give the same pairs. ``compiled``: the compiled path or not (None: by size; a
+    world with fixed wings runs it at any size, ``runtime.compiled.use_compiled_checks``)."""
     n = len(p0)
     if n < 2:
         return []
-    if not use_compiled_checks(n):
+    if not (use_compiled_checks(n) if compiled is None else compiled):
         half = 0.5 * norm3(p1 - p0)
         reach = 2.0 * float(half.max()) + 2.0 * float(radii.max()) + margin
         i, j = _pairs(0.5 * (p0 + p1), reach * (1.0 + 1e-9) + 1e-9)

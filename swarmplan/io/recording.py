@@ -380,8 +380,10 @@ class McapRecorder:
 
     def write_world(self, world: dict[str, Any]) -> None:
         self._write("/world", 0.0, world)
-        # Swarm-sized worlds write the per-step numbers compiled, as their step runs compiled.
-        self._compiled = use_compiled(len(world.get("agents") or []))
+        # Swarm-sized worlds and those with fixed wings write the per-step numbers compiled, as their
+        # step runs compiled.
+        agents = world.get("agents") or []
+        self._compiled = use_compiled(len(agents), any(a.get("model") == "fixed_wing" for a in agents))
         if self._foxglove_enabled:
             self._scene = FoxgloveScene(self._writer, world)
             self._scene.write_world()

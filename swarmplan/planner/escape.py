@@ -58,10 +58,9 @@ from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import (
     CROWD,
-    STAND_DOWN_WINDOWS,
     held_by,
     held_by_obstacles,
-    stand_down_gate,
+    stand_down,
 )
 from swarmplan.planner.hold import holding_pattern
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
@@ -200,6 +199,7 @@ class EscapePlanner:
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
         self._stood_down: dict[int, int] = {}  # stuck windows in a row a gate let the field have
+        self._lining_up: dict[int, float] = {}  # since when a fixed wing lines up with its way
 
     # ------------------------------------------------------------------ validation
 
@@ -477,10 +477,9 @@ class EscapePlanner:
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
-        gate = None
-        if self._stood_down.get(i, 0) < STAND_DOWN_WINDOWS:
-            near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
-            gate = stand_down_gate(sim, i, self._escaped_at.get(i), near, crowd)
+        near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
+        in_row, since = self._stood_down.get(i, 0), self._lining_up
+        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, since)
         if gate is not None:
             self._stood_down[i] = self._stood_down.get(i, 0) + 1
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})

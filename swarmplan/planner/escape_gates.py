@@ -45,13 +45,40 @@ def guided(sim: PlanningContext, i: int) -> bool:
     s = sim.state
     if guide is None or not guide.leads(i, s.position[i], s.goal[i]):
         return False
+    return not mover_near(sim, i)
+
+
+def mover_near(sim: PlanningContext, i: int) -> bool:
+    """Whether a moving obstacle is within the field's influence of agent ``i``."""
     movers = sim.world.moving_obstacles
-    if movers:
-        centres, _ = poses_at(movers, s.t)
-        reach = sim.world.planner_config.apf.influence + np.array([o.bounding_radius for o in movers])
-        if (np.linalg.norm(centres - s.position[i], axis=1) < reach).any():
-            return False
-    return True
+    if not movers:
+        return False
+    centres, _ = poses_at(movers, sim.state.t)
+    reach = sim.world.planner_config.apf.influence + np.array([o.bounding_radius for o in movers])
+    return bool((np.linalg.norm(centres - sim.state.position[i], axis=1) < reach).any())
+
+
+def lining_up(sim: PlanningContext, i: int, since: float) -> bool:
+    """Whether fixed wing ``i`` lines up with the way round static obstacles, left to the field
+    since ``since`` (s): its line to its goal is blocked, it flies at the farthest point of its
+    way in sight (``swarmplan.flight.sight``), no moving obstacle is within the field's
+    influence, and less time has passed than flying that way and a full circle at its turn
+    radius takes at its cruise speed. The way has no local minima of the static obstacles, but
+    lining up with an opening can take a fixed wing a full circle away from its goal, window
+    after window of no progress; an escape then only takes it off the way (a wall with a
+    window: escapes planned while it turned took it to the far corners of the world)."""
+    p = sim.params
+    sight, guide = getattr(sim, "sight", None), getattr(sim, "guide", None)
+    if not p.fixed_wing[i] or sight is None or guide is None:
+        return False
+    if not sight.sighted[i] or sight.in_sight[i]:
+        return False
+    s = sim.state
+    way = float(guide.way_length(s.position[i][None], s.goal[i][None])[0])
+    if not np.isfinite(way) or mover_near(sim, i):
+        return False
+    allowance = (way + 2.0 * np.pi * float(p.min_turn_radius[i])) / max(float(p.speed_cruise[i]), 1e-6)
+    return s.t - since <= allowance
 
 
 def queued(sim: PlanningContext, i: int, escaped_at: float, near: np.ndarray) -> bool:
@@ -109,6 +136,30 @@ def stand_down_gate(
         return "crowd"
     if guided(sim, i):
         return "guided"
+    return None
+
+
+def stand_down(
+    sim: PlanningContext,
+    i: int,
+    escaped_at: float | None,
+    agents_near: Callable[[], np.ndarray],
+    only_agents_around: Callable[[], bool],
+    in_row: int,
+    lining_since: dict[int, float],
+) -> str | None:
+    """The reason to leave stuck agent ``i`` to the field this window, if any: a gate of
+    :func:`stand_down_gate` while it has stood down fewer than ``STAND_DOWN_WINDOWS`` windows
+    in a row (``in_row``: an agent still stuck after that is offered its optimizer whatever
+    those gates say), else ``lining_up`` (:func:`lining_up`, window after window within its
+    allowance; ``lining_since``, per agent since when, is kept here)."""
+    if in_row < STAND_DOWN_WINDOWS:
+        gate = stand_down_gate(sim, i, escaped_at, agents_near, only_agents_around)
+        if gate is not None:
+            return gate
+    if lining_up(sim, i, lining_since.setdefault(i, sim.state.t)):
+        return "lining_up"
+    lining_since.pop(i, None)
     return None
 
 

@@ -14,9 +14,12 @@ its first step within 0.5 s. From it on (swarm scale) the field, the nearest sur
 agents' clearance, the swept checks and the recorder's number formatting run compiled
 (:func:`use_compiled`, :func:`use_compiled_checks`). Both paths give the same bits (the kernels
 follow numpy's formulas and order of sums; the swept checks decide exactly what FCL decides),
-so a world runs identically either way, and the choice reads the world's size only, never what
-a process has loaded before. A computation with a numpy twin of the same bits (the potential
-field, the guide's per-step calls) runs the twin while numba is not in the process
+so a world runs identically either way, and the choice reads the world only (its size, and
+whether it has fixed wings), never what a process has loaded before. A world with fixed wings
+runs compiled at any size: their model is compiled (``flight._fixed_wing_kernel``), so numba is
+in the process from their first step on and the compiled paths cost only their cached code.
+A computation with a numpy twin of the same bits (the potential field, the guide's per-step
+calls) runs the twin while numba is not in the process
 (:func:`use_numpy_twin`); the field does so for its first ``FIELD_NUMPY_CALLS`` calls only
 (:func:`field_numpy_calls`), then loads numba: a small world reaches its first step without
 numba, and a long run pays numba's load once instead of numpy's per-call overhead for good.
@@ -78,20 +81,27 @@ answers are exact on both paths, so this is a speed choice only (its own name le
 run either path)."""
 
 
-def use_compiled(n_agents: int) -> bool:
-    """Whether a world of ``n_agents`` agents runs its per-step field (and recorder) compiled."""
-    return n_agents >= COMPILED_FROM
+FIXED_WINGS_COMPILED = True
+"""Whether worlds with fixed wings run their per-step work compiled at any size (their model
+loads numba at their first step anyway)."""
 
 
-def use_compiled_checks(n_agents: int) -> bool:
-    """Whether a world of ``n_agents`` agents runs the compiled swept checks."""
-    return n_agents >= CHECKS_COMPILED_FROM
+def use_compiled(n_agents: int, fixed_wings: bool = False) -> bool:
+    """Whether a world of ``n_agents`` agents (``fixed_wings``: some of them fixed wings) runs its
+    per-step field (and recorder) compiled."""
+    return (fixed_wings and FIXED_WINGS_COMPILED) or n_agents >= COMPILED_FROM
 
 
-def field_numpy_calls(n_agents: int) -> int:
+def use_compiled_checks(n_agents: int, fixed_wings: bool = False) -> bool:
+    """Whether a world of ``n_agents`` agents (``fixed_wings``: some of them fixed wings) runs the
+    compiled swept checks."""
+    return (fixed_wings and FIXED_WINGS_COMPILED) or n_agents >= CHECKS_COMPILED_FROM
+
+
+def field_numpy_calls(n_agents: int, fixed_wings: bool = False) -> int:
     """How many calls of the field of a world of ``n_agents`` agents run numpy before it goes
-    compiled (none at swarm size)."""
-    return 0 if use_compiled(n_agents) else FIELD_NUMPY_CALLS
+    compiled (none at swarm size, nor with fixed wings)."""
+    return 0 if use_compiled(n_agents, fixed_wings) else FIELD_NUMPY_CALLS
 
 
 def use_numpy_twin(n_agents: int | None = None) -> bool:

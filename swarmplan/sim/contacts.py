@@ -101,6 +101,7 @@ def arrivals(
     t1: float,
     stop_speed: np.ndarray,
     active: np.ndarray | None = None,
+    compiled: bool | None = None,
 ) -> Tally:
     """Agents whose step passed within ``tolerance`` of their goal, slowly enough to stop there,
     have arrived (and stop: their mode and their row of ``vel1`` change). Returns the arrivals.
@@ -113,10 +114,11 @@ def arrivals(
     convention); should one enter faster, it keeps flying under the goal attraction, whose
     speed profile ``sqrt(2 * 0.8 * max_accel * d)`` (``swarmplan.flight.apf.commanded_velocity``)
     brings it to rest at the goal, and arrives once slow enough. ``active``: ``s.active`` when
-    the caller has it at hand.
+    the caller has it at hand; ``compiled``: whether the world runs its checks compiled (None: by its
+    size, ``runtime.compiled.use_compiled_checks``).
     """
     active = s.active if active is None else active
-    if not use_compiled_checks(len(ids)):
+    if not (use_compiled_checks(len(ids)) if compiled is None else compiled):
         # Below swarm size: numpy (the same answers as the kernel).
         flying = np.flatnonzero(active)
         d = segment_segment_min_distance(pos0[flying], pos1[flying], s.goal[flying], s.goal[flying])
@@ -150,6 +152,7 @@ class NearMisses:
     def __init__(self, params: AgentParams):
         self.params = params
         self._n = len(params.ids)
+        self._compiled = use_compiled_checks(self._n, bool(params.fixed_wing.any()))
         # The pairs inside at the last update, as sorted keys i * n + j (i < j).
         self._near = np.zeros(0, dtype=np.int64)
         self._separation = np.ascontiguousarray(params.separation, dtype=float)
@@ -162,7 +165,7 @@ class NearMisses:
             return NOTHING
         # The pairs of ``separation_violations`` (sorted keys i * n + j, i.e. the all-pairs
         # row-major order: same events, same order), from a compiled sweep and prune at swarm size.
-        if not use_compiled_checks(self._n):
+        if not self._compiled:
             pi, pj = separation_violations(pos, self.params.separation, self.params.radius, active)
             keys = pi.astype(np.int64) * self._n + pj
         else:
@@ -207,11 +210,13 @@ def agent_collisions(
     radius: np.ndarray,
     active: np.ndarray,
     t1: float,
+    compiled: bool | None = None,
 ) -> Tally:
     """The collisions of agents whose steps ``pos0`` -> ``pos1`` touch (``active``: who flew; an
-    arrived agent touched is a collision too), each agent of a pair ended in turn."""
+    arrived agent touched is a collision too), each agent of a pair ended in turn; ``compiled``
+    as for :func:`arrivals`."""
     tally = NOTHING
-    for i, j in agent_contacts_indexed(pos0, pos1, radius, active):
+    for i, j in agent_contacts_indexed(pos0, pos1, radius, active, compiled=compiled):
         for a, b in ((i, j), (j, i)):
             if s.mode[a] != Mode.COLLIDED:
                 tally = tally + collide(s, ids, a, ids[b], t1)

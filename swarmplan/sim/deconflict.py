@@ -26,6 +26,7 @@ from swarmplan.flight.apf import stopping_reach
 from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.network import Beliefs
 from swarmplan.world.model import World
 
@@ -87,8 +88,9 @@ def deconflict(
     stopped = np.zeros(n, dtype=bool)
     present = active | (mode == Mode.ARRIVED)  # no mode changes below
     checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
+    compiled = use_compiled_checks(n, bool(p.fixed_wing.any()))
     for _ in range(n):
-        pairs = agent_contacts_indexed(pos0, pos1, checked, present)
+        pairs = agent_contacts_indexed(pos0, pos1, checked, present, compiled=compiled)
         if commands.beliefs is not None:  # together only the pairs that can agree within the step
             pairs = [(a, b) for a, b in pairs if commands.agreed is not None and commands.agreed[a, b]]
         changed = False

@@ -33,6 +33,7 @@ from swarmplan.core import (
 )
 from swarmplan.flight.guide import StaticGuide
 from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.sight import Sight
 from swarmplan.planner import make_planner
 from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.contacts import NearMisses, agent_collisions, arrivals, committed_hits, parked_contacts
@@ -81,7 +82,8 @@ class Simulation:
         self.n = len(world.agents)
         self.ids = self.params.ids
         self.safety = SafetyFilter(world, self.params, self.obstacles)
-        self._compiled = use_compiled_checks(self.n)  # swarm size: compiled per-step helpers
+        # Swarm size or fixed wings: compiled per-step helpers (runtime.compiled).
+        self._compiled = use_compiled_checks(self.n, bool(self.params.fixed_wing.any()))
         self.evasion = Evasion(self.params, world.dt)
         self.state: SwarmState | None = None
         self.seed: int | None = None
@@ -94,6 +96,11 @@ class Simulation:
     def guide(self) -> StaticGuide | None:
         """The way round static obstacles for agents whose straight line is blocked (None without any)."""
         return self.steering.guide
+
+    @property
+    def sight(self) -> Sight:
+        """Per fixed wing: whether its line to its goal is clear, else the point of its way in sight."""
+        return self.steering.sight
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -231,7 +238,9 @@ class Simulation:
             )
             touched |= touched_any
             self._merge(hits)
-        contacts = agent_collisions(s, self.ids, pos0, pos1, self.params.radius, flying_now, t1)
+        contacts = agent_collisions(
+            s, self.ids, pos0, pos1, self.params.radius, flying_now, t1, compiled=self._compiled
+        )
         touched |= bool(contacts.contacts)
         self._merge(contacts)
 
@@ -242,7 +251,9 @@ class Simulation:
         # the evasions' take-offs keep agents flying): who still flies is known without asking every mode.
         flying = s.active if touched else active
         flown = vel1.copy() if self.loiter.fixed_wings else None
-        arrived = arrivals(s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying)
+        arrived = arrivals(
+            s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying, compiled=self._compiled
+        )
         self.loiter.fly_on(arrived.arrivals, s, vel1, flown, self.safety.turn, self.obstacles)
         self._merge(self.evasion.arrived(arrived, s))
 

@@ -157,7 +157,7 @@ class Evasion:
         # the step after it, so they are threats' targets only from the one after.
         self.settling = np.zeros(n, dtype=bool)
         self._command = np.zeros((n, 3))
-        self._compiled = use_compiled_checks(n)
+        self._compiled = use_compiled_checks(n, bool(params.fixed_wing.any()))
         self._stop_speed = np.where(params.fixed_wing, np.inf, params.max_accel * dt)
         self._stop_speed.setflags(write=False)
 

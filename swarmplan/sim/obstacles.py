@@ -27,8 +27,9 @@ class Obstacles:
         self.collision = CollisionWorld(world)
         # Distances batched by shape type (one array operation per shape, meshes by their grid),
         # equal to ObstacleField's; min_distance stays exact for meshes. Swarm-sized worlds
-        # compute the field and the nearest surfaces compiled (runtime.compiled.use_compiled).
-        self.compiled = use_compiled(len(world.agents))
+        # compute the field and the nearest surfaces compiled (runtime.compiled.use_compiled), and
+        # so do worlds with fixed wings.
+        self.compiled = use_compiled(len(world.agents), bool(params.fixed_wing.any()))
         self.distances = ShapeBatch(world.obstacles, compiled=self.compiled)
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
         self._static_mask = ~self.moving_mask

@@ -28,11 +28,11 @@ from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.deconflict import deconflict
+from swarmplan.sim.guard_clearance import MoverCentres, guard_clearance
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.network import Beliefs
 from swarmplan.sim.obstacles import Obstacles
 from swarmplan.world.model import World
-from swarmplan.world.motion import poses_at
 
 
 @dataclass(frozen=True)
@@ -88,7 +88,8 @@ class SafetyFilter:
             np.ascontiguousarray(world.bounds_max, dtype=float),
         )
         # Swarm-sized worlds over flat ground check many steps in one compiled call.
-        self._batched = use_compiled_checks(len(params.ids)) and not world.peaks
+        self._compiled = use_compiled_checks(len(params.ids), bool(params.fixed_wing.any()))
+        self._batched = self._compiled and not world.peaks
         # Every agent's radius with its safety margin (radius + margin), read every step.
         self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
@@ -96,7 +97,10 @@ class SafetyFilter:
         # The fixed wings' turn states (the curvature of their last step, rows by agent; :meth:`fly`
         # keeps them, the simulation's reset zeroes them): every fixed-wing step rolls on from them.
         self.turn = np.zeros((len(params.radius), 2))
-        self._centers: dict[int, np.ndarray] = {}  # movers' centres by step number (predictions)
+        # Movers' centres by step number from a first one (the guard's predictions).
+        self._centers = MoverCentres(world)
+        # Meshes have no compiled distance: a guard near one measures in numpy.
+        self.mesh_bodies = set(obstacles.distances.meshes)
         # Per fixed wing, the guard's manoeuvre last found safe (checked first: the same answers).
         self._prefer = np.zeros(len(params.radius), dtype=np.int64)
 
@@ -135,31 +139,35 @@ class SafetyFilter:
         close = np.flatnonzero((d[rows] < reach[rows, None]).any(axis=0)) if d.shape[1] else np.array([], int)
         obstacles = self.world.obstacles
 
-        bodies = self.obstacles.distances
+        batch = self.obstacles.distances
         static = [j for j in close if not obstacles[j].moving]
         movers = [j for j in close if obstacles[j].moving]
+
+        moving = np.flatnonzero(self.obstacles.moving_mask)
+        static_cols = np.array(static, dtype=np.int64)
+        mover_cols = np.array(movers, dtype=np.int64)
+        origin = np.array([obstacles[j].position for j in movers], dtype=float).reshape(-1, 3)
+        compiled = not (self.mesh_bodies & set(close))
+        bodies = (batch.bodies.code, batch.bodies.prm, batch.position, batch.rotation, batch.identity)
 
         def clearance_at(
             points: np.ndarray, radii: np.ndarray, times: np.ndarray, extra: np.ndarray
         ) -> np.ndarray:
             w = self.world
-            c = points[:, 2] - w.terrain_height(points[:, :2]) - radii
-            # Leaving the flight volume counts as a collision ('bounds') as well.
-            inside = np.minimum(points - w.bounds_min, w.bounds_max - points).min(axis=1)
-            c = np.minimum(c, inside - radii)
-            if static:
-                c = np.minimum(c, bodies.distance(points, None, np.array(static)).min(axis=1) - radii - extra)
+            ground = w.terrain_height(points[:, :2])
             if movers:
-                # Movers translate: a point's distance to one at time t is that of the point
-                # shifted by the mover's way since t = 0 to the mover where it started.
-                when, which = np.unique(np.rint(times / dt).astype(np.int64), return_inverse=True)
-                rows = np.searchsorted(np.flatnonzero(self.obstacles.moving_mask), movers)
-                centers = self._predicted_centers(when)[:, rows]  # (T, movers, 3)
-                for k, j in enumerate(movers):
-                    shifted = points - (centers[which, k] - obstacles[j].position)
-                    dj = bodies.distance(shifted, None, np.array([j]))[:, 0]
-                    c = np.minimum(c, dj - radii - extra)
-            return c
+                steps = np.rint(times / dt).astype(np.int64)
+                table, base = self._centers.at_steps(int(steps.min()), int(steps.max()))
+                centers = table[:, np.searchsorted(moving, mover_cols)]  # (T, movers, 3)
+                row = steps - base
+            else:
+                centers, row = np.zeros((1, 0, 3)), np.zeros(len(points), dtype=np.int64)
+            args = (points, radii, extra, ground, self._bounds[0], self._bounds[1], static_cols, mover_cols,
+                    origin, centers, row)  # fmt: skip
+            if compiled:
+                f = np.ascontiguousarray
+                return kernel_module("swarmplan.sim._guard_kernel").clearances(*(f(a) for a in args), bodies)
+            return guard_clearance(batch, *args)
 
         agents = idx[rows]
         prefer = self._prefer[agents]
@@ -171,23 +179,6 @@ class SafetyFilter:
         out = v_cmd.copy()
         out[rows] = guarded
         return out, Tally(counts=tuple(("guard_steps", i) for i in idx[rows][replaced].tolist()))
-
-    def _predicted_centers(self, steps: np.ndarray) -> np.ndarray:
-        """The moving obstacles' centres (T, movers, 3) at the times ``steps * dt`` (``steps``
-        (T,) sorted step numbers), kept per step number: the guard's predictions of one step
-        overlap the next one's but for a step (those before the first asked for are dropped)."""
-        dt, cache = self.world.dt, self._centers
-        first = int(steps[0])
-        for k in [k for k in cache if k < first]:
-            del cache[k]
-        movers = self.world.moving_obstacles
-        out = np.empty((len(steps), len(movers), 3))
-        for r, k in enumerate(steps.tolist()):
-            hit = cache.get(k)
-            if hit is None:
-                hit = cache[k] = poses_at(movers, k * dt)[0]
-            out[r] = hit
-        return out
 
     def braking_margin(
         self,
@@ -399,7 +390,7 @@ class SafetyFilter:
         cw = self.obstacles.collision
         redo = np.arange(len(start))
         hit_rows, free = [], []
-        if use_compiled_checks(len(self.params.ids)) and not self.world.peaks:
+        if self._compiled and not self.world.peaks:
             status, lo = kernel_module("swarmplan.geometry.swept_kernels").free_distances(
                 np.ascontiguousarray(start), np.ascontiguousarray(u), reach, radii, self._bounds,
                 cw.kernel_statics(), cw.kernel_movers(q0[mv], q1[mv]), SLACK, 6,
