@@ -12,6 +12,16 @@ import numpy as np
 from swarmplan.runtime.compiled import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _held_distance(view, pos, at, own, k, j):  # noqa: ANN001, ANN202
+    """The distance from flyer k to the row it holds of agent j; inf when it holds none, or j is itself."""
+    r = view[k, j]
+    if r < 0 or j == own[k]:
+        return np.inf
+    dx, dy, dz = pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2]
+    return math.sqrt((dx * dx + dy * dy) + dz * dz)
+
+
 @njit(cache=True, nogil=True)
 def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     """(flyer row k, agent j, table row, distance) for every agent j that flyer k (at
@@ -20,13 +30,8 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     n, n_all = view.shape
     count = 0
     for k in range(n):
-        px, py, pz = at[k, 0], at[k, 1], at[k, 2]
         for j in range(n_all):
-            r = view[k, j]
-            if r < 0 or j == own[k]:
-                continue
-            dx, dy, dz = pos[r, 0] - px, pos[r, 1] - py, pos[r, 2] - pz
-            if math.sqrt((dx * dx + dy * dy) + dz * dz) < radius:
+            if _held_distance(view, pos, at, own, k, j) < radius:
                 count += 1
     ks = np.empty(count, dtype=np.int64)
     js = np.empty(count, dtype=np.int64)
@@ -34,15 +39,10 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     ds = np.empty(count)
     c = 0
     for k in range(n):
-        px, py, pz = at[k, 0], at[k, 1], at[k, 2]
         for j in range(n_all):
-            r = view[k, j]
-            if r < 0 or j == own[k]:
-                continue
-            dx, dy, dz = pos[r, 0] - px, pos[r, 1] - py, pos[r, 2] - pz
-            d = math.sqrt((dx * dx + dy * dy) + dz * dz)
+            d = _held_distance(view, pos, at, own, k, j)
             if d < radius:
-                ks[c], js[c], rows[c], ds[c] = k, j, r, d
+                ks[c], js[c], rows[c], ds[c] = k, j, view[k, j], d
                 c += 1
     return ks, js, rows, ds
 
