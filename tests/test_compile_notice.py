@@ -92,4 +92,3 @@ def test_the_run_summary_says_when_its_speed_includes_compiling():
                "optimizer": "none"}  # fmt: skip
     assert "(0.5 sim-s/s, compiling included)" in format_summary(summary, None, compiled=True)
     assert "(0.5 sim-s/s)" in format_summary(summary, None)
-
