@@ -420,3 +420,16 @@ def _try_world(kind: str, rng: np.random.Generator, *, max_agents: int, max_bodi
             for i, (s, g, a) in enumerate(zip(starts, goals, kept, strict=True))
         ],
     }
+
+
+def sample_problems(worlds: int, seed: int, kind: str) -> list[str]:
+    """The problems of a sample of random worlds asked on a command line: ``--worlds`` per
+    class, ``--seed`` of the draws, ``--class`` (one of :data:`CLASSES` or all)."""
+    problems = []
+    if worlds < 1:
+        problems.append(f"--worlds: must be >= 1, got {worlds}")
+    if seed < 0:
+        problems.append(f"--seed: must be >= 0, got {seed}")
+    if kind != "all" and kind not in CLASSES:
+        problems.append(f"--class: expected one of {', '.join(CLASSES)} or all, got {kind!r}")
+    return problems

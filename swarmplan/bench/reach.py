@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.bench.random_worlds import CLASSES, random_world
+from swarmplan.bench.random_worlds import CLASSES, random_world, sample_problems
 
 CAUSES = ("collision", "gave up", "held", "escape abandoned", "short of goal", "stuck", "timeout")
 """Why an agent is not home, in the order they are tested."""
@@ -240,13 +240,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def check_arguments(args: argparse.Namespace) -> list[str]:
-    problems = []
-    if args.worlds < 1:
-        problems.append(f"--worlds: must be >= 1, got {args.worlds}")
-    if args.seed < 0:
-        problems.append(f"--seed: must be >= 0, got {args.seed}")
-    if args.kind != "all" and args.kind not in CLASSES:
-        problems.append(f"--class: expected one of {', '.join(CLASSES)} or all, got {args.kind!r}")
+    problems = sample_problems(args.worlds, args.seed, args.kind)
     if args.workers < 1:
         problems.append(f"--workers: must be >= 1, got {args.workers}")
     out = Path(args.out)

@@ -34,7 +34,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from swarmplan.bench.random_worlds import CLASSES
+from swarmplan.bench.random_worlds import CLASSES, sample_problems
 from swarmplan.bench.reach import fly, world_of
 from swarmplan.replay import load
 from swarmplan.world.tracker_config import parse_tracker
@@ -159,13 +159,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def check_arguments(args: argparse.Namespace) -> list[str]:
-    problems = []
-    if args.worlds < 1:
-        problems.append(f"--worlds: must be >= 1, got {args.worlds}")
-    if args.seed < 0:
-        problems.append(f"--seed: must be >= 0, got {args.seed}")
-    if args.kind != "all" and args.kind not in CLASSES:
-        problems.append(f"--class: expected one of {', '.join(CLASSES)} or all, got {args.kind!r}")
+    problems = sample_problems(args.worlds, args.seed, args.kind)
     for name, value in (("--out", args.out), ("--logs", args.logs)):
         if value is not None and Path(value).exists() and not Path(value).is_dir():
             problems.append(f"{name}: {value} is a file, expected a folder")
