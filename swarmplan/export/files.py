@@ -129,7 +129,7 @@ def _crazyflie(
         lim.model,
         lim.radius,
         lim.separation,
-        path.start_time + t,
+        path.start_time - fit.lead + t,
         poly.evaluate(t)[:, :3],
         accuracy,
         poly.evaluate(t, 1)[:, :3],
@@ -139,7 +139,7 @@ def _crazyflie(
     entry = {
         "id": lim.id,
         "file": name,
-        "start_time": path.start_time,
+        "start_time": round(path.start_time - fit.lead, 6),
         "duration": round(poly.duration, 6),
         "pieces": poly.n_pieces,
         "bytes": poly.nbytes,
