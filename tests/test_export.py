@@ -86,7 +86,8 @@ def test_ldp_exact_answers():
     assert np.allclose(y, [1.0, 1.0], atol=1e-12)
     y = crazyflie._ldp(np.array([[1.0, 0.0], [0.0, 1.0]]), np.array([-1.0, 3.0]))  # y1 >= -1 is slack
     assert np.allclose(y, [0.0, 3.0], atol=1e-12)
-    assert crazyflie._ldp(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0])) is None  # y1 >= 1, y1 <= 0
+    # y1 >= 1 and y1 <= 0: no answer
+    assert crazyflie._ldp(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0])) is None
 
 
 def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
@@ -139,7 +140,7 @@ def test_csv_round_trip_and_header():
 
 def test_a_path_beyond_the_limits_on_its_timing_is_refused_with_the_limits_it_needs():
     with pytest.raises(LimitError) as err:
-        crazyflie.fit(line_path(max_accel=0.2), 0.01)  # the line needs 0.33 m/s^2
+        crazyflie.fit(line_path(max_accel=0.2), 0.01, max_pieces=4)  # the line needs 0.33 m/s^2
     msg = str(err.value)
     assert "acceleration <= 0.2 m/s^2" in msg and "needs" in msg and "\n" not in msg
 

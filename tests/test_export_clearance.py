@@ -201,6 +201,30 @@ def test_the_timed_mission_passes_a_corner_at_its_corner_speed():
     assert speed.max() <= path.limits.speed_max + 1e-9
 
 
+def test_the_rounded_mission_turns_on_the_corner_circle_within_max_accel():
+    path = l_path()
+    wp = np.array([[0.0, 2.6, 5.0], [2.6, 2.6, 5.0], [2.6, 0.0, 5.0]])  # one right-angle corner
+    m = mission.Mission(path, wp, np.array([0, 26, 52]), np.ones(2), 0.1, 0.0)
+    corner = wp[1]
+    verts, caps, at = mission.rounded(m)
+    d = RADIUS  # the acceptance radius; a right angle: r = d tan(45 deg) = d
+    centre = corner + np.array([-d, -d, 0.0])
+    arc = np.linalg.norm(verts - corner, axis=1) < d - 1e-9
+    assert arc.sum() > 10
+    assert np.allclose(np.linalg.norm(verts[arc] - centre, axis=1), d)  # on the circle
+    assert mission.polyline_distance(verts, m.waypoints).max() <= d + 1e-12
+    assert at[0] == 0.0 and at[-1] == 0.0 and np.isinf(at[1:-1]).all()
+    v_corner = math.sqrt(2.0 * d)  # sqrt(a r)
+    assert caps[1:-1][np.isfinite(caps[1:-1])].min() == pytest.approx(v_corner)
+    t, pos = mission.timed(m, 0.05)
+    vel = np.diff(pos, axis=0) / np.diff(t)[:, None]
+    acc = np.linalg.norm(np.diff(vel, axis=0), axis=1) / np.diff(0.5 * (t[1:] + t[:-1]))
+    turning = np.linalg.norm(pos[1:-1] - corner, axis=1) < d
+    assert turning.sum() >= 3
+    assert acc[turning].max() <= 2.0 * 1.05  # the turn at max_accel (drawn in chords)
+    assert acc.max() <= 2.0 * 1.25  # the start and the stop: the speed profile's own steps
+
+
 def test_bench_export_counts_per_class_and_format():
     from swarmplan.export.bench import markdown, table
 
