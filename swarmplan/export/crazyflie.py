@@ -8,15 +8,15 @@ time since the piece began, lowest power first) and a duration, as 33 little-end
 so one trajectory has at most 4096 // 132 = 31 pieces.
 
 Fit: a degree-7 B-spline in time whose interior knots have multiplicity 4, so position,
-velocity, acceleration and jerk are continuous at every joint (C3); it is the least-squares
-fit to every recorded position plus a small penalty on the snap (the minimum-snap
-regulariser), starting and ending at the recorded positions with the recorded velocities and
-zero acceleration. The number of pieces (equal durations) is the smallest that keeps the fit
-within the accuracy bound of the flown path at every recorded step and between them; the snap
-penalty is raised, on a fixed ladder, only while the fit breaks the agent's speed or
-acceleration limit. Everything is checked on the coefficients as the Crazyflie holds them
-(float32). A path that needs more than 31 pieces is refused with the accuracy 31 pieces reach
-and the pieces the bound would need: never coarsened silently.
+velocity, acceleration and jerk are continuous at every joint (C3), on the flown timing (from
+rest half a step before the first recorded step; :func:`ends_of`). The agent's speed and
+acceleration limits and the accuracy bound are constraints on dense grids: of the splines that
+keep them, the fit is the one closest to the least-squares fit to every recorded position plus
+a small penalty on the snap, found by cutting planes (:func:`_solve`) and solved exactly as a
+least distance programme (:func:`_ldp`). The number of pieces (equal durations) is the
+smallest that fits. Everything is checked again on the coefficients as the Crazyflie holds them
+(float32). A path that 31 pieces cannot fit is refused, never coarsened, with what would fit:
+the smallest bound within which 31 pieces keep the limits, or the limits its timing needs.
 """
 
 from __future__ import annotations

@@ -139,7 +139,10 @@ def _crazyflie(
     entry = {
         "id": lim.id,
         "file": name,
-        "start_time": round(path.start_time - fit.lead, 6),
+        # From rest half a step before the first recorded step: the common start is half a
+        # step before the log's t = 0 (every multirotor of a log has the same lead).
+        "start_time": path.start_time,
+        "log_start_time": round(path.start_time - fit.lead, 6),
         "duration": round(poly.duration, 6),
         "pieces": poly.n_pieces,
         "bytes": poly.nbytes,
