@@ -225,6 +225,19 @@ def test_the_rounded_mission_turns_on_the_corner_circle_within_max_accel():
     assert acc.max() <= 2.0 * 1.25  # the start and the stop: the speed profile's own steps
 
 
+def test_path_distance_to_a_dense_polyline():
+    from swarmplan.export.check import path_distance
+
+    line = np.column_stack([np.linspace(0.0, 10.0, 1001), np.zeros(1001), np.zeros(1001)])
+    pts = np.array([[5.0, 0.3, 0.0], [5.004, 0.0, -0.2], [-1.0, 0.0, 0.0], [10.0, 3.0, 4.0]])
+    assert np.allclose(path_distance(pts, line), [0.3, 0.2, 1.0, 5.0], atol=1e-12)
+    # Behind or ahead on the path is no deviation; beside it is.
+    corner = np.vstack(
+        [line, np.column_stack([np.full(1000, 10.0), np.linspace(0.01, 10.0, 1000), np.zeros(1000)])]
+    )
+    assert path_distance(np.array([[9.9, 0.1, 0.0]]), corner)[0] == pytest.approx(0.1)
+
+
 def test_bench_export_counts_per_class_and_format():
     from swarmplan.export.bench import markdown, table
 

@@ -191,7 +191,8 @@ def _px4(
     files[f"{stem}.plan"] = mission.plan_text(m, its, home)
     files[f"{stem}.waypoints"] = mission.wpl_text(its, home)
     times, pos = mission.timed(m)
-    plan = Plan(lim.id, lim.model, lim.radius, lim.separation, path.start_time + times, pos, bound)
+    plan = Plan(lim.id, lim.model, lim.radius, lim.separation, path.start_time + times, pos, bound,
+                path_only=True)  # fmt: skip
     entry = {
         "id": lim.id,
         "file": f"{stem}.plan",
