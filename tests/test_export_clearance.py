@@ -250,12 +250,20 @@ def test_bench_export_counts_per_class_and_format():
         {"name": "w1", "agents": 3, "flight_contacts": 1, "px4": entry(False, contacts=2)},
         {"name": "w2", "agents": 1, "flight_contacts": 0, "px4": entry(False, dev=1.5)},
         {"name": "w3", "agents": 1, "flight_contacts": 0, "px4": {"refused": "agent a: ..."}},
+        {
+            "name": "w4",
+            "agents": 2,
+            "flight_contacts": 0,
+            "flight_near_misses": 1,
+            "px4": entry(False, sep=3),
+        },
     ]
     t = table("lab", "px4", records)
-    assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (4, 3, 1, 2, 1)
-    assert (t["safe"], t["with_contact"], t["separation_lost"], t["deviation_broken"]) == (2, 1, 0, 1)
+    assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (5, 4, 1, 2, 1)
+    assert (t["safe"], t["safe_of_clean"], t["with_contact"], t["separation_lost"]) == (2, 2, 1, 1)
+    assert t["deviation_broken"] == 1
     assert t["check_deviation_over_limit"] == 1.5 and t["waypoints"] == 7 and t["pieces"] is None
-    assert "| lab | px4 | 3/4 | 1/3 | 1/2 | 2/3 | 1 | 0 | 1 |" in markdown([t])
+    assert "| lab | px4 | 4/5 | 1/4 | 1/2 | 2/4 | 2/2 | 1 | 1 | 1 |" in markdown([t])
 
 
 def test_bench_export_refuses_bad_arguments(capsys):
