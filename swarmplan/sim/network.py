@@ -314,9 +314,13 @@ class Network:
         plan kept holds them alive."""
         number, mode, keys = self._last
         now = np.empty((len(who), 4), dtype=np.int64)
-        now[:, 0] = np.fromiter((id(s.segment[i]) for i in who), dtype=np.int64, count=len(who))
+        now[:, 0] = np.fromiter(
+            map(id, map(s.segment.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
+        )
         now[:, 1] = s.segment_index[who]
-        now[:, 2] = np.fromiter((id(s.route[i]) for i in who), dtype=np.int64, count=len(who))
+        now[:, 2] = np.fromiter(
+            map(id, map(s.route.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
+        )
         now[:, 3] = s.route_index[who]
         changed = (number[who] < 0) | (mode[who] != s.mode[who]) | (keys[who] != now).any(axis=1)
         for c in np.flatnonzero(changed):
