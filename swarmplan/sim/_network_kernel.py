@@ -18,10 +18,12 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     ``at[k]``, agent ``own[k]``) holds a row of (``view[k, j]`` >= 0) within ``radius`` of it,
     itself left out, in (k, j) order."""
     n, n_all = view.shape
-    # Distances first (inf: none held, or itself), then the pairs: the arithmetic is written
-    # once, inline (a helper taking the arrays costs a reference count per call and pair).
-    dist = np.full((n, n_all), np.inf)
-    count = 0
+    # One pass into room for every pair (pages never written are never touched).
+    ks = np.empty(n * n_all, dtype=np.int64)
+    js = np.empty(n * n_all, dtype=np.int64)
+    rows = np.empty(n * n_all, dtype=np.int64)
+    ds = np.empty(n * n_all)
+    c = 0
     for k in range(n):
         for j in range(n_all):
             r = view[k, j]
@@ -29,20 +31,10 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
                 continue
             dx, dy, dz = pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2]
             d = math.sqrt((dx * dx + dy * dy) + dz * dz)
-            dist[k, j] = d
             if d < radius:
-                count += 1
-    ks = np.empty(count, dtype=np.int64)
-    js = np.empty(count, dtype=np.int64)
-    rows = np.empty(count, dtype=np.int64)
-    ds = np.empty(count)
-    c = 0
-    for k in range(n):
-        for j in range(n_all):
-            if dist[k, j] < radius:
-                ks[c], js[c], rows[c], ds[c] = k, j, view[k, j], dist[k, j]
+                ks[c], js[c], rows[c], ds[c] = k, j, r, d
                 c += 1
-    return ks, js, rows, ds
+    return ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy()
 
 
 _SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
