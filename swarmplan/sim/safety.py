@@ -26,7 +26,7 @@ from swarmplan.flight.kinematics import (
 from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
+from swarmplan.runtime.compiled import kernel_module, read_only, use_compiled_checks
 from swarmplan.sim.deconflict import deconflict
 from swarmplan.sim.guard_clearance import MoverCentres, guard_clearance
 from swarmplan.sim.metrics import NOTHING, Tally
@@ -355,7 +355,7 @@ class SafetyFilter:
             np.ascontiguousarray(start if goal is None else goal[k], dtype=float),
             amax,
             vmax,
-            radii,
+            read_only(radii),
         )
         out, vel1, status, decided = step_kernels().braking_margin(
             row_arrays, goal is not None, (dt, dt**2, float(self.world.goal_tolerance)), self._bounds,
