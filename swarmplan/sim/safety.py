@@ -150,18 +150,19 @@ class SafetyFilter:
         compiled = not (self.mesh_bodies & set(close))
         bodies = (batch.bodies.code, batch.bodies.prm, batch.position, batch.rotation, batch.identity)
 
+        def centers_at(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """The close movers' centres (T, movers, 3) and each time's row of them."""
+            if not movers:
+                return np.zeros((1, 0, 3)), np.zeros(len(times), dtype=np.int64)
+            steps = np.rint(times / dt).astype(np.int64)
+            table, base = self._centers.at_steps(int(steps.min()), int(steps.max()))
+            return table[:, np.searchsorted(moving, mover_cols)], steps - base
+
         def clearance_at(
             points: np.ndarray, radii: np.ndarray, times: np.ndarray, extra: np.ndarray
         ) -> np.ndarray:
-            w = self.world
-            ground = w.terrain_height(points[:, :2])
-            if movers:
-                steps = np.rint(times / dt).astype(np.int64)
-                table, base = self._centers.at_steps(int(steps.min()), int(steps.max()))
-                centers = table[:, np.searchsorted(moving, mover_cols)]  # (T, movers, 3)
-                row = steps - base
-            else:
-                centers, row = np.zeros((1, 0, 3)), np.zeros(len(points), dtype=np.int64)
+            ground = self.world.terrain_height(points[:, :2])
+            centers, row = centers_at(times)
             args = (points, radii, extra, ground, self._bounds[0], self._bounds[1], static_cols, mover_cols,
                     origin, centers, row)  # fmt: skip
             if compiled:
@@ -169,11 +170,21 @@ class SafetyFilter:
                 return kernel_module("swarmplan.sim._guard_kernel").clearances(*(f(a) for a in args), bodies)
             return guard_clearance(batch, *args)
 
+        def first_safe_at(
+            rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray, required: np.ndarray
+        ) -> tuple[np.ndarray, np.ndarray]:
+            centers, row = centers_at(times)
+            f = np.ascontiguousarray
+            return kernel_module("swarmplan.sim._guard_kernel").first_safe(
+                *rollout, f(row), f(radii), f(extra), f(required), self._bounds[0], self._bounds[1], static_cols,
+                mover_cols, f(origin), f(centers), bodies,
+            )  # fmt: skip
+
         agents = idx[rows]
         prefer = self._prefer[agents]
         guarded, replaced = guard_commands(
             p, agents, pos0[agents], vel0[agents], v_cmd[rows], t0, dt, clearance_at, required[rows],
-            self.turn[agents], prefer,
+            self.turn[agents], prefer, first_safe_at if compiled and not self.world.peaks else None,
         )  # fmt: skip
         self._prefer[agents] = prefer
         out = v_cmd.copy()
