@@ -157,14 +157,15 @@ def test_first_safe_manoeuvre_in_one_pass_equals_rollouts_and_clearances(seed: i
     gk = kernel_module("swarmplan.sim._guard_kernel")
     fk = kernel_module("swarmplan.flight._fixed_wing_kernel")
 
-    here, first = gk.first_safe(pos, vel, kappa, turn, up, amax, radius, climb, roll, dt, rows, radii, extra, required,
-                                bmin, bmax, static, movers, origin, centers, bodies)  # fmt: skip
+    flight = (pos, vel, kappa, turn, up, amax, radius, climb, roll)
+    scene = (bmin, bmax, static, movers, origin, centers, bodies)
+    here, first = gk.first_safe((*flight, dt), rows, radii, extra, required, scene)
 
-    path = fk.rollouts(pos, vel, kappa, turn, up, amax, radius, climb, roll, steps, dt)
+    path = fk.rollouts(*flight, steps, dt)
     rep = lambda a: np.repeat(a, c * steps)  # noqa: E731
     clear = gk.clearances(
-        path.reshape(-1, 3), rep(radii), rep(extra), np.zeros(n * c * steps), bmin, bmax, static, movers, origin,
-        centers, np.tile(rows[1:], n * c), bodies,
+        path.reshape(-1, 3), rep(radii), rep(extra), np.zeros(n * c * steps), bmin, bmax, static, movers,
+        origin, centers, np.tile(rows[1:], n * c), bodies,
     ).reshape(n, c, steps)  # fmt: skip
     safe = clear.min(axis=2) >= required[:, None]
     want_here = gk.clearances(pos, radii, extra, np.zeros(n), bmin, bmax, static, movers, origin, centers,

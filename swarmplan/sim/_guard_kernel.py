@@ -80,19 +80,22 @@ def clearances(points, radii, extra, ground, bmin, bmax, static, movers, origin,
     n = points.shape[0]
     out = np.empty(n)
     for i in range(n):
-        out[i] = _clearance(points[i, 0], points[i, 1], points[i, 2], radii[i], extra[i], ground[i], bmin, bmax,
-                            static, movers, origin, centers, row[i], bodies)  # fmt: skip
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        out[i] = _clearance(x, y, z, radii[i], extra[i], ground[i], bmin, bmax, static, movers, origin,
+                            centers, row[i], bodies)  # fmt: skip
     return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _falls_short(x, y, z, r, e, need, bmin, bmax, static, movers, origin, centers, t, bodies, seen, slack):  # noqa: ANN001, ANN202, E501
-    """Whether :func:`_clearance` of the point (x, y, z) over flat ground is below ``need``. A
+def _falls_short(x, y, z, r, e, need, scene, t, seen, slack):  # noqa: ANN001, ANN202
+    """Whether :func:`_clearance` of the point (x, y, z) over flat ground is below ``need``
+    (``scene``: the bounds, bodies and movers' centres of :func:`first_safe`, row ``t``). A
     body whose distance is exact (1-Lipschitz) is measured again only when the point (shifted
     back by its way, for a mover) has come farther from where it was last measured,
     ``seen[j]``, than ``slack[j]``, what that distance had beyond ``need`` less a rounding
     allowance: closer it cannot be below ``need`` (``slack[j] < 0``: measure). The same
     answers as measuring every body."""
+    bmin, bmax, static, movers, origin, centers, bodies = scene
     code, prm, position, rotation, identity = bodies
     if _room(x, y, z, r, 0.0, bmin, bmax) < need:
         return True
@@ -121,13 +124,19 @@ def _falls_short(x, y, z, r, e, need, bmin, bmax, static, movers, origin, center
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def first_safe(pos, vel, kappa, turn, up, amax, radius, climb, roll, dt, rows, radii, extra, required, bmin, bmax, static, movers, origin, centers, bodies):  # noqa: ANN001, ANN201, E501
-    """Per fixed wing i at ``pos[i]``/``vel[i]``/``kappa[i]``: its clearance where it is (the
+def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, ANN201
+    """``rollout = (pos, vel, kappa, turn, up, amax, radius, climb, roll, dt)`` (the arguments
+    of ``_fixed_wing_kernel.rollouts`` but the steps), ``scene = (bmin, bmax, static, movers,
+    origin, centers, bodies)`` (those of :func:`clearances` but the points' own).
+
+    Per fixed wing i at ``pos[i]``/``vel[i]``/``kappa[i]``: its clearance where it is (the
     movers at row ``rows[0]``) and the first of its sustained manoeuvres c (``turn[i, c]``,
     ``up[i, c]``; ``_fixed_wing_kernel.manoeuvre_step``) whose predicted positions over
     ``len(rows) - 1`` steps (step k at row ``rows[k]``) all keep ``required[i]``, -1 if none:
     each position measured as :func:`clearances` measures it over flat ground (height 0), and a
     manoeuvre left at its first position that does not keep it. Returns both, (n,) each."""
+    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    bmin, bmax, static, movers, origin, centers, bodies = scene
     n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0] - 1
     here = np.empty(n)
     first = np.full(n, -1, dtype=np.int64)
@@ -141,10 +150,12 @@ def first_safe(pos, vel, kappa, turn, up, amax, radius, climb, roll, dt, rows, r
             state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
             slack[:] = -1.0
             safe = True
+            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
             for k in range(steps):
-                state = manoeuvre_step(state, speed, cg, sg, turn[i, c], amax[i], radius[i], climb[i], roll[i], dt)
-                if _falls_short(state[0], state[1], state[2], r, e, need, bmin, bmax, static, movers, origin, centers,
-                                rows[k + 1], bodies, seen, slack):  # fmt: skip
+                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+                x, y, z = state[0], state[1], state[2]
+                t = rows[k + 1]
+                if _falls_short(x, y, z, r, e, need, scene, t, seen, slack):
                     safe = False
                     break
             if safe:

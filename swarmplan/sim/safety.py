@@ -175,10 +175,10 @@ class SafetyFilter:
         ) -> tuple[np.ndarray, np.ndarray]:
             centers, row = centers_at(times)
             f = np.ascontiguousarray
+            scene = (*self._bounds, static_cols, mover_cols, f(origin), f(centers), bodies)
             return kernel_module("swarmplan.sim._guard_kernel").first_safe(
-                *rollout, f(row), f(radii), f(extra), f(required), self._bounds[0], self._bounds[1], static_cols,
-                mover_cols, f(origin), f(centers), bodies,
-            )  # fmt: skip
+                rollout, f(row), f(radii), f(extra), f(required), scene
+            )
 
         agents = idx[rows]
         prefer = self._prefer[agents]
