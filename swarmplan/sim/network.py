@@ -33,22 +33,13 @@ from typing import Any
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.world.comms import Comms, Sensing
 
 _EPS = 1e-9
-SWARM_PAIRS = 4096
-"""(flyer, agent) pairs from which the network's per-pair passes run compiled."""
 
 Plan = tuple[Mode, "np.ndarray | None", int, "np.ndarray | None", int]
 """An agent's mode, segment and index on it, route and index on it (as :class:`SwarmState` has them)."""
-
-
-def plans_of(s: SwarmState, rows: np.ndarray) -> list[Plan]:
-    """The plans of agents ``rows`` in state ``s`` (the arrays are replaced, never changed, on a new plan)."""
-    return [
-        (s.mode[i], s.segment[i], int(s.segment_index[i]), s.route[i], int(s.route_index[i])) for i in rows
-    ]
 
 
 @dataclass(frozen=True)
@@ -87,19 +78,65 @@ class Beliefs:
         return out
 
     def _pairs(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        n, n_all = self.view.shape
-        if n * n_all > SWARM_PAIRS:  # one compiled pass over every (flyer, agent) pair
-            return kernel_module("swarmplan.sim._network_kernel").held_pairs(
-                self.view, self.pos, self.at, np.asarray(self.idx, dtype=np.int64), float(radius)
-            )
-        k, j = np.nonzero(self.view >= 0)
-        rows = self.view[k, j]
-        keep = j != self.idx[k]
-        k, j, rows = k[keep], j[keep], rows[keep]
-        dp = self.pos[rows] - self.at[k]
-        d = np.sqrt((dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1]) + dp[:, 2] * dp[:, 2])
-        inside = d < radius
-        return k[inside], j[inside], rows[inside], d[inside]
+        held = _kernel().held_pairs if use_compiled(self.view.shape[1]) else held_pairs
+        return held(self.view, self.pos, self.at, np.asarray(self.idx, dtype=np.int64), float(radius))
+
+
+def _kernel() -> Any:
+    """The compiled passes over every (receiver, sender) pair, run from swarm size on."""
+    return kernel_module("swarmplan.sim._network_kernel")
+
+
+def held_pairs(
+    view: np.ndarray, pos: np.ndarray, at: np.ndarray, own: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(flyer row k, agent j, table row, distance) for every agent j that flyer k (at ``at[k]``,
+    agent ``own[k]``) holds a row of (``view[k, j]`` >= 0) within ``radius`` of it, itself left
+    out, in (k, j) order."""
+    k, j = np.nonzero(view >= 0)
+    rows = view[k, j]
+    keep = j != own[k]
+    k, j, rows = k[keep], j[keep], rows[keep]
+    dp = pos[rows] - at[k]
+    d = np.sqrt((dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1]) + dp[:, 2] * dp[:, 2])
+    inside = d < radius
+    return k[inside], j[inside], rows[inside], d[inside]
+
+
+def copies(
+    lost_u: np.ndarray, loss: float, jitter_u: np.ndarray, jitter: float, due: float, who: np.ndarray,
+    far: np.ndarray,
+) -> tuple[np.ndarray, int, int, float]:  # fmt: skip
+    """When each copy of one broadcast arrives (N, k): at ``due`` (+ ``jitter`` times the uniform
+    draw ``jitter_u``, when given), inf for a copy lost (draw ``lost_u`` below ``loss``), out of
+    range (``far``, when given) or sent to its sender itself (``who[c]`` is the sender of column
+    c); with the copies lost (in range) and out of range, and the earliest arrival."""
+    n, k = lost_u.shape
+    lost = lost_u < loss
+    arrives = np.full((n, k), due)
+    if jitter_u.shape[0]:
+        arrives += jitter * jitter_u
+    itself = who, np.arange(k)  # nobody listens to itself
+    far = far.copy() if far.shape[0] else np.zeros((n, k), dtype=bool)
+    far[itself] = False
+    lost[itself] = False
+    arrives[lost | far] = np.inf
+    arrives[itself] = np.inf
+    return arrives, int((lost & ~far).sum()), int(far.sum()), float(arrives.min())
+
+
+def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The table rows (ascending) that flyers ``idx`` hold in ``heard`` (receiver, sender; 0:
+    none), and each flyer's view of them (n, N: the position among those rows, -1: none).
+    ``mark`` has one entry per table row (the compiled pass's scratch; read here for its size)."""
+    rows = heard[idx]
+    used = np.zeros(len(mark), dtype=bool)
+    used[rows] = True
+    used[0] = False  # nothing heard
+    live = np.flatnonzero(used)
+    remap = np.full(len(mark), -1, dtype=np.int64)
+    remap[live] = np.arange(len(live))
+    return live, remap[rows]
 
 
 class _Table:
@@ -115,6 +152,7 @@ class _Table:
         self.goal_distance = np.zeros(4 * n + 1)
         self.plan = np.zeros(4 * n + 1, dtype=np.int64)
         self.agent = np.full(4 * n + 1, -1, dtype=np.int64)
+        self.mark = np.full(4 * n + 1, -1, dtype=np.int64)  # scratch of the compiled compaction
 
     def add(self, t: float, agent: np.ndarray, pos: np.ndarray, vel: np.ndarray, parked: np.ndarray,
             to_go: np.ndarray, plan: np.ndarray) -> np.ndarray:  # fmt: skip
@@ -123,7 +161,7 @@ class _Table:
         if first + k > len(self.t):
             grow = max(len(self.t), k)
             for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("acc", 0.0), ("parked", False),
-                               ("goal_distance", 0.0), ("plan", 0), ("agent", -1)):  # fmt: skip
+                               ("goal_distance", 0.0), ("plan", 0), ("agent", -1), ("mark", -1)):  # fmt: skip
                 old = getattr(self, name)
                 setattr(
                     self, name, np.concatenate([old, np.full((grow, *old.shape[1:]), fill, dtype=old.dtype)])
@@ -144,6 +182,8 @@ class _Sent:
     senders: np.ndarray
     rows: np.ndarray
     arrives: np.ndarray
+    first: float
+    """The earliest arrival of a copy still on its way (inf: none)."""
 
 
 class Network:
@@ -163,7 +203,10 @@ class Network:
         n = self.n
         self.rng = rng
         self.table = _Table(n)
-        self.plans: list[Plan] = []  # every plan sent
+        self.plans: list[Plan] = []  # each agent's plans, one entry per change
+        # Per agent, its plan last kept: number, mode, ids of segment and route, indexes on them.
+        self._last = (np.full(n, -1, dtype=np.int64), np.full(n, None, dtype=object),
+                      np.zeros((n, 4), dtype=np.int64))  # fmt: skip
         pos = s.position
         start = self.table.add(
             0.0,
@@ -172,7 +215,7 @@ class Network:
             np.zeros((n, 3)),
             np.zeros(n, dtype=bool),
             np.linalg.norm(s.goal - pos, axis=1),
-            self._book(plans_of(s, np.arange(n))),
+            self._book(s, np.arange(n)),
         )
         # (receiver, sender): the table row of the newest state heard (0: none)
         d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
@@ -203,21 +246,17 @@ class Network:
             return
         c, n, k = self.comms, self.n, len(who)
         # Every draw is made whatever becomes of the message: the stream stays in step.
-        lost = self.rng.random((n, k)) < c.loss
-        arrives = np.full((n, k), t1 + c.delay)
-        if c.jitter > 0.0:
-            arrives += c.jitter * self.rng.uniform(-1.0, 1.0, (n, k))
-        itself = who, np.arange(k)  # nobody listens to itself
-        far = np.zeros((n, k), dtype=bool)
+        lost_u = self.rng.random((n, k))
+        none = np.zeros((0, 0))
+        jitter_u = self.rng.uniform(-1.0, 1.0, (n, k)) if c.jitter > 0.0 else none
+        far = np.zeros((0, 0), dtype=bool)
         if math.isfinite(c.range):
             far = np.linalg.norm(pos[:, None, :] - pos[who][None, :, :], axis=-1) > c.range
-            far[itself] = False
-        lost[itself] = False
-        arrives[lost | far] = np.inf
-        arrives[itself] = np.inf
+        run = _kernel().copies if use_compiled(n) else copies
+        arrives, lost, out, first = run(lost_u, c.loss, jitter_u, c.jitter, t1 + c.delay, who, far)
         self.sent += k * (n - 1)
-        self.out_of_range += int(far.sum())
-        self.lost += int((lost & ~far).sum())
+        self.out_of_range += int(out)
+        self.lost += int(lost)
         rows = self.table.add(
             t1,
             who,
@@ -225,27 +264,44 @@ class Network:
             vel[who],
             parked[who],
             np.linalg.norm(s.goal[who] - pos[who], axis=1),
-            self._book(plans_of(s, who)),
+            self._book(s, who),
         )
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
         over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
         self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
-        self.pending.append(_Sent(who, rows, arrives))
+        self.pending.append(_Sent(who, rows, arrives, float(first)))
 
-    def _book(self, plans: list[Plan]) -> np.ndarray:
-        """``plans`` kept; their numbers."""
-        first = len(self.plans)
-        self.plans += plans
-        return np.arange(first, len(self.plans))
+    def _book(self, s: SwarmState, who: np.ndarray) -> np.ndarray:
+        """The numbers of the plans of agents ``who`` in ``s``. A plan is kept when it changes
+        (keeping one per state sent would keep the garbage collector busy in a swarm): its
+        arrays are replaced, never changed, on a new plan, so their identity names them, and the
+        plan kept holds them alive."""
+        number, mode, keys = self._last
+        now = np.empty((len(who), 4), dtype=np.int64)
+        now[:, 0] = np.fromiter((id(s.segment[i]) for i in who), dtype=np.int64, count=len(who))
+        now[:, 1] = s.segment_index[who]
+        now[:, 2] = np.fromiter((id(s.route[i]) for i in who), dtype=np.int64, count=len(who))
+        now[:, 3] = s.route_index[who]
+        changed = (number[who] < 0) | (mode[who] != s.mode[who]) | (keys[who] != now).any(axis=1)
+        for c in np.flatnonzero(changed):
+            i = int(who[c])
+            number[i], mode[i], keys[i] = len(self.plans), s.mode[i], now[c]
+            self.plans.append(
+                (s.mode[i], s.segment[i], int(s.segment_index[i]), s.route[i], int(s.route_index[i]))
+            )
+        return number[who].copy()
 
     def deliver(self, t: float) -> None:
         """Every copy that has arrived by ``t`` replaces an older state of its sender."""
         keep: list[_Sent] = []
-        compiled = self.n * self.n > SWARM_PAIRS
+        compiled = use_compiled(self.n)
         for m in self.pending:  # oldest broadcasts first: a newer state replaces an older one
+            if m.first > t + _EPS:  # nothing of it arrives yet
+                keep.append(m)
+                continue
             if compiled:
-                kernel = kernel_module("swarmplan.sim._network_kernel")
-                if kernel.deliver(self.heard, m.senders, m.rows, m.arrives, self.table.t, t, _EPS):
+                m.first = _kernel().deliver(self.heard, m.senders, m.rows, m.arrives, self.table.t, t, _EPS)
+                if m.first < np.inf:
                     keep.append(m)
                 continue
             due = m.arrives <= t + _EPS
@@ -258,7 +314,8 @@ class Network:
                 else:
                     self.heard[:, m.senders] = np.where(take, m.rows[None, :], cur)
                 m.arrives[due] = np.inf
-            if np.isfinite(m.arrives).any():
+            m.first = float(m.arrives.min())
+            if m.first < np.inf:
                 keep.append(m)
         self.pending = keep
 
@@ -326,14 +383,11 @@ class Network:
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in."""
         self.deliver(t)
-        tb, heard, n = self.table, self.heard[idx], len(idx)
-        used = np.zeros(tb.size, dtype=bool)
-        used[heard] = True
-        used[0] = False  # nothing heard
-        live = np.flatnonzero(used)
-        remap = np.full(tb.size, -1, dtype=np.int64)
-        remap[live] = np.arange(len(live))
-        view = remap[heard]
+        tb, n = self.table, len(idx)
+        idx64 = np.asarray(idx, dtype=np.int64)
+        live, view = (_kernel().compact if use_compiled(self.n) else compact)(
+            self.heard, idx64, tb.mark[: tb.size]
+        )
         age = t - tb.t[live]
         moved = tb.pos[live] + tb.vel[live] * age[:, None]
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
