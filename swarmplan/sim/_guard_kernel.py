@@ -49,9 +49,10 @@ def _room(x, y, z, r, ground, bmin, bmax):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _clearance(x, y, z, r, e, ground, bmin, bmax, static, movers, origin, centers, t, bodies):  # noqa: ANN001, ANN202
+def _clearance(x, y, z, r, e, ground, scene, t):  # noqa: ANN001, ANN202
     """The clearance of one point (x, y, z) of body radius ``r`` at row ``t`` of the movers'
-    ``centers`` (:func:`clearances`)."""
+    centres (:func:`clearances`; ``scene``: :func:`first_safe`'s)."""
+    bmin, bmax, static, movers, origin, centers, bodies = scene
     code, prm, position, rotation, identity = bodies
     c = _room(x, y, z, r, ground, bmin, bmax)
     if static.shape[0]:
@@ -79,10 +80,10 @@ def clearances(points, radii, extra, ground, bmin, bmax, static, movers, origin,
     identity)`` (``geometry.bodies.Bodies``)."""
     n = points.shape[0]
     out = np.empty(n)
+    scene = (bmin, bmax, static, movers, origin, centers, bodies)
     for i in range(n):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        out[i] = _clearance(x, y, z, radii[i], extra[i], ground[i], bmin, bmax, static, movers, origin,
-                            centers, row[i], bodies)  # fmt: skip
+        out[i] = _clearance(x, y, z, radii[i], extra[i], ground[i], scene, row[i])
     return out
 
 
@@ -136,7 +137,7 @@ def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, A
     each position measured as :func:`clearances` measures it over flat ground (height 0), and a
     manoeuvre left at its first position that does not keep it. Returns both, (n,) each."""
     pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
-    bmin, bmax, static, movers, origin, centers, bodies = scene
+    static, movers = scene[2], scene[3]
     n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0] - 1
     here = np.empty(n)
     first = np.full(n, -1, dtype=np.int64)
@@ -144,8 +145,7 @@ def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, A
     slack = np.empty(static.shape[0] + movers.shape[0])
     for i in range(n):
         r, e, need = radii[i], extra[i], required[i]
-        here[i] = _clearance(pos[i, 0], pos[i, 1], pos[i, 2], r, e, 0.0, bmin, bmax, static, movers, origin,
-                             centers, rows[0], bodies)  # fmt: skip
+        here[i] = _clearance(pos[i, 0], pos[i, 1], pos[i, 2], r, e, 0.0, scene, rows[0])
         for c in range(nc):
             state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
             slack[:] = -1.0
