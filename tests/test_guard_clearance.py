@@ -118,12 +118,13 @@ def test_a_fixed_wing_world_logs_the_same_compiled_and_in_numpy(monkeypatch, tmp
 
 
 @pytest.mark.parametrize("seed", range(3))
-def test_first_safe_manoeuvre_in_one_pass_equals_rollouts_and_clearances(seed: int) -> None:
-    """``_guard_kernel.first_safe`` (the rollout and the clearances in one pass, a manoeuvre left
-    at its first position too close, bodies measured again only when they could be too close)
-    answers what rolling every manoeuvre out (``_fixed_wing_kernel.rollouts``) and measuring
-    every position (``clearances``) answers: the clearance where each aircraft is, and its first
-    manoeuvre that keeps the required clearance at every predicted position (-1: none)."""
+def test_the_guard_in_one_pass_equals_rollouts_and_clearances(seed: int) -> None:
+    """``_guard_kernel.first_safe`` and ``least_clearances`` (the rollout and the clearances in
+    one pass, a manoeuvre left at its first position too close, bodies measured again only where
+    they could be nearer than what is asked) answer what rolling every manoeuvre out
+    (``_fixed_wing_kernel.rollouts``) and measuring every position (``clearances``) answers:
+    the clearance where each aircraft is, its first manoeuvre that keeps the required clearance
+    at every predicted position (-1: none), and each manoeuvre's least clearance, bit for bit."""
     from swarmplan.flight.lookahead import _MANOEUVRES, _TURN, _UP
 
     rng = np.random.default_rng(100 + seed)
@@ -172,5 +173,7 @@ def test_first_safe_manoeuvre_in_one_pass_equals_rollouts_and_clearances(seed: i
                               np.full(n, rows[0]), bodies)  # fmt: skip
     assert here.tobytes() == want_here.tobytes()
     np.testing.assert_array_equal(first, np.where(safe.any(axis=1), np.argmax(safe, axis=1), -1))
+    least = gk.least_clearances((*flight, dt), rows[1:], radii, extra, scene)
+    assert least.tobytes() == clear.min(axis=2).tobytes()
     # Every kind of answer occurs: none safe, the first, a later one.
     assert (first == -1).any() and (first == 0).any() and (first > 0).any(), np.bincount(first + 1)

@@ -88,18 +88,16 @@ def clearances(points, radii, extra, ground, bmin, bmax, static, movers, origin,
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _falls_short(x, y, z, r, e, need, scene, t, seen, slack):  # noqa: ANN001, ANN202
-    """Whether :func:`_clearance` of the point (x, y, z) over flat ground is below ``need``
-    (``scene``: the bounds, bodies and movers' centres of :func:`first_safe`, row ``t``). A
-    body whose distance is exact (1-Lipschitz) is measured again only when the point (shifted
-    back by its way, for a mover) has come farther from where it was last measured,
-    ``seen[j]``, than ``slack[j]``, what that distance had beyond ``need`` less a rounding
-    allowance: closer it cannot be below ``need`` (``slack[j] < 0``: measure). The same
-    answers as measuring every body."""
+def _clearance_over(x, y, z, r, e, floor, scene, t, seen, level):  # noqa: ANN001, ANN202
+    """:func:`_clearance` of the point (x, y, z) over flat ground where it is below ``floor``;
+    elsewhere a value at least ``floor`` (the clearance is too). A body whose distance is exact
+    (1-Lipschitz) is measured again only when the point (shifted back by its way, for a mover)
+    has come farther from ``seen[j]``, where it was last measured, than that measure's value
+    ``level[j]`` (less a rounding allowance) is over ``floor``: closer, it cannot be below
+    ``floor`` (``level[j] = -inf``: measure)."""
     bmin, bmax, static, movers, origin, centers, bodies = scene
     code, prm, position, rotation, identity = bodies
-    if _room(x, y, z, r, 0.0, bmin, bmax) < need:
-        return True
+    c = _room(x, y, z, r, 0.0, bmin, bmax)
     ns = static.shape[0]
     for j in range(ns + movers.shape[0]):
         if j < ns:
@@ -110,18 +108,17 @@ def _falls_short(x, y, z, r, e, need, scene, t, seen, slack):  # noqa: ANN001, A
             sx = x - (centers[t, k, 0] - origin[k, 0])
             sy = y - (centers[t, k, 1] - origin[k, 1])
             sz = z - (centers[t, k, 2] - origin[k, 2])
-        if slack[j] > 0.0:
+        room = level[j] - floor
+        if room > 0.0:
             dx, dy, dz = sx - seen[j, 0], sy - seen[j, 1], sz - seen[j, 2]
-            if dx * dx + dy * dy + dz * dz < slack[j] * slack[j]:
+            if dx * dx + dy * dy + dz * dz < room * room:
                 continue
         d = _body_distance(sx, sy, sz, body, code, prm, position, rotation, identity)
-        if d - r - e < need:
-            return True
+        c = min(c, d - r - e)
         if exact(code[body]):
             seen[j, 0], seen[j, 1], seen[j, 2] = sx, sy, sz
-            allowance = 1e-6 * (1.0 + abs(d)) + 1e-9 * (abs(sx) + abs(sy) + abs(sz))
-            slack[j] = (d - r - e) - need - allowance
-    return False
+            level[j] = (d - r - e) - (1e-6 * (1.0 + abs(d)) + 1e-9 * (abs(sx) + abs(sy) + abs(sz)))
+    return c
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -142,23 +139,50 @@ def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, A
     here = np.empty(n)
     first = np.full(n, -1, dtype=np.int64)
     seen = np.empty((static.shape[0] + movers.shape[0], 3))
-    slack = np.empty(static.shape[0] + movers.shape[0])
+    level = np.empty(static.shape[0] + movers.shape[0])
     for i in range(n):
         r, e, need = radii[i], extra[i], required[i]
         here[i] = _clearance(pos[i, 0], pos[i, 1], pos[i, 2], r, e, 0.0, scene, rows[0])
         for c in range(nc):
             state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
-            slack[:] = -1.0
+            level[:] = -np.inf
             safe = True
             w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
             for k in range(steps):
                 state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
                 x, y, z = state[0], state[1], state[2]
                 t = rows[k + 1]
-                if _falls_short(x, y, z, r, e, need, scene, t, seen, slack):
+                if _clearance_over(x, y, z, r, e, need, scene, t, seen, level) < need:
                     safe = False
                     break
             if safe:
                 first[i] = c
                 break
     return here, first
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN201
+    """Per fixed wing i and manoeuvre c of ``rollout`` (:func:`first_safe`'s): the least
+    clearance of its predicted positions over ``len(rows)`` steps (step k at row ``rows[k]``),
+    each measured as :func:`clearances` measures it over flat ground; a body measured again only
+    where it could be nearer than the least so far. Returns (n, C)."""
+    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    static, movers = scene[2], scene[3]
+    n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0]
+    out = np.empty((n, nc))
+    seen = np.empty((static.shape[0] + movers.shape[0], 3))
+    level = np.empty(static.shape[0] + movers.shape[0])
+    for i in range(n):
+        for c in range(nc):
+            state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
+            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
+            level[:] = -np.inf
+            least = np.inf
+            for k in range(steps):
+                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+                x, y, z = state[0], state[1], state[2]
+                c_k = _clearance_over(x, y, z, radii[i], extra[i], least, scene, rows[k], seen, level)
+                least = min(least, c_k)
+            out[i, c] = least
+    return out

@@ -23,7 +23,7 @@ from swarmplan.flight.kinematics import (
     safety_margin,
     turn_states,
 )
-from swarmplan.flight.lookahead import guard_commands, horizon_steps
+from swarmplan.flight.lookahead import CompiledGuard, guard_commands, horizon_steps
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
@@ -33,6 +33,11 @@ from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.network import Beliefs
 from swarmplan.sim.obstacles import Obstacles
 from swarmplan.world.model import World
+
+
+def guard_kernel():  # noqa: ANN201
+    """:mod:`swarmplan.sim._guard_kernel` (numba loads with it at the first call)."""
+    return kernel_module("swarmplan.sim._guard_kernel")
 
 
 @dataclass(frozen=True)
@@ -167,24 +172,32 @@ class SafetyFilter:
                     origin, centers, row)  # fmt: skip
             if compiled:
                 f = np.ascontiguousarray
-                return kernel_module("swarmplan.sim._guard_kernel").clearances(*(f(a) for a in args), bodies)
+                return guard_kernel().clearances(*(f(a) for a in args), bodies)
             return guard_clearance(batch, *args)
+
+        def scene(times: np.ndarray) -> tuple[tuple, np.ndarray]:
+            centers, row = centers_at(times)
+            f = np.ascontiguousarray
+            return (*self._bounds, static_cols, mover_cols, f(origin), f(centers), bodies), f(row)
 
         def first_safe_at(
             rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray, required: np.ndarray
         ) -> tuple[np.ndarray, np.ndarray]:
-            centers, row = centers_at(times)
+            places, row = scene(times)
             f = np.ascontiguousarray
-            scene = (*self._bounds, static_cols, mover_cols, f(origin), f(centers), bodies)
-            return kernel_module("swarmplan.sim._guard_kernel").first_safe(
-                rollout, f(row), f(radii), f(extra), f(required), scene
-            )
+            return guard_kernel().first_safe(rollout, row, f(radii), f(extra), f(required), places)
 
+        def least_at(rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray) -> np.ndarray:
+            places, row = scene(times)
+            f = np.ascontiguousarray
+            return guard_kernel().least_clearances(rollout, row, f(radii), f(extra), places)
+
+        fused = CompiledGuard(first_safe_at, least_at) if compiled and not self.world.peaks else None
         agents = idx[rows]
         prefer = self._prefer[agents]
         guarded, replaced = guard_commands(
             p, agents, pos0[agents], vel0[agents], v_cmd[rows], t0, dt, clearance_at, required[rows],
-            self.turn[agents], prefer, first_safe_at if compiled and not self.world.peaks else None,
+            self.turn[agents], prefer, fused,
         )  # fmt: skip
         self._prefer[agents] = prefer
         out = v_cmd.copy()
