@@ -18,10 +18,12 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     ``at[k]``, agent ``own[k]``) holds a row of (``view[k, j]`` >= 0) within ``radius`` of it,
     itself left out, in (k, j) order."""
     n, n_all = view.shape
-    # Distances first (inf: none held, or itself), then the pairs: the arithmetic is written
-    # once, inline (a helper taking the arrays costs a reference count per call and pair).
-    dist = np.full((n, n_all), np.inf)
-    count = 0
+    # One pass into room for every pair (pages never written are never touched).
+    ks = np.empty(n * n_all, dtype=np.int64)
+    js = np.empty(n * n_all, dtype=np.int64)
+    rows = np.empty(n * n_all, dtype=np.int64)
+    ds = np.empty(n * n_all)
+    c = 0
     for k in range(n):
         for j in range(n_all):
             r = view[k, j]
@@ -29,71 +31,78 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
                 continue
             dx, dy, dz = pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2]
             d = math.sqrt((dx * dx + dy * dy) + dz * dz)
-            dist[k, j] = d
             if d < radius:
-                count += 1
-    ks = np.empty(count, dtype=np.int64)
-    js = np.empty(count, dtype=np.int64)
-    rows = np.empty(count, dtype=np.int64)
-    ds = np.empty(count)
-    c = 0
-    for k in range(n):
-        for j in range(n_all):
-            if dist[k, j] < radius:
-                ks[c], js[c], rows[c], ds[c] = k, j, view[k, j], dist[k, j]
+                ks[c], js[c], rows[c], ds[c] = k, j, r, d
                 c += 1
-    return ks, js, rows, ds
+    return ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy()
+
+
+_SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
+_SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+_TWO = np.uint64(2)
 
 
 @njit(cache=True, nogil=True)
-def deliver(heard, senders, rows, arrives, t_row, t, eps):  # noqa: ANN001, ANN201
-    """Copies of one broadcast (``senders``, their table ``rows``, ``arrives`` (N, k)) that have
-    arrived by ``t`` replace older rows in ``heard`` (receiver, sender) and are marked taken
-    (inf); returns the earliest arrival of the copies still on their way (inf: none)."""
-    n, k = arrives.shape
-    first = np.inf
-    for r in range(n):
-        for c in range(k):
-            a = arrives[r, c]
-            if a <= t + eps:
-                s = senders[c]
-                if t_row[heard[r, s]] < t_row[rows[c]]:
-                    heard[r, s] = rows[c]
-                arrives[r, c] = np.inf
-            else:
-                first = min(first, a)
-    return first
+def draw(key, row, receiver, salt):  # noqa: ANN001, ANN201
+    """``network.draws`` for one copy: the uniform draw in [0, 1) of the copy of table row
+    ``row`` to ``receiver`` (``salt`` 0: its loss, 1: its jitter)."""
+    z = key + np.uint64(row) * _SPREAD_ROW + (np.uint64(receiver) * _TWO + np.uint64(salt)) * _SPREAD_COPY
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    z = z ^ (z >> _S31)
+    return float(z >> _S11) * 2.0**-53
 
 
 @njit(cache=True, nogil=True)
-def copies(lost_u, loss, jitter_u, jitter, due, who, far):  # noqa: ANN001, ANN201
-    """When each copy of one broadcast arrives (N, k): at ``due`` (+ ``jitter`` times the uniform
-    draw ``jitter_u``, when given), inf for a copy lost (draw ``lost_u`` below ``loss``), out of
-    range (``far``, when given) or sent to its sender itself (``who[c]`` is the sender of column
-    c); with the copies lost (in range) and out of range, and the earliest arrival."""
-    n, k = lost_u.shape
-    arrives = np.empty((n, k))
+def fates(senders, rows, key, fate, at, heard_by):  # noqa: ANN001, ANN201
+    """``network.fates_numpy``: which copies of one broadcast (``senders``, their table
+    ``rows``) will be heard, into ``heard_by`` (N, k); ``fate`` = (loss, the delay's jitter,
+    the time the broadcast falls due, range); ``at`` the agents' positions when it was sent
+    (empty: no range). Returns the copies lost and out of range."""
+    loss, reach = fate[0], fate[3]
+    n = heard_by.shape[0]
+    k = senders.shape[0]
+    ranged = at.shape[0] > 0
     lost = 0
     out = 0
-    first = np.inf
-    ranged = far.shape[0] > 0
-    jittered = jitter_u.shape[0] > 0
     for r in range(n):
         for c in range(k):
-            a = due
-            if jittered:
-                a += jitter * jitter_u[r, c]
-            if r == who[c]:
-                a = np.inf
-            elif ranged and far[r, c]:
-                out += 1
-                a = np.inf
-            elif lost_u[r, c] < loss:
+            s = senders[c]
+            ok = r != s
+            if ok and ranged:
+                dx, dy, dz = at[r, 0] - at[s, 0], at[r, 1] - at[s, 1], at[r, 2] - at[s, 2]
+                if math.sqrt((dx * dx + dy * dy) + dz * dz) > reach:
+                    out += 1
+                    ok = False
+            if ok and loss > 0.0 and draw(key, rows[c], r, 0) < loss:
                 lost += 1
-                a = np.inf
-            arrives[r, c] = a
-            first = min(first, a)
-    return arrives, lost, out, first
+                ok = False
+            heard_by[r, c] = ok
+    return lost, out
+
+
+@njit(cache=True, nogil=True)
+def deliver(heard, senders, rows, t_row, key, fate, heard_by, t):  # noqa: ANN001, ANN201
+    """``network.deliver_numpy``: the copies of one broadcast (``senders``, their table
+    ``rows``) heard (``heard_by``, :func:`fates`) that have arrived by ``t`` replace older rows
+    in ``heard`` (receiver, sender)."""
+    jitter, due = fate[1], fate[2]
+    n = heard.shape[0]
+    k = senders.shape[0]
+    for r in range(n):
+        for c in range(k):
+            if not heard_by[r, c]:
+                continue
+            row = rows[c]
+            arrives = due
+            if jitter > 0.0:
+                arrives = due + jitter * (2.0 * draw(key, row, r, 1) - 1.0)
+            s = senders[c]
+            if arrives <= t + 1e-9 and t_row[heard[r, s]] < t_row[row]:
+                heard[r, s] = row
 
 
 @njit(cache=True, nogil=True)

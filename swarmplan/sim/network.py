@@ -14,8 +14,9 @@ acceleration within the sender's limit since).
 With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
 (onboard sensing: no age).
 
-The draws (losses, delays) come from their own seeded stream, one per run, drawn for every
-(broadcast, receiver) pair whatever happens to it: the same seed gives the same messages.
+Each copy's loss and delay are its own draws (:func:`draws`: a counter-based stream keyed once
+per run from the run's seeded ``comms`` stream, the copy's table row and receiver picking its
+draws), whenever and however often they are asked: the same seed gives the same messages.
 Before flight every agent has heard every other agent within range (their starts, at t = 0).
 
 Each agent's field, deconfliction (``swarmplan.sim.deconflict``) and the planner deciding its
@@ -103,26 +104,67 @@ def held_pairs(
     return k[inside], j[inside], rows[inside], d[inside]
 
 
-def copies(
-    lost_u: np.ndarray, loss: float, jitter_u: np.ndarray, jitter: float, due: float, who: np.ndarray,
-    far: np.ndarray,
-) -> tuple[np.ndarray, int, int, float]:  # fmt: skip
-    """When each copy of one broadcast arrives (N, k): at ``due`` (+ ``jitter`` times the uniform
-    draw ``jitter_u``, when given), inf for a copy lost (draw ``lost_u`` below ``loss``), out of
-    range (``far``, when given) or sent to its sender itself (``who[c]`` is the sender of column
-    c); with the copies lost (in range) and out of range, and the earliest arrival."""
-    n, k = lost_u.shape
-    lost = lost_u < loss
-    arrives = np.full((n, k), due)
-    if jitter_u.shape[0]:
-        arrives += jitter * jitter_u
-    itself = who, np.arange(k)  # nobody listens to itself
-    far = far.copy() if far.shape[0] else np.zeros((n, k), dtype=bool)
-    far[itself] = False
-    lost[itself] = False
-    arrives[lost | far] = np.inf
-    arrives[itself] = np.inf
-    return arrives, int((lost & ~far).sum()), int(far.sum()), float(arrives.min())
+_SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
+_SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
+_MIX1, _MIX2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+
+
+def draws(key: np.uint64, rows: np.ndarray, receivers: np.ndarray, salt: int) -> np.ndarray:
+    """The uniform draws in [0, 1) of the copies of table rows ``rows`` to ``receivers``
+    (broadcast together; ``salt`` 0: their losses, 1: their jitters): a counter-based stream
+    (SplitMix64's mix of the run's ``key`` and the copy), so each copy's fate is its own,
+    whenever and however often it is asked."""
+    with np.errstate(over="ignore"):
+        z = np.asarray(rows, dtype=np.uint64) * _SPREAD_ROW
+        z = key + z + (np.asarray(receivers, dtype=np.uint64) * np.uint64(2) + np.uint64(salt)) * _SPREAD_COPY
+        z = (z ^ (z >> np.uint64(30))) * _MIX1
+        z = (z ^ (z >> np.uint64(27))) * _MIX2
+        z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
+
+
+def fates_numpy(
+    senders: np.ndarray, rows: np.ndarray, key: np.uint64, fate: tuple[float, float, float, float],
+    at: np.ndarray, heard_by: np.ndarray,
+) -> tuple[int, int]:  # fmt: skip
+    """Which copies of one broadcast (``senders``, their table ``rows``) will be heard, into
+    ``heard_by`` (N, k): not the sender's own, within range of it (``at``: the agents'
+    positions when it was sent; empty: no range) and not lost (a draw below ``fate``'s loss;
+    ``fate`` = (loss, the delay's jitter, the time the broadcast falls due, range)). Returns
+    the copies lost and out of range."""
+    loss, reach = fate[0], fate[3]
+    n = heard_by.shape[0]
+    receivers = np.arange(n)[:, None]
+    listen = receivers != senders[None, :]
+    far = np.zeros_like(listen)
+    if at.shape[0]:
+        d = at[:, None, :] - at[senders][None, :, :]
+        dist = np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) + d[..., 2] * d[..., 2])
+        far = listen & (dist > reach)
+    near = listen & ~far
+    lost = np.zeros_like(near)
+    if loss > 0.0:
+        lost = near & (draws(key, rows[None, :], receivers, 0) < loss)
+    heard_by[:] = near & ~lost
+    return int(lost.sum()), int(far.sum())
+
+
+def deliver_numpy(
+    heard: np.ndarray, senders: np.ndarray, rows: np.ndarray, t_row: np.ndarray, key: np.uint64,
+    fate: tuple[float, float, float, float], heard_by: np.ndarray, t: float,
+) -> None:  # fmt: skip
+    """The copies of one broadcast (``senders``, their table ``rows``) heard (``heard_by``,
+    :func:`fates_numpy`) that have arrived by ``t`` replace older rows in ``heard`` (receiver,
+    sender): a copy arrives when the broadcast falls due plus the delay's jitter times a
+    uniform draw in [-1, 1) (``fate`` = (loss, jitter, due time, range))."""
+    jitter, due = fate[1], fate[2]
+    arrives = np.full(heard_by.shape, due)
+    if jitter > 0.0:
+        receivers = np.arange(heard.shape[0])[:, None]
+        arrives = due + jitter * (2.0 * draws(key, rows[None, :], receivers, 1) - 1.0)
+    cur = heard[:, senders]
+    take = heard_by & (arrives <= t + _EPS) & (t_row[cur] < t_row[rows][None, :])
+    heard[:, senders] = np.where(take, rows[None, :], cur)
 
 
 def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -176,14 +218,14 @@ class _Table:
 
 @dataclass
 class _Sent:
-    """One step's broadcasts: ``senders`` (k,), the table ``rows`` of their states, and per
-    (receiver, sender) when the copy arrives (N, k; inf: lost, or out of range)."""
+    """One step's broadcasts: ``senders`` (k,), the table ``rows`` of their states, the time
+    ``due`` their copies arrive (give or take the jitter)."""
 
     senders: np.ndarray
     rows: np.ndarray
-    arrives: np.ndarray
-    first: float
-    """The earliest arrival of a copy still on its way (inf: none)."""
+    due: float
+    heard_by: np.ndarray
+    """(N, k): whether each copy will be heard (not its sender's own, in range, not lost)."""
 
 
 class Network:
@@ -201,7 +243,7 @@ class Network:
     def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
         """At t = 0: every agent has heard every other within range, at rest at its start."""
         n = self.n
-        self.rng = rng
+        self.key = rng.integers(0, 2**64, dtype=np.uint64)  # the run's copies' draws (see draws)
         self.table = _Table(n)
         self.plans: list[Plan] = []  # each agent's plans, one entry per change
         # Per agent, its plan last kept: number, mode, ids of segment and route, indexes on them.
@@ -245,18 +287,7 @@ class Network:
         if not len(who):
             return
         c, n, k = self.comms, self.n, len(who)
-        # Every draw is made whatever becomes of the message: the stream stays in step.
-        lost_u = self.rng.random((n, k))
-        none = np.zeros((0, 0))
-        jitter_u = self.rng.uniform(-1.0, 1.0, (n, k)) if c.jitter > 0.0 else none
-        far = np.zeros((0, 0), dtype=bool)
-        if math.isfinite(c.range):
-            far = np.linalg.norm(pos[:, None, :] - pos[who][None, :, :], axis=-1) > c.range
-        run = _kernel().copies if use_compiled(n) else copies
-        arrives, lost, out, first = run(lost_u, c.loss, jitter_u, c.jitter, t1 + c.delay, who, far)
         self.sent += k * (n - 1)
-        self.out_of_range += int(out)
-        self.lost += int(lost)
         rows = self.table.add(
             t1,
             who,
@@ -269,7 +300,12 @@ class Network:
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
         over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
         self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
-        self.pending.append(_Sent(who, rows, arrives, float(first)))
+        m = _Sent(who, rows, t1 + c.delay, np.empty((n, k), dtype=bool))
+        at = pos if math.isfinite(c.range) else np.zeros((0, 3))
+        run = _kernel().fates if use_compiled(n) else fates_numpy
+        lost, out = run(who, rows, self.key, self._fate(m), at, m.heard_by)
+        self.lost, self.out_of_range = self.lost + int(lost), self.out_of_range + int(out)
+        self.pending.append(m)
 
     def _book(self, s: SwarmState, who: np.ndarray) -> np.ndarray:
         """The numbers of the plans of agents ``who`` in ``s``. A plan is kept when it changes
@@ -278,9 +314,13 @@ class Network:
         plan kept holds them alive."""
         number, mode, keys = self._last
         now = np.empty((len(who), 4), dtype=np.int64)
-        now[:, 0] = np.fromiter((id(s.segment[i]) for i in who), dtype=np.int64, count=len(who))
+        now[:, 0] = np.fromiter(
+            map(id, map(s.segment.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
+        )
         now[:, 1] = s.segment_index[who]
-        now[:, 2] = np.fromiter((id(s.route[i]) for i in who), dtype=np.int64, count=len(who))
+        now[:, 2] = np.fromiter(
+            map(id, map(s.route.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
+        )
         now[:, 3] = s.route_index[who]
         changed = (number[who] < 0) | (mode[who] != s.mode[who]) | (keys[who] != now).any(axis=1)
         for c in np.flatnonzero(changed):
@@ -293,31 +333,22 @@ class Network:
 
     def deliver(self, t: float) -> None:
         """Every copy that has arrived by ``t`` replaces an older state of its sender."""
+        c = self.comms
         keep: list[_Sent] = []
-        compiled = use_compiled(self.n)
         for m in self.pending:  # oldest broadcasts first: a newer state replaces an older one
-            if m.first > t + _EPS:  # nothing of it arrives yet
+            if m.due - c.jitter > t + _EPS:  # nothing of it arrives yet
                 keep.append(m)
                 continue
-            if compiled:
-                m.first = _kernel().deliver(self.heard, m.senders, m.rows, m.arrives, self.table.t, t, _EPS)
-                if m.first < np.inf:
-                    keep.append(m)
-                continue
-            due = m.arrives <= t + _EPS
-            if due.any():
-                every = len(m.senders) == self.n  # every agent spoke: the whole matrix, in place
-                cur = self.heard if every else self.heard[:, m.senders]
-                take = due & (self.table.t[cur] < self.table.t[m.rows][None, :])
-                if every:
-                    np.copyto(self.heard, m.rows[None, :], where=take)
-                else:
-                    self.heard[:, m.senders] = np.where(take, m.rows[None, :], cur)
-                m.arrives[due] = np.inf
-            m.first = float(m.arrives.min())
-            if m.first < np.inf:
+            run = _kernel().deliver if use_compiled(self.n) else deliver_numpy
+            run(self.heard, m.senders, m.rows, self.table.t, self.key, self._fate(m), m.heard_by, t)
+            if m.due + c.jitter > t + _EPS:  # copies still on their way
                 keep.append(m)
         self.pending = keep
+
+    def _fate(self, m: _Sent) -> tuple[float, float, float, float]:
+        """(loss, the delay's jitter, the time broadcast ``m`` falls due, range)."""
+        c = self.comms
+        return (c.loss, c.jitter, m.due, c.range)
 
     def agreed(self, t: float) -> np.ndarray | None:
         """(N, N): the pairs that heard each other's state of ``t`` over an instantaneous network,
