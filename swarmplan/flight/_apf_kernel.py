@@ -426,8 +426,9 @@ def _minimum(a, b):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def commanded_velocity(amax, cruise, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
-    """``apf.commanded_velocity_numpy`` row by row into ``out`` (its operations in its order)."""
+def commanded_velocity(amax, cruise, standoff, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
+    """``apf.commanded_velocity_numpy`` row by row into ``out`` (its operations in its order;
+    ``standoff`` the agents' safety margins)."""
     for i in range(force.shape[0]):
         a = amax[i]
         gx, gy, gz = goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1], goal[i, 2] - pos[i, 2]
@@ -438,7 +439,7 @@ def commanded_velocity(amax, cruise, force, pos, goal, clearance, normal, out): 
         vx, vy, vz = fx / f * speed, fy / f * speed, fz / f * speed
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         toward = -(vx * nx + vy * ny + vz * nz)
-        allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - 0.5, 0.0))
+        allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - standoff[i], 0.0))
         if dg < clearance[i]:  # a goal nearer than the surface: its own cap stops the agent short of it
             allowed = _maximum(allowed, speed)
         excess = _maximum(toward - allowed, 0.0)
