@@ -50,7 +50,6 @@ def test_short_and_empty_paths():
         curvatures_with_cusps(np.zeros((4, 3)))
 
 
-
 def test_a_turn_after_merged_slow_steps_is_read_at_the_speeds_flown():
     # Two steps of 0.6 mm along x (the first point under the 1 mm drop distance: dropped),
     # then one of 1.2 mm turned by 60 degrees. The turn is flown at the mean of 0.6 and 1.2 mm
