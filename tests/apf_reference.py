@@ -90,14 +90,15 @@ def reference_forces(
         mv = field.obstacle_moving
         if mv.any():
             dp = pos[:, None, :] - field.obstacle_center[mv][None]
-            dv = vel[:, None, :] - field.obstacle_velocity[mv][None]
+            own = norm3(vel)[:, None] * _unit(et)  # its speed towards its point of attraction
+            dv = own[:, None, :] - field.obstacle_velocity[mv][None]
             a = dot3(dv, dv)
             tau = np.clip(-dot3(dp, dv) / np.maximum(a, _EPS), 0.0, g.horizon)
             sep = dp + tau[..., None] * dv
             dist = norm3(sep)
             radii = field.obstacle_radius[mv]
             rr = dist - radii[None, :] - r[:, None]
-            m = _rep(rr, rho0, g.k_rep * g.k_moving) * (1.0 - tau / (g.horizon + _EPS)) * (tau > 0)
+            m = _rep(rr, rho0, g.k_rep * g.k_moving) * (1.0 - tau / (g.horizon + _EPS)) * (tau > 0) * gfac[:, None]
             right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
             direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))

@@ -272,9 +272,15 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             c = pot_sum * gfac_d
             fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
             if any_moving:
-                # Predicted closest approach to each mover, right-hand bias on collision course.
+                # Predicted closest approach to each mover, right-hand bias on collision course,
+                # with the goal factor (a goal beside a mover's path stays reachable; once there,
+                # the arrived agent's evasion keeps it out of the mover's way): the agent flies
+                # on at its speed towards its point of attraction (its way, not its last step:
+                # a prediction from its own velocity reversed the push each step it reversed
+                # the agent, which then hovered in place).
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
                 speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+                vx, vy, vz = speed * ax, speed * ay, speed * az
                 for j in range(m):
                     if not moving[j] or not math.isfinite(dist[i, j]):  # inf: a mover it does not see
                         continue
@@ -292,7 +298,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         continue
                     spx, spy, spz = dpx + tau * dvx, dpy + tau * dvy, dpz + tau * dvz
                     d = math.sqrt(spx * spx + spy * spy + spz * spz)
-                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv) * (1.0 - tau / (horizon + _EPS))
+                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv) * (1.0 - tau / (horizon + _EPS)) * gfac
                     if mag == 0.0:
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)

@@ -193,14 +193,15 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     if len(mv):
         # Predicted closest approach to each mover, right-hand bias on collision course.
         dp = pos[:, None, :] - o_center[mv]
-        dv = vel[:, None, :] - o_vel[mv]
+        own = np.sqrt(_sq(vel))[:, None, None] * ax  # its speed towards its point of attraction
+        dv = own - o_vel[mv]
         tau = np.minimum(np.maximum(-_dot(dp, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)
         sp = dp + tau[..., None] * dv
         d = np.sqrt(_sq(sp))
         r_o = o_radius[mv]
         rho_m = d - r_o - ri[:, None]
         rep = repulsion(rho_m, k_mv, rho0)
-        mag = rep * (1.0 - tau / (horizon + _EPS))
+        mag = rep * (1.0 - tau / (horizon + _EPS)) * gfac[:, None]
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)
         way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)
