@@ -98,7 +98,8 @@ def reference_forces(
             dist = norm3(sep)
             radii = field.obstacle_radius[mv]
             rr = dist - radii[None, :] - r[:, None]
-            m = _rep(rr, rho0, g.k_rep * g.k_moving) * (1.0 - tau / (g.horizon + _EPS)) * (tau > 0) * gfac[:, None]
+            urgency = (1.0 - tau / (g.horizon + _EPS)) * (tau > 0)
+            m = _rep(rr, rho0, g.k_rep * g.k_moving) * urgency * gfac[:, None]
             right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
             direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))
