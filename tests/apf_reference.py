@@ -111,7 +111,8 @@ def reference_forces(
     floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
     rho_g = (pos[:, 2] - h) - r
     rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 0.25 * rho0)
-    mag_g = _rep(rho_g, rho0_g, g.k_rep)
+    static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # scales the ground, faces too
+    mag_g = _rep(rho_g, rho0_g, g.k_rep * static)
     force = force + (mag_g * gfac)[:, None] * normal
 
     lo, hi = world.bounds_min, world.bounds_max
@@ -121,7 +122,7 @@ def reference_forces(
             if axis == 2 and sign > 0:
                 continue
             rho_b = sign * (pos[:, axis] - plane) - r
-            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep) * gfac
+            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep * static) * gfac
     force = force + agent_term(world, params, g, flyers, swarm, gfac)
     # The turn only where the static bodies hold the agent (the pull and their push along it
     # under a quarter of the pull).

@@ -311,19 +311,22 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     fy += mag * wy
                     fz += mag * wz
 
-        # Terrain / ground, with the goal factor (a goal near the ground stays reachable).
+        # Terrain / ground, with the goal factor (a goal near the ground stays reachable),
+        # scaled as the static bodies (a guided agent's way already keeps off every static
+        # surface: the ground and the flight volume's faces as the bodies).
+        kg = k_rep * static_scale[i]
         nx, ny, nz = _unit(-gh[i, 0], -gh[i, 1], 1.0)
         rho_g = (pz - h[i]) - ri
-        mag = k_rep * (1.0 / max(rho_g, 0.05) - 1.0 / rho0_g) if rho_g < rho0_g else 0.0
+        mag = kg * (1.0 / max(rho_g, 0.05) - 1.0 / rho0_g) if rho_g < rho0_g else 0.0
         mag = mag * gfac
         fx, fy, fz = fx + mag * nx, fy + mag * ny, fz + mag * nz
 
         # Faces of the flight volume (the floor is the ground's).
-        fx += _face(px - lo[0], 1.0, ri, rb0, k_rep, gfac)
-        fx += _face(px - hi[0], -1.0, ri, rb0, k_rep, gfac)
-        fy += _face(py - lo[1], 1.0, ri, rb0, k_rep, gfac)
-        fy += _face(py - hi[1], -1.0, ri, rb0, k_rep, gfac)
-        fz += _face(pz - hi[2], -1.0, ri, rb0, k_rep, gfac)
+        fx += _face(px - lo[0], 1.0, ri, rb0, kg, gfac)
+        fx += _face(px - hi[0], -1.0, ri, rb0, kg, gfac)
+        fy += _face(py - lo[1], 1.0, ri, rb0, kg, gfac)
+        fy += _face(py - hi[1], -1.0, ri, rb0, kg, gfac)
+        fz += _face(pz - hi[2], -1.0, ri, rb0, kg, gfac)
 
         # Other agents: ellipsoidal separation, current and predicted, out to the pair's
         # stopping reach beyond the ellipsoid (at most the influence distance).

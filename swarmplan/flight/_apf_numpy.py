@@ -71,7 +71,7 @@ def _sum_in_order(first: np.ndarray, terms: np.ndarray) -> np.ndarray:
     return np.add.accumulate(np.concatenate([first[:, None], terms], axis=1), axis=1)[:, -1]
 
 
-def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: float, k_rep: float,
+def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: float, k_rep: np.ndarray,
            gfac: np.ndarray) -> np.ndarray:  # fmt: skip
     """The kernel's ``_face`` terms, (n, 2, 3): row 0 the low faces (x, y; the floor is the
     ground's, a ``-0.0``), row 1 the high ones."""
@@ -123,15 +123,17 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             static_scale,
         )
 
-    # Terrain / ground, with the goal factor (a goal near the ground stays reachable).
+    # Terrain / ground, with the goal factor (a goal near the ground stays reachable), scaled
+    # as the static bodies; so are the faces.
+    kg = k_rep * static_scale
     normal = _unit(_vec(-gh[:, 0], -gh[:, 1], np.ones(n)))
     rho_g = (pos[:, 2] - h) - ri
-    mag = repulsion(rho_g, k_rep, rho0_g)
+    mag = repulsion(rho_g, kg, rho0_g)
     mag = mag * gfac
     f = f + mag[:, None] * normal
 
     # Faces of the flight volume (the floor is the ground's).
-    faces = _faces(pos, lo, hi, ri, rb0, k_rep, gfac)
+    faces = _faces(pos, lo, hi, ri, rb0, kg[:, None, None], gfac)
     f = f + faces[:, 0] + faces[:, 1]  # per axis: the low face, then the high one
 
     # Other agents.
