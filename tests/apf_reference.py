@@ -49,7 +49,6 @@ def reference_forces(
     if target is not None:
         well &= np.all(np.abs(target - goal) <= 1e-9, axis=1)
     force = g.k_att * np.where(well[:, None], et, dq * et / np.maximum(dt_, _EPS)[:, None])
-    goal_dir = _unit(e)
     npow = g.goal_power
     gfac = np.minimum(1.0, dg / rho0) ** npow
     gfac_d = np.where(dg < rho0, npow * np.minimum(1.0, dg / rho0) ** (npow - 1) / rho0, 0.0)
@@ -86,7 +85,7 @@ def reference_forces(
             turn = np.where(np.all(np.abs(target - goal) <= 1e-9, axis=1), turn, 0.0)
         w = np.where(on, mag * (gfac * turn)[:, None] * block, 0.0)
         turn_force = -np.einsum("nk,nkd->nd", w, _unit(side))
-        force = force + (pot.sum(axis=1) * gfac_d)[:, None] * goal_dir
+        force = force + (pot.sum(axis=1) * gfac_d)[:, None] * _unit(et)  # along the way
         mv = field.obstacle_moving
         if mv.any():
             dp = pos[:, None, :] - field.obstacle_center[mv][None]
@@ -111,7 +110,7 @@ def reference_forces(
     floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
     rho_g = (pos[:, 2] - h) - r
     rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 0.25 * rho0)
-    static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # scales the ground, faces too
+    static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # the ground's, faces' too
     mag_g = _rep(rho_g, rho0_g, g.k_rep * static)
     force = force + (mag_g * gfac)[:, None] * normal
 

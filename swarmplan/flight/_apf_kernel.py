@@ -220,7 +220,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         else:
             mt = max(dt, _EPS)
             fx, fy, fz = k_att * (dq * tx / mt), k_att * (dq * ty / mt), k_att * (dq * tz / mt)
-        ux, uy, uz = _unit(ex, ey, ez)
         ratio = min(1.0, dg / rho0)
         gfac = _power(ratio, npow)
         gfac_d = npow * _power(ratio, npow - 1.0) / rho0 if dg < rho0 else 0.0
@@ -269,8 +268,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         bx -= wt * sx
                         by -= wt * sy
                         bz -= wt * sz
+            # The companion term pulls along the agent's way, towards its point of attraction
+            # (the goal itself, or the waypoint or the guide's point on the way round a body
+            # between it and the goal: pulled straight at a goal behind a body, it pinned the
+            # agent to that body's surface).
             c = pot_sum * gfac_d
-            fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
+            fx, fy, fz = fx + c * ax, fy + c * ay, fz + c * az
             if any_moving:
                 # Predicted closest approach to each mover, right-hand bias on collision course,
                 # with the goal factor (a goal beside a mover's path stays reachable; once there,

@@ -117,7 +117,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     turn = hold = None
     if bodies[0].shape[1]:
         f, turn, hold = _bodies(
-            (pos, vel, ri, t, dg, to_goal, gfac, gfac_d, _unit(e), f),
+            (pos, vel, ri, t, dg, to_goal, gfac, gfac_d, f),
             bodies,
             (k_rep, rho0, k_rep * k_moving, horizon),
             static_scale,
@@ -157,7 +157,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
 def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
     blocking bodies and their hold."""
-    pos, vel, ri, t, dg, to_goal, gfac, gfac_d, u, f = a
+    pos, vel, ri, t, dg, to_goal, gfac, gfac_d, f = a
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     k_rep, rho0, k_mv, horizon = g
     n, m = dist.shape
@@ -190,7 +190,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         s = _unit(np.where(square[..., None], q, s))
         wt = w * block * turn[:, None]
         bend = _sum_in_order(bend, np.where(turning[..., None], -(wt[..., None] * s), _SKIP))
-    f = f + (pot_sum * gfac_d)[:, None] * u
+    f = f + (pot_sum * gfac_d)[:, None] * ax[:, 0, :]  # along the way (the kernel's comment)
     mv = np.flatnonzero(moving)
     if len(mv):
         # Predicted closest approach to each mover, right-hand bias on collision course.
