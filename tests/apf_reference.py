@@ -60,7 +60,8 @@ def reference_forces(
         scale = np.ones(n) if static_scale is None else static_scale
         k = np.where(field.obstacle_moving[None, :], g.k_rep, g.k_rep * scale[:, None])
         mag = _rep(rho, rho0, k)
-        pot = np.where(rho < rho0, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
+        static_pot = ~field.obstacle_moving[None, :] & (rho < rho0)  # movers: no companion pull
+        pot = np.where(static_pot, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
         grad = field.obstacle_gradient
         force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
         # Blocked by a static body: the opposing part of its push turns along its surface,

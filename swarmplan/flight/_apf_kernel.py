@@ -242,7 +242,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     k = k_rep if moving[j] else ks
                     x = 1.0 / max(rho, 0.05) - 1.0 / rho0
                     w = k * x * gfac
-                    pot_sum += 0.5 * k * (x * x) * rho0
+                    if not moving[j]:  # the companion term's: the static bodies' potentials
+                        pot_sum += 0.5 * k * (x * x) * rho0
                     nx, ny, nz = grad[i, j, 0], grad[i, j, 1], grad[i, j, 2]
                     fx += w * nx
                     fy += w * ny
@@ -268,10 +269,11 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         bx -= wt * sx
                         by -= wt * sy
                         bz -= wt * sz
-            # The companion term pulls along the agent's way, towards its point of attraction
-            # (the goal itself, or the waypoint or the guide's point on the way round a body
-            # between it and the goal: pulled straight at a goal behind a body, it pinned the
-            # agent to that body's surface).
+            # The companion term (of the static bodies: a mover's push is a threat's, not a
+            # surface's beside the goal) pulls along the agent's way, towards its point of
+            # attraction (the goal itself, or the waypoint or the guide's point on the way round
+            # a body between it and the goal: pulled straight at a goal behind a body, it pinned
+            # the agent to that body's surface).
             c = pot_sum * gfac_d
             fx, fy, fz = fx + c * ax, fy + c * ay, fz + c * az
             if any_moving:

@@ -172,7 +172,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     block = _dot(ax, grad)
     terms = np.empty((n, m, 5))
     terms[..., :3] = np.where(active[..., None], w[..., None] * grad, _SKIP)
-    terms[..., 3] = np.where(active, 0.5 * k * (x * x) * rho0, _SKIP)
+    terms[..., 3] = np.where(static, 0.5 * k * (x * x) * rho0, _SKIP)
     terms[..., 4] = np.where(static, w * block, _SKIP)
     sums = _sum_in_order(np.concatenate([f, np.zeros((n, 2))], axis=1), terms)
     f, pot_sum, hold = sums[:, :3], sums[:, 3], sums[:, 4]

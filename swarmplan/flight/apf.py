@@ -4,11 +4,15 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
 - attraction to the goal, quadratic within ``quadratic_radius`` and conic beyond;
 - repulsion from obstacle *surfaces* (true signed distances and their gradients),
   ``k_rep (1/rho - 1/rho0)`` inside the influence distance ``rho0``, scaled by the
-  goal-distance factor ``min(1, d_goal/rho0)^n`` plus its companion term pulling towards
-  the goal (Ge & Cui's modified APF) so a goal beside an obstacle stays reachable;
-- the same from the terrain/ground (vertical clearance) and the faces of ``bounds``;
-- moving obstacles: repulsion at the predicted closest approach within ``horizon`` seconds
-  (relative-velocity term), with a right-hand bias that breaks head-on symmetry;
+  goal-distance factor ``min(1, d_goal/rho0)^n`` plus its companion term (of the static
+  bodies) pulling along the agent's way, towards its point of attraction (Ge & Cui's
+  modified APF) so a goal beside an obstacle stays reachable; a guided agent's static
+  repulsion is scaled by ``Flyers.static_scale``;
+- the same from the terrain/ground (vertical clearance) and the faces of ``bounds``, scaled
+  as the static bodies;
+- moving obstacles: repulsion at the predicted closest approach within ``horizon`` seconds,
+  the agent flying on at its speed towards its point of attraction (relative-velocity term,
+  with the goal factor), with a right-hand bias that breaks head-on symmetry;
 - other agents: an ellipsoidal ``separation`` metric, current and predicted, whose range
   comes from the two agents' own motion, not from ``influence``: beyond the distance both
   need to brake from the speeds they fly at (plus a step of reaction each,
