@@ -99,7 +99,11 @@ def reference_forces(
             radii = field.obstacle_radius[mv]
             rr = dist - radii[None, :] - r[:, None]
             urgency = (1.0 - tau / (g.horizon + _EPS)) * (tau > 0)
-            m = _rep(rr, rho0, g.k_rep * g.k_moving) * urgency * gfac[:, None]
+            u = field.obstacle_velocity[mv][None]
+            gq = goal[:, None, :] - field.obstacle_center[mv][None]
+            tg = np.clip(dot3(gq, u) / np.maximum(dot3(u, u), _EPS), 0.0, g.horizon)
+            goal_clear = norm3(gq - tg[..., None] * u) >= radii[None, :] + 2.0 * r[:, None]
+            m = _rep(rr, rho0, g.k_rep * g.k_moving) * urgency * np.where(goal_clear, gfac[:, None], 1.0)
             right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
             direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))

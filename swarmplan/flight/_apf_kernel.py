@@ -278,7 +278,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             fx, fy, fz = fx + c * ax, fy + c * ay, fz + c * az
             if any_moving:
                 # Predicted closest approach to each mover, right-hand bias on collision course,
-                # with the goal factor (a goal beside a mover's path stays reachable; once there,
+                # with the goal factor (a goal beside a mover's way stays reachable; once there,
                 # the arrived agent's evasion keeps it out of the mover's way): the agent flies
                 # on at its speed towards its point of attraction (its way, not its last step:
                 # a prediction from its own velocity reversed the push each step it reversed
@@ -303,7 +303,23 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         continue
                     spx, spy, spz = dpx + tau * dvx, dpy + tau * dvy, dpz + tau * dvz
                     d = math.sqrt(spx * spx + spy * spy + spz * spz)
-                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv) * (1.0 - tau / (horizon + _EPS)) * gfac
+                    # The goal factor only for a mover whose way keeps off the goal by the
+                    # agent's body and one more (an agent waiting there is safe): one bound
+                    # through the goal keeps the agent off it at full strength.
+                    gqx, gqy, gqz = (
+                        goal[i, 0] - o_center[j, 0],
+                        goal[i, 1] - o_center[j, 1],
+                        goal[i, 2] - o_center[j, 2],
+                    )
+                    ox, oy, oz = o_vel[j, 0], o_vel[j, 1], o_vel[j, 2]
+                    tg = min(
+                        max((gqx * ox + gqy * oy + gqz * oz) / max(ox * ox + oy * oy + oz * oz, _EPS), 0.0),
+                        horizon,
+                    )
+                    gqx, gqy, gqz = gqx - tg * ox, gqy - tg * oy, gqz - tg * oz
+                    clear = math.sqrt(gqx * gqx + gqy * gqy + gqz * gqz) >= o_radius[j] + 2.0 * ri
+                    fade = gfac if clear else 1.0
+                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv) * (1.0 - tau / (horizon + _EPS)) * fade
                     if mag == 0.0:
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)

@@ -117,7 +117,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     turn = hold = None
     if bodies[0].shape[1]:
         f, turn, hold = _bodies(
-            (pos, vel, ri, t, dg, to_goal, gfac, gfac_d, f),
+            (pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f),
             bodies,
             (k_rep, rho0, k_rep * k_moving, horizon),
             static_scale,
@@ -157,7 +157,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
 def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
     blocking bodies and their hold."""
-    pos, vel, ri, t, dg, to_goal, gfac, gfac_d, f = a
+    pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f = a
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     k_rep, rho0, k_mv, horizon = g
     n, m = dist.shape
@@ -203,7 +203,13 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         r_o = o_radius[mv]
         rho_m = d - r_o - ri[:, None]
         rep = repulsion(rho_m, k_mv, rho0)
-        mag = rep * (1.0 - tau / (horizon + _EPS)) * gfac[:, None]
+        gq = goal[:, None, :] - o_center[mv]  # the goal factor for movers whose way keeps off the goal
+        u = o_vel[mv]
+        tg = np.minimum(np.maximum(_dot(gq, u) / np.maximum(_sq(u), _EPS), 0.0), horizon)
+        gq = gq - tg[..., None] * u
+        clear = np.sqrt(_sq(gq)) >= r_o + 2.0 * ri[:, None]
+        fade = np.where(clear, gfac[:, None], 1.0)
+        mag = rep * (1.0 - tau / (horizon + _EPS)) * fade
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)
         way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)
