@@ -252,7 +252,14 @@ def test_decisions_read_only_what_an_agent_heard(n, steps, delay, loss, sensing,
         if sensing is not None:
             keep |= np.linalg.norm(s.position - s.position[i], axis=1) <= sensing
         saved = s.position.copy(), s.velocity.copy()
-        s.position = np.where(keep[:, None], s.position, s.position + rng.normal(0, 3.0, s.position.shape))
+        moved = np.where(keep[:, None], s.position, s.position + rng.normal(0, 3.0, s.position.shape))
+        if sensing is not None:  # a moved agent stays out of i's sensing (it would see it, rightly)
+            off = moved - s.position[i]
+            d = np.linalg.norm(off, axis=1)
+            inside = ~keep & (d <= sensing)
+            out = off[inside] / np.maximum(d[inside], 1e-9)[:, None]
+            moved[inside] = s.position[i] + out * (sensing + 0.5)
+        s.position = moved
         s.velocity = np.where(keep[:, None], s.velocity, s.velocity + rng.normal(0, 2.0, s.velocity.shape))
         _, v_after, _, views_after = decisions()
         s.position, s.velocity = saved

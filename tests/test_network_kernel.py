@@ -1,13 +1,17 @@
 """The network's compiled passes (swarm worlds) give the numpy answers of small worlds: the
-pairs each flyer believes within a radius, and the copies delivered."""
+pairs each flyer believes within a radius, the fate of each copy of a broadcast, the rows each
+flyer holds, and the copies delivered."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module
-from swarmplan.sim.network import SWARM_PAIRS, Beliefs, Network
+from swarmplan.sim import network
+from swarmplan.sim.network import Beliefs, Network, compact, deliver_numpy, draws, fates_numpy, held_pairs
 from swarmplan.world.comms import Comms
 
 
@@ -28,20 +32,90 @@ def test_held_pairs_compiled_and_numpy_agree():
     for seed in range(4):
         rng = np.random.default_rng(seed)
         b = _beliefs(rng, 20, 60)
-        assert b.view.size <= SWARM_PAIRS  # the numpy answer
+        own = b.idx.astype(np.int64)
         for radius in (0.0, 3.0, 7.5, 100.0):
-            want = b._pairs(radius)
-            got = kernel.held_pairs(b.view, b.pos, b.at, b.idx.astype(np.int64), radius)
+            want = held_pairs(b.view, b.pos, b.at, own, radius)
+            got = kernel.held_pairs(b.view, b.pos, b.at, own, radius)
             for w, g in zip(want, got, strict=True):
                 np.testing.assert_array_equal(w, g)
             assert (want[1] != b.idx[want[0]]).all() and (want[3] < radius).all()
-        assert len(b._pairs(100.0)[0]) == int((b.view >= 0).sum()) - 20  # every held row but its own
+        assert len(held_pairs(b.view, b.pos, b.at, own, 100.0)[0]) == int((b.view >= 0).sum()) - 20
 
 
-def test_delivery_compiled_and_numpy_agree():
+def test_copy_draws_compiled_and_numpy_agree():
+    """The counter-based draws: the same bits on both paths, uniform, and each copy's own."""
+    kernel = kernel_module("swarmplan.sim._network_kernel")
+    key = np.uint64(0xDEADBEEF12345678)
+    rows, receivers = np.arange(1, 41), np.arange(25)
+    for salt in (0, 1):
+        u = draws(key, rows[None, :], receivers[:, None], salt)
+        got = np.array([[kernel.draw(key, int(row), int(r), salt) for row in rows] for r in receivers])
+        np.testing.assert_array_equal(u, got)
+        assert ((0.0 <= u) & (u < 1.0)).all()
+        assert abs(u.mean() - 0.5) < 4 * math.sqrt(1 / 12 / u.size)
+        assert len(np.unique(u)) == u.size
+    assert not np.array_equal(draws(key, rows, 3, 0), draws(key, rows, 3, 1))
+    assert not np.array_equal(draws(key, rows, 3, 0), draws(key + np.uint64(1), rows, 3, 0))
+
+
+def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
+    """Every combination of loss, jitter and range, asked at several times: the same rows heard
+    and the same counts; a copy never reaches its own sender, nor a receiver out of range."""
+    kernel = kernel_module("swarmplan.sim._network_kernel")
+    rng = np.random.default_rng(3)
+    n, k = 25, 9
+    senders = np.sort(rng.choice(n, k, replace=False)).astype(np.int64)
+    rows = np.arange(100, 100 + k, dtype=np.int64)
+    t_row = np.concatenate([np.full(100, 0.5), np.full(k, 1.0)])
+    t_row[0] = -np.inf
+    at = rng.uniform(0, 30, (n, 3))
+    key = np.uint64(77)
+    for loss, jitter, ranged in [(0.0, 0.0, False), (0.3, 0.0, True), (0.2, 0.05, False), (0.2, 0.05, True)]:
+        fate = (loss, jitter, 1.1, 20.0 if ranged else math.inf)
+        where = at if ranged else np.zeros((0, 3))
+        start = rng.integers(0, 100, (n, n)).astype(np.int64)
+        a, b = start.copy(), start.copy()
+        heard_a, heard_b = np.empty((n, k), dtype=bool), np.empty((n, k), dtype=bool)
+        lost, out = fates_numpy(senders, rows, key, fate, where, heard_a)
+        assert (lost, out) == tuple(kernel.fates(senders, rows, key, fate, where, heard_b))
+        np.testing.assert_array_equal(heard_a, heard_b)
+        for t in (1.04, 1.08, 1.1, 1.13, 1.2):
+            deliver_numpy(a, senders, rows, t_row, key, fate, heard_a, t)
+            kernel.deliver(b, senders, rows, t_row, key, fate, heard_b, t)
+            np.testing.assert_array_equal(a, b)
+            if t == 1.04 and jitter == 0.0:
+                assert (a == start).all()  # nothing before it falls due
+        changed = a != start
+        assert not changed[senders, senders].any()
+        if ranged:
+            d = np.linalg.norm(at[:, None] - at[None, senders], axis=-1)
+            assert not (changed[:, senders] & (d > 20.0)).any()
+        # Every copy has arrived by 1.2 s (due 1.1 s, jitter 0.05 s) and is newer than what was heard.
+        assert int(changed.sum()) == int(heard_a.sum()) == n * k - k - lost - out
+        assert (lost > 0) == (loss > 0) and (out > 0) == ranged
+
+
+def test_compaction_compiled_and_numpy_agree():
+    """The rows held, ascending, and each flyer's view of them; the compiled scratch is left as found."""
+    kernel = kernel_module("swarmplan.sim._network_kernel")
+    rng = np.random.default_rng(4)
+    heard = rng.integers(0, 200, (40, 40)).astype(np.int64)
+    heard[rng.random((40, 40)) < 0.3] = 0
+    idx = np.sort(rng.choice(40, 15, replace=False)).astype(np.int64)
+    mark = np.full(260, -1, dtype=np.int64)
+    want, got = compact(heard, idx, mark), kernel.compact(heard, idx, mark)
+    for w, g in zip(want, got, strict=True):
+        np.testing.assert_array_equal(w, g)
+    assert (mark == -1).all()
+    live, view = want
+    held = heard[idx]
+    np.testing.assert_array_equal(live[view[held > 0]], held[held > 0])
+    assert (view[held == 0] == -1).all() and (np.diff(live) > 0).all()
+
+
+def test_delivery_compiled_and_numpy_agree(monkeypatch):
     """Random broadcasts with jitter and losses, delivered step by step by both paths: the
     same rows heard at every step."""
-    kernel = kernel_module("swarmplan.sim._network_kernel")
     rng = np.random.default_rng(5)
     n = 30
     a = Network(Comms(20.0, 0.1, 0.08, 0.2), None, np.full(n, 5.0), 0.05)
@@ -58,9 +132,10 @@ def test_delivery_compiled_and_numpy_agree():
         acc = rng.normal(0, 1.0, (n, 3))
         a.broadcast(t0, s, np.zeros(n, bool), acc)
         b.broadcast(t0, s, np.zeros(n, bool), acc)
-        a.deliver(s.t)  # numpy (30 x 30 pairs)
-        for m in list(b.pending):
-            if not kernel.deliver(b.heard, m.senders, m.rows, m.arrives, b.table.t, s.t, 1e-9):
-                b.pending.remove(m)
+        a.deliver(s.t)  # numpy (30 agents)
+        with monkeypatch.context() as m:
+            m.setattr(network, "use_compiled", lambda n, fixed_wings=False: True)
+            b.deliver(s.t)
         np.testing.assert_array_equal(a.heard, b.heard)
+        assert (a.lost, a.out_of_range) == (b.lost, b.out_of_range)
     assert (a.heard > n).sum() > 0.5 * n * n  # most pairs heard something sent in flight

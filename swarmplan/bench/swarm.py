@@ -47,15 +47,18 @@ from swarmplan.runtime.compiled import COMPILED_FROM
 SYSTEMS = ("planner", "apf", "orca")
 
 
-def run_orca(name: str, agents: int, seed: int) -> Row:
+def run_orca(name: str, agents: int, seed: int, separation: float | None = None) -> Row:
     """One run of ORCA-3D on the same world: radius, maximum speed and dt of the agents, the
     preferred velocity towards the goal at cruise speed (slowed to stop on it), an agent stops
-    for good within the goal tolerance. Neighbours as RVO2-3D's sphere example (15 m, 10, 10 s)."""
+    for good within the goal tolerance. Neighbours as RVO2-3D's sphere example (15 m, 10, 10 s).
+    With ``separation`` (m), ORCA's radius is the agents' plus half of it (ORCA keeps centres
+    two of its radii apart: the bodies that far apart); contacts are counted on the bodies."""
     import rvo23d
 
     world = scenario_world(name, agents, seed)
     a0 = world.agents[0]
-    sim = rvo23d.PyRVOSimulator(world.dt, 15.0, 10, 10.0, a0.radius, a0.speed_max)
+    kept = a0.radius + (0.0 if separation is None else 0.5 * separation)
+    sim = rvo23d.PyRVOSimulator(world.dt, 15.0, 10, 10.0, kept, a0.speed_max)
     start = np.array([a.start for a in world.agents], dtype=float)
     goal = np.array([a.goal for a in world.agents], dtype=float)
     for p in start:
@@ -137,6 +140,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--rate", type=float, default=20.0, help="with --delays: broadcasts per agent and second"
     )
     parser.add_argument(
+        "--separation",
+        type=float,
+        help="the separation every agent keeps from the others, m, in place of the scenarios' 1 m "
+        "(ORCA-3D: its radius is the agents' plus half of it); the page goes to --out only",
+    )
+    parser.add_argument(
         "--docs",
         metavar="DIR",
         help="write swarm-benchmarks.md and its pictures to DIR instead of --out (docs: the shipped page)",
@@ -176,6 +185,11 @@ def check_arguments(args: argparse.Namespace) -> list[str]:
         problems.append(f"--peers: only 'orca' is known, got {args.peers!r}")
     elif peers and importlib.util.find_spec("rvo23d") is None:
         problems.append("--peers orca: ORCA-3D is not installed (pip install -e '.[orca]')")
+    if args.separation is not None:
+        if not (args.separation >= 0 and math.isfinite(args.separation)):
+            problems.append(f"--separation: must be a number >= 0 (m), got {args.separation:g}")
+        if args.docs is not None or args.delays is not None:
+            problems.append("--separation: flies the scenarios into --out only (not with --docs or --delays)")
     for flag in ("out", "docs"):
         if getattr(args, flag) is None:
             continue
@@ -226,10 +240,12 @@ def main(args: argparse.Namespace) -> int:
                 systems = ["planner", "apf"] + (["orca"] if orca and name in OBSTACLE_FREE else [])
                 for system in systems:
                     if system == "orca":
-                        row = run_orca(name, n, seed)
+                        row = run_orca(name, n, seed, args.separation)
                     else:
                         keep = system == "planner" and seed == 0 and n == min(max(sizes), 64)
-                        row, paths = run_swarmplan(name, n, seed, system, keep_paths=keep)
+                        row, paths = run_swarmplan(
+                            name, n, seed, system, keep_paths=keep, separation=args.separation
+                        )
                         if keep:
                             pictures[name] = (n, paths)
                     rows.append(row)
@@ -251,7 +267,7 @@ def main(args: argparse.Namespace) -> int:
     from swarmplan.bench.swarm_report import write_docs
 
     page = out if args.docs is None else Path(args.docs)
-    write_docs(page, rows, table, verdicts, pictures, sizes, seeds, orca, args.docs)
+    write_docs(page, rows, table, verdicts, pictures, sizes, seeds, orca, args.docs, args.separation)
     print(f"wrote {out / 'swarm.csv'} and {page / 'swarm-benchmarks.md'}")
     return 0
 

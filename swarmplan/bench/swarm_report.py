@@ -90,11 +90,14 @@ def write_docs(
     seeds: int,
     orca: bool,
     docs: str | None = None,
+    separation: float | None = None,
 ) -> None:
     """The page and its pictures in ``folder``; ``docs``: the ``--docs`` folder the command
-    named (the page's command line says it)."""
+    named, ``separation`` the one asked in place of the scenarios' (the page's command line
+    says both)."""
     folder.mkdir(parents=True, exist_ok=True)
     command = f"python -m swarmplan.bench swarm --sizes {','.join(map(str, sizes))} --seeds {seeds}"
+    command += f" --separation {separation:g}" if separation is not None else ""
     command += " --peers orca" if orca else ""
     command += f" --docs {docs}" if docs is not None else ""
     lines = [

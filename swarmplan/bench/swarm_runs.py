@@ -85,16 +85,17 @@ class _RunMeter:
 
 
 def run_swarmplan(  # noqa: ANN201
-    name: str, agents: int, seed: int, system: str, keep_paths: bool = False, comms: dict | None = None
-):
+    name: str, agents: int, seed: int, system: str, keep_paths: bool = False, comms: dict | None = None,
+    separation: float | None = None,
+):  # fmt: skip
     """One run of swarmplan (``system``: 'planner' or 'apf'), recording its MCAP log as the
-    command line does, with the world's ``comms`` section ``comms`` when given; (Row, paths
-    (samples, N, 3) or None)."""
+    command line does, with the world's ``comms`` section ``comms`` and the agents'
+    ``separation`` when given; (Row, paths (samples, N, 3) or None)."""
     from swarmplan.io.recording import McapRecorder
     from swarmplan.io.runner import run_episode
     from swarmplan.sim import Simulation
 
-    world = scenario_world(name, agents, seed, comms=comms)
+    world = scenario_world(name, agents, seed, comms=comms, separation=separation)
     sim = Simulation(world, planner="world" if system == "planner" else "none")
     run = _RunMeter(sim.params.radius, keep_paths)
     with tempfile.TemporaryDirectory() as tmp:

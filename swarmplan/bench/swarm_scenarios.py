@@ -448,10 +448,12 @@ def scenario_world(
     seed: int = 0,
     planner: dict[str, Any] | None = None,
     comms: dict[str, Any] | None = None,
+    separation: float | None = None,
 ) -> World:
     """The parsed ``World`` of scenario ``name`` with ``agents`` agents (``planner``: an optional
     ``planner`` section, e.g. ``{"optimizer": {"name": "none"}}``; ``comms``: an optional
-    ``comms`` section)."""
+    ``comms`` section; ``separation``: the agents' separation on every axis, m, in place of
+    the scenario's)."""
     from swarmplan.world import parse_world
 
     known = {**SCENARIOS, **LAB_SCENARIOS}
@@ -464,4 +466,6 @@ def scenario_world(
         raw["planner"] = planner
     if comms is not None:
         raw["comms"] = comms
+    if separation is not None:
+        raw["agent_defaults"]["separation"] = [float(separation)] * 3
     return parse_world(raw)

@@ -431,7 +431,7 @@ class McapRecorder:
         """One ``/comms`` message (its channel added with the first: worlds without comms have none)."""
         if "/comms" not in self._channels:
             self.add_json_channel("/comms", COMMS_SCHEMA)
-        self._write("/comms", float(msg["t"]), msg)
+        self._write("/comms", float(msg["t"]), msg, clean=False)  # finite by construction
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         self._write("/summary", self._last_t, summary)

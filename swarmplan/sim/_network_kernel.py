@@ -12,56 +12,123 @@ import numpy as np
 from swarmplan.runtime.compiled import njit
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _held_distance(view, pos, at, own, k, j):  # noqa: ANN001, ANN202
-    """The distance from flyer k to the row it holds of agent j; inf when it holds none, or j is itself."""
-    r = view[k, j]
-    if r < 0 or j == own[k]:
-        return np.inf
-    dx, dy, dz = pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2]
-    return math.sqrt((dx * dx + dy * dy) + dz * dz)
-
-
 @njit(cache=True, nogil=True)
 def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     """(flyer row k, agent j, table row, distance) for every agent j that flyer k (at
     ``at[k]``, agent ``own[k]``) holds a row of (``view[k, j]`` >= 0) within ``radius`` of it,
     itself left out, in (k, j) order."""
     n, n_all = view.shape
-    count = 0
-    for k in range(n):
-        for j in range(n_all):
-            if _held_distance(view, pos, at, own, k, j) < radius:
-                count += 1
-    ks = np.empty(count, dtype=np.int64)
-    js = np.empty(count, dtype=np.int64)
-    rows = np.empty(count, dtype=np.int64)
-    ds = np.empty(count)
+    # One pass into room for every pair (pages never written are never touched).
+    ks = np.empty(n * n_all, dtype=np.int64)
+    js = np.empty(n * n_all, dtype=np.int64)
+    rows = np.empty(n * n_all, dtype=np.int64)
+    ds = np.empty(n * n_all)
     c = 0
     for k in range(n):
         for j in range(n_all):
-            d = _held_distance(view, pos, at, own, k, j)
+            r = view[k, j]
+            if r < 0 or j == own[k]:
+                continue
+            dx, dy, dz = pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2]
+            d = math.sqrt((dx * dx + dy * dy) + dz * dz)
             if d < radius:
-                ks[c], js[c], rows[c], ds[c] = k, j, view[k, j], d
+                ks[c], js[c], rows[c], ds[c] = k, j, r, d
                 c += 1
-    return ks, js, rows, ds
+    return ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy()
+
+
+_SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
+_SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+_TWO = np.uint64(2)
 
 
 @njit(cache=True, nogil=True)
-def deliver(heard, senders, rows, arrives, t_row, t, eps):  # noqa: ANN001, ANN201
-    """Copies of one broadcast (``senders``, their table ``rows``, ``arrives`` (N, k)) that have
-    arrived by ``t`` replace older rows in ``heard`` (receiver, sender) and are marked taken
-    (inf); returns whether any copy is still on its way."""
-    n, k = arrives.shape
-    left = False
+def draw(key, row, receiver, salt):  # noqa: ANN001, ANN201
+    """``network.draws`` for one copy: the uniform draw in [0, 1) of the copy of table row
+    ``row`` to ``receiver`` (``salt`` 0: its loss, 1: its jitter)."""
+    z = key + np.uint64(row) * _SPREAD_ROW + (np.uint64(receiver) * _TWO + np.uint64(salt)) * _SPREAD_COPY
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    z = z ^ (z >> _S31)
+    return float(z >> _S11) * 2.0**-53
+
+
+@njit(cache=True, nogil=True)
+def fates(senders, rows, key, fate, at, heard_by):  # noqa: ANN001, ANN201
+    """``network.fates_numpy``: which copies of one broadcast (``senders``, their table
+    ``rows``) will be heard, into ``heard_by`` (N, k); ``fate`` = (loss, the delay's jitter,
+    the time the broadcast falls due, range); ``at`` the agents' positions when it was sent
+    (empty: no range). Returns the copies lost and out of range."""
+    loss, reach = fate[0], fate[3]
+    n = heard_by.shape[0]
+    k = senders.shape[0]
+    ranged = at.shape[0] > 0
+    lost = 0
+    out = 0
     for r in range(n):
         for c in range(k):
-            a = arrives[r, c]
-            if a <= t + eps:
-                s = senders[c]
-                if t_row[heard[r, s]] < t_row[rows[c]]:
-                    heard[r, s] = rows[c]
-                arrives[r, c] = np.inf
-            elif a < np.inf:
-                left = True
-    return left
+            s = senders[c]
+            ok = r != s
+            if ok and ranged:
+                dx, dy, dz = at[r, 0] - at[s, 0], at[r, 1] - at[s, 1], at[r, 2] - at[s, 2]
+                if math.sqrt((dx * dx + dy * dy) + dz * dz) > reach:
+                    out += 1
+                    ok = False
+            if ok and loss > 0.0 and draw(key, rows[c], r, 0) < loss:
+                lost += 1
+                ok = False
+            heard_by[r, c] = ok
+    return lost, out
+
+
+@njit(cache=True, nogil=True)
+def deliver(heard, senders, rows, t_row, key, fate, heard_by, t):  # noqa: ANN001, ANN201
+    """``network.deliver_numpy``: the copies of one broadcast (``senders``, their table
+    ``rows``) heard (``heard_by``, :func:`fates`) that have arrived by ``t`` replace older rows
+    in ``heard`` (receiver, sender)."""
+    jitter, due = fate[1], fate[2]
+    n = heard.shape[0]
+    k = senders.shape[0]
+    for r in range(n):
+        for c in range(k):
+            if not heard_by[r, c]:
+                continue
+            row = rows[c]
+            arrives = due
+            if jitter > 0.0:
+                arrives = due + jitter * (2.0 * draw(key, row, r, 1) - 1.0)
+            s = senders[c]
+            if arrives <= t + 1e-9 and t_row[heard[r, s]] < t_row[row]:
+                heard[r, s] = row
+
+
+@njit(cache=True, nogil=True)
+def compact(heard, idx, mark):  # noqa: ANN001, ANN201
+    """The table rows (ascending) that flyers ``idx`` hold in ``heard`` (receiver, sender; 0:
+    none), and each flyer's view of them (n, N: the position among those rows, -1: none).
+    ``mark`` (one per table row, all -1) is scratch, all -1 again on return."""
+    n = idx.shape[0]
+    n_all = heard.shape[1]
+    found = np.empty(n * n_all, dtype=np.int64)
+    count = 0
+    for k in range(n):
+        for j in range(n_all):
+            r = heard[idx[k], j]
+            if r > 0 and mark[r] < 0:
+                mark[r] = 0
+                found[count] = r
+                count += 1
+    live = np.sort(found[:count])
+    for c in range(count):
+        mark[live[c]] = c
+    view = np.empty((n, n_all), dtype=np.int64)
+    for k in range(n):
+        for j in range(n_all):
+            r = heard[idx[k], j]
+            view[k, j] = mark[r] if r > 0 else -1
+    for c in range(count):
+        mark[live[c]] = -1
+    return live, view

@@ -14,8 +14,9 @@ acceleration within the sender's limit since).
 With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
 (onboard sensing: no age).
 
-The draws (losses, delays) come from their own seeded stream, one per run, drawn for every
-(broadcast, receiver) pair whatever happens to it: the same seed gives the same messages.
+Each copy's loss and delay are its own draws (:func:`draws`: a counter-based stream keyed once
+per run from the run's seeded ``comms`` stream, the copy's table row and receiver picking its
+draws), whenever and however often they are asked: the same seed gives the same messages.
 Before flight every agent has heard every other agent within range (their starts, at t = 0).
 
 Each agent's field, deconfliction (``swarmplan.sim.deconflict``) and the planner deciding its
@@ -33,22 +34,13 @@ from typing import Any
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.world.comms import Comms, Sensing
 
 _EPS = 1e-9
-SWARM_PAIRS = 4096
-"""(flyer, agent) pairs from which the network's per-pair passes run compiled."""
 
 Plan = tuple[Mode, "np.ndarray | None", int, "np.ndarray | None", int]
 """An agent's mode, segment and index on it, route and index on it (as :class:`SwarmState` has them)."""
-
-
-def plans_of(s: SwarmState, rows: np.ndarray) -> list[Plan]:
-    """The plans of agents ``rows`` in state ``s`` (the arrays are replaced, never changed, on a new plan)."""
-    return [
-        (s.mode[i], s.segment[i], int(s.segment_index[i]), s.route[i], int(s.route_index[i])) for i in rows
-    ]
 
 
 @dataclass(frozen=True)
@@ -87,19 +79,106 @@ class Beliefs:
         return out
 
     def _pairs(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        n, n_all = self.view.shape
-        if n * n_all > SWARM_PAIRS:  # one compiled pass over every (flyer, agent) pair
-            return kernel_module("swarmplan.sim._network_kernel").held_pairs(
-                self.view, self.pos, self.at, np.asarray(self.idx, dtype=np.int64), float(radius)
-            )
-        k, j = np.nonzero(self.view >= 0)
-        rows = self.view[k, j]
-        keep = j != self.idx[k]
-        k, j, rows = k[keep], j[keep], rows[keep]
-        dp = self.pos[rows] - self.at[k]
-        d = np.sqrt((dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1]) + dp[:, 2] * dp[:, 2])
-        inside = d < radius
-        return k[inside], j[inside], rows[inside], d[inside]
+        held = _kernel().held_pairs if use_compiled(self.view.shape[1]) else held_pairs
+        return held(self.view, self.pos, self.at, np.asarray(self.idx, dtype=np.int64), float(radius))
+
+
+def _kernel() -> Any:
+    """The compiled passes over every (receiver, sender) pair, run from swarm size on."""
+    return kernel_module("swarmplan.sim._network_kernel")
+
+
+def held_pairs(
+    view: np.ndarray, pos: np.ndarray, at: np.ndarray, own: np.ndarray, radius: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(flyer row k, agent j, table row, distance) for every agent j that flyer k (at ``at[k]``,
+    agent ``own[k]``) holds a row of (``view[k, j]`` >= 0) within ``radius`` of it, itself left
+    out, in (k, j) order."""
+    k, j = np.nonzero(view >= 0)
+    rows = view[k, j]
+    keep = j != own[k]
+    k, j, rows = k[keep], j[keep], rows[keep]
+    dp = pos[rows] - at[k]
+    d = np.sqrt((dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1]) + dp[:, 2] * dp[:, 2])
+    inside = d < radius
+    return k[inside], j[inside], rows[inside], d[inside]
+
+
+_SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
+_SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
+_MIX1, _MIX2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+
+
+def draws(key: np.uint64, rows: np.ndarray, receivers: np.ndarray, salt: int) -> np.ndarray:
+    """The uniform draws in [0, 1) of the copies of table rows ``rows`` to ``receivers``
+    (broadcast together; ``salt`` 0: their losses, 1: their jitters): a counter-based stream
+    (SplitMix64's mix of the run's ``key`` and the copy), so each copy's fate is its own,
+    whenever and however often it is asked."""
+    with np.errstate(over="ignore"):
+        z = np.asarray(rows, dtype=np.uint64) * _SPREAD_ROW
+        z = key + z + (np.asarray(receivers, dtype=np.uint64) * np.uint64(2) + np.uint64(salt)) * _SPREAD_COPY
+        z = (z ^ (z >> np.uint64(30))) * _MIX1
+        z = (z ^ (z >> np.uint64(27))) * _MIX2
+        z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
+
+
+def fates_numpy(
+    senders: np.ndarray, rows: np.ndarray, key: np.uint64, fate: tuple[float, float, float, float],
+    at: np.ndarray, heard_by: np.ndarray,
+) -> tuple[int, int]:  # fmt: skip
+    """Which copies of one broadcast (``senders``, their table ``rows``) will be heard, into
+    ``heard_by`` (N, k): not the sender's own, within range of it (``at``: the agents'
+    positions when it was sent; empty: no range) and not lost (a draw below ``fate``'s loss;
+    ``fate`` = (loss, the delay's jitter, the time the broadcast falls due, range)). Returns
+    the copies lost and out of range."""
+    loss, reach = fate[0], fate[3]
+    n = heard_by.shape[0]
+    receivers = np.arange(n)[:, None]
+    listen = receivers != senders[None, :]
+    far = np.zeros_like(listen)
+    if at.shape[0]:
+        d = at[:, None, :] - at[senders][None, :, :]
+        dist = np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) + d[..., 2] * d[..., 2])
+        far = listen & (dist > reach)
+    near = listen & ~far
+    lost = np.zeros_like(near)
+    if loss > 0.0:
+        lost = near & (draws(key, rows[None, :], receivers, 0) < loss)
+    heard_by[:] = near & ~lost
+    return int(lost.sum()), int(far.sum())
+
+
+def deliver_numpy(
+    heard: np.ndarray, senders: np.ndarray, rows: np.ndarray, t_row: np.ndarray, key: np.uint64,
+    fate: tuple[float, float, float, float], heard_by: np.ndarray, t: float,
+) -> None:  # fmt: skip
+    """The copies of one broadcast (``senders``, their table ``rows``) heard (``heard_by``,
+    :func:`fates_numpy`) that have arrived by ``t`` replace older rows in ``heard`` (receiver,
+    sender): a copy arrives when the broadcast falls due plus the delay's jitter times a
+    uniform draw in [-1, 1) (``fate`` = (loss, jitter, due time, range))."""
+    jitter, due = fate[1], fate[2]
+    arrives = np.full(heard_by.shape, due)
+    if jitter > 0.0:
+        receivers = np.arange(heard.shape[0])[:, None]
+        arrives = due + jitter * (2.0 * draws(key, rows[None, :], receivers, 1) - 1.0)
+    cur = heard[:, senders]
+    take = heard_by & (arrives <= t + _EPS) & (t_row[cur] < t_row[rows][None, :])
+    heard[:, senders] = np.where(take, rows[None, :], cur)
+
+
+def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The table rows (ascending) that flyers ``idx`` hold in ``heard`` (receiver, sender; 0:
+    none), and each flyer's view of them (n, N: the position among those rows, -1: none).
+    ``mark`` has one entry per table row (the compiled pass's scratch; read here for its size)."""
+    rows = heard[idx]
+    used = np.zeros(len(mark), dtype=bool)
+    used[rows] = True
+    used[0] = False  # nothing heard
+    live = np.flatnonzero(used)
+    remap = np.full(len(mark), -1, dtype=np.int64)
+    remap[live] = np.arange(len(live))
+    return live, remap[rows]
 
 
 class _Table:
@@ -115,6 +194,7 @@ class _Table:
         self.goal_distance = np.zeros(4 * n + 1)
         self.plan = np.zeros(4 * n + 1, dtype=np.int64)
         self.agent = np.full(4 * n + 1, -1, dtype=np.int64)
+        self.mark = np.full(4 * n + 1, -1, dtype=np.int64)  # scratch of the compiled compaction
 
     def add(self, t: float, agent: np.ndarray, pos: np.ndarray, vel: np.ndarray, parked: np.ndarray,
             to_go: np.ndarray, plan: np.ndarray) -> np.ndarray:  # fmt: skip
@@ -123,7 +203,7 @@ class _Table:
         if first + k > len(self.t):
             grow = max(len(self.t), k)
             for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("acc", 0.0), ("parked", False),
-                               ("goal_distance", 0.0), ("plan", 0), ("agent", -1)):  # fmt: skip
+                               ("goal_distance", 0.0), ("plan", 0), ("agent", -1), ("mark", -1)):  # fmt: skip
                 old = getattr(self, name)
                 setattr(
                     self, name, np.concatenate([old, np.full((grow, *old.shape[1:]), fill, dtype=old.dtype)])
@@ -138,12 +218,14 @@ class _Table:
 
 @dataclass
 class _Sent:
-    """One step's broadcasts: ``senders`` (k,), the table ``rows`` of their states, and per
-    (receiver, sender) when the copy arrives (N, k; inf: lost, or out of range)."""
+    """One step's broadcasts: ``senders`` (k,), the table ``rows`` of their states, the time
+    ``due`` their copies arrive (give or take the jitter)."""
 
     senders: np.ndarray
     rows: np.ndarray
-    arrives: np.ndarray
+    due: float
+    heard_by: np.ndarray
+    """(N, k): whether each copy will be heard (not its sender's own, in range, not lost)."""
 
 
 class Network:
@@ -161,9 +243,12 @@ class Network:
     def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
         """At t = 0: every agent has heard every other within range, at rest at its start."""
         n = self.n
-        self.rng = rng
+        self.key = rng.integers(0, 2**64, dtype=np.uint64)  # the run's copies' draws (see draws)
         self.table = _Table(n)
-        self.plans: list[Plan] = []  # every plan sent
+        self.plans: list[Plan] = []  # each agent's plans, one entry per change
+        # Per agent, its plan last kept: number, mode, ids of segment and route, indexes on them.
+        self._last = (np.full(n, -1, dtype=np.int64), np.full(n, None, dtype=object),
+                      np.zeros((n, 4), dtype=np.int64))  # fmt: skip
         pos = s.position
         start = self.table.add(
             0.0,
@@ -172,7 +257,7 @@ class Network:
             np.zeros((n, 3)),
             np.zeros(n, dtype=bool),
             np.linalg.norm(s.goal - pos, axis=1),
-            self._book(plans_of(s, np.arange(n))),
+            self._book(s, np.arange(n)),
         )
         # (receiver, sender): the table row of the newest state heard (0: none)
         d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
@@ -202,22 +287,7 @@ class Network:
         if not len(who):
             return
         c, n, k = self.comms, self.n, len(who)
-        # Every draw is made whatever becomes of the message: the stream stays in step.
-        lost = self.rng.random((n, k)) < c.loss
-        arrives = np.full((n, k), t1 + c.delay)
-        if c.jitter > 0.0:
-            arrives += c.jitter * self.rng.uniform(-1.0, 1.0, (n, k))
-        itself = who, np.arange(k)  # nobody listens to itself
-        far = np.zeros((n, k), dtype=bool)
-        if math.isfinite(c.range):
-            far = np.linalg.norm(pos[:, None, :] - pos[who][None, :, :], axis=-1) > c.range
-            far[itself] = False
-        lost[itself] = False
-        arrives[lost | far] = np.inf
-        arrives[itself] = np.inf
         self.sent += k * (n - 1)
-        self.out_of_range += int(far.sum())
-        self.lost += int((lost & ~far).sum())
         rows = self.table.add(
             t1,
             who,
@@ -225,42 +295,60 @@ class Network:
             vel[who],
             parked[who],
             np.linalg.norm(s.goal[who] - pos[who], axis=1),
-            self._book(plans_of(s, who)),
+            self._book(s, who),
         )
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
         over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
         self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
-        self.pending.append(_Sent(who, rows, arrives))
+        m = _Sent(who, rows, t1 + c.delay, np.empty((n, k), dtype=bool))
+        at = pos if math.isfinite(c.range) else np.zeros((0, 3))
+        run = _kernel().fates if use_compiled(n) else fates_numpy
+        lost, out = run(who, rows, self.key, self._fate(m), at, m.heard_by)
+        self.lost, self.out_of_range = self.lost + int(lost), self.out_of_range + int(out)
+        self.pending.append(m)
 
-    def _book(self, plans: list[Plan]) -> np.ndarray:
-        """``plans`` kept; their numbers."""
-        first = len(self.plans)
-        self.plans += plans
-        return np.arange(first, len(self.plans))
+    def _book(self, s: SwarmState, who: np.ndarray) -> np.ndarray:
+        """The numbers of the plans of agents ``who`` in ``s``. A plan is kept when it changes
+        (keeping one per state sent would keep the garbage collector busy in a swarm): its
+        arrays are replaced, never changed, on a new plan, so their identity names them, and the
+        plan kept holds them alive."""
+        number, mode, keys = self._last
+        now = np.empty((len(who), 4), dtype=np.int64)
+        now[:, 0] = np.fromiter(
+            map(id, map(s.segment.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
+        )
+        now[:, 1] = s.segment_index[who]
+        now[:, 2] = np.fromiter(
+            map(id, map(s.route.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
+        )
+        now[:, 3] = s.route_index[who]
+        changed = (number[who] < 0) | (mode[who] != s.mode[who]) | (keys[who] != now).any(axis=1)
+        for c in np.flatnonzero(changed):
+            i = int(who[c])
+            number[i], mode[i], keys[i] = len(self.plans), s.mode[i], now[c]
+            self.plans.append(
+                (s.mode[i], s.segment[i], int(s.segment_index[i]), s.route[i], int(s.route_index[i]))
+            )
+        return number[who].copy()
 
     def deliver(self, t: float) -> None:
         """Every copy that has arrived by ``t`` replaces an older state of its sender."""
+        c = self.comms
         keep: list[_Sent] = []
-        compiled = self.n * self.n > SWARM_PAIRS
         for m in self.pending:  # oldest broadcasts first: a newer state replaces an older one
-            if compiled:
-                kernel = kernel_module("swarmplan.sim._network_kernel")
-                if kernel.deliver(self.heard, m.senders, m.rows, m.arrives, self.table.t, t, _EPS):
-                    keep.append(m)
+            if m.due - c.jitter > t + _EPS:  # nothing of it arrives yet
+                keep.append(m)
                 continue
-            due = m.arrives <= t + _EPS
-            if due.any():
-                every = len(m.senders) == self.n  # every agent spoke: the whole matrix, in place
-                cur = self.heard if every else self.heard[:, m.senders]
-                take = due & (self.table.t[cur] < self.table.t[m.rows][None, :])
-                if every:
-                    np.copyto(self.heard, m.rows[None, :], where=take)
-                else:
-                    self.heard[:, m.senders] = np.where(take, m.rows[None, :], cur)
-                m.arrives[due] = np.inf
-            if np.isfinite(m.arrives).any():
+            run = _kernel().deliver if use_compiled(self.n) else deliver_numpy
+            run(self.heard, m.senders, m.rows, self.table.t, self.key, self._fate(m), m.heard_by, t)
+            if m.due + c.jitter > t + _EPS:  # copies still on their way
                 keep.append(m)
         self.pending = keep
+
+    def _fate(self, m: _Sent) -> tuple[float, float, float, float]:
+        """(loss, the delay's jitter, the time broadcast ``m`` falls due, range)."""
+        c = self.comms
+        return (c.loss, c.jitter, m.due, c.range)
 
     def agreed(self, t: float) -> np.ndarray | None:
         """(N, N): the pairs that heard each other's state of ``t`` over an instantaneous network,
@@ -326,14 +414,11 @@ class Network:
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in."""
         self.deliver(t)
-        tb, heard, n = self.table, self.heard[idx], len(idx)
-        used = np.zeros(tb.size, dtype=bool)
-        used[heard] = True
-        used[0] = False  # nothing heard
-        live = np.flatnonzero(used)
-        remap = np.full(tb.size, -1, dtype=np.int64)
-        remap[live] = np.arange(len(live))
-        view = remap[heard]
+        tb, n = self.table, len(idx)
+        idx64 = np.asarray(idx, dtype=np.int64)
+        live, view = (_kernel().compact if use_compiled(self.n) else compact)(
+            self.heard, idx64, tb.mark[: tb.size]
+        )
         age = t - tb.t[live]
         moved = tb.pos[live] + tb.vel[live] * age[:, None]
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
