@@ -115,3 +115,65 @@ def test_a_fixed_wing_world_logs_the_same_compiled_and_in_numpy(monkeypatch, tmp
     monkeypatch.setattr(compiled, "FIXED_WINGS_COMPILED", False)
     assert not Obstacles(world, AgentParams.from_world(world)).compiled
     assert log("numpy") == fast
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_guard_in_one_pass_equals_rollouts_and_clearances(seed: int) -> None:
+    """``_guard_kernel.first_safe`` and ``least_clearances`` (the rollout and the clearances in
+    one pass, a manoeuvre left at its first position too close, bodies measured again only where
+    they could be nearer than what is asked) answer what rolling every manoeuvre out
+    (``_fixed_wing_kernel.rollouts``) and measuring every position (``clearances``) answers:
+    the clearance where each aircraft is, its first manoeuvre that keeps the required clearance
+    at every predicted position (-1: none), and each manoeuvre's least clearance, bit for bit."""
+    from swarmplan.flight.lookahead import _MANOEUVRES, _TURN, _UP
+
+    rng = np.random.default_rng(100 + seed)
+    raw = _random_obstacles(rng)
+    raw.append({"id": "egg", "shape": "ellipsoid", "semi_axes": [6.0, 3.0, 2.0], "position": [-8.0, 9.0, 2.0],
+                "rotation": [10.0, 20.0, 30.0]})  # fmt: skip
+    obstacles = obstacles_of(raw, start=(-49, -49, 49), goal=(49, 49, 49))
+    field = ShapeBatch(obstacles)
+    m = len(obstacles)
+    cols = rng.permutation(m)
+    static, movers = np.sort(cols[: m - 4]), cols[m - 4 :]
+    n, steps, c = 60, 45, len(_MANOEUVRES)
+    pos = rng.uniform(-30, 30, (n, 3))
+    heading = rng.normal(size=(n, 3)) * [1.0, 1.0, 0.2]
+    vel = heading / np.linalg.norm(heading, axis=1)[:, None] * rng.uniform(2.0, 6.0, (n, 1))
+    kappa = rng.uniform(-0.05, 0.05, (n, 2))
+    which = np.broadcast_to(np.arange(c), (n, c))
+    turn, up = np.ascontiguousarray(_TURN[which]), np.ascontiguousarray(_UP[which])
+    amax, radius = rng.uniform(1, 3, n), rng.uniform(4, 15, n)
+    climb = np.radians(rng.uniform(8, 20, n))
+    roll = np.where(rng.random(n) < 0.3, np.inf, rng.uniform(0.3, 2.0, n))
+    dt = 0.1
+    radii, extra = rng.uniform(0.3, 1.5, n), rng.uniform(0.0, 2.0, n)
+    required = rng.uniform(0.0, 1.0, n)
+    origin = np.array([obstacles[j].position for j in movers], dtype=float)
+    centers = origin[None] + np.cumsum(rng.normal(0, 0.3, (steps + 5, len(movers), 3)), axis=0)
+    rows = np.arange(2, steps + 3)
+    bmin, bmax = np.array([-45.0, -44.0, -40.0]), np.array([44.0, 45.0, 41.0])
+    b = field.bodies
+    bodies = (b.code, b.prm, field.position, field.rotation, field.identity)
+    gk = kernel_module("swarmplan.sim._guard_kernel")
+    fk = kernel_module("swarmplan.flight._fixed_wing_kernel")
+
+    flight = (pos, vel, kappa, turn, up, amax, radius, climb, roll)
+    scene = (bmin, bmax, static, movers, origin, centers, bodies)
+    here, first = gk.first_safe((*flight, dt), rows, radii, extra, required, scene)
+
+    path = fk.rollouts(*flight, steps, dt)
+    rep = lambda a: np.repeat(a, c * steps)  # noqa: E731
+    clear = gk.clearances(
+        path.reshape(-1, 3), rep(radii), rep(extra), np.zeros(n * c * steps), bmin, bmax, static, movers,
+        origin, centers, np.tile(rows[1:], n * c), bodies,
+    ).reshape(n, c, steps)  # fmt: skip
+    safe = clear.min(axis=2) >= required[:, None]
+    want_here = gk.clearances(pos, radii, extra, np.zeros(n), bmin, bmax, static, movers, origin, centers,
+                              np.full(n, rows[0]), bodies)  # fmt: skip
+    assert here.tobytes() == want_here.tobytes()
+    np.testing.assert_array_equal(first, np.where(safe.any(axis=1), np.argmax(safe, axis=1), -1))
+    least = gk.least_clearances((*flight, dt), rows[1:], radii, extra, scene)
+    assert least.tobytes() == clear.min(axis=2).tobytes()
+    # Every kind of answer occurs: none safe, the first, a later one.
+    assert (first == -1).any() and (first == 0).any() and (first > 0).any(), np.bincount(first + 1)

@@ -192,7 +192,7 @@ def test_teleport_in_the_log_is_reported_not_hidden(tmp_path, capsys):
     assert m.max_reference_accel > 100.0
     assert m.max_error_m > 5.0  # the vehicle lags the jump: large error, shown
     assert 3.9 <= m.time_of_max_error_s <= 5.0
-    out = json.loads(run_cli(log, "--json").stdout)
+    out = json.loads(run_main(capsys, log, "--json").stdout)
     assert out["agents"]["u0"]["reference_feasible"] is False
     assert out["agents"]["u0"]["max_error_m"] > 5.0
     text = run_main(capsys, log).stdout
@@ -386,8 +386,8 @@ def two_agent_log(tmp_path_factory):
     )
 
 
-def test_cli_json_reports_every_agent_with_its_own_vehicle_model(two_agent_log):
-    r = run_cli(two_agent_log, "--json")
+def test_cli_json_reports_every_agent_with_its_own_vehicle_model(two_agent_log, capsys):
+    r = run_main(capsys, two_agent_log, "--json")
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert list(out) == ["agents"]
@@ -409,10 +409,10 @@ def test_cli_table_and_single_agent(two_agent_log, capsys):
     assert not any(line.startswith("plane") for line in lines)
 
 
-def test_cli_out_is_a_contract_log_with_the_tracking_channel(two_agent_log, tmp_path):
+def test_cli_out_is_a_contract_log_with_the_tracking_channel(two_agent_log, tmp_path, capsys):
     out = tmp_path / "tracked.mcap"
     png = tmp_path / "tracked.png"
-    r = run_cli(two_agent_log, "--out", str(out), "--plot", str(png))
+    r = run_main(capsys, two_agent_log, "--out", str(out), "--plot", str(png))
     assert r.returncode == 0, r.stderr
     assert png.stat().st_size > 10_000
     # replay's audit always, the shared checker too where it is beside the checkout

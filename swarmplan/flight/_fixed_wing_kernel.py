@@ -140,29 +140,52 @@ def turn_states(v0, v1, climb, dt):  # noqa: ANN001, ANN201
     return out
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def manoeuvre_step(state, speed, cg, sg, turn, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
+    """One step of a sustained manoeuvre (:func:`rollout`) from ``state = (x, y, z, vx, vy, vz,
+    kh, kv)`` at ``speed``, ``cg``/``sg`` the cos/sin of its flight-path angle: the next state."""
+    x, y, z, vx, vy, vz, kh, kv = state
+    a = math.atan2(vy, vx) + turn * _HALF_PI
+    vx, vy, vz, kh, kv = fly_step(
+        (vx, vy, vz), (speed * cg * math.cos(a), speed * cg * math.sin(a), speed * sg), (kh, kv),
+        (speed, speed, amax, radius, climb, roll), dt,
+    )  # fmt: skip
+    return x + vx * dt, y + vy * dt, z + vz * dt, vx, vy, vz, kh, kv
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def manoeuvre_start(pos, vel, kappa, up, climb):  # noqa: ANN001, ANN201
+    """The state, speed and cos/sin of the flight-path angle of a sustained manoeuvre from
+    ``pos``/``vel``/``kappa`` climbing ``up`` (-1/0/1) times ``climb`` (:func:`manoeuvre_step`)."""
+    speed = math.sqrt(vel[0] ** 2 + vel[1] ** 2 + vel[2] ** 2)
+    g = up * climb
+    state = (pos[0], pos[1], pos[2], vel[0], vel[1], vel[2], kappa[0], kappa[1])
+    return state, speed, math.cos(g), math.sin(g)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def rollout(out, pos, vel, kappa, turn, up, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
+    """Positions ``out`` (steps, 3), written, of one fixed wing at ``pos``/``vel`` (3,) with turn
+    state ``kappa`` (2,) flying one sustained manoeuvre (``turn`` -1/0/1: hard right, hold, hard
+    left; ``up`` -1/0/1 times the climb limit) for ``len(out)`` steps of the model at constant
+    speed: each step's command is the current heading turned by 90 degrees times ``turn``, at
+    the flight-path angle, at the current speed (:func:`manoeuvre_step`, which
+    ``swarmplan.sim._guard_kernel.first_safe`` flies as well)."""
+    state, speed, cg, sg = manoeuvre_start(pos, vel, kappa, up, climb)
+    for k in range(out.shape[0]):
+        state = manoeuvre_step(state, speed, cg, sg, turn, amax, radius, climb, roll, dt)
+        out[k, 0], out[k, 1], out[k, 2] = state[0], state[1], state[2]
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def rollouts(pos, vel, kappa, turn, up, amax, radius, climb, roll, steps, dt):  # noqa: ANN001, ANN201
     """Positions (n, C, steps, 3) of fixed wings at ``pos``/``vel`` (n, 3) with turn states
-    ``kappa`` (n, 2) flying each of its sustained manoeuvres c (``turn[i, c]`` -1/0/1: hard
-    right, hold, hard left; ``up[i, c]`` -1/0/1 times the climb limit) for ``steps`` steps of the model at
-    constant speed: each step's command is the current heading turned by 90 degrees times
-    ``turn[i, c]``, at the flight-path angle, at the current speed."""
+    ``kappa`` (n, 2) flying each of its sustained manoeuvres c (``turn[i, c]``, ``up[i, c]``:
+    :func:`rollout`)."""
     n, nc = pos.shape[0], turn.shape[1]
     out = np.empty((n, nc, steps, 3))
     for i in range(n):
-        speed = math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2 + vel[i, 2] ** 2)
         for c in range(nc):
-            vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
-            kh, kv = kappa[i, 0], kappa[i, 1]
-            x, y, z = pos[i, 0], pos[i, 1], pos[i, 2]
-            g = up[i, c] * climb[i]
-            cg, sg = math.cos(g), math.sin(g)
-            for k in range(steps):
-                a = math.atan2(vy, vx) + turn[i, c] * _HALF_PI
-                vx, vy, vz, kh, kv = fly_step(
-                    (vx, vy, vz), (speed * cg * math.cos(a), speed * cg * math.sin(a), speed * sg), (kh, kv),
-                    (speed, speed, amax[i], radius[i], climb[i], roll[i]), dt,
-                )  # fmt: skip
-                x, y, z = x + vx * dt, y + vy * dt, z + vz * dt
-                out[i, c, k, 0], out[i, c, k, 1], out[i, c, k, 2] = x, y, z
+            rollout(out[i, c], pos[i], vel[i], kappa[i], turn[i, c], up[i, c], amax[i], radius[i], climb[i],
+                    roll[i], dt)  # fmt: skip
     return out

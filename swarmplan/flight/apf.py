@@ -59,7 +59,7 @@ import numpy as np
 from swarmplan.flight import _apf_numpy
 from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.vec3 import dot3, norm3
-from swarmplan.runtime.compiled import field_numpy_calls, kernel_module, use_numpy_twin
+from swarmplan.runtime.compiled import field_numpy_calls, kernel_module, read_only, use_numpy_twin
 
 if TYPE_CHECKING:
     from swarmplan.world.model import World
@@ -234,7 +234,7 @@ class ApfField:
             (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
-             field.obstacle_center, field.obstacle_velocity, field.obstacle_radius),
+             read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
             (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view),
             self._reach * (1.0 + 1e-9) + 1e-9,

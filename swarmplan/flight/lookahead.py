@@ -30,6 +30,7 @@ heading rate V / R_min with the flight-path angle set at once, the level-turn li
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -39,6 +40,24 @@ ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndar
 """``clearance(points (P, 3), radii (P,), times (P,), extra (P,)) -> (P,)`` distance from each
 body to the terrain or the bounds, or to the nearest obstacle surface (moving ones where they
 are at that time) less ``extra``, the gap kept from obstacles beyond ``radii``."""
+
+
+class CompiledGuard(NamedTuple):
+    """The guard's two questions, each in one compiled pass that flies the manoeuvres of
+    ``rollout`` (the rows of ``_fixed_wing_kernel.rollouts``' arguments but the steps: pos, vel,
+    kappa, turn (n, C'), up (n, C'), amax, radius, climb, roll, dt) and measures their predicted
+    positions with ``clearance`` as it goes: the answers of :func:`rollout_manoeuvres` and
+    ``clearance``, without a position or a clearance array.
+
+    ``first_safe(rollout, times (H + 1,), radii (n,), extra (n,), required (n,)) -> (here (n,),
+    first (n,))``: the clearance of where each aircraft is at ``times[0]`` and the first of its
+    manoeuvres whose positions at ``times[1:]`` all keep ``required`` (-1: none).
+    ``least(rollout, times (H,), radii (n,), extra (n,)) -> (n, C')``: the least clearance of
+    each manoeuvre's positions at ``times``."""
+
+    first_safe: Callable[..., tuple[np.ndarray, np.ndarray]]
+    least: Callable[..., np.ndarray]
+
 
 # (turn, climb) of the sustained candidate commands: turn -1/+1 = hard right/left, 0 = hold
 # heading; climb -1/0/+1 = dive/level/climb at the model's limit.
@@ -117,15 +136,30 @@ def rollout_manoeuvres(
     (n, C'), the manoeuvres of those indices, (n, C', steps, 3)) for ``steps`` steps of the
     model at constant speed (the commands are re-formed from the current heading each step,
     as the guard flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
-    f = np.ascontiguousarray
     n = len(idx)
-    kappa = np.zeros((n, 2)) if kappa is None else f(kappa, dtype=float)
     if which is None:
         which = np.broadcast_to(np.arange(len(_MANOEUVRES)), (n, len(_MANOEUVRES)))
-    return fixed_wing_model().rollouts(
+    *rows, dt = _rollout_rows(params, idx, pos, vel, kappa, which, dt)
+    return fixed_wing_model().rollouts(*rows, int(steps), dt)
+
+
+def _rollout_rows(
+    params: AgentParams,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    kappa: np.ndarray | None,
+    which: np.ndarray,
+    dt: float,
+) -> tuple:
+    """The compiled rollouts' arguments (pos, vel, kappa, turn, up, amax, radius, climb, roll,
+    dt) of fixed wings ``idx`` flying the manoeuvres ``which`` ((n,) or (n, C'))."""
+    f = np.ascontiguousarray
+    kappa = np.zeros((len(idx), 2)) if kappa is None else f(kappa, dtype=float)
+    return (
         f(pos, dtype=float), f(vel, dtype=float), kappa, f(_TURN[which]), f(_UP[which]),
         f(params.max_accel[idx]), f(params.min_turn_radius[idx]), f(params.max_climb[idx]),
-        f(params.roll_rate[idx]), int(steps), dt,
+        f(params.roll_rate[idx]), dt,
     )  # fmt: skip
 
 
@@ -161,6 +195,7 @@ def guard_commands(
     required: np.ndarray,
     kappa: np.ndarray | None = None,
     prefer: np.ndarray | None = None,
+    compiled: CompiledGuard | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Guarded commands of fixed wings ``idx`` (rows of ``pos``, ``vel``, ``v_cmd`` and of their
     turn states ``kappa``, default straight). ``prefer`` (n,), updated in place: per agent the
@@ -172,7 +207,8 @@ def guard_commands(
     (obstacles: ``params.clearance``) over the horizon: a way out is always kept. Otherwise
     the agent starts now the safe manoeuvre whose next velocity is nearest the field's (or, if
     none is safe, the one keeping the most clearance). Returns the commands (n, 3) and a mask
-    (n,) of the replaced ones.
+    (n,) of the replaced ones. ``compiled``, when given, answers in one pass each (the same
+    answers as rolling the manoeuvres out and measuring ``clearance``).
     """
     n = len(idx)
     out = v_cmd.copy()
@@ -194,19 +230,33 @@ def guard_commands(
     # Is any manoeuvre safe after it? Each agent's ``prefer`` (the one safe there last time)
     # first, every other one only for the agents it leaves in doubt: the same answers.
     prefer = np.zeros(n, dtype=np.int64) if prefer is None else prefer
-    pref, r_pref, e_pref = _manoeuvre_clearance(
-        params, idx, p_next, v_next, k_next, times, dt, prefer[:, None]
-    )
-    points = np.concatenate([pref.reshape(-1, 3), p_next])
-    radii = np.concatenate([r_pref.reshape(-1), params.radius[idx]])
-    extra = np.concatenate([e_pref.reshape(-1), extra_now])
-    when = np.concatenate([np.tile(t0 + dt + times, n), np.full(n, t0 + dt)])
-    clear = clearance(points, radii, when, extra)
-    m = n * steps
-    step_clear = clear[m:]
-    keep = (step_clear >= required) & (clear[:m].reshape(n, steps).min(axis=1) >= required)
+    if compiled is None:
+        pref, r_pref, e_pref = _manoeuvre_clearance(
+            params, idx, p_next, v_next, k_next, times, dt, prefer[:, None]
+        )
+        points = np.concatenate([pref.reshape(-1, 3), p_next])
+        radii = np.concatenate([r_pref.reshape(-1), params.radius[idx]])
+        extra = np.concatenate([e_pref.reshape(-1), extra_now])
+        when = np.concatenate([np.tile(t0 + dt + times, n), np.full(n, t0 + dt)])
+        clear = clearance(points, radii, when, extra)
+        m = n * steps
+        step_clear, least = clear[m:], clear[:m].reshape(n, steps).min(axis=1)
+        keep = (step_clear >= required) & (least >= required)
+    else:
+        when = t0 + dt + np.concatenate([[0.0], times])
+        rows = _rollout_rows(params, idx, p_next, v_next, k_next, prefer[:, None], dt)
+        step_clear, first = compiled.first_safe(rows, when, params.radius[idx], extra_now, required)
+        keep = (step_clear >= required) & (first >= 0)
     doubt = np.flatnonzero(~keep & (step_clear >= required))
-    if len(doubt):
+    if len(doubt) and compiled is not None:
+        d = len(doubt)
+        which = np.broadcast_to(np.arange(c), (d, c))
+        rows = _rollout_rows(params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], which, dt)
+        radii = params.radius[idx[doubt]]
+        _, first = compiled.first_safe(rows, when, radii, extra_now[doubt], required[doubt])
+        keep[doubt] = first >= 0
+        prefer[doubt] = np.where(first >= 0, first, prefer[doubt])
+    elif len(doubt):
         d = len(doubt)
         after, r_after, e_after = _manoeuvre_clearance(
             params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], times, dt
@@ -222,11 +272,17 @@ def guard_commands(
     # and of a clearance is its own: the same values as when every agent is rolled out).
     rows = np.flatnonzero(~keep)
     kk = len(rows)
-    now, r_now, e_now = _manoeuvre_clearance(params, idx[rows], pos[rows], vel[rows], kappa[rows], times, dt)
-    when_now = np.tile(t0 + times, kk * c)
-    clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), when_now, e_now.reshape(-1))
     worst_now = np.full((n, c), -np.inf)
-    worst_now[rows] = clear_now.reshape(kk, c, steps).min(axis=2)
+    if compiled is None:
+        at = idx[rows]
+        now, r_now, e_now = _manoeuvre_clearance(params, at, pos[rows], vel[rows], kappa[rows], times, dt)
+        when_now = np.tile(t0 + times, kk * c)
+        clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), when_now, e_now.reshape(-1))
+        worst_now[rows] = clear_now.reshape(kk, c, steps).min(axis=2)
+    else:
+        which = np.broadcast_to(np.arange(c), (kk, c))
+        flown = _rollout_rows(params, idx[rows], pos[rows], vel[rows], kappa[rows], which, dt)
+        worst_now[rows] = compiled.least(flown, t0 + times, params.radius[idx[rows]], extra_now[rows])
     # What each manoeuvre flies on the next step, under the model itself.
     cmds = _manoeuvre_commands(vel, params.max_climb[idx])
     rep = np.repeat(idx, c)

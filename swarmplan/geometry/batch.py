@@ -21,7 +21,7 @@ import numpy as np
 
 from swarmplan.geometry.bodies import body_table
 from swarmplan.geometry.shapes import DISTANCE, SDF, distance_and_gradient, mesh_grid
-from swarmplan.runtime.compiled import kernel_module
+from swarmplan.runtime.compiled import kernel_module, read_only
 
 if TYPE_CHECKING:
     from swarmplan.world.model import Obstacle
@@ -145,7 +145,7 @@ class ShapeBatch:
         if self.compiled:
             kernels = kernel_module("swarmplan.geometry._distance_kernels")
             if len(self.unrotated):
-                kernels.distance_query(points, c, self.unrotated, self.code, self.prm, d, g)
+                kernels.distance_query(points, read_only(c), self.unrotated, self.code, self.prm, d, g)
             if len(self.rotated):
                 # The 3x3 products in numpy (BLAS), as below: the same bits.
                 rot = self.rotated

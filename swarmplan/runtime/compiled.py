@@ -125,6 +125,16 @@ def numba_loaded() -> bool:
     return "numba" in sys.modules
 
 
+def read_only(a: Any) -> Any:
+    """A read-only view of the array ``a`` (no copy). numba compiles a kernel once per type of
+    its arguments, and an array's type says whether it can be written: an input that reaches a
+    kernel writeable from one caller and read-only from another is compiled twice (seconds of
+    CPU each for the larger kernels). Such inputs are passed through this."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
 def njit(*args: Any, **kwargs: Any) -> Any:
     """numba's ``njit``, with numba's on-disk cache pointed at the folder of this package's
     :func:`kernel_digest` first (see the module docstring)."""

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarmplan.geometry._shape_kernel import sdf
+from swarmplan.flight._fixed_wing_kernel import manoeuvre_start, manoeuvre_step
+from swarmplan.geometry._shape_kernel import exact, sdf
 from swarmplan.runtime.compiled import njit
 
 
@@ -37,6 +38,37 @@ def _body_distance(x, y, z, j, code, prm, position, rotation, identity):  # noqa
     return sdf(code[j], r0, r1, r2, prm[j, 0], prm[j, 1], prm[j, 2])
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _room(x, y, z, r, ground, bmin, bmax):  # noqa: ANN001, ANN202
+    """The height of a body of radius ``r`` at (x, y, z) above ``ground`` and its distance inside
+    the bounds ``bmin``..``bmax``, the less of the two."""
+    c = z - ground - r
+    inside = min(min(x - bmin[0], bmax[0] - x), min(y - bmin[1], bmax[1] - y))
+    inside = min(inside, min(z - bmin[2], bmax[2] - z))
+    return min(c, inside - r)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _clearance(x, y, z, r, e, ground, scene, t):  # noqa: ANN001, ANN202
+    """The clearance of one point (x, y, z) of body radius ``r`` at row ``t`` of the movers'
+    centres (:func:`clearances`; ``scene``: :func:`first_safe`'s)."""
+    bmin, bmax, static, movers, origin, centers, bodies = scene
+    code, prm, position, rotation, identity = bodies
+    c = _room(x, y, z, r, ground, bmin, bmax)
+    if static.shape[0]:
+        d = np.inf
+        for k in range(static.shape[0]):
+            d = min(d, _body_distance(x, y, z, static[k], code, prm, position, rotation, identity))
+        c = min(c, d - r - e)
+    for k in range(movers.shape[0]):
+        sx = x - (centers[t, k, 0] - origin[k, 0])
+        sy = y - (centers[t, k, 1] - origin[k, 1])
+        sz = z - (centers[t, k, 2] - origin[k, 2])
+        d = _body_distance(sx, sy, sz, movers[k], code, prm, position, rotation, identity)
+        c = min(c, d - r - e)
+    return c
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def clearances(points, radii, extra, ground, bmin, bmax, static, movers, origin, centers, row, bodies):  # noqa: ANN001, ANN201
     """Per point ``points[i]`` (P, 3) of body radius ``radii[i]``: the least of its height above
@@ -46,27 +78,111 @@ def clearances(points, radii, extra, ground, bmin, bmax, static, movers, origin,
     having started at ``origin[k]``: the point is measured shifted back by that way, against
     the body where it started. ``bodies``: the field's ``(code, prm, position, rotation,
     identity)`` (``geometry.bodies.Bodies``)."""
-    code, prm, position, rotation, identity = bodies
     n = points.shape[0]
     out = np.empty(n)
+    scene = (bmin, bmax, static, movers, origin, centers, bodies)
     for i in range(n):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        r = radii[i]
-        c = z - ground[i] - r
-        inside = min(min(x - bmin[0], bmax[0] - x), min(y - bmin[1], bmax[1] - y))
-        inside = min(inside, min(z - bmin[2], bmax[2] - z))
-        c = min(c, inside - r)
-        if static.shape[0]:
-            d = np.inf
-            for k in range(static.shape[0]):
-                d = min(d, _body_distance(x, y, z, static[k], code, prm, position, rotation, identity))
-            c = min(c, d - r - extra[i])
-        for k in range(movers.shape[0]):
-            t = row[i]
+        out[i] = _clearance(x, y, z, radii[i], extra[i], ground[i], scene, row[i])
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _clearance_over(x, y, z, r, e, floor, scene, t, seen, level):  # noqa: ANN001, ANN202
+    """:func:`_clearance` of the point (x, y, z) over flat ground where it is below ``floor``;
+    elsewhere a value at least ``floor`` (the clearance is too). A body whose distance is exact
+    (1-Lipschitz) is measured again only when the point (shifted back by its way, for a mover)
+    has come farther from ``seen[j]``, where it was last measured, than that measure's value
+    ``level[j]`` (less a rounding allowance) is over ``floor``: closer, it cannot be below
+    ``floor`` (``level[j] = -inf``: measure)."""
+    bmin, bmax, static, movers, origin, centers, bodies = scene
+    code, prm, position, rotation, identity = bodies
+    c = _room(x, y, z, r, 0.0, bmin, bmax)
+    ns = static.shape[0]
+    for j in range(ns + movers.shape[0]):
+        if j < ns:
+            body, sx, sy, sz = static[j], x, y, z
+        else:
+            k = j - ns
+            body = movers[k]
             sx = x - (centers[t, k, 0] - origin[k, 0])
             sy = y - (centers[t, k, 1] - origin[k, 1])
             sz = z - (centers[t, k, 2] - origin[k, 2])
-            d = _body_distance(sx, sy, sz, movers[k], code, prm, position, rotation, identity)
-            c = min(c, d - r - extra[i])
-        out[i] = c
+        room = level[j] - floor
+        if room > 0.0:
+            dx, dy, dz = sx - seen[j, 0], sy - seen[j, 1], sz - seen[j, 2]
+            if dx * dx + dy * dy + dz * dz < room * room:
+                continue
+        d = _body_distance(sx, sy, sz, body, code, prm, position, rotation, identity)
+        c = min(c, d - r - e)
+        if exact(code[body]):
+            seen[j, 0], seen[j, 1], seen[j, 2] = sx, sy, sz
+            level[j] = (d - r - e) - (1e-6 * (1.0 + abs(d)) + 1e-9 * (abs(sx) + abs(sy) + abs(sz)))
+    return c
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, ANN201
+    """``rollout = (pos, vel, kappa, turn, up, amax, radius, climb, roll, dt)`` (the arguments
+    of ``_fixed_wing_kernel.rollouts`` but the steps), ``scene = (bmin, bmax, static, movers,
+    origin, centers, bodies)`` (those of :func:`clearances` but the points' own).
+
+    Per fixed wing i at ``pos[i]``/``vel[i]``/``kappa[i]``: its clearance where it is (the
+    movers at row ``rows[0]``) and the first of its sustained manoeuvres c (``turn[i, c]``,
+    ``up[i, c]``; ``_fixed_wing_kernel.manoeuvre_step``) whose predicted positions over
+    ``len(rows) - 1`` steps (step k at row ``rows[k]``) all keep ``required[i]``, -1 if none:
+    each position measured as :func:`clearances` measures it over flat ground (height 0), and a
+    manoeuvre left at its first position that does not keep it. Returns both, (n,) each."""
+    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    static, movers = scene[2], scene[3]
+    n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0] - 1
+    here = np.empty(n)
+    first = np.full(n, -1, dtype=np.int64)
+    seen = np.empty((static.shape[0] + movers.shape[0], 3))
+    level = np.empty(static.shape[0] + movers.shape[0])
+    for i in range(n):
+        r, e, need = radii[i], extra[i], required[i]
+        here[i] = _clearance(pos[i, 0], pos[i, 1], pos[i, 2], r, e, 0.0, scene, rows[0])
+        for c in range(nc):
+            state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
+            level[:] = -np.inf
+            safe = True
+            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
+            for k in range(steps):
+                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+                x, y, z = state[0], state[1], state[2]
+                t = rows[k + 1]
+                if _clearance_over(x, y, z, r, e, need, scene, t, seen, level) < need:
+                    safe = False
+                    break
+            if safe:
+                first[i] = c
+                break
+    return here, first
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN201
+    """Per fixed wing i and manoeuvre c of ``rollout`` (:func:`first_safe`'s): the least
+    clearance of its predicted positions over ``len(rows)`` steps (step k at row ``rows[k]``),
+    each measured as :func:`clearances` measures it over flat ground; a body measured again only
+    where it could be nearer than the least so far. Returns (n, C)."""
+    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    static, movers = scene[2], scene[3]
+    n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0]
+    out = np.empty((n, nc))
+    seen = np.empty((static.shape[0] + movers.shape[0], 3))
+    level = np.empty(static.shape[0] + movers.shape[0])
+    for i in range(n):
+        for c in range(nc):
+            state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
+            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
+            level[:] = -np.inf
+            least = np.inf
+            for k in range(steps):
+                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+                x, y, z = state[0], state[1], state[2]
+                c_k = _clearance_over(x, y, z, radii[i], extra[i], least, scene, rows[k], seen, level)
+                least = min(least, c_k)
+            out[i, c] = least
     return out

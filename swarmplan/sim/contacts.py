@@ -12,7 +12,7 @@ from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.collision import first_hits, segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed, separation_violations
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
+from swarmplan.runtime.compiled import kernel_module, read_only, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.obstacles import Obstacles
@@ -132,7 +132,7 @@ def arrivals(
             np.ascontiguousarray(s.goal, dtype=float),
             np.ascontiguousarray(vel1, dtype=float),
             np.ascontiguousarray(active, dtype=bool),
-            np.ascontiguousarray(stop_speed, dtype=float),
+            read_only(np.ascontiguousarray(stop_speed, dtype=float)),
             float(tolerance),
         )
     if not len(rows):

@@ -23,16 +23,21 @@ from swarmplan.flight.kinematics import (
     safety_margin,
     turn_states,
 )
-from swarmplan.flight.lookahead import guard_commands, horizon_steps
+from swarmplan.flight.lookahead import CompiledGuard, guard_commands, horizon_steps
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
+from swarmplan.runtime.compiled import kernel_module, read_only, use_compiled_checks
 from swarmplan.sim.deconflict import deconflict
 from swarmplan.sim.guard_clearance import MoverCentres, guard_clearance
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.network import Beliefs
 from swarmplan.sim.obstacles import Obstacles
 from swarmplan.world.model import World
+
+
+def guard_kernel():  # noqa: ANN201
+    """:mod:`swarmplan.sim._guard_kernel` (numba loads with it at the first call)."""
+    return kernel_module("swarmplan.sim._guard_kernel")
 
 
 @dataclass(frozen=True)
@@ -150,30 +155,49 @@ class SafetyFilter:
         compiled = not (self.mesh_bodies & set(close))
         bodies = (batch.bodies.code, batch.bodies.prm, batch.position, batch.rotation, batch.identity)
 
+        def centers_at(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """The close movers' centres (T, movers, 3) and each time's row of them."""
+            if not movers:
+                return np.zeros((1, 0, 3)), np.zeros(len(times), dtype=np.int64)
+            steps = np.rint(times / dt).astype(np.int64)
+            table, base = self._centers.at_steps(int(steps.min()), int(steps.max()))
+            return table[:, np.searchsorted(moving, mover_cols)], steps - base
+
         def clearance_at(
             points: np.ndarray, radii: np.ndarray, times: np.ndarray, extra: np.ndarray
         ) -> np.ndarray:
-            w = self.world
-            ground = w.terrain_height(points[:, :2])
-            if movers:
-                steps = np.rint(times / dt).astype(np.int64)
-                table, base = self._centers.at_steps(int(steps.min()), int(steps.max()))
-                centers = table[:, np.searchsorted(moving, mover_cols)]  # (T, movers, 3)
-                row = steps - base
-            else:
-                centers, row = np.zeros((1, 0, 3)), np.zeros(len(points), dtype=np.int64)
+            ground = self.world.terrain_height(points[:, :2])
+            centers, row = centers_at(times)
             args = (points, radii, extra, ground, self._bounds[0], self._bounds[1], static_cols, mover_cols,
                     origin, centers, row)  # fmt: skip
             if compiled:
                 f = np.ascontiguousarray
-                return kernel_module("swarmplan.sim._guard_kernel").clearances(*(f(a) for a in args), bodies)
+                return guard_kernel().clearances(*(f(a) for a in args), bodies)
             return guard_clearance(batch, *args)
 
+        def scene(times: np.ndarray) -> tuple[tuple, np.ndarray]:
+            centers, row = centers_at(times)
+            f = np.ascontiguousarray
+            return (*self._bounds, static_cols, mover_cols, f(origin), f(centers), bodies), f(row)
+
+        def first_safe_at(
+            rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray, required: np.ndarray
+        ) -> tuple[np.ndarray, np.ndarray]:
+            places, row = scene(times)
+            f = np.ascontiguousarray
+            return guard_kernel().first_safe(rollout, row, f(radii), f(extra), f(required), places)
+
+        def least_at(rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray) -> np.ndarray:
+            places, row = scene(times)
+            f = np.ascontiguousarray
+            return guard_kernel().least_clearances(rollout, row, f(radii), f(extra), places)
+
+        fused = CompiledGuard(first_safe_at, least_at) if compiled and not self.world.peaks else None
         agents = idx[rows]
         prefer = self._prefer[agents]
         guarded, replaced = guard_commands(
             p, agents, pos0[agents], vel0[agents], v_cmd[rows], t0, dt, clearance_at, required[rows],
-            self.turn[agents], prefer,
+            self.turn[agents], prefer, fused,
         )  # fmt: skip
         self._prefer[agents] = prefer
         out = v_cmd.copy()
@@ -355,7 +379,7 @@ class SafetyFilter:
             np.ascontiguousarray(start if goal is None else goal[k], dtype=float),
             amax,
             vmax,
-            radii,
+            read_only(radii),
         )
         out, vel1, status, decided = step_kernels().braking_margin(
             row_arrays, goal is not None, (dt, dt**2, float(self.world.goal_tolerance)), self._bounds,

@@ -4,7 +4,11 @@ Vehicle (point mass in coordinated flight, SI units):
 
 - heading ``psi' = g tan(phi) / V`` (a coordinated turn: the bank ``phi`` tilts the lift, no
   sideslip); the bank follows its command with a first-order lag (``roll_time_constant``) at
-  a roll rate of at most ``max_roll_rate_deg_s``, and never beyond ``max_bank_deg``;
+  a roll rate of at most ``max_roll_rate_deg_s``, and never beyond ``max_bank_deg``. The
+  aircraft rolls at least as the airframe the simulation flew (the log's ``roll_rate``): at
+  its roll rate when that is faster, and with a lag that settles (four time constants, 98 %)
+  within the airframe's roll-in, the time its roll rate takes to the bank of a minimum-radius
+  turn at cruise speed (paper 001's world at 1:50 rolls into 83 degrees in 0.18 s);
 - flight-path angle ``gamma' = (gamma_cmd - gamma) / pitch_time_constant``, ``|gamma|`` within
   the world's climb angle plus ``climb_margin_deg``;
 - airspeed ``V' = (T - D) / m - g sin(gamma)``: the thrust channel commands the specific
@@ -72,6 +76,8 @@ class Aircraft:
     max_accel: float
     min_turn_radius: float
     max_climb_deg: float
+    roll_rate_deg_s: float = 0.0  # the simulated airframe's (0: not in the log)
+    speed_cruise: float | None = None
 
 
 @dataclass(frozen=True)
@@ -119,12 +125,27 @@ def aircraft_of(world: dict[str, Any], agent_id: str) -> Aircraft:
         max_accel=float(merged.get("max_accel", 5.0)),
         min_turn_radius=float(merged.get("min_turn_radius", 1.0)),
         max_climb_deg=float(merged.get("max_climb_angle", 30.0)),
+        roll_rate_deg_s=float(merged.get("roll_rate") or 0.0),
+        speed_cruise=None if speed.get("cruise") is None else float(speed["cruise"]),
     )
 
 
 def error_limit(ac: Aircraft) -> float:
     """The tracking error a flyable fixed-wing path should stay within: max(5 m, 0.05 R_min)."""
     return max(5.0, 0.05 * ac.min_turn_radius)
+
+
+def roll_limits(ac: Aircraft, cfg: FixedWingConfig) -> tuple[float, float]:
+    """The tracking aircraft's roll rate (rad/s) and bank lag (s): ``cfg``'s, or the simulated
+    airframe's roll rate when faster, with a lag of at most a quarter of its roll-in time (the
+    time that roll rate takes to the bank of a minimum-radius turn at cruise speed)."""
+    rate, lag = cfg.max_roll_rate_deg_s, cfg.roll_time_constant
+    if ac.roll_rate_deg_s > 0.0:
+        rate = max(rate, ac.roll_rate_deg_s)
+        v = ac.speed_cruise if ac.speed_cruise is not None else ac.speed_max
+        bank = math.degrees(math.atan(v * v / (G * max(ac.min_turn_radius, 1e-9))))
+        lag = min(lag, 0.25 * bank / ac.roll_rate_deg_s)
+    return math.radians(rate), lag
 
 
 def bank_limit_deg(ac: Aircraft, cfg: FixedWingConfig) -> float:
@@ -144,7 +165,7 @@ def fly(
     k_n = len(ref.times)
     ahead = max(1, int(round(cfg.l1_time / dt)))
     phi_max = math.radians(bank_limit_deg(ac, cfg))
-    roll_rate = math.radians(cfg.max_roll_rate_deg_s)
+    roll_rate, roll_lag = roll_limits(ac, cfg)
     gam_max = math.radians(ac.max_climb_deg + cfg.climb_margin_deg)
     a_thrust = cfg.thrust_accel_factor * ac.max_accel
     p = rp[0].copy()
@@ -173,7 +194,7 @@ def fly(
         else:
             a_lat = 0.0
         phi_cmd = max(-phi_max, min(phi_max, math.atan2(a_lat, G)))
-        dphi = max(-roll_rate * dt, min(roll_rate * dt, (phi_cmd - phi) * dt / cfg.roll_time_constant))
+        dphi = max(-roll_rate * dt, min(roll_rate * dt, (phi_cmd - phi) * dt / roll_lag))
         phi = max(-phi_max, min(phi_max, phi + dphi))
         # Energy: thrust holds the speed profile (with the along-track error), pitch the height.
         ref_speed = float(np.linalg.norm(rv[k]))
