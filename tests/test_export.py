@@ -67,20 +67,52 @@ def test_memory_holds_31_pieces_of_132_bytes():
     assert crazyflie.MAX_PIECES == 31 == 4096 // 132
 
 
-def test_straight_line_fits_in_one_piece_exactly():
-    path = line_path()
-    fit = crazyflie.fit(path, 0.05)
-    assert fit.poly.n_pieces == 1  # a minimum-jerk line is a polynomial of degree 5
-    # Exact up to float32 against the line itself (against the recorded polygon, between the
-    # samples, the deviation is the polygon's own: a dt^2 / 8 = 1e-4 m)
-    t = np.linspace(0.0, 8.0, 2001)
-    a, b = path.positions[0], path.positions[-1]
-    exact = a + min_jerk(t, 8.0)[:, None] * (b - a)
-    assert np.abs(fit.poly.evaluate(t)[:, :3] - exact).max() < 2e-5
-    assert fit.max_deviation < 1.1e-4
-    end = fit.poly.evaluate(np.array([fit.poly.duration]))[0, :3]
-    assert np.allclose(end, path.positions[-1], atol=1e-5)
-    assert np.allclose(fit.poly.evaluate(np.array([0.0]), 1)[0, :3], 0.0, atol=1e-6)  # from rest
+def flown(accels: np.ndarray, start: np.ndarray, **over) -> FlownPath:
+    """A path as the simulator flies it from rest: per step v += a dt, then x += v dt."""
+    v = np.cumsum(accels * DT, axis=0)
+    pos = start + np.vstack([np.zeros(3), np.cumsum(v * DT, axis=0)])
+    return FlownPath(limits(**over), DT * np.arange(len(pos)), pos, True)
+
+
+def bang_bang_line(direction=(3.0, 2.0, 0.5), a=1.5) -> FlownPath:
+    """Rest to rest along a line at the acceleration limit: 13 steps at +a, 40 at speed, 13 at -a."""
+    u = np.asarray(direction) / np.linalg.norm(direction)
+    sign = np.concatenate([np.ones(13), np.zeros(40), -np.ones(13)])
+    return flown(sign[:, None] * a * u, np.array([0.5, 0.5, 1.0]), max_accel=a)
+
+
+def test_ldp_exact_answers():
+    y = crazyflie._ldp(np.array([[1.0, 1.0]]), np.array([2.0]))  # min |y| with y1 + y2 >= 2
+    assert np.allclose(y, [1.0, 1.0], atol=1e-12)
+    y = crazyflie._ldp(np.array([[1.0, 0.0], [0.0, 1.0]]), np.array([-1.0, 3.0]))  # y1 >= -1 is slack
+    assert np.allclose(y, [0.0, 3.0], atol=1e-12)
+    # y1 >= 1 and y1 <= 0: no answer
+    assert crazyflie._ldp(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 0.0])) is None
+
+
+def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
+    path = bang_bang_line()
+    # The flown steps use the whole limit, so a smooth curve through them would break it.
+    steps = np.diff(path.positions, axis=0) / DT
+    assert np.linalg.norm(np.diff(steps, axis=0), axis=1).max() / DT == pytest.approx(1.5)
+    fit = crazyflie.fit(path, 0.01)
+    assert fit.max_deviation <= 0.01 and fit.max_speed <= 1.0 and fit.max_accel <= 1.5
+    # From rest half a step before the first recorded position, to rest half a step after the last.
+    assert fit.lead == DT / 2 and fit.poly.duration == pytest.approx(path.duration + DT, abs=1e-6)
+    poly = fit.poly
+    t = np.linspace(0.0, poly.duration, 20001)
+    assert np.linalg.norm(poly.evaluate(t, 2)[:, :3], axis=1).max() <= 1.5
+    assert np.linalg.norm(poly.evaluate(t, 1)[:, :3], axis=1).max() <= 1.0
+    assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]), 1)[:, :3], 0.0, atol=1e-6)
+    assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]))[:, :3],
+                       path.positions[[0, -1]], atol=1e-5)  # fmt: skip
+    jumps = poly.joint_jumps()
+    assert jumps[0] < 1e-5 and jumps[1] < 1e-4 and jumps[2] < 1e-3  # float32 rounding only
+    # Every point on the line (the motion, the limits and the bound are symmetric about it).
+    u = path.positions[-1] - path.positions[0]
+    u /= np.linalg.norm(u)
+    rel = poly.evaluate(t)[:, :3] - path.positions[0]
+    assert np.linalg.norm(rel - np.outer(rel @ u, u), axis=1).max() < 1e-5
 
 
 def test_circle_fits_continuous_to_acceleration_within_limits():
@@ -106,18 +138,24 @@ def test_csv_round_trip_and_header():
     assert np.array_equal(back.coeffs, fit.poly.coeffs) and np.array_equal(back.durations, fit.poly.durations)
 
 
-def test_a_path_beyond_the_limits_is_refused():
-    with pytest.raises(LimitError, match="keeps its limits"):
-        crazyflie.fit(line_path(max_accel=0.2), 0.01)  # the line needs 0.33 m/s^2
-
-
-def test_a_path_beyond_the_memory_is_refused_with_what_would_fit():
+def test_a_path_beyond_the_limits_on_its_timing_is_refused_with_the_limits_it_needs():
     with pytest.raises(LimitError) as err:
-        crazyflie.fit(circle_path(), 0.002, max_pieces=2)
+        crazyflie.fit(line_path(max_accel=0.2), 0.01, max_pieces=4)  # the line needs 0.33 m/s^2
     msg = str(err.value)
-    assert "2 pieces (264 of the 4096-byte trajectory memory)" in msg
-    assert "pieces (" in msg and "would reach 0.002 m" in msg and "--max-deviation" in msg
-    assert "\n" not in msg
+    assert "acceleration <= 0.2 m/s^2" in msg and "needs" in msg and "\n" not in msg
+
+
+def test_a_path_beyond_the_memory_is_refused_with_the_bound_that_fits():
+    path = bang_bang_line()
+    with pytest.raises(LimitError) as err:
+        crazyflie.fit(path, 0.0005, max_pieces=3)
+    msg = str(err.value)
+    assert "at most 3 pieces (396 of the 4096-byte trajectory memory)" in msg and "\n" not in msg
+    bound = float(msg.split("--max-deviation ")[1].split()[0])
+    fit = crazyflie.fit(path, bound, max_pieces=3)  # what the message says fits, fits
+    assert fit.max_deviation <= bound and fit.max_accel <= 1.5 and fit.poly.n_pieces <= 3
+    with pytest.raises(LimitError):
+        crazyflie.fit(path, 0.9 * bound, max_pieces=3)  # and not much less
 
 
 def test_rdp_keeps_every_point_within_the_bound():

@@ -201,6 +201,43 @@ def test_the_timed_mission_passes_a_corner_at_its_corner_speed():
     assert speed.max() <= path.limits.speed_max + 1e-9
 
 
+def test_the_rounded_mission_turns_on_the_corner_circle_within_max_accel():
+    path = l_path()
+    wp = np.array([[0.0, 2.6, 5.0], [2.6, 2.6, 5.0], [2.6, 0.0, 5.0]])  # one right-angle corner
+    m = mission.Mission(path, wp, np.array([0, 26, 52]), np.ones(2), 0.1, 0.0)
+    corner = wp[1]
+    verts, caps, at = mission.rounded(m)
+    d = RADIUS  # the acceptance radius; a right angle: r = d tan(45 deg) = d
+    centre = corner + np.array([-d, -d, 0.0])
+    arc = np.linalg.norm(verts - corner, axis=1) < d - 1e-9
+    assert arc.sum() > 10
+    assert np.allclose(np.linalg.norm(verts[arc] - centre, axis=1), d)  # on the circle
+    assert mission.polyline_distance(verts, m.waypoints).max() <= d + 1e-12
+    assert at[0] == 0.0 and at[-1] == 0.0 and np.isinf(at[1:-1]).all()
+    v_corner = math.sqrt(2.0 * d)  # sqrt(a r)
+    assert caps[1:-1][np.isfinite(caps[1:-1])].min() == pytest.approx(v_corner)
+    t, pos = mission.timed(m, 0.05)
+    vel = np.diff(pos, axis=0) / np.diff(t)[:, None]
+    acc = np.linalg.norm(np.diff(vel, axis=0), axis=1) / np.diff(0.5 * (t[1:] + t[:-1]))
+    turning = np.linalg.norm(pos[1:-1] - corner, axis=1) < d
+    assert turning.sum() >= 3
+    assert acc[turning].max() <= 2.0 * 1.05  # the turn at max_accel (drawn in chords)
+    assert acc.max() <= 2.0 * 1.25  # the start and the stop: the speed profile's own steps
+
+
+def test_path_distance_to_a_dense_polyline():
+    from swarmplan.export.check import path_distance
+
+    line = np.column_stack([np.linspace(0.0, 10.0, 1001), np.zeros(1001), np.zeros(1001)])
+    pts = np.array([[5.0, 0.3, 0.0], [5.004, 0.0, -0.2], [-1.0, 0.0, 0.0], [10.0, 3.0, 4.0]])
+    assert np.allclose(path_distance(pts, line), [0.3, 0.2, 1.0, 5.0], atol=1e-12)
+    # Behind or ahead on the path is no deviation; beside it is.
+    corner = np.vstack(
+        [line, np.column_stack([np.full(1000, 10.0), np.linspace(0.01, 10.0, 1000), np.zeros(1000)])]
+    )
+    assert path_distance(np.array([[9.9, 0.1, 0.0]]), corner)[0] == pytest.approx(0.1)
+
+
 def test_bench_export_counts_per_class_and_format():
     from swarmplan.export.bench import markdown, table
 
@@ -213,12 +250,20 @@ def test_bench_export_counts_per_class_and_format():
         {"name": "w1", "agents": 3, "flight_contacts": 1, "px4": entry(False, contacts=2)},
         {"name": "w2", "agents": 1, "flight_contacts": 0, "px4": entry(False, dev=1.5)},
         {"name": "w3", "agents": 1, "flight_contacts": 0, "px4": {"refused": "agent a: ..."}},
+        {
+            "name": "w4",
+            "agents": 2,
+            "flight_contacts": 0,
+            "flight_near_misses": 1,
+            "px4": entry(False, sep=3),
+        },
     ]
     t = table("lab", "px4", records)
-    assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (4, 3, 1, 2, 1)
-    assert (t["safe"], t["with_contact"], t["separation_lost"], t["deviation_broken"]) == (2, 1, 0, 1)
+    assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (5, 4, 1, 2, 1)
+    assert (t["safe"], t["safe_of_clean"], t["with_contact"], t["separation_lost"]) == (2, 2, 1, 1)
+    assert t["deviation_broken"] == 1
     assert t["check_deviation_over_limit"] == 1.5 and t["waypoints"] == 7 and t["pieces"] is None
-    assert "| lab | px4 | 3/4 | 1/3 | 1/2 | 2/3 | 1 | 0 | 1 |" in markdown([t])
+    assert "| lab | px4 | 4/5 | 1/4 | 1/2 | 2/4 | 2/2 | 1 | 1 | 1 |" in markdown([t])
 
 
 def test_bench_export_refuses_bad_arguments(capsys):

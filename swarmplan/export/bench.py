@@ -11,9 +11,11 @@ and format:
 
 - worlds exported (a Crazyflie trajectory that cannot fit is refused, with what would fit) and
   worlds whose check passed (no deviation beyond its limit, no contact, no separation lost),
-  also among the worlds whose flight itself had no contact (an export flies the flown path: a
-  contact there is the flight's);
-- the worlds flown again with no contact and no separation lost; the worlds with a contact in
+  also among the clean flights, whose flight itself had no contact and no near miss (never
+  inside a separation ellipsoid: an export flies the flown path, so a contact or a lost
+  separation there is the flight's);
+- the worlds flown again with no contact and no separation lost (of all, and of the clean
+  flights); the worlds with a contact in
   the check, with a separation lost, and with a vehicle farther from its export than the
   check's limit;
 - Crazyflie: the largest deviation from the flown path over its bound, the most pieces, the
@@ -65,6 +67,9 @@ def export_world(raw: dict[str, Any], folder: Path) -> dict[str, Any]:
         "name": raw["name"],
         "agents": len(rec.agent_ids),
         "flight_contacts": sum(int(a.get("collisions", 0)) for a in (rec.summary or {}).get("agents", [])),
+        "flight_near_misses": sum(
+            int(a.get("near_misses", 0)) for a in (rec.summary or {}).get("agents", [])
+        ),
     }
     for fmt in formats_of(kind):
         try:
@@ -100,7 +105,14 @@ def export_world(raw: dict[str, Any], folder: Path) -> dict[str, Any]:
 def table(kind: str, fmt: str, records: list[dict[str, Any]]) -> dict[str, Any]:
     """The figures of one class and format."""
     done = [r[fmt] for r in records if fmt in r and "refused" not in r[fmt]]
-    clean = [r[fmt] for r in records if fmt in r and "refused" not in r[fmt] and r["flight_contacts"] == 0]
+    clean = [
+        r[fmt]
+        for r in records
+        if fmt in r
+        and "refused" not in r[fmt]
+        and r["flight_contacts"] == 0
+        and r.get("flight_near_misses", 0) == 0
+    ]
     worst = lambda key: max((e[key] for e in done if key in e), default=None)  # noqa: E731
     return {
         "class": kind,
@@ -110,6 +122,7 @@ def table(kind: str, fmt: str, records: list[dict[str, Any]]) -> dict[str, Any]:
         "ok": sum(e["ok"] for e in done),
         "clean_flights": len(clean),
         "ok_of_clean": sum(e["ok"] for e in clean),
+        "safe_of_clean": sum(e["contacts"] == 0 and e["separation_entries"] == 0 for e in clean),
         "safe": sum(e["contacts"] == 0 and e["separation_entries"] == 0 for e in done),
         "with_contact": sum(e["contacts"] > 0 for e in done),
         "separation_lost": sum(e["separation_entries"] > 0 for e in done),
@@ -130,16 +143,17 @@ def _f(x: float | None, digits: int = 3) -> str:
 
 def markdown(tables: list[dict[str, Any]]) -> str:
     lines = [
-        "| class | format | exported | check passed | passed, flights without contact "
-        "| no contact, separation kept | with contact "
+        "| class | format | exported | check passed | passed, clean flights "
+        "| no contact, separation kept | the same, clean flights | with contact "
         "| separation lost | check deviation broken | deviation / bound | check deviation / limit "
         "| pieces | speed / limit | accel / limit | accel jump m/s² | waypoints |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for t in tables:
         lines.append(
             f"| {t['class']} | {t['format']} | {t['exported']}/{t['worlds']} | {t['ok']}/{t['exported']} | "
-            f"{t['ok_of_clean']}/{t['clean_flights']} | {t['safe']}/{t['exported']} | {t['with_contact']} | "
+            f"{t['ok_of_clean']}/{t['clean_flights']} | {t['safe']}/{t['exported']} | "
+            f"{t['safe_of_clean']}/{t['clean_flights']} | {t['with_contact']} | "
             f"{t['separation_lost']} | "
             f"{t['deviation_broken']} | "
             f"{_f(t['deviation_over_bound'])} | {_f(t['check_deviation_over_limit'])} | {_f(t['pieces'])} | "

@@ -3,8 +3,10 @@ quadrotor under its cascaded PID, the fixed wing under L1 guidance and its energ
 the export and not the log, then look at the swarm together on the exported timing.
 
 Per agent: the largest distance between the flown vehicle and the planned position at the same
-instant (the export's own timing), against its limit: max(5 m, 0.05 R_min) for a fixed wing
-(``track``'s bound), the export's accuracy bound for a multirotor. For the swarm: the smallest
+instant (the export's own timing), or for a multirotor mission (a path with speeds, flown
+without a schedule) the largest distance to the planned path, against its limit:
+max(5 m, 0.05 R_min) for a fixed wing (``track``'s bound), the export's accuracy bound for a
+multirotor. For the swarm: the smallest
 surface distance between two agents, whether any pair came inside its separation ellipsoid,
 and any contact with an obstacle (moving ones where the log has them), the ground or terrain.
 """
@@ -40,6 +42,7 @@ class Plan:
     bound: float  # the export's accuracy bound (m)
     vel: np.ndarray | None = None
     acc: np.ndarray | None = None
+    path_only: bool = False  # a mission: held to its path (no schedule), not to a timed position
 
 
 @dataclass(frozen=True)
@@ -145,7 +148,10 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
         else:
             times, pos, ref_pos = _fly_multirotor(plan, cfg)
             limit = plan.bound
-        dev = float(np.linalg.norm(pos - ref_pos, axis=1).max())
+        if plan.path_only:
+            dev = float(path_distance(pos, ref_pos).max())
+        else:
+            dev = float(np.linalg.norm(pos - ref_pos, axis=1).max())
         agents.append(AgentCheck(plan.id, plan.model, dev, limit))
         flown[plan.id] = (times, pos)
     radii = np.array([p.radius for p in plans])
@@ -182,6 +188,24 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
         k = int(np.argmax(ground[a] < radii[a]))
         contacts.append(f"{ids[a]}-{surface} at t = {grid[k]:.2f} s")
     return CheckResult(agents, min_sep, entries, contacts)
+
+
+def path_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
+    """Distance (N,) of each point to a densely drawn polyline (M, 3): to the two segments at the
+    polyline's vertex nearest to it (never less than the distance to the whole polyline)."""
+    from scipy.spatial import cKDTree
+
+    _, j = cKDTree(polyline).query(points)
+    out = np.linalg.norm(points - polyline[j], axis=1)
+    for lo in (j - 1, j):
+        lo = np.clip(lo, 0, len(polyline) - 2)
+        a, b = polyline[lo], polyline[lo + 1]
+        ab = b - a
+        t = np.clip(
+            np.einsum("ij,ij->i", points - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1
+        )
+        out = np.minimum(out, np.linalg.norm(points - (a + t[:, None] * ab), axis=1))
+    return out
 
 
 def _tp(tp: tuple[np.ndarray, np.ndarray], j: int) -> tuple[np.ndarray, np.ndarray]:

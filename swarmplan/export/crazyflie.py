@@ -8,25 +8,26 @@ time since the piece began, lowest power first) and a duration, as 33 little-end
 so one trajectory has at most 4096 // 132 = 31 pieces.
 
 Fit: a degree-7 B-spline in time whose interior knots have multiplicity 4, so position,
-velocity, acceleration and jerk are continuous at every joint (C3); it is the least-squares
-fit to every recorded position plus a small penalty on the snap (the minimum-snap
-regulariser), starting and ending at the recorded positions with the recorded velocities and
-zero acceleration. The number of pieces (equal durations) is the smallest that keeps the fit
-within the accuracy bound of the flown path at every recorded step and between them; the snap
-penalty is raised, on a fixed ladder, only while the fit breaks the agent's speed or
-acceleration limit. Everything is checked on the coefficients as the Crazyflie holds them
-(float32). A path that needs more than 31 pieces is refused with the accuracy 31 pieces reach
-and the pieces the bound would need: never coarsened silently.
+velocity, acceleration and jerk are continuous at every joint (C3), on the flown timing (from
+rest half a step before the first recorded step; :func:`ends_of`). The agent's speed and
+acceleration limits and the accuracy bound are constraints on dense grids: of the splines that
+keep them, the fit is the one closest to the least-squares fit to every recorded position plus
+a small penalty on the snap, found by cutting planes (:func:`_solve`) and solved exactly as a
+least distance programme (:func:`_ldp`). The number of pieces (equal durations) is the
+smallest that fits. Everything is checked again on the coefficients as the Crazyflie holds them
+(float32). A path that 31 pieces cannot fit is refused, never coarsened, with what would fit:
+the smallest bound within which 31 pieces keep the limits, or the limits its timing needs.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import BSpline
+from scipy.optimize import nnls
 
 from .source import FlownPath, LimitError
 
@@ -37,9 +38,7 @@ MEMORY_BYTES = 4096  # the Crazyflie's trajectory memory (TRAJECTORY_MEMORY_SIZE
 MAX_PIECES = MEMORY_BYTES // PIECE_BYTES  # 31
 JOINT_MULTIPLICITY = 4  # interior knots: C(7 - 4) = C3 at every joint
 DEFAULT_ACCURACY = 0.05  # m, at most; a tenth of the agent's smallest separation when smaller
-SNAP_LADDER = (0.0, 1e-3, 1e-1, 10.0)  # snap penalty, relative to the fit's own scale
-LIMIT_SEARCH = 6  # pieces beyond the fewest that reach the accuracy, tried for the limits
-SEARCH_FACTOR = 4  # how far past the memory the refusal looks for the pieces the bound needs
+SNAP_WEIGHT = 1e-3  # snap penalty beside the least squares, relative to the fit's own scale
 DENSE = 16  # evaluation points per piece (and per recorded step) for deviations and limits
 HEADER = ["Duration"] + [f"{axis}^{j}" for axis in ("x", "y", "z", "yaw") for j in range(COEFFS)]
 
@@ -115,7 +114,7 @@ class Fit:
     max_speed: float
     max_accel: float
     accuracy: float  # the bound it was fitted to
-    snap_weight: float
+    lead: float  # s: the trajectory starts this long before the flown path's first step
 
 
 def accuracy_for(path: FlownPath, override: float | None = None) -> float:
@@ -151,16 +150,6 @@ def _snap_gram(knots: np.ndarray, n: int, duration: float) -> np.ndarray:
     w = (0.5 * h[:, None] * weights[None]).reshape(-1)
     s = _basis(knots, x, 4)
     return s.T @ (w[:, None] * s)
-
-
-def _kkt(h: np.ndarray, g: np.ndarray, rows: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """argmin c' h c / 2 - g' c subject to rows c = rhs."""
-    nc, m = h.shape[0], len(rows)
-    kkt = np.zeros((nc + m, nc + m))
-    kkt[:nc, :nc] = h
-    kkt[:nc, nc:] = rows.T
-    kkt[nc:, :nc] = rows
-    return np.linalg.lstsq(kkt, np.concatenate([g, rhs]), rcond=None)[0][:nc]
 
 
 def _peaks(norm: np.ndarray, limit: float) -> np.ndarray:
@@ -206,105 +195,221 @@ def _flown_at(times: np.ndarray, pos: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(t, times, pos[:, j]) for j in range(3)])
 
 
+def ends_of(path: FlownPath) -> tuple[float, float]:
+    """How long (s) the trajectory starts before the flown path's first step and ends after its
+    last: half a step at a rest. The simulator's step (v += a dt, then x += v dt) moves as a
+    body whose acceleration is held over each step centred on the recorded instant: from rest
+    half a step before the first recorded position (a multirotor starts hovering; its first
+    step already holds its first command), and to rest half a step after the last one when it
+    arrived (its last move stops within the acceleration limit)."""
+    tau = path.times - path.times[0]
+    lead = 0.5 * float(tau[1]) if path.limits.model == "multirotor" else 0.0
+    trail = 0.5 * float(tau[-1] - tau[-2]) if _still(path) else 0.0
+    return lead, trail
+
+
+def _still(path: FlownPath) -> bool:
+    return bool(path.arrived or np.linalg.norm(path.positions[-1] - path.positions[-2]) < 1e-12)
+
+
+def _dense_ends(path: FlownPath) -> np.ndarray:
+    """The dense deviation times on the trajectory's clock: the recorded steps' (:func:`_dense`)
+    and the lead and the trail before and after them."""
+    tau = path.times - path.times[0]
+    lead, trail = ends_of(path)
+    s = np.linspace(0.0, 1.0, DENSE // 2, endpoint=False)
+    return np.concatenate([-lead + lead * s, _dense(tau), tau[-1] + trail * s[1:], [tau[-1] + trail]]) + lead
+
+
 def evaluate_fit(poly: Poly4D, path: FlownPath) -> tuple[float, float, float]:
     """Largest deviation from the flown path (time-synchronised, between the recorded steps too,
-    against the recorded polygon), speed and acceleration of the exported trajectory."""
+    against the recorded polygon, held at its ends before and after it), speed and acceleration
+    of the exported trajectory."""
     tau = path.times - path.times[0]
-    t = _dense(tau)
+    lead, _ = ends_of(path)
+    t = _dense_ends(path)
     fitted = poly.evaluate(t)[:, :3]
-    dev = float(np.linalg.norm(fitted - _flown_at(tau, path.positions, t), axis=1).max())
+    dev = float(np.linalg.norm(fitted - _flown_at(tau, path.positions, t - lead), axis=1).max())
     tp = np.linspace(0.0, poly.duration, poly.n_pieces * DENSE * 4 + 1)
     speed = float(np.linalg.norm(poly.evaluate(tp, 1)[:, :3], axis=1).max())
     accel = float(np.linalg.norm(poly.evaluate(tp, 2)[:, :3], axis=1).max())
     return dev, speed, accel
 
 
-LIMIT_TARGET = 0.99  # a peak over a limit is pinned this far below it (room for float32 and the grid)
-MAX_PINS = 12  # rounds of pinning limit peaks before a fit is given up
-PINS_PER_ROUND = 8  # the highest peaks over each limit pinned per round
-PIN_RESIDUAL = 1e-6  # relative: a solve missing its equalities by more has contradictory pins
+LIMIT_TARGET = 0.99  # a bound is held this far inside (room for float32 and between the grid points)
+ACCEPT = 0.995  # a fit whose norms keep within this fraction of each bound on the grids is taken
+CUTS_PER_ROUND = 32  # the highest peaks over each bound held per round
+MAX_ROUNDS = 60  # rounds of cutting planes before a fit is given up
+LDP_INFEASIBLE = 1e-10  # a dual residual this small: the constraints contradict each other
+REFUSAL_PRECISION = 0.02  # relative: how finely a refusal brackets what would fit
 
 
-def _fit_pieces(
-    path: FlownPath, n: int, ladder: tuple[float, ...] = SNAP_LADDER, pin: bool = True
-) -> Iterator[tuple[Poly4D, float, float, float, float]]:
-    """The fits with ``n`` pieces along the snap ``ladder``: (poly, deviation, speed, accel, weight).
+def _ldp(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """argmin |y| subject to a y >= b, or None when no y meets it: Lawson and Hanson's least
+    distance programme, solved as the non-negative least squares problem of its dual."""
+    n = a.shape[1]
+    if len(b) == 0:
+        return np.zeros(n)
+    scale = np.linalg.norm(a, axis=1)
+    scale[scale == 0] = 1.0
+    e = np.vstack([(a / scale[:, None]).T, (b / scale)[None]])
+    f = np.zeros(n + 1)
+    f[n] = 1.0
+    u, _ = nnls(e, f, maxiter=50 * e.shape[1])
+    r = e @ u - f
+    if np.linalg.norm(r) < LDP_INFEASIBLE or r[n] > -LDP_INFEASIBLE:
+        return None  # the constraints contradict each other
+    return -r[:n] / r[n]
 
-    Each is the least-squares fit under the end conditions; where its speed or acceleration
-    peaks over the agent's limit, the peak is held at the limit along its direction (an equality
-    constraint, i.e. the inequality made active) and the fit is solved again, until no peak is
-    over. Coefficients of x, y and z are solved together (the limits are on the norms)."""
+
+@dataclass
+class _Problem:
+    """The fit of one path with ``n`` pieces: the least-squares objective (with a snap penalty)
+    under the end conditions, reduced to the free coefficients, and the matrices its limits and
+    its deviation are measured with."""
+
+    n: int
+    knots: np.ndarray
+    nc: int
+    duration: float  # s, the trajectory's (the flown path's, with its lead and trail)
+    c_free: np.ndarray  # (3 nc,) the fit without limits
+    reduce: np.ndarray  # (3 nc, m): coefficients = c_free + reduce @ y, |y|^2 / 2 the objective's rise
+    d1: np.ndarray  # basis velocity on the limit grid
+    d2: np.ndarray  # basis acceleration on the limit grid
+    dev_basis: np.ndarray  # basis at the dense deviation times
+    dev_target: np.ndarray  # the flown polygon there (N, 3)
+
+
+def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
     tau = path.times - path.times[0]
-    duration = float(tau[-1])
+    lead, trail = ends_of(path)
+    duration = float(tau[-1]) + lead + trail
     knots = _knots(duration, n)
-    basis = _basis(knots, tau)
+    basis = _basis(knots, tau + lead)
     nc = basis.shape[1]
     gram = _snap_gram(knots, n, duration)
-    still = path.arrived or np.linalg.norm(path.positions[-1] - path.positions[-2]) < 1e-12
-    v0 = _end_velocity(path.times, path.positions, False, False)
-    # A multirotor starts from rest (the log's first step already holds its first command).
-    if path.limits.model == "multirotor":
-        v0 = np.zeros(3)
-    v1 = _end_velocity(path.times, path.positions, True, bool(still))
+    v0 = np.zeros(3) if lead else _end_velocity(path.times, path.positions, False, False)
+    v1 = _end_velocity(path.times, path.positions, True, bool(trail))
     ends = np.array([0.0, duration])
-    end_rows = np.vstack([_basis(knots, ends, 0), _basis(knots, ends, 1)])
-    end_rhs = np.vstack([path.positions[0], path.positions[-1], v0, v1])
-    eye3 = np.eye(3)
-    rows0 = np.kron(eye3, end_rows)
-    rhs0 = end_rhs.T.reshape(-1)
-    grid = np.linspace(0.0, duration, max(n * DENSE * 4, len(tau) * 4) + 1)
-    d1, d2 = _basis(knots, grid, 1), _basis(knots, grid, 2)
+    rows = [_basis(knots, ends, 0), _basis(knots, ends, 1)]
+    rhs = [np.vstack([path.positions[0], path.positions[-1]]), np.vstack([v0, v1])]
+    eq = np.kron(np.eye(3), np.vstack(rows))
+    eq_rhs = np.vstack(rhs).T.reshape(-1)
     a = basis.T @ basis
-    g = np.concatenate([basis.T @ path.positions[:, j] for j in range(3)])
     scale = np.trace(a) / max(np.trace(gram), 1e-300)
+    h = np.kron(np.eye(3), a + snap * scale * gram)
+    h += np.eye(len(h)) * 1e-12 * np.trace(h) / len(h)
+    g = np.concatenate([basis.T @ path.positions[:, j] for j in range(3)])
+    # Null space of the end conditions: coefficients = x0 + null @ z.
+    x0 = np.linalg.lstsq(eq, eq_rhs, rcond=None)[0]
+    _, s, vt = np.linalg.svd(eq)
+    null = vt[int(np.sum(s > 1e-10 * s[0])) :].T
+    hz = null.T @ h @ null
+    gz = null.T @ (g - h @ x0)
+    chol = np.linalg.cholesky(hz)  # hz = L L'
+    z_free = np.linalg.solve(hz, gz)
+    reduce = null @ np.linalg.inv(chol).T
+    grid = np.linspace(0.0, duration, max(n * DENSE * 4, len(tau) * 4) + 1)
+    t = _dense_ends(path)
+    return _Problem(
+        n, knots, nc, duration, x0 + null @ z_free, reduce,
+        _basis(knots, grid, 1), _basis(knots, grid, 2),
+        _basis(knots, t), _flown_at(tau, path.positions, t - lead),
+    )  # fmt: skip
+
+
+def _cuts(
+    basis: np.ndarray, values: np.ndarray, bound: float, target: float, offset: np.ndarray | None = None
+) -> tuple[list[np.ndarray], list[float]]:
+    """Half-spaces that keep the norms of ``values`` (rows of ``basis`` applied to the
+    coefficients, less ``offset``) at most ``target`` where their peaks are over ``bound``: at a
+    peak, the component along its own direction is held (a tangent plane of the ball)."""
+    norm = np.linalg.norm(values, axis=1)
+    if norm.max(initial=0.0) <= bound:
+        return [], []
+    peaks = _peaks(norm, target)
+    rows, rhs = [], []
+    for k in peaks[np.argsort(-norm[peaks], kind="stable")][:CUTS_PER_ROUND]:
+        u = values[k] / norm[k]
+        rows.append(-np.kron(u, basis[k]))
+        rhs.append(-target - (0.0 if offset is None else float(u @ offset[k])))
+    return rows, rhs
+
+
+def _solve(prob: _Problem, speed: float, accel: float, accuracy: float | None) -> np.ndarray | None:
+    """Coefficients (nc, 3) closest to the least-squares fit with the speed at most ``speed``, the
+    acceleration at most ``accel`` and (unless None) every dense point within ``accuracy`` of
+    the flown path, all on the dense grids; None when no such coefficients exist (or the
+    cutting planes do not settle). Each norm bound is met by tangent planes at the peaks that
+    break it, added round by round (each plane is implied by the bound, so an empty set
+    proves that none exists)."""
+    g_rows: list[np.ndarray] = []
+    g_rhs: list[float] = []
+    for _ in range(MAX_ROUNDS):
+        if g_rows:
+            gm = np.array(g_rows)
+            y = _ldp(gm @ prob.reduce, np.array(g_rhs) - gm @ prob.c_free)
+            if y is None:
+                return None
+            flat = prob.c_free + prob.reduce @ y
+        else:
+            flat = prob.c_free
+        coef = flat.reshape(3, prob.nc).T
+        new_rows: list[np.ndarray] = []
+        new_rhs: list[float] = []
+        checks = [(prob.d1, prob.d1 @ coef, speed, None), (prob.d2, prob.d2 @ coef, accel, None)]
+        if accuracy is not None:
+            checks.append(
+                (prob.dev_basis, prob.dev_basis @ coef - prob.dev_target, accuracy, prob.dev_target)
+            )
+        for basis, values, limit, offset in checks:
+            r, h = _cuts(basis, values, limit * ACCEPT, limit * LIMIT_TARGET, offset)
+            new_rows += r
+            new_rhs += h
+        if not new_rows:
+            return coef
+        g_rows += new_rows
+        g_rhs += new_rhs
+    return None
+
+
+def _fit_n(
+    path: FlownPath, prob: _Problem, accuracy: float | None, scale: float = 1.0
+) -> tuple[Poly4D, float, float, float] | None:
+    """The trajectory of ``prob`` within ``accuracy`` (None: any) and ``scale`` times the agent's
+    limits, checked on its float32 coefficients: (poly, deviation, speed, accel), or None."""
     lim = path.limits
-    for lam in ladder:
-        h = np.kron(eye3, a + lam * scale * gram)
-        rows, rhs = rows0, rhs0
-        coef = None
-        for _ in range(MAX_PINS if pin else 1):
-            flat = _kkt(h, g, rows, rhs)
-            if coef is not None and np.abs(rows @ flat - rhs).max() > PIN_RESIDUAL * max(
-                1.0, np.abs(rhs).max()
-            ):
-                break  # the pins contradict each other: keep the last consistent fit (over a limit)
-            coef = flat.reshape(3, nc).T  # (nc, 3)
-            vel, acc = d1 @ coef, d2 @ coef
-            new_rows, new_rhs = [], []
-            for deriv, values, limit in ((d1, vel, lim.speed_max), (d2, acc, lim.max_accel)):
-                norm = np.linalg.norm(values, axis=1)
-                peaks = _peaks(norm, limit * (1 - 0.1 * (1 - LIMIT_TARGET)))
-                for k in peaks[np.argsort(-norm[peaks], kind="stable")][:PINS_PER_ROUND]:
-                    u = values[k] / norm[k]
-                    new_rows.append(np.kron(u, deriv[k]))
-                    new_rhs.append(limit * LIMIT_TARGET)
-            if not new_rows:
-                break
-            rows = np.vstack([rows, *new_rows])
-            rhs = np.concatenate([rhs, new_rhs])
-        poly = _to_poly(knots, coef, n, duration)
-        dev, speed, accel = evaluate_fit(poly, path)
-        yield poly, dev, speed, accel, lam
+    coef = _solve(prob, lim.speed_max * scale, lim.max_accel * scale, accuracy)
+    if coef is None:
+        return None
+    poly = _to_poly(prob.knots, coef, prob.n, prob.duration)
+    dev, speed, accel = evaluate_fit(poly, path)
+    ok = speed <= lim.speed_max * scale and accel <= lim.max_accel * scale
+    if not ok or (accuracy is not None and dev > accuracy):
+        return None
+    return poly, dev, speed, accel
 
 
-def _within_limits(path: FlownPath, speed: float, accel: float) -> bool:
-    lim = path.limits
-    return speed <= lim.speed_max * (1 + 1e-6) and accel <= lim.max_accel * (1 + 1e-6)
+def _plain_deviation(path: FlownPath, n: int) -> float:
+    """Deviation of the least-squares fit with ``n`` pieces, limits aside."""
+    prob = _problem(path, n)
+    poly = _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, n, prob.duration)
+    return evaluate_fit(poly, path)[0]
 
 
-def _pieces_needed(path: FlownPath, accuracy: float, start: int, cap: int) -> int | None:
-    """The fewest pieces (from ``start``, at most ``cap``) whose plain least-squares fit reaches
-    ``accuracy``, by doubling and bisection; None when even ``cap`` does not."""
+def _pieces_needed(path: FlownPath, accuracy: float, cap: int) -> int | None:
+    """The fewest pieces (at most ``cap``) whose least-squares fit reaches ``accuracy``, by
+    doubling and bisection; None when even ``cap`` does not."""
 
     def reaches(n: int) -> bool:
-        return next(_fit_pieces(path, n, (SNAP_LADDER[0],), pin=False))[1] <= accuracy
+        return _plain_deviation(path, n) <= accuracy
 
-    hi = start
+    hi = 1
     while not reaches(hi):
         if hi >= cap:
             return None
         hi = min(cap, hi * 2)
-    lo = max(start // 2, 1)
+    lo = max(hi // 2, 1)
     while lo < hi:
         mid = (lo + hi) // 2
         if reaches(mid):
@@ -314,47 +419,75 @@ def _pieces_needed(path: FlownPath, accuracy: float, start: int, cap: int) -> in
     return hi
 
 
+def _smallest(feasible: Callable[[float], bool], lo: float, hi: float) -> float:
+    """The smallest value in [lo, hi] for which ``feasible`` holds (``hi`` does), to a relative
+    REFUSAL_PRECISION, by bisection."""
+    while hi - lo > REFUSAL_PRECISION * hi:
+        mid = 0.5 * (lo + hi)
+        if feasible(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
 def fit(path: FlownPath, accuracy: float, max_pieces: int = MAX_PIECES) -> Fit:
     """The trajectory with the fewest pieces within ``accuracy`` of the flown path and within the
-    agent's speed and acceleration limits. Raises :class:`LimitError` (with what would fit)
-    when ``max_pieces`` do not reach it."""
-    aid = path.limits.id
+    agent's speed and acceleration limits, on the flown timing. Raises :class:`LimitError`
+    (saying what would fit) when ``max_pieces`` do not reach it."""
+    # The least-squares fit says where to start: one held to the limits and the bound seldom
+    # needs fewer pieces.
+    first = _pieces_needed(path, accuracy, max_pieces) or max_pieces
+    tried: dict[int, tuple[Poly4D, float, float, float] | None] = {}
+
+    def attempt(n: int) -> tuple[Poly4D, float, float, float] | None:
+        if n not in tried:
+            tried[n] = _fit_n(path, _problem(path, n), accuracy)
+        return tried[n]
+
+    n, failed = first, first - 1
+    while attempt(n) is None and n < max_pieces:
+        failed, n = n, min(max_pieces, n + max(1, n // 4))
+    found = attempt(n)
+    if found is None:
+        raise LimitError(_refusal(path, accuracy, max_pieces))
+    while n - failed > 1:  # the fewest pieces between the last that failed and n
+        mid = (n + failed) // 2
+        n, failed = (mid, failed) if attempt(mid) is not None else (n, mid)
+    poly, dev, speed, accel = attempt(n)  # type: ignore[misc]
+    return Fit(poly, dev, speed, accel, accuracy, ends_of(path)[0])
+
+
+def _refusal(path: FlownPath, accuracy: float, max_pieces: int) -> str:
+    """Why ``max_pieces`` cannot fit the path at ``accuracy``, and what would: the smallest
+    deviation bound within which they keep the limits, or (when they cannot keep the limits on
+    the flown timing at all) how far the limits would have to rise."""
     lim = path.limits
-    memory = f"{max_pieces} pieces ({max_pieces * PIECE_BYTES} of the {MEMORY_BYTES}-byte trajectory memory)"
-    # A fit held to the limits is never closer than the plain least-squares fit with as many
-    # pieces: the plain fits say where to start looking, and whether the memory can do at all.
-    first = _pieces_needed(path, accuracy, 1, max_pieces * SEARCH_FACTOR)
-    over: tuple[float, float] | None = None
-    best_dev = math.inf
-    last = min(max_pieces, (first or max_pieces) + LIMIT_SEARCH)
-    for n in range((first or max_pieces + 1), last + 1):
-        for poly, dev, speed, accel, lam in _fit_pieces(path, n):
-            if not _within_limits(path, speed, accel):
-                ratio = max(speed / lim.speed_max, accel / lim.max_accel)
-                if over is None or ratio < max(over[0] / lim.speed_max, over[1] / lim.max_accel):
-                    over = (speed, accel)  # the one closest to its limits
-                continue
-            best_dev = min(best_dev, dev)
-            if dev <= accuracy:
-                return Fit(poly, dev, speed, accel, accuracy, lam)
-    if first is not None and first <= max_pieces:
-        speed, accel = over if over is not None else (math.nan, math.nan)
-        raise LimitError(
-            f"agent {aid}: no trajectory of {first} to {last} pieces within {accuracy:g} m of the flown "
-            "path keeps "
-            f"its limits (best: speed {speed:.3f} of {lim.speed_max:g} m/s, acceleration {accel:.3f} of "
-            f"{lim.max_accel:g} m/s^2)"
-        )
-    reach = min(dev for _, dev, *_ in _fit_pieces(path, max_pieces, (SNAP_LADDER[0],), pin=False))
-    need = (
-        f"{first} pieces ({first * PIECE_BYTES} bytes) would reach {accuracy:g} m"
-        if first
-        else f"not even {max_pieces * SEARCH_FACTOR} pieces reach {accuracy:g} m"
+    prob = _problem(path, max_pieces)
+    head = (
+        f"agent {lim.id}: no trajectory of at most {max_pieces} pieces ({max_pieces * PIECE_BYTES} of the "
+        f"{MEMORY_BYTES}-byte trajectory memory) keeps within {accuracy:g} m of its {path.duration:.1f} s "
+        f"flown path with speed <= {lim.speed_max:g} m/s and acceleration <= {lim.max_accel:g} m/s^2"
     )
-    loose = math.ceil(reach * 1000) / 1000
-    raise LimitError(
-        f"agent {aid}: {memory} come within {reach:.3f} m of its {path.duration:.1f} s flown path at "
-        f"best, not {accuracy:g} m; {need}: export it in parts or with --max-deviation {loose:g} or more"
+    loose = _fit_n(path, prob, None)
+    if loose is not None:
+        need = _smallest(lambda e: _fit_n(path, prob, e) is not None, accuracy, loose[1])
+        bound = math.ceil(need * 1e4) / 1e4
+        return (
+            f"{head}; {max_pieces} pieces keep them within {need:.4f} m: export it with "
+            f"--max-deviation {bound:g} or more"
+        )
+    # Not even the limits alone: the flown timing asks more of the agent than it has.
+    plain = _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, max_pieces, prob.duration)
+    dev, speed, accel = evaluate_fit(plain, path)
+    hi = max(speed / lim.speed_max, accel / lim.max_accel, 1.0) * 1.01
+    probe = max(accuracy, dev * 1.01)
+    if _fit_n(path, prob, probe, hi) is None:
+        return f"{head}; its flown timing needs {speed:.3f} m/s and {accel:.3f} m/s^2"
+    s = _smallest(lambda k: _fit_n(path, prob, probe, k) is not None, 1.0, hi)
+    return (
+        f"{head}; on its flown timing it needs limits {s:.3f} times as high "
+        f"({lim.speed_max * s:.3f} m/s, {lim.max_accel * s:.3f} m/s^2)"
     )
 
 

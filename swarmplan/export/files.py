@@ -129,7 +129,7 @@ def _crazyflie(
         lim.model,
         lim.radius,
         lim.separation,
-        path.start_time + t,
+        path.start_time - fit.lead + t,
         poly.evaluate(t)[:, :3],
         accuracy,
         poly.evaluate(t, 1)[:, :3],
@@ -139,7 +139,10 @@ def _crazyflie(
     entry = {
         "id": lim.id,
         "file": name,
+        # From rest half a step before the first recorded step: the common start is half a
+        # step before the log's t = 0 (every multirotor of a log has the same lead).
         "start_time": path.start_time,
+        "log_start_time": round(path.start_time - fit.lead, 6),
         "duration": round(poly.duration, 6),
         "pieces": poly.n_pieces,
         "bytes": poly.nbytes,
@@ -188,7 +191,8 @@ def _px4(
     files[f"{stem}.plan"] = mission.plan_text(m, its, home)
     files[f"{stem}.waypoints"] = mission.wpl_text(its, home)
     times, pos = mission.timed(m)
-    plan = Plan(lim.id, lim.model, lim.radius, lim.separation, path.start_time + times, pos, bound)
+    plan = Plan(lim.id, lim.model, lim.radius, lim.separation, path.start_time + times, pos, bound,
+                path_only=True)  # fmt: skip
     entry = {
         "id": lim.id,
         "file": f"{stem}.plan",

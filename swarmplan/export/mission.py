@@ -311,25 +311,80 @@ def plan_text(mission: Mission, its: list[Item], home: list[float]) -> str:
     return json.dumps(plan_json(mission, its, home), indent=2) + "\n"
 
 
-def corner_speeds(mission: Mission) -> np.ndarray:
-    """The speed a multirotor passes each waypoint at (W,): 0 at the first and the last (from
-    rest, to rest) and PX4's corner speed sqrt(a d tan(alpha / 2)) at the others, alpha the
-    angle between the legs there (pi straight on), a the agent's max_accel and d the acceptance
-    radius: the turn at acceleration a on the circle tangent to both legs within d of the
-    waypoint (PX4's ``computeMaxSpeedInWaypoint``)."""
+ARC_STEP = 0.05  # rad: a rounded corner is drawn as chords of this angle (drawn 3e-4 r inside)
+
+
+def corner_geometry(mission: Mission) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per waypoint (W,): the speed a multirotor passes it at, the distance from it at which its
+    turn leaves and rejoins the legs, and the turn angle (0 straight on). The turn is PX4's
+    (``computeMaxSpeedInWaypoint``): the circle tangent to both legs at the distance
+    d = the acceptance radius from the waypoint (at most half of either leg), radius
+    r = d tan(alpha / 2), flown at the speed sqrt(a r) that turns at the agent's max_accel a
+    (alpha the angle between the legs, pi straight on). The first and the last waypoint: 0
+    (from rest, to rest)."""
     wp = mission.waypoints
-    out = np.zeros(len(wp))
+    speed = np.zeros(len(wp))
+    reach = np.zeros(len(wp))
+    turn = np.zeros(len(wp))
     if len(wp) > 2:
         u = wp[:-2] - wp[1:-1]
         w = wp[2:] - wp[1:-1]
         nu, nw = np.linalg.norm(u, axis=1), np.linalg.norm(w, axis=1)
         cos = np.clip(np.einsum("ij,ij->i", u, w) / np.maximum(nu * nw, 1e-300), -1.0, 1.0)
         half = 0.5 * np.arccos(cos)
-        d = mission.acceptance_radius()
-        with np.errstate(divide="ignore", over="ignore"):
-            out[1:-1] = np.sqrt(mission.path.limits.max_accel * d * np.tan(np.minimum(half, 0.5 * np.pi)))
-        out[1:-1][(nu == 0) | (nw == 0)] = np.inf  # a repeated point is no corner
-    return out
+        d = np.minimum(mission.acceptance_radius(), 0.5 * np.minimum(nu, nw))
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            speed[1:-1] = np.sqrt(mission.path.limits.max_accel * d * np.tan(np.minimum(half, 0.5 * np.pi)))
+        reach[1:-1] = d
+        turn[1:-1] = np.pi - 2.0 * half
+        degenerate = (nu == 0) | (nw == 0)  # a repeated point is no corner
+        speed[1:-1][degenerate] = np.inf
+        reach[1:-1][degenerate] = 0.0
+        turn[1:-1][degenerate] = 0.0
+    return speed, reach, turn
+
+
+def corner_speeds(mission: Mission) -> np.ndarray:
+    """The speed a multirotor passes each waypoint at (:func:`corner_geometry`)."""
+    return corner_geometry(mission)[0]
+
+
+def rounded(mission: Mission) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The path a multirotor flies the mission on: the waypoint polyline with each corner turned
+    on its circle (:func:`corner_geometry`), as vertices (M, 3), and the speed cap of each of its
+    pieces (M - 1,): the leg's commanded speed, on a turn also its corner speed (the turn's
+    acceleration is then at most max_accel). Every point of it lies within the acceptance
+    radius of the waypoint polyline (the turn stays inside the triangle of its waypoint and its
+    two tangent points). Third, the speed at each vertex (M,): 0 at the ends and where the path
+    turns back on itself, else unbounded (inf)."""
+    wp = mission.waypoints
+    legs = mission.commanded_speeds()
+    speed, reach, turn = corner_geometry(mission)
+    verts = [wp[0]]
+    caps: list[float] = []
+    at = [0.0]
+    for i in range(1, len(wp)):
+        leg = float(legs[i - 1])
+        if i == len(wp) - 1 or turn[i] < 1e-9 or reach[i] <= 0 or turn[i] > np.pi - 1e-9:
+            verts.append(wp[i])  # straight on, a reversal (stops there) or the end
+            caps.append(leg)
+            at.append(float(speed[i]) if i < len(wp) - 1 else 0.0)
+            continue
+        e1 = (wp[i] - wp[i - 1]) / np.linalg.norm(wp[i] - wp[i - 1])
+        e2 = (wp[i + 1] - wp[i]) / np.linalg.norm(wp[i + 1] - wp[i])
+        normal = e2 - (e1 @ e2) * e1
+        normal /= np.linalg.norm(normal)
+        r = reach[i] / math.tan(0.5 * turn[i])
+        t1 = wp[i] - reach[i] * e1
+        centre = t1 + r * normal
+        theta = np.linspace(0.0, turn[i], max(2, int(np.ceil(turn[i] / ARC_STEP)) + 1))
+        arc = centre + r * (-np.cos(theta)[:, None] * normal + np.sin(theta)[:, None] * e1)
+        verts.append(t1)
+        caps.append(leg)
+        verts.extend(arc[1:])
+        caps.extend([min(leg, float(legs[i]), float(speed[i]))] * (len(arc) - 1))
+        at.extend([math.inf] * len(arc))
+    return np.array(verts), np.array(caps), np.array(at)
 
 
 def speed_profile(
@@ -350,28 +405,33 @@ def speed_profile(
 
 
 def timed(mission: Mission, step: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The mission flown on its own timing: times (K,) from its start and positions (K, 3) along
-    the waypoint polyline, every ``step`` s (default: the log's step). Each leg at its commanded
-    speed; a multirotor changes speed at its max_accel, from rest at the start to rest at the
-    end, and passes each waypoint at most at its corner speed (:func:`corner_speeds`); a fixed
-    wing is at speed throughout."""
+    """The mission flown on its own timing: times (K,) from its start and positions (K, 3), every
+    ``step`` s (default: the log's step). A multirotor flies the rounded path (:func:`rounded`)
+    at the legs' commanded speeds, changing speed at its max_accel, from rest at the start to
+    rest at the end, and turns each corner at most at its corner speed; a fixed wing flies the
+    waypoint polyline at speed throughout."""
     lim = mission.path.limits
-    wp = mission.waypoints
     if step is None:
         step = float(np.median(np.diff(mission.path.times)))
+    if mission.fixed_wing:
+        wp, caps = mission.waypoints, mission.commanded_speeds()
+        at = np.full(len(wp), math.inf)
+    else:
+        wp, caps, at = rounded(mission)
     seg = np.linalg.norm(np.diff(wp, axis=0), axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     total = float(cum[-1])
     if total <= 0:
         return np.array([0.0, step]), np.vstack([wp[0], wp[0]])
-    speeds = mission.commanded_speeds()
-    ds = max(min(step * max(float(speeds.min()), 1e-3) / 4.0, total / 4.0), 1e-4)
+    slowest = float(mission.commanded_speeds().min())
+    ds = max(min(step * max(slowest, 1e-3) / 4.0, total / 4.0), 1e-4)
     s = np.linspace(0.0, total, int(np.ceil(total / ds)) + 1)
     mid = 0.5 * (s[1:] + s[:-1])  # speeds at the middles of the fine steps: never 0 at a rest end
-    leg = np.clip(np.searchsorted(cum, mid, side="right") - 1, 0, len(seg) - 1)
-    v = np.maximum(speeds[leg], 1e-3)
+    piece = np.clip(np.searchsorted(cum, mid, side="right") - 1, 0, len(seg) - 1)
+    v = np.maximum(caps[piece], 1e-3)
     if not mission.fixed_wing:
-        v = speed_profile(mid, v, cum, corner_speeds(mission), max(lim.max_accel, 1e-9))
+        stop = np.isfinite(at)
+        v = speed_profile(mid, v, cum[stop], at[stop], max(lim.max_accel, 1e-9))
     t_s = np.concatenate([[0.0], np.cumsum(np.diff(s) / np.maximum(v, 1e-6))])
     grid = np.arange(0.0, t_s[-1] + 0.5 * step, step)
     grid[-1] = t_s[-1] if grid[-1] > t_s[-1] else grid[-1]
