@@ -49,7 +49,6 @@ def reference_forces(
     if target is not None:
         well &= np.all(np.abs(target - goal) <= 1e-9, axis=1)
     force = g.k_att * np.where(well[:, None], et, dq * et / np.maximum(dt_, _EPS)[:, None])
-    goal_dir = _unit(e)
     npow = g.goal_power
     gfac = np.minimum(1.0, dg / rho0) ** npow
     gfac_d = np.where(dg < rho0, npow * np.minimum(1.0, dg / rho0) ** (npow - 1) / rho0, 0.0)
@@ -61,7 +60,8 @@ def reference_forces(
         scale = np.ones(n) if static_scale is None else static_scale
         k = np.where(field.obstacle_moving[None, :], g.k_rep, g.k_rep * scale[:, None])
         mag = _rep(rho, rho0, k)
-        pot = np.where(rho < rho0, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
+        static_pot = ~field.obstacle_moving[None, :] & (rho < rho0)  # movers: no companion pull
+        pot = np.where(static_pot, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
         grad = field.obstacle_gradient
         force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
         # Blocked by a static body: the opposing part of its push turns along its surface,
@@ -86,18 +86,24 @@ def reference_forces(
             turn = np.where(np.all(np.abs(target - goal) <= 1e-9, axis=1), turn, 0.0)
         w = np.where(on, mag * (gfac * turn)[:, None] * block, 0.0)
         turn_force = -np.einsum("nk,nkd->nd", w, _unit(side))
-        force = force + (pot.sum(axis=1) * gfac_d)[:, None] * goal_dir
+        force = force + (pot.sum(axis=1) * gfac_d)[:, None] * _unit(et)  # along the way
         mv = field.obstacle_moving
         if mv.any():
             dp = pos[:, None, :] - field.obstacle_center[mv][None]
-            dv = vel[:, None, :] - field.obstacle_velocity[mv][None]
+            own = norm3(vel)[:, None] * _unit(et)  # its speed towards its point of attraction
+            dv = own[:, None, :] - field.obstacle_velocity[mv][None]
             a = dot3(dv, dv)
             tau = np.clip(-dot3(dp, dv) / np.maximum(a, _EPS), 0.0, g.horizon)
             sep = dp + tau[..., None] * dv
             dist = norm3(sep)
             radii = field.obstacle_radius[mv]
             rr = dist - radii[None, :] - r[:, None]
-            m = _rep(rr, rho0, g.k_rep * g.k_moving) * (1.0 - tau / (g.horizon + _EPS)) * (tau > 0)
+            urgency = (1.0 - tau / (g.horizon + _EPS)) * (tau > 0)
+            u = field.obstacle_velocity[mv][None]
+            gq = goal[:, None, :] - field.obstacle_center[mv][None]
+            tg = np.clip(dot3(gq, u) / np.maximum(dot3(u, u), _EPS), 0.0, g.horizon)
+            goal_clear = norm3(gq - tg[..., None] * u) >= radii[None, :] + 2.0 * r[:, None]
+            m = _rep(rr, rho0, g.k_rep * g.k_moving) * urgency * np.where(goal_clear, gfac[:, None], 1.0)
             right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
             direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))
@@ -109,7 +115,8 @@ def reference_forces(
     floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
     rho_g = (pos[:, 2] - h) - r
     rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 0.25 * rho0)
-    mag_g = _rep(rho_g, rho0_g, g.k_rep)
+    static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # the ground's, faces' too
+    mag_g = _rep(rho_g, rho0_g, g.k_rep * static)
     force = force + (mag_g * gfac)[:, None] * normal
 
     lo, hi = world.bounds_min, world.bounds_max
@@ -119,7 +126,7 @@ def reference_forces(
             if axis == 2 and sign > 0:
                 continue
             rho_b = sign * (pos[:, axis] - plane) - r
-            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep) * gfac
+            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep * static) * gfac
     force = force + agent_term(world, params, g, flyers, swarm, gfac)
     # The turn only where the static bodies hold the agent (the pull and their push along it
     # under a quarter of the pull).

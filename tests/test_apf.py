@@ -7,7 +7,7 @@ import pytest
 from helpers import audit, base_world, describe_failure, make_world, run_to_end
 
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
-from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.shapes import ObstacleField
 from swarmplan.world.motion import poses_at
 
@@ -175,11 +175,14 @@ def test_commanded_velocity_cruise_brake_and_surface_limit():
     v = commanded_velocity(params, idx, np.array([[5.0, 0, 0]]), near, goal, inf, up)
     # Braking distance to the goal: v <= sqrt(2 * 0.8 * amax * d) with amax 4, d 1.
     assert np.linalg.norm(v) == pytest.approx(np.sqrt(2 * 0.8 * 4 * 1.0))
-    # A surface 1.5 m ahead (normal -x): the approach speed is cut to the braking speed.
+    # A surface 1.5 m ahead (normal -x): the approach speed is cut to the speed that brakes
+    # at the agent's safety margin from it.
     v = commanded_velocity(
         params, idx, np.array([[5.0, 0, 0]]), far, goal, np.array([1.5]), np.array([[-1.0, 0, 0]])
     )
-    assert v[0, 0] == pytest.approx(np.sqrt(2 * 0.8 * 4 * 1.0))
+    margin = float(safety_margin(params.radius[0]))
+    assert 0.0 < margin <= 0.25
+    assert v[0, 0] == pytest.approx(np.sqrt(2 * 0.8 * 4 * (1.5 - margin)))
 
 
 @pytest.mark.parametrize(

@@ -220,7 +220,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         else:
             mt = max(dt, _EPS)
             fx, fy, fz = k_att * (dq * tx / mt), k_att * (dq * ty / mt), k_att * (dq * tz / mt)
-        ux, uy, uz = _unit(ex, ey, ez)
         ratio = min(1.0, dg / rho0)
         gfac = _power(ratio, npow)
         gfac_d = npow * _power(ratio, npow - 1.0) / rho0 if dg < rho0 else 0.0
@@ -243,7 +242,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     k = k_rep if moving[j] else ks
                     x = 1.0 / max(rho, 0.05) - 1.0 / rho0
                     w = k * x * gfac
-                    pot_sum += 0.5 * k * (x * x) * rho0
+                    if not moving[j]:  # the companion term's: the static bodies' potentials
+                        pot_sum += 0.5 * k * (x * x) * rho0
                     nx, ny, nz = grad[i, j, 0], grad[i, j, 1], grad[i, j, 2]
                     fx += w * nx
                     fy += w * ny
@@ -269,12 +269,23 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         bx -= wt * sx
                         by -= wt * sy
                         bz -= wt * sz
+            # The companion term (of the static bodies: a mover's push is a threat's, not a
+            # surface's beside the goal) pulls along the agent's way, towards its point of
+            # attraction (the goal itself, or the waypoint or the guide's point on the way round
+            # a body between it and the goal: pulled straight at a goal behind a body, it pinned
+            # the agent to that body's surface).
             c = pot_sum * gfac_d
-            fx, fy, fz = fx + c * ux, fy + c * uy, fz + c * uz
+            fx, fy, fz = fx + c * ax, fy + c * ay, fz + c * az
             if any_moving:
-                # Predicted closest approach to each mover, right-hand bias on collision course.
+                # Predicted closest approach to each mover, right-hand bias on collision course,
+                # with the goal factor (a goal beside a mover's way stays reachable; once there,
+                # the arrived agent's evasion keeps it out of the mover's way): the agent flies
+                # on at its speed towards its point of attraction (its way, not its last step:
+                # a prediction from its own velocity reversed the push each step it reversed
+                # the agent, which then hovered in place).
                 vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
                 speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+                vx, vy, vz = speed * ax, speed * ay, speed * az
                 for j in range(m):
                     if not moving[j] or not math.isfinite(dist[i, j]):  # inf: a mover it does not see
                         continue
@@ -292,7 +303,23 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         continue
                     spx, spy, spz = dpx + tau * dvx, dpy + tau * dvy, dpz + tau * dvz
                     d = math.sqrt(spx * spx + spy * spy + spz * spz)
-                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv) * (1.0 - tau / (horizon + _EPS))
+                    # The goal factor only for a mover whose way keeps off the goal by the
+                    # agent's body and one more (an agent waiting there is safe): one bound
+                    # through the goal keeps the agent off it at full strength.
+                    gqx, gqy, gqz = (
+                        goal[i, 0] - o_center[j, 0],
+                        goal[i, 1] - o_center[j, 1],
+                        goal[i, 2] - o_center[j, 2],
+                    )
+                    ox, oy, oz = o_vel[j, 0], o_vel[j, 1], o_vel[j, 2]
+                    tg = min(
+                        max((gqx * ox + gqy * oy + gqz * oz) / max(ox * ox + oy * oy + oz * oz, _EPS), 0.0),
+                        horizon,
+                    )
+                    gqx, gqy, gqz = gqx - tg * ox, gqy - tg * oy, gqz - tg * oz
+                    clear = math.sqrt(gqx * gqx + gqy * gqy + gqz * gqz) >= o_radius[j] + 2.0 * ri
+                    fade = gfac if clear else 1.0
+                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv) * (1.0 - tau / (horizon + _EPS)) * fade
                     if mag == 0.0:
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)
@@ -305,19 +332,22 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     fy += mag * wy
                     fz += mag * wz
 
-        # Terrain / ground, with the goal factor (a goal near the ground stays reachable).
+        # Terrain / ground, with the goal factor (a goal near the ground stays reachable),
+        # scaled as the static bodies (a guided agent's way already keeps off every static
+        # surface: the ground and the flight volume's faces as the bodies).
+        kg = k_rep * static_scale[i]
         nx, ny, nz = _unit(-gh[i, 0], -gh[i, 1], 1.0)
         rho_g = (pz - h[i]) - ri
-        mag = k_rep * (1.0 / max(rho_g, 0.05) - 1.0 / rho0_g) if rho_g < rho0_g else 0.0
+        mag = kg * (1.0 / max(rho_g, 0.05) - 1.0 / rho0_g) if rho_g < rho0_g else 0.0
         mag = mag * gfac
         fx, fy, fz = fx + mag * nx, fy + mag * ny, fz + mag * nz
 
         # Faces of the flight volume (the floor is the ground's).
-        fx += _face(px - lo[0], 1.0, ri, rb0, k_rep, gfac)
-        fx += _face(px - hi[0], -1.0, ri, rb0, k_rep, gfac)
-        fy += _face(py - lo[1], 1.0, ri, rb0, k_rep, gfac)
-        fy += _face(py - hi[1], -1.0, ri, rb0, k_rep, gfac)
-        fz += _face(pz - hi[2], -1.0, ri, rb0, k_rep, gfac)
+        fx += _face(px - lo[0], 1.0, ri, rb0, kg, gfac)
+        fx += _face(px - hi[0], -1.0, ri, rb0, kg, gfac)
+        fy += _face(py - lo[1], 1.0, ri, rb0, kg, gfac)
+        fy += _face(py - hi[1], -1.0, ri, rb0, kg, gfac)
+        fz += _face(pz - hi[2], -1.0, ri, rb0, kg, gfac)
 
         # Other agents: ellipsoidal separation, current and predicted, out to the pair's
         # stopping reach beyond the ellipsoid (at most the influence distance).
@@ -426,8 +456,9 @@ def _minimum(a, b):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def commanded_velocity(amax, cruise, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
-    """``apf.commanded_velocity_numpy`` row by row into ``out`` (its operations in its order)."""
+def commanded_velocity(amax, cruise, standoff, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
+    """``apf.commanded_velocity_numpy`` row by row into ``out`` (its operations in its order;
+    ``standoff`` the agents' safety margins)."""
     for i in range(force.shape[0]):
         a = amax[i]
         gx, gy, gz = goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1], goal[i, 2] - pos[i, 2]
@@ -438,7 +469,7 @@ def commanded_velocity(amax, cruise, force, pos, goal, clearance, normal, out): 
         vx, vy, vz = fx / f * speed, fy / f * speed, fz / f * speed
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         toward = -(vx * nx + vy * ny + vz * nz)
-        allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - 0.5, 0.0))
+        allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - standoff[i], 0.0))
         if dg < clearance[i]:  # a goal nearer than the surface: its own cap stops the agent short of it
             allowed = _maximum(allowed, speed)
         excess = _maximum(toward - allowed, 0.0)

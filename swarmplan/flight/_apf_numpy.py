@@ -71,7 +71,7 @@ def _sum_in_order(first: np.ndarray, terms: np.ndarray) -> np.ndarray:
     return np.add.accumulate(np.concatenate([first[:, None], terms], axis=1), axis=1)[:, -1]
 
 
-def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: float, k_rep: float,
+def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: float, k_rep: np.ndarray,
            gfac: np.ndarray) -> np.ndarray:  # fmt: skip
     """The kernel's ``_face`` terms, (n, 2, 3): row 0 the low faces (x, y; the floor is the
     ground's, a ``-0.0``), row 1 the high ones."""
@@ -117,21 +117,23 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     turn = hold = None
     if bodies[0].shape[1]:
         f, turn, hold = _bodies(
-            (pos, vel, ri, t, dg, to_goal, gfac, gfac_d, _unit(e), f),
+            (pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f),
             bodies,
             (k_rep, rho0, k_rep * k_moving, horizon),
             static_scale,
         )
 
-    # Terrain / ground, with the goal factor (a goal near the ground stays reachable).
+    # Terrain / ground, with the goal factor (a goal near the ground stays reachable), scaled
+    # as the static bodies; so are the faces.
+    kg = k_rep * static_scale
     normal = _unit(_vec(-gh[:, 0], -gh[:, 1], np.ones(n)))
     rho_g = (pos[:, 2] - h) - ri
-    mag = repulsion(rho_g, k_rep, rho0_g)
+    mag = repulsion(rho_g, kg, rho0_g)
     mag = mag * gfac
     f = f + mag[:, None] * normal
 
     # Faces of the flight volume (the floor is the ground's).
-    faces = _faces(pos, lo, hi, ri, rb0, k_rep, gfac)
+    faces = _faces(pos, lo, hi, ri, rb0, kg[:, None, None], gfac)
     f = f + faces[:, 0] + faces[:, 1]  # per axis: the low face, then the high one
 
     # Other agents.
@@ -155,7 +157,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
 def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
     blocking bodies and their hold."""
-    pos, vel, ri, t, dg, to_goal, gfac, gfac_d, u, f = a
+    pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f = a
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     k_rep, rho0, k_mv, horizon = g
     n, m = dist.shape
@@ -170,7 +172,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     block = _dot(ax, grad)
     terms = np.empty((n, m, 5))
     terms[..., :3] = np.where(active[..., None], w[..., None] * grad, _SKIP)
-    terms[..., 3] = np.where(active, 0.5 * k * (x * x) * rho0, _SKIP)
+    terms[..., 3] = np.where(static, 0.5 * k * (x * x) * rho0, _SKIP)
     terms[..., 4] = np.where(static, w * block, _SKIP)
     sums = _sum_in_order(np.concatenate([f, np.zeros((n, 2))], axis=1), terms)
     f, pot_sum, hold = sums[:, :3], sums[:, 3], sums[:, 4]
@@ -188,19 +190,26 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         s = _unit(np.where(square[..., None], q, s))
         wt = w * block * turn[:, None]
         bend = _sum_in_order(bend, np.where(turning[..., None], -(wt[..., None] * s), _SKIP))
-    f = f + (pot_sum * gfac_d)[:, None] * u
+    f = f + (pot_sum * gfac_d)[:, None] * ax[:, 0, :]  # along the way (the kernel's comment)
     mv = np.flatnonzero(moving)
     if len(mv):
         # Predicted closest approach to each mover, right-hand bias on collision course.
         dp = pos[:, None, :] - o_center[mv]
-        dv = vel[:, None, :] - o_vel[mv]
+        own = np.sqrt(_sq(vel))[:, None, None] * ax  # its speed towards its point of attraction
+        dv = own - o_vel[mv]
         tau = np.minimum(np.maximum(-_dot(dp, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)
         sp = dp + tau[..., None] * dv
         d = np.sqrt(_sq(sp))
         r_o = o_radius[mv]
         rho_m = d - r_o - ri[:, None]
         rep = repulsion(rho_m, k_mv, rho0)
-        mag = rep * (1.0 - tau / (horizon + _EPS))
+        gq = goal[:, None, :] - o_center[mv]  # the goal factor for movers whose way keeps off the goal
+        u = o_vel[mv]
+        tg = np.minimum(np.maximum(_dot(gq, u) / np.maximum(_sq(u), _EPS), 0.0), horizon)
+        gq = gq - tg[..., None] * u
+        clear = np.sqrt(_sq(gq)) >= r_o + 2.0 * ri[:, None]
+        fade = np.where(clear, gfac[:, None], 1.0)
+        mag = rep * (1.0 - tau / (horizon + _EPS)) * fade
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)
         way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)

@@ -4,11 +4,15 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
 - attraction to the goal, quadratic within ``quadratic_radius`` and conic beyond;
 - repulsion from obstacle *surfaces* (true signed distances and their gradients),
   ``k_rep (1/rho - 1/rho0)`` inside the influence distance ``rho0``, scaled by the
-  goal-distance factor ``min(1, d_goal/rho0)^n`` plus its companion term pulling towards
-  the goal (Ge & Cui's modified APF) so a goal beside an obstacle stays reachable;
-- the same from the terrain/ground (vertical clearance) and the faces of ``bounds``;
-- moving obstacles: repulsion at the predicted closest approach within ``horizon`` seconds
-  (relative-velocity term), with a right-hand bias that breaks head-on symmetry;
+  goal-distance factor ``min(1, d_goal/rho0)^n`` plus its companion term (of the static
+  bodies) pulling along the agent's way, towards its point of attraction (Ge & Cui's
+  modified APF) so a goal beside an obstacle stays reachable; a guided agent's static
+  repulsion is scaled by ``Flyers.static_scale``;
+- the same from the terrain/ground (vertical clearance) and the faces of ``bounds``, scaled
+  as the static bodies;
+- moving obstacles: repulsion at the predicted closest approach within ``horizon`` seconds,
+  the agent flying on at its speed towards its point of attraction (relative-velocity term,
+  with the goal factor), with a right-hand bias that breaks head-on symmetry;
 - other agents: an ellipsoidal ``separation`` metric, current and predicted, whose range
   comes from the two agents' own motion, not from ``influence``: beyond the distance both
   need to brake from the speeds they fly at (plus a step of reaction each,
@@ -53,7 +57,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.flight import _apf_numpy
-from swarmplan.flight.kinematics import AgentParams
+from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import field_numpy_calls, kernel_module, read_only, use_numpy_twin
 
@@ -274,9 +278,9 @@ def commanded_velocity(
         return commanded_velocity_numpy(params, idx, force, pos, goal, clearance, clearance_dir)
     f = np.ascontiguousarray
     return kernel_module("swarmplan.flight._apf_kernel").commanded_velocity(
-        params.max_accel[idx], params.speed_cruise[idx], f(force, dtype=float), f(pos, dtype=float),
-        f(goal, dtype=float), f(clearance, dtype=float), f(clearance_dir, dtype=float),
-        np.empty((len(idx), 3)),
+        params.max_accel[idx], params.speed_cruise[idx], safety_margin(params.radius[idx]),
+        f(force, dtype=float), f(pos, dtype=float), f(goal, dtype=float), f(clearance, dtype=float),
+        f(clearance_dir, dtype=float), np.empty((len(idx), 3)),
     )  # fmt: skip
 
 
@@ -291,9 +295,11 @@ def commanded_velocity_numpy(
 ) -> np.ndarray:
     """Velocity command from the force: cruise speed along it, slowed to brake before the goal
     and before the nearest surface ahead (``clearance`` (n,), outward normal ``clearance_dir``).
-    Towards a surface the speed is what still brakes 0.5 m short of it, unless the goal is nearer
-    than the surface: the goal's cap (a stop within 0.8 of the goal's distance) then keeps the
-    agent off the surface, and a goal closer to a wall or the ground than 0.5 m stays reachable."""
+    Towards a surface the speed is what still brakes at the agent's safety margin from it
+    (``kinematics.safety_margin``: a fifth of its radius, at most 0.25 m, the room the safety
+    filter keeps from every surface; a stand-off in metres held lab drones a body length and
+    more short of goals beside a wall), unless the goal is nearer than the surface: the goal's
+    cap (a stop within 0.8 of the goal's distance) then keeps the agent off the surface."""
     amax = params.max_accel[idx]
     speed = params.speed_cruise[idx].copy()
     dg = norm3(goal - pos)
@@ -301,7 +307,7 @@ def commanded_velocity_numpy(
     v = _unit(force) * speed[:, None]
     # Component towards the nearest surface may not exceed what can still be braked.
     toward = -dot3(v, clearance_dir)
-    allowed = np.sqrt(2.0 * 0.8 * amax * np.maximum(clearance - 0.5, 0.0))
+    allowed = np.sqrt(2.0 * 0.8 * amax * np.maximum(clearance - safety_margin(params.radius[idx]), 0.0))
     allowed = np.where(dg < clearance, np.maximum(allowed, speed), allowed)
     excess = np.maximum(toward - allowed, 0.0)
     return v + excess[:, None] * clearance_dir

@@ -19,7 +19,7 @@ BOUNDS_RANGE = 10.0
 """m: the longest range of the repulsion of the flight volume's faces."""
 
 
-def repulsion(rho: np.ndarray, k: float, rho0: float) -> np.ndarray:
+def repulsion(rho: np.ndarray, k: float | np.ndarray, rho0: float) -> np.ndarray:
     """The push at clearance ``rho``: ``k (1 / max(rho, NEAREST) - 1 / rho0)`` within the range
     ``rho0``, nothing beyond."""
     return np.where(rho < rho0, k * (1.0 / np.maximum(rho, NEAREST) - 1.0 / rho0), 0.0)

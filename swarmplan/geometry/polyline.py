@@ -203,7 +203,10 @@ def curvature_with_cusps(
     turn, where the velocity passed through zero and no turn radius applies. Report cusps as
     a count and the max curvature over the other vertices (``curv[~cusp]``). With
     ``with_steps``, also the mean length of the two steps at each vertex (the curvature's
-    denominator).
+    denominator) and the vertex's *pace*: the two steps' mean speed over the one of steps that
+    each took a single sampling interval, divided by the intervals the turn took (each step
+    spans as many intervals as points were dropped in it, plus one); 1 where no point was
+    dropped, below 1 for a slow agent whose short steps were merged.
     """
     pts = np.asarray(points, dtype=float)
     pts = pts[np.isfinite(pts).all(axis=1)]
@@ -217,7 +220,7 @@ def curvature_with_cusps(
 
 
 def _no_vertices(with_steps: bool) -> tuple[np.ndarray, ...]:
-    return (np.zeros(0), np.zeros(0, dtype=bool)) + ((np.zeros(0),) if with_steps else ())
+    return (np.zeros(0), np.zeros(0, dtype=bool)) + ((np.zeros(0), np.zeros(0)) if with_steps else ())
 
 
 def _vertex_curvature(
@@ -230,16 +233,24 @@ def _vertex_curvature(
     la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
     angle = np.arccos(np.clip(np.einsum("ij,ij->i", a, b) / (la * lb), -1.0, 1.0))
     mean = 0.5 * (la + lb)
-    stopped = (np.diff(kept)[1:] > 1) & (angle > 1e-9)
+    gaps = np.diff(kept)
+    stopped = (gaps[1:] > 1) & (angle > 1e-9)
     out = (angle / mean, (angle > math.radians(cusp_angle_deg)) | stopped)
-    return out + ((mean,) if with_steps else ())
+    if not with_steps:
+        return out
+    # A step over k sampling intervals (slow points dropped) is flown at its length over k
+    # intervals, and its turn takes the two steps' mean number of intervals: 1 when neither
+    # dropped a point.
+    k1, k2 = gaps[:-1], gaps[1:]
+    pace = (la / k1 + lb / k2) / (la + lb) / (0.5 * (k1 + k2))
+    return out + (mean, pace)
 
 
 def curvatures_with_cusps(
     paths: np.ndarray, min_step: float = 1e-3, cusp_angle_deg: float = CUSP_ANGLE_DEG
-) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """:func:`curvature_with_cusps` (``with_steps``) of every path of ``paths`` (T, N, 3): per
-    path (the second axis) its (curvature, cusp mask, mean step), the same arrays.
+    path (the second axis) its (curvature, cusp mask, mean step, pace), the same arrays.
 
     The points to keep are chosen for all paths at once, step by step (a point is kept when it
     lies ``min_step`` or more from its path's last kept one); a distance within rounding of

@@ -155,28 +155,33 @@ class RunMetrics:
         pts = np.array([p[i] for p in self.positions])
         return max_lateral_accel(*curvature_with_cusps(pts, with_steps=True), dt)
 
-    def curvatures(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """Per agent: (curvature, cusp mask, mean step) of its flown path, all agents at once
+    def curvatures(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per agent: (curvature, cusp mask, mean step, pace) of its flown path, all agents at once
         (``curvatures_with_cusps``; what :meth:`curvature` gives, with the steps)."""
         if not self.positions:
             return curvatures_with_cusps(np.zeros((0, len(self.ids), 3)))
         return curvatures_with_cusps(np.array(self.positions))
 
 
-def max_lateral_accel(curv: np.ndarray, cusp: np.ndarray, mean_step: np.ndarray, dt: float) -> float:
+def max_lateral_accel(
+    curv: np.ndarray, cusp: np.ndarray, mean_step: np.ndarray, pace: np.ndarray, dt: float
+) -> float:
     """The largest lateral acceleration over the non-cusp vertices (0 without any)."""
     if not (~cusp).any():
         return 0.0
-    return float(lateral_accel_of(curv[~cusp], mean_step[~cusp], dt).max())
+    return float(lateral_accel_of(curv[~cusp], mean_step[~cusp], pace[~cusp], dt).max())
 
 
-def lateral_accel_of(curv: np.ndarray, mean_step: np.ndarray, dt: float) -> np.ndarray:
+def lateral_accel_of(curv: np.ndarray, mean_step: np.ndarray, pace: np.ndarray, dt: float) -> np.ndarray:
     """Lateral acceleration at vertices of curvature ``curv`` between steps of mean length
     ``mean_step``: ``v^2 kappa`` in its one-step form ``2 v sin(theta / 2) / dt``, the velocity
     change a turn by ``theta = kappa * mean_step`` at speed ``v = mean_step / dt`` needs (the
-    two agree for small turns; for a sharp turn at low speed ``v^2 kappa`` overstates it)."""
+    two agree for small turns; for a sharp turn at low speed ``v^2 kappa`` overstates it),
+    times the vertex's ``pace`` (``polyline.curvature_with_cusps``): a slow agent's steps merged
+    over several sampling intervals are flown at their length over those intervals, and turn
+    over their mean count of them."""
     v = mean_step / dt
-    return 2.0 * v * np.sin(0.5 * curv * mean_step) / dt
+    return 2.0 * v * np.sin(0.5 * curv * mean_step) / dt * pace
 
 
 def curvature_limit(agent) -> float:
@@ -214,11 +219,11 @@ def summary_report(
     m = metrics
     n = len(m.ids)
     agents = []
-    for i, (aid, (all_curv, cusp, mean_step)) in enumerate(zip(m.ids, m.curvatures(), strict=True)):
+    for i, (aid, (all_curv, cusp, mean_step, pace)) in enumerate(zip(m.ids, m.curvatures(), strict=True)):
         curv = all_curv[~cusp]  # a cusp has no finite curvature: counted apart
         agent = world.agents[i]
         max_curv = float(curv.max()) if len(curv) else 0.0
-        lateral = max_lateral_accel(all_curv, cusp, mean_step, world.dt)
+        lateral = max_lateral_accel(all_curv, cusp, mean_step, pace, world.dt)
         violation = curvature_violation(agent, max_curv, lateral)
         start = world.agents[i].start
         straight = float(np.linalg.norm(world.agents[i].goal - start))
