@@ -215,9 +215,9 @@ def test_the_seed_reaches_the_escape_optimizer(tmp_path):
 
 def test_the_command_line_seed_reaches_the_escape_optimizer(tmp_path):
     """``run --seed N`` (not the world's seed) seeds the escape optimizer: the first escape's
-    history differs between seeds 1 and 2 of the shipped corridor world with the parked mover
-    (on the bare field: the guide goes round the parked mover without an escape)."""
-    world = ROOT / "worlds" / "scenarios" / "parked_mover_corridor.yaml"
+    history differs between seeds 1 and 2 of the shipped U-shaped pocket (on the bare field:
+    the guide leads the agent out of the pocket without an escape)."""
+    world = ROOT / "worlds" / "traps" / "u_pocket.yaml"
     first = {}
     for seed in (1, 2):
         log = tmp_path / f"cli{seed}.mcap"
