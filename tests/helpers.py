@@ -309,3 +309,37 @@ def without_guide(world: World) -> World:
     from swarmplan.io.runner import apply_overrides
 
     return apply_overrides(world, None, None, guide=False)
+
+
+def random_shapes(rng: np.random.Generator, count: int) -> list[dict[str, Any]]:
+    """``count`` world-format obstacles cycling through sphere, box, cylinder and capsule, placed
+    and sized at random in a 40 m cube; two in three rotated."""
+    raw = []
+    for k in range(count):
+        shape = ("sphere", "box", "cylinder", "capsule")[k % 4]
+        o: dict[str, Any] = {"id": f"o{k}", "shape": shape, "position": rng.uniform(-20, 20, 3).tolist()}
+        if shape == "box":
+            o["size"] = rng.uniform(1, 8, 3).tolist()
+        else:
+            o["radius"] = float(rng.uniform(0.5, 4))
+        if shape in ("cylinder", "capsule"):
+            o["height"] = float(rng.uniform(1, 10))
+        if k % 3:  # a third keep the identity
+            o["rotation"] = rng.uniform(-90, 90, 3).tolist()
+        raw.append(o)
+    return raw
+
+
+def fly_metered(sim: Any, seed: int) -> Any:
+    """``sim`` reset with ``seed`` and flown to its end; its ``ContactMeter`` (contacts measured
+    from the positions, swept between steps)."""
+    from swarmplan.bench.swarm_runs import ContactMeter
+
+    sim.reset(seed=seed)
+    meter = ContactMeter(sim.params.radius)
+    while True:
+        p0 = sim.state.position.copy()
+        r = sim.step()
+        meter.update(p0, sim.state.position)
+        if r.terminated or r.truncated:
+            return meter

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import make_world, run_to_end
+from helpers import fly_metered, make_world, run_to_end
 
 from swarmplan.bench import swarm_scenarios as S
 from swarmplan.bench.swarm_runs import ContactMeter
@@ -56,14 +56,7 @@ def test_a_pair_inside_its_margins_parts_and_flies_home(radius, tmp_path):
 
 def _fly(raw: dict, seed: int) -> tuple[Simulation, ContactMeter]:
     sim = Simulation(make_world(raw))
-    sim.reset(seed=seed)
-    meter = ContactMeter(sim.params.radius)
-    while True:
-        p0 = sim.state.position.copy()
-        r = sim.step()
-        meter.update(p0, sim.state.position)
-        if r.terminated or r.truncated:
-            return sim, meter
+    return sim, fly_metered(sim, seed)
 
 
 @pytest.mark.parametrize("seed", [0, 1])

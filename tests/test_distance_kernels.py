@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import base_world, make_world, obstacles_of
+from helpers import base_world, make_world, obstacles_of, random_shapes
 
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
@@ -27,19 +27,7 @@ def _obstacles(raw):
 
 
 def _random_obstacles(rng, k=16):
-    raw = []
-    for j in range(k):
-        shape = ("sphere", "box", "cylinder", "capsule")[j % 4]
-        o = {"id": f"o{j}", "shape": shape, "position": rng.uniform(-20, 20, 3).tolist()}
-        if shape == "box":
-            o["size"] = rng.uniform(1, 8, 3).tolist()
-        else:
-            o["radius"] = float(rng.uniform(0.5, 4))
-        if shape in ("cylinder", "capsule"):
-            o["height"] = float(rng.uniform(1, 10))
-        if j % 3:  # a third keep the identity
-            o["rotation"] = rng.uniform(-90, 90, 3).tolist()
-        raw.append(o)
+    raw = random_shapes(rng, k)
     # A cube without rotation: at its centre every face is as near (ties, the first one wins).
     raw.append({"id": "cube", "shape": "box", "size": [4.0, 4.0, 4.0], "position": [3.0, -2.0, 1.0]})
     return raw

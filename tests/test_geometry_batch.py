@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import obstacles_of
+from helpers import obstacles_of, random_shapes
 
 from swarmplan.geometry.batch import ShapeBatch
 from swarmplan.geometry.shapes import ObstacleField
@@ -44,19 +44,7 @@ def test_exact_distances_on_unit_shapes():
 @pytest.mark.parametrize("seed", range(3))
 def test_batched_equals_per_shape_with_rotations_and_centers(seed):
     rng = np.random.default_rng(seed)
-    raw = []
-    for k in range(12):
-        shape = ("sphere", "box", "cylinder", "capsule")[k % 4]
-        o = {"id": f"o{k}", "shape": shape, "position": rng.uniform(-20, 20, 3).tolist()}
-        if shape == "box":
-            o["size"] = rng.uniform(1, 8, 3).tolist()
-        else:
-            o["radius"] = float(rng.uniform(0.5, 4))
-        if shape in ("cylinder", "capsule"):
-            o["height"] = float(rng.uniform(1, 10))
-        if k % 3:
-            o["rotation"] = rng.uniform(-90, 90, 3).tolist()
-        raw.append(o)
+    raw = random_shapes(rng, 12)
     obs = _obstacles(raw)
     pts = rng.uniform(-30, 30, (500, 3))
     field, batch = ObstacleField(obs), ShapeBatch(obs)

@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pytest
+from helpers import fly_metered
 
 from swarmplan.bench import swarm_scenarios as S
 from swarmplan.bench.swarm_runs import ContactMeter
@@ -19,14 +20,7 @@ def fly(name: str, agents: int, planner: str, seed: int = 0) -> tuple[Simulation
     """Fly a scenario to its end; contacts measured from positions, swept between steps."""
     world = S.scenario_world(name, agents, seed)
     sim = Simulation(world, planner=planner)
-    sim.reset(seed=seed)
-    meter = ContactMeter(sim.params.radius)
-    while True:
-        p0 = sim.state.position.copy()
-        r = sim.step()
-        meter.update(p0, sim.state.position)
-        if r.terminated or r.truncated:
-            return sim, meter
+    return sim, fly_metered(sim, seed)
 
 
 def _assert_home(name: str, agents: int, planner: str) -> None:
