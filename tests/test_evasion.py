@@ -63,7 +63,7 @@ def test_an_arrived_agent_dodges_a_mover_through_its_goal_and_comes_back(tmp_pat
         assert away.max() > 2.0  # it did move out of the way (the truck is 2 m + its 1 m body)
         assert away.max() < 6.0  # and no farther than the dodge needs (4 m from the truck's axis)
         assert away[-1] <= 1.0 + 1e-9
-        # Its clearance to the truck: the dodge keeps EVADE_MARGIN (0.5 m) and more.
+        # Its clearance to the truck: the dodge keeps clear of it by half its body and more.
         assert a["min_obstacle_clearance"] > 0.5, a
         problems, _notes, stats = audit(log)
         assert not problems, problems

@@ -81,14 +81,15 @@ def _lines(guide: G.StaticGuide, rng: np.random.Generator, n: int) -> tuple[np.n
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     v = np.cross(u, rng.normal(size=(k, 3)))
     v /= np.linalg.norm(v, axis=1, keepdims=True)
-    far = b.prm[sphere, 0] + guide.radius + G.SQUEEZE + rng.choice([-1e-3, -1e-7, 0.0, 1e-7, 1e-3], (k, 1))
+    shift = rng.choice([-1e-3, -1e-7, 0.0, 1e-7, 1e-3], (k, 1))
+    far = b.prm[sphere, 0] + guide.radius + guide.squeeze + shift
     mid = b.position[sphere] + far * u
     start[k : 2 * k], end[k : 2 * k] = mid - 8.0 * v, mid + 8.0 * v
     end[2 * k : 3 * k] = start[2 * k : 3 * k]  # length 0
     start[3 * k : 4 * k] = rng.uniform(lo, hi, (k, 3))  # out of the grid
     end[3 * k : 4 * k] = start[3 * k : 4 * k] + 200.0 * u
     # level, at the height over flat ground that decides (+- a few units in the last place)
-    h = guide.floor + guide.radius + G.SQUEEZE
+    h = guide.floor + guide.radius + guide.squeeze
     start[4 * k : 5 * k] = rng.uniform(lo, hi, (k, 3))
     start[4 * k : 5 * k, 2] = h + rng.integers(-3, 4, k) * np.spacing(h)
     end[4 * k : 5 * k] = start[4 * k : 5 * k] + 30.0 * (u * [1.0, 1.0, 0.0])
@@ -176,8 +177,8 @@ def test_world_size_and_numba_choose_the_implementation(monkeypatch: pytest.Monk
     few, many = _guide(False, COMPILED_FROM - 1), _guide(False, COMPILED_FROM)
     hilly = _guide(True, 2)  # terrain: the distances to the bodies apart
     # through the box; beside the ball, within reach of its surface (samples measured)
-    start = np.array([[5.0, 5.0, 20.0], [40.0, 25.0 + 5.0 + few.radius + 0.8, 30.0]])
-    end = np.array([[95.0, 95.0, 20.0], [80.0, 25.0 + 5.0 + few.radius + 0.8, 30.0]])
+    start = np.array([[5.0, 5.0, 20.0], [40.0, 25.0 + 5.0 + few.radius + few.squeeze - 0.2, 30.0]])
+    end = np.array([[95.0, 95.0, 20.0], [80.0, 25.0 + 5.0 + few.radius + few.squeeze - 0.2, 30.0]])
     idx, goal = np.arange(2), end.copy()
 
     def step(guide: G.StaticGuide) -> set[tuple[str, str]]:

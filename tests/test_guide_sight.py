@@ -91,7 +91,7 @@ def _every_sample(guide: G.StaticGuide, start: np.ndarray, end: np.ndarray, leng
     p = (start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]).reshape(-1, 3)
     exact = p[:, 2] - guide.world.terrain_height(p[:, :2]) - guide.floor
     exact = np.minimum(exact, guide._batch.distance(p).min(axis=1)) - guide.radius
-    return (exact < G.SQUEEZE).reshape(len(start), -1).any(axis=1)
+    return (exact < guide.squeeze).reshape(len(start), -1).any(axis=1)
 
 
 def _passed_over(guide: G.StaticGuide, start: np.ndarray, end: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -104,7 +104,7 @@ def _passed_over(guide: G.StaticGuide, start: np.ndarray, end: np.ndarray, lengt
 
 def test_gap_is_the_distance_between_cell_boxes() -> None:
     guide = _guide(False, 1)
-    near = (guide.clear < guide.half_diagonal + G.SQUEEZE) & (guide.ijk[:, 2] >= guide._low)
+    near = (guide.clear < guide.half_diagonal + guide.squeeze) & (guide.ijk[:, 2] >= guide._low)
     rng = np.random.default_rng(3)
     for c in rng.integers(0, guide.n_cells, 40):
         d = np.maximum(np.abs(guide.ijk[near] - guide.ijk[c]) - 1, 0) * guide.cell
@@ -114,7 +114,7 @@ def test_gap_is_the_distance_between_cell_boxes() -> None:
 def test_the_compiled_gap_table_is_numpys_shift_by_shift() -> None:
     for terrain, agents in ((False, 1), (True, 64)):
         guide = _guide(terrain, agents)
-        near = (guide.clear < guide.half_diagonal + G.SQUEEZE) & (guide.ijk[:, 2] >= guide._low)
+        near = (guide.clear < guide.half_diagonal + guide.squeeze) & (guide.ijk[:, 2] >= guide._low)
         sq = np.where(near.reshape(tuple(int(v) for v in guide.shape)), 0.0, np.inf)
         for axis in range(3):
             src = np.moveaxis(sq, axis, 0)
@@ -148,7 +148,7 @@ def test_the_compiled_reach_table_is_numpys() -> None:
     for k in range(len(guide.bodies)):
         c, e = b.position[k], guide._box_half[k]
         gap = np.maximum(np.maximum(lo - (c + e), (c - e) - hi), 0.0)
-        expect = np.sqrt((gap * gap).sum(axis=1)) < guide.radius + G.SQUEEZE + 1e-6
+        expect = np.sqrt((gap * gap).sum(axis=1)) < guide.radius + guide.squeeze + 1e-6
         np.testing.assert_array_equal(guide._reach[:, k], expect)
         assert expect.any() and not expect.all()  # cells round the body, and cells away from it
 

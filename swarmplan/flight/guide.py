@@ -22,13 +22,19 @@ repulsion and hold two agents at a doorway's corners (16 agents, pure APF, seeds
 arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
 
 Each step an agent whose straight line to its goal runs through a static obstacle or within
-``SQUEEZE`` of one (inflated by its radius; checked every ``RECHECK`` steps, a fifth of the
+``squeeze`` of one (inflated by its radius; checked every ``RECHECK`` steps, a fifth of the
 agents each step) is *guided*: its point of attraction is the cell ``HOPS`` legs ahead on its
 way (or the goal itself once that is within reach), and its static repulsion is scaled by
 ``REPULSION``. Every other agent flies at its goal as before: in worlds without static obstacles
 nothing is built and nothing changes. An agent following a segment or a global route keeps it,
 and fixed wings (which cannot fly a way that hugs corners) are never guided: they fly clear
 lines, and at the farthest point of their ways in sight, by ``swarmplan.flight.sight``.
+The squeeze is ``SQUEEZE`` of the field's influence ``rho0`` (which follows from the agents' speed
+and braking, ``schema.default_influence``): at that clearance a surface pushes with
+``k_rep (1 / rho - 1 / rho0) = 4.5 k_att rho0`` at the default ``k_rep = 0.5 k_att rho0^2``,
+several times the strongest pull (``k_att rho0``, at the quadratic radius), so the bare field
+cannot hold the agent on such a line; 1 m for a 5 m/s multirotor braking at 5 m/s^2 (10 m of
+influence), 6 cm for a 0.8 m/s lab drone braking at 2 m/s^2.
 The searches, the line-of-sight samples and the points on the ways run compiled
 (``_guide_kernel``), each giving the numbers its numpy or scipy formulation gives (the same
 ways, the same decisions); below swarm size, while numba is not loaded, the per-step calls run
@@ -67,7 +73,7 @@ RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
 SAME = 0.0  # the same per way already through it in the same direction (see the docstring)
 ONCOMING = 3.0  # extra cost per metre through a cell near surfaces per way through it the other way
 HOPS = 2  # legs ahead on the way: the point of attraction
-SQUEEZE = 1.0  # m: a line closer than this to a surface (beyond the radius) counts as blocked
+SQUEEZE = 0.1  # of the influence: a line closer to a surface (beyond the radius) counts as blocked
 REPULSION = 0.15  # scale of a guided agent's static repulsion (half a segment's)
 AHEAD = 2.0  # influence distances of a line an unguided agent checks in flight
 RECHECK = 5  # steps between two line-of-sight checks of an agent
@@ -95,6 +101,7 @@ class StaticGuide:
         # to fly (their escapes are Dubins chains from their own pose).
         self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
         self.ahead = AHEAD * float(world.planner_config.apf.influence)
+        self.squeeze = SQUEEZE * float(world.planner_config.apf.influence)
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
         size = np.maximum(hi - lo, 1e-6)
         # A way per goal: with many agents the grid is coarser (the searches cost in proportion).
@@ -125,7 +132,9 @@ class StaticGuide:
         self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
         # The grid's tables: those of an earlier guide of the same geometry when at hand (the
         # same bits), else computed here and kept for the next.
-        self._grid_key = guide_cache.grid_key(_constants(), world, self.bodies, self.radius, self.floor)
+        self._grid_key = guide_cache.grid_key(
+            {**_constants(), "squeeze": self.squeeze}, world, self.bodies, self.radius, self.floor
+        )
         tables = guide_cache.load_grid(self._grid_key, self.n_cells)
         if tables is None:
             self._compute_grid()
@@ -198,11 +207,11 @@ class StaticGuide:
 
     def _sight_bounds(self) -> None:
         """Tables that let :meth:`blocked` pass over a line no sample of which can land in a
-        cell near a surface (``self.clear`` below ``half_diagonal + SQUEEZE``, the first test a
+        cell near a surface (``self.clear`` below ``half_diagonal + squeeze``, the first test a
         sample must fail to count): ``_low`` is the lowest layer of cells (z index) above every
         such cell near the ground, and ``_gap[c]`` the distance from cell c's box to the nearest
         box of a cell near a surface in the layers from ``_low`` up (inf when there is none)."""
-        limit = self.half_diagonal + SQUEEZE
+        limit = self.half_diagonal + self.squeeze
         c = self.centres
         ground = (c[:, 2] - self.world.terrain_height(c[:, :2]) - self.floor) - self.radius < limit
         self._low = int(self.ijk[ground, 2].max()) + 1 if ground.any() else 0
@@ -262,7 +271,7 @@ class StaticGuide:
 
     def blocked(self, start: np.ndarray, end: np.ndarray, reach: np.ndarray | float = np.inf) -> np.ndarray:
         """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
-        obstacle or the ground inflated by the largest agent radius plus ``SQUEEZE`` (exact
+        obstacle or the ground inflated by the largest agent radius plus ``squeeze`` (exact
         distances where the grid cannot tell): also a line through a narrow gap, in front of
         which the full repulsion of its two edges outweighs the pull (a local minimum).
 
@@ -294,7 +303,7 @@ class StaticGuide:
             t = self._t[samples] = np.linspace(0.0, 1.0, samples + 1)
         kernels = self._kernels()
         grid = (self.lo, self.cell, self.shape, self.centres, self.clear, self._body_clear)
-        levels = (self.half_diagonal + SQUEEZE, SQUEEZE, self.floor, self.radius)
+        levels = (self.half_diagonal + self.squeeze, self.squeeze, self.floor, self.radius)
         row, p, cells, out = kernels.sight_samples(
             start, end, length, t, grid, levels, self._gap, self._gap_max, self._low, self._lipschitz
         )
@@ -303,21 +312,22 @@ class StaticGuide:
         if self._lipschitz:  # flat ground, primitive bodies: all in one compiled pass
             b = self._batch
             bodies = (self._reach, b.position, b.rotation, b.code, b.prm)
-            kernels.flat_hits(p, row, cells, out, self._inner, bodies, (SQUEEZE, self.floor, self.radius))
+            levels = (self.squeeze, self.floor, self.radius)
+            kernels.flat_hits(p, row, cells, out, self._inner, bodies, levels)
             return out
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
         if self.bodies:
             exact = np.minimum(exact, self._body_distance(p, cells))
         exact -= self.radius
-        out[row[exact < SQUEEZE]] = True
+        out[row[exact < self.squeeze]] = True
         return out
 
     def _reach_bodies(self) -> None:
         """``_reach[c, b]``: whether a point of cell c's box lies within the largest agent radius
-        plus ``SQUEEZE`` (and a margin for rounding) of body b's bounding box (in the world's
+        plus ``squeeze`` (and a margin for rounding) of body b's bounding box (in the world's
         axes). A body's exact distance is at least that to its bounding box, so a sample in the
         grid measures only the bodies its cell reaches: the others cannot bring it under
-        ``SQUEEZE``. With a mesh among the bodies (distances from a grid) every cell reaches all."""
+        ``squeeze``. With a mesh among the bodies (distances from a grid) every cell reaches all."""
         b = self._batch
         self._box_half = None
         if not self.bodies or b.meshes:
@@ -329,21 +339,21 @@ class StaticGuide:
         local[b.code == 3, 2] += b.prm[b.code == 3, 0]  # capsule: and its caps
         # local = (p - centre) @ R, so |p - centre| <= |R| @ local half-extents per world axis.
         self._box_half = np.einsum("mjk,mk->mj", np.abs(b.rotation), local) * (1.0 + 1e-9) + 1e-9
-        # The distance between the boxes below the radius plus ``SQUEEZE``, compiled.
+        # The distance between the boxes below the radius plus ``squeeze``, compiled.
         self._reach = kernel_module("swarmplan.flight._guide_kernel").reach_table(
             self.lo,
             self.cell,
             self.shape,
             b.position - self._box_half,
             b.position + self._box_half,
-            self.radius + SQUEEZE + 1e-6,
+            self.radius + self.squeeze + 1e-6,
         )
 
     def _body_distance(self, p: np.ndarray, cells: np.ndarray) -> np.ndarray:
         """The distance from each of the samples ``p`` in ``cells`` to the nearest body its cell
         reaches (inf when none does), each computed as ``ShapeBatch.distance`` computes it (the
         same operations on the same numbers, element by element: the same bits): below
-        ``SQUEEZE`` plus the radius exactly where the nearest of all bodies is. A sample outside
+        ``squeeze`` plus the radius exactly where the nearest of all bodies is. A sample outside
         the grid (its cell's box does not hold it) is measured against every body."""
         b = self._batch
         every = bool(((p < self._inner[0]) | (p > self._inner[1])).any())

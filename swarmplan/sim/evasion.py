@@ -5,14 +5,14 @@ back to its goal once the threat has passed.
 The threat test, per watching agent ``i`` (a multirotor that has arrived) and per mover or
 flying agent ``j``: ``j`` goes on at its current velocity, ``i`` is held where it is; the
 closest approach of ``j`` within the horizon ``H_i``, to ``i`` or to ``i``'s goal, is closer than
-``need = R_j + r_i + EVADE_MARGIN`` (a mover: its bounding radius; an agent: its radius, and
-twice its safety margin, ``kinematics.safety_margin``, instead of ``EVADE_MARGIN``). ``H_i`` is the
+``need = R_j + r_i + m`` (a mover: its bounding radius, and ``m`` the world's :func:`evade_margin`;
+an agent: its radius, and ``m`` twice its safety margin, ``kinematics.safety_margin``). ``H_i`` is the
 time ``i`` needs to move sideways by the largest such ``need`` from rest at ``max_accel`` and
 ``speed.max``, times ``HORIZON_FACTOR``, plus three steps of reaction.
 
 The evasion command moves the agent across the threat's path, away from its point of closest
 approach (head-on: to the threat's right, or to the side away from the nearest surface), until
-the predicted miss is ``need + EVADE_MARGIN``, at a speed it can stop from before it gets there;
+the predicted miss is ``need`` plus its own radius, at a speed it can stop from before it gets there;
 clear of every threat where it is, it hovers there until its goal is clear as well. The braking
 margin and the safety filter check the evasion step as every other step (static obstacles,
 bounds, other agents). While away the agent flies in mode ``apf`` (a log's audit covers it as
@@ -42,8 +42,17 @@ from swarmplan.runtime.compiled import kernel_module, use_compiled_checks
 from swarmplan.sim.metrics import NOTHING, Tally
 from swarmplan.sim.modes import mode_in, mode_table
 
-EVADE_MARGIN = 0.5
-"""Metres an arrived agent keeps between its body and a mover's bounding sphere."""
+
+def evade_margin(params: AgentParams) -> float:
+    """The room an arrived agent keeps between its body and a mover's bounding sphere: the
+    largest multirotor's radius, one body of air (the gap the default separation keeps between
+    two agents). It scales with the agents: 0.5 m for 0.5 m multirotors, 5 cm for 5 cm lab
+    drones, for which a margin in metres would send them off their goals whenever anything
+    moved in a small room. One value per world (a mover's need does not depend on which
+    agents watch it)."""
+    stops = ~np.asarray(params.fixed_wing, dtype=bool)
+    return float(np.max(params.radius[stops], initial=0.0))
+
 
 CLEAR_BY = 1.0
 """Radii of its own body by which a threat must clear an agent away from its goal (evading, or
@@ -160,6 +169,7 @@ class Evasion:
         self._compiled = use_compiled_checks(n, bool(params.fixed_wing.any()))
         self._stop_speed = np.where(params.fixed_wing, np.inf, params.max_accel * dt)
         self._stop_speed.setflags(write=False)
+        self._margin = evade_margin(params)
 
     def reset(self) -> None:
         self.watching[:] = False
@@ -191,7 +201,7 @@ class Evasion:
         c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
         u = np.concatenate((velocities, s.velocity[flying]))
         agent_margin = p.radius[flying] + 2.0 * safety_margin(p.radius[flying])
-        margin = np.concatenate([radii + EVADE_MARGIN, agent_margin])
+        margin = np.concatenate([radii + self._margin, agent_margin])
         who = np.concatenate([np.full(len(centres), -1), flying])
         if not len(c):
             return NOTHING
@@ -276,7 +286,7 @@ class Evasion:
                 e = e / np.linalg.norm(e)
                 if np.isfinite(clearance) and e @ normal < 0.0:
                     e = -e
-            move += e * max(need[j] + EVADE_MARGIN - gap, 0.0)
+            move += e * max(need[j] + p.radius[i] - gap, 0.0)
         if np.isfinite(clearance) and move @ normal < 0.0 and clearance < np.linalg.norm(move) + p.radius[i]:
             move -= (move @ normal) * normal  # slide along the nearest surface, never into it
         length = float(np.linalg.norm(move))

@@ -64,7 +64,7 @@ PLANNER_DEFAULTS: dict[str, Any] = {
         "horizon": 4.0,  # s: how far ahead moving obstacles and agents are predicted
         "guide": True,  # lead agents round static obstacles (swarmplan.flight.guide); false: bare field
     },
-    "stuck": {"window": 3.0, "min_progress": 0.5},
+    "stuck": {"window": 3.0, "min_progress": None},  # m; left out: from the agents (default_stuck_progress)
     "optimizer": {"name": "rscdwoa", "population": 30, "iterations": 100, "params": {}},
     "smoothing": {"enabled": True},
 }
@@ -79,6 +79,16 @@ def default_influence(agents: list[AgentSpec]) -> float:
     that hold agents away from their goals."""
     need = [max(2.0 * a.speed_cruise**2 / max(a.max_accel, 1e-9), 2.0 * a.radius) for a in agents]
     return max(need, default=40.0)
+
+
+def default_stuck_progress(agents: list[AgentSpec]) -> float:
+    """``planner.stuck.min_progress`` left out: the smallest agent's radius. An agent that gets
+    less than one of its radii closer to its goal in the stuck window is held. The bar scales
+    with the agents as their flight does: 0.5 m for the dense swarms' 0.5 m multirotors, 5 cm
+    for a 5 cm lab drone (which flies a few centimetres a step: under a bar in metres it would
+    be found stuck all through a slow final approach). The smallest agent sets it for all: no
+    agent is found stuck while it still moves at its own scale."""
+    return min((a.radius for a in agents), default=0.5)
 
 
 def default_field_scale(apf: dict[str, Any]) -> None:
@@ -506,6 +516,8 @@ def parse_world(
     if planner["apf"]["influence"] is None:
         planner["apf"]["influence"] = default_influence(agents)
     default_field_scale(planner["apf"])
+    if planner["stuck"]["min_progress"] is None:
+        planner["stuck"]["min_progress"] = default_stuck_progress(agents)
     if sim["goal_tolerance"] is None:
         sim["goal_tolerance"] = default_goal_tolerance(agents)
     _check_planner_sections(c, planner)
