@@ -89,18 +89,20 @@ def reference_forces(
         force = force + (pot.sum(axis=1) * gfac_d)[:, None] * _unit(et)  # along the way
         mv = field.obstacle_moving
         if mv.any():
-            dp = pos[:, None, :] - field.obstacle_center[mv][None]
+            radii = field.obstacle_radius[mv]  # core radii: from the ball inside at the nearest point
+            seen = np.isfinite(field.obstacle_distance[:, mv])
+            core = np.where(seen, field.obstacle_distance[:, mv], 0.0) + radii[None, :]
+            dp = field.obstacle_gradient[:, mv] * core[..., None]
             own = norm3(vel)[:, None] * _unit(et)  # its speed towards its point of attraction
             dv = own[:, None, :] - field.obstacle_velocity[mv][None]
             a = dot3(dv, dv)
             tau = np.clip(-dot3(dp, dv) / np.maximum(a, _EPS), 0.0, g.horizon)
             sep = dp + tau[..., None] * dv
             dist = norm3(sep)
-            radii = field.obstacle_radius[mv]
             rr = dist - radii[None, :] - r[:, None]
             urgency = (1.0 - tau / (g.horizon + _EPS)) * (tau > 0)
             u = field.obstacle_velocity[mv][None]
-            gq = goal[:, None, :] - field.obstacle_center[mv][None]
+            gq = goal[:, None, :] - (pos[:, None, :] - dp)
             tg = np.clip(dot3(gq, u) / np.maximum(dot3(u, u), _EPS), 0.0, g.horizon)
             goal_clear = norm3(gq - tg[..., None] * u) >= radii[None, :] + 2.0 * r[:, None]
             m = _rep(rr, rho0, g.k_rep * g.k_moving) * urgency * np.where(goal_clear, gfac[:, None], 1.0)

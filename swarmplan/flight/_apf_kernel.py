@@ -289,7 +289,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 for j in range(m):
                     if not moving[j] or not math.isfinite(dist[i, j]):  # inf: a mover it does not see
                         continue
-                    dpx, dpy, dpz = px - o_center[j, 0], py - o_center[j, 1], pz - o_center[j, 2]
+                    # From the centre of the ball of the core radius inside the mover at its surface
+                    # point nearest the agent (Obstacle.core_radius), carried at its velocity.
+                    core = dist[i, j] + o_radius[j]
+                    dpx, dpy, dpz = grad[i, j, 0] * core, grad[i, j, 1] * core, grad[i, j, 2] * core
                     # A mover farther than the influence, both radii and both motions over the
                     # horizon (plus a metre against rounding) cannot come within the influence
                     # (its term is zero): dismissed before the divisions.
@@ -306,11 +309,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     # The goal factor only for a mover whose way keeps off the goal by the
                     # agent's body and one more (an agent waiting there is safe): one bound
                     # through the goal keeps the agent off it at full strength.
-                    gqx, gqy, gqz = (
-                        goal[i, 0] - o_center[j, 0],
-                        goal[i, 1] - o_center[j, 1],
-                        goal[i, 2] - o_center[j, 2],
-                    )
+                    gqx, gqy, gqz = goal[i, 0] - (px - dpx), goal[i, 1] - (py - dpy), goal[i, 2] - (pz - dpz)
                     ox, oy, oz = o_vel[j, 0], o_vel[j, 1], o_vel[j, 2]
                     tg = min(
                         max((gqx * ox + gqy * oy + gqz * oz) / max(ox * ox + oy * oy + oz * oz, _EPS), 0.0),

@@ -194,7 +194,8 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     mv = np.flatnonzero(moving)
     if len(mv):
         # Predicted closest approach to each mover, right-hand bias on collision course.
-        dp = pos[:, None, :] - o_center[mv]
+        core = np.where(np.isfinite(dist[:, mv]), dist[:, mv], 0.0) + o_radius[mv]
+        dp = grad[:, mv] * core[..., None]  # from the ball inside the mover (the kernel's comment)
         own = np.sqrt(_sq(vel))[:, None, None] * ax  # its speed towards its point of attraction
         dv = own - o_vel[mv]
         tau = np.minimum(np.maximum(-_dot(dp, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)
@@ -203,7 +204,8 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         r_o = o_radius[mv]
         rho_m = d - r_o - ri[:, None]
         rep = repulsion(rho_m, k_mv, rho0)
-        gq = goal[:, None, :] - o_center[mv]  # the goal factor for movers whose way keeps off the goal
+        # The goal factor for movers whose way keeps off the goal.
+        gq = goal[:, None, :] - (pos[:, None, :] - dp)
         u = o_vel[mv]
         tg = np.minimum(np.maximum(_dot(gq, u) / np.maximum(_sq(u), _EPS), 0.0), horizon)
         gq = gq - tg[..., None] * u
