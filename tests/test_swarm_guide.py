@@ -35,13 +35,19 @@ def test_no_static_obstacle_no_guide():
 
 
 def test_a_line_through_the_wall_is_blocked_and_through_the_gap_or_open_field_not():
-    world = wall_world()
+    world = wall_world(planner={"apf": {"influence": 10.0}})  # the squeeze: a tenth of it, 1 m
+    assert G.make_guide(world, AgentParams.from_world(world)).squeeze == 1.0
     guide = G.make_guide(world, AgentParams.from_world(world))
     start = np.array([[30.0, 20.0, 20.0], [30.0, 50.0, 20.0], [10.0, 20.0, 20.0], [30.0, 46.0, 20.0]])
     end = np.array([[70.0, 20.0, 20.0], [70.0, 50.0, 20.0], [40.0, 20.0, 20.0], [70.0, 46.0, 20.0]])
     # through the wall; through the gap's middle (3 m from each edge, 2 m clearance); short of
     # the wall; through the gap 1 m from its edge (0 m clearance beyond the radius: a squeeze)
     assert guide.blocked(start, end).tolist() == [True, False, False, True]
+    # An 8 m/s agent braking at 4 m/s^2 (32 m of influence: a 3.2 m squeeze) is guided through
+    # the gap's middle too: the edges' push holds its bare field in front of the wall.
+    fast = G.make_guide(wall_world(), AgentParams.from_world(wall_world()))
+    assert fast.squeeze == pytest.approx(3.2)
+    assert fast.blocked(start, end).tolist() == [True, True, False, True]
 
 
 def test_behind_the_wall_the_way_leads_to_the_gap_and_through_it():
