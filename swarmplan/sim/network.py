@@ -396,10 +396,13 @@ class Network:
                     self.oldest_sum + float(acted.sum()),
                     self.oldest_count + len(acted),
                 )
-        agents = [
-            {"id": a, "age": None if math.isnan(x) else round(float(x), 6)}
-            for a, x in zip(ids, age.tolist(), strict=True)
-        ]
+        # Each distinct age rounded once (a swarm's ages take a few values: whole steps).
+        ok = ~np.isnan(age)
+        distinct, which = np.unique(age[ok], return_inverse=True)
+        text = np.array([None, *(round(x, 6) for x in distinct.tolist())], dtype=object)
+        code = np.zeros(self.n, dtype=np.int64)
+        code[ok] = which.ravel() + 1
+        agents = [{"id": a, "age": x} for a, x in zip(ids, text[code].tolist(), strict=True)]
         return {"t": round(t, 9), "agents": agents, **self.counts()}
 
     def counts(self) -> dict[str, int]:
