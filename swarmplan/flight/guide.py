@@ -29,8 +29,8 @@ way (or the goal itself once that is within reach), and its static repulsion is 
 nothing is built and nothing changes. An agent following a segment or a global route keeps it,
 and fixed wings (which cannot fly a way that hugs corners) are never guided: they fly clear
 lines, and at the farthest point of their ways in sight, by ``swarmplan.flight.sight``.
-The squeeze is ``SQUEEZE`` of the field's influence ``rho0`` (which follows from the agents' speed
-and braking, ``schema.default_influence``): at that clearance a surface pushes with
+The squeeze (:func:`squeeze`) is ``SQUEEZE`` of the field's influence ``rho0`` (which follows
+from the agents' speed and braking, ``schema.default_influence``): at that clearance a surface pushes with
 ``k_rep (1 / rho - 1 / rho0) = 4.5 k_att rho0`` at the default ``k_rep = 0.5 k_att rho0^2``,
 several times the strongest pull (``k_att rho0``, at the quadratic radius), so the bare field
 cannot hold the agent on such a line; 1 m for a 5 m/s multirotor braking at 5 m/s^2 (10 m of
@@ -81,6 +81,17 @@ _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacl
 _GRID_ARRAYS = ("clear", "_body_clear", "_gap", "_reach")  # a grid's tables besides its graph
 
 
+def squeeze(world: World, params: AgentParams) -> float:
+    """The clearance beyond the radius below which a line counts as blocked (the module's
+    description): ``SQUEEZE`` of the field's influence where multirotors fly (the field they
+    are guided by); where fixed wings fly, at least their radius (one body of air): they fly
+    clear lines without the static bodies' push, kept off the bodies by their turn-ahead
+    guard."""
+    fixed = np.asarray(params.fixed_wing, dtype=bool)
+    need = SQUEEZE * float(world.planner_config.apf.influence) if (~fixed).any() else 0.0
+    return max(need, float(np.max(params.radius[fixed], initial=0.0)))
+
+
 def _constants() -> dict[str, float]:
     """This module's constants (tests may change them: a changed constant is another key)."""
     return {k: v for k, v in globals().items() if k.isupper() and isinstance(v, int | float)}
@@ -101,7 +112,7 @@ class StaticGuide:
         # to fly (their escapes are Dubins chains from their own pose).
         self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
         self.ahead = AHEAD * float(world.planner_config.apf.influence)
-        self.squeeze = SQUEEZE * float(world.planner_config.apf.influence)
+        self.squeeze = squeeze(world, params)
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
         size = np.maximum(hi - lo, 1e-6)
         # A way per goal: with many agents the grid is coarser (the searches cost in proportion).
