@@ -402,16 +402,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     pair_reach = reach_now[i]
                 elif can_stop[ia] and can_stop[b]:
                     pair_reach = min(pair_reach, reach_now[i] + reach_all[rb])
-                if can_stop[ia] and can_stop[b]:
-                    # Only the speed at which they close on each other needs that room: the
-                    # reach times the closing speed's share of their two speeds (apf.py's
-                    # "other agents"). Two agents flying side by side keep their separation only.
-                    sa = math.sqrt(vx * vx + vy * vy + vz * vz)
-                    ux, uy, uz = all_vel[rb, 0], all_vel[rb, 1], all_vel[rb, 2]
-                    sb = math.sqrt(ux * ux + uy * uy + uz * uz)
-                    dn = math.sqrt(dpx * dpx + dpy * dpy + dpz * dpz)
-                    closing = max(-(dpx * dwx + dpy * dwy + dpz * dwz), 0.0) / max(dn, _EPS)
-                    pair_reach = pair_reach * min(closing / max(sa + sb, _EPS), 1.0)
                 e0 = 1.0 + min(pair_reach, rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz

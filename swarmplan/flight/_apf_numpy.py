@@ -267,12 +267,6 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
         reach_now[rows],
         np.where(stop_a & stop_b, np.minimum(pair_reach, reach_now[rows] + reach_all[rows, b]), pair_reach),
     )
-    # Only the closing speed's share of the two speeds needs that room (the kernel's comment).
-    other_vel = all_vel[rows, b] if all_vel.ndim == 3 else all_vel[b]
-    sa, sb = np.sqrt(_sq(vel[rows])), np.sqrt(_sq(other_vel))
-    closing = np.maximum(-_dot(dp, dw), 0.0) / np.maximum(np.sqrt(_sq(dp)), _EPS)
-    share = np.minimum(closing / np.maximum(sa + sb, _EPS), 1.0)
-    pair_reach = np.where(stop_a & stop_b, pair_reach * share, pair_reach)
     e0 = 1.0 + np.minimum(pair_reach, rho0) / np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
     dv = dw / c
     tau = np.minimum(np.maximum(-_dot(q, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)

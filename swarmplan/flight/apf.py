@@ -21,15 +21,9 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   that sit close together. A range sized for cruise held agents slowed by a crowd off each
   other as if they still flew at cruise: the antipodal sphere's centre (64 agents) jammed,
   paths 1.29x the straight line, the last arrival 18 s where ORCA-3D's is 12 s (13 s with
-  the current speeds). Two multirotors need that room only for the speed at which they close
-  on each other: the range is scaled by their closing speed's share of their two speeds (at
-  least the distance both need to stop closing, at equal accelerations; side by side, or
-  moving apart, they keep their separation ellipsoid only). With the range of their whole
-  speeds, agents converging on the antipodal sphere's centre held each other off as if head-on:
-  64 agents asking a 2 m separation flew paths 1.33x the straight line, last arrival 18.9 s
-  against ORCA-3D's 12.6 s (1.03x and 12.1 s with the closing share). Fixed wings keep the
-  range from cruise (they cannot slow down to stop). Head-on and many-way encounters are
-  broken by a right-hand component about the relative velocity;
+  the current speeds). Fixed wings keep the range from cruise (they cannot slow down to
+  stop). Head-on and many-way encounters are broken by a right-hand component about the
+  relative velocity;
 - parked agents: at rest they need no room to brake, so their repulsion reaches only the
   flyer's own braking distance at its current speed (:func:`reach_at_speed`) beyond the
   separation ellipsoid: a slow agent closing in on its goal beside a parked neighbour is
