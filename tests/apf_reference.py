@@ -168,14 +168,9 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     both = ~params.fixed_wing[idx][:, None] & ~params.fixed_wing[None, :]
     pair = np.where(both, np.minimum(pair, now[:, None] + now_b[None, :]), pair)
     pair = np.where(stops, now[:, None], pair)
-    # Two multirotors: braking room for their closing speed's share, a step of reaction each.
-    dvw = vel[:, None, :] - all_vel[None, :, :]
-    closing = np.maximum(-dot3(dp, dvw), 0.0) / np.maximum(norm3(dp), _EPS)
-    share = np.minimum(closing / np.maximum(speed[:, None] + other[None, :], _EPS), 1.0)
-    react = (speed[:, None] + other[None, :]) * world.dt
-    pair = np.where(both, np.minimum(pair, np.maximum(pair * share, react)), pair)
     e0 = 1.0 + np.minimum(pair, g.influence) / scale.max(axis=-1)
     mag = np.where(others & (e < e0), g.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    dvw = vel[:, None, :] - all_vel[None, :, :]
     dv = dvw / scale
     a = dot3(dv, dv)
     tau = np.clip(-dot3(q, dv) / np.maximum(a, _EPS), 0.0, g.horizon)

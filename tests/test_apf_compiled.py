@@ -13,7 +13,7 @@ import pytest
 from apf_reference import agent_term, reference_forces
 from helpers import base_world, make_world
 
-from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, stopping_reach
+from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, current_reach, stopping_reach
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.shapes import ObstacleField
 
@@ -178,52 +178,31 @@ def _no_obstacles(n: int) -> FieldInputs:
     )
 
 
-def _edge(f, lo: float, hi: float) -> float:
-    """The root of ``f``, increasing on [lo, hi], by bisection to the last bit."""
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if mid in (lo, hi):
-            break
-        lo, hi = (mid, hi) if f(mid) < 0.0 else (lo, mid)
-    return lo
-
-
 def test_pairs_at_the_edge_of_the_reach():
-    """The predicted term of a pair acts while the closest approach of the centres within the
-    horizon lies inside the pair's reach beyond the separation ellipsoid: both stopping reaches
-    times the closing speed's share of their two speeds, at least a step of reaction each.
-    Pairs straddling that edge, with the closest approach inside the horizon and at its end:
-    the ones just inside contribute, the ones just outside do not, and the compiled field equals
-    the reference on all of them."""
+    """The compiled agent term dismisses a pair when the closest approach of the centres within
+    the horizon is beyond the reach. Pairs straddling that edge, with the closest approach
+    inside the horizon and at its end: the ones just inside contribute, the ones just outside
+    do not, and the compiled field equals the reference on all of them."""
     world = _world(False)
     gains = world.planner_config.apf
     params = AgentParams.from_world(world)
-    # One kind, semi-axes (6, 6, 4): along y the scaled and unscaled distances agree. The range
-    # is both stopping reaches (22 m) times the closing share, capped at the influence (20 m).
+    # One kind, semi-axes (6, 6, 4): along y the scaled and unscaled distances agree, so the
+    # bound is tight there: the predicted term starts at |dy| = 6 e0, e0 = 1 + range / 6 with
+    # the range both stopping reaches (22 m), capped at the influence (20 m).
     reach = stopping_reach(params, world.dt)[0]
-    assert 2.0 * reach == pytest.approx(22.0) and gains.influence == 20.0
+    edge = 6.0 + min(2.0 * reach, gains.influence)
+    assert edge == 26.0
+    assert current_reach(params, stopping_reach(params, world.dt), gains.influence) == pytest.approx(edge)
     horizon = gains.horizon
-    # At cruise (10 m/s) each agent's braking from its speed is its whole stopping reach.
+    # At cruise (10 m/s) each agent's braking from its speed is its whole stopping reach, so
+    # the pair's range is the full one the bound is built from (slower pairs reach less).
     v = 10.0
-
-    def edge_of(dx: float, dx_end: float) -> float:
-        """The lateral offset at which the closest approach (x gap ``dx_end`` then) is at the
-        edge, the pair ``dx`` apart along x now, closing at 2 v along x."""
-
-        def outside(lat: float) -> float:
-            share = dx / np.hypot(dx, lat)  # closing speed over the sum of the two speeds
-            own = min(2.0 * reach, max(2.0 * reach * share, 2.0 * v * world.dt))
-            return np.hypot(dx_end, lat) - 6.0 - min(own, gains.influence)
-
-        return _edge(outside, 0.0, 100.0)
-
-    pairs = []  # (x gap, lateral offset, speed per agent)
-    for rel in (1 - 1e-6, 1 + 1e-6):
-        lateral = edge_of(v * horizon, 0.0) * rel  # closest approach at half the horizon
-        pairs.append((v * horizon, lateral, v))
+    pairs = []  # (x gap, lateral offset, closing speed per agent)
+    for rel in (1 - 1e-6, 1 + 1e-6, 1 - 1e-12, 1 + 1e-12):
+        pairs.append((v * horizon, edge * rel, v))  # closest approach at half the horizon
         # Still approaching at the horizon: closest at its end, gap 10 m along x then.
         gap_end = 10.0
-        pairs.append((gap_end + 2 * v * horizon, edge_of(gap_end + 2 * v * horizon, gap_end) * rel, v))
+        pairs.append((gap_end + 2 * v * horizon, np.sqrt((edge * rel) ** 2 - gap_end**2), v))
     pos, vel = [], []
     for k, (gap, lateral, v) in enumerate(pairs):
         row = 100.0 * k  # rows far apart: agents of different rows never interact
@@ -241,30 +220,27 @@ def test_pairs_at_the_edge_of_the_reach():
     flyers, swarm = Flyers(idx, pos, vel, goal), Swarm(pos, vel)
     term = agent_term(world, sub, gains, flyers, swarm)
     inside = np.abs(term[0::2]).sum(axis=1) > 0
-    np.testing.assert_array_equal(inside, [True, True, False, False])
+    np.testing.assert_array_equal(inside, [True, True, False, False, True, True, False, False])
     got = ApfField(world, sub).forces(flyers, _no_obstacles(n), swarm)
     _close(got, reference_forces(world, sub, flyers, _no_obstacles(n), swarm))
 
 
 def test_range_of_agents_comes_from_their_stopping_distance():
-    """Two agents along an axis closing on each other along it repel each other out to the
-    separation semi-axis plus both braking distances from their speeds (v dt + v^2 / 2a each),
-    at most both stopping reaches from cruise, and not a metre beyond (the influence distance,
-    longer here, only caps it); flying side by side across it (no closing speed) out to a step
-    of reaction each (v dt), at rest only inside the separation ellipsoid. A horizon of a
-    microsecond leaves the predicted term where the current one is."""
-    world = _world(False, {"influence": 100.0, "horizon": 1e-6})
+    """Two agents along an axis, both flying across it (no closing speed: only the current
+    term acts), repel each other out to the separation semi-axis plus both braking distances
+    from their speeds (v dt + v^2 / 2a each), at most both stopping reaches from cruise, and
+    not a metre beyond (the influence distance, longer here, only caps it); at rest, only
+    inside the separation ellipsoid."""
+    world = _world(False, {"influence": 100.0})
     params = AgentParams.from_world(world)
     reach = 10.0 * world.dt + 10.0**2 / (2 * 5.0)  # cruise 10 m/s, 5 m/s^2
     np.testing.assert_allclose(stopping_reach(params, world.dt), reach)
     field = ApfField(world, params)
     for speed, own in ((10.0, reach), (12.0, reach), (4.0, 0.4 + 1.6), (0.0, 0.0)):
-        for closing in (True, False):
-            react = min(2.0 * speed * world.dt, 2.0 * own)
-            edge = 6.0 + (2.0 * own if closing else react)  # semi-axis along y: separation 4 + radii 2
-            vel = np.array([[0.0, speed, 0.0], [0.0, -speed, 0.0]] if closing else [[speed, 0.0, 0.0]] * 2)
-            for gap, repels in ((edge - 1e-3, True), (edge + 1e-3, False)):
-                pos = np.array([[150.0, 100.0, 40.0], [150.0, 100.0 + gap, 40.0]])
-                flyers = Flyers(np.array([0]), pos[:1], vel[:1], pos[:1])  # at its goal: no pull
-                f = field.forces(flyers, _no_obstacles(1), Swarm(pos, vel))
-                assert (f[0, 1] < 0) == repels and (f[0, 1] == 0) != repels, (speed, closing, gap)
+        edge = 6.0 + 2.0 * own  # semi-axis along y: separation 4 + radii 2
+        vel = np.array([[speed, 0.0, 0.0], [speed, 0.0, 0.0]])
+        for gap, repels in ((edge - 1e-3, True), (edge + 1e-3, False)):
+            pos = np.array([[150.0, 100.0, 40.0], [150.0, 100.0 + gap, 40.0]])
+            flyers = Flyers(np.array([0]), pos[:1], vel[:1], pos[:1])  # at its goal: no pull
+            f = field.forces(flyers, _no_obstacles(1), Swarm(pos, vel))
+            assert (f[0, 1] < 0) == repels and (f[0, 1] == 0) != repels, (speed, gap)

@@ -155,8 +155,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     a view (flyers, agents) of row numbers into those arrays, -1 for an agent the flyer does
     not know of (each flyer's own beliefs of the others), or an empty (0, 0) view: row b is
     agent b for every flyer;
-    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon,
-    dt);
+    ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
     ``window``: test only the agents within each flyer's window along x (the same forces)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
@@ -164,7 +163,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     h, gh, h_goal, terrain_floor, lo, hi = ground
     all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
     viewed = view.shape[0] > 0
-    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon, step = gains
+    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
     m = dist.shape[1]
     n_all = view.shape[1] if viewed else all_pos.shape[0]
@@ -403,17 +402,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     pair_reach = reach_now[i]
                 elif can_stop[ia] and can_stop[b]:
                     pair_reach = min(pair_reach, reach_now[i] + reach_all[rb])
-                if can_stop[ia] and can_stop[b]:
-                    # Braking room only for the speed at which they close on each other (the
-                    # reach times the closing speed's share of their two speeds), and each
-                    # one's step of reaction at its speed whatever they do (apf.py).
-                    sa = math.sqrt(vx * vx + vy * vy + vz * vz)
-                    ux, uy, uz = all_vel[rb, 0], all_vel[rb, 1], all_vel[rb, 2]
-                    sb = math.sqrt(ux * ux + uy * uy + uz * uz)
-                    dn = math.sqrt(dpx * dpx + dpy * dpy + dpz * dpz)
-                    closing = max(-(dpx * dwx + dpy * dwy + dpz * dwz), 0.0) / max(dn, _EPS)
-                    share = min(closing / max(sa + sb, _EPS), 1.0)
-                    pair_reach = min(pair_reach, max(pair_reach * share, (sa + sb) * step))
                 e0 = 1.0 + min(pair_reach, rho0) / max(cx, cy, cz)
                 dvx, dvy, dvz = dwx / cx, dwy / cy, dwz / cz
                 aa = dvx * dvx + dvy * dvy + dvz * dvz

@@ -91,7 +91,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon, step = gains
+    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
     if n == 0:
         return
@@ -143,7 +143,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             (pos, vel, idx, reach_now, dg, gfac),
             (radius, separation, stop_reach, can_stop),
             swarm,
-            (reach, rho0, k_agent, horizon, step),
+            (reach, rho0, k_agent, horizon),
         )
         f = _sum_in_order(f, terms)
     # The turn along blocking bodies only where they hold the agent.
@@ -226,7 +226,7 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     pos, vel, idx, reach_now, dg, gfac = fl
     radius, separation, stop_reach, can_stop = agents
     all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
-    reach, rho0, k_agent, horizon, step = g
+    reach, rho0, k_agent, horizon = g
     n = len(pos)
     if view.shape[0]:  # each flyer's own rows (an unknown agent: its own row, and not tested)
         known = view >= 0
@@ -267,13 +267,6 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
         reach_now[rows],
         np.where(stop_a & stop_b, np.minimum(pair_reach, reach_now[rows] + reach_all[rows, b]), pair_reach),
     )
-    # The closing speed's share of the braking room, a step of reaction each (the kernel's comment).
-    other_vel = all_vel[rows, b] if all_vel.ndim == 3 else all_vel[b]
-    sa, sb = np.sqrt(_sq(vel[rows])), np.sqrt(_sq(other_vel))
-    closing = np.maximum(-_dot(dp, dw), 0.0) / np.maximum(np.sqrt(_sq(dp)), _EPS)
-    share = np.minimum(closing / np.maximum(sa + sb, _EPS), 1.0)
-    scaled = np.minimum(pair_reach, np.maximum(pair_reach * share, (sa + sb) * step))
-    pair_reach = np.where(stop_a & stop_b, scaled, pair_reach)
     e0 = 1.0 + np.minimum(pair_reach, rho0) / np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
     dv = dw / c
     tau = np.minimum(np.maximum(-_dot(q, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)

@@ -21,15 +21,9 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   that sit close together. A range sized for cruise held agents slowed by a crowd off each
   other as if they still flew at cruise: the antipodal sphere's centre (64 agents) jammed,
   paths 1.29x the straight line, the last arrival 18 s where ORCA-3D's is 12 s (13 s with
-  the current speeds). Two multirotors need braking room only for the speed at which they
-  close on each other: the range is the reach times their closing speed's share of their two
-  speeds (at least what both need to stop closing, at equal accelerations), and at least a
-  step of reaction each at its speed (v dt) whatever their headings. With the braking room of
-  their whole speeds, agents converging on the antipodal sphere held each other off as if
-  head-on and kept more than the separation they asked: 64 asking 2 m flew 1.33x the
-  straight line, last arrival 18.9 s against ORCA-3D's 12.6 s. Fixed wings keep the range
-  from cruise (they cannot slow down to stop). Head-on and many-way encounters are broken by
-  a right-hand component about the relative velocity;
+  the current speeds). Fixed wings keep the range from cruise (they cannot slow down to
+  stop). Head-on and many-way encounters are broken by a right-hand component about the
+  relative velocity;
 - parked agents: at rest they need no room to brake, so their repulsion reaches only the
   flyer's own braking distance at its current speed (:func:`reach_at_speed`) beyond the
   separation ellipsoid: a slow agent closing in on its goal beside a parked neighbour is
@@ -176,7 +170,6 @@ class ApfField:
             g.goal_power,
             g.k_moving,
             g.horizon,
-            world.dt,
         )
         self._gains = tuple(float(v) for v in gains_)
         self._floor = float(world.terrain_clearance) if world.peaks else 0.0
