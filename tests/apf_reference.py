@@ -89,7 +89,7 @@ def reference_forces(
         force = force + (pot.sum(axis=1) * gfac_d)[:, None] * _unit(et)  # along the way
         mv = field.obstacle_moving
         if mv.any():
-            radii = field.obstacle_radius[mv]  # core radii: from the ball inside at the nearest point
+            radii = field.obstacle_radius[mv]  # from the ball of this radius touching it at the nearest point
             seen = np.isfinite(field.obstacle_distance[:, mv])
             core = np.where(seen, field.obstacle_distance[:, mv], 0.0) + radii[None, :]
             dp = field.obstacle_gradient[:, mv] * core[..., None]

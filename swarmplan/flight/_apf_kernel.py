@@ -289,8 +289,11 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 for j in range(m):
                     if not moving[j] or not math.isfinite(dist[i, j]):  # inf: a mover it does not see
                         continue
-                    # From the centre of the ball of the core radius inside the mover at its surface
-                    # point nearest the agent (Obstacle.core_radius), carried at its velocity.
+                    # From the centre of a ball of the mover's bounding radius that touches it at
+                    # its surface point nearest the agent from behind, carried at its velocity:
+                    # the push starts from the true clearance, along the surface's normal (a
+                    # bounding sphere about a tall pole's middle pushed an agent flying by its
+                    # foot down into the ground), and the ball is as large as the body.
                     core = dist[i, j] + o_radius[j]
                     dpx, dpy, dpz = grad[i, j, 0] * core, grad[i, j, 1] * core, grad[i, j, 2] * core
                     # A mover farther than the influence, both radii and both motions over the

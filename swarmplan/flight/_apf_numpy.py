@@ -195,7 +195,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     if len(mv):
         # Predicted closest approach to each mover, right-hand bias on collision course.
         core = np.where(np.isfinite(dist[:, mv]), dist[:, mv], 0.0) + o_radius[mv]
-        dp = grad[:, mv] * core[..., None]  # from the ball inside the mover (the kernel's comment)
+        dp = grad[:, mv] * core[..., None]  # from the ball touching the mover (the kernel's comment)
         own = np.sqrt(_sq(vel))[:, None, None] * ax  # its speed towards its point of attraction
         dv = own - o_vel[mv]
         tau = np.minimum(np.maximum(-_dot(dp, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)

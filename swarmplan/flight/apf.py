@@ -82,7 +82,7 @@ class FieldInputs:
     obstacle_gradient: np.ndarray  # (N, M, 3)
     obstacle_velocity: np.ndarray  # (M, 3), zero for static obstacles
     obstacle_moving: np.ndarray  # (M,) bool
-    obstacle_radius: np.ndarray  # (M,) core radius (Obstacle.core_radius: prediction of moving bodies)
+    obstacle_radius: np.ndarray  # (M,) bounding radius (prediction of moving bodies)
     obstacle_center: np.ndarray  # (M, 3)
 
 

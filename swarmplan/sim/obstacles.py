@@ -34,7 +34,6 @@ class Obstacles:
         self.moving_mask = np.array([o.moving for o in world.obstacles], dtype=bool)
         self._static_mask = ~self.moving_mask
         self.bounding_radius = np.array([o.bounding_radius for o in world.obstacles])
-        self.core_radius = np.array([o.core_radius for o in world.obstacles])
         self.max_obstacle_speed = max((max_speed(o) for o in world.obstacles), default=0.0)
         self._moving = world.moving_obstacles
         self._moving_idx = np.flatnonzero(self.moving_mask)

@@ -103,7 +103,7 @@ class Steering:
             p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
         if self.sensing_range < math.inf and mv.any():  # movers beyond sensing range are not seen
             d = np.where(mv[None, :] & (d > self.sensing_range), np.inf, d)
-        inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.obstacles.core_radius, q0)
+        inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.obstacles.bounding_radius, q0)
         if self._threat_cores is not None:  # threats[i].avoid: cores repel like static spheres
             inputs = with_cores(inputs, p_idx, self._threat_cores)
         target, rep_scale, ended = self.navigator.attraction_targets(s, idx)

@@ -74,23 +74,6 @@ class Obstacle:
         return {k.name: getattr(self, k.name) for k in bodies.shape(self.shape).keys}
 
     @property
-    def core_radius(self) -> float:
-        """Radius of the largest ball inside the shape (a mesh: 0). A mover's push is predicted
-        from the ball of this radius inside it at its surface point nearest the agent, carried
-        along at its velocity: its bounding sphere about ``position`` would place a tall pole's
-        centre metres above an agent flying beside its foot, and push it into the ground."""
-        v = self.shape_params
-        if self.shape in ("sphere", "capsule"):
-            return float(v["radius"])
-        if self.shape == "cylinder":
-            return min(float(v["radius"]), 0.5 * float(v["height"]))
-        if self.shape == "box":
-            return 0.5 * float(np.min(np.asarray(v["size"], dtype=float)))
-        if self.shape == "ellipsoid":
-            return float(np.min(np.asarray(v["semi_axes"], dtype=float)))
-        return 0.0
-
-    @property
     def bounding_radius(self) -> float:
         """Radius of a sphere about ``position`` containing the whole shape."""
         if self.shape == "mesh":
