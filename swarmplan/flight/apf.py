@@ -38,7 +38,8 @@ The point of attraction (``Flyers.target``) is the goal, or a segment's or route
 for an agent whose straight line is blocked by a static obstacle the point ahead on its way
 round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static repulsion).
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
-so the agent can still brake before the goal and before any obstacle surface ahead.
+so the agent can still brake before the goal and before any obstacle surface ahead (a fixed
+wing's never below its minimum speed, :func:`speed_floor`).
 
 The field has two implementations with the same bits: the compiled kernel, and numpy
 (:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below

@@ -2,9 +2,11 @@
 
 The field (threat cores repel like static spheres), the points of attraction (segments and
 routes from :mod:`~swarmplan.sim.navigation`, the guide's ways round static obstacles, whose
-guide is built anew when a mover comes to rest for good, the points ahead on their circles of
-the fixed wings that loiter about their goals, :mod:`~swarmplan.sim.loiter`), the clearance to
-the nearest static surface and the commanded velocity within each agent's kinematic limits.
+guide is built anew when a mover comes to rest for good, the points straight ahead of the fixed
+wings that cannot turn onto their goals yet, :mod:`~swarmplan.flight.capture`, the points ahead
+on their circles of the fixed wings that loiter about their goals, :mod:`~swarmplan.sim.loiter`),
+the clearance to the nearest static surface and the commanded velocity within each agent's
+kinematic limits.
 """
 
 from __future__ import annotations
