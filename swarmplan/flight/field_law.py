@@ -69,3 +69,22 @@ def goal_factor(to_goal: np.ndarray, influence: float, goal_power: float) -> np.
     """The factor on the repulsion of an agent ``to_goal`` m from its goal: ``min(1, to_goal /
     influence) ** goal_power`` (a goal near a body stays reachable)."""
     return power(np.minimum(1.0, to_goal / influence), goal_power)
+
+
+SQUEEZE = 0.1
+"""Of the influence: the clearance (beyond the radius) under which a multirotor's straight line
+to its goal counts as blocked, and the guide leads it (``swarmplan.flight.guide``)."""
+
+
+def squeeze(influence: float, fixed_wing: np.ndarray, radius: np.ndarray) -> float:
+    """The guide's squeeze for agents of ``radius`` (``fixed_wing`` marking the fixed wings):
+    ``SQUEEZE`` of the ``influence`` ``rho0`` where multirotors fly. There a surface pushes
+    with ``k_rep (1 / rho - 1 / rho0) = 4.5 k_att rho0`` at the default ``k_rep = 0.5 k_att
+    rho0^2``, several times the strongest pull (``k_att rho0``): the bare field cannot hold
+    the agent on such a line. 1 m for a 5 m/s multirotor braking at 5 m/s^2 (10 m of
+    influence), 6 cm for a 0.8 m/s lab drone braking at 2 m/s^2. Where fixed wings fly, at
+    least their radius (one body of air): they fly clear lines without the static bodies'
+    push, kept off the bodies by their turn-ahead guard."""
+    fixed = np.asarray(fixed_wing, dtype=bool)
+    need = SQUEEZE * float(influence) if (~fixed).any() else 0.0
+    return max(need, float(np.max(np.asarray(radius, dtype=float)[fixed], initial=0.0)))

@@ -21,20 +21,14 @@ the same direction are not spread (``SAME`` = 0): spread at 0.2, they reach down
 repulsion and hold two agents at a doorway's corners (16 agents, pure APF, seeds 0-5: 92 of 96
 arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
 
-Each step an agent whose straight line to its goal runs through a static obstacle or within
-``squeeze`` of one (inflated by its radius; checked every ``RECHECK`` steps, a fifth of the
-agents each step) is *guided*: its point of attraction is the cell ``HOPS`` legs ahead on its
-way (or the goal itself once that is within reach), and its static repulsion is scaled by
-``REPULSION``. Every other agent flies at its goal as before: in worlds without static obstacles
-nothing is built and nothing changes. An agent following a segment or a global route keeps it,
-and fixed wings (which cannot fly a way that hugs corners) are never guided: they fly clear
-lines, and at the farthest point of their ways in sight, by ``swarmplan.flight.sight``.
-The squeeze (:func:`squeeze`) is ``SQUEEZE`` of the field's influence ``rho0`` (which follows
-from the agents' speed and braking, ``schema.default_influence``): at that clearance a surface pushes with
-``k_rep (1 / rho - 1 / rho0) = 4.5 k_att rho0`` at the default ``k_rep = 0.5 k_att rho0^2``,
-several times the strongest pull (``k_att rho0``, at the quadratic radius), so the bare field
-cannot hold the agent on such a line; 1 m for a 5 m/s multirotor braking at 5 m/s^2 (10 m of
-influence), 6 cm for a 0.8 m/s lab drone braking at 2 m/s^2.
+Each step an agent whose straight line to its goal runs through a static obstacle or within the
+squeeze of one (``field_law.squeeze``, beyond its radius; checked every ``RECHECK`` steps, a
+fifth of the agents each step) is *guided*: its point of attraction is the cell ``HOPS`` legs
+ahead on its way (or the goal itself once within reach), and its static repulsion is scaled by
+``REPULSION``. Every other agent flies at its goal as before: without static obstacles nothing
+is built and nothing changes. An agent following a segment or a global route keeps it, and
+fixed wings (which cannot fly a way that hugs corners) are never guided: they fly clear lines,
+and at the farthest point of their ways in sight, by ``swarmplan.flight.sight``.
 The searches, the line-of-sight samples and the points on the ways run compiled
 (``_guide_kernel``), each giving the numbers its numpy or scipy formulation gives (the same
 ways, the same decisions); below swarm size, while numba is not loaded, the per-step calls run
@@ -55,6 +49,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.flight import _guide_numpy, guide_cache
+from swarmplan.flight.field_law import squeeze
 from swarmplan.flight.guide_graph import AROUND, OFFSETS, Graph, legs
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
 from swarmplan.geometry.shapes import DISTANCE
@@ -73,23 +68,11 @@ RIGHT = 2.0  # extra cost per metre near a surface on the leg's right-hand side
 SAME = 0.0  # the same per way already through it in the same direction (see the docstring)
 ONCOMING = 3.0  # extra cost per metre through a cell near surfaces per way through it the other way
 HOPS = 2  # legs ahead on the way: the point of attraction
-SQUEEZE = 0.1  # of the influence: a line closer to a surface (beyond the radius) counts as blocked
 REPULSION = 0.15  # scale of a guided agent's static repulsion (half a segment's)
 AHEAD = 2.0  # influence distances of a line an unguided agent checks in flight
 RECHECK = 5  # steps between two line-of-sight checks of an agent
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
 _GRID_ARRAYS = ("clear", "_body_clear", "_gap", "_reach")  # a grid's tables besides its graph
-
-
-def squeeze(world: World, params: AgentParams) -> float:
-    """The clearance beyond the radius below which a line counts as blocked (the module's
-    description): ``SQUEEZE`` of the field's influence where multirotors fly (the field they
-    are guided by); where fixed wings fly, at least their radius (one body of air): they fly
-    clear lines without the static bodies' push, kept off the bodies by their turn-ahead
-    guard."""
-    fixed = np.asarray(params.fixed_wing, dtype=bool)
-    need = SQUEEZE * float(world.planner_config.apf.influence) if (~fixed).any() else 0.0
-    return max(need, float(np.max(params.radius[fixed], initial=0.0)))
 
 
 def _constants() -> dict[str, float]:
@@ -112,7 +95,7 @@ class StaticGuide:
         # to fly (their escapes are Dubins chains from their own pose).
         self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
         self.ahead = AHEAD * float(world.planner_config.apf.influence)
-        self.squeeze = squeeze(world, params)
+        self.squeeze = squeeze(world.planner_config.apf.influence, params.fixed_wing, params.radius)
         lo, hi = np.asarray(world.bounds_min, dtype=float), np.asarray(world.bounds_max, dtype=float)
         size = np.maximum(hi - lo, 1e-6)
         # A way per goal: with many agents the grid is coarser (the searches cost in proportion).
@@ -143,9 +126,8 @@ class StaticGuide:
         self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
         # The grid's tables: those of an earlier guide of the same geometry when at hand (the
         # same bits), else computed here and kept for the next.
-        self._grid_key = guide_cache.grid_key(
-            {**_constants(), "squeeze": self.squeeze}, world, self.bodies, self.radius, self.floor
-        )
+        key = {**_constants(), "squeeze": self.squeeze}
+        self._grid_key = guide_cache.grid_key(key, world, self.bodies, self.radius, self.floor)
         tables = guide_cache.load_grid(self._grid_key, self.n_cells)
         if tables is None:
             self._compute_grid()
@@ -323,8 +305,7 @@ class StaticGuide:
         if self._lipschitz:  # flat ground, primitive bodies: all in one compiled pass
             b = self._batch
             bodies = (self._reach, b.position, b.rotation, b.code, b.prm)
-            levels = (self.squeeze, self.floor, self.radius)
-            kernels.flat_hits(p, row, cells, out, self._inner, bodies, levels)
+            kernels.flat_hits(p, row, cells, out, self._inner, bodies, levels[1:])  # squeeze, floor, radius
             return out
         exact = p[:, 2] - self.world.terrain_height(p[:, :2]) - self.floor
         if self.bodies:

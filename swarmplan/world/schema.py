@@ -82,12 +82,8 @@ def default_influence(agents: list[AgentSpec]) -> float:
 
 
 def default_stuck_progress(agents: list[AgentSpec]) -> float:
-    """``planner.stuck.min_progress`` left out: the smallest agent's radius. An agent that gets
-    less than one of its radii closer to its goal in the stuck window is held. The bar scales
-    with the agents as their flight does: 0.5 m for the dense swarms' 0.5 m multirotors, 5 cm
-    for a 5 cm lab drone (which flies a few centimetres a step: under a bar in metres it would
-    be found stuck all through a slow final approach). The smallest agent sets it for all: no
-    agent is found stuck while it still moves at its own scale."""
+    """``planner.stuck.min_progress`` left out: the smallest agent's radius (0.5 m for 0.5 m
+    multirotors, 5 cm for 5 cm lab drones, which a bar in metres found stuck on every slow approach)."""
     return min((a.radius for a in agents), default=0.5)
 
 
@@ -516,8 +512,7 @@ def parse_world(
     if planner["apf"]["influence"] is None:
         planner["apf"]["influence"] = default_influence(agents)
     default_field_scale(planner["apf"])
-    if planner["stuck"]["min_progress"] is None:
-        planner["stuck"]["min_progress"] = default_stuck_progress(agents)
+    planner["stuck"]["min_progress"] = planner["stuck"]["min_progress"] or default_stuck_progress(agents)
     if sim["goal_tolerance"] is None:
         sim["goal_tolerance"] = default_goal_tolerance(agents)
     _check_planner_sections(c, planner)
