@@ -64,6 +64,7 @@ class Crazyflie:
     thrust_to_torque: float = 0.0069928948992470565  # m, THRUST2TORQUE
     motor_time_constant: float = 0.02  # s
     drag: float = 0.0  # N s^2/m^2: no drag quadratic in the speed beyond the rotor drag
+    k_aero: tuple[float, float, float] = K_AERO  # kg/rad, rotor drag per unit rotor speed
     control_dt: float = 1.0 / 500.0  # s, ATTITUDE_RATE
     commander_dt: float = 1.0 / 100.0  # s, RATE_HL_COMMANDER
     mass_thrust: float = 132000.0  # PWM per N
@@ -94,7 +95,7 @@ class Crazyflie:
     def rotor_drag(self) -> np.ndarray:
         """N s/m per world axis: ``K_aero`` times the four rotors' speed at hover."""
         omega = math.sqrt(self.mass * G / 4.0 / THRUST_COEFFICIENT)
-        return np.asarray(K_AERO) * 4.0 * omega
+        return np.asarray(self.k_aero) * 4.0 * omega
 
 
 @dataclass(frozen=True)
