@@ -134,9 +134,7 @@ def body_rates(acc: np.ndarray, jerk: np.ndarray, yaw: np.ndarray, yaw_rate: np.
     y_b /= np.linalg.norm(y_b, axis=-1, keepdims=True)
     x_b = np.cross(y_b, z_b)
     h = (jerk - np.sum(jerk * z_b, axis=-1, keepdims=True) * z_b) / mag
-    return np.stack(
-        [-np.sum(h * y_b, axis=-1), np.sum(h * x_b, axis=-1), z_b[..., 2] * yaw_rate], axis=-1
-    )
+    return np.stack([-np.sum(h * y_b, axis=-1), np.sum(h * x_b, axis=-1), z_b[..., 2] * yaw_rate], axis=-1)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
