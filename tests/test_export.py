@@ -95,8 +95,12 @@ def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
     # The flown steps use the whole limit, so a smooth curve through them would break it.
     steps = np.diff(path.positions, axis=0) / DT
     assert np.linalg.norm(np.diff(steps, axis=0), axis=1).max() / DT == pytest.approx(1.5)
-    fit = crazyflie.fit(path, 0.01)
-    assert fit.max_deviation <= 0.01 and fit.max_speed <= 1.0 and fit.max_accel <= 1.5
+    # Leaving a hover, the trajectory takes up its acceleration over a moment (it starts with
+    # none) and cannot win back that lag at the speed limit: within 1 cm it does not fit.
+    with pytest.raises(LimitError, match=r"31 pieces keep them within 0\.01"):
+        crazyflie.fit(path, 0.01)
+    fit = crazyflie.fit(path, 0.02)
+    assert fit.max_deviation <= 0.02 and fit.max_speed <= 1.0 and fit.max_accel <= 1.5
     # From rest half a step before the first recorded position, to rest half a step after the last.
     assert fit.lead == DT / 2 and fit.poly.duration == pytest.approx(path.duration + DT, abs=1e-6)
     poly = fit.poly
@@ -104,6 +108,7 @@ def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
     assert np.linalg.norm(poly.evaluate(t, 2)[:, :3], axis=1).max() <= 1.5
     assert np.linalg.norm(poly.evaluate(t, 1)[:, :3], axis=1).max() <= 1.0
     assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]), 1)[:, :3], 0.0, atol=1e-6)
+    assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]), 2)[:, :3], 0.0, atol=1e-4)  # hover
     assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]))[:, :3],
                        path.positions[[0, -1]], atol=1e-5)  # fmt: skip
     jumps = poly.joint_jumps()

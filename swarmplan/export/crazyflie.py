@@ -126,9 +126,9 @@ def accuracy_for(path: FlownPath, override: float | None = None) -> float:
     return min(DEFAULT_ACCURACY, 0.1 * sep) if sep > 0 else DEFAULT_ACCURACY
 
 
-def _knots(duration: float, n: int) -> np.ndarray:
-    inner = np.repeat(np.linspace(0.0, duration, n + 1)[1:-1], JOINT_MULTIPLICITY)
-    return np.concatenate([np.zeros(COEFFS), inner, np.full(COEFFS, duration)])
+def _knots(breaks: np.ndarray) -> np.ndarray:
+    inner = np.repeat(breaks[1:-1], JOINT_MULTIPLICITY)
+    return np.concatenate([np.full(COEFFS, breaks[0]), inner, np.full(COEFFS, breaks[-1])])
 
 
 def _basis(knots: np.ndarray, x: np.ndarray, derivative: int = 0) -> np.ndarray:
@@ -140,12 +140,11 @@ def _basis(knots: np.ndarray, x: np.ndarray, derivative: int = 0) -> np.ndarray:
     return np.nan_to_num(out)
 
 
-def _snap_gram(knots: np.ndarray, n: int, duration: float) -> np.ndarray:
-    """Gram matrix of the basis' 4th derivatives over [0, duration] (Gauss-Legendre: the products
+def _snap_gram(knots: np.ndarray, breaks: np.ndarray) -> np.ndarray:
+    """Gram matrix of the basis' 4th derivatives over the trajectory (Gauss-Legendre: the products
     are of degree 6 on each piece, 4 nodes integrate them exactly)."""
     nodes, weights = np.polynomial.legendre.leggauss(4)
-    b = np.linspace(0.0, duration, n + 1)
-    a, h = b[:-1], np.diff(b)
+    a, h = breaks[:-1], np.diff(breaks)
     x = (a[:, None] + 0.5 * h[:, None] * (nodes[None] + 1.0)).reshape(-1)
     w = (0.5 * h[:, None] * weights[None]).reshape(-1)
     s = _basis(knots, x, 4)
@@ -160,10 +159,11 @@ def _peaks(norm: np.ndarray, limit: float) -> np.ndarray:
     return np.flatnonzero(over & left & right)
 
 
-def _to_poly(knots: np.ndarray, coef: np.ndarray, n: int, duration: float) -> Poly4D:
+def _to_poly(knots: np.ndarray, coef: np.ndarray, breaks: np.ndarray) -> Poly4D:
     """Local power-basis coefficients of each piece (float32): the piece is one polynomial of
     degree 7, so its values at 8 Chebyshev points inside it determine them exactly."""
-    b = np.linspace(0.0, duration, n + 1)
+    b = breaks
+    n = len(b) - 1
     h = np.diff(b)
     spline = BSpline(knots, coef, DEGREE)
     nodes = 0.5 * (1.0 - np.cos((2 * np.arange(COEFFS) + 1) * np.pi / (2 * COEFFS)))  # in (0, 1)
@@ -242,6 +242,8 @@ CUTS_PER_ROUND = 32  # the highest peaks over each bound held per round
 MAX_ROUNDS = 60  # rounds of cutting planes before a fit is given up
 LDP_INFEASIBLE = 1e-10  # a dual residual this small: the constraints contradict each other
 REFUSAL_PRECISION = 0.02  # relative: how finely a refusal brackets what would fit
+ADAPT_ORDER = 4  # a piece's deviation grows about as this power of its duration (C3 joints)
+ADAPT_FLOOR = 0.2  # adapted pieces: each gets at least this fraction of the mean share
 
 
 def _ldp(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
@@ -269,6 +271,7 @@ class _Problem:
     its deviation are measured with."""
 
     n: int
+    breaks: np.ndarray  # (n + 1,) s: the joints, from 0 to the duration
     knots: np.ndarray
     nc: int
     duration: float  # s, the trajectory's (the flown path's, with its lead and trail)
@@ -280,19 +283,28 @@ class _Problem:
     dev_target: np.ndarray  # the flown polygon there (N, 3)
 
 
-def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
+def _problem(path: FlownPath, n: int, adapted: bool = False, snap: float = SNAP_WEIGHT) -> _Problem:
+    """The fit with ``n`` pieces of equal durations, or (``adapted``) of durations adapted to the
+    path (:func:`_adapted_breaks`)."""
     tau = path.times - path.times[0]
     lead, trail = ends_of(path)
     duration = float(tau[-1]) + lead + trail
-    knots = _knots(duration, n)
+    breaks = _adapted_breaks(path, n) if adapted else np.linspace(0.0, duration, n + 1)
+    knots = _knots(breaks)
     basis = _basis(knots, tau + lead)
     nc = basis.shape[1]
-    gram = _snap_gram(knots, n, duration)
+    gram = _snap_gram(knots, breaks)
     v0 = np.zeros(3) if lead else _end_velocity(path.times, path.positions, False, False)
     v1 = _end_velocity(path.times, path.positions, True, bool(trail))
     ends = np.array([0.0, duration])
     rows = [_basis(knots, ends, 0), _basis(knots, ends, 1)]
     rhs = [np.vstack([path.positions[0], path.positions[-1]]), np.vstack([v0, v1])]
+    # An end at rest is a hover: no acceleration there either (a hovering vehicle cannot take up
+    # an acceleration at once; it has to tilt first).
+    rest = [t for t, at_rest in ((0.0, lead > 0), (duration, trail > 0)) if at_rest]
+    if rest:
+        rows.append(_basis(knots, np.array(rest), 2))
+        rhs.append(np.zeros((len(rest), 3)))
     eq = np.kron(np.eye(3), np.vstack(rows))
     eq_rhs = np.vstack(rhs).T.reshape(-1)
     a = basis.T @ basis
@@ -312,7 +324,7 @@ def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
     grid = np.linspace(0.0, duration, max(n * DENSE * 4, len(tau) * 4) + 1)
     t = _dense_ends(path)
     return _Problem(
-        n, knots, nc, duration, x0 + null @ z_free, reduce,
+        n, breaks, knots, nc, duration, x0 + null @ z_free, reduce,
         _basis(knots, grid, 1), _basis(knots, grid, 2),
         _basis(knots, t), _flown_at(tau, path.positions, t - lead),
     )  # fmt: skip
@@ -382,7 +394,7 @@ def _fit_n(
     coef = _solve(prob, lim.speed_max * scale, lim.max_accel * scale, accuracy)
     if coef is None:
         return None
-    poly = _to_poly(prob.knots, coef, prob.n, prob.duration)
+    poly = _to_poly(prob.knots, coef, prob.breaks)
     dev, speed, accel = evaluate_fit(poly, path)
     ok = speed <= lim.speed_max * scale and accel <= lim.max_accel * scale
     if not ok or (accuracy is not None and dev > accuracy):
@@ -390,11 +402,37 @@ def _fit_n(
     return poly, dev, speed, accel
 
 
+def _plain(prob: _Problem) -> Poly4D:
+    """The least-squares fit of ``prob``, limits aside."""
+    return _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, prob.breaks)
+
+
 def _plain_deviation(path: FlownPath, n: int) -> float:
     """Deviation of the least-squares fit with ``n`` pieces, limits aside."""
+    return evaluate_fit(_plain(_problem(path, n)), path)[0]
+
+
+def _adapted_breaks(path: FlownPath, n: int) -> np.ndarray:
+    """Joints of ``n`` pieces placed where the path needs them: the least-squares fit with ``n``
+    equal pieces deviates by e_j on piece j; an error that grows as the ADAPT_ORDER-th power of a
+    piece's duration is evened out by giving piece j a share of pieces proportional to
+    e_j^(1 / ADAPT_ORDER) (at least ADAPT_FLOOR of the mean share, so no piece stretches beyond
+    1 / ADAPT_FLOOR of the equal duration), and the joints are set at equal steps of that share."""
     prob = _problem(path, n)
-    poly = _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, n, prob.duration)
-    return evaluate_fit(poly, path)[0]
+    poly = _plain(prob)
+    tau = path.times - path.times[0]
+    lead, _ = ends_of(path)
+    t = _dense_ends(path)
+    dev = np.linalg.norm(poly.evaluate(t)[:, :3] - _flown_at(tau, path.positions, t - lead), axis=1)
+    piece = np.clip(np.searchsorted(prob.breaks, t, side="right") - 1, 0, n - 1)
+    err = np.zeros(n)
+    np.maximum.at(err, piece, dev)
+    share = err ** (1.0 / ADAPT_ORDER)
+    share = np.maximum(share, ADAPT_FLOOR * share.mean()) if share.mean() > 0 else np.ones(n)
+    cum = np.concatenate([[0.0], np.cumsum(share)])
+    breaks = np.interp(np.linspace(0.0, cum[-1], n + 1), cum, prob.breaks)
+    breaks[0], breaks[-1] = 0.0, prob.duration
+    return breaks
 
 
 def _pieces_needed(path: FlownPath, accuracy: float, cap: int) -> int | None:
@@ -478,7 +516,7 @@ def _refusal(path: FlownPath, accuracy: float, max_pieces: int) -> str:
             f"--max-deviation {bound:g} or more"
         )
     # Not even the limits alone: the flown timing asks more of the agent than it has.
-    plain = _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, max_pieces, prob.duration)
+    plain = _plain(prob)
     dev, speed, accel = evaluate_fit(plain, path)
     hi = max(speed / lim.speed_max, accel / lim.max_accel, 1.0) * 1.01
     probe = max(accuracy, dev * 1.01)
