@@ -242,8 +242,6 @@ CUTS_PER_ROUND = 32  # the highest peaks over each bound held per round
 MAX_ROUNDS = 60  # rounds of cutting planes before a fit is given up
 LDP_INFEASIBLE = 1e-10  # a dual residual this small: the constraints contradict each other
 REFUSAL_PRECISION = 0.02  # relative: how finely a refusal brackets what would fit
-ADAPT_ORDER = 4  # a piece's deviation grows about as this power of its duration (C3 joints)
-ADAPT_FLOOR = 0.2  # adapted pieces: each gets at least this fraction of the mean share
 
 
 def _ldp(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
@@ -283,13 +281,12 @@ class _Problem:
     dev_target: np.ndarray  # the flown polygon there (N, 3)
 
 
-def _problem(path: FlownPath, n: int, adapted: bool = False, snap: float = SNAP_WEIGHT) -> _Problem:
-    """The fit with ``n`` pieces of equal durations, or (``adapted``) of durations adapted to the
-    path (:func:`_adapted_breaks`)."""
+def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
+    """The fit with ``n`` pieces of equal durations."""
     tau = path.times - path.times[0]
     lead, trail = ends_of(path)
     duration = float(tau[-1]) + lead + trail
-    breaks = _adapted_breaks(path, n) if adapted else np.linspace(0.0, duration, n + 1)
+    breaks = np.linspace(0.0, duration, n + 1)
     knots = _knots(breaks)
     basis = _basis(knots, tau + lead)
     nc = basis.shape[1]
@@ -410,29 +407,6 @@ def _plain(prob: _Problem) -> Poly4D:
 def _plain_deviation(path: FlownPath, n: int) -> float:
     """Deviation of the least-squares fit with ``n`` pieces, limits aside."""
     return evaluate_fit(_plain(_problem(path, n)), path)[0]
-
-
-def _adapted_breaks(path: FlownPath, n: int) -> np.ndarray:
-    """Joints of ``n`` pieces placed where the path needs them: the least-squares fit with ``n``
-    equal pieces deviates by e_j on piece j; an error that grows as the ADAPT_ORDER-th power of a
-    piece's duration is evened out by giving piece j a share of pieces proportional to
-    e_j^(1 / ADAPT_ORDER) (at least ADAPT_FLOOR of the mean share, so no piece stretches beyond
-    1 / ADAPT_FLOOR of the equal duration), and the joints are set at equal steps of that share."""
-    prob = _problem(path, n)
-    poly = _plain(prob)
-    tau = path.times - path.times[0]
-    lead, _ = ends_of(path)
-    t = _dense_ends(path)
-    dev = np.linalg.norm(poly.evaluate(t)[:, :3] - _flown_at(tau, path.positions, t - lead), axis=1)
-    piece = np.clip(np.searchsorted(prob.breaks, t, side="right") - 1, 0, n - 1)
-    err = np.zeros(n)
-    np.maximum.at(err, piece, dev)
-    share = err ** (1.0 / ADAPT_ORDER)
-    share = np.maximum(share, ADAPT_FLOOR * share.mean()) if share.mean() > 0 else np.ones(n)
-    cum = np.concatenate([[0.0], np.cumsum(share)])
-    breaks = np.interp(np.linspace(0.0, cum[-1], n + 1), cum, prob.breaks)
-    breaks[0], breaks[-1] = 0.0, prob.duration
-    return breaks
 
 
 def _pieces_needed(path: FlownPath, accuracy: float, cap: int) -> int | None:
