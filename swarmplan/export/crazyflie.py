@@ -9,7 +9,8 @@ so one trajectory has at most 4096 // 132 = 31 pieces.
 
 Fit: a degree-7 B-spline in time whose interior knots have multiplicity 4, so position,
 velocity, acceleration and jerk are continuous at every joint (C3), on the flown timing (from
-rest half a step before the first recorded step; :func:`ends_of`). The agent's speed and
+rest half a step before the first recorded step; :func:`ends_of`); an end at rest is a hover,
+with no acceleration either. The agent's speed and
 acceleration limits and the accuracy bound are constraints on dense grids: of the splines that
 keep them, the fit is the one closest to the least-squares fit to every recorded position plus
 a small penalty on the snap, found by cutting planes (:func:`_solve`) and solved exactly as a
@@ -477,8 +478,9 @@ def _refusal(path: FlownPath, accuracy: float, max_pieces: int) -> str:
     lim = path.limits
     prob = _problem(path, max_pieces)
     head = (
-        f"agent {lim.id}: no trajectory of at most {max_pieces} pieces ({max_pieces * PIECE_BYTES} of the "
-        f"{MEMORY_BYTES}-byte trajectory memory) keeps within {accuracy:g} m of its {path.duration:.1f} s "
+        f"agent {lim.id}: no trajectory of at most {max_pieces} equal pieces "
+        f"({max_pieces * PIECE_BYTES} of the {MEMORY_BYTES}-byte trajectory memory) keeps within "
+        f"{accuracy:g} m of its {path.duration:.1f} s "
         f"flown path with speed <= {lim.speed_max:g} m/s and acceleration <= {lim.max_accel:g} m/s^2"
     )
     loose = _fit_n(path, prob, None)
