@@ -11,7 +11,15 @@ import numpy as np
 from swarmplan.core import Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim import network
-from swarmplan.sim.network import Beliefs, Network, compact, deliver_numpy, draws, fates_numpy, held_pairs
+from swarmplan.sim.network import (
+    Beliefs,
+    Network,
+    compact_near_numpy,
+    deliver_numpy,
+    draws,
+    fates_numpy,
+    held_pairs,
+)
 from swarmplan.world.comms import Comms
 
 
@@ -66,8 +74,6 @@ def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
     n, k = 25, 9
     senders = np.sort(rng.choice(n, k, replace=False)).astype(np.int64)
     rows = np.arange(100, 100 + k, dtype=np.int64)
-    t_row = np.concatenate([np.full(100, 0.5), np.full(k, 1.0)])
-    t_row[0] = -np.inf
     at = rng.uniform(0, 30, (n, 3))
     key = np.uint64(77)
     for loss, jitter, ranged in [(0.0, 0.0, False), (0.3, 0.0, True), (0.2, 0.05, False), (0.2, 0.05, True)]:
@@ -80,8 +86,8 @@ def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
         assert (lost, out) == tuple(kernel.fates(senders, rows, key, fate, where, heard_b))
         np.testing.assert_array_equal(heard_a, heard_b)
         for t in (1.04, 1.08, 1.1, 1.13, 1.2):
-            deliver_numpy(a, senders, rows, t_row, key, fate, heard_a, t)
-            kernel.deliver(b, senders, rows, t_row, key, fate, heard_b, t)
+            deliver_numpy(a, senders, rows, key, fate, heard_a, t)
+            kernel.deliver(b, senders, rows, key, fate, heard_b, t)
             np.testing.assert_array_equal(a, b)
             if t == 1.04 and jitter == 0.0:
                 assert (a == start).all()  # nothing before it falls due
@@ -96,21 +102,33 @@ def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
 
 
 def test_compaction_compiled_and_numpy_agree():
-    """The rows held, ascending, and each flyer's view of them; the compiled scratch is left as found."""
+    """The rows held, ascending, each flyer's view of them, their ages and positions moved on,
+    and the pairs within a radius; the compiled scratch is left as found."""
     kernel = kernel_module("swarmplan.sim._network_kernel")
     rng = np.random.default_rng(4)
     heard = rng.integers(0, 200, (40, 40)).astype(np.int64)
     heard[rng.random((40, 40)) < 0.3] = 0
+    np.fill_diagonal(heard, 0)
     idx = np.sort(rng.choice(40, 15, replace=False)).astype(np.int64)
     mark = np.full(260, -1, dtype=np.int64)
-    want, got = compact(heard, idx, mark), kernel.compact(heard, idx, mark)
-    for w, g in zip(want, got, strict=True):
-        np.testing.assert_array_equal(w, g)
-    assert (mark == -1).all()
-    live, view = want
+    t_row = np.sort(rng.uniform(0.0, 2.0, 260))
+    table = (t_row, rng.uniform(0.0, 10.0, (260, 3)), rng.normal(0.0, 2.0, (260, 3)))
+    at = rng.uniform(0.0, 10.0, (15, 3))
+    for radius in (0.0, 2.5, 6.0, 100.0):
+        want = compact_near_numpy(heard, idx, mark, table, 2.5, at, radius)
+        got = kernel.compact_near(heard, idx, mark, table, 2.5, at, radius)
+        for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
+            np.testing.assert_array_equal(w, g)
+        assert (mark == -1).all()
+    live, view, age, moved, (k, j, rows, d) = want
     held = heard[idx]
     np.testing.assert_array_equal(live[view[held > 0]], held[held > 0])
     assert (view[held == 0] == -1).all() and (np.diff(live) > 0).all()
+    np.testing.assert_allclose(age, 2.5 - table[0][live])
+    np.testing.assert_allclose(moved, table[1][live] + table[2][live] * age[:, None])
+    # Every row held by a flyer other than its own, with the exact distances (radius 100).
+    assert len(k) == int((held > 0).sum())
+    np.testing.assert_allclose(d, np.linalg.norm(moved[rows] - at[k], axis=1))
 
 
 def test_delivery_compiled_and_numpy_agree(monkeypatch):

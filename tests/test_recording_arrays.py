@@ -118,3 +118,21 @@ def test_many_agents_array_path_writes_the_dict_path_bytes(tmp_path):
         recorders.append(rec)
     assert out[0] == out[1] and len(out[0]) == 25
     assert type(recorders[0]._states._text).__name__ == "Interleaved"  # the numpy path ran
+
+
+def test_comms_message_written_as_json_writes_it():
+    """``/comms``: the bytes of ``json.dumps`` with compact separators, for ages of every kind
+    (null, whole steps, many decimals, tiny, large) and ids that need escaping."""
+    from swarmplan.io.recording import comms_json
+
+    rng = np.random.default_rng(5)
+    ages = [None, 0.0, 0.1, 0.30000000000000004, 1.234567, 3e-07, 12345678.5, 0.05]
+    prefixes: dict[str, str] = {}
+    for step in range(20):
+        agents = [{"id": a, "age": ages[int(rng.integers(len(ages)))]} for a in IDS]
+        msg = {"t": round(0.05 * step, 9), "agents": agents, "sent": 7 * step, "lost": step}
+        msg["out_of_range"] = 0
+        assert comms_json(msg, prefixes) == json.dumps(msg, separators=(",", ":")).encode()
+    assert comms_json({"t": 0.0, "agents": [], "sent": 0, "lost": 0, "out_of_range": 0}, {}) == (
+        b'{"t":0.0,"agents":[],"sent":0,"lost":0,"out_of_range":0}'
+    )

@@ -85,10 +85,10 @@ def fates(senders, rows, key, fate, at, heard_by):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def deliver(heard, senders, rows, t_row, key, fate, heard_by, t):  # noqa: ANN001, ANN201
+def deliver(heard, senders, rows, key, fate, heard_by, t):  # noqa: ANN001, ANN201
     """``network.deliver_numpy``: the copies of one broadcast (``senders``, their table
     ``rows``) heard (``heard_by``, :func:`fates`) that have arrived by ``t`` replace older rows
-    in ``heard`` (receiver, sender)."""
+    in ``heard`` (receiver, sender; a sender's rows are numbered in the order it sent them)."""
     jitter, due = fate[1], fate[2]
     n = heard.shape[0]
     k = senders.shape[0]
@@ -101,15 +101,20 @@ def deliver(heard, senders, rows, t_row, key, fate, heard_by, t):  # noqa: ANN00
             if jitter > 0.0:
                 arrives = due + jitter * (2.0 * draw(key, row, r, 1) - 1.0)
             s = senders[c]
-            if arrives <= t + 1e-9 and t_row[heard[r, s]] < t_row[row]:
+            if arrives <= t + 1e-9 and heard[r, s] < row:
                 heard[r, s] = row
 
 
 @njit(cache=True, nogil=True)
-def compact(heard, idx, mark):  # noqa: ANN001, ANN201
-    """The table rows (ascending) that flyers ``idx`` hold in ``heard`` (receiver, sender; 0:
-    none), and each flyer's view of them (n, N: the position among those rows, -1: none).
-    ``mark`` (one per table row, all -1) is scratch, all -1 again on return."""
+def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN201
+    """``network.compact_near_numpy``: the table rows (ascending) that flyers ``idx`` hold in
+    ``heard`` (receiver, sender; 0: none) and each flyer's view of them (n, N: the position
+    among those rows, -1: none; ``mark``, one per table row, all -1, is scratch, all -1 again
+    on return), the ages at ``t`` of the rows held and
+    their positions moved on by them at the velocity sent (``table`` = (time, position,
+    velocity) per table row), and :func:`held_pairs` of flyers ``idx`` (at ``at``) within
+    ``radius``, the view's second pass finding them."""
+    t_row, pos_row, vel_row = table
     n = idx.shape[0]
     n_all = heard.shape[1]
     found = np.empty(n * n_all, dtype=np.int64)
@@ -122,13 +127,41 @@ def compact(heard, idx, mark):  # noqa: ANN001, ANN201
                 found[count] = r
                 count += 1
     live = np.sort(found[:count])
+    age = np.empty(count)
+    moved = np.empty((count, 3))
     for c in range(count):
-        mark[live[c]] = c
+        r = live[c]
+        mark[r] = c
+        age[c] = t - t_row[r]
+        for e in range(3):
+            moved[c, e] = pos_row[r, e] + vel_row[r, e] * age[c]
     view = np.empty((n, n_all), dtype=np.int64)
+    ks = np.empty(n * n_all, dtype=np.int64)
+    js = np.empty(n * n_all, dtype=np.int64)
+    rows = np.empty(n * n_all, dtype=np.int64)
+    ds = np.empty(n * n_all)
+    p = 0
+    want = radius > 0.0
+    wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
+        own = idx[k]
         for j in range(n_all):
-            r = heard[idx[k], j]
-            view[k, j] = mark[r] if r > 0 else -1
+            r = heard[own, j]
+            if r <= 0:
+                view[k, j] = -1
+                continue
+            c = mark[r]
+            view[k, j] = c
+            if j == own or not want:
+                continue
+            dx, dy, dz = moved[c, 0] - at[k, 0], moved[c, 1] - at[k, 1], moved[c, 2] - at[k, 2]
+            d2 = (dx * dx + dy * dy) + dz * dz
+            if not d2 < wide:  # beyond the radius by more than rounding: no root taken
+                continue
+            d = math.sqrt(d2)
+            if d < radius:
+                ks[p], js[p], rows[p], ds[p] = k, j, c, d
+                p += 1
     for c in range(count):
         mark[live[c]] = -1
-    return live, view
+    return live, view, age, moved, (ks[:p].copy(), js[:p].copy(), rows[:p].copy(), ds[:p].copy())

@@ -150,12 +150,13 @@ def fates_numpy(
 
 
 def deliver_numpy(
-    heard: np.ndarray, senders: np.ndarray, rows: np.ndarray, t_row: np.ndarray, key: np.uint64,
+    heard: np.ndarray, senders: np.ndarray, rows: np.ndarray, key: np.uint64,
     fate: tuple[float, float, float, float], heard_by: np.ndarray, t: float,
 ) -> None:  # fmt: skip
     """The copies of one broadcast (``senders``, their table ``rows``) heard (``heard_by``,
     :func:`fates_numpy`) that have arrived by ``t`` replace older rows in ``heard`` (receiver,
-    sender): a copy arrives when the broadcast falls due plus the delay's jitter times a
+    sender; a sender's rows are numbered in the order it sent them, so the newer state has the
+    larger row): a copy arrives when the broadcast falls due plus the delay's jitter times a
     uniform draw in [-1, 1) (``fate`` = (loss, jitter, due time, range))."""
     jitter, due = fate[1], fate[2]
     arrives = np.full(heard_by.shape, due)
@@ -163,7 +164,7 @@ def deliver_numpy(
         receivers = np.arange(heard.shape[0])[:, None]
         arrives = due + jitter * (2.0 * draws(key, rows[None, :], receivers, 1) - 1.0)
     cur = heard[:, senders]
-    take = heard_by & (arrives <= t + _EPS) & (t_row[cur] < t_row[rows][None, :])
+    take = heard_by & (arrives <= t + _EPS) & (cur < rows[None, :])
     heard[:, senders] = np.where(take, rows[None, :], cur)
 
 
@@ -179,6 +180,20 @@ def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.nd
     remap = np.full(len(mark), -1, dtype=np.int64)
     remap[live] = np.arange(len(live))
     return live, remap[rows]
+
+
+def compact_near_numpy(
+    heard: np.ndarray, idx: np.ndarray, mark: np.ndarray, table: tuple[np.ndarray, np.ndarray, np.ndarray],
+    t: float, at: np.ndarray, radius: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:  # fmt: skip
+    """:func:`compact`, the ages at ``t`` of the rows held and their positions moved on by them
+    at the velocity sent (``table`` = (time, position, velocity) per table row), and
+    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
+    t_row, pos_row, vel_row = table
+    live, view = compact(heard, idx, mark)
+    age = t - t_row[live]
+    moved = pos_row[live] + vel_row[live] * age[:, None]
+    return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
 
 
 class _Table:
@@ -340,7 +355,7 @@ class Network:
                 keep.append(m)
                 continue
             run = _kernel().deliver if use_compiled(self.n) else deliver_numpy
-            run(self.heard, m.senders, m.rows, self.table.t, self.key, self._fate(m), m.heard_by, t)
+            run(self.heard, m.senders, m.rows, self.key, self._fate(m), m.heard_by, t)
             if m.due + c.jitter > t + _EPS:  # copies still on their way
                 keep.append(m)
         self.pending = keep
@@ -381,10 +396,13 @@ class Network:
                     self.oldest_sum + float(acted.sum()),
                     self.oldest_count + len(acted),
                 )
-        agents = [
-            {"id": a, "age": None if math.isnan(x) else round(float(x), 6)}
-            for a, x in zip(ids, age.tolist(), strict=True)
-        ]
+        # Each distinct age rounded once (a swarm's ages take a few values: whole steps).
+        ok = ~np.isnan(age)
+        distinct, which = np.unique(age[ok], return_inverse=True)
+        text = np.array([None, *(round(x, 6) for x in distinct.tolist())], dtype=object)
+        code = np.zeros(self.n, dtype=np.int64)
+        code[ok] = which.ravel() + 1
+        agents = [{"id": a, "age": x} for a, x in zip(ids, text[code].tolist(), strict=True)]
         return {"t": round(t, 9), "agents": agents, **self.counts()}
 
     def counts(self) -> dict[str, int]:
@@ -409,28 +427,30 @@ class Network:
         vel: np.ndarray,
         parked: np.ndarray,
         goal_distance: np.ndarray,
+        near: float = 0.0,
     ) -> Beliefs:
         """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
-        every copy that has arrived by ``t`` taken in."""
+        every copy that has arrived by ``t`` taken in; the pairs within ``near`` of each flyer
+        (:meth:`Beliefs.near`) found on the way."""
         self.deliver(t)
         tb, n = self.table, len(idx)
         idx64 = np.asarray(idx, dtype=np.int64)
-        live, view = (_kernel().compact if use_compiled(self.n) else compact)(
-            self.heard, idx64, tb.mark[: tb.size]
-        )
-        age = t - tb.t[live]
-        moved = tb.pos[live] + tb.vel[live] * age[:, None]
+        sensing = math.isfinite(self.sensing_range)
+        run = _kernel().compact_near if use_compiled(self.n) else compact_near_numpy
+        table = (tb.t[: tb.size], tb.pos[: tb.size], tb.vel[: tb.size])
+        # With sensing the view changes below: its pairs are found when asked.
+        radius = 0.0 if sensing else float(near)
+        live, view, age, moved, pairs = run(self.heard, idx64, tb.mark[: tb.size], table, t, pos[idx], radius)
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).
-        sensing = math.isfinite(self.sensing_range)
         truth = np.arange(self.n) if sensing else idx
         first = len(live)
         view[np.arange(n), idx] = first + (idx if sensing else np.arange(n))
         if sensing:
             k, j = _within(pos[idx], pos, self.sensing_range)
             view[k, j] = first + j
-        return Beliefs(
+        b = Beliefs(
             idx,
             pos[idx],
             np.concatenate([moved, pos[truth]]),
@@ -443,6 +463,9 @@ class Network:
             np.concatenate([moved + 0.5 * tb.acc[live] * (age * age)[:, None], pos[truth]]),
             np.concatenate([tb.vel[live] + tb.acc[live] * age[:, None], vel[truth]]),
         )
+        if radius > 0.0:
+            b.__dict__["_near"] = (radius, pairs)
+        return b
 
     def state_for(self, i: int, s: SwarmState, parked: np.ndarray) -> SwarmState:
         """The state ``s`` as agent ``i`` knows it (``parked``: the agents that no longer fly):

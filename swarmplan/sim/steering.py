@@ -124,7 +124,7 @@ class Steering:
         if self.network is None:
             swarm = Swarm(pos0, vel0, parked, to_go)
         else:  # each flyer's own beliefs of the others
-            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go)
+            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=self.apf.agent_reach)
             swarm = Swarm(b.expected_pos, b.expected_vel, b.parked, b.goal_distance, b.view, b.agent)
             oldest = self.network.oldest(b, self.apf.agent_reach)
         force = self.apf.forces(flyers, inputs, swarm)
