@@ -1,6 +1,8 @@
-"""``--check``: fly every exported trajectory again with the vehicle models of ``track`` (the
-quadrotor under its cascaded PID, the fixed wing under L1 guidance and its energy loop), following
-the export and not the log, then look at the swarm together on the exported timing.
+"""``--check``: fly every exported trajectory again with the vehicle models of ``track`` (a
+Crazyflie trajectory by the Crazyflie under its firmware's commander and Mellinger controller, a
+mission by the quadrotor under its cascaded PID, a fixed wing under L1 guidance and its energy
+loop), following the export and not the log, then look at the swarm together on the exported
+timing.
 
 Per agent: the largest distance between the flown vehicle and the planned position at the same
 instant (the export's own timing), or for a multirotor mission (a path with speeds, flown
