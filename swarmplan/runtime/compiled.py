@@ -183,7 +183,10 @@ def one_compiler(dispatcher: Any, folder: Path) -> Any:
             except OSError:
                 return compile_(sig)
             try:
-                fcntl.flock(fd, fcntl.LOCK_EX)
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX)
+                except OSError:  # a file system without locks
+                    return compile_(sig)
                 _HELD.add(key)
                 try:
                     return compile_(sig)
