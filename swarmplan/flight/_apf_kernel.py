@@ -456,14 +456,14 @@ def _minimum(a, b):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def commanded_velocity(amax, cruise, standoff, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
+def commanded_velocity(amax, cruise, floor, standoff, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
     """``apf.commanded_velocity_numpy`` row by row into ``out`` (its operations in its order;
-    ``standoff`` the agents' safety margins)."""
+    ``floor`` the agents' slowest commands, ``standoff`` their safety margins)."""
     for i in range(force.shape[0]):
         a = amax[i]
         gx, gy, gz = goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1], goal[i, 2] - pos[i, 2]
         dg = math.sqrt(gx * gx + gy * gy + gz * gz)
-        speed = _minimum(cruise[i], math.sqrt(2.0 * 0.8 * a * dg))
+        speed = _maximum(_minimum(cruise[i], math.sqrt(2.0 * 0.8 * a * dg)), floor[i])
         fx, fy, fz = force[i, 0], force[i, 1], force[i, 2]
         f = _maximum(math.sqrt(fx * fx + fy * fy + fz * fz), _EPS)
         vx, vy, vz = fx / f * speed, fy / f * speed, fz / f * speed

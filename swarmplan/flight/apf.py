@@ -38,7 +38,8 @@ The point of attraction (``Flyers.target``) is the goal, or a segment's or route
 for an agent whose straight line is blocked by a static obstacle the point ahead on its way
 round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static repulsion).
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
-so the agent can still brake before the goal and before any obstacle surface ahead.
+so the agent can still brake before the goal and before any obstacle surface ahead (a fixed
+wing's never below its minimum speed, :func:`speed_floor`).
 
 The field has two implementations with the same bits: the compiled kernel, and numpy
 (:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below
@@ -262,6 +263,14 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(norm3(v, keepdims=True), _EPS)
 
 
+def speed_floor(params: AgentParams, idx: np.ndarray) -> np.ndarray:
+    """The slowest command of agents ``idx``: a fixed wing's minimum speed (it cannot fly
+    slower: a command below it, braking towards its goal, would leave the surface brake
+    weighing a speed it never flies, while it flies at its floor along the command's
+    direction), 0 for a multirotor (it stops)."""
+    return np.where(params.fixed_wing[idx], params.speed_min[idx], 0.0)
+
+
 def commanded_velocity(
     params: AgentParams,
     idx: np.ndarray,
@@ -278,7 +287,8 @@ def commanded_velocity(
         return commanded_velocity_numpy(params, idx, force, pos, goal, clearance, clearance_dir)
     f = np.ascontiguousarray
     return kernel_module("swarmplan.flight._apf_kernel").commanded_velocity(
-        params.max_accel[idx], params.speed_cruise[idx], safety_margin(params.radius[idx]),
+        params.max_accel[idx], params.speed_cruise[idx], speed_floor(params, idx),
+        safety_margin(params.radius[idx]),
         f(force, dtype=float), f(pos, dtype=float), f(goal, dtype=float), f(clearance, dtype=float),
         f(clearance_dir, dtype=float), np.empty((len(idx), 3)),
     )  # fmt: skip
@@ -294,7 +304,9 @@ def commanded_velocity_numpy(
     clearance_dir: np.ndarray,
 ) -> np.ndarray:
     """Velocity command from the force: cruise speed along it, slowed to brake before the goal
-    and before the nearest surface ahead (``clearance`` (n,), outward normal ``clearance_dir``).
+    (never below the agent's :func:`speed_floor`: a fixed wing flies on at its minimum speed at
+    least, and its command is the speed it flies) and before the nearest surface ahead
+    (``clearance`` (n,), outward normal ``clearance_dir``).
     Towards a surface the speed is what still brakes at the agent's safety margin from it
     (``kinematics.safety_margin``: a fifth of its radius, at most 0.25 m, the room the safety
     filter keeps from every surface; a stand-off in metres held lab drones a body length and
@@ -303,7 +315,7 @@ def commanded_velocity_numpy(
     amax = params.max_accel[idx]
     speed = params.speed_cruise[idx].copy()
     dg = norm3(goal - pos)
-    speed = np.minimum(speed, np.sqrt(2.0 * 0.8 * amax * dg))
+    speed = np.maximum(np.minimum(speed, np.sqrt(2.0 * 0.8 * amax * dg)), speed_floor(params, idx))
     v = _unit(force) * speed[:, None]
     # Component towards the nearest surface may not exceed what can still be braked.
     toward = -dot3(v, clearance_dir)

@@ -84,6 +84,14 @@ class CurvatureSmoother:
         # by turning at the limit, the APF would circle or overshoot.
         lateral = to_t - np.dot(to_t, h) * h
         nl = _norm(lateral)
+        # A fixed wing's own goal is captured by its final approach (``swarmplan.flight.capture``),
+        # the way onto it from the route's last waypoint too.
+        goal = s.goal[i]
+        captured = bool(sim.params.fixed_wing[i]) and (
+            bool((target == goal).all()) or (after is not None and bool((after == goal).all()))
+        )
+        if captured:
+            return None
         if nl > 1e-6:
             center = p + R * lateral / nl
             if _norm(target - center) < R * 0.98:

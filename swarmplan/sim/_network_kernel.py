@@ -142,6 +142,7 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
     ds = np.empty(n * n_all)
     p = 0
     want = radius > 0.0
+    wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
         own = idx[k]
         for j in range(n_all):
@@ -154,7 +155,10 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
             if j == own or not want:
                 continue
             dx, dy, dz = moved[c, 0] - at[k, 0], moved[c, 1] - at[k, 1], moved[c, 2] - at[k, 2]
-            d = math.sqrt((dx * dx + dy * dy) + dz * dz)
+            d2 = (dx * dx + dy * dy) + dz * dz
+            if not d2 < wide:  # beyond the radius by more than rounding: no root taken
+                continue
+            d = math.sqrt(d2)
             if d < radius:
                 ks[p], js[p], rows[p], ds[p] = k, j, c, d
                 p += 1

@@ -271,7 +271,8 @@ class Simulation:
         if self.network is not None:
             self.network.broadcast(t0, s, ~self.loiter.flying(s, s.active), (vel1 - vel0) / dt)
         on_stuck = None if self.planner is None else self._ask_planner
-        self._merge(nav.detect_stuck(s, on_stuck, exempt=self.evasion.watching))
+        capturing = self.steering.capture.hold if self.steering.capture.any else None
+        self._merge(nav.detect_stuck(s, on_stuck, exempt=self.evasion.watching, restart=capturing))
 
         terminated = not s.active.any()
         truncated = (not terminated) and t1 >= w.max_time - 1e-9

@@ -147,6 +147,7 @@ class Navigator:
         s: SwarmState,
         on_stuck: Callable[[int], tuple[StuckOutcome, Sequence[Event]]] | None,
         exempt: np.ndarray | None = None,
+        restart: np.ndarray | None = None,
     ) -> Tally:
         """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
 
@@ -154,7 +155,9 @@ class Navigator:
         rest of the global route when the agent has one (a route may detour away from the goal).
         ``on_stuck(i)`` answers for a stuck agent: a segment to follow, ``FAILED`` or None (keep
         flying under APF; a fixed wing answered ``FAILED`` flies on too: it cannot stop), with
-        the events reported while planning it (logged after the ``stuck`` event). Returns what
+        the events reported while planning it (logged after the ``stuck`` event). Agents of
+        ``exempt`` are not checked; those of ``restart`` start their progress window again
+        (fixed wings coming round onto their goals, ``swarmplan.flight.capture``). Returns what
         was detected and started.
         """
         out = NOTHING
@@ -163,6 +166,9 @@ class Navigator:
         # Only agents following a segment or whose window has run out need work this step.
         # One pass over the modes: 0 done (arrived, collided, failed), 1 apf, 2 on a segment.
         kind = np.fromiter(map(_STUCK_KIND.__getitem__, s.mode.tolist()), dtype=np.int8, count=len(s.mode))
+        if restart is not None and restart.any():  # their progress is watched from now
+            again = np.flatnonzero(restart & (kind == 1))
+            self.progress_ref[again], self.progress_t[again] = self.to_go(s, again), s.t
         due = np.where(kind == 1, s.t - self.progress_t >= window - 1e-9, kind == 2)
         if exempt is not None:
             due &= ~exempt

@@ -2,9 +2,11 @@
 
 The field (threat cores repel like static spheres), the points of attraction (segments and
 routes from :mod:`~swarmplan.sim.navigation`, the guide's ways round static obstacles, whose
-guide is built anew when a mover comes to rest for good, the points ahead on their circles of
-the fixed wings that loiter about their goals, :mod:`~swarmplan.sim.loiter`), the clearance to
-the nearest static surface and the commanded velocity within each agent's kinematic limits.
+guide is built anew when a mover comes to rest for good, the points straight ahead of the fixed
+wings that cannot turn onto their goals yet, :mod:`~swarmplan.flight.capture`, the points ahead
+on their circles of the fixed wings that loiter about their goals, :mod:`~swarmplan.sim.loiter`),
+the clearance to the nearest static surface and the commanded velocity within each agent's
+kinematic limits.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import numpy as np
 
 from swarmplan.core import SwarmState
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
+from swarmplan.flight.capture import GoalCapture
 from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.sight import Sight
@@ -58,6 +61,7 @@ class Steering:
         self.navigator = Navigator(world, params, self.guide)
         self.loiter = Loiter(params)  # arrived fixed wings circle their goals
         self.sight = Sight(len(world.agents))  # fixed wings' clear lines (swarmplan.flight.sight)
+        self.capture = GoalCapture(params)  # fixed wings' final approach (swarmplan.flight.capture)
         # With comms: what each agent has heard of the others.
         self.network = (
             None if world.comms is None else Network(world.comms, world.sensing, params.max_accel, world.dt)
@@ -69,6 +73,7 @@ class Steering:
         from ``start`` to ``goal``, no loiter circles."""
         self.loiter.reset()
         self.sight.reset()
+        self.capture.reset()
         if self._guide_at > 0.0:
             self._new_guide(0.0)
         if self.guide is not None:
@@ -113,6 +118,8 @@ class Steering:
             at, goals = pos0[idx], s.goal[idx]
             target, rep_scale = self.guide.targets(s.step, idx, at, goals, target, rep_scale)
             target, rep_scale = self.sight.targets(self.guide, s.step, idx, at, goals, target, rep_scale)
+        if self.capture.any:  # a fixed wing that cannot turn onto its goal yet extends
+            target = self.capture.targets(s.t, idx, pos0[idx], vel0[idx], s.goal[idx], target)
         if self.loiter.on.any():  # a point ahead on its circle is a loitering agent's target and goal
             rows = np.flatnonzero(self.loiter.on[idx])
             ahead = self.loiter.targets(idx[rows], pos0[idx[rows]])
