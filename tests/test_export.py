@@ -347,15 +347,16 @@ def test_check_fails_when_the_swarm_meets(tmp_path, capsys):
 
 
 @pytest.mark.skipif(not (ROOT / "worlds" / "crazyflie_room.yaml").exists(), reason="needs the shipped world")
-def test_the_room_of_crazyflies_exports_and_checks(tmp_path):
+def test_the_room_of_crazyflies_exports_and_checks(tmp_path, capsys):
+    """The shipped room flown (in this process), then exported by ``python -m swarmplan.export``
+    (a process of its own: the command's real entry point)."""
+    from swarmplan.cli.run import main as run_main
+
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     log = tmp_path / "room.mcap"
     world = str(ROOT / "worlds" / "crazyflie_room.yaml")
-    run_ = subprocess.run(
-        [sys.executable, "-m", "swarmplan.run", world, "--out", str(log), "--quiet"],
-        capture_output=True, text=True, env=env, timeout=600,
-    )  # fmt: skip
-    assert run_.returncode == 0, run_.stdout + run_.stderr
+    code = run_main([world, "--out", str(log), "--quiet"])
+    assert code == 0, capsys.readouterr()
     out = str(tmp_path / "cf")
     exp = subprocess.run(
         [sys.executable, "-m", "swarmplan.export", str(log), "--format", "crazyflie", "--out", out,
