@@ -95,8 +95,10 @@ def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
     # The flown steps use the whole limit, so a smooth curve through them would break it.
     steps = np.diff(path.positions, axis=0) / DT
     assert np.linalg.norm(np.diff(steps, axis=0), axis=1).max() / DT == pytest.approx(1.5)
-    fit = crazyflie.fit(path, 0.01)
-    assert fit.max_deviation <= 0.01 and fit.max_speed <= 1.0 and fit.max_accel <= 1.5
+    # Leaving a hover, the trajectory takes up its acceleration over a moment (it starts with
+    # none) and cannot win back that lag at the speed limit: it is held to 2 cm, not 1.
+    fit = crazyflie.fit(path, 0.02)
+    assert fit.max_deviation <= 0.02 and fit.max_speed <= 1.0 and fit.max_accel <= 1.5
     # From rest half a step before the first recorded position, to rest half a step after the last.
     assert fit.lead == DT / 2 and fit.poly.duration == pytest.approx(path.duration + DT, abs=1e-6)
     poly = fit.poly
@@ -104,15 +106,18 @@ def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
     assert np.linalg.norm(poly.evaluate(t, 2)[:, :3], axis=1).max() <= 1.5
     assert np.linalg.norm(poly.evaluate(t, 1)[:, :3], axis=1).max() <= 1.0
     assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]), 1)[:, :3], 0.0, atol=1e-6)
+    assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]), 2)[:, :3], 0.0, atol=1e-4)  # hover
     assert np.allclose(poly.evaluate(np.array([0.0, poly.duration]))[:, :3],
                        path.positions[[0, -1]], atol=1e-5)  # fmt: skip
     jumps = poly.joint_jumps()
     assert jumps[0] < 1e-5 and jumps[1] < 1e-4 and jumps[2] < 1e-3  # float32 rounding only
-    # Every point on the line (the motion, the limits and the bound are symmetric about it).
+    # Near the line (the motion, the limits and the bound are symmetric about it; the least
+    # distance programme's solution under the cutting planes is not exactly, 0.6 mm off it at
+    # most here), and the least-squares fit on it.
     u = path.positions[-1] - path.positions[0]
     u /= np.linalg.norm(u)
     rel = poly.evaluate(t)[:, :3] - path.positions[0]
-    assert np.linalg.norm(rel - np.outer(rel @ u, u), axis=1).max() < 1e-5
+    assert np.linalg.norm(rel - np.outer(rel @ u, u), axis=1).max() < 0.05 * 0.02
 
 
 def test_circle_fits_continuous_to_acceleration_within_limits():
@@ -148,14 +153,14 @@ def test_a_path_beyond_the_limits_on_its_timing_is_refused_with_the_limits_it_ne
 def test_a_path_beyond_the_memory_is_refused_with_the_bound_that_fits():
     path = bang_bang_line()
     with pytest.raises(LimitError) as err:
-        crazyflie.fit(path, 0.0005, max_pieces=3)
+        crazyflie.fit(path, 0.0005, max_pieces=8)
     msg = str(err.value)
-    assert "at most 3 pieces (396 of the 4096-byte trajectory memory)" in msg and "\n" not in msg
+    assert "at most 8 equal pieces (1056 of the 4096-byte trajectory memory)" in msg and "\n" not in msg
     bound = float(msg.split("--max-deviation ")[1].split()[0])
-    fit = crazyflie.fit(path, bound, max_pieces=3)  # what the message says fits, fits
-    assert fit.max_deviation <= bound and fit.max_accel <= 1.5 and fit.poly.n_pieces <= 3
+    fit = crazyflie.fit(path, bound, max_pieces=8)  # what the message says fits, fits
+    assert fit.max_deviation <= bound and fit.max_accel <= 1.5 and fit.poly.n_pieces <= 8
     with pytest.raises(LimitError):
-        crazyflie.fit(path, 0.9 * bound, max_pieces=3)  # and not much less
+        crazyflie.fit(path, 0.9 * bound, max_pieces=8)  # and not much less
 
 
 def test_rdp_keeps_every_point_within_the_bound():
@@ -342,15 +347,16 @@ def test_check_fails_when_the_swarm_meets(tmp_path, capsys):
 
 
 @pytest.mark.skipif(not (ROOT / "worlds" / "crazyflie_room.yaml").exists(), reason="needs the shipped world")
-def test_the_room_of_crazyflies_exports_and_checks(tmp_path):
+def test_the_room_of_crazyflies_exports_and_checks(tmp_path, capsys):
+    """The shipped room flown (in this process), then exported by ``python -m swarmplan.export``
+    (a process of its own: the command's real entry point)."""
+    from swarmplan.cli.run import main as run_main
+
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     log = tmp_path / "room.mcap"
     world = str(ROOT / "worlds" / "crazyflie_room.yaml")
-    run_ = subprocess.run(
-        [sys.executable, "-m", "swarmplan.run", world, "--out", str(log), "--quiet"],
-        capture_output=True, text=True, env=env, timeout=600,
-    )  # fmt: skip
-    assert run_.returncode == 0, run_.stdout + run_.stderr
+    code = run_main([world, "--out", str(log), "--quiet"])
+    assert code == 0, capsys.readouterr()
     out = str(tmp_path / "cf")
     exp = subprocess.run(
         [sys.executable, "-m", "swarmplan.export", str(log), "--format", "crazyflie", "--out", out,

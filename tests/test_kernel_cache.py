@@ -81,3 +81,45 @@ def test_every_compiled_function_takes_njit_from_the_loader() -> None:
         if p.parent.name != "runtime" and "from numba import" in p.read_text(encoding="utf-8")
     ]
     assert direct == []
+
+
+RACE = textwrap.dedent(
+    """
+    import sys, time
+    from pathlib import Path
+    sys.path[:0] = [{root!r}, {tmp!r}]
+    from racepkg.entry import f
+    tmp = Path({tmp!r})
+    (tmp / "ready-{i}").touch()
+    while not all((tmp / f"ready-{{j}}").exists() for j in (0, 1)):
+        time.sleep(0.005)
+    print(f(3), sum(f.stats.cache_misses.values()), sum(f.stats.cache_hits.values()))
+    """
+)
+
+
+def test_processes_needing_a_kernel_at_once_compile_it_once(tmp_path: Path) -> None:
+    """Two processes call a kernel nobody has compiled, at the same moment: one compiles it, the
+    other waits on its lock and reads it from the cache."""
+    pkg = tmp_path / "racepkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "entry.py").write_text(
+        "from swarmplan.runtime.compiled import njit\n\n\n@njit(cache=True)\ndef f(n):\n"
+        "    s = 0\n    for i in range(n):\n        s += i * i\n    return s\n"
+    )
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", RACE.format(root=str(ROOT), tmp=str(tmp_path), i=i)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        for i in (0, 1)
+    ]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [err for _, err in outs]
+    results = sorted(tuple(int(x) for x in out.split()) for out, _ in outs)
+    assert results == [(5, 0, 1), (5, 1, 0)]  # 0 + 1 + 4; one compiled, one read it back

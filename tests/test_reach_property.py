@@ -198,14 +198,13 @@ def test_bench_flight_is_reproducible_and_tabled():
     assert "| lab | 1 |" in markdown([t])
 
 
-def test_bench_reach_refuses_bad_arguments():
-    import subprocess
-    import sys
+def test_bench_reach_refuses_bad_arguments(capsys):
+    """Every problem named, before any flight (in the test's process: ``python -m
+    swarmplan.bench``'s own exit 2 is checked in a process of its own in test_bench_outputs.py)."""
+    from swarmplan.cli.bench import main as bench_main
 
-    cmd = [sys.executable, "-m", "swarmplan.bench", "reach", "--worlds", "0", "--class", "glider"]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    assert r.returncode == 2
-    lines = r.stderr.strip().splitlines()
+    assert bench_main(["reach", "--worlds", "0", "--class", "glider"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
     assert lines == [
         "error: --worlds: must be >= 1, got 0",
         "error: --class: expected one of lab, field, fixed_wing or all, got 'glider'",

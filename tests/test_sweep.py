@@ -1,4 +1,5 @@
-"""Sweeps on Dask: a LocalCluster of 2 worker processes runs small studies of tiny worlds.
+"""Sweeps on Dask: a LocalCluster of one worker process runs small studies of tiny worlds (the
+suite runs a file per core already, so a second worker would only add its start-up).
 
 Rows and logs (16 = 2 worlds x 2 optimizers x 2 seeds x 2 override values, every log audited by
 check_log and by the replay recomputation), the same rows as serial ``swarmplan.run`` runs, a
@@ -91,7 +92,7 @@ def cluster():
 
     with (
         distributed.LocalCluster(
-            n_workers=2,
+            n_workers=1,
             threads_per_worker=1,
             processes=True,
             silence_logs=logging.ERROR,

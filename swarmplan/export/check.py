@@ -1,6 +1,8 @@
-"""``--check``: fly every exported trajectory again with the vehicle models of ``track`` (the
-quadrotor under its cascaded PID, the fixed wing under L1 guidance and its energy loop), following
-the export and not the log, then look at the swarm together on the exported timing.
+"""``--check``: fly every exported trajectory again with the vehicle models of ``track`` (a
+Crazyflie trajectory by the Crazyflie under its firmware's commander and Mellinger controller, a
+mission by the quadrotor under its cascaded PID, a fixed wing under L1 guidance and its energy
+loop), following the export and not the log, then look at the swarm together on the exported
+timing.
 
 Per agent: the largest distance between the flown vehicle and the planned position at the same
 instant (the export's own timing), or for a multirotor mission (a path with speeds, flown
@@ -20,6 +22,8 @@ import numpy as np
 
 from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.replay import Recording
+from swarmplan.track.crazyflie import Crazyflie, Setpoints
+from swarmplan.track.crazyflie import fly as fly_crazyflie
 from swarmplan.track.fixed_wing import FixedWingConfig, aircraft_of, error_limit, fly
 from swarmplan.track.quadrotor import simulate
 from swarmplan.track.reference import Reference, build_reference
@@ -43,6 +47,8 @@ class Plan:
     vel: np.ndarray | None = None
     acc: np.ndarray | None = None
     path_only: bool = False  # a mission: held to its path (no schedule), not to a timed position
+    jerk: np.ndarray | None = None
+    vehicle: str = ""  # "crazyflie": set-points every commander tick, flown by the Crazyflie
 
 
 @dataclass(frozen=True)
@@ -130,6 +136,37 @@ def _fly_multirotor(plan: Plan, cfg: TrackerConfig) -> tuple[np.ndarray, np.ndar
     return ref.times, flight.pos[0], ref.pos[0]
 
 
+def _fly_crazyflies(
+    plans: list[Plan], settle_time: float
+) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Flown positions at the commander's ticks (and the planned ones) of Crazyflie plans, flown
+    together when they start together; each holds its last set-point (at rest) after its end,
+    until the last of them has ended and the settle time has passed."""
+    cf = Crazyflie()
+    out: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    for t0 in sorted({float(p.times[0]) for p in plans}):
+        group = [p for p in plans if float(p.times[0]) == t0]
+        n = max(len(p.times) for p in group) + int(np.ceil(settle_time / cf.commander_dt))
+        times = t0 + cf.commander_dt * np.arange(n)
+
+        def held(a: np.ndarray | None, derivative: bool, n: int = n) -> np.ndarray:
+            assert a is not None
+            end = np.zeros(3) if derivative else a[-1]
+            return np.concatenate([a, np.repeat(end[None], n - len(a), axis=0)])
+
+        sp = Setpoints(
+            times,
+            np.stack([held(p.pos, False) for p in group]),
+            np.stack([held(p.vel, True) for p in group]),
+            np.stack([held(p.acc, True) for p in group]),
+            np.stack([held(p.jerk, True) for p in group]),
+        )
+        flight = fly_crazyflie(sp, cf)
+        for a, p in enumerate(group):
+            out[p.id] = (times, flight.pos[a], sp.pos[a])
+    return out
+
+
 def _fly_fixed_wing(
     plan: Plan, world: dict[str, Any], rec_dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -142,8 +179,12 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
     """Fly ``plans`` and check them one by one and together (module docstring)."""
     flown: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     agents: list[AgentCheck] = []
+    crazyflies = _fly_crazyflies([p for p in plans if p.vehicle == "crazyflie"], cfg.settle_time)
     for plan in plans:
-        if plan.model == "fixed_wing":
+        if plan.id in crazyflies:
+            times, pos, ref_pos = crazyflies[plan.id]
+            limit = plan.bound
+        elif plan.model == "fixed_wing":
             times, pos, ref_pos, limit = _fly_fixed_wing(plan, rec.world, rec.dt)
         else:
             times, pos, ref_pos = _fly_multirotor(plan, cfg)

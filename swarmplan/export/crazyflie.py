@@ -9,7 +9,8 @@ so one trajectory has at most 4096 // 132 = 31 pieces.
 
 Fit: a degree-7 B-spline in time whose interior knots have multiplicity 4, so position,
 velocity, acceleration and jerk are continuous at every joint (C3), on the flown timing (from
-rest half a step before the first recorded step; :func:`ends_of`). The agent's speed and
+rest half a step before the first recorded step; :func:`ends_of`); an end at rest is a hover,
+with no acceleration either. The agent's speed and
 acceleration limits and the accuracy bound are constraints on dense grids: of the splines that
 keep them, the fit is the one closest to the least-squares fit to every recorded position plus
 a small penalty on the snap, found by cutting planes (:func:`_solve`) and solved exactly as a
@@ -126,9 +127,9 @@ def accuracy_for(path: FlownPath, override: float | None = None) -> float:
     return min(DEFAULT_ACCURACY, 0.1 * sep) if sep > 0 else DEFAULT_ACCURACY
 
 
-def _knots(duration: float, n: int) -> np.ndarray:
-    inner = np.repeat(np.linspace(0.0, duration, n + 1)[1:-1], JOINT_MULTIPLICITY)
-    return np.concatenate([np.zeros(COEFFS), inner, np.full(COEFFS, duration)])
+def _knots(breaks: np.ndarray) -> np.ndarray:
+    inner = np.repeat(breaks[1:-1], JOINT_MULTIPLICITY)
+    return np.concatenate([np.full(COEFFS, breaks[0]), inner, np.full(COEFFS, breaks[-1])])
 
 
 def _basis(knots: np.ndarray, x: np.ndarray, derivative: int = 0) -> np.ndarray:
@@ -140,12 +141,11 @@ def _basis(knots: np.ndarray, x: np.ndarray, derivative: int = 0) -> np.ndarray:
     return np.nan_to_num(out)
 
 
-def _snap_gram(knots: np.ndarray, n: int, duration: float) -> np.ndarray:
-    """Gram matrix of the basis' 4th derivatives over [0, duration] (Gauss-Legendre: the products
+def _snap_gram(knots: np.ndarray, breaks: np.ndarray) -> np.ndarray:
+    """Gram matrix of the basis' 4th derivatives over the trajectory (Gauss-Legendre: the products
     are of degree 6 on each piece, 4 nodes integrate them exactly)."""
     nodes, weights = np.polynomial.legendre.leggauss(4)
-    b = np.linspace(0.0, duration, n + 1)
-    a, h = b[:-1], np.diff(b)
+    a, h = breaks[:-1], np.diff(breaks)
     x = (a[:, None] + 0.5 * h[:, None] * (nodes[None] + 1.0)).reshape(-1)
     w = (0.5 * h[:, None] * weights[None]).reshape(-1)
     s = _basis(knots, x, 4)
@@ -160,10 +160,11 @@ def _peaks(norm: np.ndarray, limit: float) -> np.ndarray:
     return np.flatnonzero(over & left & right)
 
 
-def _to_poly(knots: np.ndarray, coef: np.ndarray, n: int, duration: float) -> Poly4D:
+def _to_poly(knots: np.ndarray, coef: np.ndarray, breaks: np.ndarray) -> Poly4D:
     """Local power-basis coefficients of each piece (float32): the piece is one polynomial of
     degree 7, so its values at 8 Chebyshev points inside it determine them exactly."""
-    b = np.linspace(0.0, duration, n + 1)
+    b = breaks
+    n = len(b) - 1
     h = np.diff(b)
     spline = BSpline(knots, coef, DEGREE)
     nodes = 0.5 * (1.0 - np.cos((2 * np.arange(COEFFS) + 1) * np.pi / (2 * COEFFS)))  # in (0, 1)
@@ -269,6 +270,7 @@ class _Problem:
     its deviation are measured with."""
 
     n: int
+    breaks: np.ndarray  # (n + 1,) s: the joints, from 0 to the duration
     knots: np.ndarray
     nc: int
     duration: float  # s, the trajectory's (the flown path's, with its lead and trail)
@@ -281,18 +283,26 @@ class _Problem:
 
 
 def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
+    """The fit with ``n`` pieces of equal durations."""
     tau = path.times - path.times[0]
     lead, trail = ends_of(path)
     duration = float(tau[-1]) + lead + trail
-    knots = _knots(duration, n)
+    breaks = np.linspace(0.0, duration, n + 1)
+    knots = _knots(breaks)
     basis = _basis(knots, tau + lead)
     nc = basis.shape[1]
-    gram = _snap_gram(knots, n, duration)
+    gram = _snap_gram(knots, breaks)
     v0 = np.zeros(3) if lead else _end_velocity(path.times, path.positions, False, False)
     v1 = _end_velocity(path.times, path.positions, True, bool(trail))
     ends = np.array([0.0, duration])
     rows = [_basis(knots, ends, 0), _basis(knots, ends, 1)]
     rhs = [np.vstack([path.positions[0], path.positions[-1]]), np.vstack([v0, v1])]
+    # An end at rest is a hover: no acceleration there either (a hovering vehicle cannot take up
+    # an acceleration at once; it has to tilt first).
+    rest = [t for t, at_rest in ((0.0, lead > 0), (duration, trail > 0)) if at_rest]
+    if rest:
+        rows.append(_basis(knots, np.array(rest), 2))
+        rhs.append(np.zeros((len(rest), 3)))
     eq = np.kron(np.eye(3), np.vstack(rows))
     eq_rhs = np.vstack(rhs).T.reshape(-1)
     a = basis.T @ basis
@@ -312,7 +322,7 @@ def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
     grid = np.linspace(0.0, duration, max(n * DENSE * 4, len(tau) * 4) + 1)
     t = _dense_ends(path)
     return _Problem(
-        n, knots, nc, duration, x0 + null @ z_free, reduce,
+        n, breaks, knots, nc, duration, x0 + null @ z_free, reduce,
         _basis(knots, grid, 1), _basis(knots, grid, 2),
         _basis(knots, t), _flown_at(tau, path.positions, t - lead),
     )  # fmt: skip
@@ -382,7 +392,7 @@ def _fit_n(
     coef = _solve(prob, lim.speed_max * scale, lim.max_accel * scale, accuracy)
     if coef is None:
         return None
-    poly = _to_poly(prob.knots, coef, prob.n, prob.duration)
+    poly = _to_poly(prob.knots, coef, prob.breaks)
     dev, speed, accel = evaluate_fit(poly, path)
     ok = speed <= lim.speed_max * scale and accel <= lim.max_accel * scale
     if not ok or (accuracy is not None and dev > accuracy):
@@ -390,11 +400,14 @@ def _fit_n(
     return poly, dev, speed, accel
 
 
+def _plain(prob: _Problem) -> Poly4D:
+    """The least-squares fit of ``prob``, limits aside."""
+    return _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, prob.breaks)
+
+
 def _plain_deviation(path: FlownPath, n: int) -> float:
     """Deviation of the least-squares fit with ``n`` pieces, limits aside."""
-    prob = _problem(path, n)
-    poly = _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, n, prob.duration)
-    return evaluate_fit(poly, path)[0]
+    return evaluate_fit(_plain(_problem(path, n)), path)[0]
 
 
 def _pieces_needed(path: FlownPath, accuracy: float, cap: int) -> int | None:
@@ -465,8 +478,9 @@ def _refusal(path: FlownPath, accuracy: float, max_pieces: int) -> str:
     lim = path.limits
     prob = _problem(path, max_pieces)
     head = (
-        f"agent {lim.id}: no trajectory of at most {max_pieces} pieces ({max_pieces * PIECE_BYTES} of the "
-        f"{MEMORY_BYTES}-byte trajectory memory) keeps within {accuracy:g} m of its {path.duration:.1f} s "
+        f"agent {lim.id}: no trajectory of at most {max_pieces} equal pieces "
+        f"({max_pieces * PIECE_BYTES} of the {MEMORY_BYTES}-byte trajectory memory) keeps within "
+        f"{accuracy:g} m of its {path.duration:.1f} s "
         f"flown path with speed <= {lim.speed_max:g} m/s and acceleration <= {lim.max_accel:g} m/s^2"
     )
     loose = _fit_n(path, prob, None)
@@ -478,7 +492,7 @@ def _refusal(path: FlownPath, accuracy: float, max_pieces: int) -> str:
             f"--max-deviation {bound:g} or more"
         )
     # Not even the limits alone: the flown timing asks more of the agent than it has.
-    plain = _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, max_pieces, prob.duration)
+    plain = _plain(prob)
     dev, speed, accel = evaluate_fit(plain, path)
     hi = max(speed / lim.speed_max, accel / lim.max_accel, 1.0) * 1.01
     probe = max(accuracy, dev * 1.01)

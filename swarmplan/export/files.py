@@ -17,6 +17,7 @@ import numpy as np
 
 from swarmplan.replay import Recording
 from swarmplan.replay.geometry import terrain_height
+from swarmplan.track.crazyflie import Crazyflie
 from swarmplan.track.fixed_wing import aircraft_of, error_limit
 from swarmplan.world.tracker_config import TrackerConfig
 
@@ -123,7 +124,9 @@ def _crazyflie(
     poly = fit.poly
     name = f"{stem}.csv"
     files[name] = crazyflie.csv_text(poly)
-    t = np.linspace(0.0, poly.duration, max(2, int(np.ceil(poly.duration / 0.01)) + 1))
+    # The high-level commander's ticks from the trajectory's start to its end.
+    dt = Crazyflie().commander_dt
+    t = dt * np.arange(int(np.ceil(poly.duration / dt - 1e-9)) + 1)
     plan = Plan(
         lim.id,
         lim.model,
@@ -134,6 +137,8 @@ def _crazyflie(
         accuracy,
         poly.evaluate(t, 1)[:, :3],
         poly.evaluate(t, 2)[:, :3],
+        jerk=poly.evaluate(t, 3)[:, :3],
+        vehicle="crazyflie",
     )
     jumps = poly.joint_jumps()
     entry = {

@@ -283,7 +283,7 @@ class _FishBase(Optimizer):
                 G, lens = rng.random((m, d)), np.zeros(m)
             else:
                 G = rng.random((m, d + 1))
-                lens = G[:, d]
+                lens = np.ascontiguousarray(G[:, d])  # one compiled signature for prey_tries
             T, X = np.empty((m, d)), np.empty((m, d))
             K.prey_tries(U, fish, vis, G, lens, mode, T, X, lower, span)
             FT = problem.evaluate(X)

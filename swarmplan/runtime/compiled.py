@@ -33,7 +33,8 @@ module of the package they import: an edit in any of them compiles afresh, in a 
 (the ``KEEP`` most recent folders are kept, older ones removed). The folders lie in
 ``$NUMBA_CACHE_DIR`` when it is set, else in the package's ``__pycache__`` (else numba's
 user-wide cache when that cannot be written). Processes started from this one (a sweep's
-workers) inherit the folder.
+workers) inherit the folder, and processes that need the same kernel at once compile it once
+(:func:`one_compiler`).
 """
 
 from __future__ import annotations
@@ -137,11 +138,65 @@ def read_only(a: Any) -> Any:
 
 def njit(*args: Any, **kwargs: Any) -> Any:
     """numba's ``njit``, with numba's on-disk cache pointed at the folder of this package's
-    :func:`kernel_digest` first (see the module docstring)."""
-    use_kernel_cache(PACKAGE_ROOT, "swarmplan")
+    :func:`kernel_digest` first (see the module docstring), and each kernel compiled by one
+    process at a time (:func:`one_compiler`)."""
+    folder = use_kernel_cache(PACKAGE_ROOT, "swarmplan")
     import numba
 
-    return numba.njit(*args, **kwargs)
+    if len(args) == 1 and callable(args[0]) and not kwargs:  # bare ``@njit``
+        return one_compiler(numba.njit(args[0]), folder)
+    decorate = numba.njit(*args, **kwargs)
+    if not kwargs.get("cache"):
+        return decorate
+    return lambda fn: one_compiler(decorate(fn), folder)
+
+
+_HELD: set[str] = set()
+
+
+def one_compiler(dispatcher: Any, folder: Path) -> Any:
+    """``dispatcher`` (a numba function cached in ``folder``) compiling under a lock file of its
+    own in ``folder``: processes that need the same kernel at once (the workers of a sweep or of
+    a test run, on a fresh cache) compile it once, and the others wait, then read it from the
+    cache instead of compiling it too. Locks are taken inside numba's own compiler lock, one
+    thread at a time per process; a kernel's callees (compiled while it is) take theirs after
+    it, and calls never go round in a circle, so no two processes wait on each other. Where
+    locks cannot be had (no ``fcntl``, a folder that cannot be written) each compiles alone."""
+    try:
+        import fcntl
+    except ImportError:  # not on POSIX
+        return dispatcher
+    from numba.core.compiler_lock import global_compiler_lock
+
+    func = dispatcher.py_func
+    lock = folder / ".locks" / f"{func.__module__}.{func.__qualname__}"
+    compile_ = dispatcher.compile
+
+    def compile(sig: Any) -> Any:
+        with global_compiler_lock:
+            key = str(lock)
+            if key in _HELD:  # this thread holds it (a kernel compiled while it compiles)
+                return compile_(sig)
+            try:
+                lock.parent.mkdir(exist_ok=True)
+                fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError:
+                return compile_(sig)
+            try:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX)
+                except OSError:  # a file system without locks
+                    return compile_(sig)
+                _HELD.add(key)
+                try:
+                    return compile_(sig)
+                finally:
+                    _HELD.discard(key)
+            finally:
+                os.close(fd)  # releases the lock
+
+    dispatcher.compile = compile
+    return dispatcher
 
 
 def _module_file(root: Path, package: str, name: str) -> Path | None:

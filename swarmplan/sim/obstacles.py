@@ -97,7 +97,9 @@ class Obstacles:
         if self.compiled:
             clear, normal = np.empty(len(idx)), np.empty((len(idx), 3))
             kernels = kernel_module("swarmplan.geometry._distance_kernels")
-            kernels.nearest_surface(d, g, self._static_mask, r, pos[:, 2], h, gh, clear, normal)
+            # the heights contiguous whatever the number of agents: one compiled signature
+            pz = np.ascontiguousarray(pos[:, 2])
+            kernels.nearest_surface(d, g, self._static_mask, r, pz, h, gh, clear, normal)
             return clear, normal
         clear = pos[:, 2] - h - r
         normal = np.stack([-gh[:, 0], -gh[:, 1], np.ones(len(idx))], axis=1)

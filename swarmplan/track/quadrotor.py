@@ -75,9 +75,36 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def rotation(euler: np.ndarray) -> np.ndarray:
+    """Body-to-world rotation matrices (..., 3, 3) of Euler angles (..., 3) (roll, pitch, yaw;
+    R = Rz(yaw) Ry(pitch) Rx(roll)): the columns are the body x, y and z axes."""
+    cr, sr = np.cos(euler[..., 0]), np.sin(euler[..., 0])
+    cp, sp = np.cos(euler[..., 1]), np.sin(euler[..., 1])
+    cy, sy = np.cos(euler[..., 2]), np.sin(euler[..., 2])
+    r = np.empty((*euler.shape[:-1], 3, 3))
+    r[..., 0, 0] = cy * cp
+    r[..., 0, 1] = cy * sp * sr - sy * cr
+    r[..., 0, 2] = cy * sp * cr + sy * sr
+    r[..., 1, 0] = sy * cp
+    r[..., 1, 1] = sy * sp * sr + cy * cr
+    r[..., 1, 2] = sy * sp * cr - cy * sr
+    r[..., 2, 0] = -sp
+    r[..., 2, 1] = cp * sr
+    r[..., 2, 2] = cp * cr
+    return r
+
+
 def _deriv(
-    x: np.ndarray, t_cmd: np.ndarray, tau: np.ndarray, cfg: TrackerConfig, inertia: np.ndarray
+    x: np.ndarray,
+    t_cmd: np.ndarray,
+    tau: np.ndarray,
+    cfg: TrackerConfig,
+    inertia: np.ndarray,
+    rotor_drag: np.ndarray | None = None,
 ) -> np.ndarray:
+    """The state's rate of change (A, 13). ``cfg`` gives ``mass``, the quadratic ``drag`` and the
+    ``motor_time_constant``; ``rotor_drag`` (3,), N s/m per world axis, adds a drag linear in the
+    velocity (a small rotor's blade flapping and induced drag)."""
     v = x[:, 3:6]
     roll, pitch, yaw = x[:, 6], x[:, 7], x[:, 8]
     w = x[:, 9:12]
@@ -88,6 +115,8 @@ def _deriv(
     acc = (thrust / cfg.mass)[:, None] * _body_z(roll, pitch, yaw) - (cfg.drag / cfg.mass) * speed[
         :, None
     ] * v
+    if rotor_drag is not None:
+        acc -= (rotor_drag / cfg.mass) * v
     acc[:, 2] -= G
     dx[:, 3:6] = acc
     sr, cr = np.sin(roll), np.cos(roll)
@@ -100,6 +129,23 @@ def _deriv(
     dx[:, 9:12] = (tau - _cross(w, jw)) / inertia
     dx[:, 12] = (t_cmd - thrust) / cfg.motor_time_constant
     return dx
+
+
+def rk4_step(
+    x: np.ndarray,
+    t_cmd: np.ndarray,
+    tau: np.ndarray,
+    cfg: TrackerConfig,
+    inertia: np.ndarray,
+    dt: float,
+    rotor_drag: np.ndarray | None = None,
+) -> np.ndarray:
+    """The state ``dt`` later, the commands held over the step (classical RK4)."""
+    k1 = _deriv(x, t_cmd, tau, cfg, inertia, rotor_drag)
+    k2 = _deriv(x + 0.5 * dt * k1, t_cmd, tau, cfg, inertia, rotor_drag)
+    k3 = _deriv(x + 0.5 * dt * k2, t_cmd, tau, cfg, inertia, rotor_drag)
+    k4 = _deriv(x + dt * k3, t_cmd, tau, cfg, inertia, rotor_drag)
+    return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
 def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
@@ -192,11 +238,7 @@ def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
         tau = inertia * alpha + _cross(w, w * inertia)
 
         # --- RK4 with the commands held over the period
-        k1 = _deriv(x, t_cmd, tau, cfg, inertia)
-        k2 = _deriv(x + 0.5 * dt * k1, t_cmd, tau, cfg, inertia)
-        k3 = _deriv(x + 0.5 * dt * k2, t_cmd, tau, cfg, inertia)
-        k4 = _deriv(x + dt * k3, t_cmd, tau, cfg, inertia)
-        x = x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+        x = rk4_step(x, t_cmd, tau, cfg, inertia, dt)
 
     b3_all = _body_z(out_eul[..., 0], out_eul[..., 1], out_eul[..., 2])
     tilt = np.degrees(np.arccos(np.clip(b3_all[..., 2], -1.0, 1.0)))
