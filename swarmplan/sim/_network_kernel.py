@@ -24,13 +24,17 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     rows = np.empty(n * n_all, dtype=np.int64)
     ds = np.empty(n * n_all)
     c = 0
+    wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
         for j in range(n_all):
             r = view[k, j]
             if r < 0 or j == own[k]:
                 continue
             dx, dy, dz = pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2]
-            d = math.sqrt((dx * dx + dy * dy) + dz * dz)
+            d2 = (dx * dx + dy * dy) + dz * dz
+            if not d2 < wide:  # beyond the radius by more than rounding: no root taken
+                continue
+            d = math.sqrt(d2)
             if d < radius:
                 ks[c], js[c], rows[c], ds[c] = k, j, r, d
                 c += 1
@@ -110,10 +114,9 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
     """``network.compact_near_numpy``: the table rows (ascending) that flyers ``idx`` hold in
     ``heard`` (receiver, sender; 0: none) and each flyer's view of them (n, N: the position
     among those rows, -1: none; ``mark``, one per table row, all -1, is scratch, all -1 again
-    on return), the ages at ``t`` of the rows held and
-    their positions moved on by them at the velocity sent (``table`` = (time, position,
-    velocity) per table row), and :func:`held_pairs` of flyers ``idx`` (at ``at``) within
-    ``radius``, the view's second pass finding them."""
+    on return), the ages at ``t`` of the rows held and their positions moved on by them at the
+    velocity sent (``table`` = (time, position, velocity) per table row), and
+    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
     t_row, pos_row, vel_row = table
     n = idx.shape[0]
     n_all = heard.shape[1]
@@ -136,32 +139,10 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
         for e in range(3):
             moved[c, e] = pos_row[r, e] + vel_row[r, e] * age[c]
     view = np.empty((n, n_all), dtype=np.int64)
-    ks = np.empty(n * n_all, dtype=np.int64)
-    js = np.empty(n * n_all, dtype=np.int64)
-    rows = np.empty(n * n_all, dtype=np.int64)
-    ds = np.empty(n * n_all)
-    p = 0
-    want = radius > 0.0
-    wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
-        own = idx[k]
         for j in range(n_all):
-            r = heard[own, j]
-            if r <= 0:
-                view[k, j] = -1
-                continue
-            c = mark[r]
-            view[k, j] = c
-            if j == own or not want:
-                continue
-            dx, dy, dz = moved[c, 0] - at[k, 0], moved[c, 1] - at[k, 1], moved[c, 2] - at[k, 2]
-            d2 = (dx * dx + dy * dy) + dz * dz
-            if not d2 < wide:  # beyond the radius by more than rounding: no root taken
-                continue
-            d = math.sqrt(d2)
-            if d < radius:
-                ks[p], js[p], rows[p], ds[p] = k, j, c, d
-                p += 1
+            r = heard[idx[k], j]
+            view[k, j] = mark[r] if r > 0 else -1
     for c in range(count):
         mark[live[c]] = -1
-    return live, view, age, moved, (ks[:p].copy(), js[:p].copy(), rows[:p].copy(), ds[:p].copy())
+    return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
