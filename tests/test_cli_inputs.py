@@ -171,9 +171,11 @@ def _sweep_in_a_terminal(tmp_path: Path, stop_after_logs: int) -> tuple[subproce
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     cmd = [sys.executable, "-m", "swarmplan.sweep", "spec.yaml", "--workers", "2", "--out", "out"]
     cmd.append("--no-progress")
+    # A terminal's foreground job answers Ctrl-C: the sweep starts with SIGINT's default action
+    # whatever this process inherited (a shell's background job ignores SIGINT, and so would it).
     proc = subprocess.Popen(
         cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        start_new_session=True,
+        start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
     deadline = time.monotonic() + 240
     while time.monotonic() < deadline and proc.poll() is None:
