@@ -72,6 +72,25 @@ def test_behind_the_wall_the_way_leads_to_the_gap_and_through_it():
     assert 47.5 < crossing[1] < 52.5
 
 
+def test_a_goal_below_the_lowest_altitude_flown_has_a_way():
+    """A goal behind the wall 1.5 m up, under the agents' 5 m ``min_altitude``: no cell within
+    one of the goal's is free (the floor less the radius), yet the way from behind the wall
+    leads to the free cell nearest the goal's, straight above it."""
+    world = wall_world(goal=(70.0, 20.0, 1.5))
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    pos = np.array([[40.0, 20.0, 20.0]])
+    goal = np.array([[70.0, 20.0, 1.5]])
+    cell = int(guide.cell_of(goal)[0])
+    assert not guide.free[cell]
+    assert not guide.free[guide.cell_of(goal + [0.0, 0.0, 1.5 * guide.cell[2]])[0]]
+    guide.targets(0, np.array([0]), pos, goal, goal.copy(), np.ones(1))
+    assert guide.guided[0] and np.isfinite(guide.way_length(pos, goal)[0])
+    source = guide._source[int(guide._rows_for(guide.cell_of(goal), pos)[0])]
+    assert guide.free[source]
+    np.testing.assert_array_equal(guide.ijk[source, :2], guide.ijk[cell, :2])
+    assert guide.centres[source, 2] - guide.radius - 5.0 < guide.cell[2]
+
+
 def test_an_agent_with_a_clear_line_flies_at_its_goal():
     world = wall_world()
     guide = G.make_guide(world, AgentParams.from_world(world))

@@ -456,12 +456,28 @@ class StaticGuide:
 
     def _source_of(self, cell: int) -> int:
         """The search's source for a goal in ``cell``: the cell, or the free neighbour with the
-        most clearance when the goal's own cell is not free."""
+        most clearance when the goal's own cell is not free; with no free neighbour either (a
+        goal below the lowest altitude flown, or tucked into a corner by more than a cell), the
+        free cell nearest the goal's cell in the first ring of cells around it that holds one
+        (a source that is not free would be entered by no free cell: no way would lead there)."""
         if self.free[cell]:
             return cell
         nb = self.ijk[cell] + OFFSETS
         nb = nb[((nb >= 0) & (nb < self.shape)).all(axis=1)]
         flat = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
+        if self.free[flat].any() or self.free.sum() == 0:
+            return int(flat[np.argmax(self.clear[flat])])
+        at = self.ijk[cell]
+        for k in range(2, int(self.shape.max()) + 1):
+            lo, hi = np.maximum(at - k, 0), np.minimum(at + k, self.shape - 1)
+            box = np.stack(np.meshgrid(*(np.arange(a, b + 1) for a, b in zip(lo, hi, strict=True)),
+                                       indexing="ij"), axis=-1).reshape(-1, 3)  # fmt: skip
+            box = box[np.abs(box - at).max(axis=1) == k]  # the ring at k cells
+            flat = (box[:, 0] * self.shape[1] + box[:, 1]) * self.shape[2] + box[:, 2]
+            free = flat[self.free[flat]]
+            if len(free):
+                gap = np.linalg.norm(self.centres[free] - self.centres[cell], axis=1)
+                return int(free[np.argmin(gap)])
         return int(flat[np.argmax(self.clear[flat])])
 
     def reset(self, pos: np.ndarray | None = None, goal: np.ndarray | None = None) -> None:
