@@ -520,10 +520,14 @@ class SafetyFilter:
             else:
                 cands = self.alternative_velocities(i, vel0[i])
                 safe = [v for v in cands if self.step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
+            margin = bool(safe)  # cleared with the whole safety margin (else the committed step is checked)
+            if not safe and not self.params.fixed_wing[i]:
+                cands = [vel1[i], *(alternatives[n_k] if self._batched else cands)]
+                safe = self.keeping_clearance(i, pos0[i], cands, q0, q1)
             if safe:
                 best = min(safe, key=lambda v: float(np.linalg.norm(v - v_cmd[k])))
                 vel1[i] = best
-                validated[k] = True
+                validated[k] = margin
             elif not self.params.fixed_wing[i]:
                 # No feasible command avoids contact: stop (beyond the accel limit) and say so.
                 vel1[i] = 0.0
@@ -539,6 +543,32 @@ class SafetyFilter:
         if stopped.any():
             validated &= ~stopped[idx]
         return Filtered(AgentMotion(pos1, vel1), validated, tally)
+
+    def keeping_clearance(
+        self, i: int, p0: np.ndarray, cands: list[np.ndarray], q0: np.ndarray, q1: np.ndarray
+    ) -> list[np.ndarray]:
+        """The velocities of ``cands`` whose step from ``p0`` keeps multirotor ``i`` at least as
+        clear as staying put does, for an agent already within its safety margin of a surface
+        (the end of an approach rounded inside it, a mover come closer): there every step, one
+        away from the surface too, touches with the margin, and it would stop for good. Its
+        clearance is the largest swept radius, between its radius and its radius with the
+        margin, at which staying put touches nothing (bisected to a millionth of the margin);
+        none when staying put already touches its body."""
+        r = float(self.params.radius[i])
+        lo, hi = r, float(self._checked_radius[i])
+
+        def stays_free(radius: float) -> bool:
+            return bool(self.steps_free(p0[None], p0[None], np.array([radius]), q0, q1)[0])
+
+        if not stays_free(lo):
+            return []
+        while hi - lo > 1e-6 * (self._checked_radius[i] - r):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if stays_free(mid) else (lo, mid)
+        ends = p0 + np.array(cands) * self.world.dt
+        starts = np.repeat(p0[None], len(cands), axis=0)
+        free = self.steps_free(starts, ends, np.full(len(cands), lo), q0, q1)
+        return [v for v, f in zip(cands, free, strict=True) if f]
 
     def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]:
         """The counters an emergency stop of agent ``i`` from velocity ``v0`` adds to: always
