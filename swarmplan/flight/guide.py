@@ -571,9 +571,18 @@ class StaticGuide:
         scale = scale.copy()
         scale[rows] = np.minimum(scale[rows], REPULSION)
         p, g = pos[rows], goal[rows]
-        table = self._rows_for(self.cell_of(g), p)
+        goal_cells = self.cell_of(g)
+        table = self._rows_for(goal_cells, p)
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
+        # A way that ends farther than a cell from its goal's cell (no free cell near a goal below
+        # the lowest altitude flown, ``_source_of``) leads an agent already nearer its goal than
+        # that end back up to it: such an agent flies at its goal itself.
+        source = self._source[table]
+        far = np.abs(self.ijk[source] - self.ijk[goal_cells]).max(axis=1) > 1
+        if far.any():
+            near = far & (np.linalg.norm(p - g, axis=1) < np.linalg.norm(self.centres[source] - g, axis=1))
+            out[rows[near]] = g[near]
         return out, scale
 
     def leads(self, i: int, pos: np.ndarray, goal: np.ndarray) -> bool:
