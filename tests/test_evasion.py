@@ -156,3 +156,69 @@ def test_the_dodge_is_deterministic(tmp_path):
         run_to_end(_world(_crossing(3.0, at=8.0)), seed=3, log_path=log)
         logs.append([(e["t"], e["kind"], e["detail"]) for e in events_of(log)])
     assert logs[0] == logs[1]
+
+
+def _pole(x: float, speed: float, at: float) -> dict:
+    """A pole 30 m tall (0.5 m radius: a bounding sphere of 15 m) on the line ``x`` heading +y,
+    level with the goal at time ``at``."""
+    return {
+        "shape": "cylinder",
+        "radius": 0.5,
+        "height": 30.0,
+        "position": [x, 50.0 - speed * at, 20.0],
+        "motion": {"type": "linear", "velocity": [0.0, speed, 0.0]},
+    }
+
+
+def test_a_pole_passing_beside_an_arrived_agent_leaves_it_at_its_goal(tmp_path):
+    """Its surface passes 3.5 m from the goal, beyond the agent's body (1 m) and the room it
+    keeps (1 m), though its bounding sphere sweeps over the goal: the agent stays put."""
+    log = tmp_path / "beside.mcap"
+    _, summary, pos = run_to_end(_world(_pole(34.0, 3.0, at=8.0)), log_path=log)
+    a = summary["agents"][0]
+    assert a["arrived"] and a["final_mode"] == "arrived" and a["collisions"] == 0, a
+    assert a["evasions"] == 0 and not events_of(log, "evade_start")
+    k = int(round(a["arrival_time"] / 0.1))
+    assert np.ptp(np.array(pos)[k:, 0], axis=0).max() == 0.0
+
+
+def test_a_pole_aimed_at_an_arrived_agent_misses_it(tmp_path):
+    """The pole runs through the goal: the agent gets out of its way and comes back."""
+    log = tmp_path / "aimed-pole.mcap"
+    _, summary, _ = run_to_end(_world(_pole(30.0, 3.0, at=8.0)), log_path=log)
+    a = summary["agents"][0]
+    assert a["arrived"] and a["final_mode"] == "arrived", a
+    assert a["collisions"] == 0 and summary["collisions"] == 0, summary
+    assert a["evasions"] >= 1 and a["min_obstacle_clearance"] > 0.5, a
+    problems, _notes, stats = audit(log)
+    assert not problems and stats["collisions"] == 0, problems
+
+
+def test_a_pole_aimed_at_an_arrived_fixed_wing_misses_it(tmp_path):
+    """A pole aimed at where the loitering aircraft is at t = 15 s (from a calm run) does not
+    touch it."""
+    far = {"position": [90.0, 5.0, 20.0], "motion": {"type": "linear", "velocity": [0.0, 0.1, 0.0]}}
+    _, track = _fixed_wing_after_arrival(far, tmp_path / "calm.mcap")
+    at = track[150]
+    aimed = {**_pole(float(at[0]), 6.0, at=15.0), "position": [float(at[0]), float(at[1]) - 90.0, 20.0]}
+    log = tmp_path / "aimed-pole-fw.mcap"
+    summary, _ = _fixed_wing_after_arrival(aimed, log)
+    a = summary["agents"][0]
+    assert a["arrived"] and a["collisions"] == 0 and summary["collisions"] == 0, summary
+    problems, _notes, stats = replay_audit(log, allow_failure=True)
+    assert stats["collisions"] == 0, stats
+
+
+def test_the_surface_approach_is_exact_on_a_ball():
+    """A unit ball at the origin moving along +x past points 2 m off its line: the closest
+    approach when it passes them, or at the horizon's end when it cannot get there."""
+    from swarmplan.sim.evasion import surface_approach
+
+    def distance(points, movers):  # noqa: ANN001, ANN202, ARG001
+        return np.linalg.norm(points, axis=1) - 1.0
+
+    points = np.array([[5.0, 2.0, 0.0], [5.0, 0.0, 2.0], [-3.0, 2.0, 0.0]])
+    w = np.array([[1.0, 0.0, 0.0]] * 3)
+    t, d = surface_approach(distance, points, np.zeros(3, dtype=int), w, np.array([10.0, 3.0, 10.0]))
+    np.testing.assert_allclose(t, [5.0, 3.0, 0.0], atol=1e-5)
+    np.testing.assert_allclose(d, [1.0, np.hypot(2.0, 2.0) - 1.0, np.hypot(3.0, 2.0) - 1.0], atol=1e-9)

@@ -191,7 +191,8 @@ class Simulation:
             if self._distance_cache is None:
                 self._distance_cache = self.distances.query(s.position, q0)
             surface = self.obstacles.surface_of(s.position, self._distance_cache)
-            self._merge(self.evasion.update(s, self.obstacles.movers(q0, qv0), surface))
+            shapes = self.obstacles.mover_surfaces(q0)
+            self._merge(self.evasion.update(s, self.obstacles.movers(q0, qv0), surface, shapes))
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
         idx = np.flatnonzero(flying_now)

@@ -8,7 +8,11 @@ closest approach of ``j`` within the horizon ``H_i``, to ``i`` or to ``i``'s goa
 ``need = R_j + r_i + m`` (a mover: its bounding radius, and ``m`` the world's :func:`evade_margin`;
 an agent: its radius, and ``m`` twice its safety margin, ``kinematics.safety_margin``). ``H_i`` is the
 time ``i`` needs to move sideways by the largest such ``need`` from rest at ``max_accel`` and
-``speed.max``, times ``HORIZON_FACTOR``, plus three steps of reaction.
+``speed.max``, times ``HORIZON_FACTOR``, plus three steps of reaction. A mover that is not a
+sphere is then measured by its surface (:func:`surface_approach`): it threatens only where its
+nearest surface point comes within ``r_i + m`` of the agent or its goal, so a tall pole or a
+long slab passing beside an arrived agent leaves it at its goal, while one aimed at it is
+dodged as before.
 
 The evasion command moves the agent across the threat's path, away from its point of closest
 approach (head-on: to the threat's right, or to the side away from the nearest surface), until
@@ -31,7 +35,9 @@ is a collision as for any agent.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -148,6 +154,64 @@ def threat_pairs(
     )
 
 
+@dataclass(frozen=True)
+class MoverSurfaces:
+    """The moving obstacles' surfaces (``Obstacles.mover_surfaces``): ``distance(points,
+    movers)`` the signed distance (K,) from ``points`` (K, 3) to mover ``movers[k]`` (its index
+    among the movers) where it is, ``nearest`` the same with the distance's gradient (K, 3),
+    and ``round`` (M,) the movers whose bounding sphere is their surface (spheres)."""
+
+    distance: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    nearest: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+    round: np.ndarray
+
+
+SURFACE_SAMPLES = 9
+"""Times over the horizon at which the surface approach is sampled before it is bracketed."""
+
+SURFACE_STEPS = 30
+"""Golden-section steps on the bracket of the surface's closest approach (0.618^30 of it, under
+a millionth of the horizon)."""
+
+
+def surface_approach(
+    distance: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    points: np.ndarray,
+    movers: np.ndarray,
+    w: np.ndarray,
+    horizon: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Closest approach within ``horizon`` (K,) of moving bodies ``movers`` (K,) going on at
+    ``w`` (K, 3) to fixed ``points`` (K, 3): its time and the signed surface distance then.
+    The body moved by ``t w`` is as far from the point as the body is from the point moved by
+    ``-t w``: the distance along that line, convex for a convex body (every primitive), is
+    sampled at ``SURFACE_SAMPLES`` times, then its least sample's bracket is narrowed by golden
+    section (a body that is not convex, a mesh, may keep a nearer approach between samples)."""
+    k = len(points)
+    ts = np.linspace(0.0, 1.0, SURFACE_SAMPLES)[None, :] * horizon[:, None]  # (K, S)
+    at = points[:, None, :] - ts[..., None] * w[:, None, :]
+    d = distance(at.reshape(-1, 3), np.repeat(movers, SURFACE_SAMPLES)).reshape(k, SURFACE_SAMPLES)
+    b = np.argmin(d, axis=1)
+    rows = np.arange(k)
+    lo = ts[rows, np.maximum(b - 1, 0)]
+    hi = ts[rows, np.minimum(b + 1, SURFACE_SAMPLES - 1)]
+    best_t, best_d = ts[rows, b], d[rows, b]
+
+    def f(t: np.ndarray) -> np.ndarray:
+        return distance(points - t[:, None] * w, movers)
+
+    gold = 0.5 * (math.sqrt(5.0) - 1.0)
+    for _ in range(SURFACE_STEPS):
+        x1, x2 = hi - gold * (hi - lo), lo + gold * (hi - lo)
+        left = f(x1) <= f(x2)  # a least distance lies in [lo, x2] (convex), else in [x1, hi]
+        lo, hi = np.where(left, lo, x1), np.where(left, x2, hi)
+    t = 0.5 * (lo + hi)
+    ft = f(t)
+    better = ft < best_d
+    best_t, best_d = np.where(better, t, best_t), np.where(better, ft, best_d)
+    return best_t, best_d
+
+
 FAR_GOAL = np.array([1e9, 0.0, 0.0])
 """Offset of the goal row an evading agent's braking margin sees: its goal's cap never binds."""
 
@@ -182,6 +246,7 @@ class Evasion:
         s: SwarmState,
         threats: tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...]],
         surface: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+        shapes: MoverSurfaces | None = None,
     ) -> Tally:
         """Threat test for every watching agent at the step's start. ``threats`` are the movers'
         centres (M, 3), velocities (M, 3), bounding radii (M,) and ids; ``surface(rows)`` the
@@ -224,6 +289,8 @@ class Evasion:
         pairs = threat_pairs(
             c, u, margin, who, rows, reach, s.position[rows], s.goal[rows], horizon, self._compiled
         )
+        if shapes is not None and len(pairs[0]):
+            pairs = self._to_surfaces(pairs, shapes, (c, u, radii), rows, s, horizon, self._margin + reach)
         key, times, misses, offsets = pairs
         self._command[rows] = 0.0
         if not len(key):
@@ -254,6 +321,50 @@ class Evasion:
                 events.append(Event(s.t, p.ids[i], "evade_start", detail))
                 counts.append(("evasions", i))
         return Tally(events=tuple(events), counts=tuple(counts)) if events else NOTHING
+
+    def _to_surfaces(
+        self,
+        pairs: Pairs,
+        shapes: MoverSurfaces,
+        threats: tuple[np.ndarray, np.ndarray, np.ndarray],
+        rows: np.ndarray,
+        s: SwarmState,
+        horizon: np.ndarray,
+        room: np.ndarray,
+    ) -> Pairs:
+        """``pairs`` (found from the movers' bounding spheres) with each mover that is not a
+        sphere measured by its surface instead: the closest approach of its nearest surface
+        point to the agent and to its goal (a tall pole passing by has a bounding sphere as
+        tall as itself, which chased arrived agents off their goals while its surface passed
+        metres away). Such a pair stays a threat where the surface comes within ``room`` (per
+        watching agent: the margin and its reach) of the agent or its goal; its misses are
+        given as the surface's distance plus the bounding radius, and its offset as the way to
+        the nearest surface point at that length, so the evasion's need (margin, bounding radius
+        and reach) and sideways move keep the surface ``room`` away."""
+        key, times, misses, offsets = pairs
+        c, u, radii = threats
+        m = len(radii)
+        k_of, j_of = key // len(c), key % len(c)
+        sel = np.flatnonzero(j_of < m)
+        sel = sel[~shapes.round[j_of[sel]]]
+        if not len(sel):
+            return pairs
+        k, j = k_of[sel], j_of[sel]
+        n = len(sel)
+        points = np.concatenate([s.position[rows[k]], s.goal[rows[k]]])
+        movers, w, h = np.tile(j, 2), np.tile(u[j], (2, 1)), np.tile(horizon[k], 2)
+        # Where each mover's centre is now, relative to the point: the surface's distances are
+        # measured with the mover where it is and the point moved against its motion.
+        t, d = surface_approach(shapes.distance, points, movers, w, h)
+        at = points[:n] - t[:n, None] * w[:n]
+        d_at, g_at = shapes.nearest(at, j)
+        times, misses, offsets = times.copy(), misses.copy(), offsets.copy()
+        times[sel] = np.stack([t[:n], t[n:]], axis=1)
+        misses[sel] = np.stack([d[:n], d[n:]], axis=1) + radii[j][:, None]
+        offsets[sel] = -g_at * (d_at + radii[j])[:, None]
+        keep = np.ones(len(key), dtype=bool)
+        keep[sel] = (d[:n] < room[k]) | (d[n:] < room[k])
+        return key[keep], times[keep], misses[keep], offsets[keep]
 
     def _evasion(
         self,

@@ -10,10 +10,12 @@ import numpy as np
 from swarmplan.core import ObstacleStates
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.geometry.batch import ShapeBatch
+from swarmplan.geometry.bodies import code_of
 from swarmplan.geometry.collision import CollisionWorld
 from swarmplan.geometry.neighbours import agent_clearance_indexed
 from swarmplan.geometry.rotation import matrix_to_quaternion
 from swarmplan.runtime.compiled import kernel_module, use_compiled
+from swarmplan.sim.evasion import MoverSurfaces
 from swarmplan.world.model import World
 from swarmplan.world.motion import max_speed, poses_at
 
@@ -39,6 +41,9 @@ class Obstacles:
         self._moving_idx = np.flatnonzero(self.moving_mask)
         self.mover_ids = tuple(o.id for o in self._moving)
         self.mover_radii = self.bounding_radius[self.moving_mask]  # read every guarded step
+        # Movers whose bounding sphere is their surface (spheres): no surface to measure apart.
+        self._round_movers = self.distances.code[self.moving_mask] == code_of("sphere")
+        self._round_movers.setflags(write=False)
         self._static_pos = np.array([o.position for o in world.obstacles], dtype=float).reshape(-1, 3)
         self._poses: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._at_rest: tuple[np.ndarray, np.ndarray] | None = None  # the poses when nothing moves
@@ -75,6 +80,22 @@ class Obstacles:
         """The moving obstacles at poses ``q`` moving at ``qv``: centres, velocities, bounding radii, ids."""
         mv = self.moving_mask
         return q[mv], qv[mv], self.mover_radii, self.mover_ids
+
+    def mover_surfaces(self, q: np.ndarray) -> MoverSurfaces:
+        """The moving obstacles' surfaces at poses ``q`` (every obstacle's row), for the threat
+        test of arrived agents (``swarmplan.sim.evasion``)."""
+        cols = self._moving_idx
+        batch = self.distances
+
+        def distance(points: np.ndarray, movers: np.ndarray) -> np.ndarray:
+            return batch.pair_distance(points, cols[movers], q)
+
+        def nearest(points: np.ndarray, movers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            d, g = batch.query(points, q)
+            k, c = np.arange(len(points)), cols[movers]
+            return d[k, c], g[k, c]
+
+        return MoverSurfaces(distance, nearest, self._round_movers)
 
     def surface_of(
         self, pos: np.ndarray, distances: tuple[np.ndarray, np.ndarray]
