@@ -26,8 +26,9 @@ def _right_of(v):
     return _unit(np.where((h2 >= 0.04 * (h2 + v[..., 2] ** 2))[..., None], horizontal, about_x))
 
 
-def _rep(rho, rho0, k):
-    return np.where(rho < rho0, k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0), 0.0)
+def _rep(rho, rho0, k, near):
+    """The push at clearance ``rho`` (it stops growing below ``near``, a tenth of the radius)."""
+    return np.where(rho < rho0, k * (1.0 / np.maximum(rho, near) - 1.0 / rho0), 0.0)
 
 
 def reference_forces(
@@ -59,9 +60,11 @@ def reference_forces(
         rho = field.obstacle_distance - r[:, None]
         scale = np.ones(n) if static_scale is None else static_scale
         k = np.where(field.obstacle_moving[None, :], g.k_rep, g.k_rep * scale[:, None])
-        mag = _rep(rho, rho0, k)
+        mag = _rep(rho, rho0, k, 0.1 * r[:, None])
         static_pot = ~field.obstacle_moving[None, :] & (rho < rho0)  # movers: no companion pull
-        pot = np.where(static_pot, 0.5 * k * (1.0 / np.maximum(rho, 0.05) - 1.0 / rho0) ** 2 * rho0, 0.0)
+        pot = np.where(
+            static_pot, 0.5 * k * (1.0 / np.maximum(rho, 0.1 * r[:, None]) - 1.0 / rho0) ** 2 * rho0, 0.0
+        )
         grad = field.obstacle_gradient
         force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
         # Blocked by a static body: the opposing part of its push turns along its surface,
@@ -105,7 +108,11 @@ def reference_forces(
             gq = goal[:, None, :] - (pos[:, None, :] - dp)
             tg = np.clip(dot3(gq, u) / np.maximum(dot3(u, u), _EPS), 0.0, g.horizon)
             goal_clear = norm3(gq - tg[..., None] * u) >= radii[None, :] + 2.0 * r[:, None]
-            m = _rep(rr, rho0, g.k_rep * g.k_moving) * urgency * np.where(goal_clear, gfac[:, None], 1.0)
+            m = (
+                _rep(rr, rho0, g.k_rep * g.k_moving, 0.1 * r[:, None])
+                * urgency
+                * np.where(goal_clear, gfac[:, None], 1.0)
+            )
             right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
             direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))
@@ -118,17 +125,17 @@ def reference_forces(
     rho_g = (pos[:, 2] - h) - r
     rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 0.25 * rho0)
     static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # the ground's, faces' too
-    mag_g = _rep(rho_g, rho0_g, g.k_rep * static)
+    mag_g = _rep(rho_g, rho0_g, g.k_rep * static, 0.1 * r)
     force = force + (mag_g * gfac)[:, None] * normal
 
     lo, hi = world.bounds_min, world.bounds_max
-    rb0 = min(rho0, 10.0)
+    rb0 = 0.25 * rho0
     for axis in range(3):
         for sign, plane in ((1.0, lo[axis]), (-1.0, hi[axis])):
             if axis == 2 and sign > 0:
                 continue
             rho_b = sign * (pos[:, axis] - plane) - r
-            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep * static) * gfac
+            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep * static, 0.1 * r) * gfac
     force = force + agent_term(world, params, g, flyers, swarm, gfac)
     # The turn only where the static bodies hold the agent (the pull and their push along it
     # under a quarter of the pull).

@@ -56,18 +56,18 @@ def _power(x, p):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _rep(rho, rho0, k):  # noqa: ANN001, ANN202
-    """``apf._rep_magnitude`` of one value."""
+def _rep(rho, rho0, k, near):  # noqa: ANN001, ANN202
+    """``field_law.repulsion`` of one value (``near``: the agent's ``field_law.nearest``)."""
     if rho < rho0:
-        return k * (1.0 / max(rho, 0.05) - 1.0 / rho0)
+        return k * (1.0 / max(rho, near) - 1.0 / rho0)
     return 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _face(offset, sign, r, rb0, k_rep, gfac):  # noqa: ANN001, ANN202
+def _face(offset, sign, r, rb0, k_rep, gfac, near):  # noqa: ANN001, ANN202
     """Force component from a face of ``bounds`` at ``offset = p - plane`` (sign +1: low face)."""
     rho_b = sign * offset - r
-    mag = k_rep * (1.0 / max(rho_b, 0.05) - 1.0 / rb0) if rho_b < rb0 else 0.0
+    mag = k_rep * (1.0 / max(rho_b, near) - 1.0 / rb0) if rho_b < rb0 else 0.0
     return sign * mag * gfac
 
 
@@ -179,7 +179,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     for i in range(n):
         fmax = max(fmax, max(min_altitude[idx[i]], terrain_floor))
     rho0_g = max(min(rho0, 3.0 * fmax), 0.25 * rho0)
-    rb0 = min(rho0, 10.0)
+    rb0 = 0.25 * rho0  # field_law.bounds_range
     k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
     if viewed:  # filled per flyer from its view
@@ -204,6 +204,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
+        closest = 0.1 * ri  # field_law.nearest: the clearance below which the pushes stop growing
         # Attraction (quadratic well only at the goal itself).
         ex, ey, ez = goal[i, 0] - px, goal[i, 1] - py, goal[i, 2] - pz
         dg = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -240,7 +241,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 rho = dist[i, j] - ri
                 if rho < rho0:
                     k = k_rep if moving[j] else ks
-                    x = 1.0 / max(rho, 0.05) - 1.0 / rho0
+                    x = 1.0 / max(rho, closest) - 1.0 / rho0
                     w = k * x * gfac
                     if not moving[j]:  # the companion term's: the static bodies' potentials
                         pot_sum += 0.5 * k * (x * x) * rho0
@@ -321,7 +322,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     gqx, gqy, gqz = gqx - tg * ox, gqy - tg * oy, gqz - tg * oz
                     clear = math.sqrt(gqx * gqx + gqy * gqy + gqz * gqz) >= o_radius[j] + 2.0 * ri
                     fade = gfac if clear else 1.0
-                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv) * (1.0 - tau / (horizon + _EPS)) * fade
+                    soon = 1.0 - tau / (horizon + _EPS)
+                    mag = _rep(d - o_radius[j] - ri, rho0, k_mv, closest) * soon * fade
                     if mag == 0.0:
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)
@@ -340,16 +342,16 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         kg = k_rep * static_scale[i]
         nx, ny, nz = _unit(-gh[i, 0], -gh[i, 1], 1.0)
         rho_g = (pz - h[i]) - ri
-        mag = kg * (1.0 / max(rho_g, 0.05) - 1.0 / rho0_g) if rho_g < rho0_g else 0.0
+        mag = kg * (1.0 / max(rho_g, closest) - 1.0 / rho0_g) if rho_g < rho0_g else 0.0
         mag = mag * gfac
         fx, fy, fz = fx + mag * nx, fy + mag * ny, fz + mag * nz
 
         # Faces of the flight volume (the floor is the ground's).
-        fx += _face(px - lo[0], 1.0, ri, rb0, kg, gfac)
-        fx += _face(px - hi[0], -1.0, ri, rb0, kg, gfac)
-        fy += _face(py - lo[1], 1.0, ri, rb0, kg, gfac)
-        fy += _face(py - hi[1], -1.0, ri, rb0, kg, gfac)
-        fz += _face(pz - hi[2], -1.0, ri, rb0, kg, gfac)
+        fx += _face(px - lo[0], 1.0, ri, rb0, kg, gfac, closest)
+        fx += _face(px - hi[0], -1.0, ri, rb0, kg, gfac, closest)
+        fy += _face(py - lo[1], 1.0, ri, rb0, kg, gfac, closest)
+        fy += _face(py - hi[1], -1.0, ri, rb0, kg, gfac, closest)
+        fz += _face(pz - hi[2], -1.0, ri, rb0, kg, gfac, closest)
 
         # Other agents: ellipsoidal separation, current and predicted, out to the pair's
         # stopping reach beyond the ellipsoid (at most the influence distance).

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from swarmplan.flight.field_law import NEAREST, bounds_range, goal_factor, ground_range, power, repulsion
+from swarmplan.flight.field_law import bounds_range, goal_factor, ground_range, nearest, power, repulsion
 
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
@@ -78,7 +78,7 @@ def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: 
     sign = np.array([[1.0], [-1.0]])
     offset = np.stack([pos - lo, pos - hi], axis=1)
     rho_b = sign * offset - r[:, None, None]
-    mag = repulsion(rho_b, k_rep, rb0)
+    mag = repulsion(rho_b, k_rep, rb0, nearest(r)[:, None, None])
     terms = sign * mag * gfac[:, None, None]
     terms[:, 0, 2] = _SKIP
     return terms
@@ -128,7 +128,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     kg = k_rep * static_scale
     normal = _unit(_vec(-gh[:, 0], -gh[:, 1], np.ones(n)))
     rho_g = (pos[:, 2] - h) - ri
-    mag = repulsion(rho_g, kg, rho0_g)
+    mag = repulsion(rho_g, kg, rho0_g, nearest(ri))
     mag = mag * gfac
     f = f + mag[:, None] * normal
 
@@ -167,7 +167,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     active = rho < rho0
     static = active & ~moving
     k = np.where(moving, k_rep, (k_rep * static_scale)[:, None])
-    x = 1.0 / np.maximum(rho, NEAREST) - 1.0 / rho0  # the law's terms (field_law.repulsion)
+    x = 1.0 / np.maximum(rho, nearest(ri)[:, None]) - 1.0 / rho0  # the law's terms (field_law.repulsion)
     w = k * x * gfac[:, None]
     block = _dot(ax, grad)
     terms = np.empty((n, m, 5))
@@ -203,7 +203,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         d = np.sqrt(_sq(sp))
         r_o = o_radius[mv]
         rho_m = d - r_o - ri[:, None]
-        rep = repulsion(rho_m, k_mv, rho0)
+        rep = repulsion(rho_m, k_mv, rho0, nearest(ri)[:, None])
         # The goal factor for movers whose way keeps off the goal.
         gq = goal[:, None, :] - (pos[:, None, :] - dp)
         u = o_vel[mv]

@@ -12,21 +12,29 @@ import math
 
 import numpy as np
 
-NEAREST = 0.05
-"""m: the clearance below which the repulsion stops growing (a body touched, or passed into)."""
+NEAREST = 0.1
+"""Of the agent's radius: the clearance below which the repulsion stops growing (a body touched,
+or passed into): half its safety margin (``kinematics.safety_margin``), 5 cm for a 0.5 m agent,
+5 mm for a 5 cm lab drone, whose whole margin (1 cm) a clearance in metres swallowed."""
 
-BOUNDS_RANGE = 10.0
-"""m: the longest range of the repulsion of the flight volume's faces."""
+BOUNDS = 0.25
+"""Of the influence: the range of the repulsion of the flight volume's faces."""
 
 
-def repulsion(rho: np.ndarray, k: float | np.ndarray, rho0: float) -> np.ndarray:
-    """The push at clearance ``rho``: ``k (1 / max(rho, NEAREST) - 1 / rho0)`` within the range
-    ``rho0``, nothing beyond."""
-    return np.where(rho < rho0, k * (1.0 / np.maximum(rho, NEAREST) - 1.0 / rho0), 0.0)
+def nearest(radius: np.ndarray | float) -> np.ndarray | float:
+    """The clearance below which the repulsion on agents of ``radius`` stops growing: ``NEAREST``
+    of the radius."""
+    return NEAREST * radius
+
+
+def repulsion(rho: np.ndarray, k: float | np.ndarray, rho0: float, near: np.ndarray | float) -> np.ndarray:
+    """The push at clearance ``rho``: ``k (1 / max(rho, near) - 1 / rho0)`` within the range
+    ``rho0``, nothing beyond (``near``: :func:`nearest` of the agent's radius)."""
+    return np.where(rho < rho0, k * (1.0 / np.maximum(rho, near) - 1.0 / rho0), 0.0)
 
 
 def clearance_at(push: float, k: float, rho0: float) -> float:
-    """The clearance (above ``NEAREST``) at which :func:`repulsion` pushes with ``push``."""
+    """The clearance (above :func:`nearest`) at which :func:`repulsion` pushes with ``push``."""
     return 1.0 / (push / k + 1.0 / rho0)
 
 
@@ -37,8 +45,13 @@ def ground_range(influence: float, floor: float) -> float:
 
 
 def bounds_range(influence: float) -> float:
-    """The range of the repulsion of the flight volume's faces."""
-    return min(influence, BOUNDS_RANGE)
+    """The range of the repulsion of the flight volume's faces: ``BOUNDS`` of the influence, the
+    braking distance from cruise speed of the agent that needs the most room (the influence is
+    four of them, ``schema.default_influence``): a face pushes where such an agent could no
+    longer stop short of it (10 m for a 10 m/s multirotor braking at 5 m/s^2, 16 cm for a
+    0.8 m/s lab drone braking at 2 m/s^2; a range of the whole influence held goals near the
+    walls of a small room under the faces' push)."""
+    return BOUNDS * influence
 
 
 def _pow1(x: float, p: float) -> float:

@@ -9,7 +9,7 @@ from collections.abc import Callable
 import numpy as np
 
 from swarmplan.core import PlanningContext
-from swarmplan.flight.field_law import goal_factor, repulsion
+from swarmplan.flight.field_law import goal_factor, nearest, repulsion
 from swarmplan.world.motion import poses_at
 
 #: Flying agents within the reach of the field's agent term from which a stuck agent is in a
@@ -111,7 +111,7 @@ def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     if not near.any():
         return False
     gfac = float(goal_factor(np.asarray(to_goal), apf.influence, apf.goal_power))
-    push = repulsion(rho[near], apf.k_rep, apf.influence) * gfac
+    push = repulsion(rho[near], apf.k_rep, apf.influence, nearest(float(sim.params.radius[i]))) * gfac
     along = g[0, near] @ ((goal - pos) / max(to_goal, 1e-9))
     return bool(pull + float(push @ along) < 0.5 * pull)
 
