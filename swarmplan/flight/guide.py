@@ -90,7 +90,7 @@ class StaticGuide:
         # its time): the grid is the guide's cost at start-up.
         self._batch = ShapeBatch(self.bodies, compiled=True)
         self.radius = float(np.max(params.radius))
-        self.floor = float(np.min(params.min_altitude)) if len(params.min_altitude) else 0.0
+        self.floor = self._floor(world, params)
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
         # to fly (their escapes are Dubins chains from their own pose).
         self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
@@ -134,6 +134,20 @@ class StaticGuide:
             guide_cache.store_grid(self._grid_key, self.grid_tables())
         else:
             self._adopt_grid_tables(tables)
+
+    @staticmethod
+    def _floor(world: World, params: AgentParams) -> float:
+        """The least height above the ground the ways keep (less the radius): the lowest
+        ``min_altitude``, lowered to the lowest start or goal (its height above the ground less
+        its agent's radius, at least 0): a goal below every ``min_altitude`` (the field reaches
+        it, its push fading near the goal) must lie in free cells, or no way leads there, and a
+        fast agent's ``min_altitude`` (tens of metres) left every way to such a goal through
+        cells that are not free, bodies included."""
+        if not len(params.min_altitude):
+            return 0.0
+        ends = np.array([p for a in world.agents for p in (a.start, a.goal)], dtype=float).reshape(-1, 3)
+        above = ends[:, 2] - world.terrain_height(ends[:, :2]) - np.repeat(params.radius, 2)
+        return max(0.0, min(float(np.min(params.min_altitude)), float(above.min())))
 
     def grid_tables(self) -> dict[str, np.ndarray]:
         """The grid's tables as named arrays (what :mod:`~swarmplan.flight.guide_cache` stores)."""

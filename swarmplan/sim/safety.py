@@ -336,9 +336,8 @@ class SafetyFilter:
             pos1 = pos0.copy()
             vel1[idx] = v_new
             pos1[idx] = pos0[idx] + vel1[idx] * dt
-        out = self.filter(
-            Commands(idx, v_cmd, cmd.beliefs, cmd.agreed), start, AgentMotion(pos1, vel1), window, modes, free
-        )
+        braked = Commands(idx, v_cmd, cmd.beliefs, cmd.agreed)
+        out = self.filter(braked, start, AgentMotion(pos1, vel1), window, modes, free, wanted=cmd.velocity)
         fw = idx[self.params.fixed_wing[idx]]
         if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
             self.turn[fw] = turn_states(self.params, vel0[fw], out.end.velocity[fw], dt, fw)
@@ -483,12 +482,16 @@ class SafetyFilter:
         window: StepWindow,
         mode: np.ndarray,
         free: np.ndarray | None = None,
+        wanted: np.ndarray | None = None,
     ) -> Filtered:
         """Replace steps that would touch an obstacle by the closest safe feasible alternative.
 
         ``end`` is where the commands lead (within the kinematic limits), ``mode`` every agent's
         mode, ``free`` (optional, rows of ``commands.idx``) :meth:`steps_free`'s answer for
-        those steps when already known (:meth:`brake_and_limit`). Returns the filtered end of
+        those steps when already known (:meth:`brake_and_limit`), ``wanted`` (optional, rows of
+        ``commands.idx``) the commands before the braking margin: a multirotor within its margin
+        of a surface takes the step that keeps its clearance nearest that (the braking margin,
+        which sweeps its body with the whole margin, stops it dead there). Returns the filtered end of
         the step, per agent of ``commands.idx`` whether its final step was cleared with the
         safety margin, and the stops made.
         """
@@ -521,11 +524,13 @@ class SafetyFilter:
                 cands = self.alternative_velocities(i, vel0[i])
                 safe = [v for v in cands if self.step_is_safe(i, pos0[i], pos0[i] + v * dt, q0, q1)]
             margin = bool(safe)  # cleared with the whole safety margin (else the committed step is checked)
+            want = v_cmd[k]
             if not safe and not self.params.fixed_wing[i]:
                 cands = [vel1[i], *(alternatives[n_k] if self._batched else cands)]
                 safe = self.keeping_clearance(i, pos0[i], cands, q0, q1)
+                want = want if wanted is None else wanted[k]
             if safe:
-                best = min(safe, key=lambda v: float(np.linalg.norm(v - v_cmd[k])))
+                best = min(safe, key=lambda v: float(np.linalg.norm(v - want)))
                 vel1[i] = best
                 validated[k] = margin
             elif not self.params.fixed_wing[i]:
