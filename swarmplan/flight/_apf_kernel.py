@@ -105,11 +105,22 @@ def _near(p, v, at, vel, horizon, reach, near):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _index_order(rows, k):  # noqa: ANN001, ANN202
-    """``rows[:k]`` sorted in place: by insertion while short (a flyer's near agents, a few
-    tens), else by numpy's sort."""
+def _index_order(rows, k, seen):  # noqa: ANN001, ANN202
+    """``rows[:k]`` (distinct indexes) sorted in place: by insertion while short (a flyer's
+    near agents, a few tens), else by marking them in ``seen`` (all False, and again on
+    return) and reading it between the smallest and the largest (numba's sort of a few
+    hundred costs more)."""
     if k > 64:
-        rows[:k].sort()
+        lo, hi = rows[0], rows[0]
+        for c in range(k):
+            seen[rows[c]] = True
+            lo, hi = min(lo, rows[c]), max(hi, rows[c])
+        c = 0
+        for b in range(lo, hi + 1):
+            if seen[b]:
+                rows[c] = b
+                c += 1
+                seen[b] = False
         return
     for c in range(1, k):
         b = rows[c]
@@ -161,7 +172,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    all_pos, all_vel, parked, goal_dist, reach_all, view, row_agent = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
     viewed = view.shape[0] > 0
     k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
@@ -188,22 +199,20 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     else:
         X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
         VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
-    n_rows = all_pos.shape[0]  # the swarm's rows: its agents, or with a view the believed states
-    near = np.empty(max(n_all, n_rows), dtype=np.bool_)
+    near = np.empty(n_all, dtype=np.bool_)
     rows = np.empty(n_all, dtype=np.int64)
-    # With ``window``: the rows sorted along x, and their top speed, for each flyer's window.
+    seen = np.zeros(n_all, dtype=np.bool_)
+    # With ``window``: the swarm sorted along x, and its top speed, for each flyer's window.
     v_all = 0.0
     finite = True  # a NaN anywhere: every agent is tested, as without the window
-    for b in range(n_rows):
-        ax, ay, az = all_pos[b, 0], all_pos[b, 1], all_pos[b, 2]
-        wx, wy, wz = all_vel[b, 0], all_vel[b, 1], all_vel[b, 2]
-        v_all = max(v_all, math.sqrt(wx * wx + wy * wy + wz * wz))
-        finite = finite and math.isfinite(ax + ay + az + wx + wy + wz)
-    window = window and n_all >= 2 and finite
+    for b in range(n_all):
+        v_all = max(v_all, math.sqrt(VX[b] * VX[b] + VY[b] * VY[b] + VZ[b] * VZ[b]))
+        finite = finite and math.isfinite(X[b] + Y[b] + Z[b] + VX[b] + VY[b] + VZ[b])
+    window = window and not viewed and n_all >= 2 and finite
     window = window and math.isfinite(v_all) and 0.0 <= horizon < np.inf
-    order = np.argsort(all_pos[:, 0]) if window else np.arange(n_rows)
-    XS, YS, ZS = all_pos[order, 0], all_pos[order, 1], all_pos[order, 2]
-    VXS, VYS, VZS = all_vel[order, 0], all_vel[order, 1], all_vel[order, 2]
+    order = np.argsort(X) if window else np.arange(n_all)
+    XS, YS, ZS = X[order], Y[order], Z[order]
+    VXS, VYS, VZS = VX[order], VY[order], VZ[order]
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
@@ -370,15 +379,9 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                       horizon, reach, near)  # fmt: skip
                 for c in range(w):
                     if near[c]:
-                        r = order[w_lo + c]
-                        if viewed:  # a row counts when it is the one this flyer holds
-                            b = row_agent[r]
-                            if view[i, b] != r:
-                                continue
-                            r = b
-                        rows[k] = r
+                        rows[k] = order[w_lo + c]
                         k += 1
-                _index_order(rows, k)  # the full scan's order of the sums
+                _index_order(rows, k, seen)  # the full scan's order of the sums
             else:
                 if viewed:  # this flyer's beliefs of the others (an unknown one: where it is itself)
                     for b in range(n_all):

@@ -225,7 +225,7 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     ``-0.0`` where the kernel adds nothing."""
     pos, vel, idx, reach_now, dg, gfac = fl
     radius, separation, stop_reach, can_stop = agents
-    all_pos, all_vel, parked, goal_dist, reach_all, view, _ = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
     reach, rho0, k_agent, horizon = g
     n = len(pos)
     if view.shape[0]:  # each flyer's own rows (an unknown agent: its own row, and not tested)

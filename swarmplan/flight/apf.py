@@ -221,12 +221,11 @@ class ApfField:
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         if swarm.view is None:  # one swarm for every flyer
-            view, row_agent = np.zeros((0, 0), dtype=np.int64), np.zeros(0, dtype=np.int64)
+            view = np.zeros((0, 0), dtype=np.int64)
             reach_all = self._reach_at_speed(None, all_vel)
         else:  # each flyer's own beliefs: its rows of the table
             view = np.ascontiguousarray(swarm.view, dtype=np.int64)
-            row_agent = np.asarray(swarm.row_agent, dtype=np.int64)
-            reach_all = self._reach_at_speed(row_agent, all_vel)
+            reach_all = self._reach_at_speed(np.asarray(swarm.row_agent, dtype=np.int64), all_vel)
         if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
@@ -238,7 +237,7 @@ class ApfField:
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view, row_agent),
+            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view),
             self._reach * (1.0 + 1e-9) + 1e-9,
             self._gains,
             out,
