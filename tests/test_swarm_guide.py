@@ -73,22 +73,35 @@ def test_behind_the_wall_the_way_leads_to_the_gap_and_through_it():
 
 
 def test_a_goal_below_the_lowest_altitude_flown_has_a_way():
-    """A goal behind the wall 1.5 m up, under the agents' 5 m ``min_altitude``: no cell within
-    one of the goal's is free (the floor less the radius), yet the way from behind the wall
-    leads to the free cell nearest the goal's, straight above it."""
+    """A goal behind the wall 1.5 m up, under the agents' 5 m ``min_altitude``: the ways keep
+    down to it (its height less the radius), so its cell lies in free space and the way from
+    behind the wall ends there."""
     world = wall_world(goal=(70.0, 20.0, 1.5))
     guide = G.make_guide(world, AgentParams.from_world(world))
+    assert guide.floor == pytest.approx(0.5)
     pos = np.array([[40.0, 20.0, 20.0]])
     goal = np.array([[70.0, 20.0, 1.5]])
-    cell = int(guide.cell_of(goal)[0])
-    assert not guide.free[cell]
-    assert not guide.free[guide.cell_of(goal + [0.0, 0.0, 1.5 * guide.cell[2]])[0]]
     guide.targets(0, np.array([0]), pos, goal, goal.copy(), np.ones(1))
     assert guide.guided[0] and np.isfinite(guide.way_length(pos, goal)[0])
     source = guide._source[int(guide._rows_for(guide.cell_of(goal), pos)[0])]
     assert guide.free[source]
-    np.testing.assert_array_equal(guide.ijk[source, :2], guide.ijk[cell, :2])
-    assert guide.centres[source, 2] - guide.radius - 5.0 < guide.cell[2]
+    assert np.abs(guide.ijk[source] - guide.ijk[guide.cell_of(goal)[0]]).max() <= 1
+
+
+def test_a_goal_with_no_free_cell_near_it_takes_the_nearest_free_one():
+    """No free cell within two of the goal's (a block of cells marked not free): the search
+    starts from the free cell of the first ring that has one nearest the goal's cell."""
+    world = wall_world(goal=(70.0, 20.0, 20.0))
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    cell = int(guide.cell_of(np.array([[70.0, 20.0, 20.0]]))[0])
+    at = guide.ijk[cell]
+    block = (np.abs(guide.ijk - at) <= 2).all(axis=1)
+    guide.free = guide.free & ~block
+    source = guide._source_of(cell)
+    assert guide.free[source] and np.abs(guide.ijk[source] - at).max() == 3
+    ring = np.flatnonzero(guide.free & (np.abs(guide.ijk - at).max(axis=1) == 3))
+    gaps = np.linalg.norm(guide.centres[ring] - guide.centres[cell], axis=1)
+    assert np.linalg.norm(guide.centres[source] - guide.centres[cell]) == gaps.min()
 
 
 def test_an_agent_with_a_clear_line_flies_at_its_goal():
