@@ -53,7 +53,7 @@ from swarmplan.core import (
     StuckOutcome,
 )
 from swarmplan.flight.apf import current_reach, stopping_reach
-from swarmplan.flight.field_law import bounds_range, clearance_at, ground_range
+from swarmplan.flight.field_law import clearance_at, ground_range
 from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import (
@@ -346,10 +346,12 @@ class EscapePlanner:
         w = sim.world
         r = float(sim.params.radius[i])
         k = int(n_free or self.cfg["waypoints"])
-        # Keep waypoints where the potential field lets the agent reach them: out of the
-        # repulsion of the bounds' faces and of the ground (see swarmplan.flight.apf).
+        # Keep waypoints where the potential field lets the agent reach them: an influence from
+        # the bounds' faces (beyond every surface's push, its braking distance four times over:
+        # a box out to the faces' shorter push led escapes into a small room's corners) and out
+        # of the ground's repulsion (see swarmplan.flight.apf).
         rho0 = w.planner_config.apf.influence
-        rb0 = bounds_range(rho0)
+        rb0 = rho0
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
         rho0_g = ground_range(rho0, floor)
         lo = w.bounds_min + r + rb0
