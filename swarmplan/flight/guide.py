@@ -50,7 +50,7 @@ import numpy as np
 
 from swarmplan.flight import _guide_numpy, guide_cache
 from swarmplan.flight.field_law import squeeze
-from swarmplan.flight.guide_graph import AROUND, OFFSETS, Graph, legs
+from swarmplan.flight.guide_graph import AROUND, Graph, legs, past_way_end, source_cell, ways_floor
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
 from swarmplan.geometry.shapes import DISTANCE
 from swarmplan.runtime.compiled import kernel_module, use_numpy_twin
@@ -90,7 +90,7 @@ class StaticGuide:
         # its time): the grid is the guide's cost at start-up.
         self._batch = ShapeBatch(self.bodies, compiled=True)
         self.radius = float(np.max(params.radius))
-        self.floor = self._floor(world, params)
+        self.floor = ways_floor(world, params)
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
         # to fly (their escapes are Dubins chains from their own pose).
         self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
@@ -134,20 +134,6 @@ class StaticGuide:
             guide_cache.store_grid(self._grid_key, self.grid_tables())
         else:
             self._adopt_grid_tables(tables)
-
-    @staticmethod
-    def _floor(world: World, params: AgentParams) -> float:
-        """The least height above the ground the ways keep (less the radius): the lowest
-        ``min_altitude``, lowered to the lowest start or goal (its height above the ground less
-        its agent's radius, at least 0): a goal below every ``min_altitude`` (the field reaches
-        it, its push fading near the goal) must lie in free cells, or no way leads there, and a
-        fast agent's ``min_altitude`` (tens of metres) left every way to such a goal through
-        cells that are not free, bodies included."""
-        if not len(params.min_altitude):
-            return 0.0
-        ends = np.array([p for a in world.agents for p in (a.start, a.goal)], dtype=float).reshape(-1, 3)
-        above = ends[:, 2] - world.terrain_height(ends[:, :2]) - np.repeat(params.radius, 2)
-        return max(0.0, min(float(np.min(params.min_altitude)), float(above.min())))
 
     def grid_tables(self) -> dict[str, np.ndarray]:
         """The grid's tables as named arrays (what :mod:`~swarmplan.flight.guide_cache` stores)."""
@@ -469,30 +455,8 @@ class StaticGuide:
             )
 
     def _source_of(self, cell: int) -> int:
-        """The search's source for a goal in ``cell``: the cell, or the free neighbour with the
-        most clearance when the goal's own cell is not free; with no free neighbour either (a
-        goal below the lowest altitude flown, or tucked into a corner by more than a cell), the
-        free cell nearest the goal's cell in the first ring of cells around it that holds one
-        (a source that is not free would be entered by no free cell: no way would lead there)."""
-        if self.free[cell]:
-            return cell
-        nb = self.ijk[cell] + OFFSETS
-        nb = nb[((nb >= 0) & (nb < self.shape)).all(axis=1)]
-        flat = (nb[:, 0] * self.shape[1] + nb[:, 1]) * self.shape[2] + nb[:, 2]
-        if self.free[flat].any() or self.free.sum() == 0:
-            return int(flat[np.argmax(self.clear[flat])])
-        at = self.ijk[cell]
-        for k in range(2, int(self.shape.max()) + 1):
-            lo, hi = np.maximum(at - k, 0), np.minimum(at + k, self.shape - 1)
-            box = np.stack(np.meshgrid(*(np.arange(a, b + 1) for a, b in zip(lo, hi, strict=True)),
-                                       indexing="ij"), axis=-1).reshape(-1, 3)  # fmt: skip
-            box = box[np.abs(box - at).max(axis=1) == k]  # the ring at k cells
-            flat = (box[:, 0] * self.shape[1] + box[:, 1]) * self.shape[2] + box[:, 2]
-            free = flat[self.free[flat]]
-            if len(free):
-                gap = np.linalg.norm(self.centres[free] - self.centres[cell], axis=1)
-                return int(free[np.argmin(gap)])
-        return int(flat[np.argmax(self.clear[flat])])
+        """The search's source for a goal in ``cell`` (``guide_graph.source_cell``)."""
+        return source_cell(self.free, self.clear, (self.ijk, self.centres, self.shape), cell)
 
     def reset(self, pos: np.ndarray | None = None, goal: np.ndarray | None = None) -> None:
         """Forget which agents are guided (the ways to goals already found stay: they depend on
@@ -585,18 +549,11 @@ class StaticGuide:
         scale = scale.copy()
         scale[rows] = np.minimum(scale[rows], REPULSION)
         p, g = pos[rows], goal[rows]
-        goal_cells = self.cell_of(g)
-        table = self._rows_for(goal_cells, p)
+        table = self._rows_for(goal_cells := self.cell_of(g), p)
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
-        # A way that ends farther than a cell from its goal's cell (no free cell near a goal below
-        # the lowest altitude flown, ``_source_of``) leads an agent already nearer its goal than
-        # that end back up to it: such an agent flies at its goal itself.
-        source = self._source[table]
-        far = np.abs(self.ijk[source] - self.ijk[goal_cells]).max(axis=1) > 1
-        if far.any():
-            near = far & (np.linalg.norm(p - g, axis=1) < np.linalg.norm(self.centres[source] - g, axis=1))
-            out[rows[near]] = g[near]
+        home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
+        out[rows[home]] = g[home]
         return out, scale
 
     def leads(self, i: int, pos: np.ndarray, goal: np.ndarray) -> bool:

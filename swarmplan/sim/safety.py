@@ -27,6 +27,7 @@ from swarmplan.flight.lookahead import CompiledGuard, guard_commands, horizon_st
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, read_only, use_compiled_checks
+from swarmplan.sim.braking import keeping_clearance, shrink, stoppable_speed
 from swarmplan.sim.deconflict import deconflict
 from swarmplan.sim.guard_clearance import MoverCentres, guard_clearance
 from swarmplan.sim.metrics import NOTHING, Tally
@@ -98,6 +99,7 @@ class SafetyFilter:
         # Every agent's radius with its safety margin (radius + margin), read every step.
         self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
+        self.checked_radius = self._checked_radius
         self._every = np.arange(len(params.radius))  # the rows of a step where every agent flies
         # The fixed wings' turn states (the curvature of their last step, rows by agent; :meth:`fly`
         # keeps them, the simulation's reset zeroes them): every fixed-wing step rolls on from them.
@@ -247,11 +249,11 @@ class SafetyFilter:
         cap = np.full(len(k), np.inf)
         if goal is not None:
             room = np.maximum(norm3(goal[k] - pos0[rows]) - self.world.goal_tolerance, 0.0)
-            cap = np.maximum(amax * dt, _stoppable_speed(room, amax, dt))
+            cap = np.maximum(amax * dt, stoppable_speed(room, amax, dt))
         s_cmd = norm3(v_cmd[k])
         # Multirotors only: limit_velocity's own model, row by row.
         vmax = p.speed_max[rows]
-        v1 = limit_multirotor(vel0[rows], v_cmd[k] * _shrink(s_cmd, cap), vmax, amax, dt)
+        v1 = limit_multirotor(vel0[rows], v_cmd[k] * shrink(s_cmd, cap), vmax, amax, dt)
         speed = norm3(v1)
         # Slower than a dt, a single step can stop the agent.
         probe = np.flatnonzero(speed > amax * dt)
@@ -262,14 +264,14 @@ class SafetyFilter:
             start = pos0[rows[probe]]
             hit, free = self._free_distances(start, u, reach, radii, q0, q1)
             at = probe[hit]
-            cap[at] = np.minimum(cap[at], _stoppable_speed(free, amax[at], dt))
+            cap[at] = np.minimum(cap[at], stoppable_speed(free, amax[at], dt))
         else:
             at = probe
         limited = np.isfinite(cap)
         if not limited.any():
             return v_cmd
         out = v_cmd.copy()
-        capped = v_cmd[k] * _shrink(s_cmd, cap)
+        capped = v_cmd[k] * shrink(s_cmd, cap)
         # Only the rows whose cap the sweep lowered change their command: the others keep v1.
         v1c = v1
         if len(at):
@@ -280,7 +282,7 @@ class SafetyFilter:
         # what keeps the margin from one step to the next.
         too_fast = norm3(v1c) > cap + 1e-9
         s0 = norm3(vel0[rows])
-        brake = vel0[rows] * _shrink(s0, cap)
+        brake = vel0[rows] * shrink(s0, cap)
         out[k] = np.where(too_fast[:, None], brake, capped)
         return out
 
@@ -527,7 +529,7 @@ class SafetyFilter:
             want = v_cmd[k]
             if not safe and not self.params.fixed_wing[i]:
                 cands = [vel1[i], *(alternatives[n_k] if self._batched else cands)]
-                safe = self.keeping_clearance(i, pos0[i], cands, q0, q1)
+                safe = keeping_clearance(self, i, pos0[i], cands, (q0, q1))
                 want = want if wanted is None else wanted[k]
             if safe:
                 best = min(safe, key=lambda v: float(np.linalg.norm(v - want)))
@@ -548,32 +550,6 @@ class SafetyFilter:
         if stopped.any():
             validated &= ~stopped[idx]
         return Filtered(AgentMotion(pos1, vel1), validated, tally)
-
-    def keeping_clearance(
-        self, i: int, p0: np.ndarray, cands: list[np.ndarray], q0: np.ndarray, q1: np.ndarray
-    ) -> list[np.ndarray]:
-        """The velocities of ``cands`` whose step from ``p0`` keeps multirotor ``i`` at least as
-        clear as staying put does, for an agent already within its safety margin of a surface
-        (the end of an approach rounded inside it, a mover come closer): there every step, one
-        away from the surface too, touches with the margin, and it would stop for good. Its
-        clearance is the largest swept radius, between its radius and its radius with the
-        margin, at which staying put touches nothing (bisected to a millionth of the margin);
-        none when staying put already touches its body."""
-        r = float(self.params.radius[i])
-        lo, hi = r, float(self._checked_radius[i])
-
-        def stays_free(radius: float) -> bool:
-            return bool(self.steps_free(p0[None], p0[None], np.array([radius]), q0, q1)[0])
-
-        if not stays_free(lo):
-            return []
-        while hi - lo > 1e-6 * (self._checked_radius[i] - r):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if stays_free(mid) else (lo, mid)
-        ends = p0 + np.array(cands) * self.world.dt
-        starts = np.repeat(p0[None], len(cands), axis=0)
-        free = self.steps_free(starts, ends, np.full(len(cands), lo), q0, q1)
-        return [v for v, f in zip(cands, free, strict=True) if f]
 
     def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]:
         """The counters an emergency stop of agent ``i`` from velocity ``v0`` adds to: always
@@ -621,14 +597,3 @@ class SafetyFilter:
 def step_kernels():  # noqa: ANN201
     """:mod:`swarmplan.sim._step_kernels` (numba loads with it at the first call)."""
     return kernel_module("swarmplan.sim._step_kernels")
-
-
-def _stoppable_speed(room: np.ndarray, amax: np.ndarray, dt: float) -> np.ndarray:
-    """The largest speed ``v`` with ``v^2 / (2 amax) + v dt <= room``: one more step at ``v``,
-    then braking at ``amax``, stays within ``room``."""
-    return amax * (np.sqrt(dt**2 + 2.0 * room / amax) - dt)
-
-
-def _shrink(speed: np.ndarray, cap: np.ndarray) -> np.ndarray:
-    """Per-row factor (n, 1) scaling vectors of norm ``speed`` down to at most ``cap``."""
-    return np.minimum(1.0, cap / np.maximum(speed, 1e-12))[:, None]
