@@ -236,22 +236,23 @@ def braking_room(
     then braking at ``max_accel``, within the gap between both bodies (each inflated by its
     safety margin) less where the other may be beyond its belief (``belief_doubt``), plus the
     braking distance of the speed at which the other moves away, less what it may have lost
-    since (``max_accel age``): a leader that brakes unheard is not run into. One agent moving
-    towards the flyer counts as at rest here (the field and the deconfliction part the two).
-    A new array."""
+    since (``max_accel age``): a leader that brakes unheard is not run into. Another that may
+    be coming closer takes its own room out of the gap (its step of reaction and its braking
+    from that speed): each of the two keeps its own share. A state of now (age 0: the pair
+    agrees within the step, ``deconflict``) is left to the safety filter. A new array."""
     p = params
     out = np.array(v_cmd, dtype=float)
     checked = p.radius + safety_margin(p.radius)
     most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(beliefs.age.max(initial=0.0))))
-    radius = float(stopping_reach(p, dt).max() + 2.0 * checked.max() + most)
+    radius = float(2.0 * (stopping_reach(p, dt).max() + checked.max()) + most)  # both rooms, both bodies
     k, j, rows, dist = beliefs.near(radius)
     i = beliefs.idx[k]
-    keep = ~p.fixed_wing[i] & (dist > 0.0)
-    k, j, rows, dist, i = k[keep], j[keep], rows[keep], dist[keep], i[keep]
+    age = beliefs.age[rows]
+    keep = ~p.fixed_wing[i] & (dist > 0.0) & (age > 0.0) & np.isfinite(age)
+    k, j, rows, dist, i, age = k[keep], j[keep], rows[keep], dist[keep], i[keep], age[keep]
     if len(k) == 0:
         return out
     n = (beliefs.pos[rows] - beliefs.at[k]) / dist[:, None]
-    age = np.where(np.isfinite(beliefs.age[rows]), beliefs.age[rows], 0.0)
     aj, ai = p.max_accel[j], p.max_accel[i]
     gap = dist - checked[i] - checked[j] - belief_doubt(aj, age)
     away = np.einsum("ij,ij->i", beliefs.vel[rows], n) - aj * age

@@ -133,6 +133,8 @@ class Steering:
             swarm = Swarm(pos0, vel0, parked, to_go)
         else:  # each flyer's own beliefs of the others
             b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=self.apf.agent_reach)
+            # Beliefs moved on with the acceleration sent: the truth may be off by twice the
+            # doubt of a belief moved on at the velocity sent (that acceleration since reversed).
             doubt = 2.0 * belief_doubt(self.params.max_accel[b.agent], b.age)
             swarm = Swarm(b.expected_pos, b.expected_vel, b.parked, b.goal_distance, b.view, b.agent, doubt)
             oldest = self.network.oldest(b, self.apf.agent_reach)
