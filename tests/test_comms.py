@@ -370,7 +370,8 @@ def _room(believed_x: float, age: float, vel_b: tuple, cmd: tuple = (5.0, 0.0, 0
     sim = Simulation(make_world(base_world(agents=agents, comms={"delay": 0.1})), "none")
     table = np.array([[10.0, 50, 20], [believed_x, 50.0, 20.0]])
     vel = np.array([cmd, vel_b], dtype=float)
-    beliefs = Beliefs(np.array([0]), table[:1], table, vel, np.zeros(2, bool), np.zeros(2), np.array([0.0, age]),
+    ages = np.array([0.0, age])
+    beliefs = Beliefs(np.array([0]), table[:1], table, vel, np.zeros(2, bool), np.zeros(2), ages,
                       np.array([0, 1]), np.array([[0, 1]]), table, vel)  # fmt: skip
     return braking_room(sim.params, beliefs, np.array([cmd], dtype=float), 0.1)[0]
 

@@ -13,6 +13,8 @@ brakes (``max_accel``); it stops (an ``emergency_stop``) only at rest or where b
 touch a body: the margins of the others hold only while every agent keeps to its acceleration
 limit. A step that only widens the gap is no conflict. A belief whose
 margin exceeds both agents' stopping reach (``apf.stopping_reach``) is too old to act on.
+Before that, each multirotor's command keeps room to stop behind the agents it heard of
+(:func:`braking_room`).
 """
 
 from __future__ import annotations
@@ -228,9 +230,7 @@ def _clears(
     )
 
 
-def braking_room(
-    params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: float
-) -> np.ndarray:
+def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: float) -> np.ndarray:
     """The commands ``v_cmd`` (one row per flyer of ``beliefs``) of multirotors cut along the
     line to each agent they believe ahead, to what still stops behind it: a step of reaction,
     then braking at ``max_accel``, within the gap between both bodies (each inflated by its

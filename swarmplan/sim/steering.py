@@ -23,10 +23,10 @@ from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.sight import Sight
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.sim.deconflict import braking_room
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
-from swarmplan.sim.deconflict import braking_room
 from swarmplan.sim.network import Beliefs, Network, belief_doubt
 from swarmplan.sim.obstacles import Obstacles
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
