@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.core import Mode, SwarmState
+from swarmplan.core import AgentAges, Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.world.comms import Comms, Sensing
 
@@ -407,10 +407,9 @@ class Network:
         # Each distinct age rounded once (a swarm's ages take a few values: whole steps).
         ok = ~np.isnan(age)
         distinct, which = np.unique(age[ok], return_inverse=True)
-        text = np.array([None, *(round(x, 6) for x in distinct.tolist())], dtype=object)
         code = np.zeros(self.n, dtype=np.int64)
         code[ok] = which.ravel() + 1
-        agents = [{"id": a, "age": x} for a, x in zip(ids, text[code].tolist(), strict=True)]
+        agents = AgentAges(ids, (None, *(round(x, 6) for x in distinct.tolist())), code)
         return {"t": round(t, 9), "agents": agents, **self.counts()}
 
     def counts(self) -> dict[str, int]:
