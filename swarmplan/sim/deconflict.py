@@ -233,13 +233,15 @@ def _clears(
 def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: float) -> np.ndarray:
     """The commands ``v_cmd`` (one row per flyer of ``beliefs``) of multirotors cut along the
     line to each agent they believe ahead, to what still stops behind it: a step of reaction,
-    then braking at ``max_accel``, within the gap between both bodies (each inflated by its
-    safety margin) less where the other may be beyond its belief (``belief_doubt``), plus the
-    braking distance of the speed at which the other moves away, less what it may have lost
-    since (``max_accel age``): a leader that brakes unheard is not run into. Another that may
-    be coming closer takes its own room out of the gap (its step of reaction and its braking
-    from that speed): each of the two keeps its own share. A state of now (age 0: the pair
-    agrees within the step, ``deconflict``) is left to the safety filter. A new array."""
+    then braking at 0.8 ``max_accel`` (the rest of the limit left to steer, as the surface and
+    goal caps of ``apf.commanded_velocity`` brake), within the gap between both bodies (each
+    inflated by its safety margin) less where the other may be beyond its belief
+    (``belief_doubt``), plus the braking distance (at its full limit) of the speed at which the
+    other moves away, less what it may have lost since (``max_accel age``): a leader that
+    brakes unheard is not run into. Another that may be coming closer takes its own room out of
+    the gap (its step of reaction and its braking at 0.8 of its limit from that speed): each
+    of the two keeps its own share. A state of now (age 0: the pair agrees within the step,
+    ``deconflict``) is left to the safety filter. A new array."""
     p = params
     out = np.array(v_cmd, dtype=float)
     checked = p.radius + safety_margin(p.radius)
@@ -257,7 +259,8 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
     gap = dist - checked[i] - checked[j] - belief_doubt(aj, age)
     away = np.einsum("ij,ij->i", beliefs.vel[rows], n) - aj * age
     towards = np.maximum(-away, 0.0)
-    own = np.where(away > 0.0, away * away / (2.0 * aj), -(towards * dt + towards * towards / (2.0 * aj)))
+    ai, bj = 0.8 * ai, 0.8 * aj
+    own = np.where(away > 0.0, away * away / (2.0 * aj), -(towards * dt + towards * towards / (2.0 * bj)))
     room = np.maximum(gap + own, 0.0)
     allowed = ai * (np.sqrt(dt * dt + 2.0 * room / ai) - dt)
     for r in np.flatnonzero(np.einsum("ij,ij->i", out[k], n) > allowed):  # in (flyer, agent) order
