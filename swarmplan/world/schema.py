@@ -88,25 +88,15 @@ def default_stuck_progress(agents: list[AgentSpec]) -> float:
 
 
 def default_field_scale(apf: dict[str, Any]) -> None:
-    """Fill ``planner.apf.k_rep``, ``k_agent`` and ``quadratic_radius`` left out, from the
-    influence ``rho0``: ``k_rep = 0.5 k_att rho0^2``, ``k_agent = 0.5 k_att rho0`` and
-    ``quadratic_radius = rho0``. The attraction grows as ``k_att d`` (metres) and the repulsion
-    as ``k_rep / rho`` (1/metres), so only gains that scale with the square of the field's
-    length keep its shape at every size: a wall between an agent and its goal holds it a third
-    of the influence off whatever the scale (a 0.05 m lab drone as a 100 km fixed wing). The
-    agents' repulsion is measured in their separation ellipsoids (no unit), so its gain scales
-    with the pull at cruise (``k_att rho0``, metres): two agents pass each other as close
-    against the pull at every scale (a constant gain held 0.05 m lab drones off each other
-    twenty pulls hard, and 0.4 m drones on a 10 m circle three, where the default agent of a
-    40 m influence feels half a pull). At ``rho0 = 10 m`` these are the classic 50 and 10 m
-    and an agent gain of 5; at 40 m, the classic 20."""
-    rho0 = float(apf["influence"])
-    if apf.get("quadratic_radius") is None:
-        apf["quadratic_radius"] = rho0
-    if apf.get("k_rep") is None:
-        apf["k_rep"] = 0.5 * float(apf["k_att"]) * rho0 * rho0
-    if apf.get("k_agent") is None:
-        apf["k_agent"] = 0.5 * float(apf["k_att"]) * rho0
+    """Fill ``planner.apf.quadratic_radius``, ``k_rep`` and ``k_agent`` left out, from the
+    influence ``rho0``: ``rho0``, ``0.5 k_att rho0^2`` and ``0.5 k_att rho0``. The attraction grows
+    as ``k_att d`` (m) and the repulsion as ``k_rep / rho`` (1/m): only these keep the field's shape
+    at every size (a wall between an agent and its goal holds it a third of the influence off; two
+    agents, in their separation ellipsoids, pass as close against the pull at cruise; a 0.05 m lab
+    drone as a 100 km fixed wing). At 10 m: 10 m, 50 and 5; at 40 m the agents' classic 20."""
+    rho0, k_att = float(apf["influence"]), float(apf["k_att"])
+    scaled = {"quadratic_radius": rho0, "k_rep": 0.5 * k_att * rho0 * rho0, "k_agent": 0.5 * k_att * rho0}
+    apf.update({key: value for key, value in scaled.items() if apf.get(key) is None})
 
 
 def default_min_altitude(params: dict[str, Any]) -> float:
