@@ -177,14 +177,15 @@ def deliver_numpy(
 
 
 def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The table rows (ascending) that flyers ``idx`` hold in ``heard`` (receiver, sender; 0:
-    none), and each flyer's view of them (n, N: the position among those rows, -1: none).
-    ``mark`` has one entry per table row (the compiled pass's scratch; read here for its size)."""
+    """The table rows that flyers ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the
+    order first met reading ``heard[idx]`` row by row, and each flyer's view of them (n, N: the
+    position among those rows, -1: none). ``mark`` has one entry per table row (the compiled
+    pass's scratch; read here for its size)."""
     rows = heard[idx]
-    used = np.zeros(len(mark), dtype=bool)
-    used[rows] = True
-    used[0] = False  # nothing heard
-    live = np.flatnonzero(used)
+    flat = rows.ravel()
+    held = flat[flat > 0]
+    distinct, first = np.unique(held, return_index=True)
+    live = distinct[np.argsort(first, kind="stable")]
     remap = np.full(len(mark), -1, dtype=np.int64)
     remap[live] = np.arange(len(live))
     return live, remap[rows]
