@@ -245,7 +245,8 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
     p = params
     out = np.array(v_cmd, dtype=float)
     checked = p.radius + safety_margin(p.radius)
-    most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(beliefs.age.max(initial=0.0))))
+    known = beliefs.age[np.isfinite(beliefs.age)]
+    most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(known.max(initial=0.0))))
     radius = float(2.0 * (stopping_reach(p, dt).max() + checked.max()) + most)  # both rooms, both bodies
     k, j, rows, dist = beliefs.near(radius)
     i = beliefs.idx[k]
