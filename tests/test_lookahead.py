@@ -8,7 +8,7 @@ import pytest
 from helpers import base_world, make_world, run_to_end
 
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.flight.lookahead import guard_commands, horizon_steps, step_margin
+from swarmplan.flight.lookahead import guard_commands, horizon_steps
 from swarmplan.sim.metrics import NOTHING
 from swarmplan.sim.safety import SafetyFilter
 
@@ -174,22 +174,3 @@ def test_the_guard_keeps_the_aircrafts_clearance_from_bodies():
     wide = next(d for d in gaps[::-1] if replaced_at(p, d))
     tight = next(d for d in gaps[::-1] if replaced_at(near, d))
     assert wide - tight == pytest.approx(1.0, abs=0.06)
-
-
-def test_the_step_margin_keeps_the_clearance_over_the_chord_and_the_turn_between_two_steps():
-    """Exact geometry: two positions a step of ``s = (speed.max + mover speed) dt`` apart, each
-    ``D + m`` from a point body (the nearest a convex body can come to such a chord), with ``D``
-    the clearance plus the radius: the chord passes ``sqrt((D + m)^2 - (s/2)^2)`` from it, at
-    least ``D`` plus the sagitta of a turn at R_min flown along it (exactly, without the
-    sagitta, on a straight line); with no margin the chord comes inside ``D``."""
-    p = _one_agent_params()
-    idx, dt, mover = np.array([0]), 0.1, 5.0
-    d = p.clearance[0] + p.radius[0]
-    s = (p.speed_max[0] + mover) * dt
-    r = p.min_turn_radius[0]
-    sag = r * (1.0 - np.cos(0.5 * s / r))
-    m = float(step_margin(p, idx, dt, mover)[0])
-    chord = np.sqrt((d + m) ** 2 - 0.25 * s * s)
-    assert chord - sag >= d
-    assert np.sqrt((d + m - sag) ** 2 - 0.25 * s * s) == pytest.approx(d, rel=1e-12)
-    assert np.sqrt(d * d - 0.25 * s * s) < d - 0.01

@@ -20,9 +20,7 @@ flight-path angle ramps within the same turn budget as the heading), all candida
 and all candidates and all times are measured in one batched distance query. The clearance
 kept from obstacles, still or moving, is the aircraft's own (``clearance``, by default the
 largest of its radius, half its horizontal separation and 0.05 R_min); from the terrain and
-the bounds one body radius. Both are kept over the whole of every step, not only where the
-steps end (:func:`step_margin`: what the straight chord between two steps' positions, and the
-turn flown along it, can come nearer a body than its ends). The manoeuvres from where the aircraft is now are only needed where the field's
+the bounds one body radius. The manoeuvres from where the aircraft is now are only needed where the field's
 command would corner it: they are flown for those aircraft alone (every row of a rollout and of
 a clearance query is computed on its own, so the answers are those of flying them all).
 (:func:`predicted_positions` gives the closed-form arcs and helices of a
@@ -42,21 +40,6 @@ ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndar
 """``clearance(points (P, 3), radii (P,), times (P,), extra (P,)) -> (P,)`` distance from each
 body to the terrain or the bounds, or to the nearest obstacle surface (moving ones where they
 are at that time) less ``extra``, the gap kept from obstacles beyond ``radii``."""
-
-
-def step_margin(params: AgentParams, idx: np.ndarray, dt: float, mover_speed: float) -> np.ndarray:
-    """Per fixed wing of ``idx``, m: what its sampled positions keep from every body beyond its
-    ``clearance`` so that the whole of each step keeps it. A step moves it, relative to a
-    body, at most ``s = (speed.max + mover_speed) dt``; two points at least ``D'`` from a
-    convex body bound a chord of length ``s`` that is at least ``sqrt(D'^2 - (s/2)^2)`` from
-    it (from the nearest point of the body to any point of the chord, both ends are at least
-    ``D'`` away), so ends at ``D' = sqrt(D^2 + (s/2)^2)``, ``D`` the clearance plus the body
-    radius, keep the logged chord at ``D``; and the turn flown between them bulges off the
-    chord by at most its sagitta at the minimum turn radius, ``R (1 - cos(s / (2 R)))``."""
-    d = params.clearance[idx] + params.radius[idx]
-    s = (params.speed_max[idx] + mover_speed) * dt
-    r = np.maximum(params.min_turn_radius[idx], 1e-9)
-    return np.sqrt(d * d + 0.25 * s * s) - d + r * (1.0 - np.cos(np.minimum(0.5 * s / r, np.pi)))
 
 
 class CompiledGuard(NamedTuple):

@@ -23,7 +23,7 @@ from swarmplan.flight.kinematics import (
     safety_margin,
     turn_states,
 )
-from swarmplan.flight.lookahead import CompiledGuard, guard_commands, horizon_steps, step_margin
+from swarmplan.flight.lookahead import CompiledGuard, guard_commands, horizon_steps
 from swarmplan.geometry.collision import SLACK, first_hits, first_hits_fcl
 from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, read_only, use_compiled_checks
@@ -130,7 +130,7 @@ class SafetyFilter:
         dt = self.world.dt
         speed = np.linalg.norm(vel0[idx], axis=1)
         horizon = horizon_steps(p, idx[fw], speed[fw], dt) * dt
-        required = p.radius[idx] + step_margin(p, idx, dt, self.obstacles.max_obstacle_speed)
+        required = p.radius[idx]
         reach = (speed + self.obstacles.max_obstacle_speed) * horizon + p.clearance[idx] + p.radius[idx]
         obstacle_clear = (d - p.radius[idx, None]).min(axis=1) if d.shape[1] else np.full(len(idx), np.inf)
         q = pos0[idx]
