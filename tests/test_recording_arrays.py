@@ -123,6 +123,7 @@ def test_many_agents_array_path_writes_the_dict_path_bytes(tmp_path):
 def test_comms_message_written_as_json_writes_it():
     """``/comms``: the bytes of ``json.dumps`` with compact separators, for ages of every kind
     (null, whole steps, many decimals, tiny, large) and ids that need escaping."""
+    from swarmplan.core import AgentAges
     from swarmplan.io.recording import comms_json
 
     rng = np.random.default_rng(5)
@@ -133,6 +134,12 @@ def test_comms_message_written_as_json_writes_it():
         msg = {"t": round(0.05 * step, 9), "agents": agents, "sent": 7 * step, "lost": step}
         msg["out_of_range"] = 0
         assert comms_json(msg, prefixes) == json.dumps(msg, separators=(",", ":")).encode()
+        # The same entries kept as codes into the step's distinct ages: the same bytes.
+        distinct = tuple(dict.fromkeys([None, *(a["age"] for a in agents)]))
+        code = np.array([distinct.index(a["age"]) for a in agents])
+        coded = {**msg, "agents": AgentAges(IDS, distinct, code)}
+        assert coded["agents"] == agents and list(coded["agents"]) == agents
+        assert comms_json(coded, prefixes) == json.dumps(msg, separators=(",", ":")).encode()
     assert comms_json({"t": 0.0, "agents": [], "sent": 0, "lost": 0, "out_of_range": 0}, {}) == (
         b'{"t":0.0,"agents":[],"sent":0,"lost":0,"out_of_range":0}'
     )

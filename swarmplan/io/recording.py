@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.core import AgentStates, Mode, ObstacleStates
+from swarmplan.core import AgentAges, AgentStates, Mode, ObstacleStates
 from swarmplan.io.foxglove_scene import FoxgloveScene
 from swarmplan.io.json_floats import Interleaved
 from swarmplan.io.sink import LogSink
@@ -302,20 +302,34 @@ COMMS_SCHEMA: dict[str, Any] = {
 
 def comms_json(msg: dict[str, Any], prefixes: dict[str, str]) -> bytes:
     """A ``/comms`` message as ``json.dumps(msg, separators=(",", ":"))`` writes it (its agents
-    hold an ``id`` and a finite or null ``age``), each agent's fixed text made once into
+    hold an ``id`` and a finite or null ``age``; as a list of dicts or an :class:`AgentAges`,
+    whose distinct ages are written once each), each agent's fixed text made once into
     ``prefixes``: the general encoder's pass over a swarm's entries cost more than the step's
     network."""
-    parts = []
-    for a in msg["agents"]:
-        name, age = a["id"], a["age"]
-        head = prefixes.get(name)
-        if head is None:
-            head = prefixes[name] = '{"id":' + _COMPACT.encode(name) + ',"age":'
-        text = "null" if age is None else float.__repr__(age) if type(age) is float else _COMPACT.encode(age)
-        parts.append(head + text + "}")
+    agents = msg["agents"]
+    if isinstance(agents, AgentAges):
+        heads = [prefixes.get(name) or _comms_head(name, prefixes) for name in agents.ids]
+        texts = [_age_text(age) for age in agents.ages]
+        parts = [head + texts[c] for head, c in zip(heads, agents.code.tolist(), strict=True)]
+    else:
+        parts = [
+            (prefixes.get(a["id"]) or _comms_head(a["id"], prefixes)) + _age_text(a["age"]) for a in agents
+        ]
     rest = _COMPACT.encode({**msg, "agents": []})
     cut = rest.index('"agents":[') + len('"agents":[')
     return (rest[:cut] + ",".join(parts) + rest[cut:]).encode()
+
+
+def _comms_head(name: str, prefixes: dict[str, str]) -> str:
+    """An agent's fixed text in ``/comms``, made once into ``prefixes``."""
+    head = prefixes[name] = '{"id":' + _COMPACT.encode(name) + ',"age":'
+    return head
+
+
+def _age_text(age: float | None) -> str:
+    """An age as JSON writes it, with its entry's closing brace."""
+    text = "null" if age is None else float.__repr__(age) if type(age) is float else _COMPACT.encode(age)
+    return text + "}"
 
 
 def _ns(t: float) -> int:
