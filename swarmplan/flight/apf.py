@@ -23,7 +23,9 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   paths 1.29x the straight line, the last arrival 18 s where ORCA-3D's is 12 s (13 s with
   the current speeds). Fixed wings keep the range from cruise (they cannot slow down to
   stop). Head-on and many-way encounters are broken by a right-hand component about the
-  relative velocity;
+  relative velocity. Its gain left out scales with the pull at cruise (``k_agent = 0.5 k_att
+  influence``, ``world.schema.default_field_scale``). On beliefs (``Swarm.view``), each pair's
+  ellipsoid widens by how far the other may be from where it is believed (``Swarm.doubt``);
 - parked agents: at rest they need no room to brake, so their repulsion reaches only the
   flyer's own braking distance at its current speed (:func:`reach_at_speed`) beyond the
   separation ellipsoid: a slow agent closing in on its goal beside a parked neighbour is
@@ -38,8 +40,8 @@ The point of attraction (``Flyers.target``) is the goal, or a segment's or route
 for an agent whose straight line is blocked by a static obstacle the point ahead on its way
 round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static repulsion).
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
-so the agent can still brake before the goal and before any obstacle surface ahead (a fixed
-wing's never below its minimum speed, :func:`speed_floor`).
+so a multirotor can still brake before the goal, and so the agent can before any obstacle
+surface ahead (a fixed wing does not brake for its goal, :func:`speed_floor`).
 
 The field has two implementations with the same bits: the compiled kernel, and numpy
 (:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below
@@ -68,6 +70,7 @@ if TYPE_CHECKING:
 
 _EPS = 1e-9
 _NO_ROWS = np.zeros(0, dtype=np.int64)
+_NO_DOUBT = np.zeros(0)
 
 WINDOW_FROM = 128
 """Swarm size from which the field's agent term tests only the agents within a window along x
@@ -112,7 +115,9 @@ class Swarm:
     With ``view`` (flyers, N), the swarm as each flyer believes it (``swarmplan.sim.network``):
     ``pos``, ``vel``, ``parked`` and ``goal_distance`` are a table of believed states, one row
     each, ``row_agent`` (rows,) whose state each row is, and ``view[k, b]`` the row flyer k holds
-    of agent b (-1: it knows nothing of b)."""
+    of agent b (-1: it knows nothing of b); ``doubt`` (rows,) how far, m, each row's agent may
+    be from where it is believed (default 0), by which the pair's separation ellipsoid widens
+    on every axis."""
 
     pos: np.ndarray
     vel: np.ndarray
@@ -120,6 +125,7 @@ class Swarm:
     goal_distance: np.ndarray | None = None
     view: np.ndarray | None = None
     row_agent: np.ndarray | None = None
+    doubt: np.ndarray | None = None
 
 
 def reach_at_speed(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:
@@ -220,12 +226,16 @@ class ApfField:
         goal_dist = swarm.goal_distance
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
+        reach = self._reach * (1.0 + 1e-9) + 1e-9
         if swarm.view is None:  # one swarm for every flyer
             view = np.zeros((0, 0), dtype=np.int64)
             reach_all = self._reach_at_speed(None, all_vel)
+            doubt = _NO_DOUBT
         else:  # each flyer's own beliefs: its rows of the table
             view = np.ascontiguousarray(swarm.view, dtype=np.int64)
             reach_all = self._reach_at_speed(np.asarray(swarm.row_agent, dtype=np.int64), all_vel)
+            doubt = np.zeros(len(all_pos)) if swarm.doubt is None else np.asarray(swarm.doubt, dtype=float)
+            reach = reach + float(doubt.max(initial=0.0))  # the widest ellipsoid
         if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
@@ -237,8 +247,8 @@ class ApfField:
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view),
-            self._reach * (1.0 + 1e-9) + 1e-9,
+            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view, doubt),
+            reach,
             self._gains,
             out,
             (view.shape[1] if swarm.view is not None else len(all_pos)) >= WINDOW_FROM,
@@ -264,11 +274,14 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def speed_floor(params: AgentParams, idx: np.ndarray) -> np.ndarray:
-    """The slowest command of agents ``idx``: a fixed wing's minimum speed (it cannot fly
-    slower: a command below it, braking towards its goal, would leave the surface brake
-    weighing a speed it never flies, while it flies at its floor along the command's
-    direction), 0 for a multirotor (it stops)."""
-    return np.where(params.fixed_wing[idx], params.speed_min[idx], 0.0)
+    """The slowest command of agents ``idx`` before the surface brake: a fixed wing's cruise
+    speed, 0 for a multirotor (it stops). A fixed wing does not stop at its goal: it flies
+    through its tolerance and loiters on, so braking towards it buys nothing and would fly
+    its capture turns at its minimum speed, the edge of its envelope, with no speed left
+    below to take up a lead on its path (an autopilot following that path could not fall
+    back onto it); and a command below its minimum speed would leave the surface brake
+    weighing a speed it never flies."""
+    return np.where(params.fixed_wing[idx], params.speed_cruise[idx], 0.0)
 
 
 def commanded_velocity(
@@ -304,8 +317,8 @@ def commanded_velocity_numpy(
     clearance_dir: np.ndarray,
 ) -> np.ndarray:
     """Velocity command from the force: cruise speed along it, slowed to brake before the goal
-    (never below the agent's :func:`speed_floor`: a fixed wing flies on at its minimum speed at
-    least, and its command is the speed it flies) and before the nearest surface ahead
+    (never below the agent's :func:`speed_floor`: a fixed wing flies on at its cruise speed,
+    slowed only by the surface brake and its model's minimum speed) and before the nearest surface ahead
     (``clearance`` (n,), outward normal ``clearance_dir``).
     Towards a surface the speed is what still brakes at the agent's safety margin from it
     (``kinematics.safety_margin``: a fifth of its radius, at most 0.25 m, the room the safety
