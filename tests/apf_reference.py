@@ -129,7 +129,7 @@ def reference_forces(
     force = force + (mag_g * gfac)[:, None] * normal
 
     lo, hi = world.bounds_min, world.bounds_max
-    rb0 = 0.25 * rho0
+    rb0 = np.where(~params.fixed_wing[idx], 0.25 * rho0, min(rho0, 10.0))  # multirotors, fixed wings
     for axis in range(3):
         for sign, plane in ((1.0, lo[axis]), (-1.0, hi[axis])):
             if axis == 2 and sign > 0:

@@ -191,7 +191,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     for i in range(n):
         fmax = max(fmax, max(min_altitude[idx[i]], terrain_floor))
     rho0_g = max(min(rho0, 3.0 * fmax), 0.25 * rho0)
-    rb0 = 0.25 * rho0  # field_law.bounds_range
+    rb_stop, rb_fly = 0.25 * rho0, min(rho0, 10.0)  # field_law.bounds_range: multirotors, fixed wings
     k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
     if viewed:  # filled per flyer from its view
@@ -218,6 +218,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
         closest = 0.1 * ri  # field_law.nearest: the clearance below which the pushes stop growing
+        rb0 = rb_stop if can_stop[idx[i]] else rb_fly
         # Attraction (quadratic well only at the goal itself).
         ex, ey, ez = goal[i, 0] - px, goal[i, 1] - py, goal[i, 2] - pz
         dg = math.sqrt(ex * ex + ey * ey + ez * ez)

@@ -71,7 +71,7 @@ def _sum_in_order(first: np.ndarray, terms: np.ndarray) -> np.ndarray:
     return np.add.accumulate(np.concatenate([first[:, None], terms], axis=1), axis=1)[:, -1]
 
 
-def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: float, k_rep: np.ndarray,
+def _faces(pos: np.ndarray, lo: np.ndarray, hi: np.ndarray, r: np.ndarray, rb0: np.ndarray, k_rep: np.ndarray,
            gfac: np.ndarray) -> np.ndarray:  # fmt: skip
     """The kernel's ``_face`` terms, (n, 2, 3): row 0 the low faces (x, y; the floor is the
     ground's, a ``-0.0``), row 1 the high ones."""
@@ -97,7 +97,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         return
     floor = np.maximum(min_altitude[idx], terrain_floor)
     rho0_g = ground_range(rho0, float(floor.max()))
-    rb0 = bounds_range(rho0)
+    rb0 = bounds_range(rho0, can_stop[idx])
     ri = radius[idx]
 
     # Attraction (quadratic well only at the goal itself).
@@ -133,7 +133,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     f = f + mag[:, None] * normal
 
     # Faces of the flight volume (the floor is the ground's).
-    faces = _faces(pos, lo, hi, ri, rb0, kg[:, None, None], gfac)
+    faces = _faces(pos, lo, hi, ri, rb0[:, None, None], kg[:, None, None], gfac)
     f = f + faces[:, 0] + faces[:, 1]  # per axis: the low face, then the high one
 
     # Other agents.

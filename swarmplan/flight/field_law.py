@@ -18,7 +18,10 @@ or passed into): half its safety margin (``kinematics.safety_margin``), 5 cm for
 5 mm for a 5 cm lab drone, whose whole margin (1 cm) a clearance in metres swallowed."""
 
 BOUNDS = 0.25
-"""Of the influence: the range of the repulsion of the flight volume's faces."""
+"""Of the influence: the range of the repulsion of the flight volume's faces on multirotors."""
+
+FIXED_WING_BOUNDS = 10.0
+"""m: the longest range of the repulsion of the flight volume's faces on fixed wings."""
 
 
 def nearest(radius: np.ndarray | float) -> np.ndarray | float:
@@ -44,14 +47,15 @@ def ground_range(influence: float, floor: float) -> float:
     return max(min(influence, 3.0 * floor), 0.25 * influence)
 
 
-def bounds_range(influence: float) -> float:
-    """The range of the repulsion of the flight volume's faces: ``BOUNDS`` of the influence, the
-    braking distance from cruise speed of the agent that needs the most room (the influence is
-    four of them, ``schema.default_influence``): a face pushes where such an agent could no
-    longer stop short of it (10 m for a 10 m/s multirotor braking at 5 m/s^2, 16 cm for a
-    0.8 m/s lab drone braking at 2 m/s^2; a range of the whole influence held goals near the
-    walls of a small room under the faces' push)."""
-    return BOUNDS * influence
+def bounds_range(influence: float, can_stop: np.ndarray | bool = True) -> np.ndarray | float:
+    """The range of the repulsion of the flight volume's faces on agents that ``can_stop``
+    (multirotors): ``BOUNDS`` of the influence, the braking distance from cruise speed of the
+    agent that needs the most room (the influence is four of them, ``schema.default_influence``):
+    a face pushes where such an agent could no longer stop short of it (10 m for a 10 m/s
+    multirotor braking at 5 m/s^2, 16 cm for a 0.8 m/s lab drone braking at 2 m/s^2; a range of
+    the whole influence held goals near the walls of a small room under the faces' push). On
+    fixed wings, which turn away rather than stop, the influence, at most ``FIXED_WING_BOUNDS``."""
+    return np.where(can_stop, BOUNDS * influence, min(influence, FIXED_WING_BOUNDS))
 
 
 def _pow1(x: float, p: float) -> float:
