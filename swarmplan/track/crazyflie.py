@@ -65,6 +65,7 @@ class Crazyflie:
     motor_time_constant: float = 0.02  # s
     drag: float = 0.0  # N s^2/m^2: no drag quadratic in the speed beyond the rotor drag
     k_aero: tuple[float, float, float] = K_AERO  # kg/rad, rotor drag per unit rotor speed
+    gyro_range: float = math.radians(2000.0)  # rad/s: the BMI088 gyro's range as the firmware sets it
     control_dt: float = 1.0 / 500.0  # s, ATTITUDE_RATE
     commander_dt: float = 1.0 / 100.0  # s, RATE_HL_COMMANDER
     mass_thrust: float = 132000.0  # PWM per N
@@ -90,6 +91,32 @@ class Crazyflie:
     def max_thrust(self) -> float:
         """N, all four motors at full PWM."""
         return 4.0 * self.thrust_max_motor
+
+    def max_jerk(self, accel_limit: float) -> float:
+        """m/s^3: the largest jerk a trajectory whose acceleration stays within ``accel_limit`` may
+        ask for, so that the body rates it needs stay within the gyro's range.
+
+        A flat trajectory needs the body rates ``|w_xy| = |j_perp| / |a + g e3|`` (the jerk across
+        the thrust axis over the thrust acceleration; :func:`body_rates`). With ``|a| <= a_max``
+        the thrust acceleration is at least ``g - a_max``, so ``|j| <= gyro_range (g - a_max)``
+        keeps every rate within ``gyro_range``: a rate the gyro cannot measure is one the rate
+        loop cannot hold."""
+        return self.gyro_range * max(G - accel_limit, 0.0)
+
+    def tracking_lag(self, speed: float) -> float:
+        """m: how far the controller runs behind a trajectory flown steadily at ``speed`` (the most
+        of the horizontal and the vertical axis): the rotor drag, which the feed-forward of the
+        trajectory's velocity and acceleration does not carry, balanced by the position error's
+        force through the thrust mapping (``c v / (gain kp)``, gain = ``massThrust`` 4
+        ``THRUST_MAX`` / 65535), and the commander's held set-point, ``v (commander_dt -
+        control_dt) / 2`` (the controller samples it five times in a tick). The integral wins
+        the drag's part back slowly (ki / kp = 0.125 per second), so this is the lag until it
+        does; the position loop's response to the drag is damped (0.95 of critical), so
+        a speed that changes within ``speed`` adds no overshoot worth a micrometre."""
+        gain = self.mass_thrust * self.max_thrust / PWM_MAX
+        kp = np.array([self.kp_xy, self.kp_xy, self.kp_z])
+        drag = float(np.max(self.rotor_drag / (gain * kp)))
+        return speed * (drag + 0.5 * (self.commander_dt - self.control_dt))
 
     @property
     def rotor_drag(self) -> np.ndarray:
