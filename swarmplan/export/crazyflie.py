@@ -204,13 +204,15 @@ def _flown_at(times: np.ndarray, pos: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def ramp_time(path: FlownPath, accuracy: float) -> float:
     """s: half the longest ramp of the acceleration, centred on a step of it, that keeps within
-    ``accuracy`` of the step. A path that steps from rest to the acceleration ``a`` at an instant
-    is followed, by a trajectory whose acceleration rises linearly over T centred on that
-    instant, ahead by at most ``a T^2 / 48`` (at the instant itself; the two meet again at the
-    ramp's end with the same velocity), so T may be ``sqrt(48 accuracy / a)``: the trajectory
-    may begin to leave (or end to reach) a hover up to ``sqrt(12 accuracy / a)`` before (after)
-    the flown path's step, with ``a`` the agent's acceleration limit."""
-    return math.sqrt(12.0 * accuracy / path.limits.max_accel)
+    ``accuracy`` of the step. Against a path that steps from rest to the acceleration ``a`` at an
+    instant, a trajectory whose acceleration rises linearly over T centred on that instant has
+    the same velocity from the ramp's end on and is ahead by ``a T^2 / 48`` at the instant and
+    by ``a T^2 / 24`` from the ramp's end on (which it gives back by flying a little slower
+    after; a trajectory behind a path flown on at the speed limit could not win it back), so T
+    may be ``sqrt(24 accuracy / a)``: the trajectory may begin to leave (or end to reach) a
+    hover up to ``sqrt(6 accuracy / a)`` before (after) the flown path's step, with ``a`` the
+    agent's acceleration limit."""
+    return math.sqrt(6.0 * accuracy / path.limits.max_accel)
 
 
 def ends_of(path: FlownPath, accuracy: float) -> tuple[float, float]:
