@@ -165,7 +165,7 @@ def test_the_jerk_a_crazyflie_can_produce_bounds_the_fit():
     fit = crazyflie.fit(path, 0.1)
     assert fit.max_jerk <= limit and fit.max_accel <= 9.0 and fit.max_deviation <= 0.1
     with pytest.raises(LimitError, match=r"jerk <= 28 m/s\^3"):
-        crazyflie.fit(path, 0.05)
+        crazyflie.fit(path, 0.05, max_pieces=6)
 
 
 def test_circle_fits_continuous_to_acceleration_within_limits():
