@@ -105,9 +105,26 @@ def test_the_motor_mix_and_its_cap():
     np.testing.assert_allclose(tau[0], [2 * a * k * 2000, 0.0, 0.0])
 
 
+def test_the_thrust_mapping_leaves_part_of_an_acceleration_to_the_position_error():
+    # Without drag and integral, at a constant acceleration a the feed-forward m a gives only
+    # gain m a: the position error makes up the rest, (1 - gain) m a / (gain kp), beside the
+    # hold's lag at the speed reached.
+    cf = replace(CF, k_aero=(0.0, 0.0, 0.0), ki_xy=0.0)
+    a = 0.5
+    t = cf.commander_dt * np.arange(301)
+    z = np.zeros_like(t)
+    col = lambda u, h=0.0: np.column_stack([u, z, z + h])[None]  # noqa: E731
+    sp = Setpoints(t, col(0.5 * a * t**2, 1.0), col(a * t), col(a + z), col(z))
+    err = (sp.pos[0] - fly(sp, cf).pos[0])[-1, 0]
+    assert err == pytest.approx(cf.tracking_lag(a * t[-1], a), rel=2e-2)
+    gain = cf.mass_thrust * cf.max_thrust / PWM_MAX
+    assert cf.tracking_lag(0.0, a) == pytest.approx((1 - gain) * cf.mass * a / (gain * cf.kp_xy))
+
+
 def test_the_tracking_lag_bounds_a_flight_that_speeds_up_and_slows_down():
-    # A line whose speed rises to 1.5 m/s and falls back (the position loop is damped, 0.95 of
-    # critical): the vehicle never runs farther behind than the steady lag at the top speed.
+    # A line whose speed rises to 1.4 m/s and falls back (the position loop is damped, 0.95 of
+    # critical): the vehicle never runs farther behind than the lag at the top speed and
+    # acceleration.
     t = CF.commander_dt * np.arange(601)
     s = np.clip(t / 6.0, 0.0, 1.0)
     x = 4.5 * (10 * s**3 - 15 * s**4 + 6 * s**5)  # top speed 4.5 * 1.875 / 6 = 1.406 m/s
@@ -118,8 +135,9 @@ def test_the_tracking_lag_bounds_a_flight_that_speeds_up_and_slows_down():
     col = lambda u, h=0.0: np.column_stack([u, z, z + h])[None]  # noqa: E731
     sp = Setpoints(t, col(x, 1.0), col(v), col(a), col(j))
     err = np.linalg.norm(sp.pos[0] - fly(sp).pos[0], axis=1)
-    assert err.max() <= CF.tracking_lag(float(v.max()))
-    assert err.max() >= 0.7 * CF.tracking_lag(float(v.max()))  # and that is what it runs behind
+    lag = CF.tracking_lag(float(v.max()), float(np.abs(a).max()))
+    assert err.max() <= lag
+    assert err.max() >= 0.7 * lag  # and that is what it runs behind
 
 
 def test_the_jerk_limit_keeps_the_body_rates_within_the_gyro_range():

@@ -170,11 +170,12 @@ def _fly_crazyflies(
 
 def crazyflie_limit(plan: Plan) -> float:
     """How far a Crazyflie may be from its trajectory: what its firmware's controller achieves
-    on it, the steady lag at the trajectory's top speed
+    on it, the lag at the trajectory's top speed and acceleration
     (:meth:`~swarmplan.track.crazyflie.Crazyflie.tracking_lag`). Farther means the vehicle could
     not follow the trajectory (a motor at its cap, body rates it cannot reach, a fall)."""
-    assert plan.vel is not None
-    return Crazyflie().tracking_lag(float(np.linalg.norm(plan.vel, axis=1).max()))
+    assert plan.vel is not None and plan.acc is not None
+    top = lambda a: float(np.linalg.norm(a, axis=1).max())  # noqa: E731
+    return Crazyflie().tracking_lag(top(plan.vel), top(plan.acc))
 
 
 def _fly_fixed_wing(

@@ -103,20 +103,22 @@ class Crazyflie:
         loop cannot hold."""
         return self.gyro_range * max(G - accel_limit, 0.0)
 
-    def tracking_lag(self, speed: float) -> float:
-        """m: how far the controller runs behind a trajectory flown steadily at ``speed`` (the most
-        of the horizontal and the vertical axis): the rotor drag, which the feed-forward of the
-        trajectory's velocity and acceleration does not carry, balanced by the position error's
-        force through the thrust mapping (``c v / (gain kp)``, gain = ``massThrust`` 4
-        ``THRUST_MAX`` / 65535), and the commander's held set-point, ``v (commander_dt -
-        control_dt) / 2`` (the controller samples it five times in a tick). The integral wins
-        the drag's part back slowly (ki / kp = 0.125 per second), so this is the lag until it
-        does; the position loop's response to the drag is damped (0.95 of critical), so
-        a speed that changes within ``speed`` adds no overshoot worth a micrometre."""
+    def tracking_lag(self, speed: float, accel: float = 0.0) -> float:
+        """m: how far the controller runs behind a trajectory flown at up to ``speed`` and
+        ``accel`` (the most of the horizontal and the vertical axis). The feed-forward of the
+        trajectory's velocity and acceleration leaves two forces to the position error: the
+        rotor drag ``c v``, which it does not carry, and the part of ``m a`` the thrust mapping
+        does not give (it gives ``gain`` = ``massThrust`` 4 ``THRUST_MAX`` / 65535 = 0.967 N per
+        N asked; the height integrator makes up the weight's part, not an acceleration's). The
+        position loop balances them at ``(c v + (1 - gain) m a) / (gain kp)``; it is damped
+        (0.95 of critical in the plane), so a force that changes within those bounds moves it
+        no farther. Beside them the commander holds each set-point for a tick while the
+        controller samples it five times: ``v (commander_dt - control_dt) / 2`` more. The
+        integral wins the drag's part back slowly (ki / kp = 0.125 per second)."""
         gain = self.mass_thrust * self.max_thrust / PWM_MAX
         kp = np.array([self.kp_xy, self.kp_xy, self.kp_z])
-        drag = float(np.max(self.rotor_drag / (gain * kp)))
-        return speed * (drag + 0.5 * (self.commander_dt - self.control_dt))
+        force = self.rotor_drag * speed + abs(1.0 - gain) * self.mass * accel
+        return float(np.max(force / (gain * kp))) + speed * 0.5 * (self.commander_dt - self.control_dt)
 
     @property
     def rotor_drag(self) -> np.ndarray:
