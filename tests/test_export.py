@@ -193,9 +193,11 @@ def test_csv_round_trip_and_header():
 
 def test_a_path_beyond_the_limits_on_its_timing_is_refused_with_the_limits_it_needs():
     with pytest.raises(LimitError) as err:
-        crazyflie.fit(line_path(max_accel=0.2), 0.01, max_pieces=4)  # the line needs 0.33 m/s^2
+        # 3.64 m rest to rest in 8 s: 0.33 m/s^2 at least on the flown timing, and 0.16 m/s^2
+        # with the ramps of sqrt(6 * 0.01 / 0.1) = 0.77 s at its ends (4 d / T^2, T = 9.6 s)
+        crazyflie.fit(line_path(max_accel=0.1), 0.01, max_pieces=4)
     msg = str(err.value)
-    assert "acceleration <= 0.2 m/s^2" in msg and "needs" in msg and "\n" not in msg
+    assert "acceleration <= 0.1 m/s^2" in msg and "needs" in msg and "\n" not in msg
 
 
 def test_a_path_beyond_the_memory_is_refused_with_the_bound_that_fits():
