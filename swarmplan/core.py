@@ -125,6 +125,39 @@ class AgentStates(Sequence):
         ]
 
 
+class AgentAges(Sequence):
+    """The agents' entries of a ``/comms`` message, kept as codes into the few ages a step has.
+
+    Reads as the list of dicts ``{"id", "age"}`` any recorder may iterate; ``ages`` holds the
+    distinct values (``ages[0]`` is None: no age) and ``code`` (N,) each agent's index into
+    them, so a recorder that knows it (``swarmplan.io.recording.McapRecorder``) writes each
+    distinct age once instead of one dict per agent per step.
+    """
+
+    __slots__ = ("ids", "ages", "code")
+
+    def __init__(self, ids: tuple[str, ...], ages: tuple[float | None, ...], code: np.ndarray):
+        self.ids, self.ages, self.code = ids, ages, code
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @overload
+    def __getitem__(self, i: int) -> dict[str, Any]: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[dict[str, Any]]: ...
+
+    def __getitem__(self, i: int | slice) -> dict[str, Any] | list[dict[str, Any]]:
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self)))]
+        return {"id": self.ids[i], "age": self.ages[int(self.code[i])]}
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Sequence) and list(self) == list(other)
+
+    __hash__ = None  # type: ignore[assignment]
+
+
 @dataclass(frozen=True)
 class Event:
     """Something that happened to an agent (or to the run when ``agent`` is None) at ``t``.

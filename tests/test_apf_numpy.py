@@ -236,3 +236,20 @@ def test_each_flyers_own_view_of_the_swarm():
     _same_bits(unseen_c, unseen_p)
     assert np.all(np.isfinite(unseen_c))
     assert not np.array_equal(compiled, unseen_c)
+
+
+def test_near_agents_put_in_index_order_at_every_count():
+    """The window's near agents are summed in index order: short lists by insertion, long ones
+    through the marks (left all clear), both giving numpy's sort."""
+    from swarmplan.runtime.compiled import kernel_module
+
+    order = kernel_module("swarmplan.flight._apf_kernel")._index_order
+    rng = np.random.default_rng(3)
+    seen = np.zeros(700, dtype=np.bool_)
+    for k in (0, 1, 2, 63, 64, 65, 300, 700):
+        rows = np.full(700, -1, dtype=np.int64)
+        rows[:k] = rng.permutation(700)[:k]
+        want = np.sort(rows[:k])
+        order(rows, k, seen)
+        np.testing.assert_array_equal(rows[:k], want)
+        assert not seen.any()

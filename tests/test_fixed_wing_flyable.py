@@ -52,6 +52,39 @@ def flight_envelope(log: Path) -> dict[str, dict[str, float]]:
     return out
 
 
+def chord_clearance(log: Path, samples: int = 33) -> dict[str, float]:
+    """Per fixed wing, the least clearance (surface to surface) from a body of every straight
+    chord between two logged positions, sampled at ``samples`` points a step (a mover's centre
+    between its logged poses), over every logged step, its loiter after arrival too."""
+    from swarmplan.replay.geometry import euler_deg_to_matrix, primitive_distance, quat_to_matrix
+
+    rec = load(log)
+    s = np.linspace(0.0, 1.0, samples)[:, None, None]
+    by_id = {a["id"]: a for a in rec.world["agents"]}
+    out = {}
+    for i, aid in enumerate(rec.agent_ids):
+        if by_id[aid]["model"] != "fixed_wing":
+            continue
+        p = rec.positions[i]
+        ok = np.isfinite(p[:-1, 0]) & np.isfinite(p[1:, 0])
+        chords = (p[:-1] + s * (p[1:] - p[:-1]))[:, ok]  # (samples, steps, 3)
+        least = np.inf
+        for o in rec.obstacles:
+            if o.get("motion"):
+                c, q = rec.obstacle_poses(o["id"])
+                centre = (c[:-1] + s * (c[1:] - c[:-1]))[:, ok]
+                rot = np.stack([quat_to_matrix(x) for x in q[1:][ok]])
+                local = np.einsum("skj,kjl->skl", chords - centre, rot)
+            else:
+                rot = euler_deg_to_matrix(o["rotation"]) if o.get("rotation") else np.eye(3)
+                local = (chords - np.asarray(o["position"], float)) @ rot
+            d = primitive_distance(local.reshape(-1, 3), o)
+            if d is not None:
+                least = min(least, float(d.min()) - rec.radii[i])
+        out[aid] = least
+    return out
+
+
 def assert_flyable(envelope: dict[str, dict[str, float]]) -> None:
     assert envelope, "no fixed-wing agent in the log"
     for aid, e in envelope.items():
@@ -112,6 +145,9 @@ def test_a_small_fixed_wing_world_is_flyable_from_its_log(tmp_path):
     # The limit was reached (the test can fail): the pillar and the other aircraft forced
     # turns at the minimum radius.
     assert max(e["curvature_ratio"] for e in env.values()) > 0.9
+    # The clearance (by default half the horizontal separation, 4 m) is kept over every step.
+    clear = chord_clearance(log)
+    assert min(clear.values()) >= 4.0, clear
     problems, _notes, _ = audit(log)
     assert problems == []
     assert_tracked(log)
@@ -127,6 +163,8 @@ def test_shipped_fixed_wing_worlds_are_flyable(path, tmp_path):
     summary = simulate(world, world.seed, log)
     assert summary["arrived"] == summary["agents_total"] and summary["collisions"] == 0
     assert_flyable(flight_envelope(log))
+    for aid, c in chord_clearance(log).items():
+        assert c >= world.agents[[a.id for a in world.agents].index(aid)].clearance, (aid, c)
     problems, _notes, _ = audit(log)
     assert problems == []
     assert_tracked(log)

@@ -123,16 +123,23 @@ def test_many_agents_array_path_writes_the_dict_path_bytes(tmp_path):
 def test_comms_message_written_as_json_writes_it():
     """``/comms``: the bytes of ``json.dumps`` with compact separators, for ages of every kind
     (null, whole steps, many decimals, tiny, large) and ids that need escaping."""
-    from swarmplan.io.recording import comms_json
+    from swarmplan.core import AgentAges
+    from swarmplan.io.recording import CommsText, comms_json
 
     rng = np.random.default_rng(5)
     ages = [None, 0.0, 0.1, 0.30000000000000004, 1.234567, 3e-07, 12345678.5, 0.05]
-    prefixes: dict[str, str] = {}
+    prefixes = CommsText()
     for step in range(20):
         agents = [{"id": a, "age": ages[int(rng.integers(len(ages)))]} for a in IDS]
         msg = {"t": round(0.05 * step, 9), "agents": agents, "sent": 7 * step, "lost": step}
         msg["out_of_range"] = 0
         assert comms_json(msg, prefixes) == json.dumps(msg, separators=(",", ":")).encode()
-    assert comms_json({"t": 0.0, "agents": [], "sent": 0, "lost": 0, "out_of_range": 0}, {}) == (
+        # The same entries kept as codes into the step's distinct ages: the same bytes.
+        distinct = tuple(dict.fromkeys([None, *(a["age"] for a in agents)]))
+        code = np.array([distinct.index(a["age"]) for a in agents])
+        coded = {**msg, "agents": AgentAges(IDS, distinct, code)}
+        assert coded["agents"] == agents and list(coded["agents"]) == agents
+        assert comms_json(coded, prefixes) == json.dumps(msg, separators=(",", ":")).encode()
+    assert comms_json({"t": 0.0, "agents": [], "sent": 0, "lost": 0, "out_of_range": 0}, CommsText()) == (
         b'{"t":0.0,"agents":[],"sent":0,"lost":0,"out_of_range":0}'
     )

@@ -105,11 +105,22 @@ def _near(p, v, at, vel, horizon, reach, near):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _index_order(rows, k):  # noqa: ANN001, ANN202
-    """``rows[:k]`` sorted in place: by insertion while short (a flyer's near agents, a few
-    tens), else by numpy's sort."""
+def _index_order(rows, k, seen):  # noqa: ANN001, ANN202
+    """``rows[:k]`` (distinct indexes) sorted in place: by insertion while short (a flyer's
+    near agents, a few tens), else by marking them in ``seen`` (all False, and again on
+    return) and reading it between the smallest and the largest (numba's sort of a few
+    hundred costs more)."""
     if k > 64:
-        rows[:k].sort()
+        lo, hi = rows[0], rows[0]
+        for c in range(k):
+            seen[rows[c]] = True
+            lo, hi = min(lo, rows[c]), max(hi, rows[c])
+        c = 0
+        for b in range(lo, hi + 1):
+            if seen[b]:
+                rows[c] = b
+                c += 1
+                seen[b] = False
         return
     for c in range(1, k):
         b = rows[c]
@@ -190,6 +201,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
     near = np.empty(n_all, dtype=np.bool_)
     rows = np.empty(n_all, dtype=np.int64)
+    seen = np.zeros(n_all, dtype=np.bool_)
     # With ``window``: the swarm sorted along x, and its top speed, for each flyer's window.
     v_all = 0.0
     finite = True  # a NaN anywhere: every agent is tested, as without the window
@@ -369,7 +381,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     if near[c]:
                         rows[k] = order[w_lo + c]
                         k += 1
-                _index_order(rows, k)  # the full scan's order of the sums
+                _index_order(rows, k, seen)  # the full scan's order of the sums
             else:
                 if viewed:  # this flyer's beliefs of the others (an unknown one: where it is itself)
                     for b in range(n_all):

@@ -38,8 +38,8 @@ The point of attraction (``Flyers.target``) is the goal, or a segment's or route
 for an agent whose straight line is blocked by a static obstacle the point ahead on its way
 round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static repulsion).
 The force's direction becomes the commanded velocity; its speed is the cruise speed, cut
-so the agent can still brake before the goal and before any obstacle surface ahead (a fixed
-wing's never below its minimum speed, :func:`speed_floor`).
+so a multirotor can still brake before the goal, and so the agent can before any obstacle
+surface ahead (a fixed wing does not brake for its goal, :func:`speed_floor`).
 
 The field has two implementations with the same bits: the compiled kernel, and numpy
 (:mod:`swarmplan.flight._apf_numpy`, no numba to load) for the first calls of a world below
@@ -264,11 +264,14 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def speed_floor(params: AgentParams, idx: np.ndarray) -> np.ndarray:
-    """The slowest command of agents ``idx``: a fixed wing's minimum speed (it cannot fly
-    slower: a command below it, braking towards its goal, would leave the surface brake
-    weighing a speed it never flies, while it flies at its floor along the command's
-    direction), 0 for a multirotor (it stops)."""
-    return np.where(params.fixed_wing[idx], params.speed_min[idx], 0.0)
+    """The slowest command of agents ``idx`` before the surface brake: a fixed wing's cruise
+    speed, 0 for a multirotor (it stops). A fixed wing does not stop at its goal: it flies
+    through its tolerance and loiters on, so braking towards it buys nothing and would fly
+    its capture turns at its minimum speed, the edge of its envelope, with no speed left
+    below to take up a lead on its path (an autopilot following that path could not fall
+    back onto it); and a command below its minimum speed would leave the surface brake
+    weighing a speed it never flies."""
+    return np.where(params.fixed_wing[idx], params.speed_cruise[idx], 0.0)
 
 
 def commanded_velocity(
@@ -304,8 +307,8 @@ def commanded_velocity_numpy(
     clearance_dir: np.ndarray,
 ) -> np.ndarray:
     """Velocity command from the force: cruise speed along it, slowed to brake before the goal
-    (never below the agent's :func:`speed_floor`: a fixed wing flies on at its minimum speed at
-    least, and its command is the speed it flies) and before the nearest surface ahead
+    (never below the agent's :func:`speed_floor`: a fixed wing flies on at its cruise speed,
+    slowed only by the surface brake and its model's minimum speed) and before the nearest surface ahead
     (``clearance`` (n,), outward normal ``clearance_dir``).
     Towards a surface the speed is what still brakes at the agent's safety margin from it
     (``kinematics.safety_margin``: a fifth of its radius, at most 0.25 m, the room the safety

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.core import AgentStates, Mode, ObstacleStates
+from swarmplan.core import AgentAges, AgentStates, Mode, ObstacleStates
 from swarmplan.io.foxglove_scene import FoxgloveScene
 from swarmplan.io.json_floats import Interleaved
 from swarmplan.io.sink import LogSink
@@ -300,22 +300,48 @@ COMMS_SCHEMA: dict[str, Any] = {
 (null: none near, or not flying), and the run's messages so far."""
 
 
-def comms_json(msg: dict[str, Any], prefixes: dict[str, str]) -> bytes:
-    """A ``/comms`` message as ``json.dumps(msg, separators=(",", ":"))`` writes it (its agents
-    hold an ``id`` and a finite or null ``age``), each agent's fixed text made once into
-    ``prefixes``: the general encoder's pass over a swarm's entries cost more than the step's
-    network."""
-    parts = []
-    for a in msg["agents"]:
-        name, age = a["id"], a["age"]
-        head = prefixes.get(name)
+class CommsText:
+    """Each agent's fixed text in ``/comms`` (``{"id":...,"age":``), made once: by id, and as
+    the list for the tuple of ids a run's steps all share."""
+
+    def __init__(self) -> None:
+        self.by_id: dict[str, str] = {}
+        self._ids: tuple[str, ...] | None = None
+        self._heads: list[str] = []
+
+    def head(self, name: str) -> str:
+        head = self.by_id.get(name)
         if head is None:
-            head = prefixes[name] = '{"id":' + _COMPACT.encode(name) + ',"age":'
-        text = "null" if age is None else float.__repr__(age) if type(age) is float else _COMPACT.encode(age)
-        parts.append(head + text + "}")
+            head = self.by_id[name] = '{"id":' + _COMPACT.encode(name) + ',"age":'
+        return head
+
+    def heads(self, ids: tuple[str, ...]) -> list[str]:
+        if ids is not self._ids:
+            self._ids, self._heads = ids, [self.head(name) for name in ids]
+        return self._heads
+
+
+def comms_json(msg: dict[str, Any], text: CommsText) -> bytes:
+    """A ``/comms`` message as ``json.dumps(msg, separators=(",", ":"))`` writes it (its agents
+    hold an ``id`` and a finite or null ``age``; as a list of dicts or an :class:`AgentAges`,
+    whose distinct ages are written once each), each agent's fixed text made once in
+    ``text``: the general encoder's pass over a swarm's entries cost more than the step's
+    network."""
+    agents = msg["agents"]
+    if isinstance(agents, AgentAges):
+        ages = np.array([_age_text(age) for age in agents.ages], dtype=object)
+        parts = (np.array(text.heads(agents.ids), dtype=object) + ages[agents.code]).tolist()
+    else:
+        parts = [text.head(a["id"]) + _age_text(a["age"]) for a in agents]
     rest = _COMPACT.encode({**msg, "agents": []})
     cut = rest.index('"agents":[') + len('"agents":[')
     return (rest[:cut] + ",".join(parts) + rest[cut:]).encode()
+
+
+def _age_text(age: float | None) -> str:
+    """An age as JSON writes it, with its entry's closing brace."""
+    text = "null" if age is None else float.__repr__(age) if type(age) is float else _COMPACT.encode(age)
+    return text + "}"
 
 
 def _ns(t: float) -> int:
@@ -349,7 +375,7 @@ class McapRecorder:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._writer = LogSink(self.path, live)
         self._channels: dict[str, int] = {}
-        self._comms_ids: dict[str, str] = {}  # each agent's fixed text in /comms (comms_json)
+        self._comms_text = CommsText()
         for topic, schema in SCHEMAS.items():
             self.add_json_channel(topic, schema)
         self._flush_interval = flush_interval
@@ -450,7 +476,7 @@ class McapRecorder:
         """One ``/comms`` message (its channel added with the first: worlds without comms have none)."""
         if "/comms" not in self._channels:
             self.add_json_channel("/comms", COMMS_SCHEMA)
-        self.write_bytes("/comms", float(msg["t"]), comms_json(msg, self._comms_ids))
+        self.write_bytes("/comms", float(msg["t"]), comms_json(msg, self._comms_text))
 
     def write_summary(self, summary: dict[str, Any]) -> None:
         self._write("/summary", self._last_t, summary)

@@ -13,6 +13,17 @@ from swarmplan.runtime.compiled import njit
 
 
 @njit(cache=True, nogil=True)
+def within(dx, dy, dz, wide, radius):  # noqa: ANN001, ANN201
+    """The length of (``dx``, ``dy``, ``dz``) when below ``radius``, else -1 (``wide``: the
+    squared radius widened by rounding, beyond which no root is taken)."""
+    d2 = (dx * dx + dy * dy) + dz * dz
+    if not d2 < wide:
+        return -1.0
+    d = math.sqrt(d2)
+    return d if d < radius else -1.0
+
+
+@njit(cache=True, nogil=True)
 def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     """(flyer row k, agent j, table row, distance) for every agent j that flyer k (at
     ``at[k]``, agent ``own[k]``) holds a row of (``view[k, j]`` >= 0) within ``radius`` of it,
@@ -30,12 +41,8 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
             r = view[k, j]
             if r < 0 or j == own[k]:
                 continue
-            dx, dy, dz = pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2]
-            d2 = (dx * dx + dy * dy) + dz * dz
-            if not d2 < wide:  # beyond the radius by more than rounding: no root taken
-                continue
-            d = math.sqrt(d2)
-            if d < radius:
+            d = within(pos[r, 0] - at[k, 0], pos[r, 1] - at[k, 1], pos[r, 2] - at[k, 2], wide, radius)
+            if d >= 0.0:
                 ks[c], js[c], rows[c], ds[c] = k, j, r, d
                 c += 1
     return ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy()
@@ -111,38 +118,60 @@ def deliver(heard, senders, rows, key, fate, heard_by, t):  # noqa: ANN001, ANN2
 
 @njit(cache=True, nogil=True)
 def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN201
-    """``network.compact_near_numpy``: the table rows (ascending) that flyers ``idx`` hold in
-    ``heard`` (receiver, sender; 0: none) and each flyer's view of them (n, N: the position
-    among those rows, -1: none; ``mark``, one per table row, all -1, is scratch, all -1 again
-    on return), the ages at ``t`` of the rows held and their positions moved on by them at the
-    velocity sent (``table`` = (time, position, velocity) per table row), and
-    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
+    """``network.compact_near_numpy``, in one pass over the pairs: the table rows that flyers
+    ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the order first met, and each
+    flyer's view of them (n, N: the position among those rows, -1: none; ``mark``, one per
+    table row, all -1, is scratch, all -1 again on return), the ages at ``t`` of the rows held
+    and their positions moved on by them at the velocity sent (``table`` = (time, position,
+    velocity) per table row), and :func:`held_pairs` of flyers ``idx`` (at ``at``) within
+    ``radius`` of those positions."""
     t_row, pos_row, vel_row = table
     n = idx.shape[0]
     n_all = heard.shape[1]
-    found = np.empty(n * n_all, dtype=np.int64)
-    count = 0
-    for k in range(n):
-        for j in range(n_all):
-            r = heard[idx[k], j]
-            if r > 0 and mark[r] < 0:
-                mark[r] = 0
-                found[count] = r
-                count += 1
-    live = np.sort(found[:count])
-    age = np.empty(count)
-    moved = np.empty((count, 3))
-    for c in range(count):
-        r = live[c]
-        mark[r] = c
-        age[c] = t - t_row[r]
-        for e in range(3):
-            moved[c, e] = pos_row[r, e] + vel_row[r, e] * age[c]
+    room = min(n * n_all, mark.shape[0])
+    live = np.empty(room, dtype=np.int64)
+    age = np.empty(room)
+    moved = np.empty((room, 3))
     view = np.empty((n, n_all), dtype=np.int64)
+    ks = np.empty(n * n_all, dtype=np.int64)
+    js = np.empty(n * n_all, dtype=np.int64)
+    rows = np.empty(n * n_all, dtype=np.int64)
+    ds = np.empty(n * n_all)
+    # A sender's column holds a few rows (most flyers the newest): its last one met and its
+    # position among the rows held, before asking the scratch.
+    last = np.zeros(n_all, dtype=np.int64)
+    last_at = np.empty(n_all, dtype=np.int64)
+    count = 0
+    c = 0
+    wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
+        own = idx[k]
         for j in range(n_all):
-            r = heard[idx[k], j]
-            view[k, j] = mark[r] if r > 0 else -1
-    for c in range(count):
-        mark[live[c]] = -1
-    return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
+            r = heard[own, j]
+            if r <= 0:
+                view[k, j] = -1
+                continue
+            if r == last[j]:
+                m = last_at[j]
+            else:
+                m = mark[r]
+                if m < 0:
+                    m = count
+                    mark[r] = m
+                    live[m] = r
+                    age[m] = t - t_row[r]
+                    for e in range(3):
+                        moved[m, e] = pos_row[r, e] + vel_row[r, e] * age[m]
+                    count += 1
+                last[j], last_at[j] = r, m
+            view[k, j] = m
+            if j == own:
+                continue
+            d = within(moved[m, 0] - at[k, 0], moved[m, 1] - at[k, 1], moved[m, 2] - at[k, 2], wide, radius)
+            if d >= 0.0:
+                ks[c], js[c], rows[c], ds[c] = k, j, m, d
+                c += 1
+    for m in range(count):
+        mark[live[m]] = -1
+    pairs = (ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy())
+    return live[:count].copy(), view, age[:count].copy(), moved[:count].copy(), pairs

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.core import Mode, SwarmState
+from swarmplan.core import AgentAges, Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.world.comms import Comms, Sensing
 
@@ -169,14 +169,15 @@ def deliver_numpy(
 
 
 def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The table rows (ascending) that flyers ``idx`` hold in ``heard`` (receiver, sender; 0:
-    none), and each flyer's view of them (n, N: the position among those rows, -1: none).
-    ``mark`` has one entry per table row (the compiled pass's scratch; read here for its size)."""
+    """The table rows that flyers ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the
+    order first met reading ``heard[idx]`` row by row, and each flyer's view of them (n, N: the
+    position among those rows, -1: none). ``mark`` has one entry per table row (the compiled
+    pass's scratch; read here for its size)."""
     rows = heard[idx]
-    used = np.zeros(len(mark), dtype=bool)
-    used[rows] = True
-    used[0] = False  # nothing heard
-    live = np.flatnonzero(used)
+    flat = rows.ravel()
+    held = flat[flat > 0]
+    distinct, first = np.unique(held, return_index=True)
+    live = distinct[np.argsort(first, kind="stable")]
     remap = np.full(len(mark), -1, dtype=np.int64)
     remap[live] = np.arange(len(live))
     return live, remap[rows]
@@ -399,10 +400,9 @@ class Network:
         # Each distinct age rounded once (a swarm's ages take a few values: whole steps).
         ok = ~np.isnan(age)
         distinct, which = np.unique(age[ok], return_inverse=True)
-        text = np.array([None, *(round(x, 6) for x in distinct.tolist())], dtype=object)
         code = np.zeros(self.n, dtype=np.int64)
         code[ok] = which.ravel() + 1
-        agents = [{"id": a, "age": x} for a, x in zip(ids, text[code].tolist(), strict=True)]
+        agents = AgentAges(ids, (None, *(round(x, 6) for x in distinct.tolist())), code)
         return {"t": round(t, 9), "agents": agents, **self.counts()}
 
     def counts(self) -> dict[str, int]:

@@ -9,8 +9,11 @@ Vehicle (point mass in coordinated flight, SI units):
   its roll rate when that is faster, and with a lag that settles (four time constants, 98 %)
   within the airframe's roll-in, the time its roll rate takes to the bank of a minimum-radius
   turn at cruise speed (paper 001's world at 1:50 rolls into 83 degrees in 0.18 s);
-- flight-path angle ``gamma' = (gamma_cmd - gamma) / pitch_time_constant``, ``|gamma|`` within
-  the world's climb angle plus ``climb_margin_deg``;
+- flight-path angle ``gamma' = (gamma_cmd - gamma) / tau``, ``tau`` the ``pitch_time_constant``,
+  or the bank's lag when the airframe's is shorter (an airframe that rolls into a
+  minimum-radius turn within a fraction of a second pulls up as quickly: the simulated model
+  may climb or dive on a curve of R_min from one step to the next, as it turns), ``|gamma|``
+  within the world's climb angle plus ``climb_margin_deg``;
 - airspeed ``V' = (T - D) / m - g sin(gamma)``: the thrust channel commands the specific
   thrust-minus-drag, within ``±thrust_accel_factor * max_accel``, and the airspeed stays within
   the world's [speed.min, speed.max].
@@ -166,6 +169,7 @@ def fly(
     ahead = max(1, int(round(cfg.l1_time / dt)))
     phi_max = math.radians(bank_limit_deg(ac, cfg))
     roll_rate, roll_lag = roll_limits(ac, cfg)
+    pitch_lag = min(cfg.pitch_time_constant, roll_lag)
     gam_max = math.radians(ac.max_climb_deg + cfg.climb_margin_deg)
     a_thrust = cfg.thrust_accel_factor * ac.max_accel
     p = rp[0].copy()
@@ -209,7 +213,7 @@ def fly(
         gam_cmd = max(-gam_max, min(gam_max, gam_cmd))
         # Integrate (semi-implicit Euler at dt).
         speed = min(ac.speed_max, max(ac.speed_min, speed + (thrust - G * math.sin(gam)) * dt))
-        gam = gam + (gam_cmd - gam) * dt / cfg.pitch_time_constant
+        gam = gam + (gam_cmd - gam) * dt / pitch_lag
         psi = psi + G * math.tan(phi) / max(speed, 1e-6) * dt
         cg = math.cos(gam)
         p = p + speed * dt * np.array([cg * math.cos(psi), cg * math.sin(psi), math.sin(gam)])
