@@ -396,10 +396,10 @@ def _solve(
 ) -> np.ndarray | None:
     """Coefficients (nc, 3) closest to the least-squares fit with the speed at most ``speed``, the
     acceleration at most ``accel``, the jerk at most ``jerk`` and (unless None) every dense
-    point within ``accuracy`` of the flown path, all on the dense grids; None when no such coefficients exist (or the
-    cutting planes do not settle). Each norm bound is met by tangent planes at the peaks that
-    break it, added round by round (each plane is implied by the bound, so an empty set
-    proves that none exists)."""
+    point within ``accuracy`` of the flown path, all on the dense grids; None when no such
+    coefficients exist (or the cutting planes do not settle). Each norm bound is met by tangent
+    planes at the peaks that break it, added round by round (each plane is implied by the
+    bound, so an empty set proves that none exists)."""
     g_rows: list[np.ndarray] = []
     g_rhs: list[float] = []
     for _ in range(MAX_ROUNDS):

@@ -78,9 +78,11 @@ def build(
     lines: list[str] = []
     taken: set[str] = {"manifest", "check"}
     # The swarm's Crazyflie trajectories start together: from the longest lead of them.
-    lead = max(
-        (crazyflie.ends_of(p, crazyflie.accuracy_for(p, max_deviation))[0] for p in paths), default=0.0
-    ) if fmt == "crazyflie" else 0.0
+    lead = (
+        max((crazyflie.ends_of(p, crazyflie.accuracy_for(p, max_deviation))[0] for p in paths), default=0.0)
+        if fmt == "crazyflie"
+        else 0.0
+    )
     for path in paths:
         stem = file_stem(path.limits.id, taken)
         if fmt == "crazyflie":
@@ -174,7 +176,8 @@ def _crazyflie(
     line = (
         f"{lim.id:<12} {name:<16} {poly.n_pieces:3d} pieces ({poly.nbytes} B) {poly.duration:7.2f} s  "
         f"dev {fit.max_deviation:.4f}/{accuracy:g} m  speed {fit.max_speed:.3f}/{lim.speed_max:g}  "
-        f"accel {fit.max_accel:.3f}/{lim.max_accel:g}  jerk {fit.max_jerk:.0f}/{crazyflie.jerk_limit(path):.0f}"
+        f"accel {fit.max_accel:.3f}/{lim.max_accel:g}  "
+        f"jerk {fit.max_jerk:.0f}/{crazyflie.jerk_limit(path):.0f}"
     )
     return entry, plan, line
 
