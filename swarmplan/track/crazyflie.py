@@ -24,6 +24,10 @@ Everything below follows bitcraze/crazyflie-firmware (``src/modules/src``):
   battery-compensated thrust mapping, ``platform_defaults_cf2.h``), at ``ARM_LENGTH`` 0.046 m
   on the diagonals, its drag torque ``THRUST2TORQUE`` = 0.00699 m times its force.
 
+- **Gyro** (``src/hal/src/sensors_bmi088_bmp3xx.c``): the BMI088 is set to +-2000 deg/s
+  (``SENSORS_BMI088_GYRO_FS_CFG``); the body rates a trajectory may ask for
+  (:meth:`Crazyflie.max_jerk`).
+
 The body is the rigid-body model of ``quadrotor.py`` (one model), with the Crazyflie 2.1's
 mass (``CF_MASS`` 0.029 kg), the inertia identified by Förster (System Identification of the
 Crazyflie 2.0 Nano Quadrocopter, ETH Zurich 2015: 16.6e-6, 16.6e-6, 29.3e-6 kg m^2) and its
