@@ -373,6 +373,7 @@ def test_an_output_folder_that_cannot_be_written(logs, tmp_path, capsys):
     blocker.write_text("x")
     code, _, err = run(capsys, logs["ok"], "--format", "csv", "--out", str(blocker / "sub"))
     assert code == 2 and "is a file, not a directory" in err and len(err.strip().splitlines()) == 1
+    assert "Traceback" not in err and list(tmp_path.iterdir()) == [blocker]  # nothing half-written
 
 
 def test_check_fails_when_the_swarm_meets(tmp_path, capsys):
