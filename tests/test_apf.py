@@ -333,3 +333,17 @@ def test_fixed_wings_keep_the_full_repulsion_of_parked_agents(monkeypatch):
     # The simulation's own step used the parked rule.
     args = (w, params, idx, pos0[idx], vel0[idx], sim.state.goal[idx], inputs, pos0, vel0)
     np.testing.assert_array_equal(used[-1], apf_forces(*args, parked=np.array([True, False, False])))
+
+
+def test_agent_gain_left_out_scales_with_the_pull():
+    """``planner.apf.k_agent`` left out is half the pull at cruise, ``0.5 k_att influence``: 16
+    for agents of 8 m/s braking at 4 m/s² (a 32 m influence), times k_att; given, it is kept."""
+    w = make_world(base_world())
+    apf = w.planner_config.apf
+    assert apf.influence == pytest.approx(2 * 8.0**2 / 4.0)
+    assert apf.k_agent == pytest.approx(0.5 * apf.influence) == pytest.approx(16.0)
+    raw = base_world()
+    raw["planner"]["apf"]["k_att"] = 2.0
+    assert make_world(raw).planner_config.apf.k_agent == pytest.approx(32.0)
+    raw["planner"]["apf"]["k_agent"] = 20.0
+    assert make_world(raw).planner_config.apf.k_agent == 20.0

@@ -238,6 +238,32 @@ def test_each_flyers_own_view_of_the_swarm():
     assert not np.array_equal(compiled, unseen_c)
 
 
+def test_doubt_widens_the_separation():
+    """A row's doubt (how far its agent may be from where it is believed) widens the pair's
+    separation ellipsoid on every axis: random doubts give the kernel's bits in numpy, and
+    one doubt on every row gives the force of a shared swarm whose separation is that much
+    wider (the same sums in the same order, to rounding)."""
+    from dataclasses import replace
+
+    world = _world(False)
+    params, pos, vel, goal, f, rng = _inputs(world, 5)
+    field = ApfField(world, params)
+    idx = np.sort(rng.choice(N, 12, replace=False))
+    n = len(idx)
+    inputs = FieldInputs(f[0][idx], f[1][idx], *f[2:])
+    flyers = Flyers(idx, pos[idx], vel[idx], goal[idx])
+    view = np.tile(np.arange(N), (n, 1))  # every flyer believes the truth, in one table
+    doubt = rng.uniform(0.0, 2.0, N)
+    compiled, plain = _both(field, flyers, inputs, Swarm(pos, vel, None, None, view, np.arange(N), doubt))
+    _same_bits(plain, compiled)
+    sure = field.forces(flyers, inputs, Swarm(pos, vel, None, None, view, np.arange(N), np.zeros(N)))
+    assert not np.allclose(compiled, sure)
+    _same_bits(sure, field.forces(flyers, inputs, Swarm(pos, vel)))
+    wide = ApfField(world, replace(params, separation=params.separation + 0.7))
+    believed = field.forces(flyers, inputs, Swarm(pos, vel, None, None, view, np.arange(N), np.full(N, 0.7)))
+    np.testing.assert_allclose(believed, wide.forces(flyers, inputs, Swarm(pos, vel)), rtol=1e-9, atol=1e-9)
+
+
 def test_near_agents_put_in_index_order_at_every_count():
     """The window's near agents are summed in index order: short lists by insertion, long ones
     through the marks (left all clear), both giving numpy's sort."""

@@ -356,3 +356,67 @@ def test_deconfliction_on_beliefs_exact_geometry():
     np.testing.assert_array_equal(v, [2.0, 0, 0])
     v, _ = _two(12.1, vel=(0.3, 2.0, 0.0))
     np.testing.assert_allclose(v, [0.0, 2.0, 0.0])
+
+
+def _room(believed_x: float, age: float, vel_b: tuple, cmd: tuple = (5.0, 0.0, 0.0)) -> np.ndarray:
+    """Agent a (radius 1, 4 m/s², dt 0.1) at x = 10 commanded ``cmd``, believing agent b at
+    ``believed_x`` moving at ``vel_b``, heard ``age`` s ago: its command after
+    :func:`braking_room`."""
+    from swarmplan.sim.deconflict import braking_room
+    from swarmplan.sim.network import Beliefs
+
+    agents = [{"id": "a", "start": [10, 50, 20], "goal": [90, 50, 20]},
+              {"id": "b", "start": [60, 50, 20], "goal": [60, 90, 20]}]  # fmt: skip
+    sim = Simulation(make_world(base_world(agents=agents, comms={"delay": 0.1})), "none")
+    table = np.array([[10.0, 50, 20], [believed_x, 50.0, 20.0]])
+    vel = np.array([cmd, vel_b], dtype=float)
+    ages = np.array([0.0, age])
+    beliefs = Beliefs(np.array([0]), table[:1], table, vel, np.zeros(2, bool), np.zeros(2), ages,
+                      np.array([0, 1]), np.array([[0, 1]]), table, vel)  # fmt: skip
+    return braking_room(sim.params, beliefs, np.array([cmd], dtype=float), 0.1)[0]
+
+
+def test_braking_room_exact_geometry():
+    """Two bodies of 1 m (4 m/s², braking at 0.8 of it: 3.2 m/s²), each with its 0.2 m safety
+    margin, b believed 6 m ahead (x = 16), heard 0.2 s ago: the gap is 6 - 2.4 - 4 0.2^2 / 2 =
+    3.52 m. Believed at rest, b may have set off towards a since (at 4 0.2 = 0.8 m/s at most):
+    its step of reaction and braking, 0.08 + 0.8^2 / 6.4 = 0.18, come out of the gap, and a may
+    close in at the speed that stops in the rest after its own step of reaction: v 0.1 +
+    v^2 / 6.4 = 3.34, v = 3.2 (sqrt(0.01 + 2.0875) - 0.1) = 4.3145 m/s. Moving away at 3 m/s
+    (2.2 m/s after what it may have lost since), its braking at its full limit, 2.2^2 / 8, adds
+    to the room; coming closer at 1 m/s (1.8 m/s at worst), its own reaction and braking come
+    out of it. Only the part along the line is cut; beyond reach, or heard this very step
+    (age 0), the command stands; in contact, a does not close in."""
+    gap = 6.0 - 2.4 - 0.5 * 4.0 * 0.2**2
+
+    def allowed(room: float) -> float:
+        return 3.2 * (math.sqrt(0.01 + 2.0 * room / 3.2) - 0.1)
+
+    def coming(w: float) -> float:
+        return w * 0.1 + w * w / 6.4
+
+    v = allowed(gap - coming(0.8))
+    assert v == pytest.approx(4.3145, abs=1e-4)
+    np.testing.assert_allclose(_room(16.0, 0.2, (0, 0, 0)), [v, 0, 0], rtol=1e-12)
+    np.testing.assert_allclose(_room(16.0, 0.2, (0, 0, 0), cmd=(5.0, 2.0, 0.0)), [v, 2.0, 0], rtol=1e-12)
+    np.testing.assert_allclose(_room(14.0, 0.2, (3, 0, 0)), [allowed(4.0 - 2.4 - 0.08 + 2.2**2 / 8.0), 0, 0])
+    np.testing.assert_allclose(_room(16.0, 0.2, (3, 0, 0)), [allowed(gap + 2.2**2 / 8.0), 0, 0], rtol=1e-12)
+    assert allowed(10.0 - 2.4 - 0.08 + 2.2**2 / 8.0) > 5.0
+    np.testing.assert_array_equal(_room(20.0, 0.2, (3, 0, 0)), [5.0, 0, 0])
+    np.testing.assert_allclose(_room(16.0, 0.2, (-1, 0, 0)), [allowed(gap - coming(1.8)), 0, 0], rtol=1e-12)
+    np.testing.assert_array_equal(_room(70.0, 0.2, (-1, 0, 0)), [5.0, 0, 0])
+    np.testing.assert_array_equal(_room(16.0, 0.0, (-1, 0, 0)), [5.0, 0, 0])
+    np.testing.assert_array_equal(_room(11.0, 0.2, (0, 0, 0)), [0.0, 0, 0])
+
+
+def test_belief_doubt_is_half_the_limit_times_the_age_squared():
+    """An agent heard ``age`` ago may be a age^2 / 2 from its state moved on at the velocity
+    sent; 0 for a state of now and for an unknown age; the deconfliction's margin is the doubt
+    at the step's end."""
+    from swarmplan.sim.network import belief_doubt
+
+    d = belief_doubt(np.array([2.0, 8.0, 8.0]), np.array([0.0, 0.3, np.inf]))
+    np.testing.assert_allclose(d, [0.0, 0.5 * 8.0 * 0.09, 0.0])
+    np.testing.assert_array_equal(
+        belief_margin(np.array([8.0]), np.array([0.3]), 0.1), belief_doubt(np.array([8.0]), np.array([0.4]))
+    )

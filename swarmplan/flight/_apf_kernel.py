@@ -165,14 +165,15 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     velocities, parked, distance to the goal, reach at the current speed) of every agent, and
     a view (flyers, agents) of row numbers into those arrays, -1 for an agent the flyer does
     not know of (each flyer's own beliefs of the others), or an empty (0, 0) view: row b is
-    agent b for every flyer;
+    agent b for every flyer; with a view, each row's doubt (m: how far the agent may be from
+    where it is believed), which widens the pair's separation ellipsoid on every axis;
     ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
     ``window``: test only the agents within each flyer's window along x (the same forces)."""
     pos, vel, goal, target, static_scale, idx, reach_now = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
     viewed = view.shape[0] > 0
     k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
     n = pos.shape[0]
@@ -402,6 +403,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 dpx, dpy, dpz = px - all_pos[rb, 0], py - all_pos[rb, 1], pz - all_pos[rb, 2]
                 dwx, dwy, dwz = vx - all_vel[rb, 0], vy - all_vel[rb, 1], vz - all_vel[rb, 2]
                 rr = radius[ia] + radius[b]
+                if viewed:  # where the other may be, beyond where it is believed
+                    rr = rr + doubt[rb]
                 cx = max(separation[ia, 0], separation[b, 0]) + rr
                 cy = max(separation[ia, 1], separation[b, 1]) + rr
                 cz = max(separation[ia, 2], separation[b, 2]) + rr

@@ -225,14 +225,16 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     ``-0.0`` where the kernel adds nothing."""
     pos, vel, idx, reach_now, dg, gfac = fl
     radius, separation, stop_reach, can_stop = agents
-    all_pos, all_vel, parked, goal_dist, reach_all, view = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
     reach, rho0, k_agent, horizon = g
     n = len(pos)
-    if view.shape[0]:  # each flyer's own rows (an unknown agent: its own row, and not tested)
+    viewed = view.shape[0] > 0
+    if viewed:  # each flyer's own rows (an unknown agent: its own row, and not tested)
         known = view >= 0
         rows_of = np.where(known, view, view[np.arange(n), idx][:, None])
         all_pos, all_vel = all_pos[rows_of], all_vel[rows_of]
         parked, goal_dist, reach_all = parked[rows_of], goal_dist[rows_of], reach_all[rows_of]
+        doubt = doubt[rows_of]
     else:  # every flyer's row b is agent b
         known = np.ones((n, len(all_pos)), dtype=bool)
         shared = (parked, goal_dist, reach_all)
@@ -257,7 +259,10 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
         return terms
     ia = idx[rows]
     dp, dw = dp[rows, b], dw[rows, b]
-    c = np.maximum(separation[ia], separation[b]) + (radius[ia] + radius[b])[:, None]
+    rr = radius[ia] + radius[b]
+    if viewed:  # where the other may be, beyond where it is believed
+        rr = rr + doubt[rows, b]
+    c = np.maximum(separation[ia], separation[b]) + rr[:, None]
     q = dp / c
     e = np.sqrt(_sq(q))
     stop_a, stop_b = can_stop[ia], can_stop[b]

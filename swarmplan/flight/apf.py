@@ -23,7 +23,9 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   paths 1.29x the straight line, the last arrival 18 s where ORCA-3D's is 12 s (13 s with
   the current speeds). Fixed wings keep the range from cruise (they cannot slow down to
   stop). Head-on and many-way encounters are broken by a right-hand component about the
-  relative velocity;
+  relative velocity. Its gain left out scales with the pull at cruise (``k_agent = 0.5 k_att
+  influence``, ``world.schema.default_field_scale``). On beliefs (``Swarm.view``), each pair's
+  ellipsoid widens by how far the other may be from where it is believed (``Swarm.doubt``);
 - parked agents: at rest they need no room to brake, so their repulsion reaches only the
   flyer's own braking distance at its current speed (:func:`reach_at_speed`) beyond the
   separation ellipsoid: a slow agent closing in on its goal beside a parked neighbour is
@@ -68,6 +70,7 @@ if TYPE_CHECKING:
 
 _EPS = 1e-9
 _NO_ROWS = np.zeros(0, dtype=np.int64)
+_NO_DOUBT = np.zeros(0)
 
 WINDOW_FROM = 128
 """Swarm size from which the field's agent term tests only the agents within a window along x
@@ -112,7 +115,9 @@ class Swarm:
     With ``view`` (flyers, N), the swarm as each flyer believes it (``swarmplan.sim.network``):
     ``pos``, ``vel``, ``parked`` and ``goal_distance`` are a table of believed states, one row
     each, ``row_agent`` (rows,) whose state each row is, and ``view[k, b]`` the row flyer k holds
-    of agent b (-1: it knows nothing of b)."""
+    of agent b (-1: it knows nothing of b); ``doubt`` (rows,) how far, m, each row's agent may
+    be from where it is believed (default 0), by which the pair's separation ellipsoid widens
+    on every axis."""
 
     pos: np.ndarray
     vel: np.ndarray
@@ -120,6 +125,7 @@ class Swarm:
     goal_distance: np.ndarray | None = None
     view: np.ndarray | None = None
     row_agent: np.ndarray | None = None
+    doubt: np.ndarray | None = None
 
 
 def reach_at_speed(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:
@@ -220,12 +226,16 @@ class ApfField:
         goal_dist = swarm.goal_distance
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
+        reach = self._reach * (1.0 + 1e-9) + 1e-9
         if swarm.view is None:  # one swarm for every flyer
             view = np.zeros((0, 0), dtype=np.int64)
             reach_all = self._reach_at_speed(None, all_vel)
+            doubt = _NO_DOUBT
         else:  # each flyer's own beliefs: its rows of the table
             view = np.ascontiguousarray(swarm.view, dtype=np.int64)
             reach_all = self._reach_at_speed(np.asarray(swarm.row_agent, dtype=np.int64), all_vel)
+            doubt = np.zeros(len(all_pos)) if swarm.doubt is None else np.asarray(swarm.doubt, dtype=float)
+            reach = reach + float(doubt.max(initial=0.0))  # the widest ellipsoid
         if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
@@ -237,8 +247,8 @@ class ApfField:
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view),
-            self._reach * (1.0 + 1e-9) + 1e-9,
+            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view, doubt),
+            reach,
             self._gains,
             out,
             (view.shape[1] if swarm.view is not None else len(all_pos)) >= WINDOW_FROM,

@@ -13,6 +13,8 @@ brakes (``max_accel``); it stops (an ``emergency_stop``) only at rest or where b
 touch a body: the margins of the others hold only while every agent keeps to its acceleration
 limit. A step that only widens the gap is no conflict. A belief whose
 margin exceeds both agents' stopping reach (``apf.stopping_reach``) is too old to act on.
+Before that, each multirotor's command keeps room to stop behind the agents it heard of
+(:func:`braking_room`).
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.runtime.compiled import use_compiled_checks
-from swarmplan.sim.network import Beliefs
+from swarmplan.sim.network import Beliefs, belief_doubt
 from swarmplan.world.model import World
 
 
@@ -127,8 +129,7 @@ def deconflict(
 def belief_margin(max_accel: np.ndarray, age: np.ndarray, dt: float) -> np.ndarray:
     """How far an agent may be from where it is believed at the end of a step: accelerating at
     ``max_accel`` since its state was true, ``age`` seconds before the step's start."""
-    a = np.where(np.isfinite(age), age, 0.0) + dt
-    return 0.5 * max_accel * a * a
+    return belief_doubt(max_accel, np.where(np.isfinite(age), age, 0.0) + dt)
 
 
 def belief_conflicts(
@@ -227,3 +228,44 @@ def _clears(
     return bool(((d >= need) | (d >= now)).all()) and filt.step_is_safe(
         i, p0, p0 + move, window.q0, window.q1
     )
+
+
+def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: float) -> np.ndarray:
+    """The commands ``v_cmd`` (one row per flyer of ``beliefs``) of multirotors cut along the
+    line to each agent they believe ahead, to what still stops behind it: a step of reaction,
+    then braking at 0.8 ``max_accel`` (the rest of the limit left to steer, as the surface and
+    goal caps of ``apf.commanded_velocity`` brake), within the gap between both bodies (each
+    inflated by its safety margin) less where the other may be beyond its belief
+    (``belief_doubt``), plus the braking distance (at its full limit) of the speed at which the
+    other moves away, less what it may have lost since (``max_accel age``): a leader that
+    brakes unheard is not run into. Another that may be coming closer takes its own room out of
+    the gap (its step of reaction and its braking at 0.8 of its limit from that speed): each
+    of the two keeps its own share. A state of now (age 0: the pair agrees within the step,
+    ``deconflict``) is left to the safety filter. A new array."""
+    p = params
+    out = np.array(v_cmd, dtype=float)
+    checked = p.radius + safety_margin(p.radius)
+    known = beliefs.age[np.isfinite(beliefs.age)]
+    most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(known.max(initial=0.0))))
+    radius = float(2.0 * (stopping_reach(p, dt).max() + checked.max()) + most)  # both rooms, both bodies
+    k, j, rows, dist = beliefs.near(radius)
+    i = beliefs.idx[k]
+    age = beliefs.age[rows]
+    keep = ~p.fixed_wing[i] & (dist > 0.0) & (age > 0.0) & np.isfinite(age)
+    k, j, rows, dist, i, age = k[keep], j[keep], rows[keep], dist[keep], i[keep], age[keep]
+    if len(k) == 0:
+        return out
+    n = (beliefs.pos[rows] - beliefs.at[k]) / dist[:, None]
+    aj, ai = p.max_accel[j], p.max_accel[i]
+    gap = dist - checked[i] - checked[j] - belief_doubt(aj, age)
+    away = np.einsum("ij,ij->i", beliefs.vel[rows], n) - aj * age
+    towards = np.maximum(-away, 0.0)
+    ai, bj = 0.8 * ai, 0.8 * aj
+    own = np.where(away > 0.0, away * away / (2.0 * aj), -(towards * dt + towards * towards / (2.0 * bj)))
+    room = np.maximum(gap + own, 0.0)
+    allowed = ai * (np.sqrt(dt * dt + 2.0 * room / ai) - dt)
+    for r in np.flatnonzero(np.einsum("ij,ij->i", out[k], n) > allowed):  # in (flyer, agent) order
+        excess = float(out[k[r]] @ n[r]) - allowed[r]
+        if excess > 0.0:
+            out[k[r]] -= excess * n[r]
+    return out

@@ -43,6 +43,14 @@ Plan = tuple[Mode, "np.ndarray | None", int, "np.ndarray | None", int]
 """An agent's mode, segment and index on it, route and index on it (as :class:`SwarmState` has them)."""
 
 
+def belief_doubt(max_accel: np.ndarray, age: np.ndarray) -> np.ndarray:
+    """How far an agent of ``max_accel`` may be from where it was believed to be ``age`` seconds
+    after its state was true (moved on by the velocity sent): ``max_accel age^2 / 2``; 0 for a
+    state of now (a flyer's own, a sensed one), and for an unknown age."""
+    a = np.where(np.isfinite(age), age, 0.0)
+    return 0.5 * max_accel * a * a
+
+
 @dataclass(frozen=True)
 class Beliefs:
     """What flyers ``idx`` (at ``at``, (n, 3)) believe of every agent at one time, as a table of

@@ -23,10 +23,11 @@ from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.sight import Sight
 from swarmplan.geometry.vec3 import norm3
+from swarmplan.sim.deconflict import braking_room
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
-from swarmplan.sim.network import Beliefs, Network
+from swarmplan.sim.network import Beliefs, Network, belief_doubt
 from swarmplan.sim.obstacles import Obstacles
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
@@ -132,7 +133,10 @@ class Steering:
             swarm = Swarm(pos0, vel0, parked, to_go)
         else:  # each flyer's own beliefs of the others
             b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=self.apf.agent_reach)
-            swarm = Swarm(b.expected_pos, b.expected_vel, b.parked, b.goal_distance, b.view, b.agent)
+            # Beliefs moved on with the acceleration sent: the truth may be off by twice the
+            # doubt of a belief moved on at the velocity sent (that acceleration since reversed).
+            doubt = 2.0 * belief_doubt(self.params.max_accel[b.agent], b.age)
+            swarm = Swarm(b.expected_pos, b.expected_vel, b.parked, b.goal_distance, b.view, b.agent, doubt)
             oldest = self.network.oldest(b, self.apf.agent_reach)
         force = self.apf.forces(flyers, inputs, swarm)
         clearance, normal = self.obstacles.nearest_surface(idx, p_idx, d, g)
@@ -140,4 +144,6 @@ class Steering:
             cores, radius = self._threat_cores, self.params.radius[idx]
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
         v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
+        if b is not None:  # room to stop behind the agents ahead, as far as it knows them
+            v_cmd = braking_room(self.params, b, v_cmd, self.world.dt)
         return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b, oldest)
