@@ -20,6 +20,7 @@ from swarmplan.cli.export import main as cli_main  # noqa: E402
 from swarmplan.export import crazyflie, mission  # noqa: E402
 from swarmplan.export.source import AgentLimits, FlownPath, LimitError  # noqa: E402
 from swarmplan.world import WorldError, load_world  # noqa: E402
+from swarmplan.world.tracker_config import G  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 DT = 0.05
@@ -95,12 +96,18 @@ def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
     # The flown steps use the whole limit, so a smooth curve through them would break it.
     steps = np.diff(path.positions, axis=0) / DT
     assert np.linalg.norm(np.diff(steps, axis=0), axis=1).max() / DT == pytest.approx(1.5)
-    # Leaving a hover, the trajectory takes up its acceleration over a moment (it starts with
-    # none) and cannot win back that lag at the speed limit: it is held to 2 cm, not 1.
-    fit = crazyflie.fit(path, 0.02)
-    assert fit.max_deviation <= 0.02 and fit.max_speed <= 1.0 and fit.max_accel <= 1.5
-    # From rest half a step before the first recorded position, to rest half a step after the last.
-    assert fit.lead == DT / 2 and fit.poly.duration == pytest.approx(path.duration + DT, abs=1e-6)
+    # Leaving a hover, the trajectory takes up its acceleration over a ramp centred on the flown
+    # path's step (it starts before it), so it does not fall behind a path that flies on at the
+    # speed limit: 5 mm hold.
+    fit = crazyflie.fit(path, 0.005)
+    assert fit.max_deviation <= 0.005 and fit.max_speed <= 1.0 and fit.max_accel <= 1.5
+    assert fit.max_jerk <= crazyflie.jerk_limit(path)
+    # From rest half a step and the ramp's half (sqrt(6 * 0.005 / 1.5) = 0.141 s) before the
+    # first recorded position, to rest as long after the last.
+    half = math.sqrt(0.02)
+    assert crazyflie.ramp_time(path, 0.005) == pytest.approx(half)
+    assert fit.lead == pytest.approx(DT / 2 + half)
+    assert fit.poly.duration == pytest.approx(path.duration + DT + 2 * half, abs=1e-6)
     poly = fit.poly
     t = np.linspace(0.0, poly.duration, 20001)
     assert np.linalg.norm(poly.evaluate(t, 2)[:, :3], axis=1).max() <= 1.5
@@ -118,6 +125,47 @@ def test_a_line_flown_at_the_acceleration_limit_fits_within_the_limits():
     u /= np.linalg.norm(u)
     rel = poly.evaluate(t)[:, :3] - path.positions[0]
     assert np.linalg.norm(rel - np.outer(rel @ u, u), axis=1).max() < 0.05 * 0.02
+
+
+def test_the_ramp_from_a_step_of_the_acceleration_keeps_its_bound():
+    # A step from rest to a at t = 0, and a linear rise of the acceleration over T centred on it
+    # (T twice the ramp time): the rise is ahead by a T^2 / 48 = e / 2 at the step and by
+    # a T^2 / 24 = e from T / 2 on, with the same velocity.
+    a, e = 1.5, 0.005
+    half = crazyflie.ramp_time(line_path(max_accel=a), e)
+    t = np.linspace(-half, 3 * half, 40001)
+    step = 0.5 * a * np.maximum(t, 0.0) ** 2
+    rise = np.clip((t + half) / (2 * half), 0.0, 1.0) * a
+    dt = t[1] - t[0]
+    v = np.concatenate([[0.0], np.cumsum(0.5 * (rise[1:] + rise[:-1]) * dt)])
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)])
+    gap = x - np.interp(t, t, step)
+    assert gap[np.searchsorted(t, 0.0)] == pytest.approx(e / 2, rel=1e-3)
+    assert np.abs(gap).max() == pytest.approx(e, rel=1e-3) and gap[-1] == pytest.approx(e, rel=1e-3)
+    assert v[-1] == pytest.approx(a * t[-1], rel=1e-6)
+
+
+def steady_circle(radius: float, rate: float, max_accel: float) -> FlownPath:
+    """A circle flown at ``rate`` rad/s for 2 s between a second's rise and a second's fall."""
+    t = DT * np.arange(81)
+    w = rate * np.minimum(min_jerk(t, 1.0), min_jerk(4.0 - t, 1.0))
+    th = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * DT)])
+    pos = np.column_stack([2 + radius * np.cos(th), 2 + radius * np.sin(th), np.full_like(th, 1.2)])
+    return FlownPath(limits(max_accel=max_accel, speed_max=3.0), t, pos, True)
+
+
+def test_the_jerk_a_crazyflie_can_produce_bounds_the_fit():
+    # 0.3 m at 5 rad/s: 7.5 m/s^2 (within 9) and a jerk of r w^3 = 37.5 m/s^3, beyond the
+    # 2000 deg/s x (g - 9 m/s^2) = 28.3 m/s^3 a Crazyflie produces there. A circle of the same
+    # timing within that jerk has a radius of at most 28.3 / 125 = 0.226 m: 7.4 cm inside (the
+    # rise and the fall leave a little room: 5 cm is out of reach).
+    path = steady_circle(0.3, 5.0, 9.0)
+    limit = crazyflie.jerk_limit(path)
+    assert limit == pytest.approx(math.radians(2000.0) * (G - 9.0))
+    fit = crazyflie.fit(path, 0.1)
+    assert fit.max_jerk <= limit and fit.max_accel <= 9.0 and fit.max_deviation <= 0.1
+    with pytest.raises(LimitError, match=r"jerk <= 28 m/s\^3"):
+        crazyflie.fit(path, 0.05, max_pieces=6)
 
 
 def test_circle_fits_continuous_to_acceleration_within_limits():
@@ -145,9 +193,11 @@ def test_csv_round_trip_and_header():
 
 def test_a_path_beyond_the_limits_on_its_timing_is_refused_with_the_limits_it_needs():
     with pytest.raises(LimitError) as err:
-        crazyflie.fit(line_path(max_accel=0.2), 0.01, max_pieces=4)  # the line needs 0.33 m/s^2
+        # 3.64 m rest to rest in 8 s: 0.33 m/s^2 at least on the flown timing, and 0.16 m/s^2
+        # with the ramps of sqrt(6 * 0.01 / 0.1) = 0.77 s at its ends (4 d / T^2, T = 9.6 s)
+        crazyflie.fit(line_path(max_accel=0.1), 0.01, max_pieces=4)
     msg = str(err.value)
-    assert "acceleration <= 0.2 m/s^2" in msg and "needs" in msg and "\n" not in msg
+    assert "acceleration <= 0.1 m/s^2" in msg and "needs" in msg and "\n" not in msg
 
 
 def test_a_path_beyond_the_memory_is_refused_with_the_bound_that_fits():
@@ -323,6 +373,7 @@ def test_an_output_folder_that_cannot_be_written(logs, tmp_path, capsys):
     blocker.write_text("x")
     code, _, err = run(capsys, logs["ok"], "--format", "csv", "--out", str(blocker / "sub"))
     assert code == 2 and "is a file, not a directory" in err and len(err.strip().splitlines()) == 1
+    assert "Traceback" not in err and list(tmp_path.iterdir()) == [blocker]  # nothing half-written
 
 
 def test_check_fails_when_the_swarm_meets(tmp_path, capsys):

@@ -68,6 +68,7 @@ def test_rotor_drag_adds_the_lag_drag_over_stiffness_without_the_integral():
     err = sp.pos[0] - fly(sp, cf).pos[0]
     gain = cf.mass_thrust * cf.max_thrust / PWM_MAX
     assert err[-1, 0] == pytest.approx(cf.rotor_drag[0] * v / (gain * cf.kp_xy) + zoh_lag(cf, v), rel=1e-3)
+    assert err[-1, 0] == pytest.approx(cf.tracking_lag(v), rel=1e-3)  # the horizontal lag is the larger
     assert abs(err[-1, 1]) < 1e-9 and abs(err[-1, 2]) < 1e-5
     # Förster's rotor drag: K_aero times the four rotors' speed at hover
     assert cf.rotor_drag[0] == pytest.approx(9.1785e-7 * 4 * math.sqrt(cf.mass * G / 4 / 1.28e-8))
@@ -102,3 +103,55 @@ def test_the_motor_mix_and_its_cap():
     excess = 65000 + 1000 - PWM_MAX
     assert capped[0] and thrust[0] == pytest.approx(4 * (65000 - excess) * k)
     np.testing.assert_allclose(tau[0], [2 * a * k * 2000, 0.0, 0.0])
+
+
+def test_the_thrust_mapping_leaves_part_of_an_acceleration_to_the_position_error():
+    # Without drag and integral, at a constant acceleration a the feed-forward m a gives only
+    # gain m a: the position error makes up the rest, (1 - gain) m a / (gain kp), beside the
+    # hold's lag at the speed reached.
+    cf = replace(CF, k_aero=(0.0, 0.0, 0.0), ki_xy=0.0)
+    a = 0.5
+    t = cf.commander_dt * np.arange(301)
+    z = np.zeros_like(t)
+    col = lambda u, h=0.0: np.column_stack([u, z, z + h])[None]  # noqa: E731
+    sp = Setpoints(t, col(0.5 * a * t**2, 1.0), col(a * t), col(a + z), col(z))
+    err = (sp.pos[0] - fly(sp, cf).pos[0])[-1, 0]
+    assert err == pytest.approx(cf.tracking_lag(a * t[-1], a), rel=2e-2)
+    gain = cf.mass_thrust * cf.max_thrust / PWM_MAX
+    assert cf.tracking_lag(0.0, a) == pytest.approx((1 - gain) * cf.mass * a / (gain * cf.kp_xy))
+
+
+def test_the_tracking_lag_bounds_a_flight_that_speeds_up_and_slows_down():
+    # A line whose speed rises to 1.4 m/s and falls back (the position loop is damped, 0.95 of
+    # critical): the vehicle never runs farther behind than the lag at the top speed and
+    # acceleration.
+    t = CF.commander_dt * np.arange(601)
+    s = np.clip(t / 6.0, 0.0, 1.0)
+    x = 4.5 * (10 * s**3 - 15 * s**4 + 6 * s**5)  # top speed 4.5 * 1.875 / 6 = 1.406 m/s
+    v = 4.5 * (30 * s**2 - 60 * s**3 + 30 * s**4) / 6.0
+    a = 4.5 * (60 * s - 180 * s**2 + 120 * s**3) / 36.0
+    j = 4.5 * (60 - 360 * s + 360 * s**2) / 216.0
+    z = np.zeros_like(t)
+    col = lambda u, h=0.0: np.column_stack([u, z, z + h])[None]  # noqa: E731
+    sp = Setpoints(t, col(x, 1.0), col(v), col(a), col(j))
+    err = np.linalg.norm(sp.pos[0] - fly(sp).pos[0], axis=1)
+    lag = CF.tracking_lag(float(v.max()), float(np.abs(a).max()))
+    assert err.max() <= lag
+    assert err.max() >= 0.7 * lag  # and that is what it runs behind
+
+
+def test_the_jerk_limit_keeps_the_body_rates_within_the_gyro_range():
+    # Accelerating downwards at the limit leaves the least thrust, g - a: there a jerk across
+    # the thrust at the limit asks for exactly the gyro's range, anywhere else for less.
+    a_max = 2.0
+    j = CF.max_jerk(a_max)
+    assert j == pytest.approx(math.radians(2000.0) * (G - a_max))
+    w = body_rates(np.array([[0.0, 0.0, -a_max]]), np.array([[j, 0.0, 0.0]]), np.zeros(1), np.zeros(1))
+    assert np.linalg.norm(w) == pytest.approx(CF.gyro_range)
+    rng = np.random.default_rng(3)
+    acc = rng.normal(size=(2000, 3))
+    acc *= (a_max * rng.uniform(size=2000) / np.linalg.norm(acc, axis=1))[:, None]
+    jerk = rng.normal(size=(2000, 3))
+    jerk *= (j / np.linalg.norm(jerk, axis=1))[:, None]
+    rates = body_rates(acc, jerk, np.zeros(2000), np.zeros(2000))
+    assert np.linalg.norm(rates, axis=1).max() <= CF.gyro_range * (1 + 1e-12)

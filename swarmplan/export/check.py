@@ -7,8 +7,9 @@ timing.
 Per agent: the largest distance between the flown vehicle and the planned position at the same
 instant (the export's own timing), or for a multirotor mission (a path with speeds, flown
 without a schedule) the largest distance to the planned path, against its limit:
-max(5 m, 0.05 R_min) for a fixed wing (``track``'s bound), the export's accuracy bound for a
-multirotor. For the swarm: the smallest
+max(5 m, 0.05 R_min) for a fixed wing (``track``'s bound), what the Crazyflie's controller
+achieves on a Crazyflie trajectory (:func:`crazyflie_limit`), the export's accuracy bound for a
+multirotor mission. For the swarm: the smallest
 surface distance between two agents, whether any pair came inside its separation ellipsoid,
 and any contact with an obstacle (moving ones where the log has them), the ground or terrain.
 """
@@ -167,6 +168,16 @@ def _fly_crazyflies(
     return out
 
 
+def crazyflie_limit(plan: Plan) -> float:
+    """How far a Crazyflie may be from its trajectory: what its firmware's controller achieves
+    on it, the lag at the trajectory's top speed and acceleration
+    (:meth:`~swarmplan.track.crazyflie.Crazyflie.tracking_lag`). Farther means the vehicle could
+    not follow the trajectory (a motor at its cap, body rates it cannot reach, a fall)."""
+    assert plan.vel is not None and plan.acc is not None
+    top = lambda a: float(np.linalg.norm(a, axis=1).max())  # noqa: E731
+    return Crazyflie().tracking_lag(top(plan.vel), top(plan.acc))
+
+
 def _fly_fixed_wing(
     plan: Plan, world: dict[str, Any], rec_dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -183,7 +194,7 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
     for plan in plans:
         if plan.id in crazyflies:
             times, pos, ref_pos = crazyflies[plan.id]
-            limit = plan.bound
+            limit = crazyflie_limit(plan)
         elif plan.model == "fixed_wing":
             times, pos, ref_pos, limit = _fly_fixed_wing(plan, rec.world, rec.dt)
         else:

@@ -11,7 +11,10 @@ Fit: a degree-7 B-spline in time whose interior knots have multiplicity 4, so po
 velocity, acceleration and jerk are continuous at every joint (C3), on the flown timing (from
 rest half a step before the first recorded step; :func:`ends_of`); an end at rest is a hover,
 with no acceleration either. The agent's speed and
-acceleration limits and the accuracy bound are constraints on dense grids: of the splines that
+acceleration limits, the jerk a Crazyflie can produce within them
+(:meth:`~swarmplan.track.crazyflie.Crazyflie.max_jerk`: the body rates a trajectory asks for are
+its jerk over the thrust acceleration, and the gyro measures at most 2000 deg/s) and the
+accuracy bound are constraints on dense grids: of the splines that
 keep them, the fit is the one closest to the least-squares fit to every recorded position plus
 a small penalty on the snap, found by cutting planes (:func:`_solve`) and solved exactly as a
 least distance programme (:func:`_ldp`). The number of pieces (equal durations) is the
@@ -29,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import BSpline
 from scipy.optimize import nnls
+
+from swarmplan.track.crazyflie import Crazyflie
 
 from .source import FlownPath, LimitError
 
@@ -114,6 +119,7 @@ class Fit:
     max_deviation: float  # m, from the flown path (time-synchronised, float32 coefficients)
     max_speed: float
     max_accel: float
+    max_jerk: float
     accuracy: float  # the bound it was fitted to
     lead: float  # s: the trajectory starts this long before the flown path's first step
 
@@ -196,16 +202,34 @@ def _flown_at(times: np.ndarray, pos: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(t, times, pos[:, j]) for j in range(3)])
 
 
-def ends_of(path: FlownPath) -> tuple[float, float]:
+def ramp_time(path: FlownPath, accuracy: float) -> float:
+    """s: half the longest ramp of the acceleration, centred on a step of it, that keeps within
+    ``accuracy`` of the step. Against a path that steps from rest to the acceleration ``a`` at an
+    instant, a trajectory whose acceleration rises linearly over T centred on that instant has
+    the same velocity from the ramp's end on and is ahead by ``a T^2 / 48`` at the instant and
+    by ``a T^2 / 24`` from the ramp's end on (which it gives back by flying a little slower
+    after; a trajectory behind a path flown on at the speed limit could not win it back), so T
+    may be ``sqrt(24 accuracy / a)``: the trajectory may begin to leave (or end to reach) a
+    hover up to ``sqrt(6 accuracy / a)`` before (after) the flown path's step, with ``a`` the
+    agent's acceleration limit."""
+    return math.sqrt(6.0 * accuracy / path.limits.max_accel)
+
+
+def ends_of(path: FlownPath, accuracy: float) -> tuple[float, float]:
     """How long (s) the trajectory starts before the flown path's first step and ends after its
-    last: half a step at a rest. The simulator's step (v += a dt, then x += v dt) moves as a
-    body whose acceleration is held over each step centred on the recorded instant: from rest
-    half a step before the first recorded position (a multirotor starts hovering; its first
-    step already holds its first command), and to rest half a step after the last one when it
-    arrived (its last move stops within the acceleration limit)."""
+    last, at a rest: half a step and the :func:`ramp_time`. The simulator's step (v += a dt,
+    then x += v dt) moves as a body whose acceleration is held over each step centred on the
+    recorded instant: from rest half a step before the first recorded position (a multirotor
+    starts hovering; its first step already holds its first command), and to rest half a step
+    after the last one when it arrived (its last move stops within the acceleration limit).
+    Those are steps of the acceleration, which a vehicle takes up over a time (it has to tilt):
+    the trajectory's rise of the acceleration is centred on the step, so it begins before it.
+    A trajectory that began its rise at the step would lag the path by the rise for good where
+    the path flies on at the speed limit."""
     tau = path.times - path.times[0]
-    lead = 0.5 * float(tau[1]) if path.limits.model == "multirotor" else 0.0
-    trail = 0.5 * float(tau[-1] - tau[-2]) if _still(path) else 0.0
+    ramp = ramp_time(path, accuracy)
+    lead = 0.5 * float(tau[1]) + ramp if path.limits.model == "multirotor" else 0.0
+    trail = 0.5 * float(tau[-1] - tau[-2]) + ramp if _still(path) else 0.0
     return lead, trail
 
 
@@ -213,28 +237,40 @@ def _still(path: FlownPath) -> bool:
     return bool(path.arrived or np.linalg.norm(path.positions[-1] - path.positions[-2]) < 1e-12)
 
 
-def _dense_ends(path: FlownPath) -> np.ndarray:
+def _dense_ends(path: FlownPath, ends: tuple[float, float]) -> np.ndarray:
     """The dense deviation times on the trajectory's clock: the recorded steps' (:func:`_dense`)
-    and the lead and the trail before and after them."""
+    and as dense over the lead and the trail (``ends``) before and after them."""
     tau = path.times - path.times[0]
-    lead, trail = ends_of(path)
-    s = np.linspace(0.0, 1.0, DENSE // 2, endpoint=False)
-    return np.concatenate([-lead + lead * s, _dense(tau), tau[-1] + trail * s[1:], [tau[-1] + trail]]) + lead
+    lead, trail = ends
+    spacing = float(tau[1]) / DENSE
+    before = np.linspace(-lead, 0.0, int(np.ceil(lead / spacing)) + 1)[:-1]
+    after = np.linspace(tau[-1], tau[-1] + trail, int(np.ceil(trail / spacing)) + 1)[1:]
+    return np.concatenate([before, _dense(tau), after]) + lead
 
 
-def evaluate_fit(poly: Poly4D, path: FlownPath) -> tuple[float, float, float]:
+def jerk_limit(path: FlownPath) -> float:
+    """m/s^3: the jerk a Crazyflie can produce within the agent's acceleration limit
+    (:meth:`~swarmplan.track.crazyflie.Crazyflie.max_jerk`: the gyro's range times the least
+    thrust acceleration, g - max_accel)."""
+    return Crazyflie().max_jerk(path.limits.max_accel)
+
+
+def evaluate_fit(
+    poly: Poly4D, path: FlownPath, ends: tuple[float, float]
+) -> tuple[float, float, float, float]:
     """Largest deviation from the flown path (time-synchronised, between the recorded steps too,
-    against the recorded polygon, held at its ends before and after it), speed and acceleration
-    of the exported trajectory."""
+    against the recorded polygon, held at its ends before and after it: ``ends`` = lead and
+    trail), speed, acceleration and jerk of the exported trajectory."""
     tau = path.times - path.times[0]
-    lead, _ = ends_of(path)
-    t = _dense_ends(path)
+    lead = ends[0]
+    t = _dense_ends(path, ends)
     fitted = poly.evaluate(t)[:, :3]
     dev = float(np.linalg.norm(fitted - _flown_at(tau, path.positions, t - lead), axis=1).max())
     tp = np.linspace(0.0, poly.duration, poly.n_pieces * DENSE * 4 + 1)
     speed = float(np.linalg.norm(poly.evaluate(tp, 1)[:, :3], axis=1).max())
     accel = float(np.linalg.norm(poly.evaluate(tp, 2)[:, :3], axis=1).max())
-    return dev, speed, accel
+    jerk = float(np.linalg.norm(poly.evaluate(tp, 3)[:, :3], axis=1).max())
+    return dev, speed, accel, jerk
 
 
 LIMIT_TARGET = 0.99  # a bound is held this far inside (room for float32 and between the grid points)
@@ -274,22 +310,31 @@ class _Problem:
     knots: np.ndarray
     nc: int
     duration: float  # s, the trajectory's (the flown path's, with its lead and trail)
+    ends: tuple[float, float]  # s: the lead and the trail
     c_free: np.ndarray  # (3 nc,) the fit without limits
     reduce: np.ndarray  # (3 nc, m): coefficients = c_free + reduce @ y, |y|^2 / 2 the objective's rise
     d1: np.ndarray  # basis velocity on the limit grid
     d2: np.ndarray  # basis acceleration on the limit grid
+    d3: np.ndarray  # basis jerk on the limit grid
     dev_basis: np.ndarray  # basis at the dense deviation times
     dev_target: np.ndarray  # the flown polygon there (N, 3)
 
 
-def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
-    """The fit with ``n`` pieces of equal durations."""
+def _problem(path: FlownPath, n: int, ends: tuple[float, float], snap: float = SNAP_WEIGHT) -> _Problem:
+    """The fit with ``n`` pieces of equal durations, with the lead and the trail ``ends``: the
+    least squares are to the recorded positions and, one a step, to the held ends over the lead
+    and the trail."""
     tau = path.times - path.times[0]
-    lead, trail = ends_of(path)
+    lead, trail = ends
     duration = float(tau[-1]) + lead + trail
     breaks = np.linspace(0.0, duration, n + 1)
     knots = _knots(breaks)
-    basis = _basis(knots, tau + lead)
+    step = float(tau[1])
+    held_before = -step * np.arange(int(np.floor(lead / step)), 0, -1)
+    held_after = tau[-1] + step * np.arange(1, int(np.floor(trail / step)) + 1)
+    ls_t = np.concatenate([held_before, tau, held_after])
+    ls_pos = _flown_at(tau, path.positions, ls_t)
+    basis = _basis(knots, ls_t + lead)
     nc = basis.shape[1]
     gram = _snap_gram(knots, breaks)
     v0 = np.zeros(3) if lead else _end_velocity(path.times, path.positions, False, False)
@@ -309,7 +354,7 @@ def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
     scale = np.trace(a) / max(np.trace(gram), 1e-300)
     h = np.kron(np.eye(3), a + snap * scale * gram)
     h += np.eye(len(h)) * 1e-12 * np.trace(h) / len(h)
-    g = np.concatenate([basis.T @ path.positions[:, j] for j in range(3)])
+    g = np.concatenate([basis.T @ ls_pos[:, j] for j in range(3)])
     # Null space of the end conditions: coefficients = x0 + null @ z.
     x0 = np.linalg.lstsq(eq, eq_rhs, rcond=None)[0]
     _, s, vt = np.linalg.svd(eq)
@@ -320,10 +365,10 @@ def _problem(path: FlownPath, n: int, snap: float = SNAP_WEIGHT) -> _Problem:
     z_free = np.linalg.solve(hz, gz)
     reduce = null @ np.linalg.inv(chol).T
     grid = np.linspace(0.0, duration, max(n * DENSE * 4, len(tau) * 4) + 1)
-    t = _dense_ends(path)
+    t = _dense_ends(path, ends)
     return _Problem(
-        n, breaks, knots, nc, duration, x0 + null @ z_free, reduce,
-        _basis(knots, grid, 1), _basis(knots, grid, 2),
+        n, breaks, knots, nc, duration, (lead, trail), x0 + null @ z_free, reduce,
+        _basis(knots, grid, 1), _basis(knots, grid, 2), _basis(knots, grid, 3),
         _basis(knots, t), _flown_at(tau, path.positions, t - lead),
     )  # fmt: skip
 
@@ -346,13 +391,15 @@ def _cuts(
     return rows, rhs
 
 
-def _solve(prob: _Problem, speed: float, accel: float, accuracy: float | None) -> np.ndarray | None:
+def _solve(
+    prob: _Problem, speed: float, accel: float, jerk: float, accuracy: float | None
+) -> np.ndarray | None:
     """Coefficients (nc, 3) closest to the least-squares fit with the speed at most ``speed``, the
-    acceleration at most ``accel`` and (unless None) every dense point within ``accuracy`` of
-    the flown path, all on the dense grids; None when no such coefficients exist (or the
-    cutting planes do not settle). Each norm bound is met by tangent planes at the peaks that
-    break it, added round by round (each plane is implied by the bound, so an empty set
-    proves that none exists)."""
+    acceleration at most ``accel``, the jerk at most ``jerk`` and (unless None) every dense
+    point within ``accuracy`` of the flown path, all on the dense grids; None when no such
+    coefficients exist (or the cutting planes do not settle). Each norm bound is met by tangent
+    planes at the peaks that break it, added round by round (each plane is implied by the
+    bound, so an empty set proves that none exists)."""
     g_rows: list[np.ndarray] = []
     g_rhs: list[float] = []
     for _ in range(MAX_ROUNDS):
@@ -367,7 +414,11 @@ def _solve(prob: _Problem, speed: float, accel: float, accuracy: float | None) -
         coef = flat.reshape(3, prob.nc).T
         new_rows: list[np.ndarray] = []
         new_rhs: list[float] = []
-        checks = [(prob.d1, prob.d1 @ coef, speed, None), (prob.d2, prob.d2 @ coef, accel, None)]
+        checks = [
+            (prob.d1, prob.d1 @ coef, speed, None),
+            (prob.d2, prob.d2 @ coef, accel, None),
+            (prob.d3, prob.d3 @ coef, jerk, None),
+        ]
         if accuracy is not None:
             checks.append(
                 (prob.dev_basis, prob.dev_basis @ coef - prob.dev_target, accuracy, prob.dev_target)
@@ -383,21 +434,24 @@ def _solve(prob: _Problem, speed: float, accel: float, accuracy: float | None) -
     return None
 
 
-def _fit_n(
-    path: FlownPath, prob: _Problem, accuracy: float | None, scale: float = 1.0
-) -> tuple[Poly4D, float, float, float] | None:
+_Found = tuple[Poly4D, float, float, float, float]  # poly, deviation, speed, accel, jerk
+
+
+def _fit_n(path: FlownPath, prob: _Problem, accuracy: float | None, scale: float = 1.0) -> _Found | None:
     """The trajectory of ``prob`` within ``accuracy`` (None: any) and ``scale`` times the agent's
-    limits, checked on its float32 coefficients: (poly, deviation, speed, accel), or None."""
+    speed and acceleration limits (and the jerk a Crazyflie can produce at that acceleration),
+    checked on its float32 coefficients: (poly, deviation, speed, accel, jerk), or None."""
     lim = path.limits
-    coef = _solve(prob, lim.speed_max * scale, lim.max_accel * scale, accuracy)
+    jerk_max = Crazyflie().max_jerk(lim.max_accel * scale)
+    coef = _solve(prob, lim.speed_max * scale, lim.max_accel * scale, jerk_max, accuracy)
     if coef is None:
         return None
     poly = _to_poly(prob.knots, coef, prob.breaks)
-    dev, speed, accel = evaluate_fit(poly, path)
-    ok = speed <= lim.speed_max * scale and accel <= lim.max_accel * scale
+    dev, speed, accel, jerk = evaluate_fit(poly, path, prob.ends)
+    ok = speed <= lim.speed_max * scale and accel <= lim.max_accel * scale and jerk <= jerk_max
     if not ok or (accuracy is not None and dev > accuracy):
         return None
-    return poly, dev, speed, accel
+    return poly, dev, speed, accel, jerk
 
 
 def _plain(prob: _Problem) -> Poly4D:
@@ -405,17 +459,17 @@ def _plain(prob: _Problem) -> Poly4D:
     return _to_poly(prob.knots, prob.c_free.reshape(3, prob.nc).T, prob.breaks)
 
 
-def _plain_deviation(path: FlownPath, n: int) -> float:
+def _plain_deviation(path: FlownPath, n: int, ends: tuple[float, float]) -> float:
     """Deviation of the least-squares fit with ``n`` pieces, limits aside."""
-    return evaluate_fit(_plain(_problem(path, n)), path)[0]
+    return evaluate_fit(_plain(_problem(path, n, ends)), path, ends)[0]
 
 
-def _pieces_needed(path: FlownPath, accuracy: float, cap: int) -> int | None:
+def _pieces_needed(path: FlownPath, accuracy: float, cap: int, ends: tuple[float, float]) -> int | None:
     """The fewest pieces (at most ``cap``) whose least-squares fit reaches ``accuracy``, by
     doubling and bisection; None when even ``cap`` does not."""
 
     def reaches(n: int) -> bool:
-        return _plain_deviation(path, n) <= accuracy
+        return _plain_deviation(path, n, ends) <= accuracy
 
     hi = 1
     while not reaches(hi):
@@ -444,18 +498,22 @@ def _smallest(feasible: Callable[[float], bool], lo: float, hi: float) -> float:
     return hi
 
 
-def fit(path: FlownPath, accuracy: float, max_pieces: int = MAX_PIECES) -> Fit:
+def fit(path: FlownPath, accuracy: float, max_pieces: int = MAX_PIECES, lead: float | None = None) -> Fit:
     """The trajectory with the fewest pieces within ``accuracy`` of the flown path and within the
-    agent's speed and acceleration limits, on the flown timing. Raises :class:`LimitError`
-    (saying what would fit) when ``max_pieces`` do not reach it."""
+    agent's speed, acceleration and jerk limits, on the flown timing, starting ``lead`` before
+    the flown path's first step (at least its own, :func:`ends_of`; the swarm's trajectories
+    start together). Raises :class:`LimitError` (saying what would fit) when ``max_pieces`` do
+    not reach it."""
+    own_lead, trail = ends_of(path, accuracy)
+    ends = (max(own_lead, lead or 0.0), trail)
     # The least-squares fit says where to start: one held to the limits and the bound seldom
     # needs fewer pieces.
-    first = _pieces_needed(path, accuracy, max_pieces) or max_pieces
-    tried: dict[int, tuple[Poly4D, float, float, float] | None] = {}
+    first = _pieces_needed(path, accuracy, max_pieces, ends) or max_pieces
+    tried: dict[int, _Found | None] = {}
 
-    def attempt(n: int) -> tuple[Poly4D, float, float, float] | None:
+    def attempt(n: int) -> _Found | None:
         if n not in tried:
-            tried[n] = _fit_n(path, _problem(path, n), accuracy)
+            tried[n] = _fit_n(path, _problem(path, n, ends), accuracy)
         return tried[n]
 
     n, failed = first, first - 1
@@ -463,25 +521,26 @@ def fit(path: FlownPath, accuracy: float, max_pieces: int = MAX_PIECES) -> Fit:
         failed, n = n, min(max_pieces, n + max(1, n // 4))
     found = attempt(n)
     if found is None:
-        raise LimitError(_refusal(path, accuracy, max_pieces))
+        raise LimitError(_refusal(path, accuracy, max_pieces, ends))
     while n - failed > 1:  # the fewest pieces between the last that failed and n
         mid = (n + failed) // 2
         n, failed = (mid, failed) if attempt(mid) is not None else (n, mid)
-    poly, dev, speed, accel = attempt(n)  # type: ignore[misc]
-    return Fit(poly, dev, speed, accel, accuracy, ends_of(path)[0])
+    poly, dev, speed, accel, jerk = attempt(n)  # type: ignore[misc]
+    return Fit(poly, dev, speed, accel, jerk, accuracy, ends[0])
 
 
-def _refusal(path: FlownPath, accuracy: float, max_pieces: int) -> str:
+def _refusal(path: FlownPath, accuracy: float, max_pieces: int, ends: tuple[float, float]) -> str:
     """Why ``max_pieces`` cannot fit the path at ``accuracy``, and what would: the smallest
     deviation bound within which they keep the limits, or (when they cannot keep the limits on
     the flown timing at all) how far the limits would have to rise."""
     lim = path.limits
-    prob = _problem(path, max_pieces)
+    prob = _problem(path, max_pieces, ends)
     head = (
         f"agent {lim.id}: no trajectory of at most {max_pieces} equal pieces "
         f"({max_pieces * PIECE_BYTES} of the {MEMORY_BYTES}-byte trajectory memory) keeps within "
         f"{accuracy:g} m of its {path.duration:.1f} s "
-        f"flown path with speed <= {lim.speed_max:g} m/s and acceleration <= {lim.max_accel:g} m/s^2"
+        f"flown path with speed <= {lim.speed_max:g} m/s, acceleration <= {lim.max_accel:g} m/s^2 "
+        f"and jerk <= {jerk_limit(path):.0f} m/s^3"
     )
     loose = _fit_n(path, prob, None)
     if loose is not None:
@@ -493,11 +552,11 @@ def _refusal(path: FlownPath, accuracy: float, max_pieces: int) -> str:
         )
     # Not even the limits alone: the flown timing asks more of the agent than it has.
     plain = _plain(prob)
-    dev, speed, accel = evaluate_fit(plain, path)
+    dev, speed, accel, jerk = evaluate_fit(plain, path, ends)
     hi = max(speed / lim.speed_max, accel / lim.max_accel, 1.0) * 1.01
     probe = max(accuracy, dev * 1.01)
     if _fit_n(path, prob, probe, hi) is None:
-        return f"{head}; its flown timing needs {speed:.3f} m/s and {accel:.3f} m/s^2"
+        return f"{head}; its flown timing needs {speed:.3f} m/s, {accel:.3f} m/s^2 and {jerk:.0f} m/s^3"
     s = _smallest(lambda k: _fit_n(path, prob, probe, k) is not None, 1.0, hi)
     return (
         f"{head}; on its flown timing it needs limits {s:.3f} times as high "

@@ -77,10 +77,16 @@ def build(
     plans: list[Plan] = []
     lines: list[str] = []
     taken: set[str] = {"manifest", "check"}
+    # The swarm's Crazyflie trajectories start together: from the longest lead of them.
+    lead = (
+        max((crazyflie.ends_of(p, crazyflie.accuracy_for(p, max_deviation))[0] for p in paths), default=0.0)
+        if fmt == "crazyflie"
+        else 0.0
+    )
     for path in paths:
         stem = file_stem(path.limits.id, taken)
         if fmt == "crazyflie":
-            entry, plan, line = _crazyflie(path, stem, files, max_deviation)
+            entry, plan, line = _crazyflie(path, stem, files, max_deviation, lead)
         elif fmt == "px4":
             entry, plan, line = _px4(rec, path, stem, files, origin, _mission_bound(rec, path, max_deviation))
         else:
@@ -112,7 +118,7 @@ def build(
 
 
 def _crazyflie(
-    path: FlownPath, stem: str, files: dict[str, str], max_deviation: float | None
+    path: FlownPath, stem: str, files: dict[str, str], max_deviation: float | None, lead: float
 ) -> tuple[dict[str, Any], Plan, str]:
     lim = path.limits
     if lim.model != "multirotor":
@@ -120,7 +126,7 @@ def _crazyflie(
             f"agent {lim.id}: a {lim.model} agent cannot fly a Crazyflie trajectory (multirotors only)"
         )
     accuracy = crazyflie.accuracy_for(path, max_deviation)
-    fit = crazyflie.fit(path, accuracy)
+    fit = crazyflie.fit(path, accuracy, lead=lead)
     poly = fit.poly
     name = f"{stem}.csv"
     files[name] = crazyflie.csv_text(poly)
@@ -144,8 +150,8 @@ def _crazyflie(
     entry = {
         "id": lim.id,
         "file": name,
-        # From rest half a step before the first recorded step: the common start is half a
-        # step before the log's t = 0 (every multirotor of a log has the same lead).
+        # From rest a lead before the first recorded step: the common start is the swarm's
+        # longest lead before the log's t = 0 (every trajectory of the export has that lead).
         "start_time": path.start_time,
         "log_start_time": round(path.start_time - fit.lead, 6),
         "duration": round(poly.duration, 6),
@@ -159,6 +165,8 @@ def _crazyflie(
         "speed_limit": lim.speed_max,
         "max_accel": round(fit.max_accel, 4),
         "accel_limit": lim.max_accel,
+        "max_jerk": round(fit.max_jerk, 2),
+        "jerk_limit": round(crazyflie.jerk_limit(path), 2),
         "joint_jumps": {
             "position_m": float(jumps[0]),
             "velocity_m_s": float(jumps[1]),
@@ -168,7 +176,8 @@ def _crazyflie(
     line = (
         f"{lim.id:<12} {name:<16} {poly.n_pieces:3d} pieces ({poly.nbytes} B) {poly.duration:7.2f} s  "
         f"dev {fit.max_deviation:.4f}/{accuracy:g} m  speed {fit.max_speed:.3f}/{lim.speed_max:g}  "
-        f"accel {fit.max_accel:.3f}/{lim.max_accel:g}"
+        f"accel {fit.max_accel:.3f}/{lim.max_accel:g}  "
+        f"jerk {fit.max_jerk:.0f}/{crazyflie.jerk_limit(path):.0f}"
     )
     return entry, plan, line
 

@@ -230,6 +230,22 @@ def _clears(
     )
 
 
+def oldest_age(beliefs: Beliefs) -> float:
+    """The age of the oldest state in ``beliefs`` (0 when none has an age)."""
+    known = beliefs.age[np.isfinite(beliefs.age)]
+    return float(known.max(initial=0.0))
+
+
+def braking_radius(params: AgentParams, dt: float, age: float) -> float:
+    """How far :func:`braking_room` looks, with beliefs at most ``age`` old: both agents'
+    stopping reach and both bodies (each inflated by its safety margin), and how far the other
+    may be from where it is believed."""
+    p = params
+    checked = p.radius + safety_margin(p.radius)
+    most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(age)))
+    return float(2.0 * (stopping_reach(p, dt).max() + checked.max()) + most)
+
+
 def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: float) -> np.ndarray:
     """The commands ``v_cmd`` (one row per flyer of ``beliefs``) of multirotors cut along the
     line to each agent they believe ahead, to what still stops behind it: a step of reaction,
@@ -245,17 +261,18 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
     p = params
     out = np.array(v_cmd, dtype=float)
     checked = p.radius + safety_margin(p.radius)
-    known = beliefs.age[np.isfinite(beliefs.age)]
-    most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(known.max(initial=0.0))))
-    radius = float(2.0 * (stopping_reach(p, dt).max() + checked.max()) + most)  # both rooms, both bodies
-    k, j, rows, dist = beliefs.near(radius)
+    k, j, rows, dist = beliefs.near(braking_radius(p, dt, oldest_age(beliefs)))
     i = beliefs.idx[k]
     age = beliefs.age[rows]
     keep = ~p.fixed_wing[i] & (dist > 0.0) & (age > 0.0) & np.isfinite(age)
     k, j, rows, dist, i, age = k[keep], j[keep], rows[keep], dist[keep], i[keep], age[keep]
+    n = (beliefs.pos[rows] - beliefs.at[k]) / dist[:, None]
+    # A command is cut only where it closes in faster than allowed (never below 0): the pairs
+    # it does not close in on are left out before the rest is worked out.
+    closing = np.einsum("ij,ij->i", out[k], n) > 0.0
+    k, j, rows, dist, i, age, n = (a[closing] for a in (k, j, rows, dist, i, age, n))
     if len(k) == 0:
         return out
-    n = (beliefs.pos[rows] - beliefs.at[k]) / dist[:, None]
     aj, ai = p.max_accel[j], p.max_accel[i]
     gap = dist - checked[i] - checked[j] - belief_doubt(aj, age)
     away = np.einsum("ij,ij->i", beliefs.vel[rows], n) - aj * age

@@ -23,7 +23,7 @@ from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.sight import Sight
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.sim.deconflict import braking_room
+from swarmplan.sim.deconflict import braking_radius, braking_room, oldest_age
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
@@ -68,10 +68,12 @@ class Steering:
             None if world.comms is None else Network(world.comms, world.sensing, params.max_accel, world.dt)
         )
         self.sensing_range = math.inf if world.sensing is None else world.sensing.range
+        self._oldest = 0.0  # the age of the oldest state any flyer acted on in the last step
 
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
         """Back to the bodies at rest at t = 0 (a mover parked in the last run), the guide's ways
         from ``start`` to ``goal``, no loiter circles."""
+        self._oldest = 0.0
         self.loiter.reset()
         self.sight.reset()
         self.capture.reset()
@@ -132,7 +134,12 @@ class Steering:
         if self.network is None:
             swarm = Swarm(pos0, vel0, parked, to_go)
         else:  # each flyer's own beliefs of the others
-            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=self.apf.agent_reach)
+            # The pairs found with the beliefs reach as far as the field and the braking room
+            # look (the oldest state a step older than the last step's oldest).
+            look = braking_radius(self.params, self.world.dt, self._oldest + self.world.dt)
+            near = max(self.apf.agent_reach, look)
+            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=near)
+            self._oldest = oldest_age(b)
             # Beliefs moved on with the acceleration sent: the truth may be off by twice the
             # doubt of a belief moved on at the velocity sent (that acceleration since reversed).
             doubt = 2.0 * belief_doubt(self.params.max_accel[b.agent], b.age)

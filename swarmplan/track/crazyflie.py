@@ -24,6 +24,10 @@ Everything below follows bitcraze/crazyflie-firmware (``src/modules/src``):
   battery-compensated thrust mapping, ``platform_defaults_cf2.h``), at ``ARM_LENGTH`` 0.046 m
   on the diagonals, its drag torque ``THRUST2TORQUE`` = 0.00699 m times its force.
 
+- **Gyro** (``src/hal/src/sensors_bmi088_bmp3xx.c``): the BMI088 is set to +-2000 deg/s
+  (``SENSORS_BMI088_GYRO_FS_CFG``); the body rates a trajectory may ask for
+  (:meth:`Crazyflie.max_jerk`).
+
 The body is the rigid-body model of ``quadrotor.py`` (one model), with the Crazyflie 2.1's
 mass (``CF_MASS`` 0.029 kg), the inertia identified by Förster (System Identification of the
 Crazyflie 2.0 Nano Quadrocopter, ETH Zurich 2015: 16.6e-6, 16.6e-6, 29.3e-6 kg m^2) and its
@@ -65,6 +69,7 @@ class Crazyflie:
     motor_time_constant: float = 0.02  # s
     drag: float = 0.0  # N s^2/m^2: no drag quadratic in the speed beyond the rotor drag
     k_aero: tuple[float, float, float] = K_AERO  # kg/rad, rotor drag per unit rotor speed
+    gyro_range: float = math.radians(2000.0)  # rad/s: the BMI088 gyro's range as the firmware sets it
     control_dt: float = 1.0 / 500.0  # s, ATTITUDE_RATE
     commander_dt: float = 1.0 / 100.0  # s, RATE_HL_COMMANDER
     mass_thrust: float = 132000.0  # PWM per N
@@ -90,6 +95,34 @@ class Crazyflie:
     def max_thrust(self) -> float:
         """N, all four motors at full PWM."""
         return 4.0 * self.thrust_max_motor
+
+    def max_jerk(self, accel_limit: float) -> float:
+        """m/s^3: the largest jerk a trajectory whose acceleration stays within ``accel_limit`` may
+        ask for, so that the body rates it needs stay within the gyro's range.
+
+        A flat trajectory needs the body rates ``|w_xy| = |j_perp| / |a + g e3|`` (the jerk across
+        the thrust axis over the thrust acceleration; :func:`body_rates`). With ``|a| <= a_max``
+        the thrust acceleration is at least ``g - a_max``, so ``|j| <= gyro_range (g - a_max)``
+        keeps every rate within ``gyro_range``: a rate the gyro cannot measure is one the rate
+        loop cannot hold."""
+        return self.gyro_range * max(G - accel_limit, 0.0)
+
+    def tracking_lag(self, speed: float, accel: float = 0.0) -> float:
+        """m: how far the controller runs behind a trajectory flown at up to ``speed`` and
+        ``accel`` (the most of the horizontal and the vertical axis). The feed-forward of the
+        trajectory's velocity and acceleration leaves two forces to the position error: the
+        rotor drag ``c v``, which it does not carry, and the part of ``m a`` the thrust mapping
+        does not give (it gives ``gain`` = ``massThrust`` 4 ``THRUST_MAX`` / 65535 = 0.967 N per
+        N asked; the height integrator makes up the weight's part, not an acceleration's). The
+        position loop balances them at ``(c v + (1 - gain) m a) / (gain kp)``; it is damped
+        (0.95 of critical in the plane), so a force that changes within those bounds moves it
+        no farther. Beside them the commander holds each set-point for a tick while the
+        controller samples it five times: ``v (commander_dt - control_dt) / 2`` more. The
+        integral wins the drag's part back slowly (ki / kp = 0.125 per second)."""
+        gain = self.mass_thrust * self.max_thrust / PWM_MAX
+        kp = np.array([self.kp_xy, self.kp_xy, self.kp_z])
+        force = self.rotor_drag * speed + abs(1.0 - gain) * self.mass * accel
+        return float(np.max(force / (gain * kp))) + speed * 0.5 * (self.commander_dt - self.control_dt)
 
     @property
     def rotor_drag(self) -> np.ndarray:
