@@ -69,30 +69,18 @@ class SwarmState:
         return np.fromiter(map(_FLYING.__getitem__, self.mode.tolist()), dtype=bool, count=len(self.mode))
 
 
-class AgentStates(Sequence):
-    """The agents' entries of an ``/agents/state`` message, kept as arrays.
+class AgentEntries(Sequence):
+    """Per-agent entries of a message kept as arrays, read as the list of dicts a recorder may
+    iterate (one dict per agent, :meth:`entry`); equal to any sequence of the same dicts."""
 
-    Reads as the list of dicts ``{"id", "position", "velocity", "mode", "goal"}`` any recorder
-    may iterate; recorders that know it (``swarmplan.io.recording.McapRecorder``) encode the
-    arrays directly instead of building one dict per agent per step. ``position`` and
-    ``velocity`` are already rounded as the log writes them.
-    """
+    __slots__ = ("ids",)
 
-    __slots__ = ("ids", "position", "velocity", "mode", "goal")
-
-    def __init__(
-        self,
-        ids: tuple[str, ...],
-        position: np.ndarray,
-        velocity: np.ndarray,
-        mode: np.ndarray,
-        goal: np.ndarray,
-    ):
+    def __init__(self, ids: tuple[str, ...]):
         self.ids = ids
-        self.position = position
-        self.velocity = velocity
-        self.mode = mode
-        self.goal = goal
+
+    def entry(self, i: int) -> dict[str, Any]:
+        """Agent ``i``'s entry."""
+        raise NotImplementedError
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -104,7 +92,41 @@ class AgentStates(Sequence):
 
     def __getitem__(self, i: int | slice) -> dict[str, Any] | list[dict[str, Any]]:
         if isinstance(i, slice):
-            return [self[k] for k in range(*i.indices(len(self)))]
+            return [self.entry(k) for k in range(*i.indices(len(self)))]
+        return self.entry(i)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Sequence) and list(self) == list(other)
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+class AgentStates(AgentEntries):
+    """The agents' entries of an ``/agents/state`` message, kept as arrays.
+
+    Reads as the list of dicts ``{"id", "position", "velocity", "mode", "goal"}`` any recorder
+    may iterate; recorders that know it (``swarmplan.io.recording.McapRecorder``) encode the
+    arrays directly instead of building one dict per agent per step. ``position`` and
+    ``velocity`` are already rounded as the log writes them.
+    """
+
+    __slots__ = ("position", "velocity", "mode", "goal")
+
+    def __init__(
+        self,
+        ids: tuple[str, ...],
+        position: np.ndarray,
+        velocity: np.ndarray,
+        mode: np.ndarray,
+        goal: np.ndarray,
+    ):
+        super().__init__(ids)
+        self.position = position
+        self.velocity = velocity
+        self.mode = mode
+        self.goal = goal
+
+    def entry(self, i: int) -> dict[str, Any]:
         return {
             "id": self.ids[i],
             "position": self.position[i].tolist(),
@@ -125,7 +147,7 @@ class AgentStates(Sequence):
         ]
 
 
-class AgentAges(Sequence):
+class AgentAges(AgentEntries):
     """The agents' entries of a ``/comms`` message, kept as codes into the few ages a step has.
 
     Reads as the list of dicts ``{"id", "age"}`` any recorder may iterate; ``ages`` holds the
@@ -134,28 +156,14 @@ class AgentAges(Sequence):
     distinct age once instead of one dict per agent per step.
     """
 
-    __slots__ = ("ids", "ages", "code")
+    __slots__ = ("ages", "code")
 
     def __init__(self, ids: tuple[str, ...], ages: tuple[float | None, ...], code: np.ndarray):
-        self.ids, self.ages, self.code = ids, ages, code
+        super().__init__(ids)
+        self.ages, self.code = ages, code
 
-    def __len__(self) -> int:
-        return len(self.ids)
-
-    @overload
-    def __getitem__(self, i: int) -> dict[str, Any]: ...
-    @overload
-    def __getitem__(self, i: slice) -> list[dict[str, Any]]: ...
-
-    def __getitem__(self, i: int | slice) -> dict[str, Any] | list[dict[str, Any]]:
-        if isinstance(i, slice):
-            return [self[k] for k in range(*i.indices(len(self)))]
+    def entry(self, i: int) -> dict[str, Any]:
         return {"id": self.ids[i], "age": self.ages[int(self.code[i])]}
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, Sequence) and list(self) == list(other)
-
-    __hash__ = None  # type: ignore[assignment]
 
 
 @dataclass(frozen=True)
