@@ -29,6 +29,7 @@ from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.runtime.compiled import use_compiled_checks
+from swarmplan.sim.braking import stoppable_speed
 from swarmplan.sim.network import Beliefs, belief_doubt
 from swarmplan.world.model import World
 
@@ -280,7 +281,7 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
     ai, bj = 0.8 * ai, 0.8 * aj
     own = np.where(away > 0.0, away * away / (2.0 * aj), -(towards * dt + towards * towards / (2.0 * bj)))
     room = np.maximum(gap + own, 0.0)
-    allowed = ai * (np.sqrt(dt * dt + 2.0 * room / ai) - dt)
+    allowed = stoppable_speed(room, ai, dt)
     for r in np.flatnonzero(np.einsum("ij,ij->i", out[k], n) > allowed):  # in (flyer, agent) order
         excess = float(out[k[r]] @ n[r]) - allowed[r]
         if excess > 0.0:
