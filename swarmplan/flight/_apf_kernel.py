@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from swarmplan.geometry._sort_kernel import argsort
 from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-9  # apf._EPS
@@ -211,7 +212,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         finite = finite and math.isfinite(X[b] + Y[b] + Z[b] + VX[b] + VY[b] + VZ[b])
     window = window and not viewed and n_all >= 2 and finite
     window = window and math.isfinite(v_all) and 0.0 <= horizon < np.inf
-    order = np.argsort(X) if window else np.arange(n_all)
+    order = argsort(X) if window else np.arange(n_all)
     XS, YS, ZS = X[order], Y[order], Z[order]
     VXS, VYS, VZS = VX[order], VY[order], VZ[order]
     for i in range(n):

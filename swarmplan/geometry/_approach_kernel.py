@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from swarmplan.geometry._sort_kernel import argsort
 from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-9
@@ -59,10 +60,12 @@ def threat_pairs(
     for k in range(n_r):
         h_max = max(h_max, horizon[k])
         r_max = max(r_max, radius[k])
-    order_p = np.argsort(position[:, 0], kind="mergesort")
-    order_g = np.argsort(goal[:, 0], kind="mergesort")
-    xs_p = position[order_p, 0].copy()
-    xs_g = goal[order_g, 0].copy()
+    xs_p = np.ascontiguousarray(position[:, 0])
+    xs_g = np.ascontiguousarray(goal[:, 0])
+    order_p = argsort(xs_p)
+    order_g = argsort(xs_g)
+    xs_p = xs_p[order_p]
+    xs_g = xs_g[order_g]
     seen = np.full(n_r, -1, np.int64)
     keys = []
     times = []
@@ -109,7 +112,7 @@ def threat_pairs(
         tm[m, 0], tm[m, 1] = times[m]
         ms[m, 0], ms[m, 1] = misses[m]
         off[m, 0], off[m, 1], off[m, 2] = offsets[m]
-    s = np.argsort(key, kind="mergesort")
+    s = argsort(key)
     return key[s], tm[s], ms[s], off[s]
 
 

@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from swarmplan.geometry._shape_kernel import sdf_grad
+from swarmplan.geometry._sort_kernel import argsort
 from swarmplan.runtime.compiled import njit
 
 
@@ -107,7 +108,7 @@ def agent_clearance(pos, radius, out):  # noqa: ANN001, ANN201
     does, so the minimum is the all-pairs one bit for bit."""
     n = pos.shape[0]
     w = pos[:, 0] + pos[:, 1]
-    order = np.argsort(w)
+    order = argsort(w)
     xs = w[order]
     rmax = 0.0
     for i in range(n):

@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from swarmplan.geometry._shape_kernel import SPHERE, exact, half_extents, sdf
+from swarmplan.geometry._sort_kernel import argsort
 from swarmplan.runtime.compiled import njit
 
 MESH = -1
@@ -421,7 +422,7 @@ def agent_contacts(
     # of equal x or y would pile up on one axis), the margin covering w's rounding.
     w = mid[:, 0] + mid[:, 1]
     w_reach = 2.0 * reach + 1e-9 * (1.0 + np.abs(w).max()) if n else 0.0
-    order = np.argsort(w)
+    order = argsort(w)
     keys = np.empty(0, np.int64)
     found = []
     for oi in range(n):
@@ -448,7 +449,8 @@ def agent_contacts(
             if _closest_gap(w0x, w0y, w0z, dwx, dwy, dwz) < radii[a] + radii[b] + margin:
                 found.append(a * n + b)
     if len(found):
-        keys = np.sort(np.array(found, np.int64))
+        keys = np.array(found, np.int64)
+        keys = keys[argsort(keys)]
     return keys // n, keys % n
 
 
@@ -475,7 +477,7 @@ def separation_keys(
         w_max = max(w_max, abs(pos[i, 0]) + abs(pos[i, 1]))
     reach = (reach_x + reach_y + 4.0 * r_max) * (1.0 + 1e-9) + 1e-9 * (1.0 + w_max)
     w = pos[:, 0] + pos[:, 1]
-    order = np.argsort(w)
+    order = argsort(w)
     found = []
     for oi in range(n):
         i = order[oi]
@@ -495,7 +497,7 @@ def separation_keys(
     keys = np.empty(len(found), np.int64)
     for k in range(len(found)):
         keys[k] = found[k]
-    return np.sort(keys)
+    return keys[argsort(keys)]
 
 
 @njit(cache=True)
