@@ -43,3 +43,16 @@ def test_sorted_and_reversed_runs() -> None:
     np.testing.assert_array_equal(argsort(a[::-1].copy()), np.arange(99, -1, -1))
     same = np.zeros(17)
     np.testing.assert_array_equal(argsort(same), np.arange(17))
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 9, 100])
+def test_searches_find_numpys_indexes(n: int) -> None:
+    kernels = kernel_module("swarmplan.geometry._sort_kernel")
+    rng = np.random.default_rng(200 + n)
+    xs = np.sort(np.round(rng.normal(size=n), 1))
+    if n >= 2:
+        xs[-1] = np.nan  # NaN sorts last
+    probes = np.concatenate([xs, np.round(rng.normal(size=20), 1), [-np.inf, np.inf, np.nan, -0.0, 0.0]])
+    for v in probes:
+        assert kernels.search_left(xs, v) == np.searchsorted(xs, v, side="left"), v
+        assert kernels.search_right(xs, v) == np.searchsorted(xs, v, side="right"), v

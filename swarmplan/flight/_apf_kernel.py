@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from swarmplan.geometry._sort_kernel import argsort
+from swarmplan.geometry._sort_kernel import argsort, search_left, search_right
 from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-9  # apf._EPS
@@ -376,8 +376,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             k = 0
             half = (reach + horizon * (math.sqrt(vx * vx + vy * vy + vz * vz) + v_all) + 1.0) * (1.0 + 1e-6)
             if window and math.isfinite(half) and math.isfinite(px):
-                w_lo = np.searchsorted(XS, px - half, side="left")
-                w_hi = np.searchsorted(XS, px + half, side="right")
+                w_lo = search_left(XS, px - half)
+                w_hi = search_right(XS, px + half)
                 w = w_hi - w_lo
                 sl = slice(w_lo, w_hi)
                 _near((px, py, pz), (vx, vy, vz), (XS[sl], YS[sl], ZS[sl]), (VXS[sl], VYS[sl], VZS[sl]),

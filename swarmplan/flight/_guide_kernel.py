@@ -328,10 +328,11 @@ def way_points(
         for _ in range(hops):
             if nxt[row, c] >= 0:
                 c = nxt[row, c]
+        # element by element: a row assigned whole compiles numba's shape-mismatch message
         if lost or c == source[row]:
-            out[r] = goal[r]
+            out[r, 0], out[r, 1], out[r, 2] = goal[r, 0], goal[r, 1], goal[r, 2]
         else:
-            out[r] = centres[c]
+            out[r, 0], out[r, 1], out[r, 2] = centres[c, 0], centres[c, 1], centres[c, 2]
     return out
 
 

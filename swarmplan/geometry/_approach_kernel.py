@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from swarmplan.geometry._sort_kernel import argsort
+from swarmplan.geometry._sort_kernel import argsort, search_left, search_right
 from swarmplan.runtime.compiled import njit
 
 _EPS = 1e-9
@@ -25,7 +25,7 @@ the exact test's bound by many orders of magnitude more than its rounding."""
 
 @njit(cache=True)
 def _window(xs: np.ndarray, lo: float, hi: float) -> tuple[int, int]:
-    return np.searchsorted(xs, lo, side="left"), np.searchsorted(xs, hi, side="right")
+    return search_left(xs, lo), search_right(xs, hi)
 
 
 @njit(cache=True)

@@ -1,11 +1,13 @@
-"""The kernels' one compiled sort: :func:`argsort`, the order that sorts a 1-d array, ties in
-their first order and NaN last, as ``np.argsort(a, kind="stable")`` (held to it bit for bit by
-tests/test_sort_kernel.py).
+"""The kernels' one compiled sort and search: :func:`argsort`, the order that sorts a 1-d
+array, ties in their first order and NaN last, as ``np.argsort(a, kind="stable")``;
+:func:`search_left` and :func:`search_right`, ``np.searchsorted(xs, v, side="left")`` and
+``side="right"`` in a sorted array (NaN last). Held to numpy bit for bit by
+tests/test_sort_kernel.py.
 
-Why not numba's own ``np.argsort`` and ``np.sort``: numba compiles them into every kernel that
-calls them, once per kernel and type of array in every process that compiles such a kernel
-(1-1.5 s of CPU each). This merge sort is a kernel of its own, compiled once per type of
-array and cached on disk like every kernel, and the kernels that sort call it.
+Why not numba's own ``np.argsort``, ``np.sort`` and ``np.searchsorted``: numba compiles them into
+every kernel that calls them, once per kernel and type of array in every process that compiles
+such a kernel (0.5-1.5 s of CPU each). These are kernels of their own, compiled once per type
+of array and cached on disk like every kernel, and the kernels that sort or search call them.
 """
 
 from __future__ import annotations
@@ -57,3 +59,32 @@ def argsort(a: np.ndarray) -> np.ndarray:
         idx, idx2 = idx2, idx
         width *= 2
     return idx
+
+
+@njit(cache=True, nogil=True)
+def search_left(xs: np.ndarray, v: float) -> int:
+    """``np.searchsorted(xs, v, side="left")``: the first index whose value is not before
+    ``v`` in the sorted array ``xs`` (NaN after every number)."""
+    lo, hi = 0, xs.shape[0]
+    while lo < hi:
+        mid = lo + ((hi - lo) >> 1)
+        m = xs[mid]
+        if m < v or (v != v and m == m):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@njit(cache=True, nogil=True)
+def search_right(xs: np.ndarray, v: float) -> int:
+    """``np.searchsorted(xs, v, side="right")``: the first index whose value is after ``v``
+    in the sorted array ``xs`` (NaN after every number)."""
+    lo, hi = 0, xs.shape[0]
+    while lo < hi:
+        mid = lo + ((hi - lo) >> 1)
+        if v != v or xs[mid] <= v:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
