@@ -235,7 +235,7 @@ def test_compiled_prey_tries_draw_what_in_view_draws(direction):
         G, lens = rng.standard_normal((n, d)), rng.random(n)
     else:
         G = rng.random((n, d + 1))
-        lens = G[:, d]
+        lens = np.ascontiguousarray(G[:, d])  # as the optimizer passes it: one compiled signature
     mode = BALL_NORMAL_DIRECTION if direction == "normal" else BALL_CUBE_DIRECTION
     T, X = np.empty((n, d)), np.empty((n, d))
     prey_tries(U, np.arange(n), vis, G, lens, mode, T, X, np.zeros(d), np.ones(d))
