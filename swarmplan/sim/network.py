@@ -86,6 +86,14 @@ class Beliefs:
         self.__dict__["_near"] = (radius, out)
         return out
 
+    def near_superset(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`near`'s pairs of ``radius`` and maybe farther ones (the widest answer kept,
+        unfiltered): for a caller that tests each pair's distance itself."""
+        kept = self.__dict__.get("_near")
+        if kept is not None and radius <= kept[0]:
+            return kept[1]
+        return self.near(radius)
+
     def _pairs(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         held = _kernel().held_pairs if use_compiled(self.view.shape[1]) else held_pairs
         return held(self.view, self.pos, self.at, np.asarray(self.idx, dtype=np.int64), float(radius))
