@@ -162,10 +162,10 @@ def belief_conflicts(
         + np.linalg.norm(beliefs.vel, axis=1).max() * dt
         + 2.0 * float(checked.max()) + widest
     )  # fmt: skip
-    k, j, rows, now = beliefs.near(radius)
+    k, j, rows, now = beliefs.near_superset(radius)
     idx = beliefs.idx[k]
     margin = belief_margin(p.max_accel[j], beliefs.age[rows], dt)
-    keep = deciding[idx] & (margin <= cap[idx] + cap[j])
+    keep = (now < radius) & deciding[idx] & (margin <= cap[idx] + cap[j])
     if agreed is not None:
         keep &= ~agreed[idx, j]
     k, j, rows, now, idx, margin = k[keep], j[keep], rows[keep], now[keep], idx[keep], margin[keep]
