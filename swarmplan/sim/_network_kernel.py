@@ -118,20 +118,23 @@ def deliver(heard, senders, rows, key, fate, heard_by, t):  # noqa: ANN001, ANN2
 
 
 @njit(cache=True, nogil=True)
-def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN201
+def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001, ANN201, PLR0913
     """``network.compact_near_numpy``, in one pass over the pairs: the table rows that flyers
     ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the order first met, and each
-    flyer's view of them (n, N: the position among those rows, -1: none; ``mark``, one per
-    table row, all -1, is scratch, all -1 again on return), the ages at ``t`` of the rows held
-    and their positions moved on by them at the velocity sent (``table`` = (time, position,
-    velocity) per table row), and :func:`held_pairs` of flyers ``idx`` (at ``at``) within
-    ``radius`` of those positions."""
+    flyer's view of them (n, N: the position among those rows, -1: none, or a row too old to act
+    on: its agent may be farther from it than both agents' stopping reach, ``stale`` = (max_accel,
+    stopping reach) per agent; ``mark``, one per table row, all -1, is scratch, all -1 again on
+    return), the ages at ``t`` of the rows held and their positions moved on by them at the
+    velocity sent (``table`` = (time, position, velocity) per table row), and :func:`held_pairs`
+    of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
     t_row, pos_row, vel_row = table
+    max_accel, reach = stale
     n = idx.shape[0]
     n_all = heard.shape[1]
     room = min(n * n_all, mark.shape[0])
     live = np.empty(room, dtype=np.int64)
     age = np.empty(room)
+    doubt = np.empty(room)
     moved = np.empty((room, 3))
     view = np.empty((n, n_all), dtype=np.int64)
     ks = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last pair is written, then dropped
@@ -162,10 +165,14 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
                     mark[r] = m
                     live[m] = r
                     age[m] = t - t_row[r]
+                    doubt[m] = 0.5 * max_accel[j] * age[m] * age[m]  # network.belief_doubt
                     for e in range(3):
                         moved[m, e] = pos_row[r, e] + vel_row[r, e] * age[m]
                     count += 1
                 last[j], last_at[j] = r, m
+            if doubt[m] > reach[own] + reach[j]:
+                view[k, j] = -1
+                continue
             view[k, j] = m
             # Written at c whatever it is, kept by moving c on (no branch to mispredict).
             dx, dy, dz = moved[m, 0] - ax, moved[m, 1] - ay, moved[m, 2] - az
