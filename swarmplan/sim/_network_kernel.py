@@ -147,6 +147,10 @@ def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001
     last_at = np.empty(n_all, dtype=np.int64)
     count = 0
     c = 0
+    old = 0
+    least = np.inf  # the shortest reach of a flyer
+    for k in range(n):
+        least = min(least, reach[idx[k]])
     wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
         own = idx[k]
@@ -166,13 +170,11 @@ def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001
                     live[m] = r
                     age[m] = t - t_row[r]
                     doubt[m] = 0.5 * max_accel[j] * age[m] * age[m]  # network.belief_doubt
+                    old += doubt[m] > least + reach[j]  # too old for some flyer
                     for e in range(3):
                         moved[m, e] = pos_row[r, e] + vel_row[r, e] * age[m]
                     count += 1
                 last[j], last_at[j] = r, m
-            if doubt[m] > reach[own] + reach[j]:
-                view[k, j] = -1
-                continue
             view[k, j] = m
             # Written at c whatever it is, kept by moving c on (no branch to mispredict).
             dx, dy, dz = moved[m, 0] - ax, moved[m, 1] - ay, moved[m, 2] - az
@@ -182,5 +184,18 @@ def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001
             c += (d < radius) & (j != own)
     for m in range(count):
         mark[live[m]] = -1
+    if old:  # rows too old to act on (rare: a sender long unheard) leave the views and pairs
+        for k in range(n):
+            own = idx[k]
+            for j in range(n_all):
+                m = view[k, j]
+                if m >= 0 and doubt[m] > reach[own] + reach[j]:
+                    view[k, j] = -1
+        kept = 0
+        for p in range(c):
+            if view[ks[p], js[p]] >= 0:
+                ks[kept], js[kept], rows[kept], ds[kept] = ks[p], js[p], rows[p], ds[p]
+                kept += 1
+        c = kept
     pairs = (ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy())
     return live[:count].copy(), view, age[:count].copy(), moved[:count].copy(), pairs
