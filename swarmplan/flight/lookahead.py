@@ -5,7 +5,8 @@ fixed wing cannot stop: by the time one step would touch a wall, no command avoi
 potential field does not know this either (its influence distance may be shorter than the
 turn radius). So, each step, for every fixed wing that has something within reach, the
 guard predicts, for the time of a full turn plus a second, the sustained manoeuvres — hard
-left/right turns and straight flight, each level, climbing and diving — and measures the
+left/right turns and straight flight, each levelling out, climbing to the ceiling of the flight
+volume or diving to its floor and levelling off there — and measures the
 clearance of every predicted position to the obstacles (moving ones at their predicted
 poses), the terrain and the bounds. The field's command stands if, after one step of it, at
 least one manoeuvre keeps the required clearance: a way out always remains (the invariant
@@ -16,7 +17,9 @@ leaves the field in charge everywhere but where it would corner the aircraft.
 
 The predictions fly the model itself (``swarmplan.flight._fixed_wing_kernel``, compiled: step
 by step, at constant speed, rolling from the aircraft's current turn at its roll rate; the
-flight-path angle ramps within the same turn budget as the heading), all candidates at once,
+flight-path angle ramps within the same turn budget as the heading, and comes first in it: a
+diving aircraft pulls out before it tightens its turn, so a level manoeuvre does level out),
+all candidates at once,
 and all candidates and all times are measured in one batched distance query. The clearance
 kept from obstacles, still or moving, is the aircraft's own (``clearance``, by default the
 largest of its radius, half its horizontal separation and 0.05 R_min); from the terrain and
@@ -34,7 +37,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from swarmplan.flight.kinematics import AgentParams, fixed_wing_model, fly_fixed_wing, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, fixed_wing_model, fly_fixed_wing
 
 ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 """``clearance(points (P, 3), radii (P,), times (P,), extra (P,)) -> (P,)`` distance from each
@@ -74,19 +77,6 @@ def horizon_steps(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: f
     v = np.maximum(speed, 1e-6)
     t = 2.0 * np.pi * params.min_turn_radius[idx] / v + 1.0
     return int(np.ceil(float(np.max(t)) / dt))
-
-
-def _manoeuvre_commands(v: np.ndarray, climb_limit: np.ndarray) -> np.ndarray:
-    """Velocity commands (n, C, 3) of the sustained manoeuvres for current velocities ``v`` (n, 3)."""
-    speed = np.linalg.norm(v, axis=1)
-    psi = np.arctan2(v[:, 1], v[:, 0])
-    turn = np.array([m[0] for m in _MANOEUVRES], dtype=float)
-    climb = np.array([m[1] for m in _MANOEUVRES], dtype=float)
-    # A heading 90 degrees off makes the model turn at its limit every step.
-    a = psi[:, None] + turn[None, :] * (np.pi / 2)
-    g = climb[None, :] * climb_limit[:, None]
-    c = np.cos(g)
-    return speed[:, None, None] * np.stack([c * np.cos(a), c * np.sin(a), np.sin(g)], axis=-1)
 
 
 def predicted_positions(
@@ -152,12 +142,19 @@ def _rollout_rows(
     which: np.ndarray,
     dt: float,
 ) -> tuple:
-    """The compiled rollouts' arguments (pos, vel, kappa, turn, up, amax, radius, climb, roll,
-    dt) of fixed wings ``idx`` flying the manoeuvres ``which`` ((n,) or (n, C'))."""
+    """The compiled rollouts' arguments (pos, vel, kappa, turn, top, amax, radius, climb, roll,
+    dt) of fixed wings ``idx`` flying the manoeuvres ``which`` (n, C'): a climb flies to the
+    ceiling of ``params.levels``, a dive to its floor (none: for good), level ones nan."""
     f = np.ascontiguousarray
     kappa = np.zeros((len(idx), 2)) if kappa is None else f(kappa, dtype=float)
+    up = _UP[which]
+    if params.levels is None:
+        floor, ceiling = np.full((len(idx), 1), -np.inf), np.full((len(idx), 1), np.inf)
+    else:
+        floor, ceiling = params.levels[idx, :1], params.levels[idx, 1:]
+    top = np.where(up > 0, ceiling, np.where(up < 0, floor, np.nan))
     return (
-        f(pos, dtype=float), f(vel, dtype=float), kappa, f(_TURN[which]), f(_UP[which]),
+        f(pos, dtype=float), f(vel, dtype=float), kappa, f(_TURN[which]), f(top, dtype=float),
         f(params.max_accel[idx]), f(params.min_turn_radius[idx]), f(params.max_climb[idx]),
         f(params.roll_rate[idx]), dt,
     )  # fmt: skip
@@ -284,11 +281,9 @@ def guard_commands(
         flown = _rollout_rows(params, idx[rows], pos[rows], vel[rows], kappa[rows], which, dt)
         worst_now[rows] = compiled.least(flown, t0 + times, params.radius[idx[rows]], extra_now[rows])
     # What each manoeuvre flies on the next step, under the model itself.
-    cmds = _manoeuvre_commands(vel, params.max_climb[idx])
-    rep = np.repeat(idx, c)
-    v_rep, k_rep = np.repeat(vel, c, axis=0), np.repeat(kappa, c, axis=0)
-    first = limit_velocity(params, v_rep, cmds.reshape(-1, 3), dt, rep, k_rep)
-    first = first.reshape(n, c, 3)
+    every = np.broadcast_to(np.arange(c), (n, c))
+    *now_rows, _ = _rollout_rows(params, idx, pos, vel, kappa, every, dt)
+    first = fixed_wing_model().first_velocities(*now_rows, dt)
     for i in np.flatnonzero(~keep):
         safe = np.flatnonzero(worst_now[i] >= required[i])
         if len(safe):

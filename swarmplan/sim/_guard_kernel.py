@@ -123,17 +123,17 @@ def _clearance_over(x, y, z, r, e, floor, scene, t, seen, level):  # noqa: ANN00
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, ANN201
-    """``rollout = (pos, vel, kappa, turn, up, amax, radius, climb, roll, dt)`` (the arguments
+    """``rollout = (pos, vel, kappa, turn, top, amax, radius, climb, roll, dt)`` (the arguments
     of ``_fixed_wing_kernel.rollouts`` but the steps), ``scene = (bmin, bmax, static, movers,
     origin, centers, bodies)`` (those of :func:`clearances` but the points' own).
 
     Per fixed wing i at ``pos[i]``/``vel[i]``/``kappa[i]``: its clearance where it is (the
     movers at row ``rows[0]``) and the first of its sustained manoeuvres c (``turn[i, c]``,
-    ``up[i, c]``; ``_fixed_wing_kernel.manoeuvre_step``) whose predicted positions over
+    ``top[i, c]``; ``_fixed_wing_kernel.manoeuvre_step``) whose predicted positions over
     ``len(rows) - 1`` steps (step k at row ``rows[k]``) all keep ``required[i]``, -1 if none:
     each position measured as :func:`clearances` measures it over flat ground (height 0), and a
     manoeuvre left at its first position that does not keep it. Returns both, (n,) each."""
-    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    pos, vel, kappa, turn, tops, amax, radius, climb, roll, dt = rollout
     static, movers = scene[2], scene[3]
     n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0] - 1
     here = np.empty(n)
@@ -144,12 +144,12 @@ def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, A
         r, e, need = radii[i], extra[i], required[i]
         here[i] = _clearance(pos[i, 0], pos[i, 1], pos[i, 2], r, e, 0.0, scene, rows[0])
         for c in range(nc):
-            state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
+            state, speed = manoeuvre_start(pos[i], vel[i], kappa[i])
             level[:] = -np.inf
             safe = True
-            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
+            top, w, a, rad, g, p = tops[i, c], turn[i, c], amax[i], radius[i], climb[i], roll[i]
             for k in range(steps):
-                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+                state = manoeuvre_step(state, speed, top, w, a, rad, g, p, dt)
                 x, y, z = state[0], state[1], state[2]
                 t = rows[k + 1]
                 if _clearance_over(x, y, z, r, e, need, scene, t, seen, level) < need:
@@ -167,7 +167,7 @@ def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN20
     clearance of its predicted positions over ``len(rows)`` steps (step k at row ``rows[k]``),
     each measured as :func:`clearances` measures it over flat ground; a body measured again only
     where it could be nearer than the least so far. Returns (n, C)."""
-    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    pos, vel, kappa, turn, tops, amax, radius, climb, roll, dt = rollout
     static, movers = scene[2], scene[3]
     n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0]
     out = np.empty((n, nc))
@@ -175,12 +175,12 @@ def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN20
     level = np.empty(static.shape[0] + movers.shape[0])
     for i in range(n):
         for c in range(nc):
-            state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
-            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
+            state, speed = manoeuvre_start(pos[i], vel[i], kappa[i])
+            top, w, a, rad, g, p = tops[i, c], turn[i, c], amax[i], radius[i], climb[i], roll[i]
             level[:] = -np.inf
             least = np.inf
             for k in range(steps):
-                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+                state = manoeuvre_step(state, speed, top, w, a, rad, g, p, dt)
                 x, y, z = state[0], state[1], state[2]
                 c_k = _clearance_over(x, y, z, radii[i], extra[i], least, scene, rows[k], seen, level)
                 least = min(least, c_k)

@@ -255,7 +255,7 @@ class Simulation:
         arrived = arrivals(
             s, self.ids, pos0, pos1, vel1, w.goal_tolerance, t1, stop_speed, flying, compiled=self._compiled
         )
-        self.loiter.fly_on(arrived.arrivals, s, vel1, flown, self.safety.turn, self.obstacles)
+        self.loiter.fly_on(arrived.arrivals, pos1, vel1, flown, self.safety.turn, self.obstacles)
         self._merge(self.evasion.arrived(arrived, s))
 
         # Clearances at the committed positions (also the next step's distances).
