@@ -172,32 +172,60 @@ def manoeuvre_start(pos, vel, kappa):  # noqa: ANN001, ANN201
     return (pos[0], pos[1], pos[2], vel[0], vel[1], vel[2], kappa[0], kappa[1]), speed
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def manoeuvre_settling(state, speed, top, radius, climb, dt):  # noqa: ANN001, ANN201
+    """Whether a sustained manoeuvre at ``state`` is still on its way to its steady turn: its
+    flight-path angle more than a step's turn budget from the one it aims at, or (climbing or
+    diving to ``top``) more than a step's travel from that height. A rollout flies one step
+    more for each such step (:func:`rollout`): the steady turn it reaches is then checked for a
+    whole turn, as a level turn is from its start, and the same manoeuvre flown from a later
+    state of its rollout checks no point the rollout did not."""
+    z, vx, vy, vz = state[2], state[3], state[4], state[5]
+    gamma = _clip(math.atan2(vz, math.hypot(vx, vy)), -climb, climb)
+    budget = speed * dt / radius
+    if math.isnan(top):
+        return abs(gamma) > budget
+    aim = _clip((top - z) / radius, -climb, climb)
+    return abs(aim - gamma) > budget or abs(top - z) > speed * dt
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def rollout(out, pos, vel, kappa, turn, top, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
-    """Positions ``out`` (steps, 3), written, of one fixed wing at ``pos``/``vel`` (3,) with turn
+    """Positions ``out`` (2 H, 3), written, of one fixed wing at ``pos``/``vel`` (3,) with turn
     state ``kappa`` (2,) flying one sustained manoeuvre (``turn`` -1/0/1: hard right, hold, hard
-    left; ``top``: level (nan) or climbing or diving to that height and levelling off there) for
-    ``len(out)`` steps of the model at constant speed: each step's command levels out or climbs
-    first and turns by what its turn budget leaves (:func:`manoeuvre_step`, which
-    ``swarmplan.sim._guard_kernel.first_safe`` flies as well)."""
+    left; ``top``: level (nan) or climbing or diving to that height and levelling off there) at
+    constant speed: each step's command levels out or climbs first and turns by what its turn
+    budget leaves (:func:`manoeuvre_step`, which ``swarmplan.sim._guard_kernel.first_safe``
+    flies as well). It flies the horizon H and one step more for each step it was still
+    settling (:func:`manoeuvre_settling`), at most H more; the rows after the last step repeat
+    its position. Returns the number of steps flown."""
+    base = out.shape[0] // 2
     state, speed = manoeuvre_start(pos, vel, kappa)
-    for k in range(out.shape[0]):
+    k, extra = 0, 0
+    while k < base + extra:
+        if extra < base and manoeuvre_settling(state, speed, top, radius, climb, dt):
+            extra += 1
         state = manoeuvre_step(state, speed, top, turn, amax, radius, climb, roll, dt)
         out[k, 0], out[k, 1], out[k, 2] = state[0], state[1], state[2]
+        k += 1
+    for j in range(k, out.shape[0]):
+        out[j, 0], out[j, 1], out[j, 2] = out[k - 1, 0], out[k - 1, 1], out[k - 1, 2]
+    return k
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def rollouts(pos, vel, kappa, turn, top, amax, radius, climb, roll, steps, dt):  # noqa: ANN001, ANN201
-    """Positions (n, C, steps, 3) of fixed wings at ``pos``/``vel`` (n, 3) with turn states
+    """Positions (n, C, 2 steps, 3) of fixed wings at ``pos``/``vel`` (n, 3) with turn states
     ``kappa`` (n, 2) flying each of its sustained manoeuvres c (``turn[i, c]``, ``top[i, c]``:
-    :func:`rollout`)."""
+    :func:`rollout` over a horizon of ``steps``) and the steps each flew (n, C)."""
     n, nc = pos.shape[0], turn.shape[1]
-    out = np.empty((n, nc, steps, 3))
+    out = np.empty((n, nc, 2 * steps, 3))
+    used = np.empty((n, nc), dtype=np.int64)
     for i in range(n):
         for c in range(nc):
-            rollout(out[i, c], pos[i], vel[i], kappa[i], turn[i, c], top[i, c], amax[i], radius[i], climb[i],
-                    roll[i], dt)  # fmt: skip
-    return out
+            flight = (turn[i, c], top[i, c], amax[i], radius[i], climb[i], roll[i])
+            used[i, c] = rollout(out[i, c], pos[i], vel[i], kappa[i], *flight, dt)
+    return out, used
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

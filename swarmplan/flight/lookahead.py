@@ -120,12 +120,13 @@ def rollout_manoeuvres(
     dt: float,
     kappa: np.ndarray | None = None,
     which: np.ndarray | None = None,
-) -> np.ndarray:
-    """Positions (n, C, steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` (turn states
+) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (n, C, 2 steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` (turn states
     ``kappa`` (n, 2), default straight) flying each sustained manoeuvre (or, with ``which``
-    (n, C'), the manoeuvres of those indices, (n, C', steps, 3)) for ``steps`` steps of the
-    model at constant speed (the commands are re-formed from the current heading each step,
-    as the guard flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
+    (n, C'), the manoeuvres of those indices) over a horizon of ``steps`` steps of the model at
+    constant speed, and the steps each flew (n, C): the horizon and one more for each step it
+    was settling (the commands are re-formed from the current state each step, as the guard
+    flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
     n = len(idx)
     if which is None:
         which = np.broadcast_to(np.arange(len(_MANOEUVRES)), (n, len(_MANOEUVRES)))
@@ -169,15 +170,21 @@ def _manoeuvre_clearance(
     times: np.ndarray,
     dt: float,
     which: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Predicted positions (n, C, H, 3) of the sustained manoeuvres (``which``: those of these
-    indices, (n, C')) from ``pos``/``vel``/``kappa``, the matching body radii (n, C, H) and the
-    gaps kept from bodies beyond them (n, C, H)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Predicted positions (n, C, 2 H, 3) of the sustained manoeuvres (``which``: those of these
+    indices, (n, C')) from ``pos``/``vel``/``kappa`` at ``times`` (2 H,), the steps each flew
+    (n, C), the matching body radii (n, C, 2 H) and the gaps kept from bodies beyond them."""
     n, c = len(idx), len(_MANOEUVRES) if which is None else which.shape[1]
-    points = rollout_manoeuvres(params, idx, pos, vel, len(times), dt, kappa, which)
+    points, used = rollout_manoeuvres(params, idx, pos, vel, len(times) // 2, dt, kappa, which)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
     extra = np.broadcast_to((params.clearance - params.radius)[idx][:, None, None], (n, c, len(times)))
-    return points, radii, extra
+    return points, used, radii, extra
+
+
+def _least(clear: np.ndarray, used: np.ndarray) -> np.ndarray:
+    """The least of ``clear`` (n, C, T) over the first ``used`` (n, C) steps of each row."""
+    flown = np.arange(clear.shape[2]) < used[..., None]
+    return np.where(flown, clear, np.inf).min(axis=2)
 
 
 def guard_commands(
@@ -200,8 +207,9 @@ def guard_commands(
     usually safe again, and then the others are not rolled out).
 
     The field's command stands if, after one step of it, at least one sustained manoeuvre
-    (hard left/right turn or straight, level/climbing/diving) keeps ``required`` (n,) clearance
-    (obstacles: ``params.clearance``) over the horizon: a way out is always kept. Otherwise
+    (hard left/right turn or straight, levelling/climbing/diving) keeps ``required`` (n,)
+    clearance (obstacles: ``params.clearance``) over the horizon, and over as many steps more as
+    it took to settle into its steady turn: a way out is always kept. Otherwise
     the agent starts now the safe manoeuvre whose next velocity is nearest the field's (or, if
     none is safe, the one keeping the most clearance). Returns the commands (n, 3) and a mask
     (n,) of the replaced ones. ``compiled``, when given, answers in one pass each (the same
@@ -214,7 +222,8 @@ def guard_commands(
         return out, replaced
     kappa = np.zeros((n, 2)) if kappa is None else kappa
     steps = horizon_steps(params, idx, np.linalg.norm(vel, axis=1), dt)
-    times = np.arange(1, steps + 1) * dt
+    # The horizon and as much again for the steps a manoeuvre is still settling.
+    times = np.arange(1, 2 * steps + 1) * dt
     c = len(_MANOEUVRES)
     extra_now = params.clearance[idx] - params.radius[idx]
     # After one step of the field's command ...
@@ -228,7 +237,7 @@ def guard_commands(
     # first, every other one only for the agents it leaves in doubt: the same answers.
     prefer = np.zeros(n, dtype=np.int64) if prefer is None else prefer
     if compiled is None:
-        pref, r_pref, e_pref = _manoeuvre_clearance(
+        pref, used, r_pref, e_pref = _manoeuvre_clearance(
             params, idx, p_next, v_next, k_next, times, dt, prefer[:, None]
         )
         points = np.concatenate([pref.reshape(-1, 3), p_next])
@@ -236,8 +245,8 @@ def guard_commands(
         extra = np.concatenate([e_pref.reshape(-1), extra_now])
         when = np.concatenate([np.tile(t0 + dt + times, n), np.full(n, t0 + dt)])
         clear = clearance(points, radii, when, extra)
-        m = n * steps
-        step_clear, least = clear[m:], clear[:m].reshape(n, steps).min(axis=1)
+        m = n * 2 * steps
+        step_clear, least = clear[m:], _least(clear[:m].reshape(n, 1, 2 * steps), used)[:, 0]
         keep = (step_clear >= required) & (least >= required)
     else:
         when = t0 + dt + np.concatenate([[0.0], times])
@@ -255,12 +264,12 @@ def guard_commands(
         prefer[doubt] = np.where(first >= 0, first, prefer[doubt])
     elif len(doubt):
         d = len(doubt)
-        after, r_after, e_after = _manoeuvre_clearance(
+        after, used, r_after, e_after = _manoeuvre_clearance(
             params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], times, dt
         )
         when = np.tile(t0 + dt + times, d * c)
         clear_after = clearance(after.reshape(-1, 3), r_after.reshape(-1), when, e_after.reshape(-1))
-        safe = clear_after.reshape(d, c, steps).min(axis=2) >= required[doubt, None]
+        safe = _least(clear_after.reshape(d, c, 2 * steps), used) >= required[doubt, None]
         keep[doubt] = safe.any(axis=1)
         prefer[doubt] = np.where(safe.any(axis=1), np.argmax(safe, axis=1), prefer[doubt])
     if keep.all():
@@ -272,10 +281,12 @@ def guard_commands(
     worst_now = np.full((n, c), -np.inf)
     if compiled is None:
         at = idx[rows]
-        now, r_now, e_now = _manoeuvre_clearance(params, at, pos[rows], vel[rows], kappa[rows], times, dt)
+        now, used, r_now, e_now = _manoeuvre_clearance(
+            params, at, pos[rows], vel[rows], kappa[rows], times, dt
+        )
         when_now = np.tile(t0 + times, kk * c)
         clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), when_now, e_now.reshape(-1))
-        worst_now[rows] = clear_now.reshape(kk, c, steps).min(axis=2)
+        worst_now[rows] = _least(clear_now.reshape(kk, c, 2 * steps), used)
     else:
         which = np.broadcast_to(np.arange(c), (kk, c))
         flown = _rollout_rows(params, idx[rows], pos[rows], vel[rows], kappa[rows], which, dt)

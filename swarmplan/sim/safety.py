@@ -131,7 +131,8 @@ class SafetyFilter:
             return v_cmd, NOTHING
         dt = self.world.dt
         speed = np.linalg.norm(vel0[idx], axis=1)
-        horizon = horizon_steps(p, idx[fw], speed[fw], dt) * dt
+        # The guard's predictions reach twice its horizon (a manoeuvre settling into its turn).
+        horizon = 2 * horizon_steps(p, idx[fw], speed[fw], dt) * dt
         required = p.radius[idx]
         reach = (speed + self.obstacles.max_obstacle_speed) * horizon + p.clearance[idx] + p.radius[idx]
         obstacle_clear = (d - p.radius[idx, None]).min(axis=1) if d.shape[1] else np.full(len(idx), np.inf)
