@@ -12,7 +12,8 @@ poses), the terrain and the bounds. The field's command stands if, after one ste
 least one manoeuvre keeps the required clearance: a way out always remains (the invariant
 of braking-distance checks, with turns in place of brakes). Otherwise the guard starts now
 the safe manoeuvre closest to the field's command, or, when none is safe, the one that keeps
-the most clearance. Flying the field's command until the last step that keeps a way out
+clear the longest (time for a mover to pass, for the field to find a way), the clearest of
+those. Flying the field's command until the last step that keeps a way out
 leaves the field in charge everywhere but where it would corner the aircraft.
 
 The predictions fly the model itself (``swarmplan.flight._fixed_wing_kernel``, compiled: step
@@ -55,11 +56,12 @@ class CompiledGuard(NamedTuple):
     ``first_safe(rollout, times (H + 1,), radii (n,), extra (n,), required (n,)) -> (here (n,),
     first (n,))``: the clearance of where each aircraft is at ``times[0]`` and the first of its
     manoeuvres whose positions at ``times[1:]`` all keep ``required`` (-1: none).
-    ``least(rollout, times (H,), radii (n,), extra (n,)) -> (n, C')``: the least clearance of
-    each manoeuvre's positions at ``times``."""
+    ``least(rollout, times (2 H,), radii (n,), extra (n,), required (n,)) -> ((n, C'), (n, C'))``:
+    the least clearance of each manoeuvre's positions at ``times`` and the steps it keeps
+    ``required`` before the first that does not."""
 
     first_safe: Callable[..., tuple[np.ndarray, np.ndarray]]
-    least: Callable[..., np.ndarray]
+    least: Callable[..., tuple[np.ndarray, np.ndarray]]
 
 
 # (turn, climb) of the sustained candidate commands: turn -1/+1 = hard right/left, 0 = hold
@@ -187,6 +189,13 @@ def _least(clear: np.ndarray, used: np.ndarray) -> np.ndarray:
     return np.where(flown, clear, np.inf).min(axis=2)
 
 
+def _kept(clear: np.ndarray, used: np.ndarray, required: np.ndarray) -> np.ndarray:
+    """The steps (n, C) each row of ``clear`` (n, C, T) keeps ``required`` (n,) before the first
+    that does not, among its first ``used`` (n, C) (all of them when none)."""
+    short = (clear < required[:, None, None]) & (np.arange(clear.shape[2]) < used[..., None])
+    return np.where(short.any(axis=2), np.argmax(short, axis=2), used)
+
+
 def guard_commands(
     params: AgentParams,
     idx: np.ndarray,
@@ -211,9 +220,10 @@ def guard_commands(
     clearance (obstacles: ``params.clearance``) over the horizon, and over as many steps more as
     it took to settle into its steady turn: a way out is always kept. Otherwise
     the agent starts now the safe manoeuvre whose next velocity is nearest the field's (or, if
-    none is safe, the one keeping the most clearance). Returns the commands (n, 3) and a mask
-    (n,) of the replaced ones. ``compiled``, when given, answers in one pass each (the same
-    answers as rolling the manoeuvres out and measuring ``clearance``).
+    none is safe, the one that keeps the clearance the longest, the clearest of those). Returns
+    the commands (n, 3) and a mask (n,) of the replaced ones. ``compiled``, when given, answers
+    in one pass each (the same answers as rolling the manoeuvres out and measuring
+    ``clearance``).
     """
     n = len(idx)
     out = v_cmd.copy()
@@ -279,6 +289,7 @@ def guard_commands(
     rows = np.flatnonzero(~keep)
     kk = len(rows)
     worst_now = np.full((n, c), -np.inf)
+    kept_now = np.zeros((n, c), dtype=np.int64)
     if compiled is None:
         at = idx[rows]
         now, used, r_now, e_now = _manoeuvre_clearance(
@@ -286,11 +297,15 @@ def guard_commands(
         )
         when_now = np.tile(t0 + times, kk * c)
         clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), when_now, e_now.reshape(-1))
-        worst_now[rows] = _least(clear_now.reshape(kk, c, 2 * steps), used)
+        clear_now = clear_now.reshape(kk, c, 2 * steps)
+        worst_now[rows] = _least(clear_now, used)
+        kept_now[rows] = _kept(clear_now, used, required[rows])
     else:
         which = np.broadcast_to(np.arange(c), (kk, c))
         flown = _rollout_rows(params, idx[rows], pos[rows], vel[rows], kappa[rows], which, dt)
-        worst_now[rows] = compiled.least(flown, t0 + times, params.radius[idx[rows]], extra_now[rows])
+        worst_now[rows], kept_now[rows] = compiled.least(
+            flown, t0 + times, params.radius[idx[rows]], extra_now[rows], required[rows]
+        )
     # What each manoeuvre flies on the next step, under the model itself.
     every = np.broadcast_to(np.arange(c), (n, c))
     *now_rows, _ = _rollout_rows(params, idx, pos, vel, kappa, every, dt)
@@ -300,8 +315,8 @@ def guard_commands(
         if len(safe):
             gap = np.linalg.norm(first[i, safe] - v_next[i], axis=1)
             j = int(safe[np.argmin(gap)])
-        else:
-            j = int(np.argmax(worst_now[i]))
+        else:  # none keeps clear: the one that keeps clear the longest, then the clearest
+            j = int(np.lexsort((worst_now[i], kept_now[i]))[-1])
         out[i] = first[i, j]
         replaced[i] = True
     return out, replaced

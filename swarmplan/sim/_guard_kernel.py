@@ -166,16 +166,18 @@ def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, A
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN201
+def least_clearances(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, ANN201
     """Per fixed wing i and manoeuvre c of ``rollout`` (:func:`first_safe`'s): the least
     clearance of its predicted positions (the horizon H = len(rows) / 2 steps and one more for
     each step it was settling, step k at row ``rows[k]``), each measured as :func:`clearances`
-    measures it over flat ground; a body measured again only where it could be nearer than the
-    least so far. Returns (n, C)."""
+    measures it over flat ground, a body measured again only where it could be nearer than the
+    least so far; and the steps it keeps ``required[i]`` before the first that does not (all
+    it flew when none). Returns both, (n, C) each."""
     pos, vel, kappa, turn, tops, amax, radius, climb, roll, dt = rollout
     static, movers = scene[2], scene[3]
     n, nc, base = pos.shape[0], turn.shape[1], rows.shape[0] // 2
     out = np.empty((n, nc))
+    kept = np.empty((n, nc), dtype=np.int64)
     seen = np.empty((static.shape[0] + movers.shape[0], 3))
     level = np.empty(static.shape[0] + movers.shape[0])
     for i in range(n):
@@ -184,7 +186,7 @@ def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN20
             top, w, a, rad, g, p = tops[i, c], turn[i, c], amax[i], radius[i], climb[i], roll[i]
             level[:] = -np.inf
             least = np.inf
-            k, more = 0, 0
+            k, more, until = 0, 0, -1
             while k < base + more:
                 if more < base and manoeuvre_settling(state, speed, top, rad, g, dt):
                     more += 1
@@ -192,6 +194,9 @@ def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN20
                 x, y, z = state[0], state[1], state[2]
                 c_k = _clearance_over(x, y, z, radii[i], extra[i], least, scene, rows[k], seen, level)
                 least = min(least, c_k)
+                if until < 0 and c_k < required[i]:
+                    until = k
                 k += 1
             out[i, c] = least
-    return out
+            kept[i, c] = k if until < 0 else until
+    return out, kept

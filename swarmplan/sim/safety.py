@@ -190,10 +190,12 @@ class SafetyFilter:
             f = np.ascontiguousarray
             return guard_kernel().first_safe(rollout, row, f(radii), f(extra), f(required), places)
 
-        def least_at(rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray) -> np.ndarray:
+        def least_at(
+            rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray, required: np.ndarray
+        ) -> tuple[np.ndarray, np.ndarray]:
             places, row = scene(times)
             f = np.ascontiguousarray
-            return guard_kernel().least_clearances(rollout, row, f(radii), f(extra), places)
+            return guard_kernel().least_clearances(rollout, row, f(radii), f(extra), f(required), places)
 
         fused = CompiledGuard(first_safe_at, least_at) if compiled and not self.world.peaks else None
         agents = idx[rows]
