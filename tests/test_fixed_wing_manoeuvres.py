@@ -5,6 +5,7 @@ geometry."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.lookahead import _MANOEUVRES, _rollout_rows, guard_commands, horizon_steps
 from swarmplan.runtime.compiled import kernel_module
 
+ROOT = Path(__file__).resolve().parents[1]
 R, V, DT, CLIMB = 40.0, 20.0, 0.1, math.radians(15.0)
 
 
@@ -182,3 +184,45 @@ def test_a_fixed_wing_mission_turns_within_its_tracking_bound() -> None:
     times, planned = mission.timed(m)
     flight = fly(times, planned, ac, FixedWingConfig(), dt)
     assert float(path_distance(flight.pos, flight.ref_pos).max()) <= 0.5 * e
+
+
+SHIPPED_FIXED_WING = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "worlds").glob("fixed_wing*.yaml"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", SHIPPED_FIXED_WING)
+def test_shipped_fixed_wing_worlds_export_missions_flown_within_their_bound(path, tmp_path, capsys):
+    """Every shipped fixed-wing world flies home without a contact, and its PX4 export loads in
+    pymavlink and is flown by the L1/TECS tracker within max(5 m, 0.05 R_min) of the plan, with
+    no contact and separation kept (``--check`` exits 0)."""
+    import json
+
+    from swarmplan.cli.export import main as export_main
+    from swarmplan.io.runner import simulate
+    from swarmplan.world import load_world
+
+    mavwp = pytest.importorskip("pymavlink.mavwp")
+    world = load_world(ROOT / path)
+    log = tmp_path / "run.mcap"
+    summary = simulate(world, world.seed, log)
+    assert summary["arrived"] == summary["agents_total"] and summary["collisions"] == 0
+    out = tmp_path / "px4"
+    origin = ["--origin", "47.0,8.0,400"]
+    code = export_main([str(log), "--format", "px4", "--out", str(out), "--check", *origin])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "check: OK" in text
+    for entry in json.loads((out / "manifest.json").read_text())["agents"]:
+        assert mavwp.MAVWPLoader().load(str(out / entry["waypoint_list"])) == entry["items"] + 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("seed", "k"), [(0, 21), (1, 21), (0, 2)])
+def test_bench_worlds_that_cornered_a_fixed_wing(seed: int, k: int) -> None:
+    """Worlds of ``python -m swarmplan.bench reach --class fixed_wing`` where a fixed wing flew
+    into a face of the flight volume (a turn held at the limit out past its way out, a pull-out
+    that widened a turn, a 170 m box with a goal in a corner): no collision, no limit broken."""
+    from swarmplan.bench.reach import fly, world_of
+
+    rec = fly(world_of("fixed_wing", seed, k))
+    assert not [a for a in rec["agents"] if a["collisions"] or a["limit_break"]], rec["agents"]

@@ -77,9 +77,8 @@ def test_guard_keeps_the_field_command_while_a_way_out_remains():
     The model flies a hard turn as steps of 1.5 m each turned by V dt / R = 0.075 rad (the
     position advances with the turned velocity), so it comes within D - X of the face (centre)
     with X = sum of 1.5 cos(0.075 k) over the first quarter turn (19.25 m): the body keeps
-    D - X - 1 >= 1 for D >= X + 2, plus the gap a 1.5 m step may cut past a corner of a body
-    1 m away, 1.5^2 / (8 * 1) = 0.28125 m. The command stands while the next state (D - 1.5)
-    still has that way out, i.e. down to D = X + 3.78125; below, the guard turns at once."""
+    D - X - 1 >= 1 for D >= X + 2. The command stands while the next state (D - 1.5) still
+    has that way out, i.e. down to D = X + 3.5; below, the guard turns at once."""
     p = _one_agent_params(instant=True)
     idx = np.array([0])
     vel = np.array([[15.0, 0.0, 0.0]])
@@ -94,11 +93,10 @@ def test_guard_keeps_the_field_command_while_a_way_out_remains():
         pos = np.array([[WALL_X - 1 - distance, 100.0, 30.0]])
         return guard_commands(p, idx, pos, vel, cmd, 0.0, 0.1, _wall_clearance, required)
 
-    edge = reach + 3.5 + 1.5**2 / 8.0
-    for distance in (200.0, 40.0, edge + 0.02):
+    for distance in (200.0, 40.0, reach + 3.5 + 0.02):
         out, replaced = at(distance)
         assert not replaced[0] and np.allclose(out, cmd), distance
-    out, replaced = at(edge - 0.02)
+    out, replaced = at(reach + 3.5 - 0.02)
     assert replaced[0]
     # One step of a maximum-rate turn: the direction turns by V / R * dt = 15 / 20 * 0.1 rad
     # (4.3 degrees), nearly all of it in heading (a climbing or diving turn shares the budget).
@@ -158,9 +156,7 @@ def test_a_finite_roll_rate_makes_the_guard_turn_earlier():
 
 def test_the_guard_keeps_the_aircrafts_clearance_from_bodies():
     """By default a fixed wing keeps half its horizontal separation from bodies (2 m here, body
-    radius 1 m): the command is given up one metre farther from the wall than with its radius,
-    less the difference of the gaps a 1.5 m step may cut past a corner at those clearances,
-    1.5^2 / 8 (1 / 1 - 1 / 2) m."""
+    radius 1 m): the command is given up one metre farther from the wall than with its radius."""
     p = _one_agent_params()
     assert p.clearance[0] == pytest.approx(2.0)
     idx, vel, required = np.array([0]), np.array([[15.0, 0.0, 0.0]]), np.array([1.0])
@@ -173,8 +169,8 @@ def test_the_guard_keeps_the_aircrafts_clearance_from_bodies():
 
     near = _one_agent_params()
     near.clearance[:] = near.radius
-    # Between the two thresholds (~0.86 m apart) only the wider clearance gives the command up.
+    # Between the two thresholds (1 m apart) only the wider clearance gives the command up.
     gaps = np.arange(15.0, 40.0, 0.05)
     wide = next(d for d in gaps[::-1] if replaced_at(p, d))
     tight = next(d for d in gaps[::-1] if replaced_at(near, d))
-    assert wide - tight == pytest.approx(1.0 - 1.5**2 / 8.0 * (1.0 - 0.5), abs=0.06)
+    assert wide - tight == pytest.approx(1.0, abs=0.06)

@@ -179,21 +179,8 @@ def _manoeuvre_clearance(
     n, c = len(idx), len(_MANOEUVRES) if which is None else which.shape[1]
     points, used = rollout_manoeuvres(params, idx, pos, vel, len(times) // 2, dt, kappa, which)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
-    gap = obstacle_gap(params, idx, np.linalg.norm(vel, axis=1), dt)
-    extra = np.broadcast_to(gap[:, None, None], (n, c, len(times)))
+    extra = np.broadcast_to((params.clearance - params.radius)[idx][:, None, None], (n, c, len(times)))
     return points, used, radii, extra
-
-
-def obstacle_gap(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: float) -> np.ndarray:
-    """The gap (n,) the guard keeps from bodies beyond the radius at each predicted position of
-    fixed wings ``idx`` flying at ``speed``: the aircraft's ``clearance`` less its radius, and
-    the most a straight step of V dt between two such positions can come nearer a body than
-    they are, (V dt)^2 / (8 D) past a corner D = ``clearance`` away (the middle of a chord of
-    length s of a circle of radius D lies s^2 / (8 D) inside it): so the flown steps keep the
-    clearance all along, not only where they begin and end."""
-    c = params.clearance[idx]
-    step = speed * dt
-    return c - params.radius[idx] + step * step / (8.0 * np.maximum(c, 1e-9))
 
 
 def _least(clear: np.ndarray, used: np.ndarray) -> np.ndarray:
@@ -248,7 +235,7 @@ def guard_commands(
     # The horizon and as much again for the steps a manoeuvre is still settling.
     times = np.arange(1, 2 * steps + 1) * dt
     c = len(_MANOEUVRES)
-    extra_now = obstacle_gap(params, idx, np.linalg.norm(vel, axis=1), dt)
+    extra_now = params.clearance[idx] - params.radius[idx]
     # After one step of the field's command ...
     k = idx
     v_next, k_next = fly_fixed_wing(
