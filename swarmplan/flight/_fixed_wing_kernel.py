@@ -29,6 +29,7 @@ from swarmplan.runtime.compiled import njit
 
 GRAVITY = 9.80665  # swarmplan.world.airframe.GRAVITY
 
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _clip(x, lo, hi):  # noqa: ANN001, ANN202
     return min(max(x, lo), hi)

@@ -131,8 +131,7 @@ class SafetyFilter:
             return v_cmd, NOTHING
         dt = self.world.dt
         speed = np.linalg.norm(vel0[idx], axis=1)
-        # The guard's predictions reach twice its horizon (a manoeuvre settling into its turn).
-        horizon = 2 * horizon_steps(p, idx[fw], speed[fw], dt) * dt
+        horizon = 2 * horizon_steps(p, idx[fw], speed[fw], dt) * dt  # a manoeuvre settling: twice
         required = p.radius[idx]
         reach = (speed + self.obstacles.max_obstacle_speed) * horizon + p.clearance[idx] + p.radius[idx]
         obstacle_clear = (d - p.radius[idx, None]).min(axis=1) if d.shape[1] else np.full(len(idx), np.inf)
@@ -190,12 +189,10 @@ class SafetyFilter:
             f = np.ascontiguousarray
             return guard_kernel().first_safe(rollout, row, f(radii), f(extra), f(required), places)
 
-        def least_at(
-            rollout: tuple, times: np.ndarray, radii: np.ndarray, extra: np.ndarray, required: np.ndarray
-        ) -> tuple[np.ndarray, np.ndarray]:
+        def least_at(rollout: tuple, times: np.ndarray, *rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             places, row = scene(times)
-            f = np.ascontiguousarray
-            return guard_kernel().least_clearances(rollout, row, f(radii), f(extra), f(required), places)
+            radii, extra, required = (np.ascontiguousarray(a) for a in rows)
+            return guard_kernel().least_clearances(rollout, row, radii, extra, required, places)
 
         fused = CompiledGuard(first_safe_at, least_at) if compiled and not self.world.peaks else None
         agents = idx[rows]
