@@ -196,7 +196,7 @@ class Simulation:
             self._merge(self.evasion.update(s, self.obstacles.movers(q0, qv0), surface, shapes))
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
-        idx = np.flatnonzero(flying_now)
+        idx = flying_now.nonzero()[0]
         # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
         # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
         measured = np.ones(self.n, dtype=bool)
