@@ -121,8 +121,8 @@ def test_compiled_numbers_at_the_digit_tables_edges():
 
 
 def test_compiled_text_between_numbers_of_every_length():
-    """The pieces between the numbers, 0 to 300 bytes (copied byte by byte, and above 256 bytes
-    as a block), come out as they went in, around the numbers as ``repr`` writes them."""
+    """The pieces between the numbers, 0 to 300 bytes, come out as they went in, around the
+    numbers as ``repr`` writes them."""
     rng = np.random.default_rng(3)
     pieces = [bytes(rng.integers(32, 127, m, dtype=np.uint8)) for m in range(301)]
     y = np.round(rng.normal(0, 50.0, 300), 6)
