@@ -103,49 +103,58 @@ def deliver(heard, senders, rows, key, fate, heard_by, t):  # noqa: ANN001, ANN2
     jitter, due = fate[1], fate[2]
     n = heard.shape[0]
     k = senders.shape[0]
+    if jitter == 0.0 and due > t + 1e-9:  # every copy arrives at once, later
+        return
     for r in range(n):
+        if jitter == 0.0:  # every copy heard has arrived (no branch to mispredict on them)
+            for c in range(k):
+                row = rows[c] if heard_by[r, c] else 0
+                heard[r, senders[c]] = max(heard[r, senders[c]], row)
+            continue
         for c in range(k):
-            if not heard_by[r, c]:
-                continue
             row = rows[c]
-            arrives = due
-            if jitter > 0.0:
-                arrives = due + jitter * (2.0 * draw(key, row, r, 1) - 1.0)
-            s = senders[c]
-            if arrives <= t + 1e-9 and heard[r, s] < row:
-                heard[r, s] = row
+            if heard_by[r, c] and due + jitter * (2.0 * draw(key, row, r, 1) - 1.0) <= t + 1e-9:
+                heard[r, senders[c]] = max(heard[r, senders[c]], row)
 
 
 @njit(cache=True, nogil=True)
-def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN201
+def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001, ANN201, PLR0913
     """``network.compact_near_numpy``, in one pass over the pairs: the table rows that flyers
     ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the order first met, and each
-    flyer's view of them (n, N: the position among those rows, -1: none; ``mark``, one per
-    table row, all -1, is scratch, all -1 again on return), the ages at ``t`` of the rows held
-    and their positions moved on by them at the velocity sent (``table`` = (time, position,
-    velocity) per table row), and :func:`held_pairs` of flyers ``idx`` (at ``at``) within
-    ``radius`` of those positions."""
+    flyer's view of them (n, N: the position among those rows, -1: none, or a row too old to act
+    on: its agent may be farther from it than both agents' stopping reach, ``stale`` = (max_accel,
+    stopping reach) per agent; ``mark``, one per table row, all -1, is scratch, all -1 again on
+    return), the ages at ``t`` of the rows held and their positions moved on by them at the
+    velocity sent (``table`` = (time, position, velocity) per table row), and :func:`held_pairs`
+    of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
     t_row, pos_row, vel_row = table
+    max_accel, reach = stale
     n = idx.shape[0]
     n_all = heard.shape[1]
     room = min(n * n_all, mark.shape[0])
     live = np.empty(room, dtype=np.int64)
     age = np.empty(room)
+    doubt = np.empty(room)
     moved = np.empty((room, 3))
     view = np.empty((n, n_all), dtype=np.int64)
-    ks = np.empty(n * n_all, dtype=np.int64)
-    js = np.empty(n * n_all, dtype=np.int64)
-    rows = np.empty(n * n_all, dtype=np.int64)
-    ds = np.empty(n * n_all)
+    ks = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last pair is written, then dropped
+    js = np.empty(n * n_all + 1, dtype=np.int64)
+    rows = np.empty(n * n_all + 1, dtype=np.int64)
+    ds = np.empty(n * n_all + 1)
     # A sender's column holds a few rows (most flyers the newest): its last one met and its
     # position among the rows held, before asking the scratch.
     last = np.zeros(n_all, dtype=np.int64)
     last_at = np.empty(n_all, dtype=np.int64)
     count = 0
     c = 0
+    old = 0
+    least = np.inf  # the shortest reach of a flyer
+    for k in range(n):
+        least = min(least, reach[idx[k]])
     wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
         own = idx[k]
+        ax, ay, az = at[k, 0], at[k, 1], at[k, 2]
         for j in range(n_all):
             r = heard[own, j]
             if r <= 0:
@@ -160,18 +169,33 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
                     mark[r] = m
                     live[m] = r
                     age[m] = t - t_row[r]
+                    doubt[m] = 0.5 * max_accel[j] * age[m] * age[m]  # network.belief_doubt
+                    old += doubt[m] > least + reach[j]  # too old for some flyer
                     for e in range(3):
                         moved[m, e] = pos_row[r, e] + vel_row[r, e] * age[m]
                     count += 1
                 last[j], last_at[j] = r, m
             view[k, j] = m
-            if j == own:
-                continue
-            d = within(moved[m, 0] - at[k, 0], moved[m, 1] - at[k, 1], moved[m, 2] - at[k, 2], wide, radius)
-            if d >= 0.0:
-                ks[c], js[c], rows[c], ds[c] = k, j, m, d
-                c += 1
+            # Written at c whatever it is, kept by moving c on (no branch to mispredict).
+            dx, dy, dz = moved[m, 0] - ax, moved[m, 1] - ay, moved[m, 2] - az
+            d2 = (dx * dx + dy * dy) + dz * dz
+            d = math.sqrt(d2) if d2 < wide else math.inf
+            ks[c], js[c], rows[c], ds[c] = k, j, m, d
+            c += (d < radius) & (j != own)
     for m in range(count):
         mark[live[m]] = -1
+    if old:  # rows too old to act on (rare: a sender long unheard) leave the views and pairs
+        for k in range(n):
+            own = idx[k]
+            for j in range(n_all):
+                m = view[k, j]
+                if m >= 0 and doubt[m] > reach[own] + reach[j]:
+                    view[k, j] = -1
+        kept = 0
+        for p in range(c):
+            if view[ks[p], js[p]] >= 0:
+                ks[kept], js[kept], rows[kept], ds[kept] = ks[p], js[p], rows[p], ds[p]
+                kept += 1
+        c = kept
     pairs = (ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy())
     return live[:count].copy(), view, age[:count].copy(), moved[:count].copy(), pairs

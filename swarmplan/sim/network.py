@@ -10,7 +10,9 @@ copy after ``delay`` (+- a uniform ``jitter``), unless it is lost (probability `
 two are farther apart than ``range`` when it is sent. A receiver keeps the newest state it has
 received from each sender and acts on it, moved on for the state's age: its field by the
 velocity and acceleration sent, its deconfliction by the velocity sent (with a margin for any
-acceleration within the sender's limit since).
+acceleration within the sender's limit since). A state so old that its agent may be farther
+from it (:func:`belief_doubt`) than both agents' stopping reach is too old to act on: the
+receiver knows nothing of that agent until it hears from it again.
 With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
 (onboard sensing: no age).
 
@@ -74,14 +76,14 @@ class Beliefs:
     expected_pos: np.ndarray
     expected_vel: np.ndarray
 
-    def near(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def near_superset(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every (flyer row k, agent j, table row, distance) with agent j believed by flyer k
-        closer than ``radius`` to it (itself left out). The widest answer is kept: a narrower
-        question is answered from it."""
+        closer than ``radius`` to it (itself left out), in (k, j) order, and maybe farther ones:
+        the widest answer found is kept and returned whole for a narrower question (its caller
+        tests each pair's distance)."""
         kept = self.__dict__.get("_near")
         if kept is not None and radius <= kept[0]:
-            inside = kept[1][3] < radius
-            return tuple(a[inside] for a in kept[1])  # type: ignore[return-value]
+            return kept[1]
         out = self._pairs(radius)
         self.__dict__["_near"] = (radius, out)
         return out
@@ -193,15 +195,23 @@ def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.nd
 
 def compact_near_numpy(
     heard: np.ndarray, idx: np.ndarray, mark: np.ndarray, table: tuple[np.ndarray, np.ndarray, np.ndarray],
-    t: float, at: np.ndarray, radius: float,
+    t: float, at: np.ndarray, radius: float, stale: tuple[np.ndarray, np.ndarray],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:  # fmt: skip
     """:func:`compact`, the ages at ``t`` of the rows held and their positions moved on by them
     at the velocity sent (``table`` = (time, position, velocity) per table row), and
-    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
+    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions. A row
+    too old to act on is left out of a flyer's view (-1): its agent may be farther from it
+    (:func:`belief_doubt`) than both agents' stopping reach (``stale`` = (max_accel, stopping
+    reach) per agent), as far as knowing nothing of it."""
     t_row, pos_row, vel_row = table
+    max_accel, reach = stale
     live, view = compact(heard, idx, mark)
     age = t - t_row[live]
     moved = pos_row[live] + vel_row[live] * age[:, None]
+    k, j = np.nonzero(view >= 0)
+    rows = view[k, j]
+    old = 0.5 * max_accel[j] * age[rows] * age[rows] > reach[idx[k]] + reach[j]
+    view[k[old], j[old]] = -1
     return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
 
 
@@ -255,8 +265,13 @@ class _Sent:
 class Network:
     """The messages of one run and every agent's beliefs (reset with :meth:`reset`)."""
 
-    def __init__(self, comms: Comms, sensing: Sensing | None, max_accel: np.ndarray, dt: float):
+    def __init__(
+        self, comms: Comms, sensing: Sensing | None, max_accel: np.ndarray, reach: np.ndarray, dt: float
+    ):
+        """``max_accel`` and ``reach`` (each agent's stopping reach, ``apf.stopping_reach``): a
+        belief whose agent may be farther from it than both agents' reach is too old to act on."""
         self.comms, self.n, self.dt = comms, len(max_accel), dt
+        self._stale = (np.asarray(max_accel, dtype=float), np.asarray(reach, dtype=float))
         self.max_accel = np.maximum(np.asarray(max_accel, dtype=float), 1e-9)
         self.sensing_range = math.inf if sensing is None else sensing.range
         self.period = comms.period(dt)
@@ -387,9 +402,11 @@ class Network:
         """Per flyer of ``beliefs``: the age of the oldest state it acts on, of the agents it
         believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
         when it believes none that near."""
-        k, _, rows, _ = beliefs.near(reach)
+        k, _, rows, d = beliefs.near_superset(reach)
         age = np.full(len(beliefs.idx), -np.inf)
-        np.maximum.at(age, k, beliefs.age[rows])
+        if len(k):  # the pairs run flyer by flyer: one maximum per flyer's run
+            first = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
+            age[k[first]] = np.maximum.reduceat(np.where(d < reach, beliefs.age[rows], -np.inf), first)
         return np.where(np.isfinite(age), age, np.nan)
 
     def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
@@ -440,7 +457,7 @@ class Network:
         """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in; the pairs within ``near`` of each flyer
-        (:meth:`Beliefs.near`) found on the way."""
+        (:meth:`Beliefs.near_superset`) found on the way."""
         self.deliver(t)
         tb, n = self.table, len(idx)
         idx64 = np.asarray(idx, dtype=np.int64)
@@ -449,7 +466,9 @@ class Network:
         table = (tb.t[: tb.size], tb.pos[: tb.size], tb.vel[: tb.size])
         # With sensing the view changes below: its pairs are found when asked.
         radius = 0.0 if sensing else float(near)
-        live, view, age, moved, pairs = run(self.heard, idx64, tb.mark[: tb.size], table, t, pos[idx], radius)
+        live, view, age, moved, pairs = run(
+            self.heard, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
+        )
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).
         truth = np.arange(self.n) if sensing else idx
