@@ -259,8 +259,13 @@ def test_bench_export_counts_per_class_and_format():
             "px4": entry(False, sep=3),
         },
         # inside a separation ellipsoid only where, and as deep as, its flight itself was
-        {"name": "w5", "agents": 2, "flight_contacts": 0, "flight_near_misses": 2,
-         "px4": entry(True, sep=4, lost=0)},  # fmt: skip
+        {
+            "name": "w5",
+            "agents": 2,
+            "flight_contacts": 0,
+            "flight_near_misses": 2,
+            "px4": entry(True, sep=4, lost=0),
+        },
     ]
     t = table("lab", "px4", records)
     assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (6, 5, 2, 2, 1)
