@@ -127,10 +127,8 @@ class SafetyFilter:
         reach of the horizon (obstacles' own motion included) are checked, and only against the
         obstacles within that reach. Returns the commands and the guarded steps (``guard_steps``)."""
         p = self.params
-        if not self._fixed_wings:
-            return v_cmd, NOTHING
-        fw = p.fixed_wing[idx]
-        if not fw.any():
+        fw = p.fixed_wing[idx] if self._fixed_wings else None
+        if fw is None or not fw.any():
             return v_cmd, NOTHING
         dt = self.world.dt
         speed = np.linalg.norm(vel0[idx], axis=1)
@@ -343,10 +341,9 @@ class SafetyFilter:
             pos1[idx] = pos0[idx] + vel1[idx] * dt
         braked = Commands(idx, v_cmd, cmd.beliefs, cmd.agreed)
         out = self.filter(braked, start, AgentMotion(pos1, vel1), window, modes, free, wanted=cmd.velocity)
-        if self._fixed_wings:  # the curvature each fixed wing flew, which its next step rolls on from
-            fw = idx[self.params.fixed_wing[idx]]
-            if len(fw):
-                self.turn[fw] = turn_states(self.params, vel0[fw], out.end.velocity[fw], dt, fw)
+        fw = idx[self.params.fixed_wing[idx]] if self._fixed_wings else ()
+        if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
+            self.turn[fw] = turn_states(self.params, vel0[fw], out.end.velocity[fw], dt, fw)
         return out
 
     def _braking_margin_compiled(
