@@ -122,9 +122,10 @@ def test_the_guard_in_one_pass_equals_rollouts_and_clearances(seed: int) -> None
     """``_guard_kernel.first_safe`` and ``least_clearances`` (the rollout and the clearances in
     one pass, a manoeuvre left at its first position too close, bodies measured again only where
     they could be nearer than what is asked) answer what rolling every manoeuvre out
-    (``_fixed_wing_kernel.rollouts``) and measuring every position (``clearances``) answers:
-    the clearance where each aircraft is, its first manoeuvre that keeps the required clearance
-    at every predicted position (-1: none), and each manoeuvre's least clearance, bit for bit."""
+    (``_fixed_wing_kernel.rollouts``: the horizon and a step more for each step it settles) and
+    measuring every position it flew (``clearances``) answers: the clearance where each aircraft
+    is, its first manoeuvre that keeps the required clearance at every predicted position (-1:
+    none), each manoeuvre's least clearance and the steps it keeps the required one, bit for bit."""
     from swarmplan.flight.lookahead import _MANOEUVRES, _TURN, _UP
 
     rng = np.random.default_rng(100 + seed)
@@ -142,7 +143,12 @@ def test_the_guard_in_one_pass_equals_rollouts_and_clearances(seed: int) -> None
     vel = heading / np.linalg.norm(heading, axis=1)[:, None] * rng.uniform(2.0, 6.0, (n, 1))
     kappa = rng.uniform(-0.05, 0.05, (n, 2))
     which = np.broadcast_to(np.arange(c), (n, c))
-    turn, up = np.ascontiguousarray(_TURN[which]), np.ascontiguousarray(_UP[which])
+    up = _UP[which]
+    # Climbs and dives level off at heights a few metres to tens of metres away (some reached
+    # within the horizon, some not); level manoeuvres: nan.
+    levels = pos[:, 2:3] + np.stack([-rng.uniform(2, 40, n), rng.uniform(2, 40, n)], axis=1)
+    top = np.where(up > 0, levels[:, 1:], np.where(up < 0, levels[:, :1], np.nan))
+    turn, top = np.ascontiguousarray(_TURN[which]), np.ascontiguousarray(top)
     amax, radius = rng.uniform(1, 3, n), rng.uniform(4, 15, n)
     climb = np.radians(rng.uniform(8, 20, n))
     roll = np.where(rng.random(n) < 0.3, np.inf, rng.uniform(0.3, 2.0, n))
@@ -150,30 +156,37 @@ def test_the_guard_in_one_pass_equals_rollouts_and_clearances(seed: int) -> None
     radii, extra = rng.uniform(0.3, 1.5, n), rng.uniform(0.0, 2.0, n)
     required = rng.uniform(0.0, 1.0, n)
     origin = np.array([obstacles[j].position for j in movers], dtype=float)
-    centers = origin[None] + np.cumsum(rng.normal(0, 0.3, (steps + 5, len(movers), 3)), axis=0)
-    rows = np.arange(2, steps + 3)
+    centers = origin[None] + np.cumsum(rng.normal(0, 0.3, (2 * steps + 5, len(movers), 3)), axis=0)
+    rows = np.arange(2, 2 * steps + 3)
     bmin, bmax = np.array([-45.0, -44.0, -40.0]), np.array([44.0, 45.0, 41.0])
     b = field.bodies
     bodies = (b.code, b.prm, field.position, field.rotation, field.identity)
     gk = kernel_module("swarmplan.sim._guard_kernel")
     fk = kernel_module("swarmplan.flight._fixed_wing_kernel")
 
-    flight = (pos, vel, kappa, turn, up, amax, radius, climb, roll)
+    flight = (pos, vel, kappa, turn, top, amax, radius, climb, roll)
     scene = (bmin, bmax, static, movers, origin, centers, bodies)
     here, first = gk.first_safe((*flight, dt), rows, radii, extra, required, scene)
 
-    path = fk.rollouts(*flight, steps, dt)
-    rep = lambda a: np.repeat(a, c * steps)  # noqa: E731
+    path, used = fk.rollouts(*flight, steps, dt)
+    assert path.shape == (n, c, 2 * steps, 3)
+    assert (used >= steps).all() and (used <= 2 * steps).all()
+    assert (used > steps).any() and (used == steps).any()
+    rep = lambda a: np.repeat(a, c * 2 * steps)  # noqa: E731
     clear = gk.clearances(
-        path.reshape(-1, 3), rep(radii), rep(extra), np.zeros(n * c * steps), bmin, bmax, static, movers,
+        path.reshape(-1, 3), rep(radii), rep(extra), np.zeros(n * c * 2 * steps), bmin, bmax, static, movers,
         origin, centers, np.tile(rows[1:], n * c), bodies,
-    ).reshape(n, c, steps)  # fmt: skip
-    safe = clear.min(axis=2) >= required[:, None]
+    ).reshape(n, c, 2 * steps)  # fmt: skip
+    flown = np.arange(2 * steps) < used[..., None]
+    least_flown = np.where(flown, clear, np.inf).min(axis=2)
+    safe = least_flown >= required[:, None]
     want_here = gk.clearances(pos, radii, extra, np.zeros(n), bmin, bmax, static, movers, origin, centers,
                               np.full(n, rows[0]), bodies)  # fmt: skip
     assert here.tobytes() == want_here.tobytes()
     np.testing.assert_array_equal(first, np.where(safe.any(axis=1), np.argmax(safe, axis=1), -1))
-    least = gk.least_clearances((*flight, dt), rows[1:], radii, extra, scene)
-    assert least.tobytes() == clear.min(axis=2).tobytes()
+    least, kept = gk.least_clearances((*flight, dt), rows[1:], radii, extra, required, scene)
+    assert least.tobytes() == least_flown.tobytes()
+    short = (clear < required[:, None, None]) & flown
+    np.testing.assert_array_equal(kept, np.where(short.any(axis=2), np.argmax(short, axis=2), used))
     # Every kind of answer occurs: none safe, the first, a later one.
     assert (first == -1).any() and (first == 0).any() and (first > 0).any(), np.bincount(first + 1)

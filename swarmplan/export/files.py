@@ -48,15 +48,24 @@ def file_stem(agent_id: str, taken: set[str]) -> str:
     return stem
 
 
+FIXED_WING_WAYPOINT_SHARE = 1.0 / 8.0
+"""A fixed wing's waypoints lie within this share of its tracking bound e = max(5 m, 0.05 R_min)
+of its flown path. On a turn of radius R the reduction's chords are then at most
+c = sqrt(8 R e / 8) = sqrt(R e) long, and each waypoint turns the polyline by c / R: an aircraft
+that can turn no tighter than R and starts its turn only at the waypoint leaves the polyline by
+about c^2 / (2 R) = e / 2, so it flies every turn within its bound (with half the bound for the
+chords, sqrt(4 R e) long, it leaves them by about 2 e)."""
+
+
 def _mission_bound(rec: Recording, path: FlownPath, max_deviation: float | None) -> float:
     """How far the waypoints may reduce the flown path: the goal tolerance or ``max_deviation``;
-    for a fixed wing also at most half its tracking bound max(5 m, 0.05 R_min), so the reduction
-    and the aircraft's own tracking share that bound."""
+    for a fixed wing also at most ``FIXED_WING_WAYPOINT_SHARE`` of its tracking bound
+    max(5 m, 0.05 R_min), so that it can fly the polyline's corners within that bound."""
     bound = tolerance_of(rec.world)
     if max_deviation is not None:
         bound = min(bound, max_deviation)
     if path.limits.model == "fixed_wing":
-        bound = min(bound, 0.5 * error_limit(aircraft_of(rec.world, path.limits.id)))
+        bound = min(bound, FIXED_WING_WAYPOINT_SHARE * error_limit(aircraft_of(rec.world, path.limits.id)))
     return bound
 
 

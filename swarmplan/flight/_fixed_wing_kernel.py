@@ -29,8 +29,6 @@ from swarmplan.runtime.compiled import njit
 
 GRAVITY = 9.80665  # swarmplan.world.airframe.GRAVITY
 
-_HALF_PI = 0.5 * math.pi
-
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _clip(x, lo, hi):  # noqa: ANN001, ANN202
@@ -141,51 +139,107 @@ def turn_states(v0, v1, climb, dt):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def manoeuvre_step(state, speed, cg, sg, turn, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
+def manoeuvre_step(state, speed, top, turn, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
     """One step of a sustained manoeuvre (:func:`rollout`) from ``state = (x, y, z, vx, vy, vz,
-    kh, kv)`` at ``speed``, ``cg``/``sg`` the cos/sin of its flight-path angle: the next state."""
+    kh, kv)`` at ``speed``: the next state. The flight-path angle aimed at is level (``top``
+    nan) or flies to the height ``top``: ``(top - z) / radius``, within the climb limit (a
+    capture that never overshoots: the angle it asks for changes by less than the turn
+    budget a step). The change towards it comes first in the step's turn budget ``V dt /
+    R_min`` and the turn ``turn`` (-1/0/1: hard right, hold, hard left) takes the rest, as a
+    pilot pulls out of a dive before tightening a turn (with a finite roll rate the bank eases
+    off towards that turn at the roll rate, and the pull-out takes the room it leaves). The law
+    reads the state alone, so a manoeuvre flown from a later state of its own rollout goes on
+    along the same rollout."""
     x, y, z, vx, vy, vz, kh, kv = state
-    a = math.atan2(vy, vx) + turn * _HALF_PI
+    gamma = _clip(math.atan2(vz, math.hypot(vx, vy)), -climb, climb)
+    aim = 0.0 if math.isnan(top) else _clip((top - z) / radius, -climb, climb)
+    budget = speed * dt / radius * (1.0 - 1e-9)
+    dg = _clip(aim - gamma, -budget, budget)
+    gc = gamma + dg
+    a = math.atan2(vy, vx) + turn * math.sqrt(max(budget * budget - dg * dg, 0.0)) / _cos_factor(gamma, gc)
+    cg = math.cos(gc)
     vx, vy, vz, kh, kv = fly_step(
-        (vx, vy, vz), (speed * cg * math.cos(a), speed * cg * math.sin(a), speed * sg), (kh, kv),
+        (vx, vy, vz), (speed * cg * math.cos(a), speed * cg * math.sin(a), speed * math.sin(gc)), (kh, kv),
         (speed, speed, amax, radius, climb, roll), dt,
     )  # fmt: skip
     return x + vx * dt, y + vy * dt, z + vz * dt, vx, vy, vz, kh, kv
 
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def manoeuvre_start(pos, vel, kappa, up, climb):  # noqa: ANN001, ANN201
-    """The state, speed and cos/sin of the flight-path angle of a sustained manoeuvre from
-    ``pos``/``vel``/``kappa`` climbing ``up`` (-1/0/1) times ``climb`` (:func:`manoeuvre_step`)."""
+def manoeuvre_start(pos, vel, kappa):  # noqa: ANN001, ANN201
+    """The state and speed of a sustained manoeuvre from ``pos``/``vel``/``kappa``
+    (:func:`manoeuvre_step`)."""
     speed = math.sqrt(vel[0] ** 2 + vel[1] ** 2 + vel[2] ** 2)
-    g = up * climb
-    state = (pos[0], pos[1], pos[2], vel[0], vel[1], vel[2], kappa[0], kappa[1])
-    return state, speed, math.cos(g), math.sin(g)
+    return (pos[0], pos[1], pos[2], vel[0], vel[1], vel[2], kappa[0], kappa[1]), speed
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def manoeuvre_settling(state, speed, top, radius, climb, dt):  # noqa: ANN001, ANN201
+    """Whether a sustained manoeuvre at ``state`` is still on its way to its steady turn: its
+    flight-path angle more than a step's turn budget from the one it aims at, or (climbing or
+    diving to ``top``) more than a step's travel from that height. A rollout flies one step
+    more for each such step (:func:`rollout`): the steady turn it reaches is then checked for a
+    whole turn, as a level turn is from its start, and the same manoeuvre flown from a later
+    state of its rollout checks no point the rollout did not."""
+    z, vx, vy, vz = state[2], state[3], state[4], state[5]
+    gamma = _clip(math.atan2(vz, math.hypot(vx, vy)), -climb, climb)
+    budget = speed * dt / radius
+    if math.isnan(top):
+        return abs(gamma) > budget
+    aim = _clip((top - z) / radius, -climb, climb)
+    return abs(aim - gamma) > budget or abs(top - z) > speed * dt
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def rollout(out, pos, vel, kappa, turn, up, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
-    """Positions ``out`` (steps, 3), written, of one fixed wing at ``pos``/``vel`` (3,) with turn
+def rollout(out, pos, vel, kappa, turn, top, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
+    """Positions ``out`` (2 H, 3), written, of one fixed wing at ``pos``/``vel`` (3,) with turn
     state ``kappa`` (2,) flying one sustained manoeuvre (``turn`` -1/0/1: hard right, hold, hard
-    left; ``up`` -1/0/1 times the climb limit) for ``len(out)`` steps of the model at constant
-    speed: each step's command is the current heading turned by 90 degrees times ``turn``, at
-    the flight-path angle, at the current speed (:func:`manoeuvre_step`, which
-    ``swarmplan.sim._guard_kernel.first_safe`` flies as well)."""
-    state, speed, cg, sg = manoeuvre_start(pos, vel, kappa, up, climb)
-    for k in range(out.shape[0]):
-        state = manoeuvre_step(state, speed, cg, sg, turn, amax, radius, climb, roll, dt)
+    left; ``top``: level (nan) or climbing or diving to that height and levelling off there) at
+    constant speed: each step's command levels out or climbs first and turns by what its turn
+    budget leaves (:func:`manoeuvre_step`, which ``swarmplan.sim._guard_kernel.first_safe``
+    flies as well). It flies the horizon H and one step more for each step it was still
+    settling (:func:`manoeuvre_settling`), at most H more; the rows after the last step repeat
+    its position. Returns the number of steps flown."""
+    base = out.shape[0] // 2
+    state, speed = manoeuvre_start(pos, vel, kappa)
+    k, extra = 0, 0
+    while k < base + extra:
+        if extra < base and manoeuvre_settling(state, speed, top, radius, climb, dt):
+            extra += 1
+        state = manoeuvre_step(state, speed, top, turn, amax, radius, climb, roll, dt)
         out[k, 0], out[k, 1], out[k, 2] = state[0], state[1], state[2]
+        k += 1
+    for j in range(k, out.shape[0]):
+        out[j, 0], out[j, 1], out[j, 2] = out[k - 1, 0], out[k - 1, 1], out[k - 1, 2]
+    return k
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def rollouts(pos, vel, kappa, turn, up, amax, radius, climb, roll, steps, dt):  # noqa: ANN001, ANN201
-    """Positions (n, C, steps, 3) of fixed wings at ``pos``/``vel`` (n, 3) with turn states
-    ``kappa`` (n, 2) flying each of its sustained manoeuvres c (``turn[i, c]``, ``up[i, c]``:
-    :func:`rollout`)."""
+def rollouts(pos, vel, kappa, turn, top, amax, radius, climb, roll, steps, dt):  # noqa: ANN001, ANN201
+    """Positions (n, C, 2 steps, 3) of fixed wings at ``pos``/``vel`` (n, 3) with turn states
+    ``kappa`` (n, 2) flying each of its sustained manoeuvres c (``turn[i, c]``, ``top[i, c]``:
+    :func:`rollout` over a horizon of ``steps``) and the steps each flew (n, C)."""
     n, nc = pos.shape[0], turn.shape[1]
-    out = np.empty((n, nc, steps, 3))
+    out = np.empty((n, nc, 2 * steps, 3))
+    used = np.empty((n, nc), dtype=np.int64)
     for i in range(n):
         for c in range(nc):
-            rollout(out[i, c], pos[i], vel[i], kappa[i], turn[i, c], up[i, c], amax[i], radius[i], climb[i],
-                    roll[i], dt)  # fmt: skip
+            flight = (turn[i, c], top[i, c], amax[i], radius[i], climb[i], roll[i])
+            used[i, c] = rollout(out[i, c], pos[i], vel[i], kappa[i], *flight, dt)
+    return out, used
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def first_velocities(pos, vel, kappa, turn, top, amax, radius, climb, roll, dt):  # noqa: ANN001, ANN201
+    """Velocities (n, C, 3) after the first step of each sustained manoeuvre c of the fixed
+    wings of :func:`rollouts` (the step the guard commands when it starts that manoeuvre)."""
+    n, nc = pos.shape[0], turn.shape[1]
+    out = np.empty((n, nc, 3))
+    for i in range(n):
+        for c in range(nc):
+            state, speed = manoeuvre_start(pos[i], vel[i], kappa[i])
+            state = manoeuvre_step(
+                state, speed, top[i, c], turn[i, c], amax[i], radius[i], climb[i], roll[i], dt
+            )
+            out[i, c, 0], out[i, c, 1], out[i, c, 2] = state[3], state[4], state[5]
     return out

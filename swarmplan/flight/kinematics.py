@@ -60,6 +60,9 @@ class AgentParams:
     separation: np.ndarray
     roll_rate: np.ndarray  # rad/s (fixed wings)
     clearance: np.ndarray  # m the turn-ahead guard keeps from every body (fixed wings)
+    # (N, 2) m: the heights a climbing or diving manoeuvre of the turn-ahead guard levels off
+    # at, (floor, ceiling) of the flight volume three body radii inside it (none: never).
+    levels: np.ndarray | None = None
 
     @classmethod
     def from_world(cls, world: World) -> AgentParams:
@@ -79,7 +82,24 @@ class AgentParams:
             separation=np.array([x.separation for x in a], dtype=float).reshape(-1, 3),
             roll_rate=arr(lambda x: x.roll_rate if x.roll_rate > 0 else np.inf),
             clearance=arr(lambda x: max(x.clearance, x.radius)),
+            levels=guard_levels(world),
         )
+
+
+GUARD_LEVEL_RADII = 3.0
+"""A climbing or diving manoeuvre of the turn-ahead guard levels off this many body radii inside
+the floor or the ceiling of the flight volume (the guard keeps its body radius beyond the body,
+two; one more for the steps of the level-off)."""
+
+
+def guard_levels(world: World) -> np.ndarray:
+    """Per agent (N, 2): the floor and the ceiling a turn-ahead guard's dive or climb levels off
+    at, ``GUARD_LEVEL_RADII`` body radii inside the bounds (the floor no lower than flat ground,
+    z = 0, which the guard measures its predictions over)."""
+    r = np.array([a.radius for a in world.agents], dtype=float)
+    floor = max(float(world.bounds_min[2]), 0.0) + GUARD_LEVEL_RADII * r
+    ceiling = float(world.bounds_max[2]) - GUARD_LEVEL_RADII * r
+    return np.column_stack([floor, ceiling])
 
 
 def initial_velocity(params: AgentParams, start: np.ndarray, goal: np.ndarray) -> np.ndarray:

@@ -5,18 +5,22 @@ fixed wing cannot stop: by the time one step would touch a wall, no command avoi
 potential field does not know this either (its influence distance may be shorter than the
 turn radius). So, each step, for every fixed wing that has something within reach, the
 guard predicts, for the time of a full turn plus a second, the sustained manoeuvres — hard
-left/right turns and straight flight, each level, climbing and diving — and measures the
+left/right turns and straight flight, each levelling out, climbing to the ceiling of the flight
+volume or diving to its floor and levelling off there — and measures the
 clearance of every predicted position to the obstacles (moving ones at their predicted
 poses), the terrain and the bounds. The field's command stands if, after one step of it, at
 least one manoeuvre keeps the required clearance: a way out always remains (the invariant
 of braking-distance checks, with turns in place of brakes). Otherwise the guard starts now
 the safe manoeuvre closest to the field's command, or, when none is safe, the one that keeps
-the most clearance. Flying the field's command until the last step that keeps a way out
+clear the longest (time for a mover to pass, for the field to find a way), the clearest of
+those. Flying the field's command until the last step that keeps a way out
 leaves the field in charge everywhere but where it would corner the aircraft.
 
 The predictions fly the model itself (``swarmplan.flight._fixed_wing_kernel``, compiled: step
 by step, at constant speed, rolling from the aircraft's current turn at its roll rate; the
-flight-path angle ramps within the same turn budget as the heading), all candidates at once,
+flight-path angle ramps within the same turn budget as the heading, and comes first in it: a
+diving aircraft pulls out before it tightens its turn, so a level manoeuvre does level out),
+all candidates at once,
 and all candidates and all times are measured in one batched distance query. The clearance
 kept from obstacles, still or moving, is the aircraft's own (``clearance``, by default the
 largest of its radius, half its horizontal separation and 0.05 R_min); from the terrain and
@@ -34,7 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from swarmplan.flight.kinematics import AgentParams, fixed_wing_model, fly_fixed_wing, limit_velocity
+from swarmplan.flight.kinematics import AgentParams, fixed_wing_model, fly_fixed_wing
 
 ClearanceFn = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 """``clearance(points (P, 3), radii (P,), times (P,), extra (P,)) -> (P,)`` distance from each
@@ -52,11 +56,12 @@ class CompiledGuard(NamedTuple):
     ``first_safe(rollout, times (H + 1,), radii (n,), extra (n,), required (n,)) -> (here (n,),
     first (n,))``: the clearance of where each aircraft is at ``times[0]`` and the first of its
     manoeuvres whose positions at ``times[1:]`` all keep ``required`` (-1: none).
-    ``least(rollout, times (H,), radii (n,), extra (n,)) -> (n, C')``: the least clearance of
-    each manoeuvre's positions at ``times``."""
+    ``least(rollout, times (2 H,), radii (n,), extra (n,), required (n,)) -> ((n, C'), (n, C'))``:
+    the least clearance of each manoeuvre's positions at ``times`` and the steps it keeps
+    ``required`` before the first that does not."""
 
     first_safe: Callable[..., tuple[np.ndarray, np.ndarray]]
-    least: Callable[..., np.ndarray]
+    least: Callable[..., tuple[np.ndarray, np.ndarray]]
 
 
 # (turn, climb) of the sustained candidate commands: turn -1/+1 = hard right/left, 0 = hold
@@ -74,19 +79,6 @@ def horizon_steps(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: f
     v = np.maximum(speed, 1e-6)
     t = 2.0 * np.pi * params.min_turn_radius[idx] / v + 1.0
     return int(np.ceil(float(np.max(t)) / dt))
-
-
-def _manoeuvre_commands(v: np.ndarray, climb_limit: np.ndarray) -> np.ndarray:
-    """Velocity commands (n, C, 3) of the sustained manoeuvres for current velocities ``v`` (n, 3)."""
-    speed = np.linalg.norm(v, axis=1)
-    psi = np.arctan2(v[:, 1], v[:, 0])
-    turn = np.array([m[0] for m in _MANOEUVRES], dtype=float)
-    climb = np.array([m[1] for m in _MANOEUVRES], dtype=float)
-    # A heading 90 degrees off makes the model turn at its limit every step.
-    a = psi[:, None] + turn[None, :] * (np.pi / 2)
-    g = climb[None, :] * climb_limit[:, None]
-    c = np.cos(g)
-    return speed[:, None, None] * np.stack([c * np.cos(a), c * np.sin(a), np.sin(g)], axis=-1)
 
 
 def predicted_positions(
@@ -130,12 +122,13 @@ def rollout_manoeuvres(
     dt: float,
     kappa: np.ndarray | None = None,
     which: np.ndarray | None = None,
-) -> np.ndarray:
-    """Positions (n, C, steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` (turn states
+) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (n, C, 2 steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` (turn states
     ``kappa`` (n, 2), default straight) flying each sustained manoeuvre (or, with ``which``
-    (n, C'), the manoeuvres of those indices, (n, C', steps, 3)) for ``steps`` steps of the
-    model at constant speed (the commands are re-formed from the current heading each step,
-    as the guard flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
+    (n, C'), the manoeuvres of those indices) over a horizon of ``steps`` steps of the model at
+    constant speed, and the steps each flew (n, C): the horizon and one more for each step it
+    was settling (the commands are re-formed from the current state each step, as the guard
+    flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
     n = len(idx)
     if which is None:
         which = np.broadcast_to(np.arange(len(_MANOEUVRES)), (n, len(_MANOEUVRES)))
@@ -152,12 +145,19 @@ def _rollout_rows(
     which: np.ndarray,
     dt: float,
 ) -> tuple:
-    """The compiled rollouts' arguments (pos, vel, kappa, turn, up, amax, radius, climb, roll,
-    dt) of fixed wings ``idx`` flying the manoeuvres ``which`` ((n,) or (n, C'))."""
+    """The compiled rollouts' arguments (pos, vel, kappa, turn, top, amax, radius, climb, roll,
+    dt) of fixed wings ``idx`` flying the manoeuvres ``which`` (n, C'): a climb flies to the
+    ceiling of ``params.levels``, a dive to its floor (none: for good), level ones nan."""
     f = np.ascontiguousarray
     kappa = np.zeros((len(idx), 2)) if kappa is None else f(kappa, dtype=float)
+    up = _UP[which]
+    if params.levels is None:
+        floor, ceiling = np.full((len(idx), 1), -np.inf), np.full((len(idx), 1), np.inf)
+    else:
+        floor, ceiling = params.levels[idx, :1], params.levels[idx, 1:]
+    top = np.where(up > 0, ceiling, np.where(up < 0, floor, np.nan))
     return (
-        f(pos, dtype=float), f(vel, dtype=float), kappa, f(_TURN[which]), f(_UP[which]),
+        f(pos, dtype=float), f(vel, dtype=float), kappa, f(_TURN[which]), f(top, dtype=float),
         f(params.max_accel[idx]), f(params.min_turn_radius[idx]), f(params.max_climb[idx]),
         f(params.roll_rate[idx]), dt,
     )  # fmt: skip
@@ -172,15 +172,28 @@ def _manoeuvre_clearance(
     times: np.ndarray,
     dt: float,
     which: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Predicted positions (n, C, H, 3) of the sustained manoeuvres (``which``: those of these
-    indices, (n, C')) from ``pos``/``vel``/``kappa``, the matching body radii (n, C, H) and the
-    gaps kept from bodies beyond them (n, C, H)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Predicted positions (n, C, 2 H, 3) of the sustained manoeuvres (``which``: those of these
+    indices, (n, C')) from ``pos``/``vel``/``kappa`` at ``times`` (2 H,), the steps each flew
+    (n, C), the matching body radii (n, C, 2 H) and the gaps kept from bodies beyond them."""
     n, c = len(idx), len(_MANOEUVRES) if which is None else which.shape[1]
-    points = rollout_manoeuvres(params, idx, pos, vel, len(times), dt, kappa, which)
+    points, used = rollout_manoeuvres(params, idx, pos, vel, len(times) // 2, dt, kappa, which)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
     extra = np.broadcast_to((params.clearance - params.radius)[idx][:, None, None], (n, c, len(times)))
-    return points, radii, extra
+    return points, used, radii, extra
+
+
+def _least(clear: np.ndarray, used: np.ndarray) -> np.ndarray:
+    """The least of ``clear`` (n, C, T) over the first ``used`` (n, C) steps of each row."""
+    flown = np.arange(clear.shape[2]) < used[..., None]
+    return np.where(flown, clear, np.inf).min(axis=2)
+
+
+def _kept(clear: np.ndarray, used: np.ndarray, required: np.ndarray) -> np.ndarray:
+    """The steps (n, C) each row of ``clear`` (n, C, T) keeps ``required`` (n,) before the first
+    that does not, among its first ``used`` (n, C) (all of them when none)."""
+    short = (clear < required[:, None, None]) & (np.arange(clear.shape[2]) < used[..., None])
+    return np.where(short.any(axis=2), np.argmax(short, axis=2), used)
 
 
 def guard_commands(
@@ -203,12 +216,14 @@ def guard_commands(
     usually safe again, and then the others are not rolled out).
 
     The field's command stands if, after one step of it, at least one sustained manoeuvre
-    (hard left/right turn or straight, level/climbing/diving) keeps ``required`` (n,) clearance
-    (obstacles: ``params.clearance``) over the horizon: a way out is always kept. Otherwise
+    (hard left/right turn or straight, levelling/climbing/diving) keeps ``required`` (n,)
+    clearance (obstacles: ``params.clearance``) over the horizon, and over as many steps more as
+    it took to settle into its steady turn: a way out is always kept. Otherwise
     the agent starts now the safe manoeuvre whose next velocity is nearest the field's (or, if
-    none is safe, the one keeping the most clearance). Returns the commands (n, 3) and a mask
-    (n,) of the replaced ones. ``compiled``, when given, answers in one pass each (the same
-    answers as rolling the manoeuvres out and measuring ``clearance``).
+    none is safe, the one that keeps the clearance the longest, the clearest of those). Returns
+    the commands (n, 3) and a mask (n,) of the replaced ones. ``compiled``, when given, answers
+    in one pass each (the same answers as rolling the manoeuvres out and measuring
+    ``clearance``).
     """
     n = len(idx)
     out = v_cmd.copy()
@@ -217,7 +232,8 @@ def guard_commands(
         return out, replaced
     kappa = np.zeros((n, 2)) if kappa is None else kappa
     steps = horizon_steps(params, idx, np.linalg.norm(vel, axis=1), dt)
-    times = np.arange(1, steps + 1) * dt
+    # The horizon and as much again for the steps a manoeuvre is still settling.
+    times = np.arange(1, 2 * steps + 1) * dt
     c = len(_MANOEUVRES)
     extra_now = params.clearance[idx] - params.radius[idx]
     # After one step of the field's command ...
@@ -231,7 +247,7 @@ def guard_commands(
     # first, every other one only for the agents it leaves in doubt: the same answers.
     prefer = np.zeros(n, dtype=np.int64) if prefer is None else prefer
     if compiled is None:
-        pref, r_pref, e_pref = _manoeuvre_clearance(
+        pref, used, r_pref, e_pref = _manoeuvre_clearance(
             params, idx, p_next, v_next, k_next, times, dt, prefer[:, None]
         )
         points = np.concatenate([pref.reshape(-1, 3), p_next])
@@ -239,8 +255,8 @@ def guard_commands(
         extra = np.concatenate([e_pref.reshape(-1), extra_now])
         when = np.concatenate([np.tile(t0 + dt + times, n), np.full(n, t0 + dt)])
         clear = clearance(points, radii, when, extra)
-        m = n * steps
-        step_clear, least = clear[m:], clear[:m].reshape(n, steps).min(axis=1)
+        m = n * 2 * steps
+        step_clear, least = clear[m:], _least(clear[:m].reshape(n, 1, 2 * steps), used)[:, 0]
         keep = (step_clear >= required) & (least >= required)
     else:
         when = t0 + dt + np.concatenate([[0.0], times])
@@ -258,12 +274,12 @@ def guard_commands(
         prefer[doubt] = np.where(first >= 0, first, prefer[doubt])
     elif len(doubt):
         d = len(doubt)
-        after, r_after, e_after = _manoeuvre_clearance(
+        after, used, r_after, e_after = _manoeuvre_clearance(
             params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], times, dt
         )
         when = np.tile(t0 + dt + times, d * c)
         clear_after = clearance(after.reshape(-1, 3), r_after.reshape(-1), when, e_after.reshape(-1))
-        safe = clear_after.reshape(d, c, steps).min(axis=2) >= required[doubt, None]
+        safe = _least(clear_after.reshape(d, c, 2 * steps), used) >= required[doubt, None]
         keep[doubt] = safe.any(axis=1)
         prefer[doubt] = np.where(safe.any(axis=1), np.argmax(safe, axis=1), prefer[doubt])
     if keep.all():
@@ -273,29 +289,34 @@ def guard_commands(
     rows = np.flatnonzero(~keep)
     kk = len(rows)
     worst_now = np.full((n, c), -np.inf)
+    kept_now = np.zeros((n, c), dtype=np.int64)
     if compiled is None:
         at = idx[rows]
-        now, r_now, e_now = _manoeuvre_clearance(params, at, pos[rows], vel[rows], kappa[rows], times, dt)
+        now, used, r_now, e_now = _manoeuvre_clearance(
+            params, at, pos[rows], vel[rows], kappa[rows], times, dt
+        )
         when_now = np.tile(t0 + times, kk * c)
         clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), when_now, e_now.reshape(-1))
-        worst_now[rows] = clear_now.reshape(kk, c, steps).min(axis=2)
+        clear_now = clear_now.reshape(kk, c, 2 * steps)
+        worst_now[rows] = _least(clear_now, used)
+        kept_now[rows] = _kept(clear_now, used, required[rows])
     else:
         which = np.broadcast_to(np.arange(c), (kk, c))
         flown = _rollout_rows(params, idx[rows], pos[rows], vel[rows], kappa[rows], which, dt)
-        worst_now[rows] = compiled.least(flown, t0 + times, params.radius[idx[rows]], extra_now[rows])
+        worst_now[rows], kept_now[rows] = compiled.least(
+            flown, t0 + times, params.radius[idx[rows]], extra_now[rows], required[rows]
+        )
     # What each manoeuvre flies on the next step, under the model itself.
-    cmds = _manoeuvre_commands(vel, params.max_climb[idx])
-    rep = np.repeat(idx, c)
-    v_rep, k_rep = np.repeat(vel, c, axis=0), np.repeat(kappa, c, axis=0)
-    first = limit_velocity(params, v_rep, cmds.reshape(-1, 3), dt, rep, k_rep)
-    first = first.reshape(n, c, 3)
+    every = np.broadcast_to(np.arange(c), (n, c))
+    *now_rows, _ = _rollout_rows(params, idx, pos, vel, kappa, every, dt)
+    first = fixed_wing_model().first_velocities(*now_rows, dt)
     for i in np.flatnonzero(~keep):
         safe = np.flatnonzero(worst_now[i] >= required[i])
         if len(safe):
             gap = np.linalg.norm(first[i, safe] - v_next[i], axis=1)
             j = int(safe[np.argmin(gap)])
-        else:
-            j = int(np.argmax(worst_now[i]))
+        else:  # none keeps clear: the one that keeps clear the longest, then the clearest
+            j = int(np.lexsort((worst_now[i], kept_now[i]))[-1])
         out[i] = first[i, j]
         replaced[i] = True
     return out, replaced

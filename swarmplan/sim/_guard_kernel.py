@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarmplan.flight._fixed_wing_kernel import manoeuvre_start, manoeuvre_step
+from swarmplan.flight._fixed_wing_kernel import manoeuvre_settling, manoeuvre_start, manoeuvre_step
 from swarmplan.geometry._shape_kernel import exact, sdf
 from swarmplan.runtime.compiled import njit
 
@@ -123,19 +123,20 @@ def _clearance_over(x, y, z, r, e, floor, scene, t, seen, level):  # noqa: ANN00
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, ANN201
-    """``rollout = (pos, vel, kappa, turn, up, amax, radius, climb, roll, dt)`` (the arguments
+    """``rollout = (pos, vel, kappa, turn, top, amax, radius, climb, roll, dt)`` (the arguments
     of ``_fixed_wing_kernel.rollouts`` but the steps), ``scene = (bmin, bmax, static, movers,
     origin, centers, bodies)`` (those of :func:`clearances` but the points' own).
 
     Per fixed wing i at ``pos[i]``/``vel[i]``/``kappa[i]``: its clearance where it is (the
     movers at row ``rows[0]``) and the first of its sustained manoeuvres c (``turn[i, c]``,
-    ``up[i, c]``; ``_fixed_wing_kernel.manoeuvre_step``) whose predicted positions over
-    ``len(rows) - 1`` steps (step k at row ``rows[k]``) all keep ``required[i]``, -1 if none:
+    ``top[i, c]``; ``_fixed_wing_kernel.manoeuvre_step``) whose predicted positions all keep
+    ``required[i]``, -1 if none: the horizon H = (len(rows) - 1) / 2 steps and one more for
+    each step it was settling (``_fixed_wing_kernel.rollout``), step k at row ``rows[k + 1]``;
     each position measured as :func:`clearances` measures it over flat ground (height 0), and a
     manoeuvre left at its first position that does not keep it. Returns both, (n,) each."""
-    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    pos, vel, kappa, turn, tops, amax, radius, climb, roll, dt = rollout
     static, movers = scene[2], scene[3]
-    n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0] - 1
+    n, nc, base = pos.shape[0], turn.shape[1], (rows.shape[0] - 1) // 2
     here = np.empty(n)
     first = np.full(n, -1, dtype=np.int64)
     seen = np.empty((static.shape[0] + movers.shape[0], 3))
@@ -144,15 +145,18 @@ def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, A
         r, e, need = radii[i], extra[i], required[i]
         here[i] = _clearance(pos[i, 0], pos[i, 1], pos[i, 2], r, e, 0.0, scene, rows[0])
         for c in range(nc):
-            state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
+            state, speed = manoeuvre_start(pos[i], vel[i], kappa[i])
             level[:] = -np.inf
             safe = True
-            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
-            for k in range(steps):
-                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+            top, w, a, rad, g, p = tops[i, c], turn[i, c], amax[i], radius[i], climb[i], roll[i]
+            k, more = 0, 0
+            while k < base + more:
+                if more < base and manoeuvre_settling(state, speed, top, rad, g, dt):
+                    more += 1
+                state = manoeuvre_step(state, speed, top, w, a, rad, g, p, dt)
                 x, y, z = state[0], state[1], state[2]
-                t = rows[k + 1]
-                if _clearance_over(x, y, z, r, e, need, scene, t, seen, level) < need:
+                k += 1
+                if _clearance_over(x, y, z, r, e, need, scene, rows[k], seen, level) < need:
                     safe = False
                     break
             if safe:
@@ -162,27 +166,37 @@ def first_safe(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, A
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def least_clearances(rollout, rows, radii, extra, scene):  # noqa: ANN001, ANN201
+def least_clearances(rollout, rows, radii, extra, required, scene):  # noqa: ANN001, ANN201
     """Per fixed wing i and manoeuvre c of ``rollout`` (:func:`first_safe`'s): the least
-    clearance of its predicted positions over ``len(rows)`` steps (step k at row ``rows[k]``),
-    each measured as :func:`clearances` measures it over flat ground; a body measured again only
-    where it could be nearer than the least so far. Returns (n, C)."""
-    pos, vel, kappa, turn, up, amax, radius, climb, roll, dt = rollout
+    clearance of its predicted positions (the horizon H = len(rows) / 2 steps and one more for
+    each step it was settling, step k at row ``rows[k]``), each measured as :func:`clearances`
+    measures it over flat ground, a body measured again only where it could be nearer than the
+    least so far; and the steps it keeps ``required[i]`` before the first that does not (all
+    it flew when none). Returns both, (n, C) each."""
+    pos, vel, kappa, turn, tops, amax, radius, climb, roll, dt = rollout
     static, movers = scene[2], scene[3]
-    n, nc, steps = pos.shape[0], turn.shape[1], rows.shape[0]
+    n, nc, base = pos.shape[0], turn.shape[1], rows.shape[0] // 2
     out = np.empty((n, nc))
+    kept = np.empty((n, nc), dtype=np.int64)
     seen = np.empty((static.shape[0] + movers.shape[0], 3))
     level = np.empty(static.shape[0] + movers.shape[0])
     for i in range(n):
         for c in range(nc):
-            state, speed, cg, sg = manoeuvre_start(pos[i], vel[i], kappa[i], up[i, c], climb[i])
-            w, a, rad, g, p = turn[i, c], amax[i], radius[i], climb[i], roll[i]
+            state, speed = manoeuvre_start(pos[i], vel[i], kappa[i])
+            top, w, a, rad, g, p = tops[i, c], turn[i, c], amax[i], radius[i], climb[i], roll[i]
             level[:] = -np.inf
             least = np.inf
-            for k in range(steps):
-                state = manoeuvre_step(state, speed, cg, sg, w, a, rad, g, p, dt)
+            k, more, until = 0, 0, -1
+            while k < base + more:
+                if more < base and manoeuvre_settling(state, speed, top, rad, g, dt):
+                    more += 1
+                state = manoeuvre_step(state, speed, top, w, a, rad, g, p, dt)
                 x, y, z = state[0], state[1], state[2]
                 c_k = _clearance_over(x, y, z, radii[i], extra[i], least, scene, rows[k], seen, level)
                 least = min(least, c_k)
+                if until < 0 and c_k < required[i]:
+                    until = k
+                k += 1
             out[i, c] = least
-    return out
+            kept[i, c] = k if until < 0 else until
+    return out, kept

@@ -1,15 +1,18 @@
 """Arrived fixed wings keep flying: a fixed wing cannot hold still, so once at its goal it
-loiters on a level circle about it, and stays an aircraft like any other (the turn-ahead guard,
-the potential field's repulsion from moving obstacles and other agents, the safety filter and
-the contact checks all go on for it).
+loiters on a level circle through where it arrived, and stays an aircraft like any other (the
+turn-ahead guard, the potential field's repulsion from moving obstacles and other agents, the
+safety filter and the contact checks all go on for it).
 
-The circle: centred on the goal, at the goal's altitude, of the smallest radius of
-``LOITER_FACTORS`` x ``min_turn_radius`` (``swarmplan.planner.hold``) whose points (every
-10 degrees) keep the aircraft's ``clearance`` from every static obstacle, the terrain and the
-bounds; when none does, the one that keeps the most. It circles the way it was turning when it
-arrived (left when flying straight). Its field pulls it at a point ``LEAD`` radians ahead of it
-on the circle (which also stands for its goal in the field's goal-distance factor), so it flies
-out onto the circle and round it.
+The circle: through the point where the aircraft arrived (within the goal tolerance of its
+goal, which every lap passes again), tangent to its heading there, at that altitude, so it
+flies straight on into its loiter with no entry to fly (a circle centred on the goal could not
+be entered from its centre without flying out past it: a turn at R_min from the centre reaches
+2 R_min from it); of the smallest radius of ``LOITER_FACTORS`` x ``min_turn_radius``
+(``swarmplan.planner.hold``) whose points (every 10 degrees) keep the aircraft's ``clearance``
+from every static obstacle, the terrain and the bounds, on the side it was turning to when it
+arrived first (left when flying straight), else on the other; when none does, the one that keeps
+the most. Its field pulls it at a point ``LEAD`` radians ahead of it on the circle (which also
+stands for its goal in the field's goal-distance factor), so it flies round it.
 
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
@@ -26,15 +29,13 @@ import numpy as np
 
 from swarmplan.core import Mode, SwarmState
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.planner.hold import LOITER_FACTORS
+from swarmplan.planner.hold import LOITER_FACTORS, loiter_circle
 
 if TYPE_CHECKING:
     from swarmplan.sim.obstacles import Obstacles
 
 LEAD = math.radians(30.0)
 """How far ahead on the circle (rad) a loitering fixed wing's field pulls it."""
-
-_POINTS = 36  # points checked on a candidate circle (every 10 degrees)
 
 
 class Loiter:
@@ -54,20 +55,22 @@ class Loiter:
 
     def rows(self, s: SwarmState) -> np.ndarray:
         """Which agents loiter (arrived fixed wings that have not collided since)."""
-        if not self.on.any():
+        if not self.fixed_wings or not self.on.any():  # (only fixed wings loiter)
             return self.on
         self.on &= s.mode == Mode.ARRIVED
         return self.on
 
     def flying(self, s: SwarmState, active: np.ndarray) -> np.ndarray:
         """The agents flown this step: the ``active`` ones and those that loiter (flown as the rest)."""
+        if not self.fixed_wings:
+            return active
         loiter = self.rows(s)
         return active | loiter if loiter.any() else active
 
     def fly_on(
         self,
         arrivals: tuple[tuple[int, float], ...],
-        s: SwarmState,
+        position: np.ndarray,
         velocity: np.ndarray,
         flown: np.ndarray | None,
         turn: np.ndarray,
@@ -75,33 +78,45 @@ class Loiter:
     ) -> None:
         """The fixed wings among ``arrivals`` (agent, time) cannot stop: each flies on at its
         step's velocity (its row of ``flown`` back into ``velocity``, which the arrival zeroed)
-        round its goal, from its turn state (a row of ``turn``). ``flown`` None: no fixed wings."""
+        round a circle through where it arrived (its row of ``position``), from its turn state
+        (a row of ``turn``). ``flown`` None: no fixed wings."""
         for i, _t in arrivals if flown is not None else ():
             if self.params.fixed_wing[i]:
                 velocity[i] = flown[i]
-                self.start(i, s.goal[i], turn[i], clear_of_statics(obstacles, i))
+                self.start(i, position[i], flown[i], turn[i], clear_of_statics(obstacles, i))
 
     def start(
-        self, i: int, goal: np.ndarray, turn: np.ndarray, clearance: Callable[[np.ndarray], np.ndarray]
+        self,
+        i: int,
+        position: np.ndarray,
+        velocity: np.ndarray,
+        turn: np.ndarray,
+        clearance: Callable[[np.ndarray], np.ndarray],
     ) -> None:
-        """Agent ``i`` arrived at ``goal`` with turn state ``turn`` (2,): its circle, the first
-        of the radii whose points keep ``clearance(points) >= 0`` (else the clearest one)."""
+        """Agent ``i`` arrived at ``position`` flying ``velocity`` with turn state ``turn`` (2,):
+        its circle through ``position``, tangent to ``velocity``, the first of the radii and
+        sides whose points keep ``clearance(points) >= 0`` (else the clearest one)."""
         r_min = float(self.params.min_turn_radius[i])
-        ang = np.arange(_POINTS) * (2.0 * math.pi / _POINTS)
+        first = 1.0 if turn[0] >= 0.0 else -1.0
         best, best_clear = None, -np.inf
         for factor in LOITER_FACTORS:
-            r = factor * r_min
-            pts = goal + np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros(_POINTS)])
-            worst = float(clearance(pts).min())
-            if worst >= 0.0:
-                best = r
+            for side in (first, -first):
+                r = factor * r_min
+                worst = float(clearance(loiter_circle(position, velocity, r, side)).min())
+                if worst > best_clear:
+                    best, best_clear = (r, side), worst
+                if worst >= 0.0:
+                    break
+            if best_clear >= 0.0:
                 break
-            if worst > best_clear:
-                best, best_clear = r, worst
+        r, side = best
+        h = np.array([velocity[0], velocity[1]], float)
+        n = float(np.hypot(*h))
+        h = h / n if n > 1e-9 else np.array([1.0, 0.0])
         self.on[i] = True
-        self.center[i] = goal
-        self.radius[i] = best
-        self.side[i] = 1.0 if turn[0] >= 0.0 else -1.0
+        self.center[i] = (position[0] - side * r * h[1], position[1] + side * r * h[0], position[2])
+        self.radius[i] = r
+        self.side[i] = side
 
     def targets(self, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """The points (len(rows), 3) ``LEAD`` ahead on their circles of loitering agents ``rows``
