@@ -123,7 +123,11 @@ def reference_forces(
     normal = _unit(np.stack([-gh[:, 0], -gh[:, 1], np.ones(n)], axis=1))
     floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
     rho_g = (pos[:, 2] - h) - r
-    rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 0.25 * rho0)
+    # The clearance at the floor lowered to the goal's height, at least the radius
+    # (multirotors); the influence down to three floors, at least a quarter of it (fixed wings).
+    low = np.minimum(floor, goal[:, 2] - world.terrain_height(goal[:, :2]))
+    fly = np.maximum(np.minimum(rho0, 3.0 * floor), 0.25 * rho0)
+    rho0_g = np.where(params.fixed_wing[idx], fly, np.maximum(low - r, r))
     static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # the ground's, faces' too
     mag_g = _rep(rho_g, rho0_g, g.k_rep * static, 0.1 * r)
     force = force + (mag_g * gfac)[:, None] * normal

@@ -187,10 +187,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             m_speed[j] = math.sqrt(
                 o_vel[j, 0] * o_vel[j, 0] + o_vel[j, 1] * o_vel[j, 1] + o_vel[j, 2] * o_vel[j, 2]
             )
-    fmax = -np.inf
-    for i in range(n):
-        fmax = max(fmax, max(min_altitude[idx[i]], terrain_floor))
-    rho0_g = max(min(rho0, 3.0 * fmax), 0.25 * rho0)
     rb_stop, rb_fly = 0.25 * rho0, min(rho0, 10.0)  # field_law.bounds_range: multirotors, fixed wings
     k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
@@ -219,6 +215,14 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         ri = radius[idx[i]]
         closest = 0.1 * ri  # field_law.nearest: the clearance below which the pushes stop growing
         rb0 = rb_stop if can_stop[idx[i]] else rb_fly
+        # field_law.ground_range: the clearance at the agent's floor lowered to its goal's
+        # height, at least its radius (multirotors); the influence down to three floors, at
+        # least a quarter of it (fixed wings).
+        fl = max(min_altitude[idx[i]], terrain_floor)
+        if can_stop[idx[i]]:
+            rho0_g = max(min(fl, goal[i, 2] - h_goal[i]) - ri, ri)
+        else:
+            rho0_g = max(min(rho0, 3.0 * fl), 0.25 * rho0)
         # Attraction (quadratic well only at the goal itself).
         ex, ey, ez = goal[i, 0] - px, goal[i, 1] - py, goal[i, 2] - pz
         dg = math.sqrt(ex * ex + ey * ey + ez * ez)

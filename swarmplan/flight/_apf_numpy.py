@@ -96,9 +96,9 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     if n == 0:
         return
     floor = np.maximum(min_altitude[idx], terrain_floor)
-    rho0_g = ground_range(rho0, float(floor.max()))
     rb0 = bounds_range(rho0, can_stop[idx])
     ri = radius[idx]
+    rho0_g = ground_range(rho0, floor, goal[:, 2] - h_goal, ri, can_stop[idx])
 
     # Attraction (quadratic well only at the goal itself).
     e = goal - pos
