@@ -199,5 +199,10 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     over = (2.0 * dvw[..., 0] + dvw[..., 1]) / (np.sqrt(5.0) * np.maximum(norm3(dvw), _EPS))
     up = np.zeros_like(dvw)
     up[..., 2] = over
-    direction = _unit(_unit(qs * scale) + 0.5 * (_right_of(dvw) + up))
+    direction = _unit(qs * scale) + 0.5 * (_right_of(dvw) + up)
+    # An agent with less room under it than the pair's vertical semi-axis passes over or beside.
+    clear = pos[:, 2] - world.terrain_height(pos[:, :2]) - params.radius[idx]
+    under = (direction[..., 2] < 0.0) & (clear[:, None] < scale[..., 2])
+    direction[..., 2] = np.where(under, 0.0, direction[..., 2])
+    direction = _unit(direction)
     return np.einsum("nk,nkd->nd", mag, grad) + np.einsum("nk,nkd->nd", mag_p, direction)

@@ -451,7 +451,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 wx, wy, wz = _unit(sx * cx, sy * cy, sz * cz)
                 rx, ry, rz = _right(dwx, dwy, dwz)
                 uz = _over(dwx, dwy, dwz)
-                wx, wy, wz = _unit(wx + 0.5 * rx, wy + 0.5 * ry, wz + 0.5 * (rz + uz))
+                wz = wz + 0.5 * (rz + uz)
+                if wz < 0.0 and rho_g < cz:  # no room to pass under: over or beside
+                    wz = 0.0
+                wx, wy, wz = _unit(wx + 0.5 * rx, wy + 0.5 * ry, wz)
                 fx += mag * gx + mag_p * wx
                 fy += mag * gy + mag_p * wy
                 fz += mag * gz + mag_p * wz

@@ -140,7 +140,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     view = swarm[5]
     if (view.shape[1] if view.shape[0] else swarm[0].shape[0]) >= 2:
         terms = _agent_terms(
-            (pos, vel, idx, reach_now, dg, gfac),
+            (pos, vel, idx, reach_now, dg, gfac, rho_g),
             (radius, separation, stop_reach, can_stop),
             swarm,
             (reach, rho0, k_agent, horizon),
@@ -223,7 +223,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
 def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     """The other agents' terms on every flyer, (n, n_all, 3) in the kernel's order of agents,
     ``-0.0`` where the kernel adds nothing."""
-    pos, vel, idx, reach_now, dg, gfac = fl
+    pos, vel, idx, reach_now, dg, gfac, rho_g = fl
     radius, separation, stop_reach, can_stop = agents
     all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
     reach, rho0, k_agent, horizon = g
@@ -290,7 +290,11 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     side[:, 2] = side[:, 2] + (2.0 * dw[:, 0] + dw[:, 1]) / (
         math.sqrt(5.0) * np.maximum(np.sqrt(_sq(dw)), _EPS)
     )
-    way = _unit(_unit(s * c) + 0.5 * side)
+    way = _unit(s * c)
+    way[:, 2] = way[:, 2] + 0.5 * side[:, 2]
+    way[:, 2] = np.where((way[:, 2] < 0.0) & (rho_g[rows] < c[:, 2]), 0.0, way[:, 2])  # no room to pass under
+    way[:, :2] = way[:, :2] + 0.5 * side[:, :2]
+    way = _unit(way)
     acts = (current | predicted)[:, None]
     terms[rows, b] = np.where(acts, mag[:, None] * _unit(q / c) + mag_p[:, None] * way, _SKIP)
     return terms
