@@ -71,6 +71,8 @@ HOPS = 2  # legs ahead on the way: the point of attraction
 REPULSION = 0.15  # scale of a guided agent's static repulsion (half a segment's)
 AHEAD = 2.0  # influence distances of a line an unguided agent checks in flight
 RECHECK = 5  # steps between two line-of-sight checks of an agent
+TRACE_STEPS = 64  # steps of the march along a leg that may run through a body
+TRACE_TOUCH = 1e-3  # of the cell: the clearance at which that march has met a body
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
 _GRID_ARRAYS = ("clear", "_body_clear", "_gap", "_reach")  # a grid's tables besides its graph
 
@@ -167,13 +169,69 @@ class StaticGuide:
         side = np.empty((len(rights), self.n_cells))
         for k, r in enumerate(rights):
             np.matmul(normal, r, out=side[k])
+        cut = self._crossing_legs(offsets, delta, length)
         kernels = kernel_module("swarmplan.flight._guide_kernel")
         indptr, start, data, mask = kernels.reverse_graph(
-            self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT)
+            self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT), cut
         )
         self._adopt_graph(indptr, start, data, mask)
         self._sight_bounds()
         self._reach_bodies()
+
+    def _crossing_legs(self, offsets: np.ndarray, delta: np.ndarray, length: np.ndarray) -> np.ndarray:
+        """Per cell the bits of the legs into it (bit q: the leg along offset q, in the order of
+        :func:`~swarmplan.flight.guide_graph.legs`) that run through a body, both ends free: a
+        body thinner than a cell (a wall, a slab) lies between the centres of two free cells, and
+        a way along that leg led agents into its face, their point of attraction beyond it.
+        Only the legs into cells near surfaces can (a cell farther from every body than a leg is
+        long covers its legs), and of those only the legs whose two ends' clearances to the
+        bodies do not add up to the leg's length (each end's ball of its clearance is clear, the
+        distance being 1-Lipschitz). Those are marched from one end by the clearance at each
+        point (sphere tracing, exact for a 1-Lipschitz distance): a leg is cut when the march
+        meets a body (a clearance under ``TRACE_TOUCH`` of the cell) within ``TRACE_STEPS``."""
+        cut = np.zeros(self.n_cells, dtype=np.uint32)
+        if not self.bodies:
+            return cut
+        into = np.flatnonzero(self.near & self.free)
+        body = self._body_clear
+        rows = []
+        for q in range(len(offsets)):
+            src = self.ijk[into] - offsets[q]
+            v = into[((src >= 0) & (src < self.shape)).all(axis=1)]
+            u = v - delta[q]
+            at_risk = self.free[u] & (body[u] + body[v] < length[q])
+            rows.append((q, v[at_risk], u[at_risk]))
+        if not any(len(v) for _, v, _ in rows):
+            return cut
+        q_all = np.concatenate([np.full(len(v), q, dtype=np.int64) for q, v, _ in rows])
+        v_all = np.concatenate([v for _, v, _ in rows])
+        u_all = np.concatenate([u for _, _, u in rows])
+        crossed = self._traced_hits(self.centres[u_all], self.centres[v_all])
+        np.bitwise_or.at(cut, v_all[crossed], (np.uint32(1) << q_all[crossed].astype(np.uint32)))
+        return cut
+
+    def _traced_hits(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Per row: whether the segment ``a`` -> ``b`` meets a body inflated by the largest agent
+        radius (see :meth:`_crossing_legs`)."""
+        span = b - a
+        size = np.linalg.norm(span, axis=1)
+        unit = span / np.maximum(size, 1e-12)[:, None]
+        t = np.zeros(len(a))
+        hit = np.zeros(len(a), dtype=bool)
+        touch = TRACE_TOUCH * float(self.cell.min())
+        live = np.arange(len(a))
+        for _ in range(TRACE_STEPS):
+            if not len(live):
+                break
+            p = a[live] + t[live, None] * unit[live]
+            c = np.concatenate(
+                [self._batch.distance(p[k : k + _CHUNK]).min(axis=1) for k in range(0, len(p), _CHUNK)]
+            ) - self.radius
+            met = c < touch
+            hit[live[met]] = True
+            t[live] += c
+            live = live[~met & (t[live] < size[live])]
+        return hit
 
     def _proximity(self) -> np.ndarray:
         """Each cell's nearness to a surface (1 at the surface, falling to 0 at a clearance of two
