@@ -184,11 +184,13 @@ class StaticGuide:
         body thinner than a cell (a wall, a slab) lies between the centres of two free cells, and
         a way along that leg led agents into its face, their point of attraction beyond it.
         Only the legs into cells near surfaces can (a cell farther from every body than a leg is
-        long covers its legs), and of those only the legs whose two ends' clearances to the
-        bodies do not add up to the leg's length (each end's ball of its clearance is clear, the
-        distance being 1-Lipschitz). Those are marched from one end by the clearance at each
-        point (sphere tracing, exact for a 1-Lipschitz distance): a leg is cut when the march
-        meets a body (a clearance under ``TRACE_TOUCH`` of the cell) within ``TRACE_STEPS``."""
+        long covers its legs), and of those only the legs whose two ends' distances to the
+        bodies do not add up to the leg's length (each end's ball of its distance is clear of
+        bodies, the distance being 1-Lipschitz). Those are marched from one end by the distance
+        at each point (sphere tracing, exact for a 1-Lipschitz distance): a leg is cut when the
+        march meets a body (a distance under ``TRACE_TOUCH`` of the cell) within
+        ``TRACE_STEPS``. A leg that only grazes a body's margin (a diagonal round a corner) is
+        kept: the field's push keeps the agent off it there."""
         cut = np.zeros(self.n_cells, dtype=np.uint32)
         if not self.bodies:
             return cut
@@ -199,7 +201,7 @@ class StaticGuide:
             src = self.ijk[into] - offsets[q]
             v = into[((src >= 0) & (src < self.shape)).all(axis=1)]
             u = v - delta[q]
-            at_risk = self.free[u] & (body[u] + body[v] < length[q])
+            at_risk = self.free[u] & (body[u] + body[v] + 2.0 * self.radius < length[q])
             rows.append((q, v[at_risk], u[at_risk]))
         if not any(len(v) for _, v, _ in rows):
             return cut
@@ -211,8 +213,7 @@ class StaticGuide:
         return cut
 
     def _traced_hits(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Per row: whether the segment ``a`` -> ``b`` meets a body inflated by the largest agent
-        radius (see :meth:`_crossing_legs`)."""
+        """Per row: whether the segment ``a`` -> ``b`` meets a body (see :meth:`_crossing_legs`)."""
         span = b - a
         size = np.linalg.norm(span, axis=1)
         unit = span / np.maximum(size, 1e-12)[:, None]
@@ -226,7 +227,7 @@ class StaticGuide:
             p = a[live] + t[live, None] * unit[live]
             c = np.concatenate(
                 [self._batch.distance(p[k : k + _CHUNK]).min(axis=1) for k in range(0, len(p), _CHUNK)]
-            ) - self.radius
+            )
             met = c < touch
             hit[live[met]] = True
             t[live] += c
