@@ -167,6 +167,10 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     q = dp / scale
     e = norm3(q)
     grad = _unit(q / scale)
+    # Less room under the agent than the pair's vertical semi-axis: no push down, no way under.
+    clear = pos[:, 2] - world.terrain_height(pos[:, :2]) - params.radius[idx]
+    low = clear[:, None] < scale[..., 2]
+    grad[..., 2] = np.where(low & (grad[..., 2] < 0.0), 0.0, grad[..., 2])
     parked = np.zeros(n_all, dtype=bool) if swarm.parked is None else swarm.parked
     # A parked agent is at rest: the pair's reach is the flyer's braking from its speed.
     speed = norm3(vel)
@@ -200,9 +204,6 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     up = np.zeros_like(dvw)
     up[..., 2] = over
     direction = _unit(qs * scale) + 0.5 * (_right_of(dvw) + up)
-    # An agent with less room under it than the pair's vertical semi-axis passes over or beside.
-    clear = pos[:, 2] - world.terrain_height(pos[:, :2]) - params.radius[idx]
-    under = (direction[..., 2] < 0.0) & (clear[:, None] < scale[..., 2])
-    direction[..., 2] = np.where(under, 0.0, direction[..., 2])
+    direction[..., 2] = np.where(low & (direction[..., 2] < 0.0), 0.0, direction[..., 2])
     direction = _unit(direction)
     return np.einsum("nk,nkd->nd", mag, grad) + np.einsum("nk,nkd->nd", mag_p, direction)

@@ -438,6 +438,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 if not (current or predicted):
                     continue
                 gx, gy, gz = _unit(qx / cx, qy / cy, qz / cz)
+                # Less room under the agent than the pair's vertical semi-axis: the other's
+                # push does not drive it down (the ground bears that part), and its way past
+                # goes over or beside, not under.
+                low = rho_g < cz
+                if low and gz < 0.0:
+                    gz = 0.0
                 mag = k_agent * (1.0 / max(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if current else 0.0
                 urgency = 1.0 - tau / (horizon + _EPS)
                 mag_p = k_agent * (1.0 / max(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if predicted else 0.0
@@ -452,7 +458,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 rx, ry, rz = _right(dwx, dwy, dwz)
                 uz = _over(dwx, dwy, dwz)
                 wz = wz + 0.5 * (rz + uz)
-                if wz < 0.0 and rho_g < cz:  # no room to pass under: over or beside
+                if low and wz < 0.0:
                     wz = 0.0
                 wx, wy, wz = _unit(wx + 0.5 * rx, wy + 0.5 * ry, wz)
                 fx += mag * gx + mag_p * wx

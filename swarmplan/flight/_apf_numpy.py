@@ -290,11 +290,15 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     side[:, 2] = side[:, 2] + (2.0 * dw[:, 0] + dw[:, 1]) / (
         math.sqrt(5.0) * np.maximum(np.sqrt(_sq(dw)), _EPS)
     )
+    # Less room under the agent than the pair's vertical semi-axis: no push down, no way under.
+    low = rho_g[rows] < c[:, 2]
+    away = _unit(q / c)
+    away[:, 2] = np.where(low & (away[:, 2] < 0.0), 0.0, away[:, 2])
     way = _unit(s * c)
     way[:, 2] = way[:, 2] + 0.5 * side[:, 2]
-    way[:, 2] = np.where((way[:, 2] < 0.0) & (rho_g[rows] < c[:, 2]), 0.0, way[:, 2])  # no room to pass under
+    way[:, 2] = np.where(low & (way[:, 2] < 0.0), 0.0, way[:, 2])
     way[:, :2] = way[:, :2] + 0.5 * side[:, :2]
     way = _unit(way)
     acts = (current | predicted)[:, None]
-    terms[rows, b] = np.where(acts, mag[:, None] * _unit(q / c) + mag_p[:, None] * way, _SKIP)
+    terms[rows, b] = np.where(acts, mag[:, None] * away + mag_p[:, None] * way, _SKIP)
     return terms
