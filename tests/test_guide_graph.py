@@ -190,7 +190,7 @@ def test_the_points_of_attraction_follow_the_tables():
     p = rng.uniform(guide.lo - 5.0, guide.lo + guide.shape * guide.cell + 5.0, (400, 3))
     p[:10] = goal[0] + rng.normal(size=(10, 3))  # at the end of a way
     g = goal[rng.integers(0, 4, 400)]
-    table = guide._rows_for(guide.cell_of(g), p)
+    table = guide._rows_for(guide.cell_of(g), p, g)
     cell = guide.cell_of(p)
     lost = ~np.isfinite(guide._dist[table, cell])
     for _ in range(G.HOPS):

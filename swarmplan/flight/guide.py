@@ -432,9 +432,9 @@ class StaticGuide:
 
     # ------------------------------------------------------------------ ways to the goals
 
-    def _rows_for(self, goal_cells: np.ndarray, starts: np.ndarray) -> np.ndarray:
-        """Table rows of the ways to ``goal_cells`` from ``starts`` (n, 3), computing the missing
-        ones in order: each new way (from its agent's position) then loads the cells near
+    def _rows_for(self, goal_cells: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """Table rows of the ways to ``goal_cells`` (of the points ``goals``, n x 3) from
+        ``starts`` (n, 3), computing the missing ones in order: each new way (from its agent's position) then loads the cells near
         surfaces it runs through (negotiated congestion, as routers of wires spread nets over a
         chip's channels: McMurchie & Ebeling 1995): a later way pays ``SAME`` per way already
         there and ``ONCOMING`` per way there in the opposite direction, so the ways spread over
@@ -443,17 +443,18 @@ class StaticGuide:
         missing = self._row_of[goal_cells] < 0
         if missing.any():  # each new goal cell once, in the order of its first row
             cells, starts = goal_cells[missing], np.asarray(starts)[missing]
+            goals = np.asarray(goals, dtype=float).reshape(-1, 3)[missing]
             first = np.sort(np.unique(cells, return_index=True)[1])
-            self._search(cells[first], starts[first])
+            self._search(cells[first], starts[first], goals[first])
         return self._row_of[goal_cells]
 
-    def _search(self, goal_cells: np.ndarray, starts: np.ndarray) -> None:
-        """Find the ways to ``goal_cells`` (new ones, in order), each then loading the way from
-        its start (see :meth:`_rows_for`)."""
+    def _search(self, goal_cells: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> None:
+        """Find the ways to ``goal_cells`` (new ones, in order; their goals ``goals``), each then
+        loading the way from its start (see :meth:`_rows_for`)."""
         dijkstra = kernel_module("swarmplan.flight._guide_kernel").dijkstra
         g = self._reverse
-        for c, p in zip(goal_cells.tolist(), starts, strict=True):
-            source = self._source_of(c)
+        for c, p, goal in zip(goal_cells.tolist(), starts, goals, strict=True):
+            source = self._source_of(c, goal)
             dist, pred = dijkstra(g.indptr, g.data, g.grid, source)
             row = len(self._source)
             if row == len(self._next):  # room for a way per agent, then twice as many ways
@@ -513,9 +514,16 @@ class StaticGuide:
                 1.0 + same + ONCOMING * np.maximum(-(self._leg_dir[lo:hi] @ f), 0.0)
             )
 
-    def _source_of(self, cell: int) -> int:
-        """The search's source for a goal in ``cell`` (``guide_graph.source_cell``)."""
-        return source_cell(self.free, self.clear, (self.ijk, self.centres, self.shape), cell)
+    def _source_of(self, cell: int, goal: np.ndarray) -> int:
+        """The search's source for the ``goal`` (3,) in ``cell`` (``guide_graph.source_cell``):
+        of the cells it may be, one from whose centre the goal is in sight (no body between)."""
+
+        def sees(cells: np.ndarray) -> np.ndarray:
+            if not self.bodies:
+                return np.ones(len(cells), dtype=bool)
+            return ~self._traced_hits(self.centres[cells], np.broadcast_to(goal, (len(cells), 3)))
+
+        return source_cell(self.free, self.clear, (self.ijk, self.centres, self.shape), cell, sees)
 
     def reset(self, pos: np.ndarray | None = None, goal: np.ndarray | None = None) -> None:
         """Forget which agents are guided (the ways to goals already found stay: they depend on
@@ -537,7 +545,7 @@ class StaticGuide:
         if len(rows):
             self.guided[rows] = self.blocked(pos[rows], goal[rows])
             rows = rows[self.guided[rows]]
-            self._rows_for(self.cell_of(goal[rows]), pos[rows])
+            self._rows_for(self.cell_of(goal[rows]), pos[rows], goal[rows])
         if key is not None:
             guide_cache.store_ways(key, self.ways_tables())
 
@@ -608,7 +616,7 @@ class StaticGuide:
         scale = scale.copy()
         scale[rows] = np.minimum(scale[rows], REPULSION)
         p, g = pos[rows], goal[rows]
-        table = self._rows_for(goal_cells := self.cell_of(g), p)
+        table = self._rows_for(goal_cells := self.cell_of(g), p, g)
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
@@ -625,7 +633,7 @@ class StaticGuide:
     def way_point(self, pos: np.ndarray, goal: np.ndarray, ahead: float) -> np.ndarray:
         """The point of the way from ``pos`` to ``goal`` (3,) about ``ahead`` m along it (the
         cell centre where it first gets that far), or the goal when the way is shorter."""
-        row = int(self._rows_for(self.cell_of(goal[None]), pos[None])[0])
+        row = int(self._rows_for(self.cell_of(goal[None]), pos[None], goal[None])[0])
         way = self._way(row, int(self.cell_of(pos[None])[0]))
         if len(way) < 2 or way[-1] != self._source[row]:
             return np.asarray(goal, dtype=float).copy()
@@ -637,7 +645,7 @@ class StaticGuide:
     def way_length(self, pos: np.ndarray, goal: np.ndarray) -> np.ndarray:
         """Cost of the way from ``pos`` to ``goal`` (n, 3) on the grid: its length, more near
         surfaces (the legs' cost; inf where there is no way)."""
-        table = self._rows_for(self.cell_of(goal), pos)
+        table = self._rows_for(self.cell_of(goal), pos, goal)
         cell = self.cell_of(pos)
         return self._dist[table, cell].astype(float) + np.linalg.norm(self.centres[cell] - pos, axis=1)
 

@@ -5,6 +5,7 @@ cell of a goal's search and the least height the ways keep."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -61,19 +62,37 @@ def legs(shape: np.ndarray, cell: np.ndarray) -> tuple[np.ndarray, ...]:
     return offsets, delta, length, row, np.array(rights).reshape(-1, 3)
 
 
-def source_cell(free: np.ndarray, clear: np.ndarray, grid: tuple[np.ndarray, ...], cell: int) -> int:
+def source_cell(
+    free: np.ndarray,
+    clear: np.ndarray,
+    grid: tuple[np.ndarray, ...],
+    cell: int,
+    sees: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> int:
     """The source of the search for a goal in ``cell`` (``grid``: the cells' indices, centres
     and the grid's shape): the cell, or the free neighbour with the most clearance when the
     goal's own cell is not free; with no free neighbour either (a goal tucked into a corner by
     more than a cell), the free cell nearest the goal's cell (by their centres) in the first
     ring of cells round it (at 2, 3, ... cells along the farthest axis) that holds one: a
-    source that is not free would be entered by no free cell, and no way would lead there."""
+    source that is not free would be entered by no free cell, and no way would lead there.
+    With ``sees`` (cells -> whether the goal is in sight from each one's centre), the cell and
+    its free neighbours from which the goal is in sight come first: a goal under a slab or
+    behind a wall thinner than a cell has free neighbours on the far side of the body too, and
+    a way that ended there left the agent pulled at the goal through the body."""
     ijk, centres, shape = grid
-    if free[cell]:
-        return cell
     nb = ijk[cell] + OFFSETS
     nb = nb[((nb >= 0) & (nb < shape)).all(axis=1)]
     flat = (nb[:, 0] * shape[1] + nb[:, 1]) * shape[2] + nb[:, 2]
+    if sees is not None:
+        if free[cell] and bool(sees(np.array([cell]))[0]):
+            return cell
+        near = flat[free[flat]]
+        if len(near):
+            seen = near[sees(near)]
+            if len(seen):
+                return int(seen[np.argmax(clear[seen])])
+    if free[cell]:
+        return cell
     if free[flat].any() or not free.any():
         return int(flat[np.argmax(clear[flat])])
     at = ijk[cell]
