@@ -620,6 +620,12 @@ class StaticGuide:
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
+        # In its goal's cell with the goal in sight (no body between), an agent flies at its
+        # goal: the way out of a cell that is not free (a goal tucked under a slab) led it back
+        # and forth between the goal and the cells beyond.
+        there = np.flatnonzero(~home & (self.cell_of(p) == goal_cells))
+        if len(there):
+            home[there] = ~self._traced_hits(p[there], g[there])
         out[rows[home]] = g[home]
         return out, scale
 
