@@ -167,10 +167,13 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     q = dp / scale
     e = norm3(q)
     grad = _unit(q / scale)
-    # Less room under the agent than the pair's vertical semi-axis: no push down, no way under.
+    # Less room under the agent than the pair's vertical semi-axis: pushed aside, not down, and
+    # no way under.
     clear = pos[:, 2] - world.terrain_height(pos[:, :2]) - params.radius[idx]
     low = clear[:, None] < scale[..., 2]
-    grad[..., 2] = np.where(low & (grad[..., 2] < 0.0), 0.0, grad[..., 2])
+    flat = grad.copy()
+    flat[..., 2] = 0.0
+    grad = np.where((low & (grad[..., 2] < 0.0))[..., None], _unit(flat), grad)
     parked = np.zeros(n_all, dtype=bool) if swarm.parked is None else swarm.parked
     # A parked agent is at rest: the pair's reach is the flyer's braking from its speed.
     speed = norm3(vel)

@@ -439,11 +439,11 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     continue
                 gx, gy, gz = _unit(qx / cx, qy / cy, qz / cz)
                 # Less room under the agent than the pair's vertical semi-axis: the other's
-                # push does not drive it down (the ground bears that part), and its way past
-                # goes over or beside, not under.
+                # push drives it aside, not down (pressed to the ground under another it stayed
+                # there, the two held for good), and its way past goes over or beside, not under.
                 low = rho_g < cz
                 if low and gz < 0.0:
-                    gz = 0.0
+                    gx, gy, gz = _unit(gx, gy, 0.0)
                 mag = k_agent * (1.0 / max(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if current else 0.0
                 urgency = 1.0 - tau / (horizon + _EPS)
                 mag_p = k_agent * (1.0 / max(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if predicted else 0.0

@@ -290,10 +290,13 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     side[:, 2] = side[:, 2] + (2.0 * dw[:, 0] + dw[:, 1]) / (
         math.sqrt(5.0) * np.maximum(np.sqrt(_sq(dw)), _EPS)
     )
-    # Less room under the agent than the pair's vertical semi-axis: no push down, no way under.
+    # Less room under the agent than the pair's vertical semi-axis: pushed aside, not down, and
+    # no way under.
     low = rho_g[rows] < c[:, 2]
     away = _unit(q / c)
-    away[:, 2] = np.where(low & (away[:, 2] < 0.0), 0.0, away[:, 2])
+    flat = away.copy()
+    flat[:, 2] = 0.0
+    away = np.where((low & (away[:, 2] < 0.0))[:, None], _unit(flat), away)
     way = _unit(s * c)
     way[:, 2] = way[:, 2] + 0.5 * side[:, 2]
     way[:, 2] = np.where(low & (way[:, 2] < 0.0), 0.0, way[:, 2])
