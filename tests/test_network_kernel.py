@@ -160,3 +160,18 @@ def test_delivery_compiled_and_numpy_agree(monkeypatch):
         np.testing.assert_array_equal(a.heard, b.heard)
         assert (a.lost, a.out_of_range) == (b.lost, b.out_of_range)
     assert (a.heard > n).sum() > 0.5 * n * n  # most pairs heard something sent in flight
+
+
+def test_pairs_near_a_flyer_are_answered_from_the_widest_question():
+    """A narrower question after a wider one gets the wider answer whole (the caller tests the
+    distances), which holds every pair of the narrower one; a wider one is found anew."""
+    b = _beliefs(np.random.default_rng(7), 10, 40)
+    own = b.idx.astype(np.int64)
+    wide = b.near_superset(9.0)
+    assert b.near_superset(4.0) is wide
+    narrow = held_pairs(b.view, b.pos, b.at, own, 4.0)
+    inside = wide[3] < 4.0
+    for w, n in zip(wide, narrow, strict=True):
+        np.testing.assert_array_equal(w[inside], n)
+    wider = b.near_superset(12.0)
+    assert len(wider[0]) > len(wide[0]) and (wider[3] < 12.0).all()

@@ -103,17 +103,18 @@ def deliver(heard, senders, rows, key, fate, heard_by, t):  # noqa: ANN001, ANN2
     jitter, due = fate[1], fate[2]
     n = heard.shape[0]
     k = senders.shape[0]
+    if jitter == 0.0 and due > t + 1e-9:  # every copy arrives at once, later
+        return
     for r in range(n):
+        if jitter == 0.0:  # every copy heard has arrived (no branch to mispredict on them)
+            for c in range(k):
+                row = rows[c] if heard_by[r, c] else 0
+                heard[r, senders[c]] = max(heard[r, senders[c]], row)
+            continue
         for c in range(k):
-            if not heard_by[r, c]:
-                continue
             row = rows[c]
-            arrives = due
-            if jitter > 0.0:
-                arrives = due + jitter * (2.0 * draw(key, row, r, 1) - 1.0)
-            s = senders[c]
-            if arrives <= t + 1e-9 and heard[r, s] < row:
-                heard[r, s] = row
+            if heard_by[r, c] and due + jitter * (2.0 * draw(key, row, r, 1) - 1.0) <= t + 1e-9:
+                heard[r, senders[c]] = max(heard[r, senders[c]], row)
 
 
 @njit(cache=True, nogil=True)
@@ -133,10 +134,10 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
     age = np.empty(room)
     moved = np.empty((room, 3))
     view = np.empty((n, n_all), dtype=np.int64)
-    ks = np.empty(n * n_all, dtype=np.int64)
-    js = np.empty(n * n_all, dtype=np.int64)
-    rows = np.empty(n * n_all, dtype=np.int64)
-    ds = np.empty(n * n_all)
+    ks = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last pair is written, then dropped
+    js = np.empty(n * n_all + 1, dtype=np.int64)
+    rows = np.empty(n * n_all + 1, dtype=np.int64)
+    ds = np.empty(n * n_all + 1)
     # A sender's column holds a few rows (most flyers the newest): its last one met and its
     # position among the rows held, before asking the scratch.
     last = np.zeros(n_all, dtype=np.int64)
@@ -146,6 +147,7 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
     wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
         own = idx[k]
+        ax, ay, az = at[k, 0], at[k, 1], at[k, 2]
         for j in range(n_all):
             r = heard[own, j]
             if r <= 0:
@@ -165,12 +167,12 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
                     count += 1
                 last[j], last_at[j] = r, m
             view[k, j] = m
-            if j == own:
-                continue
-            d = within(moved[m, 0] - at[k, 0], moved[m, 1] - at[k, 1], moved[m, 2] - at[k, 2], wide, radius)
-            if d >= 0.0:
-                ks[c], js[c], rows[c], ds[c] = k, j, m, d
-                c += 1
+            # Written at c whatever it is, kept by moving c on (no branch to mispredict).
+            dx, dy, dz = moved[m, 0] - ax, moved[m, 1] - ay, moved[m, 2] - az
+            d2 = (dx * dx + dy * dy) + dz * dz
+            d = math.sqrt(d2) if d2 < wide else math.inf
+            ks[c], js[c], rows[c], ds[c] = k, j, m, d
+            c += (d < radius) & (j != own)
     for m in range(count):
         mark[live[m]] = -1
     pairs = (ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy())

@@ -19,7 +19,7 @@ Before that, each multirotor's command keeps room to stop behind the agents it h
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from swarmplan.flight.apf import stopping_reach
 from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
-from swarmplan.runtime.compiled import use_compiled_checks
+from swarmplan.runtime.compiled import kernel_module, use_compiled, use_compiled_checks
 from swarmplan.sim.braking import stoppable_speed
 from swarmplan.sim.network import Beliefs, belief_doubt
 from swarmplan.world.model import World
@@ -185,10 +185,10 @@ def belief_conflicts(
         + np.linalg.norm(beliefs.vel, axis=1).max() * dt
         + 2.0 * float(checked.max()) + widest
     )  # fmt: skip
-    k, j, rows, now = beliefs.near(radius)
+    k, j, rows, now = beliefs.near_superset(radius)
     idx = beliefs.idx[k]
     margin = belief_margin(p.max_accel[j], beliefs.age[rows], dt)
-    keep = deciding[idx] & (margin <= cap[idx] + cap[j])
+    keep = (now < radius) & deciding[idx] & (margin <= cap[idx] + cap[j])
     if agreed is not None:
         keep &= ~agreed[idx, j]
     k, j, rows, now, idx, margin = k[keep], j[keep], rows[keep], now[keep], idx[keep], margin[keep]
@@ -285,28 +285,67 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
     p = params
     out = np.array(v_cmd, dtype=float)
     checked = p.radius + safety_margin(p.radius)
-    k, j, rows, dist = beliefs.near(braking_radius(p, dt, oldest_age(beliefs)))
-    i = beliefs.idx[k]
-    age = beliefs.age[rows]
-    keep = ~p.fixed_wing[i] & (dist > 0.0) & (age > 0.0) & np.isfinite(age)
+    radius = braking_radius(p, dt, oldest_age(beliefs))
+    compiled = use_compiled(len(p.radius))
+    b = beliefs
+    believed = (np.asarray(b.idx, dtype=np.int64), b.age, b.pos, b.vel, b.at)
+    run = _kernel().closing_pairs if compiled else closing_pairs_numpy
+    agents = (p.fixed_wing, p.max_accel, checked)
+    k, n, room, brake = run(b.near_superset(radius), radius, believed, out, agents, dt)
+    if len(k):
+        (_kernel().cut if compiled else cut_numpy)(out, k, n, stoppable_speed(room, brake, dt))
+    return out
+
+
+def _kernel() -> Any:
+    """The compiled passes of :func:`braking_room`, run from swarm size on."""
+    return kernel_module("swarmplan.sim._deconflict_kernel")
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of (m, 3) arrays, summed in the compiled passes' order."""
+    return (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
+
+
+def closing_pairs_numpy(
+    pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    radius: float,
+    believed: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    v_cmd: np.ndarray,
+    agents: tuple[np.ndarray, np.ndarray, np.ndarray],
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of the believed ``pairs`` (flyer row k, agent j, table row, distance), those within
+    ``radius`` that multirotor flyers' commands ``v_cmd`` close in on, with a state of some age
+    (a state of now, age 0, the pair agrees within the step, :func:`deconflict`): their flyer
+    rows, unit vectors towards the other, the room along them (:func:`braking_room`) and the
+    flyer's braking, 0.8 of its limit (``believed`` = (flyer agents, table ages, positions,
+    velocities, flyer positions); ``agents`` = (fixed wing, max_accel, checked radius))."""
+    k, j, rows, dist = pairs
+    own, age_row, pos, vel, at = believed
+    fixed_wing, max_accel, checked = agents
+    i, age = own[k], age_row[rows]
+    keep = (dist < radius) & ~fixed_wing[i] & (dist > 0.0) & (age > 0.0) & np.isfinite(age)
     k, j, rows, dist, i, age = k[keep], j[keep], rows[keep], dist[keep], i[keep], age[keep]
-    n = (beliefs.pos[rows] - beliefs.at[k]) / dist[:, None]
+    n = (pos[rows] - at[k]) / dist[:, None]
     # A command is cut only where it closes in faster than allowed (never below 0): the pairs
     # it does not close in on are left out before the rest is worked out.
-    closing = np.einsum("ij,ij->i", out[k], n) > 0.0
+    closing = _dot(v_cmd[k], n) > 0.0
     k, j, rows, dist, i, age, n = (a[closing] for a in (k, j, rows, dist, i, age, n))
-    if len(k) == 0:
-        return out
-    aj, ai = p.max_accel[j], p.max_accel[i]
+    aj = max_accel[j]
     gap = dist - checked[i] - checked[j] - belief_doubt(aj, age)
-    away = np.einsum("ij,ij->i", beliefs.vel[rows], n) - aj * age
+    away = _dot(vel[rows], n) - aj * age
     towards = np.maximum(-away, 0.0)
-    ai, bj = 0.8 * ai, 0.8 * aj
-    own = np.where(away > 0.0, away * away / (2.0 * aj), -(towards * dt + towards * towards / (2.0 * bj)))
-    room = np.maximum(gap + own, 0.0)
-    allowed = stoppable_speed(room, ai, dt)
-    for r in np.flatnonzero(np.einsum("ij,ij->i", out[k], n) > allowed):  # in (flyer, agent) order
-        excess = float(out[k[r]] @ n[r]) - allowed[r]
+    bj = 0.8 * aj
+    coming = -(towards * dt + towards * towards / (2.0 * bj))
+    own_room = np.where(away > 0.0, away * away / (2.0 * aj), coming)
+    return k, n, np.maximum(gap + own_room, 0.0), 0.8 * max_accel[i]
+
+
+def cut_numpy(out: np.ndarray, k: np.ndarray, n: np.ndarray, allowed: np.ndarray) -> None:
+    """In place, each command ``out[k[r]]`` that closed in along ``n[r]`` faster than
+    ``allowed[r]`` before any cut is cut to it, in (flyer, agent) order."""
+    for r in np.flatnonzero(_dot(out[k], n) > allowed):
+        excess = float(_dot(out[k[r]][None], n[r][None])[0]) - allowed[r]
         if excess > 0.0:
             out[k[r]] -= excess * n[r]
-    return out

@@ -74,14 +74,14 @@ class Beliefs:
     expected_pos: np.ndarray
     expected_vel: np.ndarray
 
-    def near(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def near_superset(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every (flyer row k, agent j, table row, distance) with agent j believed by flyer k
-        closer than ``radius`` to it (itself left out). The widest answer is kept: a narrower
-        question is answered from it."""
+        closer than ``radius`` to it (itself left out), in (k, j) order, and maybe farther ones:
+        the widest answer found is kept and returned whole for a narrower question (its caller
+        tests each pair's distance)."""
         kept = self.__dict__.get("_near")
         if kept is not None and radius <= kept[0]:
-            inside = kept[1][3] < radius
-            return tuple(a[inside] for a in kept[1])  # type: ignore[return-value]
+            return kept[1]
         out = self._pairs(radius)
         self.__dict__["_near"] = (radius, out)
         return out
@@ -387,9 +387,11 @@ class Network:
         """Per flyer of ``beliefs``: the age of the oldest state it acts on, of the agents it
         believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
         when it believes none that near."""
-        k, _, rows, _ = beliefs.near(reach)
+        k, _, rows, d = beliefs.near_superset(reach)
         age = np.full(len(beliefs.idx), -np.inf)
-        np.maximum.at(age, k, beliefs.age[rows])
+        if len(k):  # the pairs run flyer by flyer: one maximum per flyer's run
+            first = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
+            age[k[first]] = np.maximum.reduceat(np.where(d < reach, beliefs.age[rows], -np.inf), first)
         return np.where(np.isfinite(age), age, np.nan)
 
     def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
@@ -440,7 +442,7 @@ class Network:
         """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in; the pairs within ``near`` of each flyer
-        (:meth:`Beliefs.near`) found on the way."""
+        (:meth:`Beliefs.near_superset`) found on the way."""
         self.deliver(t)
         tb, n = self.table, len(idx)
         idx64 = np.asarray(idx, dtype=np.int64)
