@@ -117,7 +117,13 @@ def test_the_compiled_search_is_scipys_on_random_grids():
         prox[~free] = 1.0
         side = rng.uniform(-1.0, 1.0, (len(rights), n))
         indptr, indices, data, mask = K.reverse_graph(
-            free, prox, side, (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT), np.zeros(n, dtype=np.uint32)
+            free,
+            prox,
+            side,
+            (offsets, delta, length, row),
+            shape,
+            (G.NEAR, G.RIGHT),
+            np.zeros(n, dtype=np.uint32),
         )
         read = prox > 0.0
         # the legs stored (into cells near surfaces): costs from a few values (many ways of equal length,
@@ -138,7 +144,12 @@ def test_the_compiled_search_is_scipys_on_random_grids():
     offsets, delta, length, row, rights = guide_graph.legs(shape, np.ones(3))
     free, prox = np.ones(3, dtype=bool), np.array([0.0, 1.0, 0.0])
     indptr, indices, data, mask = K.reverse_graph(
-        free, prox, np.zeros((len(rights), 3)), (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT),
+        free,
+        prox,
+        np.zeros((len(rights), 3)),
+        (offsets, delta, length, row),
+        shape,
+        (G.NEAR, G.RIGHT),
         np.zeros(3, dtype=np.uint32),
     )
     assert indptr.tolist() == [0, 0, 2, 2] and indices.tolist() == [0, 2] and data.tolist() == [3.0, 3.0]

@@ -42,7 +42,10 @@ def clearance_at(push: float, k: float, rho0: float) -> float:
 
 
 def ground_range(
-    influence: float, floor: np.ndarray | float, goal_height: np.ndarray | float, radius: np.ndarray | float,
+    influence: float,
+    floor: np.ndarray | float,
+    goal_height: np.ndarray | float,
+    radius: np.ndarray | float,
     can_stop: np.ndarray | bool = True,
 ) -> np.ndarray | float:
     """The range of the ground's repulsion (a clearance) on an agent of ``radius`` whose least

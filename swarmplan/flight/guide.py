@@ -434,11 +434,12 @@ class StaticGuide:
 
     def _rows_for(self, goal_cells: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> np.ndarray:
         """Table rows of the ways to ``goal_cells`` (of the points ``goals``, n x 3) from
-        ``starts`` (n, 3), computing the missing ones in order: each new way (from its agent's position) then loads the cells near
-        surfaces it runs through (negotiated congestion, as routers of wires spread nets over a
-        chip's channels: McMurchie & Ebeling 1995): a later way pays ``SAME`` per way already
-        there and ``ONCOMING`` per way there in the opposite direction, so the ways spread over
-        a passage's width and height and opposing flows take separate lanes."""
+        ``starts`` (n, 3), computing the missing ones in order: each new way (from its agent's
+        position) then loads the cells near surfaces it runs through (negotiated congestion, as
+        routers of wires spread nets over a chip's channels: McMurchie & Ebeling 1995): a later
+        way pays ``SAME`` per way already there and ``ONCOMING`` per way there in the opposite
+        direction, so the ways spread over a passage's width and height and opposing flows take
+        separate lanes."""
         goal_cells = np.asarray(goal_cells, dtype=np.int64)
         missing = self._row_of[goal_cells] < 0
         if missing.any():  # each new goal cell once, in the order of its first row

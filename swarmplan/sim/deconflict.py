@@ -1,11 +1,12 @@
 """Each agent's own deconfliction on what it believes of the others (worlds with ``comms``).
 
 Without ``comms`` the safety filter deconflicts every pair on both agents' committed steps (a
-perfect network lets them agree within the step), sliding, braking or stopping as below. With it, two agents agree that way only when
-each heard the other's state of this very step (an instantaneous network); every other pair is
-judged by the flyer alone: its own step against the other's believed motion over the step
-(the last state heard, moved on by its velocity), with a margin for what the other may have
-done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
+perfect network lets them agree within the step), sliding, braking or stopping as below. With
+it, two agents agree that way only when each heard the other's state of this very step (an
+instantaneous network); every other pair is judged by the flyer alone: its own step against
+the other's believed motion over the step (the last state heard, moved on by its velocity),
+with a margin for what the other may have done since: ``max_accel (age + dt)^2 / 2`` with
+``age`` the belief's age at the step's start.
 A multirotor whose step closes in on another agent's believed motion to within both bodies,
 each inflated by its safety margin (``kinematics.safety_margin``), and that margin slides (its
 step without the part towards those agents, when that is within its acceleration limit), else
