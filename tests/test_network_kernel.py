@@ -106,7 +106,8 @@ def test_compaction_compiled_and_numpy_agree():
     and the pairs within a radius; the compiled scratch is left as found."""
     kernel = kernel_module("swarmplan.sim._network_kernel")
     rng = np.random.default_rng(4)
-    heard = rng.integers(0, 200, (40, 40)).astype(np.int64)
+    # Each sender's rows its own (row 1 + j + 40 u: the u-th state sent by agent j).
+    heard = (1 + np.arange(40)[None, :] + 40 * rng.integers(0, 6, (40, 40))).astype(np.int64)
     heard[rng.random((40, 40)) < 0.3] = 0
     np.fill_diagonal(heard, 0)
     idx = np.sort(rng.choice(40, 15, replace=False)).astype(np.int64)
@@ -114,13 +115,28 @@ def test_compaction_compiled_and_numpy_agree():
     t_row = np.sort(rng.uniform(0.0, 2.0, 260))
     table = (t_row, rng.uniform(0.0, 10.0, (260, 3)), rng.normal(0.0, 2.0, (260, 3)))
     at = rng.uniform(0.0, 10.0, (15, 3))
+    never = (np.full(40, 2.0), np.full(40, np.inf))  # no row too old
+    stale = (rng.uniform(1.0, 5.0, 40), rng.uniform(0.5, 3.0, 40))
     for radius in (0.0, 2.5, 6.0, 100.0):
-        want = compact_near_numpy(heard, idx, mark, table, 2.5, at, radius)
-        got = kernel.compact_near(heard, idx, mark, table, 2.5, at, radius)
-        for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
-            np.testing.assert_array_equal(w, g)
-        assert (mark == -1).all()
-    live, view, age, moved, (k, j, rows, d) = want
+        for old in (never, stale):
+            want = compact_near_numpy(heard, idx, mark, table, 2.5, at, radius, old)
+            got = kernel.compact_near(heard, idx, mark, table, 2.5, at, radius, old)
+            for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
+                np.testing.assert_array_equal(w, g)
+            assert (mark == -1).all()
+    # A row is left out of a flyer's view exactly when its agent may be farther from it than
+    # both agents' stopping reach.
+    live, view, age, _, _ = compact_near_numpy(heard, idx, mark, table, 2.5, at, 100.0, stale)
+    held = heard[idx]
+    kk, jj = np.nonzero(held > 0)
+    row = np.searchsorted(np.sort(live), held[kk, jj])
+    age_of = (2.5 - table[0][np.sort(live)])[row]
+    too_old = 0.5 * stale[0][jj] * age_of**2 > stale[1][idx[kk]] + stale[1][jj]
+    assert too_old.any() and not too_old.all()
+    np.testing.assert_array_equal(view[kk, jj] == -1, too_old)
+    live, view, age, moved, (k, j, rows, d) = compact_near_numpy(
+        heard, idx, mark, table, 2.5, at, 100.0, never
+    )
     held = heard[idx]
     np.testing.assert_array_equal(live[view[held > 0]], held[held > 0])
     assert (view[held == 0] == -1).all() and len(np.unique(live)) == len(live)
@@ -139,8 +155,8 @@ def test_delivery_compiled_and_numpy_agree(monkeypatch):
     same rows heard at every step."""
     rng = np.random.default_rng(5)
     n = 30
-    a = Network(Comms(20.0, 0.1, 0.08, 0.2), None, np.full(n, 5.0), 0.05)
-    b = Network(Comms(20.0, 0.1, 0.08, 0.2), None, np.full(n, 5.0), 0.05)
+    a = Network(Comms(20.0, 0.1, 0.08, 0.2), None, np.full(n, 5.0), np.full(n, 3.0), 0.05)
+    b = Network(Comms(20.0, 0.1, 0.08, 0.2), None, np.full(n, 5.0), np.full(n, 3.0), 0.05)
 
     s = SwarmState(0.0, 0, rng.uniform(0, 50, (n, 3)), np.zeros((n, 3)), rng.uniform(0, 50, (n, 3)),
                    np.array([Mode.APF] * n, dtype=object), [None] * n, np.zeros(n, int), [None] * n,

@@ -118,20 +118,23 @@ def deliver(heard, senders, rows, key, fate, heard_by, t):  # noqa: ANN001, ANN2
 
 
 @njit(cache=True, nogil=True)
-def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN201
+def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001, ANN201, PLR0913
     """``network.compact_near_numpy``, in one pass over the pairs: the table rows that flyers
     ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the order first met, and each
-    flyer's view of them (n, N: the position among those rows, -1: none; ``mark``, one per
-    table row, all -1, is scratch, all -1 again on return), the ages at ``t`` of the rows held
-    and their positions moved on by them at the velocity sent (``table`` = (time, position,
-    velocity) per table row), and :func:`held_pairs` of flyers ``idx`` (at ``at``) within
-    ``radius`` of those positions."""
+    flyer's view of them (n, N: the position among those rows, -1: none, or a row too old to act
+    on: its agent may be farther from it than both agents' stopping reach, ``stale`` = (max_accel,
+    stopping reach) per agent; ``mark``, one per table row, all -1, is scratch, all -1 again on
+    return), the ages at ``t`` of the rows held and their positions moved on by them at the
+    velocity sent (``table`` = (time, position, velocity) per table row), and :func:`held_pairs`
+    of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
     t_row, pos_row, vel_row = table
+    max_accel, reach = stale
     n = idx.shape[0]
     n_all = heard.shape[1]
     room = min(n * n_all, mark.shape[0])
     live = np.empty(room, dtype=np.int64)
     age = np.empty(room)
+    doubt = np.empty(room)
     moved = np.empty((room, 3))
     view = np.empty((n, n_all), dtype=np.int64)
     ks = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last pair is written, then dropped
@@ -144,6 +147,10 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
     last_at = np.empty(n_all, dtype=np.int64)
     count = 0
     c = 0
+    old = 0
+    least = np.inf  # the shortest reach of a flyer
+    for k in range(n):
+        least = min(least, reach[idx[k]])
     wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
         own = idx[k]
@@ -162,6 +169,8 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
                     mark[r] = m
                     live[m] = r
                     age[m] = t - t_row[r]
+                    doubt[m] = 0.5 * max_accel[j] * age[m] * age[m]  # network.belief_doubt
+                    old += doubt[m] > least + reach[j]  # too old for some flyer
                     for e in range(3):
                         moved[m, e] = pos_row[r, e] + vel_row[r, e] * age[m]
                     count += 1
@@ -175,5 +184,18 @@ def compact_near(heard, idx, mark, table, t, at, radius):  # noqa: ANN001, ANN20
             c += (d < radius) & (j != own)
     for m in range(count):
         mark[live[m]] = -1
+    if old:  # rows too old to act on (rare: a sender long unheard) leave the views and pairs
+        for k in range(n):
+            own = idx[k]
+            for j in range(n_all):
+                m = view[k, j]
+                if m >= 0 and doubt[m] > reach[own] + reach[j]:
+                    view[k, j] = -1
+        kept = 0
+        for p in range(c):
+            if view[ks[p], js[p]] >= 0:
+                ks[kept], js[kept], rows[kept], ds[kept] = ks[p], js[p], rows[p], ds[p]
+                kept += 1
+        c = kept
     pairs = (ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy())
     return live[:count].copy(), view, age[:count].copy(), moved[:count].copy(), pairs

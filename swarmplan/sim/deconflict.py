@@ -29,6 +29,7 @@ from swarmplan.flight.apf import stopping_reach
 from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
+from swarmplan.geometry.vec3 import dot3
 from swarmplan.runtime.compiled import kernel_module, use_compiled, use_compiled_checks
 from swarmplan.sim.braking import stoppable_speed
 from swarmplan.sim.network import Beliefs, belief_doubt
@@ -303,11 +304,6 @@ def _kernel() -> Any:
     return kernel_module("swarmplan.sim._deconflict_kernel")
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot products of (m, 3) arrays, summed in the compiled passes' order."""
-    return (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
-
-
 def closing_pairs_numpy(
     pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     radius: float,
@@ -331,11 +327,11 @@ def closing_pairs_numpy(
     n = (pos[rows] - at[k]) / dist[:, None]
     # A command is cut only where it closes in faster than allowed (never below 0): the pairs
     # it does not close in on are left out before the rest is worked out.
-    closing = _dot(v_cmd[k], n) > 0.0
+    closing = dot3(v_cmd[k], n) > 0.0
     k, j, rows, dist, i, age, n = (a[closing] for a in (k, j, rows, dist, i, age, n))
     aj = max_accel[j]
     gap = dist - checked[i] - checked[j] - belief_doubt(aj, age)
-    away = _dot(vel[rows], n) - aj * age
+    away = dot3(vel[rows], n) - aj * age
     towards = np.maximum(-away, 0.0)
     bj = 0.8 * aj
     coming = -(towards * dt + towards * towards / (2.0 * bj))
@@ -346,7 +342,7 @@ def closing_pairs_numpy(
 def cut_numpy(out: np.ndarray, k: np.ndarray, n: np.ndarray, allowed: np.ndarray) -> None:
     """In place, each command ``out[k[r]]`` that closed in along ``n[r]`` faster than
     ``allowed[r]`` before any cut is cut to it, in (flyer, agent) order."""
-    for r in np.flatnonzero(_dot(out[k], n) > allowed):
-        excess = float(_dot(out[k[r]][None], n[r][None])[0]) - allowed[r]
+    for r in np.flatnonzero(dot3(out[k], n) > allowed):
+        excess = float(dot3(out[k[r]], n[r])) - allowed[r]
         if excess > 0.0:
             out[k[r]] -= excess * n[r]

@@ -10,7 +10,9 @@ copy after ``delay`` (+- a uniform ``jitter``), unless it is lost (probability `
 two are farther apart than ``range`` when it is sent. A receiver keeps the newest state it has
 received from each sender and acts on it, moved on for the state's age: its field by the
 velocity and acceleration sent, its deconfliction by the velocity sent (with a margin for any
-acceleration within the sender's limit since).
+acceleration within the sender's limit since). A state so old that its agent may be farther
+from it (:func:`belief_doubt`) than both agents' stopping reach is too old to act on: the
+receiver knows nothing of that agent until it hears from it again.
 With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
 (onboard sensing: no age).
 
@@ -193,15 +195,23 @@ def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.nd
 
 def compact_near_numpy(
     heard: np.ndarray, idx: np.ndarray, mark: np.ndarray, table: tuple[np.ndarray, np.ndarray, np.ndarray],
-    t: float, at: np.ndarray, radius: float,
+    t: float, at: np.ndarray, radius: float, stale: tuple[np.ndarray, np.ndarray],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:  # fmt: skip
     """:func:`compact`, the ages at ``t`` of the rows held and their positions moved on by them
     at the velocity sent (``table`` = (time, position, velocity) per table row), and
-    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions."""
+    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions. A row
+    too old to act on is left out of a flyer's view (-1): its agent may be farther from it
+    (:func:`belief_doubt`) than both agents' stopping reach (``stale`` = (max_accel, stopping
+    reach) per agent), as far as knowing nothing of it."""
     t_row, pos_row, vel_row = table
+    max_accel, reach = stale
     live, view = compact(heard, idx, mark)
     age = t - t_row[live]
     moved = pos_row[live] + vel_row[live] * age[:, None]
+    k, j = np.nonzero(view >= 0)
+    rows = view[k, j]
+    old = 0.5 * max_accel[j] * age[rows] * age[rows] > reach[idx[k]] + reach[j]
+    view[k[old], j[old]] = -1
     return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
 
 
@@ -255,8 +265,13 @@ class _Sent:
 class Network:
     """The messages of one run and every agent's beliefs (reset with :meth:`reset`)."""
 
-    def __init__(self, comms: Comms, sensing: Sensing | None, max_accel: np.ndarray, dt: float):
+    def __init__(
+        self, comms: Comms, sensing: Sensing | None, max_accel: np.ndarray, reach: np.ndarray, dt: float
+    ):
+        """``max_accel`` and ``reach`` (each agent's stopping reach, ``apf.stopping_reach``): a
+        belief whose agent may be farther from it than both agents' reach is too old to act on."""
         self.comms, self.n, self.dt = comms, len(max_accel), dt
+        self._stale = (np.asarray(max_accel, dtype=float), np.asarray(reach, dtype=float))
         self.max_accel = np.maximum(np.asarray(max_accel, dtype=float), 1e-9)
         self.sensing_range = math.inf if sensing is None else sensing.range
         self.period = comms.period(dt)
@@ -451,7 +466,9 @@ class Network:
         table = (tb.t[: tb.size], tb.pos[: tb.size], tb.vel[: tb.size])
         # With sensing the view changes below: its pairs are found when asked.
         radius = 0.0 if sensing else float(near)
-        live, view, age, moved, pairs = run(self.heard, idx64, tb.mark[: tb.size], table, t, pos[idx], radius)
+        live, view, age, moved, pairs = run(
+            self.heard, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
+        )
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).
         truth = np.arange(self.n) if sensing else idx

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from swarmplan.core import SwarmState
-from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity
+from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity, stopping_reach
 from swarmplan.flight.capture import GoalCapture
 from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
@@ -64,9 +64,10 @@ class Steering:
         self.sight = Sight(len(world.agents))  # fixed wings' clear lines (swarmplan.flight.sight)
         self.capture = GoalCapture(params)  # fixed wings' final approach (swarmplan.flight.capture)
         # With comms: what each agent has heard of the others.
-        self.network = (
-            None if world.comms is None else Network(world.comms, world.sensing, params.max_accel, world.dt)
-        )
+        self.network = None
+        if world.comms is not None:
+            reach = stopping_reach(params, world.dt)
+            self.network = Network(world.comms, world.sensing, params.max_accel, reach, world.dt)
         self.sensing_range = math.inf if world.sensing is None else world.sensing.range
         self._oldest = 0.0  # the age of the oldest state any flyer acted on in the last step
 
