@@ -8,6 +8,7 @@ import numpy as np
 from helpers import base_world, make_world
 
 from swarmplan.flight import guide as G
+from swarmplan.flight import guide_graph
 from swarmplan.flight.kinematics import AgentParams
 
 # A field 400 x 200 x 100 m (cells of 5.8 m along x, centres at 200.0 and 205.8 m) with a wall
@@ -55,7 +56,8 @@ def test_no_leg_of_a_way_runs_through_a_wall_thinner_than_a_cell():
 def test_legs_through_the_wall_are_cut_and_legs_beside_it_kept():
     guide = _guide(THIN_WALL, (100.0, 100.0, 30.0), (300.0, 100.0, 30.0))
     offsets, delta, length, _, _ = G.legs(guide.shape, guide.cell)
-    cut = guide._crossing_legs(offsets, delta, length)
+    cells = (guide.ijk, guide.shape, guide.centres, guide.free, guide.near, guide._body_clear)
+    cut = guide_graph.crossing_legs(cells, guide.radius, (offsets, delta, length), guide._traced_hits)
     v, q = np.nonzero((cut[:, None] >> np.arange(len(offsets), dtype=np.uint32)) & 1)
     assert len(v)
     u = v - delta[q]

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.flight import _guide_numpy, guide_cache
+from swarmplan.flight import _guide_numpy, guide_cache, guide_graph
 from swarmplan.flight.field_law import squeeze
 from swarmplan.flight.guide_graph import AROUND, Graph, legs, past_way_end, source_cell, ways_floor
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
@@ -169,7 +169,8 @@ class StaticGuide:
         side = np.empty((len(rights), self.n_cells))
         for k, r in enumerate(rights):
             np.matmul(normal, r, out=side[k])
-        cut = self._crossing_legs(offsets, delta, length)
+        cells = (self.ijk, self.shape, self.centres, self.free, self.near, self._body_clear)
+        cut = guide_graph.crossing_legs(cells, self.radius, (offsets, delta, length), self._traced_hits)
         kernels = kernel_module("swarmplan.flight._guide_kernel")
         indptr, start, data, mask = kernels.reverse_graph(
             self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT), cut
@@ -178,61 +179,11 @@ class StaticGuide:
         self._sight_bounds()
         self._reach_bodies()
 
-    def _crossing_legs(self, offsets: np.ndarray, delta: np.ndarray, length: np.ndarray) -> np.ndarray:
-        """Per cell the bits of the legs into it (bit q: the leg along offset q, in the order of
-        :func:`~swarmplan.flight.guide_graph.legs`) that run through a body, both ends free: a
-        body thinner than a cell (a wall, a slab) lies between the centres of two free cells, and
-        a way along that leg led agents into its face, their point of attraction beyond it.
-        Only the legs into cells near surfaces can (a cell farther from every body than a leg is
-        long covers its legs), and of those only the legs whose two ends' distances to the
-        bodies do not add up to the leg's length (each end's ball of its distance is clear of
-        bodies, the distance being 1-Lipschitz). Those are marched from one end by the distance
-        at each point (sphere tracing, exact for a 1-Lipschitz distance): a leg is cut when the
-        march meets a body (a distance under ``TRACE_TOUCH`` of the cell) within
-        ``TRACE_STEPS``. A leg that only grazes a body's margin (a diagonal round a corner) is
-        kept: the field's push keeps the agent off it there."""
-        cut = np.zeros(self.n_cells, dtype=np.uint32)
-        if not self.bodies:
-            return cut
-        into = np.flatnonzero(self.near & self.free)
-        body = self._body_clear
-        rows = []
-        for q in range(len(offsets)):
-            src = self.ijk[into] - offsets[q]
-            v = into[((src >= 0) & (src < self.shape)).all(axis=1)]
-            u = v - delta[q]
-            at_risk = self.free[u] & (body[u] + body[v] + 2.0 * self.radius < length[q])
-            rows.append((q, v[at_risk], u[at_risk]))
-        if not any(len(v) for _, v, _ in rows):
-            return cut
-        q_all = np.concatenate([np.full(len(v), q, dtype=np.int64) for q, v, _ in rows])
-        v_all = np.concatenate([v for _, v, _ in rows])
-        u_all = np.concatenate([u for _, _, u in rows])
-        crossed = self._traced_hits(self.centres[u_all], self.centres[v_all])
-        np.bitwise_or.at(cut, v_all[crossed], (np.uint32(1) << q_all[crossed].astype(np.uint32)))
-        return cut
-
     def _traced_hits(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Per row: whether the segment ``a`` -> ``b`` meets a body (see :meth:`_crossing_legs`)."""
-        span = b - a
-        size = np.linalg.norm(span, axis=1)
-        unit = span / np.maximum(size, 1e-12)[:, None]
-        t = np.zeros(len(a))
-        hit = np.zeros(len(a), dtype=bool)
-        touch = TRACE_TOUCH * float(self.cell.min())
-        live = np.arange(len(a))
-        for _ in range(TRACE_STEPS):
-            if not len(live):
-                break
-            p = a[live] + t[live, None] * unit[live]
-            c = np.concatenate(
-                [self._batch.distance(p[k : k + _CHUNK]).min(axis=1) for k in range(0, len(p), _CHUNK)]
-            )
-            met = c < touch
-            hit[live[met]] = True
-            t[live] += c
-            live = live[~met & (t[live] < size[live])]
-        return hit
+        """``guide_graph.traced_hits`` against the bodies: whether each segment meets one."""
+        return guide_graph.traced_hits(
+            a, b, self._batch.distance, TRACE_TOUCH * float(self.cell.min()), TRACE_STEPS
+        )
 
     def _proximity(self) -> np.ndarray:
         """Each cell's nearness to a surface (1 at the surface, falling to 0 at a clearance of two
@@ -270,21 +221,7 @@ class StaticGuide:
         near = ((self.clear < limit) & (self.ijk[:, 2] >= self._low)).reshape(
             tuple(int(v) for v in self.shape)
         )
-        if not near.any():
-            self._gap = np.full(self.n_cells, np.inf)
-            self._gap_max = np.inf
-            return
-        # The box-to-box distance between cells (i, j, k) and (i', j', k') is the root of the sum
-        # over the axes of ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum
-        # over the near cells is taken one axis after the other (a min-plus product with the
-        # term of that axis), exactly (compiled: ``gap_squares``).
-        terms = tuple(
-            np.array([(max(s - 1, 0) * self.cell[axis]) ** 2 for s in range(int(self.shape[axis]))])
-            for axis in range(3)
-        )
-        kernels = kernel_module("swarmplan.flight._guide_kernel")
-        self._gap = np.sqrt(kernels.gap_squares(near.ravel(), self.shape, terms))
-        self._gap_max = float(self._gap.max())
+        self._gap, self._gap_max = guide_graph.cell_gaps(near, self.cell, self.shape)
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
@@ -516,15 +453,9 @@ class StaticGuide:
             )
 
     def _source_of(self, cell: int, goal: np.ndarray) -> int:
-        """The search's source for the ``goal`` (3,) in ``cell`` (``guide_graph.source_cell``):
-        of the cells it may be, one from whose centre the goal is in sight (no body between)."""
-
-        def sees(cells: np.ndarray) -> np.ndarray:
-            if not self.bodies:
-                return np.ones(len(cells), dtype=bool)
-            return ~self._traced_hits(self.centres[cells], np.broadcast_to(goal, (len(cells), 3)))
-
-        return source_cell(self.free, self.clear, (self.ijk, self.centres, self.shape), cell, sees)
+        """The search's source for the ``goal`` (3,) in ``cell`` (``guide_graph.source_cell``)."""
+        grid = (self.ijk, self.centres, self.shape)
+        return source_cell(self.free, self.clear, grid, cell, (goal, self._traced_hits))
 
     def reset(self, pos: np.ndarray | None = None, goal: np.ndarray | None = None) -> None:
         """Forget which agents are guided (the ways to goals already found stay: they depend on
@@ -621,9 +552,7 @@ class StaticGuide:
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
-        # In its goal's cell with the goal in sight (no body between), an agent flies at its
-        # goal: the way out of a cell that is not free (a goal tucked under a slab) led it back
-        # and forth between the goal and the cells beyond.
+        # In its goal's cell with the goal in sight, at the goal (not back out of a cell not free).
         there = np.flatnonzero(~home & (self.cell_of(p) == goal_cells))
         if len(there):
             home[there] = ~self._traced_hits(p[there], g[there])
