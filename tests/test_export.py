@@ -251,11 +251,13 @@ def test_origin_is_validated():
 # ---------------------------------------------------------------------- logs and the command
 
 
-def make_log(path: Path, origin: bool = True, cut: bool = False, agents: int = 2) -> str:
+def make_log(
+    path: Path, origin: bool = True, cut: bool = False, agents: int = 2, spacing: float = 1.0
+) -> str:
     t = DT * np.arange(161)
     pos = []
     for i in range(agents):
-        a, b = np.array([0.5, 0.5 + 1.0 * i, 1.0]), np.array([3.5, 0.5 + 1.0 * i, 1.2])
+        a, b = np.array([0.5, 0.5 + spacing * i, 1.0]), np.array([3.5, 0.5 + spacing * i, 1.2])
         pos.append(a + min_jerk(t, 7.0)[:, None] * (b - a))
     pos = np.array(pos).reshape(agents, len(t), 3)
     ids = [f"cf{i + 1}" for i in range(agents)]
@@ -395,6 +397,52 @@ def test_check_fails_when_the_swarm_meets(tmp_path, capsys):
     assert code == 1 and "LIMIT BROKEN" in text
     report = json.loads((tmp_path / "o" / "check.json").read_text())
     assert report["min_separation_m"] < 0 and report["separation_entries"] > 0
+    # the flight itself met: its closeness is no excuse for a contact
+    assert any(c.startswith("cf1-cf2 at t = ") for c in report["contacts"])
+
+
+def test_separation_is_held_to_the_flight_own_closeness_less_the_bounds():
+    from swarmplan.export.check import Plan, separation_kept
+
+    # radius 0.05, separation 0.5 m: the pair's ellipsoid has semi-axes 0.6 m; bounds 0.05 m each
+    plans = [Plan(f"cf{k}", "multirotor", 0.05, (0.5, 0.5, 0.5), np.zeros(1), np.zeros((1, 3)), 0.05)
+             for k in range(2)]  # fmt: skip
+
+    def pair(gap: float) -> np.ndarray:
+        return np.array([[[0.0, 0.0, 1.0]], [[gap, 0.0, 1.0]]])
+
+    # the flight kept it (0.7 m: 1.167): flown again it must stay outside
+    _, own, allowed = separation_kept(plans, pair(0.59), pair(0.7))
+    assert own[0] == pytest.approx(0.7 / 0.6) and allowed[0] == 1.0
+    # the flight came inside (0.48 m: 0.8): as deep as that, less (0.05 + 0.05) / 0.6
+    depth, own, allowed = separation_kept(plans, pair(0.381), pair(0.48))
+    assert own[0] == pytest.approx(0.8) and allowed[0] == pytest.approx(0.8 - 0.1 / 0.6)
+    assert depth[0, 0] >= allowed[0]
+    depth, _, allowed = separation_kept(plans, pair(0.379), pair(0.48))
+    assert depth[0, 0] < allowed[0]
+
+
+def test_check_passes_the_flight_own_near_miss_and_fails_an_export_closer_than_it(tmp_path):
+    import dataclasses
+
+    from swarmplan.export.check import check
+    from swarmplan.export.files import build
+    from swarmplan.replay import load
+    from swarmplan.world.tracker_config import parse_tracker
+
+    # Two agents side by side 0.45 m apart: inside their 0.6 m separation ellipsoid all along.
+    rec = load(make_log(tmp_path / "near.mcap", spacing=0.45))
+    cfg, _ = parse_tracker(rec.world.get("tracker"), "tracker")
+    plans = build(rec, "csv").plans
+    result = check(rec, plans, cfg)
+    assert result.separation_entries > 0 and result.separation_lost == 0 and result.ok
+    (tight,) = result.tight_pairs
+    assert tight.pair == "cf1-cf2" and tight.flown == pytest.approx(0.75, abs=1e-3) and tight.ok
+    # An export of cf2 0.25 m closer to cf1 than its flight: deeper than the bounds (0.1 m each) allow.
+    closer = dataclasses.replace(plans[1], pos=plans[1].pos - [0.0, 0.25, 0.0])
+    result = check(rec, [plans[0], closer], cfg)
+    assert result.separation_lost > 0 and not result.ok and not result.tight_pairs[0].ok
+    assert all(a.ok for a in result.agents)  # each vehicle follows its own export
 
 
 @pytest.mark.skipif(not (ROOT / "worlds" / "crazyflie_room.yaml").exists(), reason="needs the shipped world")

@@ -241,8 +241,9 @@ def test_path_distance_to_a_dense_polyline():
 def test_bench_export_counts_per_class_and_format():
     from swarmplan.export.bench import markdown, table
 
-    def entry(ok: bool, contacts: int = 0, sep: int = 0, dev: float = 0.5) -> dict:
-        return {"ok": ok, "contacts": contacts, "separation_entries": sep, "deviation_over_limit": dev,
+    def entry(ok: bool, contacts: int = 0, sep: int = 0, dev: float = 0.5, lost: int | None = None) -> dict:
+        return {"ok": ok, "contacts": contacts, "separation_entries": sep,
+                "separation_lost": sep if lost is None else lost, "deviation_over_limit": dev,
                 "deviation_over_bound": 0.9, "waypoints": 7}  # fmt: skip
 
     records = [
@@ -257,13 +258,21 @@ def test_bench_export_counts_per_class_and_format():
             "flight_near_misses": 1,
             "px4": entry(False, sep=3),
         },
+        # inside a separation ellipsoid only where, and as deep as, its flight itself was
+        {
+            "name": "w5",
+            "agents": 2,
+            "flight_contacts": 0,
+            "flight_near_misses": 2,
+            "px4": entry(True, sep=4, lost=0),
+        },
     ]
     t = table("lab", "px4", records)
-    assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (5, 4, 1, 2, 1)
-    assert (t["safe"], t["safe_of_clean"], t["with_contact"], t["separation_lost"]) == (2, 2, 1, 1)
+    assert (t["worlds"], t["exported"], t["ok"], t["clean_flights"], t["ok_of_clean"]) == (6, 5, 2, 2, 1)
+    assert (t["safe"], t["safe_of_clean"], t["with_contact"], t["separation_lost"]) == (3, 2, 1, 1)
     assert t["deviation_broken"] == 1
     assert t["check_deviation_over_limit"] == 1.5 and t["waypoints"] == 7 and t["pieces"] is None
-    assert "| lab | px4 | 4/5 | 1/4 | 1/2 | 2/4 | 2/2 | 1 | 1 | 1 |" in markdown([t])
+    assert "| lab | px4 | 5/6 | 2/5 | 1/2 | 3/5 | 2/2 | 1 | 1 | 1 |" in markdown([t])
 
 
 def test_bench_export_refuses_bad_arguments(capsys):

@@ -118,3 +118,44 @@ def test_compiled_numbers_at_the_digit_tables_edges():
     pieces = [b"["] + [b","] * (len(y) - 1) + [b"]"]
     got = Interleaved(pieces, compiled=True).fill_compiled(y)
     assert got == json.dumps(y.tolist(), separators=(",", ":")).encode()
+
+
+def test_compiled_text_between_numbers_of_every_length():
+    """The pieces between the numbers, 0 to 300 bytes, come out as they went in, around the
+    numbers as ``repr`` writes them."""
+    rng = np.random.default_rng(3)
+    pieces = [bytes(rng.integers(32, 127, m, dtype=np.uint8)) for m in range(301)]
+    y = np.round(rng.normal(0, 50.0, 300), 6)
+    want = b"".join(p + repr(float(v)).encode() for p, v in zip(pieces, y, strict=False)) + pieces[-1]
+    assert Interleaved(pieces, compiled=True).fill_compiled(y) == want
+    rows = Interleaved(pieces[:2] + pieces[-6:] + pieces[100:106], compiled=True)
+    a, b = y[1:7].reshape(2, 3), y[7:13].reshape(2, 3)
+    values = [y[0], *a[0], *b[0], *a[1], *b[1]]
+    want = b"".join(p + repr(float(v)).encode() for p, v in zip(rows._list, values, strict=False))
+    assert rows.fill_rows(y[0], a, b) == want + rows._list[-1]
+
+
+def test_recorded_messages_are_compact_json_with_non_finite_numbers_as_null(tmp_path: Path):
+    from mcap.reader import make_reader
+
+    from swarmplan.io.recording import McapRecorder
+
+    finite = {"t": 1.5, "agent": "a", "kind": "stuck", "detail": {"d": [0.1, (2, 3.25)], "n": None}}
+    odd = {
+        "t": 2.0,
+        "agent": None,
+        "kind": "x",
+        "detail": {"c": math.inf, "v": [1.0, math.nan], "w": (-math.inf,)},
+    }
+    with McapRecorder(tmp_path / "m.mcap", foxglove=False) as rec:
+        rec.write_event(finite)
+        rec.write_event(odd)
+    with open(tmp_path / "m.mcap", "rb") as f:
+        got = [m.data for _, ch, m in make_reader(f).iter_messages() if ch.topic == "/events"]
+    assert got[0] == json.dumps(finite, separators=(",", ":")).encode()
+    assert json.loads(got[1]) == {
+        "t": 2.0,
+        "agent": None,
+        "kind": "x",
+        "detail": {"c": None, "v": [1.0, None], "w": [None]},
+    }

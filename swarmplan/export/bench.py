@@ -82,6 +82,7 @@ def export_world(raw: dict[str, Any], folder: Path) -> dict[str, Any]:
             "ok": result.ok,
             "contacts": len(result.contacts),
             "separation_entries": result.separation_entries,
+            "separation_lost": result.separation_lost,
             "deviation_over_limit": max(a.max_deviation / a.limit for a in result.agents),
         }
         agents = exp.manifest["agents"]
@@ -122,10 +123,10 @@ def table(kind: str, fmt: str, records: list[dict[str, Any]]) -> dict[str, Any]:
         "ok": sum(e["ok"] for e in done),
         "clean_flights": len(clean),
         "ok_of_clean": sum(e["ok"] for e in clean),
-        "safe_of_clean": sum(e["contacts"] == 0 and e["separation_entries"] == 0 for e in clean),
-        "safe": sum(e["contacts"] == 0 and e["separation_entries"] == 0 for e in done),
+        "safe_of_clean": sum(e["contacts"] == 0 and e["separation_lost"] == 0 for e in clean),
+        "safe": sum(e["contacts"] == 0 and e["separation_lost"] == 0 for e in done),
         "with_contact": sum(e["contacts"] > 0 for e in done),
-        "separation_lost": sum(e["separation_entries"] > 0 for e in done),
+        "separation_lost": sum(e["separation_lost"] > 0 for e in done),
         "deviation_broken": sum(e["deviation_over_limit"] > 1.0 for e in done),
         "deviation_over_bound": worst("deviation_over_bound"),
         "check_deviation_over_limit": worst("deviation_over_limit"),

@@ -10,8 +10,10 @@ without a schedule) the largest distance to the planned path, against its limit:
 max(5 m, 0.05 R_min) for a fixed wing (``track``'s bound), what the Crazyflie's controller
 achieves on a Crazyflie trajectory (:func:`crazyflie_limit`), the export's accuracy bound for a
 multirotor mission. For the swarm: the smallest
-surface distance between two agents, whether any pair came inside its separation ellipsoid,
-and any contact with an obstacle (moving ones where the log has them), the ground or terrain.
+surface distance between two agents, any contact between two agents or with an obstacle (moving
+ones where the log has them), the ground or terrain, and whether the separation was kept
+(:func:`separation_kept`): each pair outside its separation ellipsoid, or, for a pair whose flight
+itself came inside it, no deeper than the flight came less the two exports' accuracy bounds.
 """
 
 from __future__ import annotations
@@ -21,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from swarmplan.geometry.neighbours import separation_violations
 from swarmplan.replay import Recording
 from swarmplan.track.crazyflie import Crazyflie, Setpoints
 from swarmplan.track.crazyflie import fly as fly_crazyflie
@@ -64,16 +65,34 @@ class AgentCheck:
         return self.max_deviation <= self.limit
 
 
+@dataclass(frozen=True)
+class TightPair:
+    """A pair whose flight (the log) came inside its separation ellipsoid: the smallest value
+    of |dp / scale| (below 1: inside) in the flight and in the check, and the least the check
+    may reach (:func:`separation_kept`)."""
+
+    pair: str  # "a-b"
+    flown: float
+    checked: float
+    allowed: float
+
+    @property
+    def ok(self) -> bool:
+        return self.checked >= self.allowed
+
+
 @dataclass
 class CheckResult:
     agents: list[AgentCheck]
     min_separation: float | None  # m, smallest surface distance between two agents
     separation_entries: int  # grid steps with some pair inside its separation ellipsoid
-    contacts: list[str] = field(default_factory=list)  # "agent-obstacle at t"
+    contacts: list[str] = field(default_factory=list)  # "agent-obstacle at t", "agent-agent at t"
+    separation_lost: int = 0  # grid steps with some pair deeper inside than it may be
+    tight_pairs: list[TightPair] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
-        return all(a.ok for a in self.agents) and not self.contacts and self.separation_entries == 0
+        return all(a.ok for a in self.agents) and not self.contacts and self.separation_lost == 0
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -88,6 +107,16 @@ class CheckResult:
             },
             "min_separation_m": None if self.min_separation is None else round(self.min_separation, 4),
             "separation_entries": self.separation_entries,
+            "separation_lost": self.separation_lost,
+            "flight_inside_separation": {
+                p.pair: {
+                    "flown": round(p.flown, 4),
+                    "checked": round(p.checked, 4),
+                    "allowed": round(p.allowed, 4),
+                    "ok": p.ok,
+                }
+                for p in self.tight_pairs
+            },
             "contacts": list(self.contacts),
         }
 
@@ -99,9 +128,16 @@ class CheckResult:
                 f"{'yes' if a.ok else 'NO':>4}"
             )
         sep = "-" if self.min_separation is None else f"{self.min_separation:.4f} m"
+        for p in self.tight_pairs:
+            out.append(
+                f"{p.pair}: inside its separation ellipsoid in the flight itself (|dp/scale| "
+                f"{p.flown:.4f}); flown again {p.checked:.4f}, at least {p.allowed:.4f} allowed: "
+                + ("kept" if p.ok else "LOST")
+            )
         out.append(
             f"swarm: min separation (surface to surface) {sep}; separation ellipsoid entered at "
-            f"{self.separation_entries} instants; contacts {len(self.contacts)}"
+            f"{self.separation_entries} instants, deeper than allowed at {self.separation_lost}; "
+            f"contacts {len(self.contacts)}"
             + (
                 f" ({'; '.join(self.contacts[:5])}{' ...' if len(self.contacts) > 5 else ''})"
                 if self.contacts
@@ -217,18 +253,22 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
         [np.column_stack([np.interp(grid, *_tp(flown[p.id], j)) for j in range(3)]) for p in plans]
     )  # (A, T, 3): before its start an agent is where it starts, after its end where it ends
     min_sep = None
-    entries = 0
+    entries = lost = 0
+    contacts: list[str] = []
+    tight: list[TightPair] = []
+    ids = [p.id for p in plans]
     if len(plans) >= 2:
         i, j = np.triu_indices(len(plans), 1)
         d = np.linalg.norm(pos[i] - pos[j], axis=2) - (radii[i] + radii[j])[:, None]
         min_sep = float(d.min())
-        sep = np.array([p.separation for p in plans], float)
-        active = np.ones(len(plans), bool)
-        for k in range(len(grid)):
-            pi, _ = separation_violations(pos[:, k], sep, radii, active)
-            entries += int(len(pi) > 0)
-    contacts: list[str] = []
-    ids = [p.id for p in plans]
+        for k in np.flatnonzero((d < 0).any(axis=1)):
+            contacts.append(f"{ids[i[k]]}-{ids[j[k]]} at t = {grid[int(np.argmax(d[k] < 0))]:.2f} s")
+        depth, own, allowed = separation_kept(plans, pos, _log_positions(rec, ids, grid))
+        entries = int((depth < 1.0).any(axis=0).sum())
+        lost = int((depth < allowed[:, None]).any(axis=0).sum())
+        for k in np.flatnonzero(own < 1.0):
+            pair = f"{ids[i[k]]}-{ids[j[k]]}"
+            tight.append(TightPair(pair, float(own[k]), float(depth[k].min()), float(allowed[k])))
     for oid, dist in body_distances(rec, ids, grid, pos, radii).items():
         hit = dist - radii[:, None] < 0
         for a in np.flatnonzero(hit.any(axis=1)):
@@ -239,7 +279,54 @@ def check(rec: Recording, plans: list[Plan], cfg: TrackerConfig) -> CheckResult:
     for a in np.flatnonzero((ground < radii[:, None]).any(axis=1)):
         k = int(np.argmax(ground[a] < radii[a]))
         contacts.append(f"{ids[a]}-{surface} at t = {grid[k]:.2f} s")
-    return CheckResult(agents, min_sep, entries, contacts)
+    return CheckResult(agents, min_sep, entries, contacts, lost, tight)
+
+
+def ellipsoid_depth(plans: list[Plan], pos: np.ndarray, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """|dp / scale| (P, T) of the pairs (i, j) of ``plans`` at positions ``pos`` (A, T, 3), scale
+    their separation ellipsoid's semi-axes max(sep_i, sep_j) + r_i + r_j (as the simulator's near
+    misses, :func:`~swarmplan.geometry.neighbours.separation_violations`): below 1 inside."""
+    radii = np.array([p.radius for p in plans], float)
+    sep = np.array([p.separation for p in plans], float)
+    scale = np.maximum(sep[i], sep[j]) + (radii[i] + radii[j])[:, None]
+    return np.linalg.norm((pos[i] - pos[j]) / scale[:, None, :], axis=2)
+
+
+def separation_kept(
+    plans: list[Plan], pos: np.ndarray, log: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The depth (P, T) of every pair (``np.triu_indices`` order) flown again at ``pos`` (A, T, 3),
+    the least depth (P,) of the flight ``log`` on the same instants, and the least depth (P,)
+    each pair may reach.
+
+    A pair the flight kept outside its separation ellipsoid must stay outside (1). A pair the
+    flight itself took inside it (the planner's law let it come that close: a near miss in the
+    log) may come as deep as the flight did, less the two exports' accuracy bounds (each export
+    may be that far from the flown path), measured across the ellipsoid's shortest semi-axis: an
+    export that holds the flight's own closeness passes, one that comes closer than the flight
+    and its bounds allow fails."""
+    i, j = np.triu_indices(len(plans), 1)
+    depth = ellipsoid_depth(plans, pos, i, j)
+    flown = ellipsoid_depth(plans, log, i, j)
+    own = np.where(np.isnan(flown), np.inf, flown).min(axis=1)
+    radii = np.array([p.radius for p in plans], float)
+    sep = np.array([p.separation for p in plans], float)
+    shortest = (np.maximum(sep[i], sep[j]) + (radii[i] + radii[j])[:, None]).min(axis=1)
+    bounds = np.array([p.bound for p in plans], float)
+    allowed = np.where(own < 1.0, own - (bounds[i] + bounds[j]) / shortest, 1.0)
+    return depth, own, allowed
+
+
+def _log_positions(rec: Recording, ids: list[str], grid: np.ndarray) -> np.ndarray:
+    """The flight's positions (A, T, 3) of agents ``ids`` at the instants ``grid``, straight
+    between the log's samples (before the first where it starts, after the last where it ends)."""
+    out = np.empty((len(ids), len(grid), 3))
+    for a, aid in enumerate(ids):
+        track = rec.positions[rec.agent_index(aid)]
+        have = np.isfinite(track).all(axis=1)
+        for k in range(3):
+            out[a, :, k] = np.interp(grid, rec.times[have], track[have, k]) if have.any() else np.nan
+    return out
 
 
 def path_distance(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:

@@ -114,11 +114,11 @@ def _number(out: np.ndarray, pos: int, x: float) -> int:
 
 @njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _piece(out: np.ndarray, pos: int, pieces: np.ndarray, s: int, m: int) -> int:
-    if m > 8:
-        out[pos : pos + m] = pieces[s : s + m]
-    else:
-        for j in range(m):
-            out[pos + j] = pieces[s + j]
+    # Byte by byte: slices (views) cost more than the copy itself for the pieces between the
+    # numbers (tens of bytes), and a slice anywhere in the loop slows all of it (/agents/state
+    # at 64 agents: 25 us a message with slices, 15 us without).
+    for j in range(m):
+        out[pos + j] = pieces[s + j]
     return pos + m
 
 
@@ -405,29 +405,24 @@ def line_entities(
         size = len(stamp) + len(fixed) + 1 + _varint_len(eid) + eid + 1 + _varint_len(line) + line
         out[pos] = 0x12
         pos = _put_varint(out, pos + 1, size)
-        out[pos : pos + len(stamp)] = stamp
-        pos += len(stamp)
-        out[pos : pos + len(fixed)] = fixed
-        pos += len(fixed)
+        pos = _piece(out, pos, stamp, 0, len(stamp))
+        pos = _piece(out, pos, fixed, 0, len(fixed))
         out[pos] = 0x1A
         pos = _put_varint(out, pos + 1, eid)
         a, b = prefix_at[s], prefix_at[s + 1]
-        out[pos : pos + b - a] = prefix[a:b]
-        pos += b - a
+        pos = _piece(out, pos, prefix, a, b - a)
         if k >= 0:
             digits = _index_digits(k)
             _digits(out, pos + digits, k)
             pos += digits
         out[pos] = 0x5A
         pos = _put_varint(out, pos + 1, line)
-        out[pos : pos + len(head)] = head
-        pos += len(head)
+        pos = _piece(out, pos, head, 0, len(head))
         if k > 0:
             pos = _put_point(out, pos, join, join_raw, s)
         for r in range(slot_start[s], slot_end[s]):
             pos = _put_point(out, pos, pts, raw, r)
-        out[pos : pos + len(color)] = color
-        pos += len(color)
+        pos = _piece(out, pos, color, 0, len(color))
     return pos
 
 

@@ -419,9 +419,16 @@ class McapRecorder:
         self._writer.add_message(self._channels[topic], _ns(t), data)
 
     def _write(self, topic: str, t: float, msg: dict[str, Any], clean: bool = True) -> None:
-        # States are finite by construction; other messages may hold inf (e.g. an unreachable cost).
-        data = _COMPACT.encode(_clean(msg) if clean else msg).encode()
-        self.write_bytes(topic, t, data)
+        # States are finite by construction; other messages may hold inf (e.g. an unreachable
+        # cost): the encoder refuses them, then they are cleaned (nearly every message is
+        # finite, and the walk that cleans costs more than the encoding).
+        try:
+            text = _COMPACT.encode(msg)
+        except ValueError:
+            if not clean:
+                raise
+            text = _COMPACT.encode(_clean(msg))
+        self.write_bytes(topic, t, text.encode())
 
     def write_world(self, world: dict[str, Any]) -> None:
         self._write("/world", 0.0, world)

@@ -38,7 +38,7 @@ from swarmplan.planner import make_planner
 from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.contacts import NearMisses, agent_collisions, arrivals, committed_hits, parked_contacts
 from swarmplan.sim.evasion import Evasion
-from swarmplan.sim.metrics import RunMetrics, Tally, summary_report
+from swarmplan.sim.metrics import NOTHING, RunMetrics, Tally, summary_report
 from swarmplan.sim.modes import PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
 from swarmplan.sim.network import AgentView
@@ -163,7 +163,8 @@ class Simulation:
 
     def _merge(self, tally: Tally) -> None:
         """Take in what one part of the step changed: its events (after those so far) and its counts."""
-        self.records.merge(tally, self.metrics)
+        if tally is not NOTHING:  # (most parts of most steps change nothing)
+            self.records.merge(tally, self.metrics)
 
     def _ask_planner(self, i: int) -> tuple[StuckOutcome, tuple[Event, ...]]:
         """The planner's answer for stuck agent ``i`` and the events it reported meanwhile."""
@@ -195,7 +196,7 @@ class Simulation:
             self._merge(self.evasion.update(s, self.obstacles.movers(q0, qv0), surface, shapes))
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
-        idx = np.flatnonzero(flying_now)
+        idx = flying_now.nonzero()[0]
         # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
         # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
         measured = np.ones(self.n, dtype=bool)

@@ -255,14 +255,14 @@ class Evasion:
         agents already away stay evading while threatened; an agent that takes off flies straight
         back to its goal afterwards (the rest of its route is done). Returns the take-offs."""
         self.evading[:] = False
-        rows = np.flatnonzero(self.watching & mode_in(s.mode, _WATCHED) & ~self.settling)
+        rows = (self.watching & mode_in(s.mode, _WATCHED) & ~self.settling).nonzero()[0]
         self.settling[:] = False
         if not len(rows):
             return NOTHING
         p = self.params
         centres, velocities, radii, ids = threats
         # Flying agents are threats too (an agent on its way, or another one evading).
-        flying = np.flatnonzero(s.active)
+        flying = s.active.nonzero()[0]
         c = np.concatenate((centres, s.position[flying]))  # (np.vstack's rows, without its checks)
         u = np.concatenate((velocities, s.velocity[flying]))
         agent_margin = p.radius[flying] + 2.0 * safety_margin(p.radius[flying])

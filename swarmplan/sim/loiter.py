@@ -54,13 +54,15 @@ class Loiter:
 
     def rows(self, s: SwarmState) -> np.ndarray:
         """Which agents loiter (arrived fixed wings that have not collided since)."""
-        if not self.on.any():
+        if not self.fixed_wings or not self.on.any():  # (only fixed wings loiter)
             return self.on
         self.on &= s.mode == Mode.ARRIVED
         return self.on
 
     def flying(self, s: SwarmState, active: np.ndarray) -> np.ndarray:
         """The agents flown this step: the ``active`` ones and those that loiter (flown as the rest)."""
+        if not self.fixed_wings:
+            return active
         loiter = self.rows(s)
         return active | loiter if loiter.any() else active
 

@@ -180,7 +180,7 @@ class Navigator:
         due = np.where(kind == 1, s.t - self.progress_t >= window - 1e-9, kind == 2)
         if exempt is not None:
             due &= ~exempt
-        rows = np.flatnonzero(due)
+        rows = due.nonzero()[0]
         if not len(rows):
             return out
         dg = np.empty(len(s.mode))

@@ -96,6 +96,7 @@ class SafetyFilter:
         # Swarm-sized worlds over flat ground check many steps in one compiled call.
         self._compiled = use_compiled_checks(len(params.ids), bool(params.fixed_wing.any()))
         self._batched = self._compiled and not world.peaks
+        self._fixed_wings = bool(params.fixed_wing.any())
         # Every agent's radius with its safety margin (radius + margin), read every step.
         self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
@@ -126,8 +127,8 @@ class SafetyFilter:
         reach of the horizon (obstacles' own motion included) are checked, and only against the
         obstacles within that reach. Returns the commands and the guarded steps (``guard_steps``)."""
         p = self.params
-        fw = p.fixed_wing[idx]
-        if not fw.any():
+        fw = p.fixed_wing[idx] if self._fixed_wings else None
+        if fw is None or not fw.any():
             return v_cmd, NOTHING
         dt = self.world.dt
         speed = np.linalg.norm(vel0[idx], axis=1)
@@ -302,13 +303,13 @@ class SafetyFilter:
         radii, the first check of :meth:`filter`): in swarm worlds of multirotors all three
         from one compiled call; else the third is None."""
         p = self.params
-        if self._batched and not p.fixed_wing[idx].any():
+        if self._batched and not (self._fixed_wings and p.fixed_wing[idx].any()):
             k = np.arange(len(idx))
             fused = self._braking_margin_compiled(k, idx, pos0, vel0, v_cmd, q0, q1, goal, check_step=True)
             if fused is not None:
                 out, vel1, status = fused
                 free = status == 0
-                undecided = np.flatnonzero(status == 2)
+                undecided = (status == 2).nonzero()[0]
                 if len(undecided):
                     rows = idx[undecided]
                     ends = pos0[rows] + vel1[undecided] * self.world.dt
@@ -340,7 +341,7 @@ class SafetyFilter:
             pos1[idx] = pos0[idx] + vel1[idx] * dt
         braked = Commands(idx, v_cmd, cmd.beliefs, cmd.agreed)
         out = self.filter(braked, start, AgentMotion(pos1, vel1), window, modes, free, wanted=cmd.velocity)
-        fw = idx[self.params.fixed_wing[idx]]
+        fw = idx[self.params.fixed_wing[idx]] if self._fixed_wings else ()
         if len(fw):  # the curvature each fixed wing flew, which its next step rolls on from
             self.turn[fw] = turn_states(self.params, vel0[fw], out.end.velocity[fw], dt, fw)
         return out
@@ -506,7 +507,7 @@ class SafetyFilter:
         ids = self.params.ids
         radii = self._checked_radius[idx]
         validated = self.steps_free(pos0[idx], pos1[idx], radii, q0, q1) if free is None else free.copy()
-        unsafe = np.flatnonzero(~validated)
+        unsafe = (~validated).nonzero()[0]
         alternatives: list[list[np.ndarray]] = []
         free: list[np.ndarray] = []
         if len(unsafe) and self._batched:
