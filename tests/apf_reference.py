@@ -123,7 +123,11 @@ def reference_forces(
     normal = _unit(np.stack([-gh[:, 0], -gh[:, 1], np.ones(n)], axis=1))
     floor = np.maximum(params.min_altitude[idx], world.terrain_clearance if world.peaks else 0.0)
     rho_g = (pos[:, 2] - h) - r
-    rho0_g = max(min(rho0, 3.0 * float(np.max(floor))), 0.25 * rho0)
+    # The clearance at the floor lowered to the goal's height, at least the radius
+    # (multirotors); the influence down to three floors, at least a quarter of it (fixed wings).
+    low = np.minimum(floor, goal[:, 2] - world.terrain_height(goal[:, :2]))
+    fly = np.maximum(np.minimum(rho0, 3.0 * floor), 0.25 * rho0)
+    rho0_g = np.where(params.fixed_wing[idx], fly, np.maximum(low - r, r))
     static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # the ground's, faces' too
     mag_g = _rep(rho_g, rho0_g, g.k_rep * static, 0.1 * r)
     force = force + (mag_g * gfac)[:, None] * normal
@@ -163,6 +167,13 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     q = dp / scale
     e = norm3(q)
     grad = _unit(q / scale)
+    # Less room under the agent than the pair's vertical semi-axis: pushed aside, not down, and
+    # no way under.
+    clear = pos[:, 2] - world.terrain_height(pos[:, :2]) - params.radius[idx]
+    low = clear[:, None] < scale[..., 2]
+    flat = grad.copy()
+    flat[..., 2] = 0.0
+    grad = np.where((low & (grad[..., 2] < 0.0))[..., None], _unit(flat), grad)
     parked = np.zeros(n_all, dtype=bool) if swarm.parked is None else swarm.parked
     # A parked agent is at rest: the pair's reach is the flyer's braking from its speed.
     speed = norm3(vel)
@@ -195,5 +206,7 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     over = (2.0 * dvw[..., 0] + dvw[..., 1]) / (np.sqrt(5.0) * np.maximum(norm3(dvw), _EPS))
     up = np.zeros_like(dvw)
     up[..., 2] = over
-    direction = _unit(_unit(qs * scale) + 0.5 * (_right_of(dvw) + up))
+    direction = _unit(qs * scale) + 0.5 * (_right_of(dvw) + up)
+    direction[..., 2] = np.where(low & (direction[..., 2] < 0.0), 0.0, direction[..., 2])
+    direction = _unit(direction)
     return np.einsum("nk,nkd->nd", mag, grad) + np.einsum("nk,nkd->nd", mag_p, direction)

@@ -59,7 +59,7 @@ def test_a_fixed_wing_lining_up_with_the_window_is_left_to_the_field():
     world = load_world(WORLD)
     sim = Simulation(world, planner=make_planner(world, None))
     sim.reset(seed=2)
-    while sim.state.t < 21.0 - 1e-9:
+    while sim.state.t < 16.0 - 1e-9:
         sim.step()
     s, sight = sim.state, sim.sight
     assert sight.sighted[1] and not sight.in_sight[1]

@@ -117,7 +117,13 @@ def test_the_compiled_search_is_scipys_on_random_grids():
         prox[~free] = 1.0
         side = rng.uniform(-1.0, 1.0, (len(rights), n))
         indptr, indices, data, mask = K.reverse_graph(
-            free, prox, side, (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT)
+            free,
+            prox,
+            side,
+            (offsets, delta, length, row),
+            shape,
+            (G.NEAR, G.RIGHT),
+            np.zeros(n, dtype=np.uint32),
         )
         read = prox > 0.0
         # the legs stored (into cells near surfaces): costs from a few values (many ways of equal length,
@@ -138,7 +144,13 @@ def test_the_compiled_search_is_scipys_on_random_grids():
     offsets, delta, length, row, rights = guide_graph.legs(shape, np.ones(3))
     free, prox = np.ones(3, dtype=bool), np.array([0.0, 1.0, 0.0])
     indptr, indices, data, mask = K.reverse_graph(
-        free, prox, np.zeros((len(rights), 3)), (offsets, delta, length, row), shape, (G.NEAR, G.RIGHT)
+        free,
+        prox,
+        np.zeros((len(rights), 3)),
+        (offsets, delta, length, row),
+        shape,
+        (G.NEAR, G.RIGHT),
+        np.zeros(3, dtype=np.uint32),
     )
     assert indptr.tolist() == [0, 0, 2, 2] and indices.tolist() == [0, 2] and data.tolist() == [3.0, 3.0]
     d, p = K.dijkstra(indptr, data, (mask, prox > 0.0, delta, length), 2)
@@ -189,7 +201,7 @@ def test_the_points_of_attraction_follow_the_tables():
     p = rng.uniform(guide.lo - 5.0, guide.lo + guide.shape * guide.cell + 5.0, (400, 3))
     p[:10] = goal[0] + rng.normal(size=(10, 3))  # at the end of a way
     g = goal[rng.integers(0, 4, 400)]
-    table = guide._rows_for(guide.cell_of(g), p)
+    table = guide._rows_for(guide.cell_of(g), p, g)
     cell = guide.cell_of(p)
     lost = ~np.isfinite(guide._dist[table, cell])
     for _ in range(G.HOPS):

@@ -153,7 +153,7 @@ def test_the_twins_find_the_kernels_cells_and_points_of_attraction() -> None:
     args = (guide.lo, guide.cell, guide.shape)
     cells = T.cells_of(p, *args)
     _same(cells, K.cells_of(p, *args))
-    table = guide._rows_for(guide.cell_of(g), p)
+    table = guide._rows_for(guide.cell_of(g), p, g)
     grid, ways = (*args, guide.centres), (guide._next, guide._dist, guide._source)
     got = T.way_points(p, g, table, grid, ways, G.HOPS)
     _same(got, K.way_points(p, g, table, grid, ways, G.HOPS))

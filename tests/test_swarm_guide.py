@@ -62,7 +62,7 @@ def test_behind_the_wall_the_way_leads_to_the_gap_and_through_it():
     assert d[1] > abs(d[0]) and abs(d[2]) < 1e-6 + guide.cell[2]
     # the way runs through the gap, about as long as the detour round the wall's edge (its
     # cost at least that: legs near surfaces cost more than their length)
-    row = int(guide._rows_for(guide.cell_of(goal), pos)[0])
+    row = int(guide._rows_for(guide.cell_of(goal), pos, goal)[0])
     way = np.vstack([pos, guide.centres[guide._way(row, int(guide.cell_of(pos)[0]))[1:]]])
     length = np.linalg.norm(np.diff(way, axis=0), axis=1).sum()
     detour = np.hypot(10.0, 28.0) + np.hypot(20.0, 28.0)  # via the gap's edge at (50, 48)
@@ -83,7 +83,7 @@ def test_a_goal_below_the_lowest_altitude_flown_has_a_way():
     goal = np.array([[70.0, 20.0, 1.5]])
     guide.targets(0, np.array([0]), pos, goal, goal.copy(), np.ones(1))
     assert guide.guided[0] and np.isfinite(guide.way_length(pos, goal)[0])
-    source = guide._source[int(guide._rows_for(guide.cell_of(goal), pos)[0])]
+    source = guide._source[int(guide._rows_for(guide.cell_of(goal), pos, goal)[0])]
     assert guide.free[source]
     assert np.abs(guide.ijk[source] - guide.ijk[guide.cell_of(goal)[0]]).max() <= 1
 
@@ -97,7 +97,7 @@ def test_a_goal_with_no_free_cell_near_it_takes_the_nearest_free_one():
     at = guide.ijk[cell]
     block = (np.abs(guide.ijk - at) <= 2).all(axis=1)
     guide.free = guide.free & ~block
-    source = guide._source_of(cell)
+    source = guide._source_of(cell, np.array([70.0, 20.0, 20.0]))
     assert guide.free[source] and np.abs(guide.ijk[source] - at).max() == 3
     ring = np.flatnonzero(guide.free & (np.abs(guide.ijk - at).max(axis=1) == 3))
     gaps = np.linalg.norm(guide.centres[ring] - guide.centres[cell], axis=1)
@@ -119,8 +119,9 @@ def test_opposing_ways_through_a_gap_take_separate_lanes():
     """Two flows through the gap in opposite directions: their ways cross the wall apart."""
     world = wall_world()
     guide = G.make_guide(world, AgentParams.from_world(world))
-    east = guide._rows_for(guide.cell_of(np.array([[70.0, 50.0, 20.0]])), np.array([[30.0, 50.0, 20.0]]))
-    west = guide._rows_for(guide.cell_of(np.array([[30.0, 50.0, 20.0]])), np.array([[70.0, 50.0, 20.0]]))
+    east_goal, west_goal = np.array([[70.0, 50.0, 20.0]]), np.array([[30.0, 50.0, 20.0]])
+    east = guide._rows_for(guide.cell_of(east_goal), west_goal, east_goal)
+    west = guide._rows_for(guide.cell_of(west_goal), east_goal, west_goal)
 
     def crossing(row, start):
         way = guide.centres[guide._way(int(row[0]), int(guide.cell_of(np.array([start]))[0]))]

@@ -188,10 +188,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             m_speed[j] = math.sqrt(
                 o_vel[j, 0] * o_vel[j, 0] + o_vel[j, 1] * o_vel[j, 1] + o_vel[j, 2] * o_vel[j, 2]
             )
-    fmax = -np.inf
-    for i in range(n):
-        fmax = max(fmax, max(min_altitude[idx[i]], terrain_floor))
-    rho0_g = max(min(rho0, 3.0 * fmax), 0.25 * rho0)
     rb_stop, rb_fly = 0.25 * rho0, min(rho0, 10.0)  # field_law.bounds_range: multirotors, fixed wings
     k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
@@ -220,6 +216,14 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         ri = radius[idx[i]]
         closest = 0.1 * ri  # field_law.nearest: the clearance below which the pushes stop growing
         rb0 = rb_stop if can_stop[idx[i]] else rb_fly
+        # field_law.ground_range: the clearance at the agent's floor lowered to its goal's
+        # height, at least its radius (multirotors); the influence down to three floors, at
+        # least a quarter of it (fixed wings).
+        fl = max(min_altitude[idx[i]], terrain_floor)
+        if can_stop[idx[i]]:
+            rho0_g = max(min(fl, goal[i, 2] - h_goal[i]) - ri, ri)
+        else:
+            rho0_g = max(min(rho0, 3.0 * fl), 0.25 * rho0)
         # Attraction (quadratic well only at the goal itself).
         ex, ey, ez = goal[i, 0] - px, goal[i, 1] - py, goal[i, 2] - pz
         dg = math.sqrt(ex * ex + ey * ey + ez * ez)
@@ -435,6 +439,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 if not (current or predicted):
                     continue
                 gx, gy, gz = _unit(qx / cx, qy / cy, qz / cz)
+                # Less room under the agent than the pair's vertical semi-axis: the other's
+                # push drives it aside, not down (pressed to the ground under another it stayed
+                # there, the two held for good), and its way past goes over or beside, not under.
+                low = rho_g < cz
+                if low and gz < 0.0:
+                    gx, gy, gz = _unit(gx, gy, 0.0)
                 mag = k_agent * (1.0 / max(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if current else 0.0
                 urgency = 1.0 - tau / (horizon + _EPS)
                 mag_p = k_agent * (1.0 / max(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if predicted else 0.0
@@ -448,7 +458,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 wx, wy, wz = _unit(sx * cx, sy * cy, sz * cz)
                 rx, ry, rz = _right(dwx, dwy, dwz)
                 uz = _over(dwx, dwy, dwz)
-                wx, wy, wz = _unit(wx + 0.5 * rx, wy + 0.5 * ry, wz + 0.5 * (rz + uz))
+                wz = wz + 0.5 * (rz + uz)
+                if low and wz < 0.0:
+                    wz = 0.0
+                wx, wy, wz = _unit(wx + 0.5 * rx, wy + 0.5 * ry, wz)
                 fx += mag * gx + mag_p * wx
                 fy += mag * gy + mag_p * wy
                 fz += mag * gz + mag_p * wz

@@ -96,9 +96,9 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     if n == 0:
         return
     floor = np.maximum(min_altitude[idx], terrain_floor)
-    rho0_g = ground_range(rho0, float(floor.max()))
     rb0 = bounds_range(rho0, can_stop[idx])
     ri = radius[idx]
+    rho0_g = ground_range(rho0, floor, goal[:, 2] - h_goal, ri, can_stop[idx])
 
     # Attraction (quadratic well only at the goal itself).
     e = goal - pos
@@ -140,7 +140,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     view = swarm[5]
     if (view.shape[1] if view.shape[0] else swarm[0].shape[0]) >= 2:
         terms = _agent_terms(
-            (pos, vel, idx, reach_now, dg, gfac),
+            (pos, vel, idx, reach_now, dg, gfac, rho_g),
             (radius, separation, stop_reach, can_stop),
             swarm,
             (reach, rho0, k_agent, horizon),
@@ -223,7 +223,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
 def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     """The other agents' terms on every flyer, (n, n_all, 3) in the kernel's order of agents,
     ``-0.0`` where the kernel adds nothing."""
-    pos, vel, idx, reach_now, dg, gfac = fl
+    pos, vel, idx, reach_now, dg, gfac, rho_g = fl
     radius, separation, stop_reach, can_stop = agents
     all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
     reach, rho0, k_agent, horizon = g
@@ -290,7 +290,18 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     side[:, 2] = side[:, 2] + (2.0 * dw[:, 0] + dw[:, 1]) / (
         math.sqrt(5.0) * np.maximum(np.sqrt(_sq(dw)), _EPS)
     )
-    way = _unit(_unit(s * c) + 0.5 * side)
+    # Less room under the agent than the pair's vertical semi-axis: pushed aside, not down, and
+    # no way under.
+    low = rho_g[rows] < c[:, 2]
+    away = _unit(q / c)
+    flat = away.copy()
+    flat[:, 2] = 0.0
+    away = np.where((low & (away[:, 2] < 0.0))[:, None], _unit(flat), away)
+    way = _unit(s * c)
+    way[:, 2] = way[:, 2] + 0.5 * side[:, 2]
+    way[:, 2] = np.where(low & (way[:, 2] < 0.0), 0.0, way[:, 2])
+    way[:, :2] = way[:, :2] + 0.5 * side[:, :2]
+    way = _unit(way)
     acts = (current | predicted)[:, None]
-    terms[rows, b] = np.where(acts, mag[:, None] * _unit(q / c) + mag_p[:, None] * way, _SKIP)
+    terms[rows, b] = np.where(acts, mag[:, None] * away + mag_p[:, None] * way, _SKIP)
     return terms

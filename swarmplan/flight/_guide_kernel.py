@@ -384,6 +384,7 @@ def reverse_graph(
     legs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     shape: np.ndarray,
     costs: tuple[float, float],
+    cut: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The guide's reversed graph in CSR form (``StaticGuide``: row v holds the legs into cell v,
     by their start cells, ascending), rows only for the cells near surfaces (``prox`` > 0: the
@@ -391,7 +392,8 @@ def reverse_graph(
     cells: count, then fill. ``legs``:
     the 26 offsets (sorted so that their start cells ascend), their flat deltas, their lengths
     and, per offset, the row of ``side`` (the cells' normals on the leg's right-hand side, as
-    numpy's product computes them) or -1 for a vertical leg; ``costs``: ``NEAR`` and ``RIGHT``.
+    numpy's product computes them) or -1 for a vertical leg; ``costs``: ``NEAR`` and ``RIGHT``;
+    ``cut``: per cell the bits of the legs into it that run through a body (left out).
     Each cost is the numpy expression's, operation by operation (the same bits). Also per cell
     the bits of its row's offsets (bit q: the leg along offset q, for :func:`dijkstra`)."""
     offsets, delta, length, row = legs
@@ -422,6 +424,8 @@ def reverse_graph(
                             continue
                         u = v - delta[q]
                         if not (free[v] or not free[u]):
+                            continue
+                        if (cut[v] >> np.uint32(q)) & np.uint32(1):
                             continue
                         if pass_ == 0:
                             mask[v] |= np.uint32(1) << np.uint32(q)

@@ -41,10 +41,27 @@ def clearance_at(push: float, k: float, rho0: float) -> float:
     return 1.0 / (push / k + 1.0 / rho0)
 
 
-def ground_range(influence: float, floor: float) -> float:
-    """The range of the ground's repulsion: the influence, down to three times the floor (the
-    least altitude flown), never below a quarter of the influence."""
-    return max(min(influence, 3.0 * floor), 0.25 * influence)
+def ground_range(
+    influence: float,
+    floor: np.ndarray | float,
+    goal_height: np.ndarray | float,
+    radius: np.ndarray | float,
+    can_stop: np.ndarray | bool = True,
+) -> np.ndarray | float:
+    """The range of the ground's repulsion (a clearance) on an agent of ``radius`` whose least
+    altitude flown is ``floor`` and whose goal lies ``goal_height`` above the ground under it.
+
+    For agents that ``can_stop`` (multirotors), the clearance at the floor, lowered to the
+    goal's height: the ground holds an agent at its floor while it flies level, and an agent
+    whose goal lies below its floor flies there at the goal's height instead of climbing to the
+    floor and descending again (a 5 m/s multirotor between two points 1 m up, held at three
+    floors, climbed to 4 m and back). At least the agent's radius, a body of air under it. Its
+    descent towards the ground is braked as towards any surface (``apf.commanded_velocity``).
+    On fixed wings, which turn away rather than stop: the influence, down to three times the
+    floor, never below a quarter of the influence."""
+    low = np.minimum(floor, goal_height)
+    fly = np.maximum(np.minimum(influence, 3.0 * np.asarray(floor, dtype=float)), 0.25 * influence)
+    return np.where(can_stop, np.maximum(low - radius, radius), fly)
 
 
 def bounds_range(influence: float, can_stop: np.ndarray | bool = True) -> np.ndarray | float:

@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.flight import _guide_numpy, guide_cache
+from swarmplan.flight import _guide_numpy, guide_cache, guide_graph
 from swarmplan.flight.field_law import squeeze
 from swarmplan.flight.guide_graph import AROUND, Graph, legs, past_way_end, source_cell, ways_floor
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
@@ -71,6 +71,8 @@ HOPS = 2  # legs ahead on the way: the point of attraction
 REPULSION = 0.15  # scale of a guided agent's static repulsion (half a segment's)
 AHEAD = 2.0  # influence distances of a line an unguided agent checks in flight
 RECHECK = 5  # steps between two line-of-sight checks of an agent
+TRACE_STEPS = 64  # steps of the march along a leg that may run through a body
+TRACE_TOUCH = 1e-3  # of the cell: the clearance at which that march has met a body
 _CHUNK = 4096  # cell centres per distance query (memory of the (points, obstacles, 3) gradients)
 _GRID_ARRAYS = ("clear", "_body_clear", "_gap", "_reach")  # a grid's tables besides its graph
 
@@ -167,13 +169,21 @@ class StaticGuide:
         side = np.empty((len(rights), self.n_cells))
         for k, r in enumerate(rights):
             np.matmul(normal, r, out=side[k])
+        cells = (self.ijk, self.shape, self.centres, self.free, self.near, self._body_clear)
+        cut = guide_graph.crossing_legs(cells, self.radius, (offsets, delta, length), self._traced_hits)
         kernels = kernel_module("swarmplan.flight._guide_kernel")
         indptr, start, data, mask = kernels.reverse_graph(
-            self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT)
+            self.free, prox, side, (offsets, delta, length, row), self.shape, (NEAR, RIGHT), cut
         )
         self._adopt_graph(indptr, start, data, mask)
         self._sight_bounds()
         self._reach_bodies()
+
+    def _traced_hits(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """``guide_graph.traced_hits`` against the bodies: whether each segment meets one."""
+        return guide_graph.traced_hits(
+            a, b, self._batch.distance, TRACE_TOUCH * float(self.cell.min()), TRACE_STEPS
+        )
 
     def _proximity(self) -> np.ndarray:
         """Each cell's nearness to a surface (1 at the surface, falling to 0 at a clearance of two
@@ -211,21 +221,7 @@ class StaticGuide:
         near = ((self.clear < limit) & (self.ijk[:, 2] >= self._low)).reshape(
             tuple(int(v) for v in self.shape)
         )
-        if not near.any():
-            self._gap = np.full(self.n_cells, np.inf)
-            self._gap_max = np.inf
-            return
-        # The box-to-box distance between cells (i, j, k) and (i', j', k') is the root of the sum
-        # over the axes of ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum
-        # over the near cells is taken one axis after the other (a min-plus product with the
-        # term of that axis), exactly (compiled: ``gap_squares``).
-        terms = tuple(
-            np.array([(max(s - 1, 0) * self.cell[axis]) ** 2 for s in range(int(self.shape[axis]))])
-            for axis in range(3)
-        )
-        kernels = kernel_module("swarmplan.flight._guide_kernel")
-        self._gap = np.sqrt(kernels.gap_squares(near.ravel(), self.shape, terms))
-        self._gap_max = float(self._gap.max())
+        self._gap, self._gap_max = guide_graph.cell_gaps(near, self.cell, self.shape)
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
@@ -373,28 +369,30 @@ class StaticGuide:
 
     # ------------------------------------------------------------------ ways to the goals
 
-    def _rows_for(self, goal_cells: np.ndarray, starts: np.ndarray) -> np.ndarray:
-        """Table rows of the ways to ``goal_cells`` from ``starts`` (n, 3), computing the missing
-        ones in order: each new way (from its agent's position) then loads the cells near
-        surfaces it runs through (negotiated congestion, as routers of wires spread nets over a
-        chip's channels: McMurchie & Ebeling 1995): a later way pays ``SAME`` per way already
-        there and ``ONCOMING`` per way there in the opposite direction, so the ways spread over
-        a passage's width and height and opposing flows take separate lanes."""
+    def _rows_for(self, goal_cells: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """Table rows of the ways to ``goal_cells`` (of the points ``goals``, n x 3) from
+        ``starts`` (n, 3), computing the missing ones in order: each new way (from its agent's
+        position) then loads the cells near surfaces it runs through (negotiated congestion, as
+        routers of wires spread nets over a chip's channels: McMurchie & Ebeling 1995): a later
+        way pays ``SAME`` per way already there and ``ONCOMING`` per way there in the opposite
+        direction, so the ways spread over a passage's width and height and opposing flows take
+        separate lanes."""
         goal_cells = np.asarray(goal_cells, dtype=np.int64)
         missing = self._row_of[goal_cells] < 0
         if missing.any():  # each new goal cell once, in the order of its first row
             cells, starts = goal_cells[missing], np.asarray(starts)[missing]
+            goals = np.asarray(goals, dtype=float).reshape(-1, 3)[missing]
             first = np.sort(np.unique(cells, return_index=True)[1])
-            self._search(cells[first], starts[first])
+            self._search(cells[first], starts[first], goals[first])
         return self._row_of[goal_cells]
 
-    def _search(self, goal_cells: np.ndarray, starts: np.ndarray) -> None:
-        """Find the ways to ``goal_cells`` (new ones, in order), each then loading the way from
-        its start (see :meth:`_rows_for`)."""
+    def _search(self, goal_cells: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> None:
+        """Find the ways to ``goal_cells`` (new ones, in order; their goals ``goals``), each then
+        loading the way from its start (see :meth:`_rows_for`)."""
         dijkstra = kernel_module("swarmplan.flight._guide_kernel").dijkstra
         g = self._reverse
-        for c, p in zip(goal_cells.tolist(), starts, strict=True):
-            source = self._source_of(c)
+        for c, p, goal in zip(goal_cells.tolist(), starts, goals, strict=True):
+            source = self._source_of(c, goal)
             dist, pred = dijkstra(g.indptr, g.data, g.grid, source)
             row = len(self._source)
             if row == len(self._next):  # room for a way per agent, then twice as many ways
@@ -454,9 +452,10 @@ class StaticGuide:
                 1.0 + same + ONCOMING * np.maximum(-(self._leg_dir[lo:hi] @ f), 0.0)
             )
 
-    def _source_of(self, cell: int) -> int:
-        """The search's source for a goal in ``cell`` (``guide_graph.source_cell``)."""
-        return source_cell(self.free, self.clear, (self.ijk, self.centres, self.shape), cell)
+    def _source_of(self, cell: int, goal: np.ndarray) -> int:
+        """The search's source for the ``goal`` (3,) in ``cell`` (``guide_graph.source_cell``)."""
+        grid = (self.ijk, self.centres, self.shape)
+        return source_cell(self.free, self.clear, grid, cell, (goal, self._traced_hits))
 
     def reset(self, pos: np.ndarray | None = None, goal: np.ndarray | None = None) -> None:
         """Forget which agents are guided (the ways to goals already found stay: they depend on
@@ -478,7 +477,7 @@ class StaticGuide:
         if len(rows):
             self.guided[rows] = self.blocked(pos[rows], goal[rows])
             rows = rows[self.guided[rows]]
-            self._rows_for(self.cell_of(goal[rows]), pos[rows])
+            self._rows_for(self.cell_of(goal[rows]), pos[rows], goal[rows])
         if key is not None:
             guide_cache.store_ways(key, self.ways_tables())
 
@@ -549,10 +548,14 @@ class StaticGuide:
         scale = scale.copy()
         scale[rows] = np.minimum(scale[rows], REPULSION)
         p, g = pos[rows], goal[rows]
-        table = self._rows_for(goal_cells := self.cell_of(g), p)
+        table = self._rows_for(goal_cells := self.cell_of(g), p, g)
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
+        # In its goal's cell with the goal in sight, at the goal (not back out of a cell not free).
+        there = np.flatnonzero(~home & (self.cell_of(p) == goal_cells))
+        if len(there):
+            home[there] = ~self._traced_hits(p[there], g[there])
         out[rows[home]] = g[home]
         return out, scale
 
@@ -566,7 +569,7 @@ class StaticGuide:
     def way_point(self, pos: np.ndarray, goal: np.ndarray, ahead: float) -> np.ndarray:
         """The point of the way from ``pos`` to ``goal`` (3,) about ``ahead`` m along it (the
         cell centre where it first gets that far), or the goal when the way is shorter."""
-        row = int(self._rows_for(self.cell_of(goal[None]), pos[None])[0])
+        row = int(self._rows_for(self.cell_of(goal[None]), pos[None], goal[None])[0])
         way = self._way(row, int(self.cell_of(pos[None])[0]))
         if len(way) < 2 or way[-1] != self._source[row]:
             return np.asarray(goal, dtype=float).copy()
@@ -578,7 +581,7 @@ class StaticGuide:
     def way_length(self, pos: np.ndarray, goal: np.ndarray) -> np.ndarray:
         """Cost of the way from ``pos`` to ``goal`` (n, 3) on the grid: its length, more near
         surfaces (the legs' cost; inf where there is no way)."""
-        table = self._rows_for(self.cell_of(goal), pos)
+        table = self._rows_for(self.cell_of(goal), pos, goal)
         cell = self.cell_of(pos)
         return self._dist[table, cell].astype(float) + np.linalg.norm(self.centres[cell] - pos, axis=1)
 

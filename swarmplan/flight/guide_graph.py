@@ -5,9 +5,12 @@ cell of a goal's search and the least height the ways keep."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from swarmplan.runtime.compiled import kernel_module
 
 if TYPE_CHECKING:
     from swarmplan.flight.kinematics import AgentParams
@@ -61,19 +64,42 @@ def legs(shape: np.ndarray, cell: np.ndarray) -> tuple[np.ndarray, ...]:
     return offsets, delta, length, row, np.array(rights).reshape(-1, 3)
 
 
-def source_cell(free: np.ndarray, clear: np.ndarray, grid: tuple[np.ndarray, ...], cell: int) -> int:
+def source_cell(
+    free: np.ndarray,
+    clear: np.ndarray,
+    grid: tuple[np.ndarray, ...],
+    cell: int,
+    sight: tuple[np.ndarray, Callable[[np.ndarray, np.ndarray], np.ndarray]] | None = None,
+) -> int:
     """The source of the search for a goal in ``cell`` (``grid``: the cells' indices, centres
     and the grid's shape): the cell, or the free neighbour with the most clearance when the
     goal's own cell is not free; with no free neighbour either (a goal tucked into a corner by
     more than a cell), the free cell nearest the goal's cell (by their centres) in the first
     ring of cells round it (at 2, 3, ... cells along the farthest axis) that holds one: a
-    source that is not free would be entered by no free cell, and no way would lead there."""
+    source that is not free would be entered by no free cell, and no way would lead there.
+    With ``sight`` (the goal's point and segments -> whether each meets a body), the cell and
+    its free neighbours from whose centres the goal is in sight come first: a goal under a slab or
+    behind a wall thinner than a cell has free neighbours on the far side of the body too, and
+    a way that ended there left the agent pulled at the goal through the body."""
     ijk, centres, shape = grid
-    if free[cell]:
-        return cell
     nb = ijk[cell] + OFFSETS
     nb = nb[((nb >= 0) & (nb < shape)).all(axis=1)]
     flat = (nb[:, 0] * shape[1] + nb[:, 1]) * shape[2] + nb[:, 2]
+    if sight is not None:
+        goal, hits = sight
+
+        def sees(cells: np.ndarray) -> np.ndarray:
+            return ~hits(centres[cells], np.broadcast_to(goal, (len(cells), 3)))
+
+        if free[cell] and bool(sees(np.array([cell]))[0]):
+            return cell
+        near = flat[free[flat]]
+        if len(near):
+            seen = near[sees(near)]
+            if len(seen):
+                return int(seen[np.argmax(clear[seen])])
+    if free[cell]:
+        return cell
     if free[flat].any() or not free.any():
         return int(flat[np.argmax(clear[flat])])
     at = ijk[cell]
@@ -87,6 +113,89 @@ def source_cell(free: np.ndarray, clear: np.ndarray, grid: tuple[np.ndarray, ...
         if len(ring):
             return int(ring[np.argmin(np.linalg.norm(centres[ring] - centres[cell], axis=1))])
     return cell
+
+
+def crossing_legs(
+    cells: tuple[np.ndarray, ...],
+    radius: float,
+    leg: tuple[np.ndarray, np.ndarray, np.ndarray],
+    hits: Callable[[np.ndarray, np.ndarray], np.ndarray],
+) -> np.ndarray:
+    """Per cell the bits of the legs into it (bit q: the leg along offset q of ``leg`` = the
+    offsets, flat deltas and lengths of :func:`legs`) that run through a body, both ends free
+    (``cells``: the cells' indices, the grid's shape, the centres, free, near surfaces and
+    clearance to the bodies less ``radius``; ``hits``: segments -> whether each meets a body):
+    a body thinner than a cell (a wall, a slab) lies between the centres of two free cells, and
+    a way along that leg led agents into its face, their point of attraction beyond it. Only
+    the legs into cells near surfaces can (a cell farther from every body than a leg is long
+    covers its legs), and of those only the legs whose two ends' distances to the bodies do not
+    add up to the leg's length (each end's ball of its distance is clear, the distance being
+    1-Lipschitz); ``hits`` decides those. A leg that only grazes a body's margin (a diagonal
+    round a corner) is kept: the field's push keeps the agent off it there."""
+    ijk, shape, centres, free, near, body = cells
+    offsets, delta, length = leg
+    cut = np.zeros(len(free), dtype=np.uint32)
+    into = np.flatnonzero(near & free)
+    rows = []
+    for q in range(len(offsets)):
+        src = ijk[into] - offsets[q]
+        v = into[((src >= 0) & (src < shape)).all(axis=1)]
+        u = v - delta[q]
+        at_risk = free[u] & (body[u] + body[v] + 2.0 * radius < length[q])
+        rows.append((q, v[at_risk], u[at_risk]))
+    if not any(len(v) for _, v, _ in rows):
+        return cut
+    q_all = np.concatenate([np.full(len(v), q, dtype=np.int64) for q, v, _ in rows])
+    v_all = np.concatenate([v for _, v, _ in rows])
+    u_all = np.concatenate([u for _, _, u in rows])
+    crossed = hits(centres[u_all], centres[v_all])
+    np.bitwise_or.at(cut, v_all[crossed], (np.uint32(1) << q_all[crossed].astype(np.uint32)))
+    return cut
+
+
+CHUNK = 4096
+"""Points per query of :func:`traced_hits`'s distances (the memory of a (points, bodies) table)."""
+
+
+def traced_hits(
+    a: np.ndarray, b: np.ndarray, distance: Callable[[np.ndarray], np.ndarray], touch: float, steps: int
+) -> np.ndarray:
+    """Per row: whether the segment ``a`` -> ``b`` meets a body, marched from ``a`` by the
+    distance to the nearest body at each point (``distance``: points -> (points, bodies)
+    distances; sphere tracing, exact for a 1-Lipschitz distance): met at a distance under
+    ``touch`` within ``steps`` steps."""
+    span = b - a
+    size = np.linalg.norm(span, axis=1)
+    unit = span / np.maximum(size, 1e-12)[:, None]
+    t = np.zeros(len(a))
+    hit = np.zeros(len(a), dtype=bool)
+    live = np.arange(len(a))
+    for _ in range(steps):
+        if not len(live):
+            break
+        p = a[live] + t[live, None] * unit[live]
+        c = np.concatenate([distance(p[k : k + CHUNK]).min(axis=1) for k in range(0, len(p), CHUNK)])
+        met = c < touch
+        hit[live[met]] = True
+        t[live] += c
+        live = live[~met & (t[live] < size[live])]
+    return hit
+
+
+def cell_gaps(near: np.ndarray, cell: np.ndarray, shape: np.ndarray) -> tuple[np.ndarray, float]:
+    """Per cell the distance from its box to the nearest box of the cells ``near`` (bool, the
+    grid's shape), and its largest value (inf, inf when there is none). The box-to-box distance
+    between cells (i, j, k) and (i', j', k') is the root of the sum over the axes of
+    ((|i - i'| - 1)^+ * cell)^2: a sum of one term per axis, so its minimum over the near cells
+    is taken one axis after the other (a min-plus product with the term of that axis), exactly
+    (compiled: ``gap_squares``)."""
+    if not near.any():
+        return np.full(near.size, np.inf), np.inf
+    terms = tuple(
+        np.array([(max(s - 1, 0) * cell[axis]) ** 2 for s in range(int(shape[axis]))]) for axis in range(3)
+    )
+    gap = np.sqrt(kernel_module("swarmplan.flight._guide_kernel").gap_squares(near.ravel(), shape, terms))
+    return gap, float(gap.max())
 
 
 def ways_floor(world: World, params: AgentParams) -> float:

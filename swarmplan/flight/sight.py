@@ -97,7 +97,7 @@ def fixed_wings_in_sight(
 def farthest_seen(guide: StaticGuide, pos: np.ndarray, goal: np.ndarray) -> np.ndarray | None:
     """The farthest cell centre of the way from ``pos`` to ``goal`` (3,) whose straight line
     from ``pos`` is clear, or None (no way, or no point of it in sight)."""
-    row = int(guide._rows_for(guide.cell_of(goal[None]), pos[None])[0])
+    row = int(guide._rows_for(guide.cell_of(goal[None]), pos[None], goal[None])[0])
     way = guide._way(row, int(guide.cell_of(pos[None])[0]))
     if len(way) < 2 or way[-1] != guide._source[row]:
         return None

@@ -353,7 +353,9 @@ class EscapePlanner:
         rho0 = w.planner_config.apf.influence
         rb0 = rho0
         floor = max(float(sim.params.min_altitude[i]), w.terrain_clearance if w.peaks else 0.0)
-        rho0_g = ground_range(rho0, floor)
+        goal = s.goal[i]
+        goal_height = float(goal[2] - w.terrain_height(goal[None, :2])[0])
+        rho0_g = float(ground_range(rho0, floor, goal_height, r, not bool(sim.params.fixed_wing[i])))
         lo = w.bounds_min + r + rb0
         hi = w.bounds_max - r - rb0
         lo[2] = max(w.bounds_min[2] + r, floor + r + rho0_g)

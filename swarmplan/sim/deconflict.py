@@ -1,11 +1,12 @@
 """Each agent's own deconfliction on what it believes of the others (worlds with ``comms``).
 
 Without ``comms`` the safety filter deconflicts every pair on both agents' committed steps (a
-perfect network lets them agree within the step). With it, two agents agree that way only when
-each heard the other's state of this very step (an instantaneous network); every other pair is
-judged by the flyer alone: its own step against the other's believed motion over the step
-(the last state heard, moved on by its velocity), with a margin for what the other may have
-done since: ``max_accel (age + dt)^2 / 2`` with ``age`` the belief's age at the step's start.
+perfect network lets them agree within the step), sliding, braking or stopping as below. With
+it, two agents agree that way only when each heard the other's state of this very step (an
+instantaneous network); every other pair is judged by the flyer alone: its own step against
+the other's believed motion over the step (the last state heard, moved on by its velocity),
+with a margin for what the other may have done since: ``max_accel (age + dt)^2 / 2`` with
+``age`` the belief's age at the step's start.
 A multirotor whose step closes in on another agent's believed motion to within both bodies,
 each inflated by its safety margin (``kinematics.safety_margin``), and that margin slides (its
 step without the part towards those agents, when that is within its acceleration limit), else
@@ -76,8 +77,10 @@ def deconflict(
 ) -> tuple[list[Event], list[tuple[str, int]], np.ndarray]:
     """The flying agents' (``commands.idx``) steps from ``start`` to ``end`` (positions,
     velocities; ``end`` changed in place) deconflicted: a pair whose bodies, each inflated by its
-    safety margin, would touch during the step while closing in stops its multirotor(s), braking
-    (``max_accel``) where braking clears, until no conflict remains (a pair already that close
+    safety margin, would touch during the step while closing in slides its multirotor(s) (the
+    step without its part towards the other, within ``max_accel``, where that clears; once per
+    agent and step), else stops them, braking (``max_accel``) where braking clears, until no
+    conflict remains (a pair already that close
     that keeps its distance or opens it is let go: stopped, it could never part again, and a lab
     swarm froze for good); with ``comms`` only the pairs that can agree within the
     step, and then each agent alone on its beliefs (:func:`belief_conflicts`). Returns the
@@ -90,6 +93,7 @@ def deconflict(
     active = np.zeros(n, dtype=bool)
     active[commands.idx] = True
     stopped = np.zeros(n, dtype=bool)
+    slid = np.zeros(n, dtype=bool)
     present = active | (mode == Mode.ARRIVED)  # no mode changes below
     checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
     compiled = use_compiled_checks(n, bool(p.fixed_wing.any()))
@@ -103,10 +107,30 @@ def deconflict(
                 continue
             for i in (a, b):
                 if active[i] and not stopped[i] and not p.fixed_wing[i]:
-                    safe_brake = filt.brake(i, vel0[i])
-                    p_brake = pos0[i] + safe_brake * dt
                     other = b if i == a else a
                     w0 = pos0[i] - pos0[other]
+                    if not slid[i]:
+                        # Slide first (as on beliefs): the step without its part towards the
+                        # other, within the acceleration limit of its last velocity, where it
+                        # opens the gap or keeps clear and touches no body (a multirotor under
+                        # another that only climbed into it stopped for good, the two held).
+                        unit = -w0 / max(float(np.linalg.norm(w0)), 1e-9)
+                        slide = vel1[i] - max(float(unit @ vel1[i]), 0.0) * unit
+                        p_slide = pos0[i] + slide * dt
+                        dw = (p_slide - pos0[i]) - (pos1[other] - pos0[other])
+                        d = float(segment_segment_min_distance(pos0[i], p_slide, pos0[other], pos1[other]))
+                        slid[i] = True
+                        if (
+                            np.linalg.norm(slide - vel0[i]) <= p.max_accel[i] * dt * (1.0 + 1e-9)
+                            and (d >= checked[i] + checked[other] or _parting(w0, dw))
+                            and filt.step_is_safe(i, pos0[i], p_slide, window.q0, window.q1)
+                        ):
+                            vel1[i] = slide
+                            pos1[i] = p_slide
+                            changed = True
+                            continue
+                    safe_brake = filt.brake(i, vel0[i])
+                    p_brake = pos0[i] + safe_brake * dt
                     dw = (p_brake - pos0[i]) - (pos1[other] - pos0[other])
                     d = float(segment_segment_min_distance(pos0[i], p_brake, pos0[other], pos1[other]))
                     clear = d >= checked[i] + checked[other] or _parting(w0, dw)

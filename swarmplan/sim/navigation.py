@@ -100,14 +100,22 @@ class Navigator:
         return target, scale, Tally(events=tuple(events)) if events else NOTHING
 
     def advance(self, s: SwarmState, pts: np.ndarray, i: int, which: str) -> np.ndarray | None:
-        """Next waypoint of ``pts`` not yet reached by agent ``i`` (None once all are)."""
+        """Next waypoint of ``pts`` not yet reached by agent ``i`` (None once all are): one within
+        ``REACH_STEPS`` steps of flight (at least the goal tolerance), or within the agent's turn
+        radius at its speed (``v^2 / max_accel``) and no longer closing in on it (abeam or
+        behind): the nearest it can come at that speed. An agent slow to turn circled such a
+        waypoint for good, commanded at it at cruise speed."""
         index = s.segment_index if which == "segment" else s.route_index
-        p = s.position[i]
-        reach = max(
-            self.world.goal_tolerance, float(np.linalg.norm(s.velocity[i])) * self.world.dt * REACH_STEPS
-        )
+        p, v = s.position[i], s.velocity[i]
+        speed = float(np.linalg.norm(v))
+        reach = max(self.world.goal_tolerance, speed * self.world.dt * REACH_STEPS)
+        turn = speed * speed / max(float(self.params.max_accel[i]), 1e-9)
         k = index[i]
-        while k < len(pts) and np.linalg.norm(pts[k] - p) <= reach:
+        while k < len(pts):
+            d = pts[k] - p
+            gap = float(np.linalg.norm(d))
+            if gap > reach and (gap > turn or float(np.dot(d, v)) > 0.0):
+                break
             k += 1
         index[i] = k
         return None if k >= len(pts) else pts[k]

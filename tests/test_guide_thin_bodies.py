@@ -1,0 +1,92 @@
+"""The guide round bodies thinner than its cells (swarmplan.flight.guide): no leg of a way runs
+through a thin wall, and the search for a goal tucked under a thin slab starts where the goal is
+in sight. (Worlds of ``bench reach`` that failed on these fly in tests/reach_regressions.)"""
+
+from __future__ import annotations
+
+import numpy as np
+from helpers import base_world, make_world
+
+from swarmplan.flight import guide as G
+from swarmplan.flight import guide_graph
+from swarmplan.flight.kinematics import AgentParams
+
+# A field 400 x 200 x 100 m (cells of 5.8 m along x, centres at 200.0 and 205.8 m) with a wall
+# 1 m thick across it at x = 203, between those centres, from y = 40 to 160 and up to the
+# bounds' top: only its two ends lead round it.
+THIN_WALL = [{"id": "wall", "shape": "box", "size": [1, 120, 100], "position": [203, 100, 50]}]
+# A slab 2 m thick, 100 x 100 m, its underside 40 m up, through the middle of a layer of cells
+# (5.56 m high: 38.9 to 44.4 m).
+THIN_SLAB = [{"id": "slab", "shape": "box", "size": [100, 100, 2], "position": [200, 100, 41]}]
+
+
+def _guide(obstacles, start, goal):
+    raw = base_world(
+        bounds={"min": [0, 0, 0], "max": [400, 200, 100]},
+        obstacles=obstacles,
+        agents=[{"id": "a", "start": list(start), "goal": list(goal)}],
+    )
+    raw["agent_defaults"] = {**raw["agent_defaults"], "radius": 0.5, "separation": [1, 1, 1]}
+    world = make_world(raw)
+    return G.make_guide(world, AgentParams.from_world(world))
+
+
+def _crosses_wall(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the segment a -> b passes through the wall's box (x 202.5..203.5, y 40..160)."""
+    t = np.linspace(0.0, 1.0, 2001)[:, None]
+    p = a + t * (b - a)
+    inside = (np.abs(p[:, 0] - 203.0) <= 0.5) & (np.abs(p[:, 1] - 100.0) <= 60.0) & (p[:, 2] <= 100.0)
+    return bool(inside.any())
+
+
+def test_no_leg_of_a_way_runs_through_a_wall_thinner_than_a_cell():
+    start, goal = np.array([100.0, 100.0, 30.0]), np.array([205.5, 100.0, 30.0])
+    guide = _guide(THIN_WALL, start, goal)
+    assert guide.cell.min() > 4.0  # the wall is a sixth of a cell thick
+    row = int(guide._rows_for(guide.cell_of(goal[None]), start[None], goal[None])[0])
+    way = guide._way(row, int(guide.cell_of(start[None])[0]))
+    assert way[-1] == guide._source[row]
+    pts = np.vstack([start, guide.centres[way[1:]], goal])
+    assert not any(_crosses_wall(pts[k], pts[k + 1]) for k in range(len(pts) - 1))
+    # round one of the wall's ends: the way is at least the detour's length
+    detour = np.hypot(103.0, 60.0) + np.hypot(2.5, 60.0)
+    assert np.linalg.norm(np.diff(pts, axis=0), axis=1).sum() > detour - 2.0 * guide.cell.max()
+
+
+def test_legs_through_the_wall_are_cut_and_legs_beside_it_kept():
+    guide = _guide(THIN_WALL, (100.0, 100.0, 30.0), (300.0, 100.0, 30.0))
+    offsets, delta, length, _, _ = G.legs(guide.shape, guide.cell)
+    cells = (guide.ijk, guide.shape, guide.centres, guide.free, guide.near, guide._body_clear)
+    cut = guide_graph.crossing_legs(cells, guide.radius, (offsets, delta, length), guide._traced_hits)
+    v, q = np.nonzero((cut[:, None] >> np.arange(len(offsets), dtype=np.uint32)) & 1)
+    assert len(v)
+    u = v - delta[q]
+    # every leg cut runs through the wall, and every free leg across its plane within its
+    # extent (between two free cells whose centres straddle x = 203 at y 50..150) is cut
+    assert all(_crosses_wall(guide.centres[a], guide.centres[b]) for a, b in zip(u, v, strict=True))
+    c = guide.centres
+    cut_set = set(zip(u.tolist(), v.tolist(), strict=True))
+    for k in range(len(offsets)):
+        into = np.flatnonzero(guide.free & guide.near)
+        src = guide.ijk[into] - offsets[k]
+        ok = ((src >= 0) & (src < guide.shape)).all(axis=1)
+        vv = into[ok]
+        uu = vv - delta[k]
+        across = guide.free[uu] & ((c[uu, 0] - 203.0) * (c[vv, 0] - 203.0) < 0.0)
+        mid = 0.5 * (c[uu] + c[vv])
+        across &= (np.abs(mid[:, 1] - 100.0) < 50.0) & (mid[:, 2] < 90.0)
+        assert all((a, b) in cut_set for a, b in zip(uu[across].tolist(), vv[across].tolist(), strict=True))
+
+
+def test_a_goal_under_a_thin_slab_is_searched_from_where_it_is_in_sight():
+    """The goal, 0.3 m under the slab, lies in a cell whose centre is in the slab (not free); free
+    cells lie both above the slab (the most clearance) and under it: the search starts under it,
+    where the goal is in sight."""
+    goal = np.array([200.0, 100.0, 39.2])
+    guide = _guide(THIN_SLAB, (200.0, 100.0, 80.0), goal)
+    cell = int(guide.cell_of(goal[None])[0])
+    assert not guide.free[cell] and 40.0 < guide.centres[cell][2] < 42.0
+    source = guide._source_of(cell, goal)
+    assert guide.free[source]
+    assert guide.centres[source][2] < 40.0  # under the slab's underside
+    assert not guide._traced_hits(guide.centres[source][None], goal[None])[0]
