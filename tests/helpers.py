@@ -343,3 +343,18 @@ def fly_metered(sim: Any, seed: int) -> Any:
         meter.update(p0, sim.state.position)
         if r.terminated or r.truncated:
             return meter
+
+
+def flight_draw_settings() -> dict:
+    """hypothesis settings for tests whose every example is a whole flight: deterministic draws
+    (the suite's outcome does not change from run to run) and no shrinking (a seed shrinks to
+    nothing useful; the caps do, but each step is a whole flight)."""
+    from hypothesis import HealthCheck, Phase
+
+    return dict(
+        deadline=None,
+        derandomize=True,
+        database=None,
+        phases=(Phase.explicit, Phase.generate),
+        suppress_health_check=[HealthCheck.too_slow],
+    )

@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings
+from helpers import flight_draw_settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from swarmplan.bench.random_worlds import random_world
@@ -25,13 +26,7 @@ EXAMPLES = {"lab": 4, "field": 2}
 EXAMPLES_SLOW = 25
 """Worlds drawn per class by the slow study."""
 
-_SETTINGS = dict(
-    deadline=None,
-    derandomize=True,
-    database=None,
-    phases=(Phase.explicit, Phase.generate),
-    suppress_health_check=[HealthCheck.too_slow],
-)
+_SETTINGS = flight_draw_settings()
 
 networks = st.fixed_dictionaries(
     {

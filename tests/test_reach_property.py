@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from hypothesis import HealthCheck, Phase, given, settings
+from helpers import flight_draw_settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from swarmplan.bench.random_worlds import CLASSES, random_world
@@ -31,15 +32,7 @@ its guard rolls out its manoeuvres)."""
 EXAMPLES_SLOW = 20
 """Worlds drawn per class by the slow study."""
 
-# Deterministic draws (the suite's outcome does not change from run to run) and no shrinking
-# (a seed shrinks to nothing useful; the caps do, but each step is a whole flight).
-_SETTINGS = dict(
-    deadline=None,
-    derandomize=True,
-    database=None,
-    phases=(Phase.explicit, Phase.generate),
-    suppress_health_check=[HealthCheck.too_slow],
-)
+_SETTINGS = flight_draw_settings()
 
 _flown: dict[tuple, dict] = {}
 
