@@ -210,7 +210,7 @@ def compact_near_numpy(
     moved = pos_row[live] + vel_row[live] * age[:, None]
     k, j = np.nonzero(view >= 0)
     rows = view[k, j]
-    old = 0.5 * max_accel[j] * age[rows] * age[rows] > reach[idx[k]] + reach[j]
+    old = belief_doubt(max_accel[j], age[rows]) > reach[idx[k]] + reach[j]
     view[k[old], j[old]] = -1
     return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
 
