@@ -15,7 +15,6 @@ import copy
 
 import numpy as np
 import pytest
-from scipy.stats import rankdata
 
 from swarmplan.optimizers import make
 from swarmplan.optimizers.base import Problem
@@ -110,6 +109,8 @@ def test_cfo_keeps_moving_after_feasibility(name):
 
 def test_mcfo_eq23_literal_by_default():
     """Default MCFO moves every probe by eq 23 with r1, r2 as drawn (no eq 29 rescaling)."""
+    from scipy.stats import rankdata  # here: scipy.stats costs ~1 s to import at collection
+
     opt = make("mcfo", population=8, c3=0.0)
     d = 3
     problem = Problem(_sphere, np.full(d, -5.0), np.full(d, 5.0), max_evals=10**5)
