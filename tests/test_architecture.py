@@ -12,11 +12,22 @@ from __future__ import annotations
 
 import ast
 import sys
+from functools import cache
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "swarmplan"
 MAX_LINES = 600
 MAX_PARAMETERS = 12
+
+
+@cache
+def _parse(text: str) -> ast.Module:
+    return ast.parse(text)
+
+
+def parsed(path: Path) -> ast.Module:
+    """The syntax tree of the file at ``path`` (each text parsed once per test run; read only)."""
+    return _parse(path.read_text(encoding="utf-8"))
 
 
 def module_name(path: Path) -> str:
@@ -106,7 +117,7 @@ def _read_import_graph(annotations: bool, implicit_packages: bool) -> dict[str, 
     for mod, path in files.items():
         own = mod if mod in packages else mod.rpartition(".")[0]
         targets: set[str] = set()
-        for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8")), annotations):
+        for node in runtime_nodes(parsed(path), annotations):
             names: list[str] = dynamic_imports(node, files) or []
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]
@@ -210,7 +221,7 @@ def parameter_count(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
 def long_parameter_lists(root: Path) -> dict[str, int]:
     out = {}
     for path in root.rglob("*.py"):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in ast.walk(parsed(path)):
             if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 continue
             if parameter_count(node) > MAX_PARAMETERS:
@@ -298,7 +309,7 @@ def test_every_dynamic_import_names_its_module() -> None:
         f"{mod}: {name}"
         for mod, path in files.items()
         if not mod.startswith("swarmplan.cli.") and mod != "swarmplan.runtime.compiled"
-        for node in runtime_nodes(ast.parse(path.read_text(encoding="utf-8")))
+        for node in runtime_nodes(parsed(path))
         for name in dynamic_imports(node, files) or []
         if name.startswith("<")
     }
@@ -398,7 +409,7 @@ def function_level_imports() -> set[tuple[str, str]]:
         if package_of(mod) in ("cli", "bench"):
             continue
         own = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
-        for fn in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for fn in ast.walk(parsed(path)):
             if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
             for node in ast.walk(fn):
@@ -477,7 +488,7 @@ def recorder_leaks(sim_dir: Path) -> list[str]:
     leaks = []
     for path in sorted(sim_dir.rglob("*.py")):
         mod = module_name(path) if path.is_relative_to(PACKAGE) else f"swarmplan.sim.{path.stem}"
-        imported, idents = names_in_code(ast.parse(path.read_text(encoding="utf-8")), mod)
+        imported, idents = names_in_code(parsed(path), mod)
         leaks += [
             f"{path.name} imports {m}" for m in sorted(imported) if m.split(".")[:2] == ["swarmplan", "io"]
         ]
