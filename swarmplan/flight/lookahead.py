@@ -25,9 +25,10 @@ and all candidates and all times are measured in one batched distance query. The
 kept from obstacles, still or moving, is the aircraft's own (``clearance``, by default the
 largest of its radius, half its horizontal separation and 0.05 R_min), at each predicted
 position with the room the straight chord to the next one can dip by (:func:`kept_gap`); from
-the terrain and the bounds one body radius. The manoeuvres from where the aircraft is now are only needed where the field's
-command would corner it: they are flown for those aircraft alone (every row of a rollout and of
-a clearance query is computed on its own, so the answers are those of flying them all).
+the terrain and the bounds one body radius. The manoeuvres from where the aircraft is now are
+only needed where the field's command would corner it: they are flown for those aircraft alone
+(every row of a rollout and of a clearance query is computed on its own, so the answers are
+those of flying them all).
 (:func:`predicted_positions` gives the closed-form arcs and helices of a
 heading rate V / R_min with the flight-path angle set at once, the level-turn limit of it.)
 """

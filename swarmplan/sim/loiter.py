@@ -17,13 +17,14 @@ stands for its goal in the field's goal-distance factor), so it flies round it.
 A goal the aircraft cannot fly through and loiter after (a goal in a corner, or near a wall it
 would pass heading into) is approached on its loiter circle: within ``CAPTURE_RANGE`` turn radii
 of its goal, a fixed wing flying at it checks the circles through the goal tangent to its bearing
-to it (the heading it would arrive with), with the room the roll-in and the goal tolerance take
-as a margin. When none of them is clear it takes, of the circles through the goal (every 10
+to it (the heading it would arrive with), with the room its roll-in takes (half of its
+flight) as a margin. When none of them is clear it takes, of the circles through the goal (every 10
 degrees of heading there, either side, the radii of ``LOITER_FACTORS``), the clear one of the
 smallest radius that is the shortest to fly to (a Dubins way: the turn onto the tangent from
 where it is, the tangent, the arc to the goal), or the clearest when none is clear; it flies
-onto it along the tangent (its field pulls at the tangent point), round it (a point ``LEAD``
-ahead) and through its goal, and loiters on that same circle once it arrives.
+onto it along the tangent (its field pulls at the tangent point), then onto and round it along
+a vector field (``_on_circle``) and through its goal, and loiters on that same circle once it
+arrives.
 
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
@@ -48,6 +49,10 @@ if TYPE_CHECKING:
 
 LEAD = math.radians(30.0)
 """How far ahead on the circle (rad) a loitering fixed wing's field pulls it."""
+
+CONVERGE = 2.0
+"""The gain of the course onto an approach circle: off it by a fraction x of its radius, the
+course turns atan(2 x) from the circle's tangent towards it (45 degrees at a quarter radius)."""
 
 
 class Loiter:
@@ -145,7 +150,6 @@ class Loiter:
         at_goal: np.ndarray,
         target: np.ndarray,
         obstacles: Obstacles,
-        tolerance: float,
     ) -> np.ndarray:
         """``target`` (rows of flying agents ``idx`` at ``pos`` moving at ``vel``) with, for the
         fixed wings flying at their ``goal`` (``at_goal``, rows) within ``CAPTURE_RANGE`` turn
@@ -162,21 +166,21 @@ class Loiter:
         out = target
         for row in np.flatnonzero(fly):
             i = int(k_all[row])
-            if not self.approaching[i] and not self._choose(i, pos[row], vel[row], goal[row], obstacles, tolerance):
+            if not self.approaching[i] and not self._choose(i, pos[row], vel[row], goal[row], obstacles):
                 continue
             if out is target:
                 out = np.array(target, dtype=float)
-            out[row] = self._on_circle(i, pos[row], goal[row])
+            out[row] = self._on_circle(i, pos[row], vel[row], goal[row])
         return out
 
     def _choose(
-        self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray, obstacles: Obstacles, tolerance: float
+        self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray, obstacles: Obstacles
     ) -> bool:
         """Whether agent ``i`` at ``p`` flying ``v`` must approach its goal ``g`` on a circle
         (no clear loiter circle through ``g`` tangent to its bearing to it); if so, its circle."""
         r_min = float(self.params.min_turn_radius[i])
         speed = np.array([max(float(np.hypot(v[0], v[1])), 1e-9)])
-        margin = tolerance + 0.5 * float(roll_in_distance(self.params, np.array([i]), speed)[0])
+        margin = 0.5 * float(roll_in_distance(self.params, np.array([i]), speed)[0])
         clearance = clear_of_statics(obstacles, i)
         bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
         direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
@@ -204,24 +208,28 @@ class Loiter:
         self.radius[i], self.side[i] = r, side
         return True
 
-    def _on_circle(self, i: int, p: np.ndarray, g: np.ndarray) -> np.ndarray:
-        """The point agent ``i`` at ``p`` approaching its goal ``g`` on its circle is pulled at:
-        the tangent point of its way onto the circle while that tangent is longer than ``LEAD``
-        of arc, then the point ``LEAD`` ahead on the circle, or the goal once that is nearer ahead."""
+    def _on_circle(self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """The point agent ``i`` at ``p`` flying ``v`` towards its goal ``g`` round its circle is
+        pulled at: far out (over sqrt(2) radii from the centre), the tangent point of its way onto
+        the circle; nearer, a point ``LEAD`` of arc away along the course of a vector field that
+        turns onto the circle in its direction (the circle's tangent, turned towards the circle by
+        atan(``CONVERGE`` x the distance off it over its radius)); the goal itself once it lies
+        less than ``LEAD`` ahead, the aircraft near its circle and flying its way."""
         c, r, side = self.center[i], float(self.radius[i]), float(self.side[i])
         dx, dy = p[0] - c[0], p[1] - c[1]
         d = math.hypot(dx, dy)
         theta = math.atan2(dy, dx)
-        tangent = 0.0
-        if d > r:
+        if d > math.sqrt(2.0) * r:
             theta += side * math.acos(r / d)
-            tangent = math.sqrt(d * d - r * r)
-        if tangent <= r * LEAD:
-            to_goal = (side * (math.atan2(g[1] - c[1], g[0] - c[0]) - theta)) % (2.0 * math.pi)
-            if to_goal <= LEAD:
-                return np.array(g, dtype=float)
-            theta += side * LEAD
-        return np.array([c[0] + r * math.cos(theta), c[1] + r * math.sin(theta), g[2]])
+            return np.array([c[0] + r * math.cos(theta), c[1] + r * math.sin(theta), g[2]])
+        course = theta + side * 0.5 * math.pi
+        to_goal = (side * (math.atan2(g[1] - c[1], g[0] - c[0]) - theta)) % (2.0 * math.pi)
+        along = v[0] * math.cos(course) + v[1] * math.sin(course)
+        if to_goal <= LEAD and abs(d - r) < 0.25 * r and along > math.sqrt(0.5) * math.hypot(v[0], v[1]):
+            return np.array(g, dtype=float)
+        course += side * math.atan(CONVERGE * (d - r) / r)
+        ahead = r * LEAD
+        return np.array([p[0] + ahead * math.cos(course), p[1] + ahead * math.sin(course), g[2]])
 
     def targets(self, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """The points (len(rows), 3) ``LEAD`` ahead on their circles of loitering agents ``rows``

@@ -127,7 +127,7 @@ class Steering:
             target = self.capture.targets(s.t, idx, pos0[idx], vel0[idx], s.goal[idx], target)
             # ... or, when it could not loiter after flying through it, approaches it on a circle
             target = self.loiter.approach(
-                idx, pos0[idx], vel0[idx], s.goal[idx], at_goal, target, self.obstacles, self.world.goal_tolerance
+                idx, pos0[idx], vel0[idx], s.goal[idx], at_goal, target, self.obstacles
             )
         if self.loiter.on.any():  # a point ahead on its circle is a loitering agent's target and goal
             rows = np.flatnonzero(self.loiter.on[idx])
