@@ -173,9 +173,7 @@ class Loiter:
             out[row] = self._on_circle(i, pos[row], vel[row], goal[row])
         return out
 
-    def _choose(
-        self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray, obstacles: Obstacles
-    ) -> bool:
+    def _choose(self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray, obstacles: Obstacles) -> bool:
         """Whether agent ``i`` at ``p`` flying ``v`` must approach its goal ``g`` on a circle
         (no clear loiter circle through ``g`` tangent to its bearing to it); if so, its circle."""
         r_min = float(self.params.min_turn_radius[i])
