@@ -15,16 +15,17 @@ the most. Its field pulls it at a point ``LEAD`` radians ahead of it on the circ
 stands for its goal in the field's goal-distance factor), so it flies round it.
 
 A goal the aircraft cannot fly through and loiter after (a goal in a corner, or near a wall it
-would pass heading into) is approached on its loiter circle: within ``CAPTURE_RANGE`` turn radii
-of its goal, a fixed wing flying at it checks the circles through the goal tangent to its bearing
-to it (the heading it would arrive with), with the room its roll-in takes (half of its
-flight) as a margin. When none of them is clear it takes, of the circles through the goal (every 10
-degrees of heading there, either side, the radii of ``LOITER_FACTORS``), the clear one of the
-smallest radius that is the shortest to fly to (a Dubins way: the turn onto the tangent from
-where it is, the tangent, the arc to the goal), or the clearest when none is clear; it flies
-onto it along the tangent (its field pulls at the tangent point), then onto and round it along
-a vector field (``_on_circle``) and through its goal, and loiters on that same circle once it
-arrives.
+would pass heading into) is approached on its loiter circle: between one and ``CAPTURE_RANGE``
+turn radii of its goal (horizontally), a fixed wing flying at it checks the circles through the
+goal tangent to its bearing to it (the heading it would arrive with), with the room its roll-in
+takes (half of its flight) as a margin. When none of them is clear it takes, of the circles
+through the goal (every 10 degrees of heading there, either side, the radii of
+``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
+Dubins way: the turn onto the tangent from where it is, the tangent, the arc to the goal), or
+the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
+tangent point), then onto and round it along a vector field (``_on_circle``) and through its
+goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
+bearing no longer tells the heading it will arrive with: it keeps what it decided before.
 
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
@@ -158,7 +159,8 @@ class Loiter:
         k_all = idx
         r_min = self.params.min_turn_radius[k_all]
         e = goal[:, :2] - pos[:, :2]
-        near = np.hypot(e[:, 0], e[:, 1]) < CAPTURE_RANGE * r_min
+        away = np.hypot(e[:, 0], e[:, 1])
+        near = away < CAPTURE_RANGE * r_min
         fly = self.params.fixed_wing[k_all] & at_goal & near & ~self.on[k_all]
         self.approaching[k_all[~fly]] = False
         if not fly.any():
@@ -166,7 +168,11 @@ class Loiter:
         out = target
         for row in np.flatnonzero(fly):
             i = int(k_all[row])
-            if not self.approaching[i] and not self._choose(i, pos[row], vel[row], goal[row], obstacles):
+            # Within a turn radius its bearing is no longer the heading it arrives with: it flies
+            # on as it decided before.
+            if not self.approaching[i] and (
+                away[row] < r_min[row] or not self._choose(i, pos[row], vel[row], goal[row], obstacles)
+            ):
                 continue
             if out is target:
                 out = np.array(target, dtype=float)
