@@ -18,7 +18,9 @@ A goal the aircraft cannot fly through and loiter after (a goal in a corner, or 
 would pass heading into) is approached on its loiter circle: between one and ``CAPTURE_RANGE``
 turn radii of its goal (horizontally), a fixed wing flying at it checks the circles through the
 goal tangent to its bearing to it (the heading it would arrive with), with the room its roll-in
-takes (half of its flight) as a margin. When none of them is clear it takes, of the circles
+takes (half of its flight) as a margin, and the height it has to win or lose. When none of them
+is clear, or the height is more than its climb limit allows over the way in less a turn radius
+(it spirals on the circle instead), it takes, of the circles
 through the goal (every 10 degrees of heading there, either side, the radii of
 ``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
 Dubins way: the turn onto the tangent from where it is, the tangent, the arc to the goal), or
@@ -180,15 +182,19 @@ class Loiter:
         return out
 
     def _choose(self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray, obstacles: Obstacles) -> bool:
-        """Whether agent ``i`` at ``p`` flying ``v`` must approach its goal ``g`` on a circle
-        (no clear loiter circle through ``g`` tangent to its bearing to it); if so, its circle."""
+        """Whether agent ``i`` at ``p`` flying ``v`` must approach its goal ``g`` on a circle (no
+        clear loiter circle through ``g`` tangent to its bearing to it, or more height to win or
+        lose than its climb limit allows on the way in after a turn); if so, its circle."""
         r_min = float(self.params.min_turn_radius[i])
         speed = np.array([max(float(np.hypot(v[0], v[1])), 1e-9)])
         margin = 0.5 * float(roll_in_distance(self.params, np.array([i]), speed)[0])
         clearance = clear_of_statics(obstacles, i)
         bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
+        run = float(np.hypot(bearing[0], bearing[1])) - r_min
+        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(float(self.params.max_climb[i]))
         direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
-        if (clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1) >= margin).any():
+        worst = clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1)
+        if not steep and (worst >= margin).any():
             return False
         angles = np.radians(np.arange(0.0, 360.0, 10.0))
         best, best_clear = None, -np.inf
