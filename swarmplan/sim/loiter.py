@@ -20,14 +20,14 @@ turn radii of its goal (horizontally), a fixed wing flying at it checks the circ
 goal tangent to its bearing to it (the heading it would arrive with), with the room its roll-in
 takes (half of its flight) as a margin, and the height it has to win or lose. When none of them
 is clear, or the height is more than its climb limit allows over the way in less a turn radius
-(it spirals on the circle instead), it takes, of the circles through the goal (every 10 degrees
-of heading there, either side, the radii of ``LOITER_FACTORS``), the clear one of the smallest
-radius that is the shortest to fly to (a Dubins way: the turn onto the tangent from where it is,
-the tangent, the arc to the goal), or the clearest when none is clear; it flies onto it along
-the tangent (its field pulls at the tangent point), then onto and round it along a vector field
-(``_on_circle``), and at its goal once it can turn onto it, and loiters on that same circle once
-it arrives. Within a turn radius of its goal its bearing no longer tells the heading it will
-arrive with: it keeps what it decided before.
+(it spirals on the circle instead), it takes, of the circles
+through the goal (every 10 degrees of heading there, either side, the radii of
+``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
+Dubins way: the turn onto the tangent from where it is, the tangent, the arc to the goal), or
+the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
+tangent point), then onto and round it along a vector field (``_on_circle``) and through its
+goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
+bearing no longer tells the heading it will arrive with: it keeps what it decided before.
 
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
@@ -224,8 +224,7 @@ class Loiter:
         the circle; nearer, a point ``LEAD`` of arc away along the course of a vector field that
         turns onto the circle in its direction (the circle's tangent, turned towards the circle by
         atan(``CONVERGE`` x the distance off it over its radius)); the goal itself once it lies
-        less than a quarter of the circle ahead and the arc through it tangent to the aircraft's
-        heading is no tighter than 1.1 R_min (a turn it can fly onto it)."""
+        less than ``LEAD`` ahead, the aircraft near its circle and flying its way."""
         c, r, side = self.center[i], float(self.radius[i]), float(self.side[i])
         dx, dy = p[0] - c[0], p[1] - c[1]
         d = math.hypot(dx, dy)
@@ -235,13 +234,9 @@ class Loiter:
             return np.array([c[0] + r * math.cos(theta), c[1] + r * math.sin(theta), g[2]])
         course = theta + side * 0.5 * math.pi
         to_goal = (side * (math.atan2(g[1] - c[1], g[0] - c[0]) - theta)) % (2.0 * math.pi)
-        ex, ey = g[0] - p[0], g[1] - p[1]
-        far, speed = math.hypot(ex, ey), math.hypot(v[0], v[1])
-        if to_goal <= 0.5 * math.pi and far > 0.0 and speed > 0.0:
-            cos_a = (v[0] * ex + v[1] * ey) / (far * speed)
-            sin_a = math.sqrt(max(0.0, 1.0 - cos_a * cos_a))
-            if cos_a > 0.0 and far >= 2.2 * float(self.params.min_turn_radius[i]) * sin_a:
-                return np.array(g, dtype=float)
+        along = v[0] * math.cos(course) + v[1] * math.sin(course)
+        if to_goal <= LEAD and abs(d - r) < 0.25 * r and along > math.sqrt(0.5) * math.hypot(v[0], v[1]):
+            return np.array(g, dtype=float)
         course += side * math.atan(CONVERGE * (d - r) / r)
         ahead = r * LEAD
         return np.array([p[0] + ahead * math.cos(course), p[1] + ahead * math.sin(course), g[2]])
