@@ -198,7 +198,8 @@ class EscapePlanner:
         self.holds: dict[int, int] = {}  # holding patterns flown, per agent (each widens the search)
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
-        self._stood_down: dict[int, int] = {}  # stuck windows in a row a gate let the field have
+        # Per agent: stuck windows in a row a gate let the field have, and when the last was.
+        self._stood_down: dict[int, tuple[int, float]] = {}
         self._lining_up: dict[int, float] = {}  # since when a fixed wing lines up with its way
 
     # ------------------------------------------------------------------ validation
@@ -478,17 +479,26 @@ class EscapePlanner:
         near[i] = False
         return near
 
+    def forget_stand_downs(self) -> None:
+        """A new run: no agent has stood down yet, none lines up."""
+        self._stood_down.clear()
+        self._lining_up.clear()
+
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
-        in_row, since = self._stood_down.get(i, 0), self._lining_up
-        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, since)
+        # In a row: the last stand-down was the window before (a window of progress between
+        # them, with no stuck report, starts the count again).
+        count, last = self._stood_down.get(i, (0, -np.inf))
+        t, window = sim.state.t, float(sim.world.planner_config.stuck.window)
+        in_row = count if t - last < 1.5 * window else 0
+        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, self._lining_up)
         if gate is not None:
-            self._stood_down[i] = self._stood_down.get(i, 0) + 1
+            self._stood_down[i] = (in_row + 1, t)
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})
             return None
-        self._stood_down[i] = 0
+        self._stood_down.pop(i, None)
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
             self.escapes[i] = 0  # after holding, escapes are tried again (with wider searches)
