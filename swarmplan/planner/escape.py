@@ -200,7 +200,7 @@ class EscapePlanner:
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
         # Per agent: stuck windows in a row a gate let the field have, and when the last was.
         self._stood_down: dict[int, tuple[int, float]] = {}
-        self._lining_up: dict[int, float] = {}  # since when a fixed wing lines up with its way
+        self._since: dict[str, dict[int, float]] = {}  # per gate and agent: holding it since when
 
     # ------------------------------------------------------------------ validation
 
@@ -482,7 +482,7 @@ class EscapePlanner:
     def forget_stand_downs(self) -> None:
         """A new run: no agent has stood down yet, none lines up."""
         self._stood_down.clear()
-        self._lining_up.clear()
+        self._since.clear()
 
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
@@ -493,7 +493,7 @@ class EscapePlanner:
         count, last = self._stood_down.get(i, (0, -np.inf))
         t, window = sim.state.t, float(sim.world.planner_config.stuck.window)
         in_row = count if t - last < 1.5 * window else 0
-        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, self._lining_up)
+        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, self._since)
         if gate is not None:
             self._stood_down[i] = (in_row + 1, t)
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})

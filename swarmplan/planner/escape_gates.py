@@ -93,6 +93,35 @@ def queued(sim: PlanningContext, i: int, escaped_at: float, near: np.ndarray) ->
     return progress < sim.world.planner_config.stuck.min_progress
 
 
+def queue_moves(sim: PlanningContext, i: int, near: np.ndarray, since: float) -> bool:
+    """Whether agent ``i`` waits in a queue that moves, left to the field since ``since`` (s):
+    ``CROWD`` or more flying agents are near (``near``, a mask); those of them nearer its goal
+    than it is (the queue ahead, and the agents coming the other way through it) fly towards
+    their own goals, on average, at least at the rate stuck detection asks
+    (``stuck.min_progress`` per ``stuck.window``); and less time has passed than that queue
+    takes to pass at that rate, one slot (two radii and the separation) per agent. The crowd's
+    own progress dissolves such a queue; an escape through it only plans a detour (doorway, 64
+    agents: escapes and yields planned in the queue at the gap took the last arrival from
+    28 s to 42 s). A queue that stops, or outlasts its allowance, leaves the agent to its
+    optimizer."""
+    if near.sum() < CROWD:
+        return False
+    s, p = sim.state, sim.params
+    goal = s.goal[i]
+    j = np.flatnonzero(near)
+    ahead = j[np.linalg.norm(s.position[j] - goal, axis=1) < float(np.linalg.norm(goal - s.position[i]))]
+    if not len(ahead):
+        return False
+    to_goal = s.goal[ahead] - s.position[ahead]
+    dist = np.maximum(np.linalg.norm(to_goal, axis=1), 1e-9)
+    rate = float(np.mean(np.einsum("ij,ij->i", s.velocity[ahead], to_goal) / dist))
+    stuck = sim.world.planner_config.stuck
+    if rate < stuck.min_progress / stuck.window:
+        return False
+    slot = 2.0 * float(p.radius[i]) + float(np.max(p.separation[i]))
+    return s.t - since <= len(ahead) * slot / rate
+
+
 def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     """Whether the obstacles' push (static and moving, at their poses now; the field's law,
     ``flight.field_law``) along agent ``i``'s pull towards its goal takes more than half of the
@@ -146,20 +175,29 @@ def stand_down(
     agents_near: Callable[[], np.ndarray],
     only_agents_around: Callable[[], bool],
     in_row: int,
-    lining_since: dict[int, float],
+    since: dict[str, dict[int, float]],
 ) -> str | None:
     """The reason to leave stuck agent ``i`` to the field this window, if any: a gate of
     :func:`stand_down_gate` while it has stood down fewer than ``STAND_DOWN_WINDOWS`` windows
     in a row (``in_row``: an agent still stuck after that is offered its optimizer whatever
-    those gates say), else ``lining_up`` (:func:`lining_up`, window after window within its
-    allowance; ``lining_since``, per agent since when, is kept here)."""
+    those gates say), else, window after window within their allowances, ``queue_moves``
+    (:func:`queue_moves`) or ``lining_up`` (:func:`lining_up`). ``since``, per gate and agent
+    since when it has held the agent in this row, is kept here."""
     if in_row < STAND_DOWN_WINDOWS:
         gate = stand_down_gate(sim, i, escaped_at, agents_near, only_agents_around)
         if gate is not None:
             return gate
-    if lining_up(sim, i, lining_since.setdefault(i, sim.state.t)):
+    t = sim.state.t
+    queue = since.setdefault("queue_moves", {})
+    if in_row == 0:
+        queue.pop(i, None)  # a new row
+    if queue_moves(sim, i, agents_near(), queue.setdefault(i, t)):
+        return "queue_moves"
+    queue.pop(i, None)
+    lining = since.setdefault("lining_up", {})
+    if lining_up(sim, i, lining.setdefault(i, t)):
         return "lining_up"
-    lining_since.pop(i, None)
+    lining.pop(i, None)
     return None
 
 
