@@ -198,7 +198,8 @@ class EscapePlanner:
         self.holds: dict[int, int] = {}  # holding patterns flown, per agent (each widens the search)
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
-        # Per agent: stuck windows in a row a gate let the field have, and when the last was.
+        # Per agent: stuck windows in a row a gate let the field have, and the distance to the
+        # goal at the last of them.
         self._stood_down: dict[int, tuple[int, float]] = {}
         self._since: dict[str, dict[int, float]] = {}  # per gate and agent: holding it since when
 
@@ -488,14 +489,15 @@ class EscapePlanner:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
-        # In a row: the last stand-down was the window before (a window of progress between
-        # them, with no stuck report, starts the count again).
-        count, last = self._stood_down.get(i, (0, -np.inf))
-        t, window = sim.state.t, float(sim.world.planner_config.stuck.window)
-        in_row = count if t - last < 1.5 * window else 0
+        # In a row: since the last stand-down the agent got no nearer its goal by the progress
+        # stuck detection asks (one that got on well in between starts the count again; one
+        # that swings to and fro in a trap does not).
+        count, was = self._stood_down.get(i, (0, np.inf))
+        now = float(np.linalg.norm(sim.state.goal[i] - sim.state.position[i]))
+        in_row = count if now > was - float(sim.world.planner_config.stuck.min_progress) else 0
         gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, self._since)
         if gate is not None:
-            self._stood_down[i] = (in_row + 1, t)
+            self._stood_down[i] = (in_row + 1, now)
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})
             return None
         self._stood_down.pop(i, None)

@@ -1,6 +1,7 @@
 """When a stuck agent plans no escape of its own (tests of :meth:`EscapePlanner.on_stuck`
 besides its crowd and obstacle tests): the field is still carrying it, the guide round static
-obstacles leads it, or it waits in a queue."""
+obstacles leads it, or it waits in a queue (one its last escape did not get it out of, or one
+that still moves)."""
 
 from __future__ import annotations
 
@@ -17,9 +18,11 @@ from swarmplan.world.motion import poses_at
 #: the crowd at the gap took arrivals from 36 to 32 and the real-time factor from 11x to 3x).
 CROWD = 3
 
-#: Stuck windows in a row for which the gates below may let the field, not an escape, free an
-#: agent: after that many, a stuck agent is offered its optimizer whatever the gates say (a
-#: crowd or queue that has not dissolved in two windows is holding it, not passing it).
+#: Stuck windows in a row (with no progress towards the goal between them) for which the gates
+#: of :func:`stand_down_gate` may let the field, not an escape, free an agent: after that many,
+#: a stuck agent is offered its optimizer whatever those gates say (a crowd or queue that has
+#: not dissolved in two windows is holding it, not passing it; a queue that still moves is
+#: :func:`queue_moves`'s to judge).
 STAND_DOWN_WINDOWS = 1
 
 
