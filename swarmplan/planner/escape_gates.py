@@ -104,9 +104,9 @@ def queue_moves(sim: PlanningContext, i: int, near: np.ndarray, since: float) ->
     (``stuck.min_progress`` per ``stuck.window``); and less time has passed than that queue
     takes to pass at that rate, one slot (two radii and the separation) per agent. The crowd's
     own progress dissolves such a queue; an escape through it only plans a detour (doorway, 64
-    agents: escapes and yields planned in the queue at the gap took the last arrival from
-    28 s to 42 s). A queue that stops, or outlasts its allowance, leaves the agent to its
-    optimizer."""
+    agents, seed 2: 23 escapes and yields planned in the queue at the gap, the last arrival at
+    42 s against the bare field's 27 s; with this gate none, at 27 s). A queue that stops, or
+    outlasts its allowance, leaves the agent to its optimizer."""
     if near.sum() < CROWD:
         return False
     s, p = sim.state, sim.params
