@@ -10,7 +10,7 @@ from helpers import base_world, make_world
 
 from swarmplan.core import Mode
 from swarmplan.flight.kinematics import AgentParams
-from swarmplan.planner import escape, escape_gates
+from swarmplan.planner import escape_gates
 from swarmplan.sim.navigation import Navigator, initial_state
 
 
@@ -63,7 +63,6 @@ def _stuck_context(goal_distance: float) -> SimpleNamespace:
     return SimpleNamespace(
         state=state,
         world=SimpleNamespace(planner_config=SimpleNamespace(stuck=stuck)),
-        note_event=lambda *args: None,
     )
 
 
@@ -74,17 +73,15 @@ def test_stand_downs_count_in_a_row_until_the_agent_gets_nearer_its_goal(monkeyp
         rows.append(in_row)
         return "crowd"
 
-    monkeypatch.setattr(escape, "stand_down", gate)
-    monkeypatch.setattr(escape, "held_by", lambda sim, i: {})
-    planner = escape.EscapePlanner.__new__(escape.EscapePlanner)
-    planner.pending, planner._escaped_at, planner._stood_down, planner._since = {}, {}, {}, {}
+    monkeypatch.setattr(escape_gates, "stand_down", gate)
+    downs = escape_gates.StandDowns()
     sim = _stuck_context(50.0)
     for x in (0.0, 0.3, -0.2):  # swinging to and fro: in a row
         sim.state.position[0, 0] = x
-        planner.on_stuck(sim, 0)
+        downs.decide(sim, 0, None, lambda: None, lambda: None)
     sim.state.position[0, 0] = 0.6  # 0.8 m nearer than at the last stand-down: a new row
-    planner.on_stuck(sim, 0)
-    planner.on_stuck(sim, 0)
+    downs.decide(sim, 0, None, lambda: None, lambda: None)
+    downs.decide(sim, 0, None, lambda: None, lambda: None)
     assert rows == [0, 1, 2, 0, 1]
 
 

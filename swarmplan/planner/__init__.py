@@ -49,7 +49,7 @@ class RefinementPlanner:
         self.escape.escapes.clear()
         self.escape.pending.clear()
         self.escape.failures.clear()
-        self.escape.forget_stand_downs()
+        self.escape.stand_downs.clear()
         self.smoother.reset()
         if self.world.planner_config.mode != "global":
             return {}

@@ -58,9 +58,9 @@ from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import (
     CROWD,
+    StandDowns,
     held_by,
     held_by_obstacles,
-    stand_down,
 )
 from swarmplan.planner.hold import holding_pattern
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
@@ -198,10 +198,7 @@ class EscapePlanner:
         self.holds: dict[int, int] = {}  # holding patterns flown, per agent (each widens the search)
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
-        # Per agent: stuck windows in a row a gate let the field have, and the distance to the
-        # goal at the last of them.
-        self._stood_down: dict[int, tuple[int, float]] = {}
-        self._since: dict[str, dict[int, float]] = {}  # per gate and agent: holding it since when
+        self.stand_downs = StandDowns()  # which stuck agents the field is left to free
 
     # ------------------------------------------------------------------ validation
 
@@ -480,27 +477,14 @@ class EscapePlanner:
         near[i] = False
         return near
 
-    def forget_stand_downs(self) -> None:
-        """A new run: no agent has stood down yet, none lines up."""
-        self._stood_down.clear()
-        self._since.clear()
-
     def on_stuck(self, sim: PlanningContext, i: int) -> StuckOutcome:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
-        # In a row: since the last stand-down the agent got no nearer its goal by the progress
-        # stuck detection asks (one that got on well in between starts the count again; one
-        # that swings to and fro in a trap does not).
-        count, was = self._stood_down.get(i, (0, np.inf))
-        now = float(np.linalg.norm(sim.state.goal[i] - sim.state.position[i]))
-        in_row = count if now > was - float(sim.world.planner_config.stuck.min_progress) else 0
-        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, self._since)
+        gate = self.stand_downs.decide(sim, i, self._escaped_at.get(i), near, crowd)
         if gate is not None:
-            self._stood_down[i] = (in_row + 1, now)
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})
             return None
-        self._stood_down.pop(i, None)
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
             self.escapes[i] = 0  # after holding, escapes are tried again (with wider searches)

@@ -204,6 +204,42 @@ def stand_down(
     return None
 
 
+class StandDowns:
+    """Which stuck agents are left to the field, run by run: per agent the stand-downs in a row
+    and the distance to its goal at the last of them, and per gate since when it has held it."""
+
+    def __init__(self) -> None:
+        self.in_row: dict[int, tuple[int, float]] = {}
+        self.since: dict[str, dict[int, float]] = {}
+
+    def clear(self) -> None:
+        """A new run: no agent has stood down yet."""
+        self.in_row.clear()
+        self.since.clear()
+
+    def decide(
+        self,
+        sim: PlanningContext,
+        i: int,
+        escaped_at: float | None,
+        agents_near: Callable[[], np.ndarray],
+        only_agents_around: Callable[[], bool],
+    ) -> str | None:
+        """:func:`stand_down` for stuck agent ``i``, counting its stand-downs in a row: those
+        with the agent no nearer its goal, by ``stuck.min_progress``, than at the last of them
+        (one that got on well in between starts the count again; one that swings to and fro in
+        a trap does not)."""
+        count, was = self.in_row.get(i, (0, np.inf))
+        now = float(np.linalg.norm(sim.state.goal[i] - sim.state.position[i]))
+        row = count if now > was - float(sim.world.planner_config.stuck.min_progress) else 0
+        gate = stand_down(sim, i, escaped_at, agents_near, only_agents_around, row, self.since)
+        if gate is None:
+            self.in_row.pop(i, None)
+        else:
+            self.in_row[i] = (row + 1, now)
+        return gate
+
+
 def held_by(sim: PlanningContext, i: int) -> dict[str, object]:
     """What holds agent ``i``: the nearest of the ground (or terrain), the faces of the flight
     volume, the obstacles (at their poses now) and the other agents, by clearance from the
