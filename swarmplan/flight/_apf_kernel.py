@@ -157,8 +157,9 @@ def _over(x, y, z):  # noqa: ANN001, ANN202
 def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=False):  # noqa: ANN001, ANN201, PLR0915
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
 
-    ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed) of
-    the agents computed;
+    ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed, field
+    scale) of the agents computed (the scale multiplies the influence, the quadratic radius and
+    ``k_agent``, its square ``k_rep``: ``kinematics.field_scales``);
     ``agents``: per agent of the world (radius, separation, min_altitude, stopping reach,
     can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
@@ -170,13 +171,13 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     where it is believed), which widens the pair's separation ellipsoid on every axis;
     ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
     ``window``: test only the agents within each flyer's window along x (the same forces)."""
-    pos, vel, goal, target, static_scale, idx, reach_now = flyers
+    pos, vel, goal, target, static_scale, idx, reach_now, length = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
     all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
     viewed = view.shape[0] > 0
-    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
+    k_att, k_rep_w, rho0_w, k_agent_w, dq_w, npow, k_moving, horizon = gains
     n = pos.shape[0]
     m = dist.shape[1]
     n_all = view.shape[1] if viewed else all_pos.shape[0]
@@ -188,8 +189,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             m_speed[j] = math.sqrt(
                 o_vel[j, 0] * o_vel[j, 0] + o_vel[j, 1] * o_vel[j, 1] + o_vel[j, 2] * o_vel[j, 2]
             )
-    rb_stop, rb_fly = 0.25 * rho0, min(rho0, 10.0)  # field_law.bounds_range: multirotors, fixed wings
-    k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
     if viewed:  # filled per flyer from its view
         X, Y, Z, VX, VY, VZ = (np.zeros(n_all), np.zeros(n_all), np.zeros(n_all),
@@ -214,6 +213,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
+        sc = length[i]  # the agent's own field: the world's scaled (kinematics.field_scales)
+        rho0, k_rep, dq, k_agent = sc * rho0_w, k_rep_w * (sc * sc), sc * dq_w, sc * k_agent_w
+        rb_stop, rb_fly = 0.25 * rho0, min(rho0, 10.0)  # field_law.bounds_range: multirotors, fixed wings
+        k_mv = k_rep * k_moving
         closest = 0.1 * ri  # field_law.nearest: the clearance below which the pushes stop growing
         rb0 = rb_stop if can_stop[idx[i]] else rb_fly
         # field_law.ground_range: the clearance at the agent's floor lowered to its goal's

@@ -36,6 +36,11 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   (without it, neighbours hovering by their own goals hold each other off for good). Fixed
   wings keep the full repulsion (they cannot stop, so the standstill the factor resolves does
   not arise).
+Each multirotor flies the field at its own scale (``kinematics.field_scales``): the influence,
+the quadratic radius and ``k_agent`` times its room over the largest agent's (four braking
+distances from cruise speed each), ``k_rep`` times its square, so a drone that brakes in
+centimetres is pushed by the bodies within its own reach, not by every body within the metres
+the fastest agent of its world needs (the field's shape is the same at every scale).
 The point of attraction (``Flyers.target``) is the goal, or a segment's or route's waypoint, or
 for an agent whose straight line is blocked by a static obstacle the point ahead on its way
 round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static repulsion).
@@ -167,6 +172,9 @@ class ApfField:
         self.gains = world.planner_config.apf if gains is None else gains
         self.reach_per_agent = np.ascontiguousarray(stopping_reach(params, world.dt))
         self.can_stop = np.ascontiguousarray(~params.fixed_wing)
+        # Each agent's own field, the world's scaled (kinematics.field_scales; 1 without).
+        scales = params.field_scale
+        self.field_scale = np.ones(len(params.radius)) if scales is None else np.asarray(scales, dtype=float)
         g = self.gains
         gains_ = (
             g.k_att,
@@ -225,6 +233,7 @@ class ApfField:
         parked = np.zeros(shape, dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
+        idx = np.asarray(flyers.idx, dtype=np.int64)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach = self._reach * (1.0 + 1e-9) + 1e-9
         if swarm.view is None:  # one swarm for every flyer
@@ -242,7 +251,7 @@ class ApfField:
         else:
             apf_forces = kernel_module("swarmplan.flight._apf_kernel").apf_forces
         apf_forces(
-            (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
+            (pos, flyers.vel, goal, tgt, scale, idx, reach_now, self.field_scale[idx]),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),
