@@ -70,7 +70,8 @@ def reference_forces(
         r0 = rho0[:, None]
         mag = _rep(rho, r0, k, 0.1 * r[:, None])
         static_pot = ~field.obstacle_moving[None, :] & (rho < r0)  # movers: no companion pull
-        pot = np.where(static_pot, 0.5 * k * (1.0 / np.maximum(rho, 0.1 * r[:, None]) - 1.0 / r0) ** 2 * r0, 0.0)
+        x = 1.0 / np.maximum(rho, 0.1 * r[:, None]) - 1.0 / r0
+        pot = np.where(static_pot, 0.5 * k * x**2 * r0, 0.0)
         grad = field.obstacle_gradient
         force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
         # Blocked by a static body: the opposing part of its push turns along its surface,
@@ -194,7 +195,8 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     pair = np.where(stops, now[:, None], pair)
     own = _own_scale(params, idx)[:, None]
     e0 = 1.0 + np.minimum(pair, g.influence * own) / scale.max(axis=-1)
-    mag = np.where(others & (e < e0), g.k_agent * own * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    k_agent = g.k_agent * own
+    mag = np.where(others & (e < e0), k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     dvw = vel[:, None, :] - all_vel[None, :, :]
     dv = dvw / scale
     a = dot3(dv, dv)
@@ -203,7 +205,7 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     es = norm3(qs)
     urgency = 1.0 - tau / (g.horizon + _EPS)
     live = others & (es < e0) & (tau > 0)
-    mag_p = np.where(live, g.k_agent * own * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
+    mag_p = np.where(live, k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
     farther = np.zeros((len(idx), n_all), dtype=bool)
     if swarm.goal_distance is not None:
         farther = norm3(flyers.goal - pos)[:, None] <= swarm.goal_distance[None, :]

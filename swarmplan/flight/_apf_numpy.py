@@ -169,7 +169,8 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     active = rho < rho0[:, None]
     static = active & ~moving
     k = np.where(moving, k_rep[:, None], (k_rep * static_scale)[:, None])
-    x = 1.0 / np.maximum(rho, nearest(ri)[:, None]) - 1.0 / rho0[:, None]  # the law's terms (field_law.repulsion)
+    # the law's terms (field_law.repulsion)
+    x = 1.0 / np.maximum(rho, nearest(ri)[:, None]) - 1.0 / rho0[:, None]
     w = k * x * gfac[:, None]
     block = _dot(ax, grad)
     terms = np.empty((n, m, 5))
