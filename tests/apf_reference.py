@@ -31,6 +31,22 @@ def _rep(rho, rho0, k, near):
     return np.where(rho < rho0, k * (1.0 / np.maximum(rho, near) - 1.0 / rho0), 0.0)
 
 
+def _hemmed(side, pos, r, need, field: FieldInputs, world):
+    """Per flyer and side (n, k): a static body within ``need`` (n, k) of the flyer's surface
+    whose outward normal turns more than half against the side, or a face of the bounds across it."""
+    rho = field.obstacle_distance - r[:, None]  # (n, m)
+    facing = np.einsum("nkd,nmd->nkm", side[..., :2], field.obstacle_gradient[..., :2]) < -0.5
+    static = ~field.obstacle_moving[None, None, :]
+    body = (static & facing & (rho[:, None, :] < need[..., None])).any(axis=2)
+    lo, hi = world.bounds_min, world.bounds_max
+    face = np.zeros(side.shape[:-1], dtype=bool)
+    for axis in range(2):
+        u = side[..., axis]
+        face |= (u < -0.5) & ((pos[:, axis] - lo[axis] - r)[:, None] < need)
+        face |= (u > 0.5) & ((hi[axis] - pos[:, axis] - r)[:, None] < need)
+    return body | face
+
+
 def _own_scale(params: AgentParams, idx: np.ndarray) -> np.ndarray:
     """Each agent's field scale (``kinematics.field_scales``; 1 without)."""
     return np.ones(len(idx)) if params.field_scale is None else params.field_scale[idx]
@@ -122,7 +138,13 @@ def reference_forces(
             )
             right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
-            direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))
+            # Head-on: right, else left where a static surface hems the right in, else up.
+            need = radii[None, :] + r[:, None]
+            hem_r = _hemmed(right, pos, r, need, field, world)
+            hem_l = _hemmed(-right, pos, r, need, field, world)
+            up = np.array([0.0, 0.0, 1.0])
+            side = np.where(hem_r[..., None], np.where(hem_l[..., None], up, -right), right)
+            direction = np.where(head_on[..., None], side, _unit(_unit(sep) + 0.3 * right))
             force = force + np.einsum("nk,nkd->nd", m, direction)
 
     h = world.terrain_height(pos[:, :2])

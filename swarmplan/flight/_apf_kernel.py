@@ -65,6 +65,23 @@ def _rep(rho, rho0, k, near):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _hemmed(ux, uy, p, ri, need, dist_i, grad_i, moving, lo, hi):  # noqa: ANN001, ANN202
+    """Whether a static surface lies within ``need`` of an agent of radius ``ri`` at ``p`` on
+    its side ``(ux, uy)`` (horizontal, unit): a body whose outward normal there turns more than
+    half against that side (``dist_i``, ``grad_i``: the agent's distances and gradients; a body
+    at distance inf is not seen), or a face of the flight volume ``lo``..``hi`` across it."""
+    for j in range(dist_i.shape[0]):
+        if not moving[j] and dist_i[j] - ri < need and grad_i[j, 0] * ux + grad_i[j, 1] * uy < -0.5:
+            return True
+    return (
+        (ux < -0.5 and p[0] - lo[0] - ri < need)
+        or (ux > 0.5 and hi[0] - p[0] - ri < need)
+        or (uy < -0.5 and p[1] - lo[1] - ri < need)
+        or (uy > 0.5 and hi[1] - p[1] - ri < need)
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _face(offset, sign, r, rb0, k_rep, gfac, near):  # noqa: ANN001, ANN202
     """Force component from a face of ``bounds`` at ``offset = p - plane`` (sign +1: low face)."""
     rho_b = sign * offset - r
@@ -350,7 +367,17 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)
                     if d < 0.25 * (o_radius[j] + ri + 1.0):
+                        # Head-on: out of the mover's way to the right, or where a static
+                        # surface hems that side in (within the mover's radius and the agent's
+                        # own) to the left, or over both (pressed to a body's edge by a mover
+                        # on its right, an agent was pinned there until the mover struck it).
                         wx, wy, wz = rx, ry, rz
+                        need = o_radius[j] + ri
+                        if _hemmed(rx, ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
+                            if _hemmed(-rx, -ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
+                                wx, wy, wz = 0.0, 0.0, 1.0
+                            else:
+                                wx, wy, wz = -rx, -ry, -rz
                     else:
                         qx, qy, qz = _unit(spx, spy, spz)
                         wx, wy, wz = _unit(qx + 0.3 * rx, qy + 0.3 * ry, qz + 0.3 * rz)

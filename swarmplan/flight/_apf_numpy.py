@@ -25,6 +25,7 @@ from swarmplan.flight.field_law import bounds_range, goal_factor, ground_range, 
 
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
+_UP = np.array([0.0, 0.0, 1.0])
 
 
 def _sq(v: np.ndarray) -> np.ndarray:
@@ -123,6 +124,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             bodies,
             (k_rep, rho0, k_rep * k_moving, horizon),
             static_scale,
+            (lo, hi),
         )
 
     # Terrain / ground, with the goal factor (a goal near the ground stays reachable), scaled
@@ -156,7 +158,27 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     out[:] = f
 
 
-def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
+def _hemmed(u, pos, ri, need, dist, grad, moving, bounds):  # noqa: ANN001, ANN202
+    """The kernel's ``_hemmed`` for every side ``u`` (n, k, 3) of every flyer (``need`` (n, k)),
+    (n, k): a static body within ``need`` whose normal turns more than half against the side,
+    or a face of the flight volume (``bounds``: lo, hi) across it."""
+    lo, hi = bounds
+    ux, uy = u[..., 0], u[..., 1]
+    static = ~moving[None, None, :]
+    near = (dist - ri[:, None])[:, None, :] < need[..., None]
+    facing = grad[:, None, :, 0] * ux[..., None] + grad[:, None, :, 1] * uy[..., None] < -0.5
+    body = (static & near & facing).any(axis=2)
+    px, py, r = pos[:, 0, None], pos[:, 1, None], ri[:, None]
+    face = (
+        ((ux < -0.5) & (px - lo[0] - r < need))
+        | ((ux > 0.5) & (hi[0] - px - r < need))
+        | ((uy < -0.5) & (py - lo[1] - r < need))
+        | ((uy > 0.5) & (hi[1] - py - r < need))
+    )
+    return body | face
+
+
+def _bodies(a, bodies, g, static_scale, bounds):  # noqa: ANN001, ANN202
     """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
     blocking bodies and their hold."""
     pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f = a
@@ -217,7 +239,13 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         mag = rep * (1.0 - tau / (horizon + _EPS)) * fade
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)
-        way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)
+        # Head-on: to the right, or to the left where a static surface hems the right in, or
+        # over both (the kernel's comment).
+        need = r_o + ri[:, None]
+        right_hemmed = _hemmed(right, pos, ri, need, dist, grad, moving, bounds)
+        left_hemmed = _hemmed(-right, pos, ri, need, dist, grad, moving, bounds)
+        side = np.where(right_hemmed[..., None], np.where(left_hemmed[..., None], _UP, -right), right)
+        way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], side, way)
         live = (tau > 0.0) & (mag != 0.0) & np.isfinite(dist[:, mv])  # inf: a mover it does not see
         f = _sum_in_order(f, np.where(live[..., None], mag[..., None] * way, _SKIP))
     return f, bend, hold
