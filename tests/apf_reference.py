@@ -140,7 +140,7 @@ def reference_forces(
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
             # Head-on: right, else left where a static surface hems the right in, else up.
             need = radii[None, :] + r[:, None]
-            hem_r = _hemmed(right, pos, r, need, field, world)
+            hem_r = ~params.fixed_wing[idx][:, None] & _hemmed(right, pos, r, need, field, world)
             hem_l = _hemmed(-right, pos, r, need, field, world)
             up = np.array([0.0, 0.0, 1.0])
             side = np.where(hem_r[..., None], np.where(hem_l[..., None], up, -right), right)

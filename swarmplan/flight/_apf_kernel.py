@@ -369,11 +369,12 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     if d < 0.25 * (o_radius[j] + ri + 1.0):
                         # Head-on: out of the mover's way to the right, or where a static
                         # surface hems that side in (within the mover's radius and the agent's
-                        # own) to the left, or over both (pressed to a body's edge by a mover
-                        # on its right, an agent was pinned there until the mover struck it).
+                        # own) a multirotor goes to the left, or over both (pressed to a body's
+                        # edge by a mover on its right, one was pinned there until struck).
                         wx, wy, wz = rx, ry, rz
                         need = o_radius[j] + ri
-                        if _hemmed(rx, ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
+                        stops = can_stop[idx[i]]  # a fixed wing's way round is the turn-ahead guard's
+                        if stops and _hemmed(rx, ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
                             if _hemmed(-rx, -ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
                                 wx, wy, wz = 0.0, 0.0, 1.0
                             else:

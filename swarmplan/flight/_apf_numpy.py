@@ -125,6 +125,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             (k_rep, rho0, k_rep * k_moving, horizon),
             static_scale,
             (lo, hi),
+            can_stop[idx],
         )
 
     # Terrain / ground, with the goal factor (a goal near the ground stays reachable), scaled
@@ -178,7 +179,7 @@ def _hemmed(u, pos, ri, need, dist, grad, moving, bounds):  # noqa: ANN001, ANN2
     return body | face
 
 
-def _bodies(a, bodies, g, static_scale, bounds):  # noqa: ANN001, ANN202
+def _bodies(a, bodies, g, static_scale, bounds, can_stop):  # noqa: ANN001, ANN202
     """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
     blocking bodies and their hold."""
     pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f = a
@@ -242,7 +243,8 @@ def _bodies(a, bodies, g, static_scale, bounds):  # noqa: ANN001, ANN202
         # Head-on: to the right, or to the left where a static surface hems the right in, or
         # over both (the kernel's comment).
         need = r_o + ri[:, None]
-        right_hemmed = _hemmed(right, pos, ri, need, dist, grad, moving, bounds)
+        stops = can_stop[:, None]  # multirotors (a fixed wing's way round is the turn-ahead guard's)
+        right_hemmed = stops & _hemmed(right, pos, ri, need, dist, grad, moving, bounds)
         left_hemmed = _hemmed(-right, pos, ri, need, dist, grad, moving, bounds)
         side = np.where(right_hemmed[..., None], np.where(left_hemmed[..., None], _UP, -right), right)
         way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], side, way)
