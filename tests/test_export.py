@@ -469,3 +469,29 @@ def test_the_room_of_crazyflies_exports_and_checks(tmp_path, capsys):
         assert entry["joint_jumps"]["accel_m_s2"] < 1e-3
     assert json.loads((tmp_path / "cf" / "check.json").read_text())["contacts"] == []
     assert math.isfinite(manifest["agents"][0]["duration"])
+
+
+SHIPPED_WORLDS = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "worlds").rglob("*.yaml"))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", SHIPPED_WORLDS)
+def test_shipped_multirotor_worlds_export_missions_within_their_bound(path, tmp_path, capsys):
+    """Every shipped multirotor world, flown with its own seed, exports a PX4 mission per agent
+    within its deviation bound that pymavlink loads, and ``--check`` flies the missions with no
+    contact and separation kept."""
+    from swarmplan.io.runner import simulate
+
+    mavwp = pytest.importorskip("pymavlink.mavwp")
+    world = load_world(ROOT / path)
+    if any(a.model != "multirotor" for a in world.agents):
+        pytest.skip("fixed wings: test_fixed_wing_manoeuvres flies their missions")
+    log = tmp_path / "run.mcap"
+    simulate(world, world.seed, log)
+    out = tmp_path / "px4"
+    code = cli_main([str(log), "--format", "px4", "--out", str(out), "--check", "--origin", "47.4,8.5"])
+    text = capsys.readouterr().out
+    assert code == 0 and "check: OK" in text, text
+    for entry in json.loads((out / "manifest.json").read_text())["agents"]:
+        assert entry["max_deviation_m"] <= entry["bound_m"]
+        assert mavwp.MAVWPLoader().load(str(out / entry["waypoint_list"])) == entry["items"] + 1

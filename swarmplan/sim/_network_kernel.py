@@ -137,14 +137,22 @@ def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001
     doubt = np.empty(room)
     moved = np.empty((room, 3))
     view = np.empty((n, n_all), dtype=np.int64)
-    ks = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last pair is written, then dropped
-    js = np.empty(n * n_all + 1, dtype=np.int64)
-    rows = np.empty(n * n_all + 1, dtype=np.int64)
-    ds = np.empty(n * n_all + 1)
+    ks = np.empty(n * n_all, dtype=np.int64)
+    js = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last candidate is written, then dropped
+    rows = np.empty(n * n_all, dtype=np.int64)
+    ds = np.empty(n * n_all)
     # A sender's column holds a few rows (most flyers the newest): its last one met and its
     # position among the rows held, before asking the scratch.
     last = np.zeros(n_all, dtype=np.int64)
     last_at = np.empty(n_all, dtype=np.int64)
+    # The position of the row a flyer holds of each agent, by coordinate (contiguous, so the
+    # distances to every agent are one vectorized pass; most flyers hold the same rows, so few
+    # entries change from one flyer to the next); an agent it knows nothing of: infinitely far.
+    now = np.full(n_all, -1, dtype=np.int64)
+    px = np.full(n_all, np.inf)
+    py = np.full(n_all, np.inf)
+    pz = np.full(n_all, np.inf)
+    d2 = np.empty(n_all)
     count = 0
     c = 0
     old = 0
@@ -154,13 +162,11 @@ def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001
     wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
         own = idx[k]
-        ax, ay, az = at[k, 0], at[k, 1], at[k, 2]
         for j in range(n_all):
             r = heard[own, j]
             if r <= 0:
-                view[k, j] = -1
-                continue
-            if r == last[j]:
+                m = -1
+            elif r == last[j]:
                 m = last_at[j]
             else:
                 m = mark[r]
@@ -176,12 +182,30 @@ def compact_near(heard, idx, mark, table, t, at, radius, stale):  # noqa: ANN001
                     count += 1
                 last[j], last_at[j] = r, m
             view[k, j] = m
-            # Written at c whatever it is, kept by moving c on (no branch to mispredict).
-            dx, dy, dz = moved[m, 0] - ax, moved[m, 1] - ay, moved[m, 2] - az
-            d2 = (dx * dx + dy * dy) + dz * dz
-            d = math.sqrt(d2) if d2 < wide else math.inf
-            ks[c], js[c], rows[c], ds[c] = k, j, m, d
-            c += (d < radius) & (j != own)
+            if m != now[j]:
+                now[j] = m
+                if m < 0:
+                    px[j], py[j], pz[j] = np.inf, np.inf, np.inf
+                else:
+                    px[j], py[j], pz[j] = moved[m, 0], moved[m, 1], moved[m, 2]
+        ax, ay, az = at[k, 0], at[k, 1], at[k, 2]
+        for j in range(n_all):
+            dx, dy, dz = px[j] - ax, py[j] - ay, pz[j] - az
+            d2[j] = (dx * dx + dy * dy) + dz * dz
+        # The candidates (written at c whatever they are, kept by moving c on: no branch to
+        # mispredict), then those within the radius, itself left out.
+        first = c
+        for j in range(n_all):
+            js[c] = j
+            c += d2[j] < wide
+        kept = first
+        for q in range(first, c):
+            j = js[q]
+            d = math.sqrt(d2[j])
+            if d < radius and j != own:
+                ks[kept], js[kept], rows[kept], ds[kept] = k, j, view[k, j], d
+                kept += 1
+        c = kept
     for m in range(count):
         mark[live[m]] = -1
     if old:  # rows too old to act on (rare: a sender long unheard) leave the views and pairs
