@@ -50,6 +50,7 @@ import numpy as np
 
 from swarmplan.flight import _guide_numpy, guide_cache, guide_graph
 from swarmplan.flight.field_law import squeeze
+from swarmplan.flight.kinematics import safety_margin
 from swarmplan.flight.guide_graph import AROUND, Graph, legs, past_way_end, source_cell, ways_floor
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
 from swarmplan.geometry.shapes import DISTANCE
@@ -59,7 +60,6 @@ from swarmplan.world.motion import resting_bodies
 if TYPE_CHECKING:
     from types import ModuleType
 
-    from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
 MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~6 ms per goal for a search)
@@ -91,7 +91,7 @@ class StaticGuide:
         # The clearance of the grid's cells by the compiled query (numpy's bits, a fraction of
         # its time): the grid is the guide's cost at start-up.
         self._batch = ShapeBatch(self.bodies, compiled=True)
-        self.radius = float(np.max(params.radius))
+        self.radius = float(np.max(params.radius + safety_margin(params.radius)))
         self.floor = ways_floor(world, params)
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
         # to fly (their escapes are Dubins chains from their own pose).
