@@ -8,9 +8,12 @@ goal over a grid of the free space, is what grid planners descend (Barraquand & 
 
 :class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
 with the clearance of every cell centre to the static obstacles and the ground, less the
-largest agent radius. Per goal cell it computes once, on first need, the shortest way from every
-cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
-free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
+largest agent radius with its safety margin (``kinematics.safety_margin``, the room the safety
+filter keeps: a way through a gap wider than the body but narrower than the body and its
+margins led an agent in between two pillars, where the filter held it for good). Per goal
+cell it computes once, on first need, the shortest way from every cell to the goal (Dijkstra
+over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter free cells (a cell
+inside the inflated obstacles only leads out), and a leg costs its length
 times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
 middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
 direction, so that in a passage two opposing flows keep to their own right-hand halves instead
@@ -50,8 +53,8 @@ import numpy as np
 
 from swarmplan.flight import _guide_numpy, guide_cache, guide_graph
 from swarmplan.flight.field_law import squeeze
-from swarmplan.flight.kinematics import safety_margin
 from swarmplan.flight.guide_graph import AROUND, Graph, legs, past_way_end, source_cell, ways_floor
+from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
 from swarmplan.geometry.shapes import DISTANCE
 from swarmplan.runtime.compiled import kernel_module, use_numpy_twin
