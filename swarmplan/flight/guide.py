@@ -8,12 +8,9 @@ goal over a grid of the free space, is what grid planners descend (Barraquand & 
 
 :class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
 with the clearance of every cell centre to the static obstacles and the ground, less the
-largest agent radius with its safety margin (``kinematics.safety_margin``, the room the safety
-filter keeps: a way through a gap wider than the body but narrower than the body and its
-margins led an agent in between two pillars, where the filter held it for good). Per goal
-cell it computes once, on first need, the shortest way from every cell to the goal (Dijkstra
-over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter free cells (a cell
-inside the inflated obstacles only leads out), and a leg costs its length
+largest agent radius. Per goal cell it computes once, on first need, the shortest way from every
+cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
+free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
 times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
 middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
 direction, so that in a passage two opposing flows keep to their own right-hand halves instead
@@ -54,7 +51,6 @@ import numpy as np
 from swarmplan.flight import _guide_numpy, guide_cache, guide_graph
 from swarmplan.flight.field_law import squeeze
 from swarmplan.flight.guide_graph import AROUND, Graph, legs, past_way_end, source_cell, ways_floor
-from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
 from swarmplan.geometry.shapes import DISTANCE
 from swarmplan.runtime.compiled import kernel_module, use_numpy_twin
@@ -63,6 +59,7 @@ from swarmplan.world.motion import resting_bodies
 if TYPE_CHECKING:
     from types import ModuleType
 
+    from swarmplan.flight.kinematics import AgentParams
     from swarmplan.world.model import Obstacle, World
 
 MAX_CELLS = 40_000  # cells of the grid up to 64 agents (~6 ms per goal for a search)
@@ -94,7 +91,7 @@ class StaticGuide:
         # The clearance of the grid's cells by the compiled query (numpy's bits, a fraction of
         # its time): the grid is the guide's cost at start-up.
         self._batch = ShapeBatch(self.bodies, compiled=True)
-        self.radius = float(np.max(params.radius + safety_margin(params.radius)))
+        self.radius = float(np.max(params.radius))
         self.floor = ways_floor(world, params)
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
         # to fly (their escapes are Dubins chains from their own pose).
