@@ -198,6 +198,16 @@ def test_no_module_over_max_lines() -> None:
     assert {m: n for m, n in sizes.items() if n > MAX_LINES} == {}
 
 
+#: The simulation orchestrates (its steps' work lives in ``sim``'s modules it calls).
+MAX_SIMULATION_LINES = 300
+
+
+def test_the_simulation_stays_orchestration() -> None:
+    tree = ast.parse((PACKAGE / "sim" / "env.py").read_text(encoding="utf-8"))
+    (cls,) = [n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Simulation"]
+    assert cls.end_lineno - cls.lineno + 1 <= MAX_SIMULATION_LINES
+
+
 def parameter_count(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
     """The parameters a caller passes: every kind (``*args`` and ``**kwargs`` one each), less a
     method's ``self`` or ``cls``."""

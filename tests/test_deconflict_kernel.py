@@ -1,12 +1,13 @@
-"""The braking room's compiled passes (swarm worlds) give the numpy answers of small worlds: the
-believed pairs a command closes in on, with their room, and the cuts in order."""
+"""The compiled passes of the braking room and of the deconfliction on beliefs (swarm worlds) give
+the numpy answers of small worlds: the believed pairs a command closes in on, with their room,
+the cuts in order, and the believed motions a step meets."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from swarmplan.runtime.compiled import kernel_module
-from swarmplan.sim.deconflict import closing_pairs_numpy, cut_numpy
+from swarmplan.sim.deconflict import closing_pairs_numpy, cut_numpy, meetings_numpy
 
 
 def _case(seed: int) -> tuple:
@@ -63,3 +64,32 @@ def test_a_cut_leaves_the_command_at_the_allowed_speed_along_the_line():
         got = out.copy()
         run(got, k, n, allowed)
         np.testing.assert_array_equal(got, [[3.0, 2.0, 0.0]])
+
+
+def test_meetings_compiled_and_numpy_agree():
+    """Random believed pairs (ages of every kind, the unknown one included), flyers that decide
+    or not, steps short and long, with and without pairs agreed within the step: the same
+    pairs kept, in order, with the same bits."""
+    kernel = kernel_module("swarmplan.sim._deconflict_kernel")
+    met = kept = 0
+    for seed in range(6):
+        (k, j, row, dist), (own, age, pos, vel, _), _, (_, max_accel, checked) = _case(seed)
+        rng = np.random.default_rng(100 + seed)
+        n_all = len(max_accel)
+        pos0 = rng.uniform(0.0, 10.0, (n_all, 3))
+        pos1 = pos0 + rng.normal(0.0, 0.6, (n_all, 3))
+        pos1[::5] = pos0[::5]  # at rest
+        cap = rng.uniform(0.5, 3.0, n_all)
+        deciding = rng.random(n_all) < 0.8
+        for agreed in (np.zeros((0, 0), dtype=bool), rng.random((n_all, n_all)) < 0.3):
+            for radius in (0.0, 4.0, 100.0):
+                args = ((k, j, row, dist), radius, (own, age, pos, vel), (pos0, pos1),
+                        (max_accel, cap, checked, deciding), agreed, 0.1)  # fmt: skip
+                want = meetings_numpy(*args)
+                got = kernel.meetings(*args)
+                for w, g in zip(want, got, strict=True):
+                    np.testing.assert_array_equal(w, g)
+                    assert w.dtype == g.dtype
+                kept += len(want[0])
+                met += int(want[-1].sum())
+    assert kept > 100 and met > 10  # the cases keep pairs and meet some

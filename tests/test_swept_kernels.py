@@ -382,9 +382,9 @@ def test_reference_and_compiled_runs_are_identical(monkeypatch):
     from swarmplan.world import parse_world
 
     def run() -> tuple[list, np.ndarray]:
-        # Layout 2: a stuck agent and an emergency stop within the 150 steps (layout 1 has no
-        # event there since the field's agent term reaches the agents' stopping distance).
-        sim = Simulation(parse_world(swarm_world(24, 8, 12, 2)))
+        # Layout 3: a stuck agent, left to the field, within the 150 steps (layouts 1 and 2
+        # have no event there).
+        sim = Simulation(parse_world(swarm_world(24, 8, 12, 3)))
         sim.reset(seed=1)
         events = []
         for _ in range(150):

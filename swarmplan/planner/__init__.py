@@ -49,6 +49,7 @@ class RefinementPlanner:
         self.escape.escapes.clear()
         self.escape.pending.clear()
         self.escape.failures.clear()
+        self.escape.stand_downs.clear()
         self.smoother.reset()
         if self.world.planner_config.mode != "global":
             return {}

@@ -58,9 +58,9 @@ from swarmplan.geometry.polyline import dubins_chain, fillet_path
 from swarmplan.planner.cores import polyline_core_hit, static_leg_hit
 from swarmplan.planner.escape_gates import (
     CROWD,
+    StandDowns,
     held_by,
     held_by_obstacles,
-    stand_down,
 )
 from swarmplan.planner.hold import holding_pattern
 from swarmplan.planner.movers import EscapeClock, moving_clearance, moving_leg_hit, predicted_window
@@ -198,8 +198,7 @@ class EscapePlanner:
         self.holds: dict[int, int] = {}  # holding patterns flown, per agent (each widens the search)
         self._agent_reach: float | None = None  # of the field's agent term (only_agents_around)
         self._escaped_at: dict[int, float] = {}  # distance to the goal at the last escape
-        self._stood_down: dict[int, int] = {}  # stuck windows in a row a gate let the field have
-        self._lining_up: dict[int, float] = {}  # since when a fixed wing lines up with its way
+        self.stand_downs = StandDowns()  # which stuck agents the field is left to free
 
     # ------------------------------------------------------------------ validation
 
@@ -482,13 +481,10 @@ class EscapePlanner:
         if i in self.pending:  # a yield planned for us by the agent we block
             return self.pending.pop(i)
         near, crowd = (lambda: self.agents_near(sim, i)), (lambda: self.only_agents_around(sim, i))
-        in_row, since = self._stood_down.get(i, 0), self._lining_up
-        gate = stand_down(sim, i, self._escaped_at.get(i), near, crowd, in_row, since)
+        gate = self.stand_downs.decide(sim, i, self._escaped_at.get(i), near, crowd)
         if gate is not None:
-            self._stood_down[i] = self._stood_down.get(i, 0) + 1
             sim.note_event(i, "escape_stood_down", {"gate": gate, "held_by": held_by(sim, i)})
             return None
-        self._stood_down[i] = 0
         n_done = self.escapes.get(i, 0)
         if n_done >= int(self.cfg["max_escapes"]):
             self.escapes[i] = 0  # after holding, escapes are tried again (with wider searches)

@@ -1,6 +1,7 @@
 """When a stuck agent plans no escape of its own (tests of :meth:`EscapePlanner.on_stuck`
 besides its crowd and obstacle tests): the field is still carrying it, the guide round static
-obstacles leads it, or it waits in a queue."""
+obstacles leads it, or it waits in a queue (one its last escape did not get it out of, or one
+that still moves)."""
 
 from __future__ import annotations
 
@@ -17,9 +18,11 @@ from swarmplan.world.motion import poses_at
 #: the crowd at the gap took arrivals from 36 to 32 and the real-time factor from 11x to 3x).
 CROWD = 3
 
-#: Stuck windows in a row for which the gates below may let the field, not an escape, free an
-#: agent: after that many, a stuck agent is offered its optimizer whatever the gates say (a
-#: crowd or queue that has not dissolved in two windows is holding it, not passing it).
+#: Stuck windows in a row (with no progress towards the goal between them) for which the gates
+#: of :func:`stand_down_gate` may let the field, not an escape, free an agent: after that many,
+#: a stuck agent is offered its optimizer whatever those gates say (a crowd or queue that has
+#: not dissolved in two windows is holding it, not passing it; a queue that still moves is
+#: :func:`queue_moves`'s to judge).
 STAND_DOWN_WINDOWS = 1
 
 
@@ -93,6 +96,35 @@ def queued(sim: PlanningContext, i: int, escaped_at: float, near: np.ndarray) ->
     return progress < sim.world.planner_config.stuck.min_progress
 
 
+def queue_moves(sim: PlanningContext, i: int, near: np.ndarray, since: float) -> bool:
+    """Whether agent ``i`` waits in a queue that moves, left to the field since ``since`` (s):
+    ``CROWD`` or more flying agents are near (``near``, a mask); those of them nearer its goal
+    than it is (the queue ahead, and the agents coming the other way through it) fly towards
+    their own goals, on average, at least at the rate stuck detection asks
+    (``stuck.min_progress`` per ``stuck.window``); and less time has passed than that queue
+    takes to pass at that rate, one slot (two radii and the separation) per agent. The crowd's
+    own progress dissolves such a queue; an escape through it only plans a detour (doorway, 64
+    agents, seed 2: 23 escapes and yields planned in the queue at the gap, the last arrival at
+    42 s against the bare field's 27 s; with this gate none, at 27 s). A queue that stops, or
+    outlasts its allowance, leaves the agent to its optimizer."""
+    if near.sum() < CROWD:
+        return False
+    s, p = sim.state, sim.params
+    goal = s.goal[i]
+    j = np.flatnonzero(near)
+    ahead = j[np.linalg.norm(s.position[j] - goal, axis=1) < float(np.linalg.norm(goal - s.position[i]))]
+    if not len(ahead):
+        return False
+    to_goal = s.goal[ahead] - s.position[ahead]
+    dist = np.maximum(np.linalg.norm(to_goal, axis=1), 1e-9)
+    rate = float(np.mean(np.einsum("ij,ij->i", s.velocity[ahead], to_goal) / dist))
+    stuck = sim.world.planner_config.stuck
+    if rate < stuck.min_progress / stuck.window:
+        return False
+    slot = 2.0 * float(p.radius[i]) + float(np.max(p.separation[i]))
+    return s.t - since <= len(ahead) * slot / rate
+
+
 def held_by_obstacles(sim: PlanningContext, i: int) -> bool:
     """Whether the obstacles' push (static and moving, at their poses now; the field's law,
     ``flight.field_law``) along agent ``i``'s pull towards its goal takes more than half of the
@@ -146,21 +178,66 @@ def stand_down(
     agents_near: Callable[[], np.ndarray],
     only_agents_around: Callable[[], bool],
     in_row: int,
-    lining_since: dict[int, float],
+    since: dict[str, dict[int, float]],
 ) -> str | None:
     """The reason to leave stuck agent ``i`` to the field this window, if any: a gate of
     :func:`stand_down_gate` while it has stood down fewer than ``STAND_DOWN_WINDOWS`` windows
     in a row (``in_row``: an agent still stuck after that is offered its optimizer whatever
-    those gates say), else ``lining_up`` (:func:`lining_up`, window after window within its
-    allowance; ``lining_since``, per agent since when, is kept here)."""
+    those gates say), else, window after window within their allowances, ``queue_moves``
+    (:func:`queue_moves`) or ``lining_up`` (:func:`lining_up`). ``since``, per gate and agent
+    since when it has held the agent in this row, is kept here."""
     if in_row < STAND_DOWN_WINDOWS:
         gate = stand_down_gate(sim, i, escaped_at, agents_near, only_agents_around)
         if gate is not None:
             return gate
-    if lining_up(sim, i, lining_since.setdefault(i, sim.state.t)):
+    t = sim.state.t
+    queue = since.setdefault("queue_moves", {})
+    if in_row == 0:
+        queue.pop(i, None)  # a new row
+    if queue_moves(sim, i, agents_near(), queue.setdefault(i, t)):
+        return "queue_moves"
+    queue.pop(i, None)
+    lining = since.setdefault("lining_up", {})
+    if lining_up(sim, i, lining.setdefault(i, t)):
         return "lining_up"
-    lining_since.pop(i, None)
+    lining.pop(i, None)
     return None
+
+
+class StandDowns:
+    """Which stuck agents are left to the field, run by run: per agent the stand-downs in a row
+    and the distance to its goal at the last of them, and per gate since when it has held it."""
+
+    def __init__(self) -> None:
+        self.in_row: dict[int, tuple[int, float]] = {}
+        self.since: dict[str, dict[int, float]] = {}
+
+    def clear(self) -> None:
+        """A new run: no agent has stood down yet."""
+        self.in_row.clear()
+        self.since.clear()
+
+    def decide(
+        self,
+        sim: PlanningContext,
+        i: int,
+        escaped_at: float | None,
+        agents_near: Callable[[], np.ndarray],
+        only_agents_around: Callable[[], bool],
+    ) -> str | None:
+        """:func:`stand_down` for stuck agent ``i``, counting its stand-downs in a row: those
+        with the agent no nearer its goal, by ``stuck.min_progress``, than at the last of them
+        (one that got on well in between starts the count again; one that swings to and fro in
+        a trap does not)."""
+        count, was = self.in_row.get(i, (0, np.inf))
+        now = float(np.linalg.norm(sim.state.goal[i] - sim.state.position[i]))
+        row = count if now > was - float(sim.world.planner_config.stuck.min_progress) else 0
+        gate = stand_down(sim, i, escaped_at, agents_near, only_agents_around, row, self.since)
+        if gate is None:
+            self.in_row.pop(i, None)
+        else:
+            self.in_row[i] = (row + 1, now)
+        return gate
 
 
 def held_by(sim: PlanningContext, i: int) -> dict[str, object]:

@@ -1,6 +1,7 @@
-"""Compiled passes of each agent's braking room (``swarmplan.sim.deconflict.braking_room``), for
-swarms: the believed pairs a command closes in on, and the cuts along them in (flyer, agent)
-order. Each function is its numpy counterpart's arithmetic in the same order
+"""Compiled passes of each agent's braking room (``swarmplan.sim.deconflict.braking_room``) and
+deconfliction on its beliefs (``belief_conflicts``), for swarms: the believed pairs a command
+closes in on, the cuts along them in (flyer, agent) order, and the believed motions a step
+meets. Each function is its numpy counterpart's arithmetic in the same order
 (tests/test_deconflict_kernel.py holds them to the same answers)."""
 
 from __future__ import annotations
@@ -77,3 +78,57 @@ def cut(out, k, n, allowed):  # noqa: ANN001, ANN201
         if excess > 0.0:
             for e in range(3):
                 out[f, e] = out[f, e] - excess * n[r, e]
+
+
+@njit(cache=True, nogil=True)
+def meetings(pairs, radius, believed, steps, agents, agreed, dt):  # noqa: ANN001, ANN201
+    """``deconflict.meetings_numpy`` in one pass over the pairs: those within ``radius`` whose
+    flyer decides on a belief not too old to act on and not agreed within the step, with the
+    distance needed, the distance now less a rounding, the other's believed motion over the
+    step, the closest approach of the flyer's step to it and whether the step meets it."""
+    k, j, rows, now = pairs
+    own, age, pos, vel = believed
+    max_accel, cap, checked, deciding = agents
+    pos0, pos1 = steps
+    m = k.shape[0]
+    agreeing = agreed.shape[0] > 0
+    ko = np.empty(m, dtype=np.int64)
+    jo = np.empty(m, dtype=np.int64)
+    need = np.empty(m)
+    closing = np.empty(m)
+    b0 = np.empty((m, 3))
+    b1 = np.empty((m, 3))
+    d = np.empty(m)
+    meet = np.empty(m, dtype=np.bool_)
+    c = 0
+    for p in range(m):
+        kp, jp, r = k[p], j[p], rows[p]
+        i = own[kp]
+        a = age[r] if math.isfinite(age[r]) else 0.0
+        a = a + dt
+        margin = 0.5 * max_accel[jp] * a * a  # deconflict.belief_margin
+        if not (now[p] < radius and deciding[i] and margin <= cap[i] + cap[jp]):
+            continue
+        if agreeing and agreed[i, jp]:
+            continue
+        ko[c], jo[c] = kp, jp
+        need[c] = checked[i] + checked[jp] + margin
+        # collision.segment_segment_min_distance of the flyer's step and the believed motion
+        for e in range(3):
+            b0[c, e] = pos[r, e]
+            b1[c, e] = pos[r, e] + vel[r, e] * dt
+        wx, wy, wz = pos0[i, 0] - b0[c, 0], pos0[i, 1] - b0[c, 1], pos0[i, 2] - b0[c, 2]
+        ux = (pos1[i, 0] - pos0[i, 0]) - (b1[c, 0] - b0[c, 0])
+        uy = (pos1[i, 1] - pos0[i, 1]) - (b1[c, 1] - b0[c, 1])
+        uz = (pos1[i, 2] - pos0[i, 2]) - (b1[c, 2] - b0[c, 2])
+        aa = ux * ux + uy * uy + uz * uz
+        s = 0.0
+        if aa > 1e-18:
+            s = min(max(-(wx * ux + wy * uy + wz * uz) / max(aa, 1e-18), 0.0), 1.0)
+        x, y, z = wx + s * ux, wy + s * uy, wz + s * uz
+        d[c] = math.sqrt(x * x + y * y + z * z)
+        closing[c] = now[p] * (1.0 - 1e-9)
+        meet[c] = d[c] < need[c] and d[c] < closing[c]
+        c += 1
+    return (ko[:c].copy(), jo[:c].copy(), need[:c].copy(), closing[:c].copy(), b0[:c].copy(),
+            b1[:c].copy(), d[:c].copy(), meet[:c].copy())  # fmt: skip

@@ -187,21 +187,13 @@ def belief_conflicts(
         + np.linalg.norm(beliefs.vel, axis=1).max() * dt
         + 2.0 * float(checked.max()) + widest
     )  # fmt: skip
-    k, j, rows, now = beliefs.near_superset(radius)
-    idx = beliefs.idx[k]
-    margin = belief_margin(p.max_accel[j], beliefs.age[rows], dt)
-    keep = (now < radius) & deciding[idx] & (margin <= cap[idx] + cap[j])
-    if agreed is not None:
-        keep &= ~agreed[idx, j]
-    k, j, rows, now, idx, margin = k[keep], j[keep], rows[keep], now[keep], idx[keep], margin[keep]
-    need = checked[idx] + checked[j] + margin
-    b0 = beliefs.pos[rows]
-    b1 = b0 + beliefs.vel[rows] * dt
-    d = segment_segment_min_distance(pos0[idx], pos1[idx], b0, b1)
-    # Within reach of the other's believed motion and closing in on it (a step away from an
-    # agent already within the margin is no conflict: it only widens the gap).
-    closing = now * (1.0 - 1e-9)
-    meet = (d < need) & (d < closing)
+    believed = (np.asarray(beliefs.idx, dtype=np.int64), beliefs.age, beliefs.pos, beliefs.vel)
+    agents = (p.max_accel, cap, checked, deciding)
+    agree = np.zeros((0, 0), dtype=bool) if agreed is None else agreed
+    run = _kernel().meetings if use_compiled(len(p.radius)) else meetings_numpy
+    k, j, need, closing, b0, b1, d, meet = run(
+        beliefs.near_superset(radius), radius, believed, (pos0, pos1), agents, agree, dt
+    )
     amax = p.max_accel
     for f in np.unique(k[meet]):
         mine = np.flatnonzero(k == f)
@@ -235,6 +227,43 @@ def belief_conflicts(
         pos1[i] = pos0[i] + vel1[i] * dt
         stopped[i] = True
     return events, counts, stopped
+
+
+def meetings_numpy(
+    pairs: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    radius: float,
+    believed: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    steps: tuple[np.ndarray, np.ndarray],
+    agents: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    agreed: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, ...]:
+    """Of the believed ``pairs`` (flyer row k, agent j, table row, distance now), those within
+    ``radius`` whose flyer decides (``agents`` = (max_accel, stopping reach, checked radius,
+    deciding) per agent) on a belief not too old to act on (its margin, :func:`belief_margin`,
+    within both stopping reaches) and not agreed within the step (``agreed`` (N, N), or empty:
+    none): their k, j, the distance needed (both checked bodies and the margin), the distance
+    now less a rounding, the other's believed motion over the step (from, to: ``believed`` =
+    (flyer agents, table ages, positions, velocities)), the closest approach of the flyer's step
+    (``steps`` = (start, end) positions per agent) to it, and whether the step meets it: within
+    the distance needed and closing in (a step away from an agent already within the margin
+    only widens the gap)."""
+    k, j, rows, now = pairs
+    own, age, pos, vel = believed
+    max_accel, cap, checked, deciding = agents
+    pos0, pos1 = steps
+    idx = own[k]
+    margin = belief_margin(max_accel[j], age[rows], dt)
+    keep = (now < radius) & deciding[idx] & (margin <= cap[idx] + cap[j])
+    if agreed.shape[0]:
+        keep &= ~agreed[idx, j]
+    k, j, rows, now, idx, margin = k[keep], j[keep], rows[keep], now[keep], idx[keep], margin[keep]
+    need = checked[idx] + checked[j] + margin
+    b0 = pos[rows]
+    b1 = b0 + vel[rows] * dt
+    d = segment_segment_min_distance(pos0[idx], pos1[idx], b0, b1)
+    closing = now * (1.0 - 1e-9)
+    return k, j, need, closing, b0, b1, d, (d < need) & (d < closing)
 
 
 def _parting(w0: np.ndarray, dw: np.ndarray) -> bool:
@@ -300,7 +329,8 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
 
 
 def _kernel() -> Any:
-    """The compiled passes of :func:`braking_room`, run from swarm size on."""
+    """The compiled passes of :func:`braking_room` and :func:`belief_conflicts`, run from swarm
+    size on."""
     return kernel_module("swarmplan.sim._deconflict_kernel")
 
 

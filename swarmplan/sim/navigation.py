@@ -38,34 +38,51 @@ class Navigator:
         n = len(params.ids)
         self.progress_ref = np.zeros(n)
         self.progress_t = np.zeros(n)
+        # At each window's start: the straight (or route) distance and whether the guide's way
+        # measured the agent (its progress is measured the same way at both ends of a window).
+        self.progress_straight = np.zeros(n)
+        self.progress_led = np.zeros(n, dtype=bool)
         self.segment_ref: dict[int, tuple] = {}  # agent -> (waypoint index, distance, t, segment)
 
     def reset(self, s: SwarmState) -> None:
         """Progress is measured from here on (call again once global routes are known)."""
-        self.progress_ref = self.to_go(s)
+        rows = np.arange(len(self.params.ids))
+        self.progress_ref, self.progress_straight, self.progress_led = self.to_go(s, rows)
         self.progress_t = np.zeros(len(self.params.ids))
         self.segment_ref = {}
 
-    def to_go(self, s: SwarmState, rows: np.ndarray | None = None) -> np.ndarray:
-        """:func:`distance_to_go` (of ``rows``, default all), along the guide's way round static
-        obstacles for the agents it guides (flying along a wall to its gap is progress, though
-        the goal gets no nearer); straight within the field's influence of the goal (where the
-        goal factor, not the guide's grid, governs the approach) and where the guide finds no way
-        (a goal closer to a surface than its grid's clearance)."""
-        rows = np.arange(len(s.route)) if rows is None else np.asarray(rows)
-        dg = distance_to_go(s, rows)
+    def to_go(self, s: SwarmState, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Distance still to fly of agents ``rows``: :func:`distance_to_go`, or along the guide's
+        way round static obstacles for the agents it guides (flying along a wall to its gap is
+        progress, though the goal gets no nearer); straight within the field's influence of the
+        goal (where the goal factor, not the guide's grid, governs the approach) and where the
+        guide finds no way (a goal closer to a surface than its grid's clearance). Returns that
+        distance, :func:`distance_to_go` and whether the way measured it, per row."""
+        rows = np.asarray(rows)
+        straight = distance_to_go(s, rows)
+        dg = straight.copy()
+        led = np.zeros(len(rows), dtype=bool)
         if self.guide is not None:
             near = float(self.world.planner_config.apf.influence)
-            led = [
+            on_way = [
                 k
                 for k, i in enumerate(rows.tolist())
                 if self.guide.guided[i] and s.active[i] and s.route[i] is None and dg[k] > near
             ]
-            if led:
-                i = rows[led]
+            if on_way:
+                i = rows[on_way]
                 way = self.guide.way_length(s.position[i], s.goal[i])
-                dg[led] = np.where(np.isfinite(way), way, dg[led])
-        return dg
+                dg[on_way] = np.where(np.isfinite(way), way, dg[on_way])
+                led[on_way] = np.isfinite(way)
+        return dg, straight, led
+
+    def _restart_windows(
+        self, rows: np.ndarray | int, dg: np.ndarray, straight: np.ndarray, led: np.ndarray, t: float
+    ) -> None:
+        """Progress of agents ``rows`` is measured from here (``dg``, ``straight``, ``led``: of
+        :meth:`to_go`) at ``t``."""
+        self.progress_ref[rows], self.progress_straight[rows] = dg, straight
+        self.progress_led[rows], self.progress_t[rows] = led, t
 
     def attraction_targets(self, s: SwarmState, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, Tally]:
         """Point each agent is attracted to (segment waypoint, route waypoint or goal), the scale
@@ -176,24 +193,29 @@ class Navigator:
         kind = np.fromiter(map(_STUCK_KIND.__getitem__, s.mode.tolist()), dtype=np.int8, count=len(s.mode))
         if restart is not None and restart.any():  # their progress is watched from now
             again = np.flatnonzero(restart & (kind == 1))
-            self.progress_ref[again], self.progress_t[again] = self.to_go(s, again), s.t
+            self._restart_windows(again, *self.to_go(s, again), s.t)
         due = np.where(kind == 1, s.t - self.progress_t >= window - 1e-9, kind == 2)
         if exempt is not None:
             due &= ~exempt
         rows = due.nonzero()[0]
         if not len(rows):
             return out
-        dg = np.empty(len(s.mode))
-        dg[rows] = self.to_go(s, rows)
+        dg, straight, led = (np.empty(len(s.mode)), np.empty(len(s.mode)), np.zeros(len(s.mode), dtype=bool))
+        dg[rows], straight[rows], led[rows] = self.to_go(s, rows)
         for i in rows.tolist():
             if s.mode[i] != Mode.APF:
-                self.progress_ref[i], self.progress_t[i] = dg[i], s.t
+                self._restart_windows(i, dg[i], straight[i], led[i], s.t)
                 out += self.segment_watchdog(s, i, window, min_progress)
                 continue
             if s.t - self.progress_t[i] < window - 1e-9:
                 continue
-            progress = self.progress_ref[i] - dg[i]
-            self.progress_ref[i], self.progress_t[i] = dg[i], s.t
+            # The same measure at both ends: along the way if it measured both, else straight
+            # (the way's length jumps by the detour where the guide starts leading the agent).
+            if led[i] == self.progress_led[i]:
+                progress = self.progress_ref[i] - dg[i]
+            else:
+                progress = self.progress_straight[i] - straight[i]
+            self._restart_windows(i, dg[i], straight[i], led[i], s.t)
             if progress >= min_progress:
                 continue
             detail = {
