@@ -153,17 +153,10 @@ def test_a_small_fixed_wing_world_is_flyable_from_its_log(tmp_path):
     assert_tracked(log)
 
 
-CHORD_SHORT = pytest.mark.xfail(
-    strict=True,
-    reason="between two steps the flown path of east1 and west1 comes 2-8 mm inside their 15 m "
-    "clearance of pillar2 (the guard keeps it at each step)",
-)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "path",
-    [pytest.param(p, marks=[CHORD_SHORT]) if "crossing" in p else p for p in FIXED_WING_WORLDS],
+    FIXED_WING_WORLDS,
 )
 def test_shipped_fixed_wing_worlds_are_flyable(path, tmp_path):
     from swarmplan.io.runner import simulate

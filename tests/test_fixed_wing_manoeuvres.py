@@ -226,3 +226,33 @@ def test_bench_worlds_that_cornered_a_fixed_wing(seed: int, k: int) -> None:
 
     rec = fly(world_of("fixed_wing", seed, k))
     assert not [a for a in rec["agents"] if a["collisions"] or a["limit_break"]], rec["agents"]
+
+
+def test_a_fixed_wing_approaches_a_goal_in_a_corner_on_a_clear_circle_through_it() -> None:
+    """A goal 45 m (1.1 R) from two faces, flown at heading into the corner: no circle through it
+    tangent to that heading is clear, so the aircraft takes a circle through its goal that is
+    clear of the bounds; a goal in the open is flown at straight."""
+    from swarmplan.planner.hold import loiter_circle
+    from swarmplan.sim import Simulation
+    from swarmplan.sim.loiter import clear_of_statics
+
+    sim = Simulation(guard_world())
+    sim.reset(seed=0)
+    loiter, obstacles = sim.steering.loiter, sim.obstacles
+    here, v = np.array([200.0, 200.0, 50.0]), np.array([V, V, 0.0]) / math.sqrt(2.0)
+    corner = np.array([355.0, 355.0, 50.0])
+    assert loiter._choose(0, here, v, corner, obstacles)
+    c, r, side = loiter.center[0], loiter.radius[0], loiter.side[0]
+    assert r >= R and math.hypot(*(corner - c)[:2]) == pytest.approx(r)
+    # The circle: tangent to a heading at the goal, all clear of the bounds by the body radius.
+    heading = math.atan2(corner[1] - c[1], corner[0] - c[0]) + side * 0.5 * math.pi
+    pts = loiter_circle(corner, np.array([math.cos(heading), math.sin(heading), 0.0]), r, side)
+    assert clear_of_statics(obstacles, 0)(pts).min() >= 0.0
+    # Far out, its field pulls at the circle's tangent point; at the goal's altitude.
+    target = loiter._on_circle(0, here, v, corner)
+    assert math.hypot(*(target - c)[:2]) == pytest.approx(r) and target[2] == corner[2]
+    assert np.dot(target[:2] - c[:2], target[:2] - here[:2]) == pytest.approx(0.0, abs=1e-6)
+    # A goal in the open: no circle, flown at directly.
+    loiter.reset()
+    assert not loiter._choose(0, here, np.array([V, 0.0, 0.0]), np.array([300.0, 200.0, 50.0]), obstacles)
+    assert not loiter.approaching[0]

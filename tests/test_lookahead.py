@@ -77,8 +77,10 @@ def test_guard_keeps_the_field_command_while_a_way_out_remains():
     The model flies a hard turn as steps of 1.5 m each turned by V dt / R = 0.075 rad (the
     position advances with the turned velocity), so it comes within D - X of the face (centre)
     with X = sum of 1.5 cos(0.075 k) over the first quarter turn (19.25 m): the body keeps
-    D - X - 1 >= 1 for D >= X + 2. The command stands while the next state (D - 1.5) still
-    has that way out, i.e. down to D = X + 3.5; below, the guard turns at once."""
+    D - X - 1 >= 1 for D >= X + 2, and each predicted position keeps the room a chord of a step
+    at the top speed (1.6 m) can dip by, sqrt(2^2 + 0.8^2) - 2 = 0.154 m (centre 2 m from the
+    face: clearance 1 m plus the 1 m body). The command stands while the next state (D - 1.5)
+    still has that way out, i.e. down to D = X + 3.5 + 0.154; below, the guard turns at once."""
     p = _one_agent_params(instant=True)
     idx = np.array([0])
     vel = np.array([[15.0, 0.0, 0.0]])
@@ -88,6 +90,7 @@ def test_guard_keeps_the_field_command_while_a_way_out_remains():
     c = np.cos(k * 0.075)
     reach = float((1.5 * c[c > 0]).sum())
     assert reach == pytest.approx(19.25, abs=0.01)
+    reach += float(np.sqrt(2.0**2 + 0.8**2) - 2.0)
 
     def at(distance: float) -> tuple[np.ndarray, np.ndarray]:
         pos = np.array([[WALL_X - 1 - distance, 100.0, 30.0]])

@@ -53,6 +53,13 @@ def capture_time(params: AgentParams) -> np.ndarray:
     return (2.0 * CAPTURE_RANGE + 2.0 * np.pi) * r / np.maximum(params.speed_min, _EPS)
 
 
+def roll_in_distance(params: AgentParams, k: np.ndarray, speed: np.ndarray) -> np.ndarray:
+    """The flight (m) of fixed wings ``k`` at ``speed`` rolling from wings level into the bank of
+    a minimum-radius turn, ``atan(V^2 / (g R))``, at their roll rate (0 at an unlimited one)."""
+    bank = np.arctan(speed * speed / (GRAVITY * params.min_turn_radius[k]))
+    return speed * bank / params.roll_rate[k]
+
+
 FINAL = float(np.sqrt(2.0))
 """An extending fixed wing turns in once its goal is this many turn radii from the centre of the
 circle it will fly: the tangent from the circle to the goal, its final straight, is then a turn
@@ -115,8 +122,7 @@ class GoalCapture:
         center = p[:, :2] + r[:, None] * normal
         now = np.hypot(*(g[:, :2] - center).T)
         # The circle after the roll-in: its centre half the roll-in's flight ahead.
-        bank = np.arctan(speed * speed / (GRAVITY * r))
-        roll_in = speed * bank / self.params.roll_rate[k]
+        roll_in = roll_in_distance(self.params, k, speed)
         later = np.hypot(*(g[:, :2] - center - 0.5 * roll_in[:, None] * h).T)
         level = speed > _EPS  # a (near) vertical velocity has no heading to extend
         # Extending until the goal is a final straight of a turn radius off the circle's tangent.

@@ -23,10 +23,12 @@ diving aircraft pulls out before it tightens its turn, so a level manoeuvre does
 all candidates at once,
 and all candidates and all times are measured in one batched distance query. The clearance
 kept from obstacles, still or moving, is the aircraft's own (``clearance``, by default the
-largest of its radius, half its horizontal separation and 0.05 R_min); from the terrain and
-the bounds one body radius. The manoeuvres from where the aircraft is now are only needed where the field's
-command would corner it: they are flown for those aircraft alone (every row of a rollout and of
-a clearance query is computed on its own, so the answers are those of flying them all).
+largest of its radius, half its horizontal separation and 0.05 R_min), at each predicted
+position with the room the straight chord to the next one can dip by (:func:`kept_gap`); from
+the terrain and the bounds one body radius. The manoeuvres from where the aircraft is now are
+only needed where the field's command would corner it: they are flown for those aircraft alone
+(every row of a rollout and of a clearance query is computed on its own, so the answers are
+those of flying them all).
 (:func:`predicted_positions` gives the closed-form arcs and helices of a
 heading rate V / R_min with the flight-path angle set at once, the level-turn limit of it.)
 """
@@ -179,8 +181,20 @@ def _manoeuvre_clearance(
     n, c = len(idx), len(_MANOEUVRES) if which is None else which.shape[1]
     points, used = rollout_manoeuvres(params, idx, pos, vel, len(times) // 2, dt, kappa, which)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
-    extra = np.broadcast_to((params.clearance - params.radius)[idx][:, None, None], (n, c, len(times)))
+    extra = np.broadcast_to(kept_gap(params, idx, dt)[:, None, None], (n, c, len(times)))
     return points, used, radii, extra
+
+
+def kept_gap(params: AgentParams, idx: np.ndarray, dt: float) -> np.ndarray:
+    """The gap (n,) fixed wings ``idx`` keep from obstacles beyond their radius at each predicted
+    position, so that the straight chord flown between two of them keeps their ``clearance``:
+    within a distance ``D`` of a convex body the squared distance falls along a chord of length
+    ``L`` by at most ``L^2 / 4`` below its ends' (``D^2 - |x|^2`` is concave), so ends at
+    ``sqrt(D^2 + L^2 / 4)`` keep ``D`` = ``clearance`` + radius all along it (``L``: a step at the
+    top speed)."""
+    reach = params.clearance[idx] + params.radius[idx]
+    half = 0.5 * params.speed_max[idx] * dt
+    return np.sqrt(reach * reach + half * half) - reach + params.clearance[idx] - params.radius[idx]
 
 
 def _least(clear: np.ndarray, used: np.ndarray) -> np.ndarray:
@@ -235,7 +249,7 @@ def guard_commands(
     # The horizon and as much again for the steps a manoeuvre is still settling.
     times = np.arange(1, 2 * steps + 1) * dt
     c = len(_MANOEUVRES)
-    extra_now = params.clearance[idx] - params.radius[idx]
+    extra_now = kept_gap(params, idx, dt)
     # After one step of the field's command ...
     k = idx
     v_next, k_next = fly_fixed_wing(

@@ -14,6 +14,21 @@ arrived first (left when flying straight), else on the other; when none does, th
 the most. Its field pulls it at a point ``LEAD`` radians ahead of it on the circle (which also
 stands for its goal in the field's goal-distance factor), so it flies round it.
 
+A goal the aircraft cannot fly through and loiter after (a goal in a corner, or near a wall it
+would pass heading into) is approached on its loiter circle: between one and ``CAPTURE_RANGE``
+turn radii of its goal (horizontally), a fixed wing flying at it checks the circles through the
+goal tangent to its bearing to it (the heading it would arrive with), with the room its roll-in
+takes (half of its flight) as a margin, and the height it has to win or lose. When none of them
+is clear, or the height is more than its climb limit allows over the way in less a turn radius
+(it spirals on the circle instead), it takes, of the circles
+through the goal (every 10 degrees of heading there, either side, the radii of
+``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
+Dubins way: the turn onto the tangent from where it is, the tangent, the arc to the goal), or
+the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
+tangent point), then onto and round it along a vector field (``_on_circle``) and through its
+goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
+bearing no longer tells the heading it will arrive with: it keeps what it decided before.
+
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
 a contact while it loiters is a collision, for the simulation as for the replay's audit.
@@ -28,6 +43,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from swarmplan.core import Mode, SwarmState
+from swarmplan.flight.capture import CAPTURE_RANGE, roll_in_distance
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.planner.hold import LOITER_FACTORS, loiter_circle
 
@@ -36,6 +52,10 @@ if TYPE_CHECKING:
 
 LEAD = math.radians(30.0)
 """How far ahead on the circle (rad) a loitering fixed wing's field pulls it."""
+
+CONVERGE = 2.0
+"""The gain of the course onto an approach circle: off it by a fraction x of its radius, the
+course turns atan(2 x) from the circle's tangent towards it (45 degrees at a quarter radius)."""
 
 
 class Loiter:
@@ -49,9 +69,11 @@ class Loiter:
         self.radius = np.zeros(n)
         self.side = np.ones(n)
         self.fixed_wings = bool(params.fixed_wing.any())  # whether any agent can loiter
+        self.approaching = np.zeros(n, dtype=bool)  # on its way round its circle to its goal
 
     def reset(self) -> None:
         self.on[:] = False
+        self.approaching[:] = False
 
     def rows(self, s: SwarmState) -> np.ndarray:
         """Which agents loiter (arrived fixed wings that have not collided since)."""
@@ -79,11 +101,15 @@ class Loiter:
         """The fixed wings among ``arrivals`` (agent, time) cannot stop: each flies on at its
         step's velocity (its row of ``flown`` back into ``velocity``, which the arrival zeroed)
         round a circle through where it arrived (its row of ``position``), from its turn state
-        (a row of ``turn``). ``flown`` None: no fixed wings."""
+        (a row of ``turn``; the circle it approached its goal on, when it did). ``flown`` None:
+        no fixed wings."""
         for i, _t in arrivals if flown is not None else ():
             if self.params.fixed_wing[i]:
                 velocity[i] = flown[i]
-                self.start(i, position[i], flown[i], turn[i], clear_of_statics(obstacles, i))
+                if self.approaching[i]:
+                    self.approaching[i], self.on[i] = False, True
+                else:
+                    self.start(i, position[i], flown[i], turn[i], clear_of_statics(obstacles, i))
 
     def start(
         self,
@@ -118,6 +144,103 @@ class Loiter:
         self.radius[i] = r
         self.side[i] = side
 
+    def approach(
+        self,
+        idx: np.ndarray,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        goal: np.ndarray,
+        at_goal: np.ndarray,
+        target: np.ndarray,
+        obstacles: Obstacles,
+    ) -> np.ndarray:
+        """``target`` (rows of flying agents ``idx`` at ``pos`` moving at ``vel``) with, for the
+        fixed wings flying at their ``goal`` (``at_goal``, rows) within ``CAPTURE_RANGE`` turn
+        radii of it that must approach it on a circle (module docstring), the point on its
+        circle their field pulls at; the others' unchanged."""
+        k_all = idx
+        r_min = self.params.min_turn_radius[k_all]
+        e = goal[:, :2] - pos[:, :2]
+        away = np.hypot(e[:, 0], e[:, 1])
+        near = away < CAPTURE_RANGE * r_min
+        fly = self.params.fixed_wing[k_all] & at_goal & near & ~self.on[k_all]
+        self.approaching[k_all[~fly]] = False
+        if not fly.any():
+            return target
+        out = target
+        for row in np.flatnonzero(fly):
+            i = int(k_all[row])
+            # Within a turn radius its bearing is no longer the heading it arrives with: it flies
+            # on as it decided before.
+            if not self.approaching[i] and (
+                away[row] < r_min[row] or not self._choose(i, pos[row], vel[row], goal[row], obstacles)
+            ):
+                continue
+            if out is target:
+                out = np.array(target, dtype=float)
+            out[row] = self._on_circle(i, pos[row], vel[row], goal[row])
+        return out
+
+    def _choose(self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray, obstacles: Obstacles) -> bool:
+        """Whether agent ``i`` at ``p`` flying ``v`` must approach its goal ``g`` on a circle (no
+        clear loiter circle through ``g`` tangent to its bearing to it, or more height to win or
+        lose than its climb limit allows on the way in after a turn); if so, its circle."""
+        r_min = float(self.params.min_turn_radius[i])
+        speed = np.array([max(float(np.hypot(v[0], v[1])), 1e-9)])
+        margin = 0.5 * float(roll_in_distance(self.params, np.array([i]), speed)[0])
+        clearance = clear_of_statics(obstacles, i)
+        bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
+        run = float(np.hypot(bearing[0], bearing[1])) - r_min
+        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(float(self.params.max_climb[i]))
+        direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
+        worst = clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1)
+        if not steep and (worst >= margin).any():
+            return False
+        angles = np.radians(np.arange(0.0, 360.0, 10.0))
+        best, best_clear = None, -np.inf
+        for f in LOITER_FACTORS:
+            r = f * r_min
+            cands = [(a, side) for a in angles for side in (1.0, -1.0)]
+            pts = [loiter_circle(g, np.array([math.cos(a), math.sin(a), 0.0]), r, side) for a, side in cands]
+            worst = clearance(np.concatenate(pts)).reshape(len(cands), -1).min(axis=1)
+            clear = np.flatnonzero(worst >= margin)
+            if len(clear):
+                ways = [_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min) for j in clear]
+                a, side = cands[int(clear[int(np.argmin(ways))])]
+                best = (a, side, r)
+                break
+            j = int(np.argmax(worst))
+            if worst[j] > best_clear:
+                best, best_clear = (cands[j][0], cands[j][1], r), float(worst[j])
+        a, side, r = best
+        self.approaching[i] = True
+        self.center[i] = (g[0] - side * r * math.sin(a), g[1] + side * r * math.cos(a), g[2])
+        self.radius[i], self.side[i] = r, side
+        return True
+
+    def _on_circle(self, i: int, p: np.ndarray, v: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """The point agent ``i`` at ``p`` flying ``v`` towards its goal ``g`` round its circle is
+        pulled at: far out (over sqrt(2) radii from the centre), the tangent point of its way onto
+        the circle; nearer, a point ``LEAD`` of arc away along the course of a vector field that
+        turns onto the circle in its direction (the circle's tangent, turned towards the circle by
+        atan(``CONVERGE`` x the distance off it over its radius)); the goal itself once it lies
+        less than ``LEAD`` ahead, the aircraft near its circle and flying its way."""
+        c, r, side = self.center[i], float(self.radius[i]), float(self.side[i])
+        dx, dy = p[0] - c[0], p[1] - c[1]
+        d = math.hypot(dx, dy)
+        theta = math.atan2(dy, dx)
+        if d > math.sqrt(2.0) * r:
+            theta += side * math.acos(r / d)
+            return np.array([c[0] + r * math.cos(theta), c[1] + r * math.sin(theta), g[2]])
+        course = theta + side * 0.5 * math.pi
+        to_goal = (side * (math.atan2(g[1] - c[1], g[0] - c[0]) - theta)) % (2.0 * math.pi)
+        along = v[0] * math.cos(course) + v[1] * math.sin(course)
+        if to_goal <= LEAD and abs(d - r) < 0.25 * r and along > math.sqrt(0.5) * math.hypot(v[0], v[1]):
+            return np.array(g, dtype=float)
+        course += side * math.atan(CONVERGE * (d - r) / r)
+        ahead = r * LEAD
+        return np.array([p[0] + ahead * math.cos(course), p[1] + ahead * math.sin(course), g[2]])
+
     def targets(self, rows: np.ndarray, pos: np.ndarray) -> np.ndarray:
         """The points (len(rows), 3) ``LEAD`` ahead on their circles of loitering agents ``rows``
         at ``pos``."""
@@ -125,6 +248,26 @@ class Loiter:
         theta = np.arctan2(pos[:, 1] - c[:, 1], pos[:, 0] - c[:, 0]) + self.side[rows] * LEAD
         r = self.radius[rows]
         return np.column_stack([c[:, 0] + r * np.cos(theta), c[:, 1] + r * np.sin(theta), c[:, 2]])
+
+
+def _way_length(
+    p: np.ndarray, v: np.ndarray, g: np.ndarray, heading: float, r: float, side: float, r_min: float
+) -> float:
+    """The length of a fixed wing's way from ``p`` flying ``v`` to ``g`` on the circle of radius
+    ``r`` through ``g`` with heading ``heading`` there, turning to ``side``: the turn at ``r_min``
+    onto the tangent to the circle, the tangent, the arc to ``g``."""
+    cx, cy = g[0] - side * r * math.sin(heading), g[1] + side * r * math.cos(heading)
+    dx, dy = p[0] - cx, p[1] - cy
+    d = math.hypot(dx, dy)
+    theta = math.atan2(dy, dx)
+    tangent = 0.0
+    if d > r:
+        theta += side * math.acos(r / d)
+        tangent = math.sqrt(d * d - r * r)
+    arc = r * ((side * (math.atan2(g[1] - cy, g[0] - cx) - theta)) % (2.0 * math.pi))
+    tx, ty = cx + r * math.cos(theta), cy + r * math.sin(theta)
+    turn = abs(math.remainder(math.atan2(ty - p[1], tx - p[0]) - math.atan2(v[1], v[0]), 2.0 * math.pi))
+    return r_min * turn + tangent + arc
 
 
 def clear_of_statics(obstacles: Obstacles, i: int) -> Callable[[np.ndarray], np.ndarray]:

@@ -43,6 +43,7 @@ class Navigator:
         self.progress_straight = np.zeros(n)
         self.progress_led = np.zeros(n, dtype=bool)
         self.segment_ref: dict[int, tuple] = {}  # agent -> (waypoint index, distance, t, segment)
+        self.window = stuck_windows(world.planner_config.stuck.window, params)
 
     def reset(self, s: SwarmState) -> None:
         """Progress is measured from here on (call again once global routes are known)."""
@@ -174,7 +175,8 @@ class Navigator:
         exempt: np.ndarray | None = None,
         restart: np.ndarray | None = None,
     ) -> Tally:
-        """No progress towards the goal for ``planner.stuck.window`` seconds is a local minimum.
+        """No progress towards the goal for an agent's stuck window (``planner.stuck.window``
+        seconds, a fixed wing's at least a full circle: :func:`stuck_windows`) is a local minimum.
 
         Progress is measured as the distance still to fly: straight to the goal, or along the
         rest of the global route when the agent has one (a route may detour away from the goal).
@@ -186,7 +188,7 @@ class Navigator:
         was detected and started.
         """
         out = NOTHING
-        window = self.world.planner_config.stuck.window
+        window = self.window
         min_progress = self.world.planner_config.stuck.min_progress
         # Only agents following a segment or whose window has run out need work this step.
         # One pass over the modes: 0 done (arrived, collided, failed), 1 apf, 2 on a segment.
@@ -205,9 +207,9 @@ class Navigator:
         for i in rows.tolist():
             if s.mode[i] != Mode.APF:
                 self._restart_windows(i, dg[i], straight[i], led[i], s.t)
-                out += self.segment_watchdog(s, i, window, min_progress)
+                out += self.segment_watchdog(s, i, float(window[i]), min_progress)
                 continue
-            if s.t - self.progress_t[i] < window - 1e-9:
+            if s.t - self.progress_t[i] < window[i] - 1e-9:
                 continue
             # The same measure at both ends: along the way if it measured both, else straight
             # (the way's length jumps by the detour where the guide starts leading the agent).
@@ -220,7 +222,7 @@ class Navigator:
                 continue
             detail = {
                 "progress": round(float(progress), 6),
-                "window": window,
+                "window": float(window[i]),
                 "distance_to_goal": round(float(np.linalg.norm(s.goal[i] - s.position[i])), 6),
                 "distance_to_go": round(float(dg[i]), 6),
             }
@@ -342,3 +344,12 @@ def rejoin_route(s: SwarmState, i: int) -> None:
         return
     d = np.linalg.norm(route[k0:] - s.position[i], axis=1)
     s.route_index[i] = k0 + int(np.argmin(d))
+
+
+def stuck_windows(window: float, params: AgentParams) -> np.ndarray:
+    """Per agent, the seconds without progress that make it stuck: ``planner.stuck.window``, for a
+    fixed wing at least the time of a full circle at its minimum turn radius and cruise speed (a
+    fixed wing turned away, by the guard or to come round onto its goal, loses ground for a turn
+    and wins it back on the next: no local minimum)."""
+    circle = 2.0 * np.pi * params.min_turn_radius / np.maximum(params.speed_cruise, 1e-9)
+    return np.where(params.fixed_wing, np.maximum(window, circle), window)

@@ -123,7 +123,12 @@ class Steering:
             target, rep_scale = self.guide.targets(s.step, idx, at, goals, target, rep_scale)
             target, rep_scale = self.sight.targets(self.guide, s.step, idx, at, goals, target, rep_scale)
         if self.capture.any:  # a fixed wing that cannot turn onto its goal yet extends
+            at_goal = (target == s.goal[idx]).all(axis=1)
             target = self.capture.targets(s.t, idx, pos0[idx], vel0[idx], s.goal[idx], target)
+            # ... or, when it could not loiter after flying through it, approaches it on a circle
+            target = self.loiter.approach(
+                idx, pos0[idx], vel0[idx], s.goal[idx], at_goal, target, self.obstacles
+            )
         if self.loiter.on.any():  # a point ahead on its circle is a loitering agent's target and goal
             rows = np.flatnonzero(self.loiter.on[idx])
             ahead = self.loiter.targets(idx[rows], pos0[idx[rows]])
