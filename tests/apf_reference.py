@@ -31,6 +31,27 @@ def _rep(rho, rho0, k, near):
     return np.where(rho < rho0, k * (1.0 / np.maximum(rho, near) - 1.0 / rho0), 0.0)
 
 
+def _hemmed(side, pos, r, need, field: FieldInputs, world):
+    """Per flyer and side (n, k): a static body within ``need`` (n, k) of the flyer's surface
+    whose outward normal turns more than half against the side, or a face of the bounds across it."""
+    rho = field.obstacle_distance - r[:, None]  # (n, m)
+    facing = np.einsum("nkd,nmd->nkm", side[..., :2], field.obstacle_gradient[..., :2]) < -0.5
+    static = ~field.obstacle_moving[None, None, :]
+    body = (static & facing & (rho[:, None, :] < need[..., None])).any(axis=2)
+    lo, hi = world.bounds_min, world.bounds_max
+    face = np.zeros(side.shape[:-1], dtype=bool)
+    for axis in range(2):
+        u = side[..., axis]
+        face |= (u < -0.5) & ((pos[:, axis] - lo[axis] - r)[:, None] < need)
+        face |= (u > 0.5) & ((hi[axis] - pos[:, axis] - r)[:, None] < need)
+    return body | face
+
+
+def _own_scale(params: AgentParams, idx: np.ndarray) -> np.ndarray:
+    """Each agent's field scale (``kinematics.field_scales``; 1 without)."""
+    return np.ones(len(idx)) if params.field_scale is None else params.field_scale[idx]
+
+
 def reference_forces(
     world, params: AgentParams, flyers: Flyers, field: FieldInputs, swarm: Swarm, gains=None
 ):
@@ -40,16 +61,18 @@ def reference_forces(
     target, static_scale = flyers.target, flyers.static_scale
     n = len(idx)
     r = params.radius[idx]
-    rho0 = g.influence
+    own = _own_scale(params, idx)  # each agent's field: the world's at its own scale
+    rho0 = g.influence * own
+    k_rep = g.k_rep * own**2
     e = goal - pos
     dg = norm3(e)
     et = e if target is None else target - pos
     dt_ = norm3(et)
-    dq = g.quadratic_radius
+    dq = g.quadratic_radius * own
     well = dt_ <= dq
     if target is not None:
         well &= np.all(np.abs(target - goal) <= 1e-9, axis=1)
-    force = g.k_att * np.where(well[:, None], et, dq * et / np.maximum(dt_, _EPS)[:, None])
+    force = g.k_att * np.where(well[:, None], et, dq[:, None] * et / np.maximum(dt_, _EPS)[:, None])
     npow = g.goal_power
     gfac = np.minimum(1.0, dg / rho0) ** npow
     gfac_d = np.where(dg < rho0, npow * np.minimum(1.0, dg / rho0) ** (npow - 1) / rho0, 0.0)
@@ -59,12 +82,12 @@ def reference_forces(
     if field.obstacle_distance.shape[1]:
         rho = field.obstacle_distance - r[:, None]
         scale = np.ones(n) if static_scale is None else static_scale
-        k = np.where(field.obstacle_moving[None, :], g.k_rep, g.k_rep * scale[:, None])
-        mag = _rep(rho, rho0, k, 0.1 * r[:, None])
-        static_pot = ~field.obstacle_moving[None, :] & (rho < rho0)  # movers: no companion pull
-        pot = np.where(
-            static_pot, 0.5 * k * (1.0 / np.maximum(rho, 0.1 * r[:, None]) - 1.0 / rho0) ** 2 * rho0, 0.0
-        )
+        k = np.where(field.obstacle_moving[None, :], k_rep[:, None], (k_rep * scale)[:, None])
+        r0 = rho0[:, None]
+        mag = _rep(rho, r0, k, 0.1 * r[:, None])
+        static_pot = ~field.obstacle_moving[None, :] & (rho < r0)  # movers: no companion pull
+        x = 1.0 / np.maximum(rho, 0.1 * r[:, None]) - 1.0 / r0
+        pot = np.where(static_pot, 0.5 * k * x**2 * r0, 0.0)
         grad = field.obstacle_gradient
         force = force + np.einsum("nk,nkd->nd", mag * gfac[:, None], grad)
         # Blocked by a static body: the opposing part of its push turns along its surface,
@@ -80,7 +103,7 @@ def reference_forces(
         nearer = np.where(tiny[..., None], _right_of(-grad), nearer)
         along = pull[:, None, :] - block[..., None] * grad  # the pull's part along the surface
         side = np.where((dot3(along, along) < 0.04)[..., None], nearer, along)
-        static = ~field.obstacle_moving[None, :] & (rho < rho0)
+        static = ~field.obstacle_moving[None, :] & (rho < r0)
         hold = np.where(static, mag * gfac[:, None] * block, 0.0).sum(axis=1)
         on = (block < 0) & static
         # fades in from one to two influences off the goal; only on the way to the goal itself
@@ -109,13 +132,19 @@ def reference_forces(
             tg = np.clip(dot3(gq, u) / np.maximum(dot3(u, u), _EPS), 0.0, g.horizon)
             goal_clear = norm3(gq - tg[..., None] * u) >= radii[None, :] + 2.0 * r[:, None]
             m = (
-                _rep(rr, rho0, g.k_rep * g.k_moving, 0.1 * r[:, None])
+                _rep(rr, r0, (k_rep * g.k_moving)[:, None], 0.1 * r[:, None])
                 * urgency
                 * np.where(goal_clear, gfac[:, None], 1.0)
             )
             right = _unit(np.stack([dv[..., 1], -dv[..., 0], np.zeros(dv.shape[:-1])], axis=-1))
             head_on = dist < 0.25 * (radii[None, :] + r[:, None] + 1.0)
-            direction = np.where(head_on[..., None], right, _unit(_unit(sep) + 0.3 * right))
+            # Head-on: right, else left where a static surface hems the right in, else up.
+            need = radii[None, :] + r[:, None]
+            hem_r = ~params.fixed_wing[idx][:, None] & _hemmed(right, pos, r, need, field, world)
+            hem_l = _hemmed(-right, pos, r, need, field, world)
+            up = np.array([0.0, 0.0, 1.0])
+            side = np.where(hem_r[..., None], np.where(hem_l[..., None], up, -right), right)
+            direction = np.where(head_on[..., None], side, _unit(_unit(sep) + 0.3 * right))
             force = force + np.einsum("nk,nkd->nd", m, direction)
 
     h = world.terrain_height(pos[:, :2])
@@ -129,17 +158,17 @@ def reference_forces(
     fly = np.maximum(np.minimum(rho0, 3.0 * floor), 0.25 * rho0)
     rho0_g = np.where(params.fixed_wing[idx], fly, np.maximum(low - r, r))
     static = np.ones(n) if flyers.static_scale is None else flyers.static_scale  # the ground's, faces' too
-    mag_g = _rep(rho_g, rho0_g, g.k_rep * static, 0.1 * r)
+    mag_g = _rep(rho_g, rho0_g, k_rep * static, 0.1 * r)
     force = force + (mag_g * gfac)[:, None] * normal
 
     lo, hi = world.bounds_min, world.bounds_max
-    rb0 = np.where(~params.fixed_wing[idx], 0.25 * rho0, min(rho0, 10.0))  # multirotors, fixed wings
+    rb0 = np.where(~params.fixed_wing[idx], 0.25 * rho0, np.minimum(rho0, 10.0))  # multirotors, fixed wings
     for axis in range(3):
         for sign, plane in ((1.0, lo[axis]), (-1.0, hi[axis])):
             if axis == 2 and sign > 0:
                 continue
             rho_b = sign * (pos[:, axis] - plane) - r
-            force[:, axis] += sign * _rep(rho_b, rb0, g.k_rep * static, 0.1 * r) * gfac
+            force[:, axis] += sign * _rep(rho_b, rb0, k_rep * static, 0.1 * r) * gfac
     force = force + agent_term(world, params, g, flyers, swarm, gfac)
     # The turn only where the static bodies hold the agent (the pull and their push along it
     # under a quarter of the pull).
@@ -186,8 +215,10 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     both = ~params.fixed_wing[idx][:, None] & ~params.fixed_wing[None, :]
     pair = np.where(both, np.minimum(pair, now[:, None] + now_b[None, :]), pair)
     pair = np.where(stops, now[:, None], pair)
-    e0 = 1.0 + np.minimum(pair, g.influence) / scale.max(axis=-1)
-    mag = np.where(others & (e < e0), g.k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    own = _own_scale(params, idx)[:, None]
+    e0 = 1.0 + np.minimum(pair, g.influence * own) / scale.max(axis=-1)
+    k_agent = g.k_agent * own
+    mag = np.where(others & (e < e0), k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     dvw = vel[:, None, :] - all_vel[None, :, :]
     dv = dvw / scale
     a = dot3(dv, dv)
@@ -196,7 +227,7 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     es = norm3(qs)
     urgency = 1.0 - tau / (g.horizon + _EPS)
     live = others & (es < e0) & (tau > 0)
-    mag_p = np.where(live, g.k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
+    mag_p = np.where(live, k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
     farther = np.zeros((len(idx), n_all), dtype=bool)
     if swarm.goal_distance is not None:
         farther = norm3(flyers.goal - pos)[:, None] <= swarm.goal_distance[None, :]

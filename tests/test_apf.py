@@ -131,6 +131,29 @@ def test_moving_obstacle_on_collision_course_gives_a_lateral_push():
     assert f_mov[1] < 0
 
 
+@pytest.mark.parametrize(
+    "walls, side", [((45.0,), [0, 1, 0]), ((45.0, 55.0), [0, 0, 1])], ids=["right", "both"]
+)
+def test_head_on_mover_beside_a_wall_is_dodged_where_there_is_room(walls, side):
+    """Head-on, the mover's push goes to the agent's right unless a static surface hems that
+    side in within the mover's radius and the agent's: then to the left, or over both sides."""
+    mover = {
+        "id": "intruder",
+        "shape": "sphere",
+        "radius": 3,
+        "position": [70, 50, 25],
+        "motion": {"type": "linear", "velocity": [-10, 0, 0]},
+    }
+    # Walls along the way, their faces 3.5 m from the agent's surface (radius 1): within 3 + 1.
+    bodies = [
+        {"id": f"w{k}", "shape": "box", "size": [100, 1, 40], "position": [50, y, 25]}
+        for k, y in enumerate(walls)
+    ]
+    p, v = np.array([30.0, 50, 25]), np.array([6.0, 0, 0])
+    push = field_forces(world_of([mover, *bodies]), p, v)[0] - field_forces(world_of(bodies), p, v)[0]
+    assert float(np.dot(_unit(push), side)) > 0.99, push
+
+
 def _miss_distance(p, v, q, qv, horizon=4.0):
     """Closest predicted centre distance within ``horizon`` seconds at constant velocities."""
     dp, dv = p - q, v - qv
@@ -347,3 +370,25 @@ def test_agent_gain_left_out_scales_with_the_pull():
     assert make_world(raw).planner_config.apf.k_agent == pytest.approx(32.0)
     raw["planner"]["apf"]["k_agent"] = 20.0
     assert make_world(raw).planner_config.apf.k_agent == 20.0
+
+
+def test_each_multirotor_is_pushed_within_its_own_room_only():
+    """A slow multirotor sharing a world with a fast one flies the field at its own scale: a
+    body 3 m off, inside the fast agent's room (32 m: 8 m/s braking at 4 m/s²) but beyond the
+    slow one's (2 m: its two radii, more than its braking room), pushes only the fast one."""
+    fast = {"id": "fast", "start": [30, 50, 25], "goal": [90, 50, 25]}
+    slow = {
+        "id": "slow",
+        "start": [30, 80, 25],
+        "goal": [90, 80, 25],
+        "speed": {"min": 0, "max": 1.5, "cruise": 1},
+    }
+    bodies = [
+        {"id": f"s{k}", "shape": "sphere", "radius": 1, "position": [30, y, 25]}
+        for k, y in enumerate((55, 85))
+    ]
+    w = make_world(base_world(obstacles=bodies, agents=[fast, slow]))
+    np.testing.assert_allclose(AgentParams.from_world(w).field_scale, [1.0, 2.0 / 32.0])
+    f = field_forces(w, [fast["start"], slow["start"]])
+    assert f[0, 1] < -0.1 * abs(f[0, 0])  # pushed off the body
+    assert f[1, 1] == 0.0 and f[1, 0] > 0.0  # straight at its goal

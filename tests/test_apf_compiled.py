@@ -94,6 +94,7 @@ def _inputs(world, seed: int):
         min_altitude=rng.choice([2.0, 3.0, 10.0], N),
         speed_cruise=rng.choice([4.0, 8.0, 10.0], N),
         fixed_wing=rng.random(N) < 0.2,
+        field_scale=rng.choice([1.0, 0.5, 0.05], N),  # each agent's field at its own scale
     )
     pos = rng.uniform([0.5, 0.5, 0.5], [299.5, 299.5, 79.5], (N, 3))
     goal = rng.uniform([5, 5, 5], [295, 295, 75], (N, 3))

@@ -65,6 +65,23 @@ def _rep(rho, rho0, k, near):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _hemmed(ux, uy, p, ri, need, dist_i, grad_i, moving, lo, hi):  # noqa: ANN001, ANN202
+    """Whether a static surface lies within ``need`` of an agent of radius ``ri`` at ``p`` on
+    its side ``(ux, uy)`` (horizontal, unit): a body whose outward normal there turns more than
+    half against that side (``dist_i``, ``grad_i``: the agent's distances and gradients; a body
+    at distance inf is not seen), or a face of the flight volume ``lo``..``hi`` across it."""
+    for j in range(dist_i.shape[0]):
+        if not moving[j] and dist_i[j] - ri < need and grad_i[j, 0] * ux + grad_i[j, 1] * uy < -0.5:
+            return True
+    return (
+        (ux < -0.5 and p[0] - lo[0] - ri < need)
+        or (ux > 0.5 and hi[0] - p[0] - ri < need)
+        or (uy < -0.5 and p[1] - lo[1] - ri < need)
+        or (uy > 0.5 and hi[1] - p[1] - ri < need)
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _face(offset, sign, r, rb0, k_rep, gfac, near):  # noqa: ANN001, ANN202
     """Force component from a face of ``bounds`` at ``offset = p - plane`` (sign +1: low face)."""
     rho_b = sign * offset - r
@@ -157,8 +174,9 @@ def _over(x, y, z):  # noqa: ANN001, ANN202
 def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=False):  # noqa: ANN001, ANN201, PLR0915
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
 
-    ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed) of
-    the agents computed;
+    ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed, field
+    scale) of the agents computed (the scale multiplies the influence, the quadratic radius and
+    ``k_agent``, its square ``k_rep``: ``kinematics.field_scales``);
     ``agents``: per agent of the world (radius, separation, min_altitude, stopping reach,
     can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
@@ -170,13 +188,13 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     where it is believed), which widens the pair's separation ellipsoid on every axis;
     ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
     ``window``: test only the agents within each flyer's window along x (the same forces)."""
-    pos, vel, goal, target, static_scale, idx, reach_now = flyers
+    pos, vel, goal, target, static_scale, idx, reach_now, length = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
     all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
     viewed = view.shape[0] > 0
-    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
+    k_att, k_rep_w, rho0_w, k_agent_w, dq_w, npow, k_moving, horizon = gains
     n = pos.shape[0]
     m = dist.shape[1]
     n_all = view.shape[1] if viewed else all_pos.shape[0]
@@ -188,8 +206,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             m_speed[j] = math.sqrt(
                 o_vel[j, 0] * o_vel[j, 0] + o_vel[j, 1] * o_vel[j, 1] + o_vel[j, 2] * o_vel[j, 2]
             )
-    rb_stop, rb_fly = 0.25 * rho0, min(rho0, 10.0)  # field_law.bounds_range: multirotors, fixed wings
-    k_mv = k_rep * k_moving
     # The swarm by coordinate (contiguous columns for the vectorized pair test).
     if viewed:  # filled per flyer from its view
         X, Y, Z, VX, VY, VZ = (np.zeros(n_all), np.zeros(n_all), np.zeros(n_all),
@@ -214,6 +230,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     for i in range(n):
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         ri = radius[idx[i]]
+        sc = length[i]  # the agent's own field: the world's scaled (kinematics.field_scales)
+        rho0, k_rep, dq, k_agent = sc * rho0_w, k_rep_w * (sc * sc), sc * dq_w, sc * k_agent_w
+        rb_stop, rb_fly = 0.25 * rho0, min(rho0, 10.0)  # field_law.bounds_range: multirotors, fixed wings
+        k_mv = k_rep * k_moving
         closest = 0.1 * ri  # field_law.nearest: the clearance below which the pushes stop growing
         rb0 = rb_stop if can_stop[idx[i]] else rb_fly
         # field_law.ground_range: the clearance at the agent's floor lowered to its goal's
@@ -347,7 +367,18 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)
                     if d < 0.25 * (o_radius[j] + ri + 1.0):
+                        # Head-on: out of the mover's way to the right, or where a static
+                        # surface hems that side in (within the mover's radius and the agent's
+                        # own) a multirotor goes to the left, or over both (pressed to a body's
+                        # edge by a mover on its right, one was pinned there until struck).
                         wx, wy, wz = rx, ry, rz
+                        need = o_radius[j] + ri
+                        stops = can_stop[idx[i]]  # a fixed wing's way round is the turn-ahead guard's
+                        if stops and _hemmed(rx, ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
+                            if _hemmed(-rx, -ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
+                                wx, wy, wz = 0.0, 0.0, 1.0
+                            else:
+                                wx, wy, wz = -rx, -ry, -rz
                     else:
                         qx, qy, qz = _unit(spx, spy, spz)
                         wx, wy, wz = _unit(qx + 0.3 * rx, qy + 0.3 * ry, qz + 0.3 * rz)

@@ -25,6 +25,7 @@ from swarmplan.flight.field_law import bounds_range, goal_factor, ground_range, 
 
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
+_UP = np.array([0.0, 0.0, 1.0])
 
 
 def _sq(v: np.ndarray) -> np.ndarray:
@@ -88,13 +89,15 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``; the arguments of
     ``_apf_kernel.apf_forces`` (``window``, a way of the kernel to skip pair tests without
     changing the forces, changes nothing here: every pair is tested)."""
-    pos, vel, goal, target, static_scale, idx, reach_now = flyers
+    pos, vel, goal, target, static_scale, idx, reach_now, length = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    k_att, k_rep, rho0, k_agent, dq, npow, k_moving, horizon = gains
+    k_att, k_rep_w, rho0_w, k_agent_w, dq_w, npow, k_moving, horizon = gains
     n = pos.shape[0]
     if n == 0:
         return
+    # Each agent's own field: the world's scaled (the kernel's per-flyer values, one per row).
+    rho0, k_rep, dq, k_agent = length * rho0_w, k_rep_w * (length * length), length * dq_w, length * k_agent_w
     floor = np.maximum(min_altitude[idx], terrain_floor)
     rb0 = bounds_range(rho0, can_stop[idx])
     ri = radius[idx]
@@ -107,7 +110,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     dt = np.sqrt(_sq(t))
     to_goal = (np.abs(target - goal) <= 1e-9).all(axis=1)
     well = (dt <= dq) & to_goal
-    f = np.where(well[:, None], k_att * t, k_att * (dq * t / np.maximum(dt, _EPS)[:, None]))
+    f = np.where(well[:, None], k_att * t, k_att * (dq[:, None] * t / np.maximum(dt, _EPS)[:, None]))
     ratio = np.minimum(1.0, dg / rho0)
     gfac = goal_factor(dg, rho0, npow)
     gfac_d = np.where(dg < rho0, npow * power(ratio, npow - 1.0) / rho0, 0.0)
@@ -121,6 +124,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             bodies,
             (k_rep, rho0, k_rep * k_moving, horizon),
             static_scale,
+            (lo, hi),
+            can_stop[idx],
         )
 
     # Terrain / ground, with the goal factor (a goal near the ground stays reachable), scaled
@@ -154,7 +159,27 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     out[:] = f
 
 
-def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
+def _hemmed(u, pos, ri, need, dist, grad, moving, bounds):  # noqa: ANN001, ANN202
+    """The kernel's ``_hemmed`` for every side ``u`` (n, k, 3) of every flyer (``need`` (n, k)),
+    (n, k): a static body within ``need`` whose normal turns more than half against the side,
+    or a face of the flight volume (``bounds``: lo, hi) across it."""
+    lo, hi = bounds
+    ux, uy = u[..., 0], u[..., 1]
+    static = ~moving[None, None, :]
+    near = (dist - ri[:, None])[:, None, :] < need[..., None]
+    facing = grad[:, None, :, 0] * ux[..., None] + grad[:, None, :, 1] * uy[..., None] < -0.5
+    body = (static & near & facing).any(axis=2)
+    px, py, r = pos[:, 0, None], pos[:, 1, None], ri[:, None]
+    face = (
+        ((ux < -0.5) & (px - lo[0] - r < need))
+        | ((ux > 0.5) & (hi[0] - px - r < need))
+        | ((uy < -0.5) & (py - lo[1] - r < need))
+        | ((uy > 0.5) & (hi[1] - py - r < need))
+    )
+    return body | face
+
+
+def _bodies(a, bodies, g, static_scale, bounds, can_stop):  # noqa: ANN001, ANN202
     """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
     blocking bodies and their hold."""
     pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f = a
@@ -164,15 +189,16 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
     ax = _unit(t)[:, None, :]
     turn = np.where(to_goal, np.minimum(1.0, np.maximum(0.0, dg / rho0 - 1.0)), 0.0)
     rho = dist - ri[:, None]
-    active = rho < rho0
+    active = rho < rho0[:, None]
     static = active & ~moving
-    k = np.where(moving, k_rep, (k_rep * static_scale)[:, None])
-    x = 1.0 / np.maximum(rho, nearest(ri)[:, None]) - 1.0 / rho0  # the law's terms (field_law.repulsion)
+    k = np.where(moving, k_rep[:, None], (k_rep * static_scale)[:, None])
+    # the law's terms (field_law.repulsion)
+    x = 1.0 / np.maximum(rho, nearest(ri)[:, None]) - 1.0 / rho0[:, None]
     w = k * x * gfac[:, None]
     block = _dot(ax, grad)
     terms = np.empty((n, m, 5))
     terms[..., :3] = np.where(active[..., None], w[..., None] * grad, _SKIP)
-    terms[..., 3] = np.where(static, 0.5 * k * (x * x) * rho0, _SKIP)
+    terms[..., 3] = np.where(static, 0.5 * k * (x * x) * rho0[:, None], _SKIP)
     terms[..., 4] = np.where(static, w * block, _SKIP)
     sums = _sum_in_order(np.concatenate([f, np.zeros((n, 2))], axis=1), terms)
     f, pot_sum, hold = sums[:, :3], sums[:, 3], sums[:, 4]
@@ -203,7 +229,7 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         d = np.sqrt(_sq(sp))
         r_o = o_radius[mv]
         rho_m = d - r_o - ri[:, None]
-        rep = repulsion(rho_m, k_mv, rho0, nearest(ri)[:, None])
+        rep = repulsion(rho_m, k_mv[:, None], rho0[:, None], nearest(ri)[:, None])
         # The goal factor for movers whose way keeps off the goal.
         gq = goal[:, None, :] - (pos[:, None, :] - dp)
         u = o_vel[mv]
@@ -214,7 +240,14 @@ def _bodies(a, bodies, g, static_scale):  # noqa: ANN001, ANN202
         mag = rep * (1.0 - tau / (horizon + _EPS)) * fade
         right = _across(dv[..., 0], dv[..., 1])
         way = _unit(_unit(sp) + 0.3 * right)
-        way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], right, way)
+        # Head-on: to the right, or to the left where a static surface hems the right in, or
+        # over both (the kernel's comment).
+        need = r_o + ri[:, None]
+        stops = can_stop[:, None]  # multirotors (a fixed wing's way round is the turn-ahead guard's)
+        right_hemmed = stops & _hemmed(right, pos, ri, need, dist, grad, moving, bounds)
+        left_hemmed = _hemmed(-right, pos, ri, need, dist, grad, moving, bounds)
+        side = np.where(right_hemmed[..., None], np.where(left_hemmed[..., None], _UP, -right), right)
+        way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], side, way)
         live = (tau > 0.0) & (mag != 0.0) & np.isfinite(dist[:, mv])  # inf: a mover it does not see
         f = _sum_in_order(f, np.where(live[..., None], mag[..., None] * way, _SKIP))
     return f, bend, hold
@@ -272,15 +305,15 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
         reach_now[rows],
         np.where(stop_a & stop_b, np.minimum(pair_reach, reach_now[rows] + reach_all[rows, b]), pair_reach),
     )
-    e0 = 1.0 + np.minimum(pair_reach, rho0) / np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
+    e0 = 1.0 + np.minimum(pair_reach, rho0[rows]) / np.maximum(np.maximum(c[:, 0], c[:, 1]), c[:, 2])
     dv = dw / c
     tau = np.minimum(np.maximum(-_dot(q, dv) / np.maximum(_sq(dv), _EPS), 0.0), horizon)
     s = q + tau[:, None] * dv
     es = np.sqrt(_sq(s))
     current = e < e0
     predicted = (es < e0) & (tau > 0)
-    mag = np.where(current, k_agent * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
-    mag_p = np.where(predicted, k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    mag = np.where(current, k_agent[rows] * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
+    mag_p = np.where(predicted, k_agent[rows] * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     mag_p = mag_p * (1.0 - tau / (horizon + _EPS))
     # Priority: a parked agent, or one farther from its goal, repels with the goal factor.
     factored = stop_a & (parked[rows, b] | (dg[rows] <= goal_dist[rows, b]))

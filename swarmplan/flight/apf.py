@@ -12,7 +12,9 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   as the static bodies;
 - moving obstacles: repulsion at the predicted closest approach within ``horizon`` seconds,
   the agent flying on at its speed towards its point of attraction (relative-velocity term,
-  with the goal factor), with a right-hand bias that breaks head-on symmetry;
+  with the goal factor), with a right-hand bias that breaks head-on symmetry (head-on: to the
+  left where a static body or a face of the flight volume hems the right side in within the
+  mover's radius and the agent's, over both where both sides are);
 - other agents: an ellipsoidal ``separation`` metric, current and predicted, whose range
   comes from the two agents' own motion, not from ``influence``: beyond the distance both
   need to brake from the speeds they fly at (plus a step of reaction each,
@@ -36,6 +38,11 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   (without it, neighbours hovering by their own goals hold each other off for good). Fixed
   wings keep the full repulsion (they cannot stop, so the standstill the factor resolves does
   not arise).
+Each multirotor flies the field at its own scale (``kinematics.field_scales``): the influence,
+the quadratic radius and ``k_agent`` times its room over the largest agent's (four braking
+distances from cruise speed each), ``k_rep`` times its square, so a drone that brakes in
+centimetres is pushed by the bodies within its own reach, not by every body within the metres
+the fastest agent of its world needs (the field's shape is the same at every scale).
 The point of attraction (``Flyers.target``) is the goal, or a segment's or route's waypoint, or
 for an agent whose straight line is blocked by a static obstacle the point ahead on its way
 round it (:mod:`swarmplan.flight.guide`, which also scales that agent's static repulsion).
@@ -167,6 +174,9 @@ class ApfField:
         self.gains = world.planner_config.apf if gains is None else gains
         self.reach_per_agent = np.ascontiguousarray(stopping_reach(params, world.dt))
         self.can_stop = np.ascontiguousarray(~params.fixed_wing)
+        # Each agent's own field, the world's scaled (kinematics.field_scales; 1 without).
+        scales = params.field_scale
+        self.field_scale = np.ones(len(params.radius)) if scales is None else np.asarray(scales, dtype=float)
         g = self.gains
         gains_ = (
             g.k_att,
@@ -225,6 +235,7 @@ class ApfField:
         parked = np.zeros(shape, dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
+        idx = np.asarray(flyers.idx, dtype=np.int64)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach = self._reach * (1.0 + 1e-9) + 1e-9
         if swarm.view is None:  # one swarm for every flyer
@@ -242,7 +253,7 @@ class ApfField:
         else:
             apf_forces = kernel_module("swarmplan.flight._apf_kernel").apf_forces
         apf_forces(
-            (pos, flyers.vel, goal, tgt, scale, np.asarray(flyers.idx, dtype=np.int64), reach_now),
+            (pos, flyers.vel, goal, tgt, scale, idx, reach_now, self.field_scale[idx]),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),

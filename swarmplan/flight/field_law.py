@@ -72,7 +72,7 @@ def bounds_range(influence: float, can_stop: np.ndarray | bool = True) -> np.nda
     multirotor braking at 5 m/s^2, 16 cm for a 0.8 m/s lab drone braking at 2 m/s^2; a range of
     the whole influence held goals near the walls of a small room under the faces' push). On
     fixed wings, which turn away rather than stop, the influence, at most ``FIXED_WING_BOUNDS``."""
-    return np.where(can_stop, BOUNDS * influence, min(influence, FIXED_WING_BOUNDS))
+    return np.where(can_stop, BOUNDS * influence, np.minimum(influence, FIXED_WING_BOUNDS))
 
 
 def _pow1(x: float, p: float) -> float:

@@ -63,6 +63,8 @@ class AgentParams:
     # (N, 2) m: the heights a climbing or diving manoeuvre of the turn-ahead guard levels off
     # at, (floor, ceiling) of the flight volume three body radii inside it (none: never).
     levels: np.ndarray | None = None
+    # (N,) the length scale of each agent's own potential field against the world's (``field_scales``).
+    field_scale: np.ndarray | None = None
 
     @classmethod
     def from_world(cls, world: World) -> AgentParams:
@@ -83,7 +85,25 @@ class AgentParams:
             roll_rate=arr(lambda x: x.roll_rate if x.roll_rate > 0 else np.inf),
             clearance=arr(lambda x: max(x.clearance, x.radius)),
             levels=guard_levels(world),
+            field_scale=field_scales(world),
         )
+
+
+def field_scales(world: World) -> np.ndarray:
+    """Per agent: the length scale of the potential field it flies, against the world's
+    (``planner.apf.influence``, sized for the agent that needs the most room). A multirotor
+    flies the field scaled to its own room (``AgentSpec.field_room``, four braking distances
+    from its cruise speed) over the largest agent's: its influence, repulsion gains and
+    quadratic radius shrink with it (``apf.ApfField``), the field's shape kept. A slow lab
+    drone that brakes in centimetres sharing a room with one that needs metres is not pushed
+    by every body within those metres (summed, such pushes sank one under a slab to the
+    ground and held it there). Fixed wings, which turn away rather than stop, keep the
+    world's field (scale 1); so do agents of one kind."""
+    room = np.array([a.field_room for a in world.agents], dtype=float)
+    if not len(room):
+        return room
+    fixed_wing = np.array([a.model == "fixed_wing" for a in world.agents])
+    return np.where(fixed_wing, 1.0, room / room.max())
 
 
 GUARD_LEVEL_RADII = 3.0

@@ -116,6 +116,13 @@ class AgentSpec:
     roll_rate: float = 0.0  # rad/s, fixed wings (0: none given, a multirotor)
     clearance: float = 0.0  # m from every body, fixed wings (a multirotor: its radius)
 
+    @property
+    def field_room(self) -> float:
+        """The range of the potential field this agent needs: ``2 v^2 / a`` (four braking
+        distances from cruise speed), at least two of its radii (``planner.apf.influence`` left
+        out is the largest of a world's agents, ``schema.default_influence``)."""
+        return max(2.0 * self.speed_cruise**2 / max(self.max_accel, 1e-9), 2.0 * self.radius)
+
 
 @dataclass(frozen=True)
 class World:

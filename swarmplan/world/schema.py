@@ -76,9 +76,9 @@ def default_influence(agents: list[AgentSpec]) -> float:
     repulsion starts where it leaves room to turn or stop; 40 m for the default agent (10 m/s,
     5 m/s^2), 10 m for a 5 m/s multirotor braking at 5 m/s^2, 0.64 m for a 0.8 m/s lab drone
     braking at 2 m/s^2. A longer range sums the pushes of whole forests and crowds into walls
-    that hold agents away from their goals."""
-    need = [max(2.0 * a.speed_cruise**2 / max(a.max_accel, 1e-9), 2.0 * a.radius) for a in agents]
-    return max(need, default=40.0)
+    that hold agents away from their goals. Each multirotor flies the field scaled to its own
+    room within it (``kinematics.field_scales``)."""
+    return max((a.field_room for a in agents), default=40.0)
 
 
 def default_stuck_progress(agents: list[AgentSpec]) -> float:
