@@ -109,14 +109,18 @@ def test_repulsion_grows_as_the_surface_nears_and_vanishes_beyond_influence():
     assert 0 < mags[1] < mags[2] < mags[3] < mags[4]
 
 
+#: A sphere coming straight at an agent at (30, 50, 25) flying +x.
+HEAD_ON_MOVER = {
+    "id": "intruder",
+    "shape": "sphere",
+    "radius": 3,
+    "position": [70, 50, 25],
+    "motion": {"type": "linear", "velocity": [-10, 0, 0]},
+}
+
+
 def test_moving_obstacle_on_collision_course_gives_a_lateral_push():
-    mover = {
-        "id": "intruder",
-        "shape": "sphere",
-        "radius": 3,
-        "position": [70, 50, 25],
-        "motion": {"type": "linear", "velocity": [-10, 0, 0]},
-    }
+    mover = HEAD_ON_MOVER
     w_mov = world_of([mover])
     w_static = world_of([dict(mover, motion=None)])
     p, v = np.array([30.0, 50, 25]), np.array([6.0, 0, 0])
@@ -137,13 +141,7 @@ def test_moving_obstacle_on_collision_course_gives_a_lateral_push():
 def test_head_on_mover_beside_a_wall_is_dodged_where_there_is_room(walls, side):
     """Head-on, the mover's push goes to the agent's right unless a static surface hems that
     side in within the mover's radius and the agent's: then to the left, or over both sides."""
-    mover = {
-        "id": "intruder",
-        "shape": "sphere",
-        "radius": 3,
-        "position": [70, 50, 25],
-        "motion": {"type": "linear", "velocity": [-10, 0, 0]},
-    }
+    mover = HEAD_ON_MOVER
     # Walls along the way, their faces 3.5 m from the agent's surface (radius 1): within 3 + 1.
     bodies = [
         {"id": f"w{k}", "shape": "box", "size": [100, 1, 40], "position": [50, y, 25]}
