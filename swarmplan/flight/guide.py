@@ -8,7 +8,8 @@ goal over a grid of the free space, is what grid planners descend (Barraquand & 
 
 :class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
 with the clearance of every cell centre to the static obstacles and the ground, less the
-largest agent radius. Per goal cell it computes once, on first need, the shortest way from every
+largest radius the safety filter sweeps an agent with (``kinematics.checked_radius``: its body
+and its safety margin; a gap the filter would not let the agent through is no way). Per goal cell it computes once, on first need, the shortest way from every
 cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
 free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
 times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
@@ -51,6 +52,7 @@ import numpy as np
 from swarmplan.flight import _guide_numpy, guide_cache, guide_graph
 from swarmplan.flight.field_law import squeeze
 from swarmplan.flight.guide_graph import AROUND, Graph, legs, past_way_end, source_cell, ways_floor
+from swarmplan.flight.kinematics import checked_radius
 from swarmplan.geometry.batch import ShapeBatch, rotate_rows_of
 from swarmplan.geometry.shapes import DISTANCE
 from swarmplan.runtime.compiled import kernel_module, use_numpy_twin
@@ -91,7 +93,9 @@ class StaticGuide:
         # The clearance of the grid's cells by the compiled query (numpy's bits, a fraction of
         # its time): the grid is the guide's cost at start-up.
         self._batch = ShapeBatch(self.bodies, compiled=True)
-        self.radius = float(np.max(params.radius))
+        # The body the safety filter keeps off every surface: a way through a gap narrower than
+        # twice this led agents to where the filter held them.
+        self.radius = float(np.max(checked_radius(params.radius)))
         self.floor = ways_floor(world, params)
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
         # to fly (their escapes are Dubins chains from their own pose).
@@ -224,7 +228,7 @@ class StaticGuide:
         self._gap, self._gap_max = guide_graph.cell_gaps(near, self.cell, self.shape)
 
     def _clearance(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Clearance (surface distance less the largest agent radius) of ``pts`` to the static
+        """Clearance (surface distance less the largest checked radius) of ``pts`` to the static
         obstacles and the ground (less the lowest altitude the field keeps agents above), the
         outward normal of the nearest of them, and the clearance to the obstacles alone."""
         w = self.world
@@ -260,7 +264,7 @@ class StaticGuide:
 
     def blocked(self, start: np.ndarray, end: np.ndarray, reach: np.ndarray | float = np.inf) -> np.ndarray:
         """Per row: whether the straight line ``start`` -> ``end`` (n, 3) runs through a static
-        obstacle or the ground inflated by the largest agent radius plus ``squeeze`` (exact
+        obstacle or the ground inflated by the largest checked radius plus ``squeeze`` (exact
         distances where the grid cannot tell): also a line through a narrow gap, in front of
         which the full repulsion of its two edges outweighs the pull (a local minimum).
 
@@ -311,7 +315,7 @@ class StaticGuide:
         return out
 
     def _reach_bodies(self) -> None:
-        """``_reach[c, b]``: whether a point of cell c's box lies within the largest agent radius
+        """``_reach[c, b]``: whether a point of cell c's box lies within the largest checked radius
         plus ``squeeze`` (and a margin for rounding) of body b's bounding box (in the world's
         axes). A body's exact distance is at least that to its bounding box, so a sample in the
         grid measures only the bodies its cell reaches: the others cannot bring it under

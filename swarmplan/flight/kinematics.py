@@ -43,6 +43,13 @@ def safety_margin(radius: np.ndarray) -> np.ndarray:
     return np.minimum(MAX_MARGIN, MARGIN_FRACTION * radius)
 
 
+def checked_radius(radius: np.ndarray) -> np.ndarray:
+    """The radius the safety filter sweeps bodies of ``radius`` with: the radius and its
+    :func:`safety_margin`. What an agent needs to pass between surfaces (a gap narrower than
+    twice this holds it), so the static guide's ways keep it too."""
+    return radius + safety_margin(radius)
+
+
 @dataclass(frozen=True)
 class AgentParams:
     """Per-agent limits as arrays of shape (N,) (``separation`` (N, 3)), in SI units and radians."""

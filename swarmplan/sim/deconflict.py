@@ -26,7 +26,7 @@ import numpy as np
 
 from swarmplan.core import Event, Mode
 from swarmplan.flight.apf import stopping_reach
-from swarmplan.flight.kinematics import AgentParams, safety_margin
+from swarmplan.flight.kinematics import AgentParams, checked_radius
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.vec3 import dot3
@@ -95,7 +95,7 @@ def deconflict(
     stopped = np.zeros(n, dtype=bool)
     slid = np.zeros(n, dtype=bool)
     present = active | (mode == Mode.ARRIVED)  # no mode changes below
-    checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
+    checked = checked_radius(p.radius)  # each body inflated by its safety margin
     compiled = use_compiled_checks(n, bool(p.fixed_wing.any()))
     for _ in range(n):
         pairs = agent_contacts_indexed(pos0, pos1, checked, present, compiled=compiled)
@@ -178,7 +178,7 @@ def belief_conflicts(
     stopped = np.zeros(len(pos0), dtype=bool)
     if not deciding[beliefs.idx].any():
         return events, counts, stopped
-    checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
+    checked = checked_radius(p.radius)  # each body inflated by its safety margin
     # A belief whose margin exceeds both agents' stopping reach says nothing the pair can act on.
     cap = stopping_reach(p, dt)
     widest = min(2.0 * float(cap.max()), float(belief_margin(p.max_accel.max(), beliefs.age.max(), dt)))
@@ -296,7 +296,7 @@ def braking_radius(params: AgentParams, dt: float, age: float) -> float:
     stopping reach and both bodies (each inflated by its safety margin), and how far the other
     may be from where it is believed."""
     p = params
-    checked = p.radius + safety_margin(p.radius)
+    checked = checked_radius(p.radius)
     most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(age)))
     return float(2.0 * (stopping_reach(p, dt).max() + checked.max()) + most)
 
@@ -315,7 +315,7 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
     ``deconflict``) is left to the safety filter. A new array."""
     p = params
     out = np.array(v_cmd, dtype=float)
-    checked = p.radius + safety_margin(p.radius)
+    checked = checked_radius(p.radius)
     radius = braking_radius(p, dt, oldest_age(beliefs))
     compiled = use_compiled(len(p.radius))
     b = beliefs
