@@ -113,13 +113,6 @@ def _over_draws(kind: str, check, examples: int) -> None:  # noqa: ANN001
     run()
 
 
-LAB_SHORT = pytest.mark.xfail(
-    strict=False,
-    reason="lab-scale multirotors: a regression world still short of every agent home "
-    "(python -m swarmplan.bench reach --class lab)",
-)
-
-
 SHORT: dict[str, pytest.MarkDecorator] = {}
 """Classes whose draws are known to fall short of every agent home (none: each class's draws
 all get home, fixed wings' draw (9912112, 1, 2) among them)."""
@@ -158,19 +151,7 @@ def test_every_agent_home_safely_many_worlds(kind):
     _over_draws(kind, _all, EXAMPLES_SLOW)
 
 
-SHORT_REGRESSIONS: tuple[str, ...] = ("reach-lab-14-11",)
-"""Regression worlds still expected to fall short: in reach-lab-14-11 the guide leads an agent
-between two pillars whose gap is wider than its body but narrower than its body and the safety
-filter's margins on both sides, and the filter holds it there."""
-
-
-@pytest.mark.parametrize(
-    "path",
-    [
-        pytest.param(p, marks=[LAB_SHORT] if p.stem in SHORT_REGRESSIONS else [], id=p.stem)
-        for p in sorted(REGRESSIONS.glob("*.yaml"))
-    ],
-)
+@pytest.mark.parametrize("path", [pytest.param(p, id=p.stem) for p in sorted(REGRESSIONS.glob("*.yaml"))])
 def test_regression_world(path):
     raw = yaml.safe_load(path.read_text())
     _all(raw, fly(raw))

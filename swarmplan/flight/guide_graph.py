@@ -202,10 +202,10 @@ def cell_gaps(near: np.ndarray, cell: np.ndarray, shape: np.ndarray) -> tuple[np
 def ways_floor(world: World, params: AgentParams) -> float:
     """The least height above the ground the guide's ways keep (less the radius the safety filter
     checks, ``kinematics.checked_radius``): the lowest ``min_altitude``, lowered to the lowest
-    start or goal (its height above the ground less its agent's checked radius, at least 0): a goal below every ``min_altitude`` (the field reaches it, its
-    push fading near the goal) must lie in free cells, or no way leads there, and a fast
-    agent's ``min_altitude`` (tens of metres) left every way to such a goal through cells that
-    are not free, bodies included."""
+    start or goal (its height above the ground less its agent's checked radius, at least 0): a
+    goal below every ``min_altitude`` (the field reaches it, its push fading near the goal) must
+    lie in free cells, or no way leads there, and a fast agent's ``min_altitude`` (tens of
+    metres) left every way to such a goal through cells that are not free, bodies included."""
     if not len(params.min_altitude):
         return 0.0
     ends = np.array([p for a in world.agents for p in (a.start, a.goal)], dtype=float).reshape(-1, 3)
