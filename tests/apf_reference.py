@@ -113,15 +113,6 @@ def reference_forces(
         w = np.where(on, mag * (gfac * turn)[:, None] * block, 0.0)
         turn_force = -np.einsum("nk,nkd->nd", w, _unit(side))
         force = force + (pot.sum(axis=1) * gfac_d)[:, None] * _unit(et)  # along the way
-        # A multirotor's planned way (its point of attraction not its goal): the static bodies
-        # push back along it with at most half the pull (field_law.WAY_HOLD).
-        planned = ~params.fixed_wing[idx]
-        if target is not None:
-            planned &= ~np.all(np.abs(target - goal) <= 1e-9, axis=1)
-        else:
-            planned[:] = False
-        lift = np.where(planned, np.maximum(-0.5 * g.k_att * dq - hold, 0.0), 0.0)
-        force = force + lift[:, None] * _unit(et)
         mv = field.obstacle_moving
         if mv.any():
             radii = field.obstacle_radius[mv]  # from the ball of this radius touching it at the nearest point

@@ -316,12 +316,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             # the agent to that body's surface).
             c = pot_sum * gfac_d
             fx, fy, fz = fx + c * ax, fy + c * ay, fz + c * az
-            # A multirotor's planned way (its point of attraction not its goal) is not held by
-            # the static bodies: their push against it at most field_law.WAY_HOLD of the pull.
-            if not to_goal and can_stop[idx[i]]:
-                lift = -0.5 * (k_att * dq) - hold
-                if lift > 0.0:
-                    fx, fy, fz = fx + lift * ax, fy + lift * ay, fz + lift * az
             if any_moving:
                 # Predicted closest approach to each mover, right-hand bias on collision course,
                 # with the goal factor (a goal beside a mover's way stays reachable; once there,

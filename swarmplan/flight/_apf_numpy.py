@@ -21,15 +21,7 @@ import math
 
 import numpy as np
 
-from swarmplan.flight.field_law import (
-    bounds_range,
-    goal_factor,
-    ground_range,
-    nearest,
-    power,
-    repulsion,
-    way_lift,
-)
+from swarmplan.flight.field_law import bounds_range, goal_factor, ground_range, nearest, power, repulsion
 
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
@@ -130,7 +122,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         f, turn, hold = _bodies(
             (pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f),
             bodies,
-            (k_rep, rho0, k_rep * k_moving, horizon, k_att, dq),
+            (k_rep, rho0, k_rep * k_moving, horizon),
             static_scale,
             (lo, hi),
             can_stop[idx],
@@ -192,7 +184,7 @@ def _bodies(a, bodies, g, static_scale, bounds, can_stop):  # noqa: ANN001, ANN2
     blocking bodies and their hold."""
     pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f = a
     dist, grad, moving, o_center, o_vel, o_radius = bodies
-    k_rep, rho0, k_mv, horizon, k_att, dq = g
+    k_rep, rho0, k_mv, horizon = g
     n, m = dist.shape
     ax = _unit(t)[:, None, :]
     turn = np.where(to_goal, np.minimum(1.0, np.maximum(0.0, dg / rho0 - 1.0)), 0.0)
@@ -225,10 +217,6 @@ def _bodies(a, bodies, g, static_scale, bounds, can_stop):  # noqa: ANN001, ANN2
         wt = w * block * turn[:, None]
         bend = _sum_in_order(bend, np.where(turning[..., None], -(wt[..., None] * s), _SKIP))
     f = f + (pot_sum * gfac_d)[:, None] * ax[:, 0, :]  # along the way (the kernel's comment)
-    # A multirotor's planned way is not held by the static bodies (field_law.WAY_HOLD).
-    lift = way_lift(hold, k_att * dq)
-    lifted = ~to_goal & can_stop & (lift > 0.0)
-    f = np.where(lifted[:, None], f + lift[:, None] * ax[:, 0, :], f)
     mv = np.flatnonzero(moving)
     if len(mv):
         # Predicted closest approach to each mover, right-hand bias on collision course.

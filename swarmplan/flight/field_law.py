@@ -17,15 +17,6 @@ NEAREST = 0.1
 or passed into): half its safety margin (``kinematics.safety_margin``), 5 cm for a 0.5 m agent,
 5 mm for a 5 cm lab drone, whose whole margin (1 cm) a clearance in metres swallowed."""
 
-WAY_HOLD = 0.5
-"""Of the pull: the most the static bodies may push back along a multirotor's planned way (its
-point of attraction not its goal: the guide's way round the bodies, a segment's or a route's
-waypoint). The way was chosen clear of them; pushed back harder, the agent stops where their
-pushes add up, whatever the way's own clearance: under a ring of eight pillars the way led
-up through, their eight pushes summed to the whole pull at the ring's mouth, four times a
-gap's two edges, and held a multirotor there for good. Each body's push is kept, less the part
-of their sum against the way beyond this share (its push aside and ahead is the field's own)."""
-
 BOUNDS = 0.25
 """Of the influence: the range of the repulsion of the flight volume's faces on multirotors."""
 
@@ -48,12 +39,6 @@ def repulsion(rho: np.ndarray, k: float | np.ndarray, rho0: float, near: np.ndar
 def clearance_at(push: float, k: float, rho0: float) -> float:
     """The clearance (above :func:`nearest`) at which :func:`repulsion` pushes with ``push``."""
     return 1.0 / (push / k + 1.0 / rho0)
-
-
-def way_lift(hold: np.ndarray, pull: np.ndarray | float) -> np.ndarray:
-    """What to add along a planned way to the static bodies' push ``hold`` along it (negative:
-    against the way) so that it pushes back with no more than ``WAY_HOLD`` of the ``pull``."""
-    return np.maximum(-WAY_HOLD * pull - hold, 0.0)
 
 
 def ground_range(
