@@ -113,18 +113,6 @@ def reference_forces(
         w = np.where(on, mag * (gfac * turn)[:, None] * block, 0.0)
         turn_force = -np.einsum("nk,nkd->nd", w, _unit(side))
         force = force + (pot.sum(axis=1) * gfac_d)[:, None] * _unit(et)  # along the way
-        # Led by the guide (its point of attraction not its goal): the static bodies together
-        # push no harder than the strongest of them.
-        led = np.zeros(n, dtype=bool) if flyers.led is None else np.asarray(flyers.led, dtype=bool)
-        if target is None:
-            led[:] = False
-        else:
-            led &= ~np.all(np.abs(target - goal) <= 1e-9, axis=1)
-        push = np.where(static, mag * gfac[:, None], 0.0)
-        total = np.einsum("nk,nkd->nd", push, grad)
-        size, strongest = norm3(total), np.abs(push).max(axis=1)
-        cut = led & (size > strongest)
-        force = force + np.where(cut, strongest / np.maximum(size, _EPS) - 1.0, 0.0)[:, None] * total
         mv = field.obstacle_moving
         if mv.any():
             radii = field.obstacle_radius[mv]  # from the ball of this radius touching it at the nearest point

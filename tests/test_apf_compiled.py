@@ -156,8 +156,7 @@ def test_compiled_equals_reference_on_random_swarms(peaks, seed):
         scale = None if case < 3 else rng.uniform(0.2, 1.0, len(idx))
         inputs = FieldInputs(f[0][idx], f[1][idx], *f[2:])
         parked = None if case < 2 else rng.random(N) < 0.3  # agents that no longer fly
-        led = None if case < 3 else rng.random(len(idx)) < 0.5  # agents the guide leads
-        flyers = Flyers(idx, pos[idx], vel[idx], goal[idx], target, scale, led)
+        flyers = Flyers(idx, pos[idx], vel[idx], goal[idx], target, scale)
         to_go = None if case < 2 else np.linalg.norm(goal - pos, axis=1)  # priority near goals
         swarm = Swarm(pos, vel, parked, to_go)
         ref = reference_forces(world, params, flyers, inputs, swarm)

@@ -70,8 +70,7 @@ def test_numpy_field_has_the_kernels_bits(peaks, power):
         inputs = FieldInputs(f[0][idx], f[1][idx], *f[2:])
         parked = None if case < 2 else rng.random(N) < 0.3
         to_go = None if case < 2 else np.linalg.norm(goal - pos, axis=1)
-        led = None if case < 3 else rng.random(len(idx)) < 0.5  # agents the guide leads
-        flyers = Flyers(idx, pos[idx], vel[idx], goal[idx], target, scale, led)
+        flyers = Flyers(idx, pos[idx], vel[idx], goal[idx], target, scale)
         compiled, plain = _both(field, flyers, inputs, Swarm(pos, vel, parked, to_go))
         assert np.all(np.isfinite(compiled))
         _same_bits(plain, compiled)

@@ -175,9 +175,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``.
 
     ``flyers``: (pos, vel, goal, target, static_scale, idx, reach at the current speed, field
-    scale, led) of the agents computed (the scale multiplies the influence, the quadratic radius
-    and ``k_agent``, its square ``k_rep``: ``kinematics.field_scales``; ``led``: whether the
-    guide leads the agent round the static bodies, ``field_law.strongest_push``);
+    scale) of the agents computed (the scale multiplies the influence, the quadratic radius and
+    ``k_agent``, its square ``k_rep``: ``kinematics.field_scales``);
     ``agents``: per agent of the world (radius, separation, min_altitude, stopping reach,
     can stop); ``bodies``: (distance, gradient, moving, centre, velocity, bounding radius);
     ``ground``: (terrain height and gradient under each flyer, height under its goal, the
@@ -189,7 +188,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     where it is believed), which widens the pair's separation ellipsoid on every axis;
     ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
     ``window``: test only the agents within each flyer's window along x (the same forces)."""
-    pos, vel, goal, target, static_scale, idx, reach_now, length, led = flyers
+    pos, vel, goal, target, static_scale, idx, reach_now, length = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
@@ -277,8 +276,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             # the goal (a goal beside a body is reached through the goal factor instead), and
             # only on the way to the goal itself: a route or segment already chose the way round.
             turn = min(1.0, max(0.0, dg / rho0 - 1.0)) if to_goal else 0.0
-            qx = qy = qz = 0.0  # the static bodies' pushes summed, and the strongest of them
-            strongest = 0.0
             for j in range(m):
                 rho = dist[i, j] - ri
                 if rho < rho0:
@@ -294,10 +291,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     block = ax * nx + ay * ny + az * nz
                     if not moving[j]:
                         hold += w * block
-                        qx += w * nx
-                        qy += w * ny
-                        qz += w * nz
-                        strongest = max(strongest, abs(w))
                     if block < 0.0 and turn > 0.0 and not moving[j]:
                         # The way on lies behind a static body: the part of the push that
                         # opposes the pull turns along its surface, the way the pull leans
@@ -323,13 +316,6 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             # the agent to that body's surface).
             c = pot_sum * gfac_d
             fx, fy, fz = fx + c * ax, fy + c * ay, fz + c * az
-            # Led by the guide: the static bodies together push no harder than the strongest
-            # of them (field_law.strongest_push).
-            if led[i] and not to_goal:
-                size = math.sqrt(qx * qx + qy * qy + qz * qz)
-                if size > strongest:
-                    k = strongest / size - 1.0
-                    fx, fy, fz = fx + k * qx, fy + k * qy, fz + k * qz
             if any_moving:
                 # Predicted closest approach to each mover, right-hand bias on collision course,
                 # with the goal factor (a goal beside a mover's way stays reachable; once there,

@@ -21,15 +21,7 @@ import math
 
 import numpy as np
 
-from swarmplan.flight.field_law import (
-    bounds_range,
-    goal_factor,
-    ground_range,
-    nearest,
-    power,
-    repulsion,
-    strongest_push,
-)
+from swarmplan.flight.field_law import bounds_range, goal_factor, ground_range, nearest, power, repulsion
 
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
@@ -97,7 +89,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     """``out[i]``: the force of ``apf.ApfField.forces`` on agent ``idx[i]``; the arguments of
     ``_apf_kernel.apf_forces`` (``window``, a way of the kernel to skip pair tests without
     changing the forces, changes nothing here: every pair is tested)."""
-    pos, vel, goal, target, static_scale, idx, reach_now, length, led = flyers
+    pos, vel, goal, target, static_scale, idx, reach_now, length = flyers
     radius, separation, min_altitude, stop_reach, can_stop = agents
     h, gh, h_goal, terrain_floor, lo, hi = ground
     k_att, k_rep_w, rho0_w, k_agent_w, dq_w, npow, k_moving, horizon = gains
@@ -131,7 +123,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
             (pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f),
             bodies,
             (k_rep, rho0, k_rep * k_moving, horizon),
-            (static_scale, led),
+            static_scale,
             (lo, hi),
             can_stop[idx],
         )
@@ -187,13 +179,12 @@ def _hemmed(u, pos, ri, need, dist, grad, moving, bounds):  # noqa: ANN001, ANN2
     return body | face
 
 
-def _bodies(a, bodies, g, scaled, bounds, can_stop):  # noqa: ANN001, ANN202
+def _bodies(a, bodies, g, static_scale, bounds, can_stop):  # noqa: ANN001, ANN202
     """The kernel's obstacle part (``if m:``) for every flyer: the forces, the turn along
     blocking bodies and their hold."""
     pos, vel, goal, ri, t, dg, to_goal, gfac, gfac_d, f = a
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     k_rep, rho0, k_mv, horizon = g
-    static_scale, led = scaled
     n, m = dist.shape
     ax = _unit(t)[:, None, :]
     turn = np.where(to_goal, np.minimum(1.0, np.maximum(0.0, dg / rho0 - 1.0)), 0.0)
@@ -226,10 +217,6 @@ def _bodies(a, bodies, g, scaled, bounds, can_stop):  # noqa: ANN001, ANN202
         wt = w * block * turn[:, None]
         bend = _sum_in_order(bend, np.where(turning[..., None], -(wt[..., None] * s), _SKIP))
     f = f + (pot_sum * gfac_d)[:, None] * ax[:, 0, :]  # along the way (the kernel's comment)
-    # Led by the guide: the static bodies together push no harder than the strongest of them.
-    total = _sum_in_order(np.zeros((n, 3)), np.where(static[..., None], w[..., None] * grad, _SKIP))
-    over, k = strongest_push(total, np.where(static, np.abs(w), 0.0).max(axis=1, initial=0.0))
-    f = np.where((led & ~to_goal & over)[:, None], f + k[:, None] * total, f)
     mv = np.flatnonzero(moving)
     if len(mv):
         # Predicted closest approach to each mover, right-hand bias on collision course.

@@ -7,8 +7,7 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   goal-distance factor ``min(1, d_goal/rho0)^n`` plus its companion term (of the static
   bodies) pulling along the agent's way, towards its point of attraction (Ge & Cui's
   modified APF) so a goal beside an obstacle stays reachable; a guided agent's static
-  repulsion is scaled by ``Flyers.static_scale``, and the static bodies together push it no
-  harder than the strongest of them (``Flyers.led``, ``field_law.strongest_push``);
+  repulsion is scaled by ``Flyers.static_scale``;
 - the same from the terrain/ground (vertical clearance) and the faces of ``bounds``, scaled
   as the static bodies;
 - moving obstacles: repulsion at the predicted closest approach within ``horizon`` seconds,
@@ -103,9 +102,7 @@ class Flyers:
     """The agents the field is computed for: rows of the swarm ``idx`` at ``pos``/``vel`` heading
     for ``goal``. ``target`` (default ``goal``) is the point of attraction, e.g. the next waypoint
     of a route or segment (the goal-distance factor always uses the real goal); ``static_scale``
-    (n,) scales the repulsion of static obstacles per agent (default 1); ``led`` (n,) marks the
-    agents the guide leads round the static bodies (default none), which those bodies together
-    push no harder than the strongest of them (``field_law.strongest_push``)."""
+    (n,) scales the repulsion of static obstacles per agent (default 1)."""
 
     idx: np.ndarray
     pos: np.ndarray
@@ -113,7 +110,6 @@ class Flyers:
     goal: np.ndarray
     target: np.ndarray | None = None
     static_scale: np.ndarray | None = None
-    led: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -235,7 +231,6 @@ class ApfField:
         # A target equal to the goal is the same field as no target (the quadratic well included).
         tgt = goal if flyers.target is None else flyers.target
         scale = np.ones(n) if flyers.static_scale is None else np.asarray(flyers.static_scale, dtype=float)
-        led = np.zeros(n, dtype=np.bool_) if flyers.led is None else np.asarray(flyers.led, dtype=np.bool_)
         all_pos, all_vel, shape = swarm.pos, swarm.vel, swarm.pos.shape[:-1]
         parked = np.zeros(shape, dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
@@ -258,7 +253,7 @@ class ApfField:
         else:
             apf_forces = kernel_module("swarmplan.flight._apf_kernel").apf_forces
         apf_forces(
-            (pos, flyers.vel, goal, tgt, scale, idx, reach_now, self.field_scale[idx], led),
+            (pos, flyers.vel, goal, tgt, scale, idx, reach_now, self.field_scale[idx]),
             (p.radius, p.separation, p.min_altitude, self.reach_per_agent, self.can_stop),
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),

@@ -41,22 +41,6 @@ def clearance_at(push: float, k: float, rho0: float) -> float:
     return 1.0 / (push / k + 1.0 / rho0)
 
 
-def strongest_push(total: np.ndarray, strongest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For agents the guide leads round the static bodies: the bodies together push no harder
-    than the strongest of them alone. Every body within the influence pushes, so a cluster
-    pushed as many times as it has bodies: under a ring of eight pillars the way led up
-    through, their pushes summed to the whole pull at the ring's mouth (each scaled as a
-    guided agent's static repulsion is) and held a multirotor there, where one tube of the
-    same shape pushes with its nearest point only. The field is of the free space, not of how
-    it is cut into bodies. Pushes that oppose each other (a gap's two edges) sum to less than
-    the strongest and are kept; one body's push is its own. Per agent, from the sum of the
-    static bodies' pushes ``total`` (n, 3) and the largest of their magnitudes ``strongest``
-    (n,): whether the sum is stronger, and the factor less one that scales it back to it."""
-    size = np.sqrt(total[:, 0] * total[:, 0] + total[:, 1] * total[:, 1] + total[:, 2] * total[:, 2])
-    over = size > strongest
-    return over, np.where(over, strongest / np.where(over, size, 1.0) - 1.0, 0.0)
-
-
 def ground_range(
     influence: float,
     floor: np.ndarray | float,

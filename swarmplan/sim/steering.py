@@ -118,12 +118,9 @@ class Steering:
         target, rep_scale, ended = self.navigator.attraction_targets(s, idx)
         if self._rest_at <= s.t:  # a mover parked for good: go round it too
             self._new_guide(s.t)
-        led = None
         if self.guide is not None:
             at, goals = pos0[idx], s.goal[idx]
-            to_goal = (target == goals).all(axis=1)  # the agents the guide may lead
             target, rep_scale = self.guide.targets(s.step, idx, at, goals, target, rep_scale)
-            led = to_goal & self.guide.guided[idx]
             target, rep_scale = self.sight.targets(self.guide, s.step, idx, at, goals, target, rep_scale)
         if self.capture.any:  # a fixed wing that cannot turn onto its goal yet extends
             at_goal = (target == s.goal[idx]).all(axis=1)
@@ -137,7 +134,7 @@ class Steering:
             ahead = self.loiter.targets(idx[rows], pos0[idx[rows]])
             target, goal_idx = np.array(target, dtype=float), goal_idx.copy()
             target[rows] = goal_idx[rows] = ahead
-        flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale, led)
+        flyers = Flyers(idx, p_idx, v_idx, goal_idx, target, rep_scale)
         to_go = norm3(s.goal - pos0)
         b = oldest = None
         if self.network is None:
