@@ -39,7 +39,7 @@ from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.contacts import NearMisses, agent_collisions, arrivals, committed_hits, parked_contacts
 from swarmplan.sim.evasion import Evasion
 from swarmplan.sim.metrics import NOTHING, RunMetrics, Tally, summary_report
-from swarmplan.sim.modes import PARKED, mode_in
+from swarmplan.sim.modes import ARRIVED, PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
 from swarmplan.sim.network import AgentView
 from swarmplan.sim.obstacles import Obstacles
@@ -187,7 +187,7 @@ class Simulation:
         q0, qv0 = self.obstacles.poses(t0)
         q1, _ = self.obstacles.poses(t1)
         # Arrived multirotors under threat take off again (mode apf) to get out of its way.
-        flying_before = s.mode != Mode.ARRIVED
+        flying_before = ~mode_in(s.mode, ARRIVED)
         if self.evasion.watching.any():
             if self._distance_cache is None:
                 self._distance_cache = self.distances.query(s.position, q0)

@@ -42,10 +42,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.core import Mode, SwarmState
+from swarmplan.core import SwarmState
 from swarmplan.flight.capture import CAPTURE_RANGE, roll_in_distance
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.planner.hold import LOITER_FACTORS, loiter_circle
+from swarmplan.sim.modes import ARRIVED, mode_in
 
 if TYPE_CHECKING:
     from swarmplan.sim.obstacles import Obstacles
@@ -79,7 +80,7 @@ class Loiter:
         """Which agents loiter (arrived fixed wings that have not collided since)."""
         if not self.fixed_wings or not self.on.any():  # (only fixed wings loiter)
             return self.on
-        self.on &= s.mode == Mode.ARRIVED
+        self.on &= mode_in(s.mode, ARRIVED)
         return self.on
 
     def flying(self, s: SwarmState, active: np.ndarray) -> np.ndarray:

@@ -21,6 +21,7 @@ from swarmplan.core import (
     PlannedSegment,
     StuckOutcome,
     SwarmState,
+    mode_codes,
 )
 from swarmplan.flight.guide import StaticGuide
 from swarmplan.flight.kinematics import AgentParams, initial_velocity
@@ -192,7 +193,7 @@ class Navigator:
         min_progress = self.world.planner_config.stuck.min_progress
         # Only agents following a segment or whose window has run out need work this step.
         # One pass over the modes: 0 done (arrived, collided, failed), 1 apf, 2 on a segment.
-        kind = np.fromiter(map(_STUCK_KIND.__getitem__, s.mode.tolist()), dtype=np.int8, count=len(s.mode))
+        kind = mode_codes(s.mode, _STUCK_KIND, np.int8)
         if restart is not None and restart.any():  # their progress is watched from now
             again = np.flatnonzero(restart & (kind == 1))
             self._restart_windows(again, *self.to_go(s, again), s.t)
