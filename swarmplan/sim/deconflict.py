@@ -42,6 +42,7 @@ class Stopper(Protocol):
 
     params: AgentParams
     world: World
+    checked_radius: np.ndarray  # every agent's radius with its safety margin
 
     def brake(self, i: int, v0: np.ndarray) -> np.ndarray: ...
     def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]: ...
@@ -96,7 +97,7 @@ def deconflict(
     stopped = np.zeros(n, dtype=bool)
     slid = np.zeros(n, dtype=bool)
     present = active | mode_in(mode, ARRIVED)  # no mode changes below
-    checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
+    checked = filt.checked_radius  # each body inflated by its safety margin
     compiled = use_compiled_checks(n, bool(p.fixed_wing.any()))
     for _ in range(n):
         pairs = agent_contacts_indexed(pos0, pos1, checked, present, compiled=compiled)

@@ -84,6 +84,8 @@ class Simulation:
         self.safety = SafetyFilter(world, self.params, self.obstacles)
         # Swarm size or fixed wings: compiled per-step helpers (runtime.compiled).
         self._compiled = use_compiled_checks(self.n, bool(self.params.fixed_wing.any()))
+        self._every_agent = np.ones(self.n, dtype=bool)  # (read only)
+        self._every_agent.setflags(write=False)
         self.evasion = Evasion(self.params, world.dt)
         self.state: SwarmState | None = None
         self.seed: int | None = None
@@ -199,7 +201,7 @@ class Simulation:
         idx = flying_now.nonzero()[0]
         # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
         # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
-        measured = np.ones(self.n, dtype=bool)
+        measured = self._every_agent
         touched = False  # whether a mode set this step ended an agent (a collision)
 
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
@@ -210,9 +212,10 @@ class Simulation:
                     self._merge(nav.start_segment(s, i, seg))
 
         pos0, vel0 = s.position.copy(), s.velocity.copy()
-        pos1, vel1 = pos0.copy(), np.zeros_like(vel0)  # the step of agents that do not fly
         oldest = None  # with comms: the oldest state each flyer acted on
-        if len(idx):
+        if not len(idx):  # the step of agents that do not fly
+            pos1, vel1 = pos0.copy(), np.zeros_like(vel0)
+        else:
             # The previous step already measured every agent's distances at this position and time.
             if self._distance_cache is None:
                 self._distance_cache = self.distances.query(pos0, q0)

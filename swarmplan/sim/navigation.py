@@ -45,6 +45,7 @@ class Navigator:
         self.progress_led = np.zeros(n, dtype=bool)
         self.segment_ref: dict[int, tuple] = {}  # agent -> (waypoint index, distance, t, segment)
         self.window = stuck_windows(world.planner_config.stuck.window, params)
+        self._due_at = self.window - 1e-9  # a window has run out from this long on
 
     def reset(self, s: SwarmState) -> None:
         """Progress is measured from here on (call again once global routes are known)."""
@@ -197,7 +198,7 @@ class Navigator:
         if restart is not None and restart.any():  # their progress is watched from now
             again = np.flatnonzero(restart & (kind == 1))
             self._restart_windows(again, *self.to_go(s, again), s.t)
-        due = np.where(kind == 1, s.t - self.progress_t >= window - 1e-9, kind == 2)
+        due = np.where(kind == 1, s.t - self.progress_t >= self._due_at, kind == 2)
         if exempt is not None:
             due &= ~exempt
         rows = due.nonzero()[0]
