@@ -92,7 +92,7 @@ class Navigator:
         of its static repulsion (reduced along a segment that FCL already validated), and the
         segments that ended."""
         events = []
-        target = s.goal[idx].copy()
+        target = s.goal.take(idx, axis=0)  # (a new array: rows gathered as [idx] does, faster)
         scale = np.ones(len(idx))
         # Agents with neither a segment nor a route fly at their goal: nothing to do for them.
         seg, route = s.segment, s.route
