@@ -194,7 +194,8 @@ class Simulation:
             if self._distance_cache is None:
                 self._distance_cache = self.distances.query(s.position, q0)
             surface = self.obstacles.surface_of(s.position, self._distance_cache)
-            shapes = self.obstacles.mover_surfaces(q0)
+            # (without movers no pair is a mover's: the surfaces would change none)
+            shapes = self.obstacles.mover_surfaces(q0) if self.obstacles.mover_ids else None
             self._merge(self.evasion.update(s, self.obstacles.movers(q0, qv0), surface, shapes))
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
