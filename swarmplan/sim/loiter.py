@@ -22,10 +22,10 @@ takes (half of its flight) as a margin, and the height it has to win or lose. Wh
 is clear, or the height is more than its climb limit allows over the way in less a turn radius
 (it spirals on the circle instead), it takes, of the circles
 through the goal (every 10 degrees of heading there, either side, the radii of
-``LOITER_FACTORS``), the clear one of the smallest radius that arrives the soonest (a
+``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
 Dubins way: the turn onto the tangent from where it is, the tangent, the arc to the goal; a
-way that, less a turn radius, is shorter than the flight its height takes at its climb limit,
-with the laps of the circle that win the rest), or the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
+circle it is inside of has no tangent to fly onto: a lap more than the arc), or
+the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
 goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
 bearing no longer tells the heading it will arrive with: it keeps what it decided before.
@@ -192,8 +192,7 @@ class Loiter:
         clearance = clear_of_statics(obstacles, i)
         bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
         run = float(np.hypot(bearing[0], bearing[1])) - r_min
-        climb = abs(g[2] - p[2]) / math.tan(float(self.params.max_climb[i]))  # the flight its height takes
-        steep = climb > max(run, 0.0)
+        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(float(self.params.max_climb[i]))
         direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
         worst = clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1)
         if not steep and (worst >= margin).any():
@@ -207,8 +206,7 @@ class Loiter:
             worst = clearance(np.concatenate(pts)).reshape(len(cands), -1).min(axis=1)
             clear = np.flatnonzero(worst >= margin)
             if len(clear):
-                ways = [_arrival_length(_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min), climb, r, r_min)
-                        for j in clear]
+                ways = [_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min) for j in clear]
                 a, side = cands[int(clear[int(np.argmin(ways))])]
                 best = (a, side, r)
                 break
@@ -253,25 +251,14 @@ class Loiter:
         return np.column_stack([c[:, 0] + r * np.cos(theta), c[:, 1] + r * np.sin(theta), c[:, 2]])
 
 
-def _arrival_length(way: float, climb: float, r: float, r_min: float) -> float:
-    """The flight (m, horizontally) to arrive at a goal by a way of length ``way`` ending on a
-    circle of radius ``r``, with a height to win or lose that takes ``climb`` of flight at the
-    climb limit: the way itself when the way less a turn radius (the turns into and out of the
-    climb, the corners its field cuts) is long enough, else the way and the laps of its circle
-    that win the rest."""
-    short = climb - (way - r_min)
-    if short <= 0.0:
-        return way
-    return way + math.ceil(short / (2.0 * math.pi * r)) * 2.0 * math.pi * r
-
-
 def _way_length(
     p: np.ndarray, v: np.ndarray, g: np.ndarray, heading: float, r: float, side: float, r_min: float
 ) -> float:
     """The length of a fixed wing's way from ``p`` flying ``v`` to ``g`` on the circle of radius
     ``r`` through ``g`` with heading ``heading`` there, turning to ``side``: the turn at ``r_min``
-    onto the tangent to the circle, the tangent, the arc to ``g``; from inside the circle (where
-    its course onto the circle may lie behind it), the arc from abreast of it and a lap more."""
+    onto the tangent to the circle, the tangent, the arc to ``g``. From inside the circle there
+    is no tangent to fly and the course onto the circle may lie behind it: it flies out and
+    back onto it, counted as a lap more than the arc from abreast of it."""
     cx, cy = g[0] - side * r * math.sin(heading), g[1] + side * r * math.cos(heading)
     dx, dy = p[0] - cx, p[1] - cy
     d = math.hypot(dx, dy)
