@@ -24,7 +24,8 @@ is clear, or the height is more than its climb limit allows over the way in less
 through the goal (every 10 degrees of heading there, either side, the radii of
 ``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
 Dubins way: the turn at its minimum radius onto a tangent of the circle in the circle's
-direction of flight, the tangent, the arc to the goal; with no such tangent, a lap more), or
+direction of flight, the tangent, the arc to the goal; from inside it, the turn onto its
+course and the arc when shorter), or
 the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
 goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
@@ -266,10 +267,10 @@ def _way_length(
     """The length of a fixed wing's way from ``p`` flying ``v`` to ``g`` on the circle of radius
     ``r`` through ``g`` with heading ``heading`` there, turning to ``side``: the shortest Dubins
     way onto the circle (a turn at ``r_min`` to either side, the straight tangent from that turn
-    onto the circle in its own direction of flight) and the arc to ``g``. When neither turn has
-    such a tangent (its turn circle and the goal's cross so that no straight joins them in their
-    directions) it must fly out and back onto the circle: a lap more than the arc from abreast
-    of it."""
+    onto the circle in its own direction of flight) and the arc to ``g``. From inside the circle
+    it may also ease out onto it along its field, in a turn wider than its tightest (no Dubins
+    way: its tangents may need a full turn, or none exists): the turn onto the circle's course
+    abreast of it and the arc from there, when that is shorter."""
     cx, cy = g[0] - side * r * math.sin(heading), g[1] + side * r * math.cos(heading)
     psi = math.atan2(v[1], v[0])
     best = math.inf
@@ -287,10 +288,12 @@ def _way_length(
         meet = u - side * 0.5 * math.pi
         arc = _swept(meet, math.atan2(g[1] - cy, g[0] - cx), side)
         best = min(best, r_min * leave + straight + r * arc)
-    if best < math.inf:
-        return best
-    theta = math.atan2(p[1] - cy, p[0] - cx)
-    return r * (_swept(theta, math.atan2(g[1] - cy, g[0] - cx), side) + 2.0 * math.pi)
+    if math.hypot(p[0] - cx, p[1] - cy) < r:  # inside: easing out onto it along its field
+        theta = math.atan2(p[1] - cy, p[0] - cx)
+        course = theta + side * 0.5 * math.pi  # the circle's own course abreast of the aircraft
+        onto = abs(math.remainder(course - psi, 2.0 * math.pi))
+        best = min(best, r_min * onto + r * _swept(theta, math.atan2(g[1] - cy, g[0] - cx), side))
+    return best
 
 
 def _swept(a: float, b: float, side: float) -> float:
