@@ -274,7 +274,8 @@ def test_the_way_onto_an_approach_circle_is_a_dubins_way() -> None:
     # the arc b from where it meets the circle to the goal, b = atan(2 r / tangent).
     tangent = math.sqrt(100.0**2 - (2.0 * r) ** 2)
     b = math.atan2(2.0 * r, tangent)
-    assert _way_length(at, west, goal, 0.0, r, 1.0, rho) == pytest.approx(rho * (math.pi + b) + tangent + r * b)
+    way = _way_length(at, west, goal, 0.0, r, 1.0, rho)
+    assert way == pytest.approx(rho * (math.pi + b) + tangent + r * b)
     # A metre west of the centre of a wide circle, neither turn has a tangent onto it: a quarter
     # turn onto its course abreast (south) and half the circle to the goal opposite (heading
     # north there).
