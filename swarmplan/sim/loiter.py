@@ -29,10 +29,7 @@ course and the arc when shorter), or
 the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
 goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
-bearing no longer tells the heading it will arrive with: it keeps what it decided before. One
-that flew the circle's last arc at its goal and passed it outside the tolerance (pushed off
-by a mover or another aircraft, or short of its height) chooses its way afresh from where it
-is, rather than flying the whole circle round again.
+bearing no longer tells the heading it will arrive with: it keeps what it decided before.
 
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
@@ -75,12 +72,10 @@ class Loiter:
         self.side = np.ones(n)
         self.fixed_wings = bool(params.fixed_wing.any())  # whether any agent can loiter
         self.approaching = np.zeros(n, dtype=bool)  # on its way round its circle to its goal
-        self.final = np.zeros(n, dtype=bool)  # flying at its goal itself, off its circle's last arc
 
     def reset(self) -> None:
         self.on[:] = False
         self.approaching[:] = False
-        self.final[:] = False
 
     def rows(self, s: SwarmState) -> np.ndarray:
         """Which agents loiter (arrived fixed wings that have not collided since)."""
@@ -172,7 +167,6 @@ class Loiter:
         near = away < CAPTURE_RANGE * r_min
         fly = self.params.fixed_wing[k_all] & at_goal & near & ~self.on[k_all]
         self.approaching[k_all[~fly]] = False
-        self.final[k_all[~fly]] = False
         if not fly.any():
             return target
         out = target
@@ -244,10 +238,7 @@ class Loiter:
         to_goal = (side * (math.atan2(g[1] - c[1], g[0] - c[0]) - theta)) % (2.0 * math.pi)
         along = v[0] * math.cos(course) + v[1] * math.sin(course)
         if to_goal <= LEAD and abs(d - r) < 0.25 * r and along > math.sqrt(0.5) * math.hypot(v[0], v[1]):
-            self.final[i] = True
             return np.array(g, dtype=float)
-        if self.final[i]:  # it passed its goal outside the tolerance: the way on is chosen afresh
-            self.final[i] = self.approaching[i] = False
         course += side * math.atan(CONVERGE * (d - r) / r)
         ahead = r * LEAD
         return np.array([p[0] + ahead * math.cos(course), p[1] + ahead * math.sin(course), g[2]])
