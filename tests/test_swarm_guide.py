@@ -74,11 +74,14 @@ def test_behind_the_wall_the_way_leads_to_the_gap_and_through_it():
 
 def test_a_goal_below_the_lowest_altitude_flown_has_a_way():
     """A goal behind the wall 1.5 m up, under the agents' 5 m ``min_altitude``: the ways keep
-    down to it (its height less the radius), so its cell lies in free space and the way from
-    behind the wall ends there."""
+    down to it (its height less the radius the safety filter sweeps the agent with: its 1 m body
+    and its 0.2 m margin), so its cell lies in free space and the way from behind the wall ends
+    there."""
     world = wall_world(goal=(70.0, 20.0, 1.5))
-    guide = G.make_guide(world, AgentParams.from_world(world))
-    assert guide.floor == pytest.approx(0.5)
+    params = AgentParams.from_world(world)
+    guide = G.make_guide(world, params)
+    assert float(params.radius[0]) == pytest.approx(1.0)
+    assert guide.floor == pytest.approx(1.5 - 1.2)
     pos = np.array([[40.0, 20.0, 20.0]])
     goal = np.array([[70.0, 20.0, 1.5]])
     guide.targets(0, np.array([0]), pos, goal, goal.copy(), np.ones(1))
