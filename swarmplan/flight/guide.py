@@ -7,14 +7,12 @@ function has no such minima (Rimon & Koditschek 1992); its discrete form, the di
 goal over a grid of the free space, is what grid planners descend (Barraquand & Latombe 1991).
 
 :class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
-with the clearance of every cell centre to the static obstacles and the ground, less the
-largest radius the safety filter sweeps an agent with (``kinematics.checked_radius``: its body
-and its safety margin; a gap the filter would not let the agent through is no way). Per goal
-cell it computes once, on first need, the shortest way from every cell to the goal (Dijkstra
-over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter free cells (a cell
-inside the inflated obstacles only leads out), and a leg costs its length times
-``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the middle
-of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
+with the clearance of every cell centre to the static obstacles and the ground, less the largest
+``checked_radius`` (body and safety margin). Per goal cell it computes the shortest way from every
+cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
+free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
+times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
+middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
 direction, so that in a passage two opposing flows keep to their own right-hand halves instead
 of meeting head-on (the right-hand rule the field applies between agents). Each new way then
 loads the cells near surfaces it runs through (``ONCOMING``: negotiated congestion), so opposing
@@ -94,9 +92,7 @@ class StaticGuide:
         # The clearance of the grid's cells by the compiled query (numpy's bits, a fraction of
         # its time): the grid is the guide's cost at start-up.
         self._batch = ShapeBatch(self.bodies, compiled=True)
-        # The body the safety filter keeps off every surface: a way through a gap narrower than
-        # twice this led agents to where the filter held them.
-        self.radius = float(np.max(checked_radius(params.radius)))
+        self.radius = float(np.max(checked_radius(params.radius)))  # no gap the safety filter refuses
         self.floor = ways_floor(world, params)
         # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
         # to fly (their escapes are Dubins chains from their own pose).

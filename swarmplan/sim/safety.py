@@ -18,7 +18,6 @@ import numpy as np
 from swarmplan.core import Event
 from swarmplan.flight.kinematics import (
     AgentParams,
-    checked_radius,
     limit_multirotor,
     limit_velocity,
     safety_margin,
@@ -99,7 +98,7 @@ class SafetyFilter:
         self._batched = self._compiled and not world.peaks
         self._fixed_wings = bool(params.fixed_wing.any())
         # Every agent's radius with its safety margin (radius + margin), read every step.
-        self._checked_radius = checked_radius(params.radius)
+        self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
         self._checked_radius.setflags(write=False)
         self.checked_radius = self._checked_radius
         self._every = np.arange(len(params.radius))  # the rows of a step where every agent flies
