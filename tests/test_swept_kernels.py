@@ -382,12 +382,12 @@ def test_reference_and_compiled_runs_are_identical(monkeypatch):
     from swarmplan.world import parse_world
 
     def run() -> tuple[list, np.ndarray]:
-        # Layout 3: a stuck agent, left to the field, within the 150 steps (layouts 1 and 2
-        # have no event there).
-        sim = Simulation(parse_world(swarm_world(24, 8, 12, 3)))
+        # Layout 2: a stuck agent, left to the field, and arrivals within the 400 steps
+        # (layouts 0, 1, 3 and 4 have no event in the first 150).
+        sim = Simulation(parse_world(swarm_world(24, 8, 12, 2)))
         sim.reset(seed=1)
         events = []
-        for _ in range(150):
+        for _ in range(400):
             events += [e.to_json() for e in sim.step().events]
         return events, sim.state.position.copy()
 
