@@ -91,7 +91,7 @@ def _face(offset, sign, r, rb0, k_rep, gfac, near):  # noqa: ANN001, ANN202
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _near(p, v, at, vel, horizon, reach, near):  # noqa: ANN001, ANN202
-    """``near[b]`` = False when ``|d + t w| >= reach`` for every t in [0, horizon], d and w the
+    """``near[b]`` = False when ``|d + t w| >= reach[b]`` for every t in [0, horizon], d and w the
     position and velocity of the point ``p = (px, py, pz)`` moving at ``v = (vx, vy, vz)``
     relative to agent b, whose coordinates are ``at = (X, Y, Z)`` and ``vel = (VX, VY, VZ)``
     (a margin covers rounding): the closest approach of the segment from squared lengths only,
@@ -100,9 +100,9 @@ def _near(p, v, at, vel, horizon, reach, near):  # noqa: ANN001, ANN202
     vx, vy, vz = v
     X, Y, Z = at
     VX, VY, VZ = vel
-    r2 = reach * reach
-    r2_end = r2 * (1.0 + 1e-9)
     for b in range(X.shape[0]):
+        r2 = reach[b] * reach[b]
+        r2_end = r2 * (1.0 + 1e-9)
         dx, dy, dz = px - X[b], py - Y[b], pz - Z[b]
         wx, wy, wz = vx - VX[b], vy - VY[b], vz - VZ[b]
         dd = dx * dx + dy * dy + dz * dz
@@ -185,7 +185,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     a view (flyers, agents) of row numbers into those arrays, -1 for an agent the flyer does
     not know of (each flyer's own beliefs of the others), or an empty (0, 0) view: row b is
     agent b for every flyer; with a view, each row's doubt (m: how far the agent may be from
-    where it is believed), which widens the pair's separation ellipsoid on every axis;
+    where it is believed), which widens the pair's separation ellipsoid on every axis and
+    ``reach`` (the distance between centres beyond which a pair's terms are zero) by as much;
     ``gains``: (k_att, k_rep, influence, k_agent, quadratic_radius, goal_power, k_moving, horizon);
     ``window``: test only the agents within each flyer's window along x (the same forces)."""
     pos, vel, goal, target, static_scale, idx, reach_now, length = flyers
@@ -214,6 +215,10 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         X, Y, Z = all_pos[:, 0].copy(), all_pos[:, 1].copy(), all_pos[:, 2].copy()
         VX, VY, VZ = all_vel[:, 0].copy(), all_vel[:, 1].copy(), all_vel[:, 2].copy()
     near = np.empty(n_all, dtype=np.bool_)
+    # Each agent's reach: ``reach``, with a view widened by the doubt of the row held (the row
+    # each coordinate holds is kept: most flyers hold the same rows, so few entries change).
+    R = np.full(n_all, reach)
+    held = np.full(n_all, -1, dtype=np.int64)
     rows = np.empty(n_all, dtype=np.int64)
     seen = np.zeros(n_all, dtype=np.bool_)
     # With ``window``: the swarm sorted along x, and its top speed, for each flyer's window.
@@ -416,7 +421,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 w = w_hi - w_lo
                 sl = slice(w_lo, w_hi)
                 _near((px, py, pz), (vx, vy, vz), (XS[sl], YS[sl], ZS[sl]), (VXS[sl], VYS[sl], VZS[sl]),
-                      horizon, reach, near)  # fmt: skip
+                      horizon, R[sl], near)  # fmt: skip
                 for c in range(w):
                     if near[c]:
                         rows[k] = order[w_lo + c]
@@ -424,12 +429,16 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 _index_order(rows, k, seen)  # the full scan's order of the sums
             else:
                 if viewed:  # this flyer's beliefs of the others (an unknown one: where it is itself)
+                    own_row = view[i, ia]
                     for b in range(n_all):
                         rb = view[i, b]
-                        rb = rb if rb >= 0 else view[i, ia]
-                        X[b], Y[b], Z[b] = all_pos[rb, 0], all_pos[rb, 1], all_pos[rb, 2]
-                        VX[b], VY[b], VZ[b] = all_vel[rb, 0], all_vel[rb, 1], all_vel[rb, 2]
-                _near((px, py, pz), (vx, vy, vz), (X, Y, Z), (VX, VY, VZ), horizon, reach, near)
+                        rb = rb if rb >= 0 else own_row
+                        if rb != held[b]:
+                            held[b] = rb
+                            X[b], Y[b], Z[b] = all_pos[rb, 0], all_pos[rb, 1], all_pos[rb, 2]
+                            VX[b], VY[b], VZ[b] = all_vel[rb, 0], all_vel[rb, 1], all_vel[rb, 2]
+                            R[b] = reach + doubt[rb]
+                _near((px, py, pz), (vx, vy, vz), (X, Y, Z), (VX, VY, VZ), horizon, R, near)
                 for b in range(n_all):
                     if near[b]:
                         rows[k] = b

@@ -275,8 +275,9 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     n_all = known.shape[1]
     dp = pos[:, None, :] - all_pos
     dw = vel[:, None, :] - all_vel
-    # The kernel's _near: pairs whose closest approach within the horizon may lie inside reach.
-    r2 = reach * reach
+    # The kernel's _near: pairs whose closest approach within the horizon may lie inside reach
+    # (widened by the doubt of the row held).
+    r2 = (reach + doubt) ** 2 if viewed else reach * reach
     dd, bb, a = _sq(dp), _dot(dp, dw), _sq(dw)
     ee = _sq(dp + horizon * dw)
     far = (dd >= r2) & (

@@ -246,7 +246,6 @@ class ApfField:
             view = np.ascontiguousarray(swarm.view, dtype=np.int64)
             reach_all = self._reach_at_speed(np.asarray(swarm.row_agent, dtype=np.int64), all_vel)
             doubt = np.zeros(len(all_pos)) if swarm.doubt is None else np.asarray(swarm.doubt, dtype=float)
-            reach = reach + float(doubt.max(initial=0.0))  # the widest ellipsoid
         if self._numpy_calls > 0 and use_numpy_twin():
             self._numpy_calls -= 1
             apf_forces = _apf_numpy.apf_forces  # the same bits, without numba to load
