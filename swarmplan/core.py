@@ -45,6 +45,33 @@ SEGMENT_MODES = (Mode.ESCAPE, Mode.SMOOTHING)
 DONE_MODES = (Mode.ARRIVED, Mode.COLLIDED, Mode.FAILED)
 _FLYING = {m: m not in DONE_MODES for m in Mode}
 
+# The last list of modes seen by mode_codes and the masks made of it, per table: (modes, {id(table):
+# (table, mask)}). Replaced whole (never changed in place once another list comes), so a reader
+# holding it sees one consistent pair.
+_MODE_MEMO: tuple[list, dict[int, tuple[dict, np.ndarray]]] = ([], {})
+
+
+def mode_codes(mode: np.ndarray, table: dict[Mode, Any], dtype: type = bool) -> np.ndarray:
+    """Per agent, ``table[mode[i]]`` as an array of ``dtype`` (a new array each call; a value
+    not in ``table`` is a ``KeyError``).
+
+    Modes change a few times a run, and a step asks for several masks of the same modes
+    (one lookup per agent in a table costs ~10 us at 64 agents): the masks of the last list of
+    modes are kept, and a call whose modes equal it (one comparison of two lists, their
+    entries mostly the same objects) copies the kept mask. Equal lists give equal masks, so
+    the answer is the lookup's whatever the state it came from."""
+    global _MODE_MEMO
+    modes = mode.tolist()
+    memo = _MODE_MEMO
+    if memo[0] != modes:
+        memo = _MODE_MEMO = (modes, {})
+    kept = memo[1].get(id(table))
+    if kept is None or kept[0] is not table or kept[1].dtype != dtype:
+        # (the table is held with its mask: its id is not another's while kept)
+        kept = (table, np.fromiter(map(table.__getitem__, modes), dtype=dtype, count=len(modes)))
+        memo[1][id(table)] = kept
+    return kept[1].copy()
+
 
 @dataclass
 class SwarmState:
@@ -64,9 +91,9 @@ class SwarmState:
     @property
     def active(self) -> np.ndarray:
         """Agents still flying (not arrived, collided or failed)."""
-        # One dict lookup per agent (np.isin on an object array sorts and compares Python
-        # objects: ~4x the time, several calls per step).
-        return np.fromiter(map(_FLYING.__getitem__, self.mode.tolist()), dtype=bool, count=len(self.mode))
+        # One dict lookup per agent, kept while the modes stay the same (mode_codes; np.isin on
+        # an object array sorts and compares Python objects: ~4x the time).
+        return mode_codes(self.mode, _FLYING)
 
 
 class AgentEntries(Sequence):

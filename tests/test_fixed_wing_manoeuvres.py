@@ -256,3 +256,31 @@ def test_a_fixed_wing_approaches_a_goal_in_a_corner_on_a_clear_circle_through_it
     loiter.reset()
     assert not loiter._choose(0, here, np.array([V, 0.0, 0.0]), np.array([300.0, 200.0, 50.0]), obstacles)
     assert not loiter.approaching[0]
+
+
+def test_the_way_onto_an_approach_circle_is_a_dubins_way() -> None:
+    """The way a fixed wing's approach circle is chosen by: on the circle's tangent already, the
+    straight; heading away, the half turn and the inner tangent onto it; from inside a circle
+    its turns have no tangent onto, the turn onto the circle's course abreast of it and the
+    arc."""
+    from swarmplan.sim.loiter import _way_length
+
+    rho, r = 10.0, 10.0
+    at, goal = np.zeros(3), np.array([100.0, 0.0, 0.0])
+    east, west = np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0])
+    # The goal's circle: anticlockwise, heading east at the goal (centre (100, 10)).
+    assert _way_length(at, east, goal, 0.0, r, 1.0, rho) == pytest.approx(100.0)
+    # Heading west: a right turn of pi + b onto the inner tangent (offset 2 r), the tangent, and
+    # the arc b from where it meets the circle to the goal, b = atan(2 r / tangent).
+    tangent = math.sqrt(100.0**2 - (2.0 * r) ** 2)
+    b = math.atan2(2.0 * r, tangent)
+    way = _way_length(at, west, goal, 0.0, r, 1.0, rho)
+    assert way == pytest.approx(rho * (math.pi + b) + tangent + r * b)
+    # A metre west of the centre of a wide circle, neither turn has a tangent onto it: a quarter
+    # turn onto its course abreast (south) and half the circle to the goal opposite (heading
+    # north there).
+    wide = 50.0
+    inside = goal - np.array([wide + 1.0, 0.0, 0.0])
+    north = math.pi / 2.0
+    way = _way_length(inside, east, goal, north, wide, 1.0, rho)
+    assert way == pytest.approx(rho * math.pi / 2.0 + wide * math.pi)

@@ -221,3 +221,29 @@ def test_mode_masks_equal_the_comparisons():
     mode[3] = None
     with pytest.raises(KeyError):
         mode_in(mode, PARKED)
+
+
+def test_kept_mode_masks_follow_the_modes():
+    """Masks kept for the last modes seen: a mode changed in place, another table, another
+    dtype or another state's modes each get their own lookup's answer, and a caller's changes
+    to a mask it got do not reach the next caller."""
+    from swarmplan.core import Mode, mode_codes
+    from swarmplan.sim.modes import ARRIVED, PARKED, mode_in
+
+    rng = np.random.default_rng(1)
+    mode = np.array(rng.choice(list(Mode), 64).tolist(), dtype=object)
+    first = mode_in(mode, ARRIVED)
+    np.testing.assert_array_equal(first, mode == Mode.ARRIVED)
+    first[:] = ~first  # the caller's own array
+    np.testing.assert_array_equal(mode_in(mode, ARRIVED), mode == Mode.ARRIVED)
+    for i in (0, 17, 63):
+        mode[i] = Mode.ARRIVED if mode[i] != Mode.ARRIVED else Mode.APF
+        np.testing.assert_array_equal(mode_in(mode, ARRIVED), mode == Mode.ARRIVED)
+        np.testing.assert_array_equal(mode_in(mode, PARKED), (mode == Mode.ARRIVED) | (mode == Mode.FAILED))
+    codes = {m: k for k, m in enumerate(Mode)}
+    got = mode_codes(mode, codes, np.int8)
+    assert got.dtype == np.int8
+    np.testing.assert_array_equal(got, [codes[m] for m in mode.tolist()])
+    other = np.array([Mode.APF] * 64, dtype=object)
+    assert not mode_in(other, ARRIVED).any()
+    assert mode_in(mode, ARRIVED).sum() == int((mode == Mode.ARRIVED).sum())

@@ -193,6 +193,9 @@ class ApfField:
         self._reach = current_reach(params, self.reach_per_agent, self.gains.influence)
         # reach_at_speed's constant parts, computed once: the same floats in the same order.
         self._brake_denominator = 2.0 * np.maximum(params.max_accel, _EPS)
+        # One denominator for every agent: the reaches of rows at the same velocities are the same.
+        den = self._brake_denominator
+        self._one_denominator = bool(len(den) and (den == den[0]).all())
         self._any_fixed_wing = bool(params.fixed_wing.any())
         self._numpy_calls = field_numpy_calls(len(world.agents), self._any_fixed_wing)  # then compiled
 
@@ -240,7 +243,10 @@ class ApfField:
         reach = self._reach * (1.0 + 1e-9) + 1e-9
         if swarm.view is None:  # one swarm for every flyer
             view = np.zeros((0, 0), dtype=np.int64)
-            reach_all = self._reach_at_speed(None, all_vel)
+            if flyers.vel is all_vel and self._one_denominator and not self._any_fixed_wing:
+                reach_all = reach_now  # (every agent flies: the same rows, the same values)
+            else:
+                reach_all = self._reach_at_speed(None, all_vel)
             doubt = _NO_DOUBT
         else:  # each flyer's own beliefs: its rows of the table
             view = np.ascontiguousarray(swarm.view, dtype=np.int64)

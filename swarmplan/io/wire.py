@@ -36,11 +36,20 @@ def vector_bytes(field_tag: bytes, values: tuple[float, ...], tags: tuple[bytes,
     return field_tag + varint(len(inner)) + inner
 
 
+_LAST_STAMP: tuple[float, bytes] = (math.nan, b"")  # the last time asked and its bytes
+
+
 def timestamp_bytes(t: float) -> bytes:
+    global _LAST_STAMP
+    last = _LAST_STAMP  # (a step's channels ask for the same time in turn)
+    if last[0] == t:
+        return last[1]
     ns = int(round(t * 1e9))
     sec, nanos = divmod(ns, 1_000_000_000)
     inner = (b"\x08" + varint(sec) if sec else b"") + (b"\x10" + varint(nanos) if nanos else b"")
-    return b"\x0a" + varint(len(inner)) + inner
+    data = b"\x0a" + varint(len(inner)) + inner
+    _LAST_STAMP = (t, data)
+    return data
 
 
 def _varint_slow(n: int) -> bytes:

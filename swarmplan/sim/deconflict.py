@@ -24,7 +24,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from swarmplan.core import Event, Mode
+from swarmplan.core import Event
 from swarmplan.flight.apf import stopping_reach
 from swarmplan.flight.kinematics import AgentParams, safety_margin
 from swarmplan.geometry.collision import segment_segment_min_distance
@@ -32,6 +32,7 @@ from swarmplan.geometry.neighbours import agent_contacts_indexed
 from swarmplan.geometry.vec3 import dot3
 from swarmplan.runtime.compiled import kernel_module, use_compiled, use_compiled_checks
 from swarmplan.sim.braking import stoppable_speed
+from swarmplan.sim.modes import ARRIVED, mode_in
 from swarmplan.sim.network import Beliefs, belief_doubt
 from swarmplan.world.model import World
 
@@ -41,6 +42,7 @@ class Stopper(Protocol):
 
     params: AgentParams
     world: World
+    checked_radius: np.ndarray  # every agent's radius with its safety margin
 
     def brake(self, i: int, v0: np.ndarray) -> np.ndarray: ...
     def stop_counts(self, i: int, v0: np.ndarray) -> list[tuple[str, int]]: ...
@@ -94,8 +96,8 @@ def deconflict(
     active[commands.idx] = True
     stopped = np.zeros(n, dtype=bool)
     slid = np.zeros(n, dtype=bool)
-    present = active | (mode == Mode.ARRIVED)  # no mode changes below
-    checked = p.radius + safety_margin(p.radius)  # each body inflated by its safety margin
+    present = active | mode_in(mode, ARRIVED)  # no mode changes below
+    checked = filt.checked_radius  # each body inflated by its safety margin
     compiled = use_compiled_checks(n, bool(p.fixed_wing.any()))
     for _ in range(n):
         pairs = agent_contacts_indexed(pos0, pos1, checked, present, compiled=compiled)

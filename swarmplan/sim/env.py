@@ -39,7 +39,7 @@ from swarmplan.runtime.compiled import use_compiled_checks
 from swarmplan.sim.contacts import NearMisses, agent_collisions, arrivals, committed_hits, parked_contacts
 from swarmplan.sim.evasion import Evasion
 from swarmplan.sim.metrics import NOTHING, RunMetrics, Tally, summary_report
-from swarmplan.sim.modes import PARKED, mode_in
+from swarmplan.sim.modes import ARRIVED, PARKED, mode_in
 from swarmplan.sim.navigation import distance_to_go, initial_state, timeouts
 from swarmplan.sim.network import AgentView
 from swarmplan.sim.obstacles import Obstacles
@@ -84,6 +84,8 @@ class Simulation:
         self.safety = SafetyFilter(world, self.params, self.obstacles)
         # Swarm size or fixed wings: compiled per-step helpers (runtime.compiled).
         self._compiled = use_compiled_checks(self.n, bool(self.params.fixed_wing.any()))
+        self._every_agent = np.ones(self.n, dtype=bool)  # (read only)
+        self._every_agent.setflags(write=False)
         self.evasion = Evasion(self.params, world.dt)
         self.state: SwarmState | None = None
         self.seed: int | None = None
@@ -187,19 +189,20 @@ class Simulation:
         q0, qv0 = self.obstacles.poses(t0)
         q1, _ = self.obstacles.poses(t1)
         # Arrived multirotors under threat take off again (mode apf) to get out of its way.
-        flying_before = s.mode != Mode.ARRIVED
+        flying_before = ~mode_in(s.mode, ARRIVED)
         if self.evasion.watching.any():
             if self._distance_cache is None:
                 self._distance_cache = self.distances.query(s.position, q0)
             surface = self.obstacles.surface_of(s.position, self._distance_cache)
-            shapes = self.obstacles.mover_surfaces(q0)
+            # (without movers no pair is a mover's: the surfaces would change none)
+            shapes = self.obstacles.mover_surfaces(q0) if self.obstacles.mover_ids else None
             self._merge(self.evasion.update(s, self.obstacles.movers(q0, qv0), surface, shapes))
         active = s.active
         flying_now = self.loiter.flying(s, active)  # arrived fixed wings fly on round their goals
         idx = flying_now.nonzero()[0]
         # Every agent is measured at every step, whatever its mode: an arrived one hovers at its
         # goal, a failed or collided one stays where it stopped, and a mover may pass any of them.
-        measured = np.ones(self.n, dtype=bool)
+        measured = self._every_agent
         touched = False  # whether a mode set this step ended an agent (a collision)
 
         # Extra segments from the planner (e.g. smoothing) start before commands are formed.
@@ -210,9 +213,10 @@ class Simulation:
                     self._merge(nav.start_segment(s, i, seg))
 
         pos0, vel0 = s.position.copy(), s.velocity.copy()
-        pos1, vel1 = pos0.copy(), np.zeros_like(vel0)  # the step of agents that do not fly
         oldest = None  # with comms: the oldest state each flyer acted on
-        if len(idx):
+        if not len(idx):  # the step of agents that do not fly
+            pos1, vel1 = pos0.copy(), np.zeros_like(vel0)
+        else:
             # The previous step already measured every agent's distances at this position and time.
             if self._distance_cache is None:
                 self._distance_cache = self.distances.query(pos0, q0)

@@ -69,6 +69,7 @@ HORIZON_FACTOR = 1.5
 
 _EPS = 1e-9
 _WATCHED = mode_table(Mode.ARRIVED, Mode.APF)  # the watching agents: at their goals or in the field
+_AWAY = mode_table(Mode.APF)  # watching agents away from their goals
 
 
 def _approach(
@@ -284,7 +285,7 @@ class Evasion:
         # of its bodies (CLEAR_BY radii): an agent away comes back only once the threat clears its
         # goal by that much, so a prediction wavering about the need does not send it out and
         # back again step after step.
-        away = s.mode[rows] == Mode.APF
+        away = mode_in(s.mode, _AWAY)[rows]
         reach = radius + CLEAR_BY * radius * away if away.any() else radius
         pairs = threat_pairs(
             c, u, margin, who, rows, reach, s.position[rows], s.goal[rows], horizon, self._compiled

@@ -23,7 +23,9 @@ is clear, or the height is more than its climb limit allows over the way in less
 (it spirals on the circle instead), it takes, of the circles
 through the goal (every 10 degrees of heading there, either side, the radii of
 ``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
-Dubins way: the turn onto the tangent from where it is, the tangent, the arc to the goal), or
+Dubins way: the turn at its minimum radius onto a tangent of the circle in the circle's
+direction of flight, the tangent, the arc to the goal; from inside it, the turn onto its
+course and the arc when shorter), or
 the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
 goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
@@ -42,10 +44,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarmplan.core import Mode, SwarmState
+from swarmplan.core import SwarmState
 from swarmplan.flight.capture import CAPTURE_RANGE, roll_in_distance
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.planner.hold import LOITER_FACTORS, loiter_circle
+from swarmplan.sim.modes import ARRIVED, mode_in
 
 if TYPE_CHECKING:
     from swarmplan.sim.obstacles import Obstacles
@@ -79,7 +82,7 @@ class Loiter:
         """Which agents loiter (arrived fixed wings that have not collided since)."""
         if not self.fixed_wings or not self.on.any():  # (only fixed wings loiter)
             return self.on
-        self.on &= s.mode == Mode.ARRIVED
+        self.on &= mode_in(s.mode, ARRIVED)
         return self.on
 
     def flying(self, s: SwarmState, active: np.ndarray) -> np.ndarray:
@@ -254,20 +257,41 @@ def _way_length(
     p: np.ndarray, v: np.ndarray, g: np.ndarray, heading: float, r: float, side: float, r_min: float
 ) -> float:
     """The length of a fixed wing's way from ``p`` flying ``v`` to ``g`` on the circle of radius
-    ``r`` through ``g`` with heading ``heading`` there, turning to ``side``: the turn at ``r_min``
-    onto the tangent to the circle, the tangent, the arc to ``g``."""
+    ``r`` through ``g`` with heading ``heading`` there, turning to ``side``: the shortest Dubins
+    way onto the circle (a turn at ``r_min`` to either side, the straight tangent from that turn
+    onto the circle in its own direction of flight) and the arc to ``g``. From inside the circle
+    it may also ease out onto it along its field, in a turn wider than its tightest (no Dubins
+    way: its tangents may need a full turn, or none exists): the turn onto the circle's course
+    abreast of it and the arc from there, when that is shorter."""
     cx, cy = g[0] - side * r * math.sin(heading), g[1] + side * r * math.cos(heading)
-    dx, dy = p[0] - cx, p[1] - cy
-    d = math.hypot(dx, dy)
-    theta = math.atan2(dy, dx)
-    tangent = 0.0
-    if d > r:
-        theta += side * math.acos(r / d)
-        tangent = math.sqrt(d * d - r * r)
-    arc = r * ((side * (math.atan2(g[1] - cy, g[0] - cx) - theta)) % (2.0 * math.pi))
-    tx, ty = cx + r * math.cos(theta), cy + r * math.sin(theta)
-    turn = abs(math.remainder(math.atan2(ty - p[1], tx - p[0]) - math.atan2(v[1], v[0]), 2.0 * math.pi))
-    return r_min * turn + tangent + arc
+    psi = math.atan2(v[1], v[0])
+    best = math.inf
+    for turn in (1.0, -1.0):
+        ax, ay = p[0] - turn * r_min * math.sin(psi), p[1] + turn * r_min * math.cos(psi)
+        dx, dy = cx - ax, cy - ay
+        k = side * r - turn * r_min  # the tangent's offset between the two circles
+        dd = dx * dx + dy * dy
+        if dd < k * k:
+            continue
+        straight = math.sqrt(dd - k * k)
+        u = math.atan2(dy, dx) - math.atan2(k, straight)  # the tangent's heading
+        leave = _swept(psi, u, turn)  # the turn from the heading now onto the tangent
+        # Where the tangent meets the circle (its radius at angle u - side 90 degrees), on to g.
+        meet = u - side * 0.5 * math.pi
+        arc = _swept(meet, math.atan2(g[1] - cy, g[0] - cx), side)
+        best = min(best, r_min * leave + straight + r * arc)
+    if math.hypot(p[0] - cx, p[1] - cy) < r:  # inside: easing out onto it along its field
+        theta = math.atan2(p[1] - cy, p[0] - cx)
+        course = theta + side * 0.5 * math.pi  # the circle's own course abreast of the aircraft
+        onto = abs(math.remainder(course - psi, 2.0 * math.pi))
+        best = min(best, r_min * onto + r * _swept(theta, math.atan2(g[1] - cy, g[0] - cx), side))
+    return best
+
+
+def _swept(a: float, b: float, side: float) -> float:
+    """The angle (rad, in [0, 2 pi)) swept from angle ``a`` to angle ``b`` turning to ``side``
+    (1: anticlockwise, -1: clockwise)."""
+    return (side * (b - a)) % (2.0 * math.pi)
 
 
 def clear_of_statics(obstacles: Obstacles, i: int) -> Callable[[np.ndarray], np.ndarray]:

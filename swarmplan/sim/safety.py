@@ -331,11 +331,11 @@ class SafetyFilter:
         v_cmd, v_new, free = self.brake_and_limit(
             idx, pos0, vel0, cmd.velocity, window.q0, window.q1, brake_goal
         )
-        vel1 = np.zeros_like(vel0)
         if len(idx) == len(pos0):  # every row (the same values as through idx)
-            vel1[:] = v_new
+            vel1 = np.array(v_new, dtype=float)
             pos1 = pos0 + vel1 * dt
         else:
+            vel1 = np.zeros_like(vel0)
             pos1 = pos0.copy()
             vel1[idx] = v_new
             pos1[idx] = pos0[idx] + vel1[idx] * dt

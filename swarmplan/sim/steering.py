@@ -108,8 +108,9 @@ class Steering:
             d, g = distances
             p_idx, v_idx, goal_idx = pos0, vel0, s.goal.copy()
         else:
-            d, g = distances[0][idx], distances[1][idx]
-            p_idx, v_idx, goal_idx = pos0[idx], vel0[idx], s.goal[idx]
+            # (take: the rows [idx] gives, without its general indexing's cost)
+            d, g = distances[0].take(idx, axis=0), distances[1].take(idx, axis=0)
+            p_idx, v_idx, goal_idx = pos0.take(idx, axis=0), vel0.take(idx, axis=0), s.goal.take(idx, axis=0)
         if self.sensing_range < math.inf and mv.any():  # movers beyond sensing range are not seen
             d = np.where(mv[None, :] & (d > self.sensing_range), np.inf, d)
         inputs = FieldInputs(d, g, qv0 * mv[:, None], mv, self.obstacles.bounding_radius, q0)
