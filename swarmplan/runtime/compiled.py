@@ -165,12 +165,13 @@ def one_compiler(dispatcher: Any, folder: Path) -> Any:
     try:
         import fcntl
     except ImportError:  # not on POSIX
+        dispatcher.compile = unliteral_compile(dispatcher.compile)
         return dispatcher
     from numba.core.compiler_lock import global_compiler_lock
 
     func = dispatcher.py_func
     lock = folder / ".locks" / f"{func.__module__}.{func.__qualname__}"
-    compile_ = dispatcher.compile
+    compile_ = unliteral_compile(dispatcher.compile)
 
     def compile(sig: Any) -> Any:
         with global_compiler_lock:
@@ -197,6 +198,31 @@ def one_compiler(dispatcher: Any, folder: Path) -> Any:
 
     dispatcher.compile = compile
     return dispatcher
+
+
+def unliteral_compile(compile_: Any) -> Any:
+    """A dispatcher's ``compile_`` that compiles for the plain types of literal arguments.
+
+    A kernel that calls another with a constant (``f(a, 0)``, ``f(x, True)``) passes a literal
+    type (``Literal[int](0)``), and numba compiles the callee once per literal value besides
+    its plain signature (0.1-2 s of CPU each, ~10 s for the package). Compiled for the plain
+    types, the callee serves every such call (numba converts a literal to its plain type), with
+    the same arithmetic, so the same bits. A callee that cannot be typed without the literal
+    (a tuple indexed by it) is compiled for the literal as before."""
+    from numba.core import types
+    from numba.core.errors import TypingError
+
+    def compile(sig: Any) -> Any:
+        if isinstance(sig, tuple):
+            plain = tuple(types.unliteral(a) for a in sig)
+            if plain != sig:
+                try:
+                    return compile_(plain)
+                except TypingError:
+                    pass
+        return compile_(sig)
+
+    return compile
 
 
 def _module_file(root: Path, package: str, name: str) -> Path | None:
