@@ -18,6 +18,7 @@ import numpy as np
 from swarmplan.core import Event
 from swarmplan.flight.kinematics import (
     AgentParams,
+    checked_radius,
     limit_multirotor,
     limit_velocity,
     safety_margin,
@@ -97,8 +98,7 @@ class SafetyFilter:
         self._compiled = use_compiled_checks(len(params.ids), bool(params.fixed_wing.any()))
         self._batched = self._compiled and not world.peaks
         self._fixed_wings = bool(params.fixed_wing.any())
-        # Every agent's radius with its safety margin (radius + margin), read every step.
-        self._checked_radius = params.radius + self.margin(np.arange(len(params.radius)))
+        self._checked_radius = checked_radius(params.radius)
         self._checked_radius.setflags(write=False)
         self.checked_radius = self._checked_radius
         self._every = np.arange(len(params.radius))  # the rows of a step where every agent flies
@@ -261,7 +261,7 @@ class SafetyFilter:
         if len(probe):
             u = v1[probe] / speed[probe, None]
             reach = speed[probe] ** 2 / (2.0 * amax[probe]) + speed[probe] * dt
-            radii = p.radius[rows[probe]] + self.margin(rows[probe])
+            radii = self._checked_radius[rows[probe]]
             start = pos0[rows[probe]]
             hit, free = self._free_distances(start, u, reach, radii, q0, q1)
             at = probe[hit]
@@ -313,7 +313,7 @@ class SafetyFilter:
                 if len(undecided):
                     rows = idx[undecided]
                     ends = pos0[rows] + vel1[undecided] * self.world.dt
-                    radii = p.radius[rows] + self.margin(rows)
+                    radii = self._checked_radius[rows]
                     mv = self.obstacles.moving_mask
                     hits = first_hits_fcl(self.obstacles.collision, pos0[rows], ends, radii, q0[mv], q1[mv])
                     free[undecided] = [h is None for h in hits]
@@ -451,7 +451,7 @@ class SafetyFilter:
     def step_is_safe(self, i: int, p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> bool:
         mv = self.obstacles.moving_mask
         return (
-            self.obstacles.collision.first_hit(p0, p1, self.params.radius[i] + self.margin(i), q0[mv], q1[mv])
+            self.obstacles.collision.first_hit(p0, p1, self._checked_radius[i], q0[mv], q1[mv])
             is None
         )
 
