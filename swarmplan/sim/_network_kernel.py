@@ -31,7 +31,7 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     n, n_all = view.shape
     # One pass into room for every pair (pages never written are never touched).
     ks = np.empty(n * n_all, dtype=np.int64)
-    js = np.empty(n * n_all, dtype=np.int64)
+    js = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last candidate is written, then dropped
     rows = np.empty(n * n_all, dtype=np.int64)
     ds = np.empty(n * n_all)
     c = 0
@@ -82,8 +82,8 @@ def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
     ptr = np.empty(k + 1, dtype=np.int64)
     miss = np.empty(n * k + 1, dtype=np.int64)  # one more: the last receiver is written, then dropped
     below = np.uint64(math.ceil(loss * 2.0**53)) if loss > 0.0 else np.uint64(0)
-    drop = np.zeros(n, dtype=np.bool_)
-    far = np.zeros(n, dtype=np.bool_)
+    gone = np.zeros(n, dtype=np.uint8)  # per receiver: 1 when it does not take the copy
+    far = np.zeros(n, dtype=np.uint8)
     step = _TWO * _SPREAD_COPY
     c = 0
     lost = 0
@@ -95,7 +95,7 @@ def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
             for r in range(n):
                 dx, dy, dz = at[r, 0] - at[s, 0], at[r, 1] - at[s, 1], at[r, 2] - at[s, 2]
                 far[r] = math.sqrt((dx * dx + dy * dy) + dz * dz) > reach
-            far[s] = False
+            far[s] = 0
         if loss > 0.0:  # draw(key, row, r, 0) for every receiver r, in one vectorized pass
             z0 = key + np.uint64(row) * _SPREAD_ROW
             for r in range(n):
@@ -103,88 +103,81 @@ def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
                 z = (z ^ (z >> _S30)) * _MIX1
                 z = (z ^ (z >> _S27)) * _MIX2
                 z = z ^ (z >> _S31)
-                drop[r] = (z >> _S11) < below
-        for r in range(n):
-            gone = far[r]
-            lose = drop[r] and not gone
-            miss[c] = r  # written whatever it is, kept by moving c on (no branch to mispredict)
-            c += gone or lose or r == s
-            out += gone
-            lost += lose and r != s
+                gone[r] = (z >> _S11) < below
+        else:
+            gone[:] = 0
+        gone[s] = 1  # its own copy: neither lost nor out of range
+        if ranged:
+            for r in range(n):
+                out += far[r]
+                lost += gone[r] & (1 - far[r])
+                gone[r] |= far[r]
+            lost -= 1
+        else:
+            for r in range(n):
+                lost += gone[r]
+            lost -= 1
+        for r in range(n):  # written whatever it is, kept by moving c on (no branch to mispredict)
+            miss[c] = r
+            c += gone[r]
     ptr[k] = c
     return ptr, miss[:c].copy(), lost, out
 
 
-@njit(cache=True, nogil=True, inline="always")
-def held(heard, stamp, gen, base, r, s):  # noqa: ANN001, ANN201
-    """The table row receiver ``r`` holds of sender ``s`` (0: none): its own entry while stamped
-    with the sender's generation, else the sender's base row (``heard`` and ``stamp`` by
-    sender, then receiver: a sender's entries are one row of memory)."""
-    return heard[s, r] if stamp[s, r] == gen[s] else base[s]
-
-
 @njit(cache=True, nogil=True)
-def take_copy(book, r, s, row):  # noqa: ANN001, ANN201
-    """Receiver ``r`` takes sender ``s``'s table ``row`` (a copy arrived ahead of the rest of its
-    broadcast) unless it holds a newer one."""
-    heard, stamp, gen, base, count, holders = book
-    if row <= held(heard, stamp, gen, base, r, s):
-        return
-    if stamp[s, r] != gen[s]:
-        holders[s, count[s]] = r
-        count[s] += 1
-        stamp[s, r] = gen[s]
-    heard[s, r] = row
-
-
-@njit(cache=True, nogil=True)
-def deliver(book, senders, rows, key, fate, ptr, miss, t, scratch):  # noqa: ANN001, ANN201, PLR0913
+def deliver(book, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN001, ANN201, PLR0913
     """``network.deliver_numpy`` on the sparse book of what every receiver holds (``book`` =
-    (heard, stamp, gen, base, count, holders): receiver r holds of sender s its own entry
-    ``heard[s, r]`` while ``stamp[s, r] == gen[s]`` (r is then one of ``holders[s, :count[s]]``),
-    else the sender's base row ``base[s]``): the copies of one broadcast (``senders``, their
-    table ``rows``) taken by every receiver but ``miss[ptr[c]:ptr[c + 1]]`` (:func:`misses`)
-    that have arrived by ``t``. When every copy has arrived, each sender's base becomes its row
-    and only the receivers that missed it, or hold a newer row, keep entries of their own:
-    ``O(misses)``, not one write per receiver. ``scratch`` (N,) all False, and again on return."""
-    heard, stamp, gen, base, count, holders = book
+    (base, count, holders, values): receiver r holds of sender s the row ``values[s, e]`` when
+    it is ``holders[s, e]`` (e < ``count[s]``, ascending), else the sender's base row
+    ``base[s]``; a receiver holds an entry of its own exactly when its row is not the base):
+    the copies of one broadcast (``senders``, their table ``rows``) taken by every receiver but
+    ``miss[ptr[c]:ptr[c + 1]]`` (:func:`misses`) that have arrived by ``t``. When every copy has
+    arrived, each sender's base becomes its row and only the receivers that missed it, or hold
+    a newer row (arrived ahead of its broadcast), keep entries of their own: a merge of two
+    short lists per sender, not one write per receiver."""
+    base, count, holders, values = book
     jitter, due = fate[1], fate[2]
-    n = heard.shape[0]
+    n = base.shape[0]
     k = senders.shape[0]
     if jitter == 0.0 and due > t + 1e-9:  # every copy arrives at once, later
         return
-    if due + jitter > t + 1e-9:  # some copies are still on their way: those arrived, one by one
-        for c in range(k):
-            s, row, q = senders[c], rows[c], ptr[c]
-            for r in range(n):
-                if q < ptr[c + 1] and miss[q] == r:
-                    q += 1
-                    continue
-                if due + jitter * (2.0 * draw(key, row, r, 1) - 1.0) <= t + 1e-9:
-                    take_copy(book, r, s, row)
-        return
+    partial = due + jitter > t + 1e-9  # some copies are still on their way
     keep = np.empty(n, dtype=np.int64)
     kept = np.empty(n, dtype=np.int64)
     for c in range(k):
         s, row = senders[c], rows[c]
+        q, q_end = ptr[c], ptr[c + 1]
+        e, e_end = 0, count[s]
         m = 0
-        for q in range(ptr[c], ptr[c + 1]):  # those that missed it keep what they hold
-            r = miss[q]
-            scratch[r] = True
-            keep[m], kept[m] = r, held(heard, stamp, gen, base, r, s)
-            m += 1
-        for e in range(count[s]):  # those holding a newer row (arrived ahead) keep it
-            r = holders[s, e]
-            if not scratch[r] and heard[s, r] > row:
-                keep[m], kept[m] = r, heard[s, r]
-                m += 1
-        for q in range(ptr[c], ptr[c + 1]):
-            scratch[miss[q]] = False
-        gen[s] += 1
-        base[s] = row
+        if partial:  # every receiver in turn: those whose copy has arrived take it
+            for r in range(n):
+                own = e < e_end and holders[s, e] == r
+                v = values[s, e] if own else base[s]
+                e += own
+                missed = q < q_end and miss[q] == r
+                q += missed
+                if not missed and row > v and due + jitter * (2.0 * draw(key, row, r, 1) - 1.0) <= t + 1e-9:
+                    v = row
+                if v != base[s]:
+                    keep[m], kept[m] = r, v
+                    m += 1
+        else:  # every copy has arrived: the row is the base but for those that missed it
+            while q < q_end or e < e_end:
+                rq = miss[q] if q < q_end else n
+                re = holders[s, e] if e < e_end else n
+                if rq <= re:  # missed it: keeps what it holds
+                    keep[m], kept[m] = rq, values[s, e] if rq == re else base[s]
+                    m += 1
+                    q += 1
+                    e += rq == re
+                else:  # its own entry: kept only when newer (arrived ahead)
+                    if values[s, e] > row:
+                        keep[m], kept[m] = re, values[s, e]
+                        m += 1
+                    e += 1
+            base[s] = row
         for e in range(m):
-            r = keep[e]
-            heard[s, r], stamp[s, r], holders[s, e] = kept[e], gen[s], r
+            holders[s, e], values[s, e] = keep[e], kept[e]
         count[s] = m
 
 
@@ -201,11 +194,11 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
     row, distance) of flyers ``idx`` (at ``at``) within ``radius`` of those positions, in (k, j)
     order. A flyer's view is its senders' base rows but for its own entries: one copy of a row
     of N and a few changes per flyer."""
-    heard, stamp, gen, base, count, holders = book
+    base, count, holders, values = book
     t_row, pos_row, vel_row = table
     max_accel, reach = stale
     n = idx.shape[0]
-    n_all = heard.shape[0]
+    n_all = base.shape[0]
     # Each flyer's own entries (sender, row), flyer by flyer (from the senders' lists of holders).
     flyer = np.full(n_all, -1, dtype=np.int64)
     for k in range(n):
@@ -225,10 +218,9 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
     e_row = np.empty(per[n], dtype=np.int64)
     for s in range(n_all):
         for e in range(count[s]):
-            r = holders[s, e]
-            k = flyer[r]
+            k = flyer[holders[s, e]]
             if k >= 0:
-                e_s[fill[k]], e_row[fill[k]] = s, heard[s, r]
+                e_s[fill[k]], e_row[fill[k]] = s, values[s, e]
                 fill[k] += 1
     # The rows held: each base row some flyer holds, then the flyers' own rows.
     room = n_all + per[n]
@@ -309,6 +301,8 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
         for j in range(n_all):
             dx, dy, dz = px[j] - ax, py[j] - ay, pz[j] - az
             d2[j] = (dx * dx + dy * dy) + dz * dz
+        # The candidates (written at c whatever they are, kept by moving c on: no branch to
+        # mispredict), then those within the radius, itself left out.
         first = c
         for j in range(n_all):
             js[c] = j

@@ -314,11 +314,7 @@ class Network:
             count = np.bincount(s_, minlength=n).astype(np.int64)
             holders = np.zeros((n, n), dtype=np.int64)
             holders[s_, np.arange(len(s_)) - np.repeat(np.cumsum(count) - count, count)] = r_
-            stamp = np.full((n, n), -1, dtype=np.int64)  # (sender, receiver)
-            stamp[s_, r_] = 0
-            self._holds = (np.zeros((n, n), dtype=np.int64), stamp, np.zeros(n, dtype=np.int64),
-                          start.astype(np.int64), count, holders)  # fmt: skip
-            self._scratch = np.zeros(n, dtype=np.bool_)
+            self._holds = (start.astype(np.int64), count, holders, np.zeros((n, n), dtype=np.int64))
         else:
             self._heard = heard
         self.pending: list[_Sent] = []
@@ -330,15 +326,21 @@ class Network:
         """(receiver, sender): the table row of the newest state heard (0: none)."""
         if not self._sparse:
             return self._heard
-        heard, stamp, gen, base = self._holds[:4]
-        return np.where(stamp == gen[:, None], heard, base[:, None]).T
+        base, count, holders, values = self._holds
+        heard = np.repeat(base[:, None], self.n, axis=1)
+        s, e = np.nonzero(np.arange(self.n)[None, :] < count[:, None])
+        heard[s, holders[s, e]] = values[s, e]
+        return heard.T
 
     def _heard_by(self, i: int) -> np.ndarray:
         """(sender,): the table row of the newest state agent ``i`` heard of each (0: none)."""
         if not self._sparse:
             return self._heard[i]
-        heard, stamp, gen, base = self._holds[:4]
-        return np.where(stamp[:, i] == gen, heard[:, i], base)
+        base, count, holders, values = self._holds
+        s, e = np.nonzero((holders == i) & (np.arange(self.n)[None, :] < count[:, None]))
+        heard = base.copy()
+        heard[s] = values[s, e]
+        return heard
 
     @property
     def t_heard(self) -> np.ndarray:
@@ -419,7 +421,7 @@ class Network:
             if self._sparse:
                 ptr, miss = m.misses
                 fate = self._fate(m)
-                _kernel().deliver(self._holds, m.senders, m.rows, self.key, fate, ptr, miss, t, self._scratch)
+                _kernel().deliver(self._holds, m.senders, m.rows, self.key, fate, ptr, miss, t)
             else:
                 deliver_numpy(self._heard, m.senders, m.rows, self.key, self._fate(m), m.heard_by, t)
             if m.due + c.jitter > t + _EPS:  # copies still on their way
