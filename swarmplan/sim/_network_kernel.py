@@ -125,60 +125,70 @@ def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
 
 
 @njit(cache=True, nogil=True)
-def deliver(book, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN001, ANN201, PLR0913
+def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN001, ANN201, PLR0913
     """``network.deliver_numpy`` on the sparse book of what every receiver holds (``book`` =
-    (base, count, holders, values): receiver r holds of sender s the row ``values[s, e]`` when
-    it is ``holders[s, e]`` (e < ``count[s]``, ascending), else the sender's base row
-    ``base[s]``; a receiver holds an entry of its own exactly when its row is not the base):
-    the copies of one broadcast (``senders``, their table ``rows``) taken by every receiver but
-    ``miss[ptr[c]:ptr[c + 1]]`` (:func:`misses`) that have arrived by ``t``. When every copy has
-    arrived, each sender's base becomes its row and only the receivers that missed it, or hold
-    a newer row (arrived ahead of its broadcast), keep entries of their own: a merge of two
-    short lists per sender, not one write per receiver."""
-    base, count, holders, values = book
+    (base, start, holders, values): receiver r holds of sender s the row ``values[e]`` when it
+    is ``holders[e]`` for some e in ``start[s]:start[s + 1]`` (ascending), else the sender's
+    base row ``base[s]``; a receiver holds an entry of its own exactly when its row is not the
+    base): the copies of one broadcast (``senders``, ascending, their table ``rows``) taken by
+    every receiver but ``miss[ptr[c]:ptr[c + 1]]`` (:func:`misses`) that have arrived by ``t``.
+    When every copy has arrived, each sender's base becomes its row and only the receivers that
+    missed it, or hold a newer row (arrived ahead of its broadcast), keep entries of their own:
+    a merge of two short lists per sender, not one write per receiver. The new lists are
+    written to ``spare`` = (start, holders, values), with room for those held and those of the
+    copies missed (of every receiver while copies are still on their way); returns whether
+    they were written (``base`` changes in place)."""
+    base, start, holders, values = book
+    new_start, new_holders, new_values = spare
     jitter, due = fate[1], fate[2]
     n = base.shape[0]
     k = senders.shape[0]
     if jitter == 0.0 and due > t + 1e-9:  # every copy arrives at once, later
-        return
+        return False
     partial = due + jitter > t + 1e-9  # some copies are still on their way
-    keep = np.empty(n, dtype=np.int64)
-    kept = np.empty(n, dtype=np.int64)
-    for c in range(k):
-        s, row = senders[c], rows[c]
-        q, q_end = ptr[c], ptr[c + 1]
-        e, e_end = 0, count[s]
-        m = 0
+    m = 0
+    c = 0
+    for s in range(n):  # every sender's list in turn, in one pass over the book
+        new_start[s] = m
+        e, e_end = start[s], start[s + 1]
+        if c == k or senders[c] != s:  # not in this broadcast
+            for e in range(e, e_end):
+                new_holders[m], new_values[m] = holders[e], values[e]
+                m += 1
+            continue
+        row, q, q_end = rows[c], ptr[c], ptr[c + 1]
+        c += 1
         if partial:  # every receiver in turn: those whose copy has arrived take it
             for r in range(n):
-                own = e < e_end and holders[s, e] == r
-                v = values[s, e] if own else base[s]
+                own = e < e_end and holders[e] == r
+                v = values[e] if own else base[s]
                 e += own
                 missed = q < q_end and miss[q] == r
                 q += missed
                 if not missed and row > v and due + jitter * (2.0 * draw(key, row, r, 1) - 1.0) <= t + 1e-9:
                     v = row
                 if v != base[s]:
-                    keep[m], kept[m] = r, v
+                    new_holders[m], new_values[m] = r, v
                     m += 1
-        else:  # every copy has arrived: the row is the base but for those that missed it
-            while q < q_end or e < e_end:
-                rq = miss[q] if q < q_end else n
-                re = holders[s, e] if e < e_end else n
-                if rq <= re:  # missed it: keeps what it holds
-                    keep[m], kept[m] = rq, values[s, e] if rq == re else base[s]
+            continue
+        # every copy has arrived: the row is the base but for those that missed it
+        while q < q_end or e < e_end:
+            rq = miss[q] if q < q_end else n
+            re = holders[e] if e < e_end else n
+            if rq <= re:  # missed it: keeps what it holds
+                new_holders[m], new_values[m] = rq, values[e] if rq == re else base[s]
+                m += 1
+                q += 1
+                e += rq == re
+            else:  # its own entry: kept only when newer (arrived ahead)
+                if values[e] > row:
+                    new_holders[m], new_values[m] = re, values[e]
                     m += 1
-                    q += 1
-                    e += rq == re
-                else:  # its own entry: kept only when newer (arrived ahead)
-                    if values[s, e] > row:
-                        keep[m], kept[m] = re, values[s, e]
-                        m += 1
-                    e += 1
-            base[s] = row
-        for e in range(m):
-            holders[s, e], values[s, e] = keep[e], kept[e]
-        count[s] = m
+                e += 1
+        base[s] = row
+    new_start[n] = m
+    return True
+
 
 
 @njit(cache=True, nogil=True)
@@ -194,7 +204,7 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
     row, distance) of flyers ``idx`` (at ``at``) within ``radius`` of those positions, in (k, j)
     order. A flyer's view is its senders' base rows but for its own entries: one copy of a row
     of N and a few changes per flyer."""
-    base, count, holders, values = book
+    base, start, holders, values = book
     t_row, pos_row, vel_row = table
     max_accel, reach = stale
     n = idx.shape[0]
@@ -206,8 +216,8 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
     per = np.zeros(n + 1, dtype=np.int64)
     own_entries = np.zeros(n_all, dtype=np.int64)  # per sender: flyers holding an entry of their own
     for s in range(n_all):
-        for e in range(count[s]):
-            k = flyer[holders[s, e]]
+        for e in range(start[s], start[s + 1]):
+            k = flyer[holders[e]]
             if k >= 0:
                 per[k + 1] += 1
                 own_entries[s] += 1
@@ -217,10 +227,10 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
     e_s = np.empty(per[n], dtype=np.int64)
     e_row = np.empty(per[n], dtype=np.int64)
     for s in range(n_all):
-        for e in range(count[s]):
-            k = flyer[holders[s, e]]
+        for e in range(start[s], start[s + 1]):
+            k = flyer[holders[e]]
             if k >= 0:
-                e_s[fill[k]], e_row[fill[k]] = s, values[s, e]
+                e_s[fill[k]], e_row[fill[k]] = s, values[e]
                 fill[k] += 1
     # The rows held: each base row some flyer holds, then the flyers' own rows.
     room = n_all + per[n]

@@ -311,10 +311,9 @@ class Network:
         np.fill_diagonal(heard, 0)  # an agent knows itself, it hears nothing of itself
         if self._sparse:  # each sender's start, but for the receivers that heard nothing of it
             s_, r_ = np.nonzero(heard.T == 0)
-            count = np.bincount(s_, minlength=n).astype(np.int64)
-            holders = np.zeros((n, n), dtype=np.int64)
-            holders[s_, np.arange(len(s_)) - np.repeat(np.cumsum(count) - count, count)] = r_
-            self._holds = (start.astype(np.int64), count, holders, np.zeros((n, n), dtype=np.int64))
+            first = np.concatenate([[0], np.cumsum(np.bincount(s_, minlength=n))]).astype(np.int64)
+            self._holds = (start.astype(np.int64), first, r_.astype(np.int64), np.zeros(len(r_), dtype=np.int64))
+            self._spare = (np.empty(n + 1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
         else:
             self._heard = heard
         self.pending: list[_Sent] = []
@@ -326,20 +325,19 @@ class Network:
         """(receiver, sender): the table row of the newest state heard (0: none)."""
         if not self._sparse:
             return self._heard
-        base, count, holders, values = self._holds
+        base, first, holders, values = self._holds
         heard = np.repeat(base[:, None], self.n, axis=1)
-        s, e = np.nonzero(np.arange(self.n)[None, :] < count[:, None])
-        heard[s, holders[s, e]] = values[s, e]
+        heard[np.repeat(np.arange(self.n), np.diff(first)), holders[: first[-1]]] = values[: first[-1]]
         return heard.T
 
     def _heard_by(self, i: int) -> np.ndarray:
         """(sender,): the table row of the newest state agent ``i`` heard of each (0: none)."""
         if not self._sparse:
             return self._heard[i]
-        base, count, holders, values = self._holds
-        s, e = np.nonzero((holders == i) & (np.arange(self.n)[None, :] < count[:, None]))
+        base, first, holders, values = self._holds
+        e = np.flatnonzero(holders[: first[-1]] == i)
         heard = base.copy()
-        heard[s] = values[s, e]
+        heard[np.searchsorted(first, e, side="right") - 1] = values[e]
         return heard
 
     @property
@@ -419,14 +417,31 @@ class Network:
                 keep.append(m)
                 continue
             if self._sparse:
-                ptr, miss = m.misses
-                fate = self._fate(m)
-                _kernel().deliver(self._holds, m.senders, m.rows, self.key, fate, ptr, miss, t)
+                self._deliver_sparse(m, t)
             else:
                 deliver_numpy(self._heard, m.senders, m.rows, self.key, self._fate(m), m.heard_by, t)
             if m.due + c.jitter > t + _EPS:  # copies still on their way
                 keep.append(m)
         self.pending = keep
+
+    def _deliver_sparse(self, m: _Sent, t: float) -> None:
+        """:meth:`deliver` of broadcast ``m`` on the sparse book: its new lists are written to the
+        spare buffers (grown when short), which then hold the book (the lists, a few tens of
+        thousands of entries in a swarm, are rewritten in one pass; no buffer is allocated
+        again)."""
+        ptr, miss = m.misses
+        first = self._holds[1]
+        partial = m.due + self.comms.jitter > t + _EPS
+        room = int(first[-1]) + (self.n * len(m.senders) if partial else int(ptr[-1]))
+        start, holders, values = self._spare
+        if len(holders) < room:
+            size = max(room, 2 * len(holders))
+            holders, values = np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64)
+        spare = (start, holders, values)
+        if _kernel().deliver(self._holds, spare, m.senders, m.rows, self.key, self._fate(m), ptr, miss, t):
+            self._spare, self._holds = self._holds[1:], (self._holds[0], *spare)
+        else:
+            self._spare = spare
 
     def _fate(self, m: _Sent) -> tuple[float, float, float, float]:
         """(loss, the delay's jitter, the time broadcast ``m`` falls due, range)."""
