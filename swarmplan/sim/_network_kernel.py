@@ -345,5 +345,5 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
                 ks[kept], js[kept], rows[kept], ds[kept] = ks[p], js[p], rows[p], ds[p]
                 kept += 1
         c = kept
-    pairs = (ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy())
-    return live[:count_live].copy(), view, age[:count_live].copy(), moved[:count_live].copy(), pairs
+    # (slices, not copies: they live as long as the beliefs, one step)
+    return live[:count_live], view, age[:count_live], moved[:count_live], (ks[:c], js[:c], rows[:c], ds[:c])
