@@ -1,7 +1,11 @@
 """Compiled phases of the network of a world with ``comms`` (``swarmplan.sim.network``), for
-swarms: every (receiver, sender) pair is visited each step, which numpy does in many passes
-over (N, N) arrays and a loop does in one. Each function is its numpy counterpart's arithmetic
-in the same order (tests/test_network_kernel.py holds them to the same answers)."""
+swarms. What every receiver holds of every sender is kept sparse: each sender's base row (the
+newest state delivered to all that took it) and the few receivers holding another (a copy lost,
+out of range, or arrived ahead of its broadcast), so a delivery writes the copies missed, not
+one entry per receiver, and a flyer's view is the base rows changed at its own entries. The
+losses of a broadcast are drawn in one vectorized pass per sender. Each function gives its
+numpy counterpart's answers on the (receiver, sender) matrix, with the same arithmetic in the
+same order (tests/test_network_kernel.py holds them to the same answers)."""
 
 from __future__ import annotations
 
@@ -245,7 +249,7 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
         least = min(least, reach[idx[k]])
     old = 0
     for s in range(n_all):
-        if own_entries[s] < n:  # some flyer holds the base row
+        if own_entries[s] < n and base[s] > 0:  # some flyer holds the base row (0: none)
             r = base[s]
             m = count_live
             of_base[s] = m

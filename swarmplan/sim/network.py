@@ -215,6 +215,16 @@ def compact_near_numpy(
     return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
 
 
+def holdings(heard: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The sparse book (``_network_kernel.deliver``) of ``heard`` (receiver, sender: the table row
+    held, 0: none) about each sender's ``base`` row: (base, start, holders, values), sender
+    ``s``'s receivers holding another row ``holders[start[s]:start[s + 1]]`` (ascending) and
+    their rows."""
+    s, r = np.nonzero(heard.T != np.asarray(base)[:, None])
+    start = np.concatenate([[0], np.cumsum(np.bincount(s, minlength=len(base)))]).astype(np.int64)
+    return np.asarray(base, dtype=np.int64).copy(), start, r.astype(np.int64), heard[r, s].astype(np.int64)
+
+
 class _Table:
     """Every state sent, one row each (row 0: nothing heard), grown by doubling."""
 
@@ -310,9 +320,7 @@ class Network:
         heard = np.where(d <= self.comms.range, start[None, :], 0)
         np.fill_diagonal(heard, 0)  # an agent knows itself, it hears nothing of itself
         if self._sparse:  # each sender's start, but for the receivers that heard nothing of it
-            s_, r_ = np.nonzero(heard.T == 0)
-            first = np.concatenate([[0], np.cumsum(np.bincount(s_, minlength=n))]).astype(np.int64)
-            self._holds = (start.astype(np.int64), first, r_.astype(np.int64), np.zeros(len(r_), dtype=np.int64))
+            self._holds = holdings(heard, start)
             self._spare = (np.empty(n + 1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
         else:
             self._heard = heard
