@@ -156,8 +156,8 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
         new_start[s] = m
         e, e_end = start[s], start[s + 1]
         if c == k or senders[c] != s:  # not in this broadcast
-            for e in range(e, e_end):
-                new_holders[m], new_values[m] = holders[e], values[e]
+            for f in range(e, e_end):
+                new_holders[m], new_values[m] = holders[f], values[f]
                 m += 1
             continue
         row, q, q_end = rows[c], ptr[c], ptr[c + 1]
@@ -192,7 +192,6 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
         base[s] = row
     new_start[n] = m
     return True
-
 
 
 @njit(cache=True, nogil=True)

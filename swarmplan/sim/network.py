@@ -321,7 +321,11 @@ class Network:
         np.fill_diagonal(heard, 0)  # an agent knows itself, it hears nothing of itself
         if self._sparse:  # each sender's start, but for the receivers that heard nothing of it
             self._holds = holdings(heard, start)
-            self._spare = (np.empty(n + 1, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64))
+            self._spare = (
+                np.empty(n + 1, dtype=np.int64),
+                np.empty(0, dtype=np.int64),
+                np.empty(0, dtype=np.int64),
+            )
         else:
             self._heard = heard
         self.pending: list[_Sent] = []
@@ -532,8 +536,12 @@ class Network:
         table = (tb.t[: tb.size], tb.pos[: tb.size], tb.vel[: tb.size])
         # With sensing the view changes below: its pairs are found when asked.
         radius = 0.0 if sensing else float(near)
-        run, book = (_kernel().compact_near, self._holds) if self._sparse else (compact_near_numpy, self._heard)
-        live, view, age, moved, pairs = run(book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale)
+        run, book = (
+            (_kernel().compact_near, self._holds) if self._sparse else (compact_near_numpy, self._heard)
+        )
+        live, view, age, moved, pairs = run(
+            book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
+        )
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).
         truth = np.arange(self.n) if sensing else idx
