@@ -22,6 +22,7 @@ from swarmplan.sim.network import (
     fates_numpy,
     held_pairs,
 )
+from swarmplan.sim.network_book import holdings
 from swarmplan.world.comms import Comms
 
 
@@ -94,7 +95,7 @@ def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
         start = rng.integers(0, 100, (n, n)).astype(np.int64)
         start[rng.random((n, n)) < 0.3] = 0
         a = start.copy()
-        book = network.holdings(start, start[0])
+        book = holdings(start, start[0])
         heard_by = np.empty((n, k), dtype=bool)
         lost, out = fates_numpy(senders, rows, key, fate, where, heard_by)
         ptr, miss, lost_b, out_b = kernel.misses(senders, rows, key, fate, where, n)
@@ -157,7 +158,7 @@ def test_compaction_compiled_and_numpy_agree():
     stale = (rng.uniform(1.0, 5.0, 40), rng.uniform(0.5, 3.0, 40))
     # about the most common row, the newest, and a row no flyer holds
     for base in (heard[idx[0]], heard.max(axis=0), 1 + np.arange(40) + 40 * 7):
-        book = network.holdings(heard, base)
+        book = holdings(heard, base)
         for radius in (0.0, 2.5, 6.0, 100.0):
             for old in (never, stale):
                 want = _canonical(*compact_near_numpy(heard, idx, mark, table, 2.5, at, radius, old))

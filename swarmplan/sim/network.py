@@ -37,6 +37,7 @@ import numpy as np
 
 from swarmplan.core import AgentAges, Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module, use_compiled
+from swarmplan.sim.network_book import Book
 from swarmplan.world.comms import Comms, Sensing
 
 _EPS = 1e-9
@@ -215,16 +216,6 @@ def compact_near_numpy(
     return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
 
 
-def holdings(heard: np.ndarray, base: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The sparse book (``_network_kernel.deliver``) of ``heard`` (receiver, sender: the table row
-    held, 0: none) about each sender's ``base`` row: (base, start, holders, values), sender
-    ``s``'s receivers holding another row ``holders[start[s]:start[s + 1]]`` (ascending) and
-    their rows."""
-    s, r = np.nonzero(heard.T != np.asarray(base)[:, None])
-    start = np.concatenate([[0], np.cumsum(np.bincount(s, minlength=len(base)))]).astype(np.int64)
-    return np.asarray(base, dtype=np.int64).copy(), start, r.astype(np.int64), heard[r, s].astype(np.int64)
-
-
 class _Table:
     """Every state sent, one row each (row 0: nothing heard), grown by doubling."""
 
@@ -291,7 +282,7 @@ class Network:
         # Agent k speaks at (m + k / N) periods: spread over the period.
         self._phase = np.arange(self.n) / max(self.n, 1)
         self.instant = comms.delay == 0.0 and comms.jitter == 0.0
-        # Swarm worlds keep what each receiver holds sparse (``_network_kernel.deliver``): each
+        # Swarm worlds keep what each receiver holds sparse (``network_book.Book``): each
         # sender's base row, and the receivers holding another row (a copy missed or not yet
         # due); smaller worlds the (receiver, sender) matrix itself.
         self._sparse = use_compiled(self.n)
@@ -319,15 +310,8 @@ class Network:
         d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
         heard = np.where(d <= self.comms.range, start[None, :], 0)
         np.fill_diagonal(heard, 0)  # an agent knows itself, it hears nothing of itself
-        if self._sparse:  # each sender's start, but for the receivers that heard nothing of it
-            self._holds = holdings(heard, start)
-            self._spare = (
-                np.empty(n + 1, dtype=np.int64),
-                np.empty(0, dtype=np.int64),
-                np.empty(0, dtype=np.int64),
-            )
-        else:
-            self._heard = heard
+        # each sender's start, but for the receivers that heard nothing of it
+        self._heard = Book(heard, start) if self._sparse else heard
         self.pending: list[_Sent] = []
         self.sent = self.lost = self.out_of_range = 0
         self.oldest_max, self.oldest_sum, self.oldest_count = 0.0, 0.0, 0
@@ -335,22 +319,11 @@ class Network:
     @property
     def heard(self) -> np.ndarray:
         """(receiver, sender): the table row of the newest state heard (0: none)."""
-        if not self._sparse:
-            return self._heard
-        base, first, holders, values = self._holds
-        heard = np.repeat(base[:, None], self.n, axis=1)
-        heard[np.repeat(np.arange(self.n), np.diff(first)), holders[: first[-1]]] = values[: first[-1]]
-        return heard.T
+        return self._heard.matrix() if self._sparse else self._heard
 
     def _heard_by(self, i: int) -> np.ndarray:
         """(sender,): the table row of the newest state agent ``i`` heard of each (0: none)."""
-        if not self._sparse:
-            return self._heard[i]
-        base, first, holders, values = self._holds
-        e = np.flatnonzero(holders[: first[-1]] == i)
-        heard = base.copy()
-        heard[np.searchsorted(first, e, side="right") - 1] = values[e]
-        return heard
+        return self._heard.held_by(i) if self._sparse else self._heard[i]
 
     @property
     def t_heard(self) -> np.ndarray:
@@ -429,31 +402,13 @@ class Network:
                 keep.append(m)
                 continue
             if self._sparse:
-                self._deliver_sparse(m, t)
+                partial = m.due + c.jitter > t + _EPS
+                self._heard.deliver(m.senders, m.rows, self.key, self._fate(m), m.misses, t, partial)
             else:
                 deliver_numpy(self._heard, m.senders, m.rows, self.key, self._fate(m), m.heard_by, t)
             if m.due + c.jitter > t + _EPS:  # copies still on their way
                 keep.append(m)
         self.pending = keep
-
-    def _deliver_sparse(self, m: _Sent, t: float) -> None:
-        """:meth:`deliver` of broadcast ``m`` on the sparse book: its new lists are written to the
-        spare buffers (grown when short), which then hold the book (the lists, a few tens of
-        thousands of entries in a swarm, are rewritten in one pass; no buffer is allocated
-        again)."""
-        ptr, miss = m.misses
-        first = self._holds[1]
-        partial = m.due + self.comms.jitter > t + _EPS
-        room = int(first[-1]) + (self.n * len(m.senders) if partial else int(ptr[-1]))
-        start, holders, values = self._spare
-        if len(holders) < room:
-            size = max(room, 2 * len(holders))
-            holders, values = np.empty(size, dtype=np.int64), np.empty(size, dtype=np.int64)
-        spare = (start, holders, values)
-        if _kernel().deliver(self._holds, spare, m.senders, m.rows, self.key, self._fate(m), ptr, miss, t):
-            self._spare, self._holds = self._holds[1:], (self._holds[0], *spare)
-        else:
-            self._spare = spare
 
     def _fate(self, m: _Sent) -> tuple[float, float, float, float]:
         """(loss, the delay's jitter, the time broadcast ``m`` falls due, range)."""
@@ -537,7 +492,7 @@ class Network:
         # With sensing the view changes below: its pairs are found when asked.
         radius = 0.0 if sensing else float(near)
         run, book = (
-            (_kernel().compact_near, self._holds) if self._sparse else (compact_near_numpy, self._heard)
+            (_kernel().compact_near, self._heard.lists) if self._sparse else (compact_near_numpy, self._heard)
         )
         live, view, age, moved, pairs = run(
             book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
