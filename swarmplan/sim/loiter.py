@@ -194,7 +194,8 @@ class Loiter:
         clearance = clear_of_statics(obstacles, i)
         bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
         run = float(np.hypot(bearing[0], bearing[1])) - r_min
-        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(float(self.params.max_climb[i]))
+        climb = abs(g[2] - p[2]) / math.tan(float(self.params.max_climb[i]))  # the flight its height takes
+        steep = climb > max(run, 0.0)
         direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
         worst = clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1)
         if not steep and (worst >= margin).any():
@@ -208,7 +209,10 @@ class Loiter:
             worst = clearance(np.concatenate(pts)).reshape(len(cands), -1).min(axis=1)
             clear = np.flatnonzero(worst >= margin)
             if len(clear):
-                ways = [_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min) for j in clear]
+                ways = [
+                    _arrival_length(_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min), climb, r, r_min)
+                    for j in clear
+                ]
                 a, side = cands[int(clear[int(np.argmin(ways))])]
                 best = (a, side, r)
                 break
@@ -251,6 +255,18 @@ class Loiter:
         theta = np.arctan2(pos[:, 1] - c[:, 1], pos[:, 0] - c[:, 0]) + self.side[rows] * LEAD
         r = self.radius[rows]
         return np.column_stack([c[:, 0] + r * np.cos(theta), c[:, 1] + r * np.sin(theta), c[:, 2]])
+
+
+def _arrival_length(way: float, climb: float, r: float, r_min: float) -> float:
+    """The flight (m, horizontally) to arrive at a goal by a way of length ``way`` ending on a
+    circle of radius ``r``, with a height to win or lose that takes ``climb`` of flight at the
+    climb limit: the way itself when the way less a turn radius (the turns into and out of the
+    climb, the corners its field cuts) is long enough, else the way and the laps of its circle
+    that win the rest."""
+    short = climb - (way - r_min)
+    if short <= 0.0:
+        return way
+    return way + math.ceil(short / (2.0 * math.pi * r)) * 2.0 * math.pi * r
 
 
 def _way_length(
