@@ -194,8 +194,7 @@ class Loiter:
         clearance = clear_of_statics(obstacles, i)
         bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
         run = float(np.hypot(bearing[0], bearing[1])) - r_min
-        climb = abs(g[2] - p[2]) / math.tan(float(self.params.max_climb[i]))  # the flight its height takes
-        steep = climb > max(run, 0.0)
+        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(float(self.params.max_climb[i]))
         direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
         worst = clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1)
         if not steep and (worst >= margin).any():
@@ -209,10 +208,7 @@ class Loiter:
             worst = clearance(np.concatenate(pts)).reshape(len(cands), -1).min(axis=1)
             clear = np.flatnonzero(worst >= margin)
             if len(clear):
-                ways = [
-                    _arrival_length(_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min), climb, r, r_min)
-                    for j in clear
-                ]
+                ways = [_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min) for j in clear]
                 a, side = cands[int(clear[int(np.argmin(ways))])]
                 best = (a, side, r)
                 break
@@ -257,18 +253,6 @@ class Loiter:
         return np.column_stack([c[:, 0] + r * np.cos(theta), c[:, 1] + r * np.sin(theta), c[:, 2]])
 
 
-def _arrival_length(way: float, climb: float, r: float, r_min: float) -> float:
-    """The flight (m, horizontally) to arrive at a goal by a way of length ``way`` ending on a
-    circle of radius ``r``, with a height to win or lose that takes ``climb`` of flight at the
-    climb limit: the way itself when the way less a turn radius (the turns into and out of the
-    climb, the corners its field cuts) is long enough, else the way and the laps of its circle
-    that win the rest."""
-    short = climb - (way - r_min)
-    if short <= 0.0:
-        return way
-    return way + math.ceil(short / (2.0 * math.pi * r)) * 2.0 * math.pi * r
-
-
 def _way_length(
     p: np.ndarray, v: np.ndarray, g: np.ndarray, heading: float, r: float, side: float, r_min: float
 ) -> float:
@@ -277,8 +261,8 @@ def _way_length(
     way onto the circle (a turn at ``r_min`` to either side, the straight tangent from that turn
     onto the circle in its own direction of flight) and the arc to ``g``. From inside the circle
     it may also ease out onto it along its field, in a turn wider than its tightest (no Dubins
-    way: its tangents may need a full turn, or none exists): the turn onto the circle's course
-    abreast of it and the arc from there, when that is shorter."""
+    way: its tangents may need a full turn, or none exists): the turn in the circle's own sense
+    onto the circle's course abreast of it and the arc from there, when that is shorter."""
     cx, cy = g[0] - side * r * math.sin(heading), g[1] + side * r * math.cos(heading)
     psi = math.atan2(v[1], v[0])
     best = math.inf
@@ -299,7 +283,10 @@ def _way_length(
     if math.hypot(p[0] - cx, p[1] - cy) < r:  # inside: easing out onto it along its field
         theta = math.atan2(p[1] - cy, p[0] - cx)
         course = theta + side * 0.5 * math.pi  # the circle's own course abreast of the aircraft
-        onto = abs(math.remainder(course - psi, 2.0 * math.pi))
+        # The turn onto that course in the circle's own sense: turned the other way, the
+        # aircraft comes round against the circle's curve and meets the course abreast of it
+        # where the circle's course is no longer that (from near its rim, across it and away).
+        onto = _swept(psi, course, side)
         best = min(best, r_min * onto + r * _swept(theta, math.atan2(g[1] - cy, g[0] - cx), side))
     return best
 
