@@ -320,7 +320,8 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     # Priority: a parked agent, or one farther from its goal, repels with the goal factor; so
     # does an agent that yields, for every flyer that does not.
     yields_self = yields[np.arange(n), idx]
-    factored = (stop_a & (parked[rows, b] | (dg[rows] <= goal_dist[rows, b]))) | (yields[rows, b] & ~yields_self[rows])
+    factored = stop_a & (parked[rows, b] | (dg[rows] <= goal_dist[rows, b]))
+    factored = factored | (yields[rows, b] & ~yields_self[rows])
     mag = np.where(factored, mag * gfac[rows], mag)
     mag_p = np.where(factored, mag_p * gfac[rows], mag_p)
     side = _right(dw)

@@ -245,7 +245,8 @@ class ApfField:
         parked = np.zeros(shape, dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
-        yields = np.zeros(shape, dtype=bool) if swarm.yields is None else np.asarray(swarm.yields, dtype=np.bool_)
+        yields = np.zeros(shape, dtype=bool) if swarm.yields is None else swarm.yields
+        yields = np.asarray(yields, dtype=np.bool_)
         idx = np.asarray(flyers.idx, dtype=np.int64)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach = self._reach * (1.0 + 1e-9) + 1e-9
