@@ -158,8 +158,8 @@ class Steering:
             # Beliefs moved on with the acceleration sent: the truth may be off by twice the
             # doubt of a belief moved on at the velocity sent (that acceleration since reversed).
             doubt = 2.0 * belief_doubt(self.params.max_accel[b.agent], b.age)
-            yields = self._yields(b.agent)
-            swarm = Swarm(b.expected_pos, b.expected_vel, b.parked, b.goal_distance, b.view, b.agent, doubt, yields)
+            pos_b, vel_b, yields = b.expected_pos, b.expected_vel, self._yields(b.agent)
+            swarm = Swarm(pos_b, vel_b, b.parked, b.goal_distance, b.view, b.agent, doubt, yields)
             oldest = self.network.oldest(b, self.apf.agent_reach)
         force = self.apf.forces(flyers, inputs, swarm)
         clearance, normal = self.obstacles.nearest_surface(idx, p_idx, d, g)
