@@ -261,8 +261,8 @@ def _way_length(
     way onto the circle (a turn at ``r_min`` to either side, the straight tangent from that turn
     onto the circle in its own direction of flight) and the arc to ``g``. From inside the circle
     it may also ease out onto it along its field, in a turn wider than its tightest (no Dubins
-    way: its tangents may need a full turn, or none exists): the turn in the circle's own sense
-    onto the circle's course abreast of it and the arc from there, when that is shorter."""
+    way: its tangents may need a full turn, or none exists): the turn onto the circle's course
+    abreast of it and the arc from there, when that is shorter."""
     cx, cy = g[0] - side * r * math.sin(heading), g[1] + side * r * math.cos(heading)
     psi = math.atan2(v[1], v[0])
     best = math.inf
@@ -283,10 +283,7 @@ def _way_length(
     if math.hypot(p[0] - cx, p[1] - cy) < r:  # inside: easing out onto it along its field
         theta = math.atan2(p[1] - cy, p[0] - cx)
         course = theta + side * 0.5 * math.pi  # the circle's own course abreast of the aircraft
-        # The turn onto that course in the circle's own sense: turned the other way, the
-        # aircraft comes round against the circle's curve and meets the course abreast of it
-        # where the circle's course is no longer that (from near its rim, across it and away).
-        onto = _swept(psi, course, side)
+        onto = abs(math.remainder(course - psi, 2.0 * math.pi))
         best = min(best, r_min * onto + r * _swept(theta, math.atan2(g[1] - cy, g[0] - cx), side))
     return best
 
