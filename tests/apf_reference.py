@@ -225,7 +225,7 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     tau = np.clip(-dot3(q, dv) / np.maximum(a, _EPS), 0.0, g.horizon)
     qs = q + tau[..., None] * dv
     es = norm3(qs)
-    urgency = 1.0 - tau / (g.horizon + _EPS)
+    urgency = (1.0 - tau / (g.horizon + _EPS)) ** 2  # flat at the horizon: field_law.urgency
     live = others & (es < e0) & (tau > 0)
     mag_p = np.where(live, k_agent * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0) * urgency
     farther = np.zeros((len(idx), n_all), dtype=bool)

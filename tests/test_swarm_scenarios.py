@@ -173,3 +173,50 @@ def test_lab_table_sets_the_published_figures_beside_ours():
     verdicts = lab_verdicts(rows)
     assert verdicts[0].endswith("20/20, 1 pairs: NOT met")
     assert verdicts[1] == "- rmader_circle_5m, 10 agents, default planner: travel time 5.00 s <= 5 s: met"
+
+
+def test_bench_times_the_log_apart_and_writes_the_same_log(tmp_path):
+    """``bench swarm`` times swarmplan's log writing apart (a peer writes none): the log it writes
+    through the timing is the plain recorder's, and the loop without it is never the slower."""
+    import importlib.util
+    from pathlib import Path
+
+    from swarmplan.bench.swarm_runs import _RunMeter, _TimedRecorder, run_swarmplan
+    from swarmplan.io.recording import McapRecorder
+    from swarmplan.io.runner import run_episode
+
+    spec = importlib.util.spec_from_file_location("golden", Path(__file__).parent / "golden" / "golden.py")
+    golden = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(golden)
+    digests = []
+    for timed in (False, True):
+        sim = Simulation(S.scenario_world("sphere", 16, 0), planner="none")
+        path = tmp_path / f"{timed}.mcap"
+        with golden.frozen_clock():
+            recorder = McapRecorder(path)
+            observers = []
+            if timed:
+                recorder = _TimedRecorder(recorder)
+                observers = [_RunMeter(sim.params.radius, False, recorder)]
+            run_episode(sim, 0, observers=observers, recorder=recorder)
+        digests.append(golden.describe(path)["sha256"])
+    assert digests[0] == digests[1]
+    row, _ = run_swarmplan("sphere", 16, 0, "apf")
+    assert np.isfinite(row.rtf_logged) and row.rtf >= row.rtf_logged
+
+
+def test_sphere_verdicts_weigh_the_same_work_and_say_the_logged_figure():
+    from swarmplan.bench.swarm import done_verdicts, summary_table
+    from swarmplan.bench.swarm_report import Row
+
+    def row(system: str, seed: int, rtf: float, logged: float, path: float, last: float) -> Row:
+        return Row("sphere", 64, system, seed, 64, 0, 1.0, path, last, last, 1.0, rtf, 0, last, logged)
+
+    rows = [row("apf", s, 100.0 + s, 70.0, 1.2, 13.0 + s) for s in (0, 1)]
+    rows += [row("orca", s, 90.0, float("nan"), 1.0, 9.0) for s in (0, 1)]
+    verdicts = done_verdicts(rows)
+    assert "- sphere 64: pure APF real-time factor 100.5 vs ORCA 90.0: met (with its log: 70.0)" in verdicts
+    assert "- sphere 64: last arrival 14.0 s vs 1.5 x ORCA's 9.0 s: NOT met" in verdicts
+    assert "- sphere 64: pure APF's mean path 1.200 x the straight line <= 1.25: met" in verdicts
+    table = summary_table(rows)
+    assert "| 100.5 | 70.0 | 0 |" in table and "| 90.0 | - | 0 |" in table

@@ -32,6 +32,7 @@ class Row:
     rtf: float
     escapes: int
     mean_arrival: float = math.nan
+    rtf_logged: float = math.nan  # swarmplan's, its log's writing included (a peer writes none)
 
 
 def commit_id() -> str:
@@ -123,8 +124,9 @@ def write_docs(
         "Columns: arrived over all seeds; collisions: pairs whose centres came closer than the sum of "
         "the radii, swept between consecutive samples (the same measurement for every system); minimum "
         "surface-to-surface separation; mean flown path over the straight line; the latest arrival of "
-        "any seed; mean real-time factor of the stepping loop (start-up and the first step excluded, "
-        "swarmplan recording its MCAP log); escapes planned.",
+        "any seed; mean real-time factor of the stepping loop (start-up and the first step excluded; "
+        "the same work for every system: its step and stopping rule, not the benchmark's measurements) "
+        "and swarmplan's with the writing of its MCAP log (ORCA-3D writes none); escapes planned.",
         "",
         table,
         "",

@@ -49,19 +49,44 @@ def straight_lengths(world) -> np.ndarray:  # noqa: ANN001
     return np.array([np.linalg.norm(np.subtract(a.goal, a.start)) for a in world.agents])
 
 
+class _TimedRecorder:
+    """A recorder whose every call's wall time is summed in ``wall``: the log's writing, taken
+    out of the stepping loop's time (a peer writes no log) and kept apart."""
+
+    def __init__(self, recorder):  # noqa: ANN001
+        self.recorder = recorder
+        self.wall = 0.0
+
+    def __getattr__(self, name: str):  # noqa: ANN204
+        call = getattr(self.recorder, name)
+
+        def timed(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+            clock = time.perf_counter()
+            try:
+                return call(*args, **kwargs)
+            finally:
+                self.wall += time.perf_counter() - clock
+
+        return timed
+
+
 class _RunMeter:
     """Observer of a run (``io.runner.run_episode``): contacts from consecutive positions, the
     flown paths (every 5th sample) and the wall time of the stepping loop from the end of the
-    first step (start-up and the first step excluded; the meter's own work subtracted)."""
+    first step (start-up and the first step excluded; the meter's own work subtracted), without
+    the log's writing (``wall``) and with it (``wall_logged``)."""
 
-    def __init__(self, radius: np.ndarray, keep_paths: bool):
+    def __init__(self, radius: np.ndarray, keep_paths: bool, recorder: _TimedRecorder):
         self.meter = ContactMeter(radius)
         self.keep_paths = keep_paths
+        self.recorder = recorder
         self.paths: list[np.ndarray] = []
         self.steps = 0
         self.wall = 0.0
+        self.wall_logged = 0.0
         self.t_first = 0.0
         self._clock = 0.0
+        self._logged = 0.0  # the log's writing so far, at _clock
         self._pos: np.ndarray | None = None
 
     def on_reset(self, result) -> None:  # noqa: ANN001
@@ -75,12 +100,14 @@ class _RunMeter:
         if self.steps == 1:
             self.t_first = result.state.t
         else:
-            self.wall += now - self._clock
+            self.wall_logged += now - self._clock
+            self.wall += now - self._clock - (self.recorder.wall - self._logged)
         pos = result.state.position.copy()
         self.meter.update(self._pos, pos)
         self._pos = pos
         if self.keep_paths and (self.steps % 5 == 0 or result.terminated or result.truncated):
             self.paths.append(pos)
+        self._logged = self.recorder.wall
         self._clock = time.perf_counter()
 
 
@@ -97,9 +124,10 @@ def run_swarmplan(  # noqa: ANN201
 
     world = scenario_world(name, agents, seed, comms=comms, separation=separation)
     sim = Simulation(world, planner="world" if system == "planner" else "none")
-    run = _RunMeter(sim.params.radius, keep_paths)
     with tempfile.TemporaryDirectory() as tmp:
-        run_episode(sim, seed, observers=[run], recorder=McapRecorder(Path(tmp) / "run.mcap"))
+        recorder = _TimedRecorder(McapRecorder(Path(tmp) / "run.mcap"))
+        run = _RunMeter(sim.params.radius, keep_paths, recorder)
+        run_episode(sim, seed, observers=[run], recorder=recorder)
     m = sim.metrics
     arrived = np.isfinite(m.arrival_time)
     straight = straight_lengths(world)[arrived]
@@ -108,5 +136,6 @@ def run_swarmplan(  # noqa: ANN201
     row = Row(name, agents, system, seed, int(arrived.sum()), len(run.meter.pairs), run.meter.min_gap, ratio,
               float(np.nanmax(m.arrival_time)) if arrived.any() else math.nan, sim.state.t, run.wall,
               flown / run.wall if run.wall > 0 else math.nan, int(m.escapes.sum()),
-              float(np.nanmean(m.arrival_time)) if arrived.any() else math.nan)  # fmt: skip
+              float(np.nanmean(m.arrival_time)) if arrived.any() else math.nan,
+              flown / run.wall_logged if run.wall_logged > 0 else math.nan)  # fmt: skip
     return row, (np.array(run.paths) if keep_paths else None)

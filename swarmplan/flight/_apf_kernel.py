@@ -487,7 +487,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 if low and gz < 0.0:
                     gx, gy, gz = _unit(gx, gy, 0.0)
                 mag = k_agent * (1.0 / max(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if current else 0.0
-                urgency = 1.0 - tau / (horizon + _EPS)
+                soon = 1.0 - tau / (horizon + _EPS)
+                urgency = soon * soon  # field_law.urgency
                 mag_p = k_agent * (1.0 / max(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)) if predicted else 0.0
                 mag_p = mag_p * urgency
                 # Priority: a parked agent, or one farther from its goal, repels as a static

@@ -21,7 +21,15 @@ import math
 
 import numpy as np
 
-from swarmplan.flight.field_law import bounds_range, goal_factor, ground_range, nearest, power, repulsion
+from swarmplan.flight.field_law import (
+    bounds_range,
+    goal_factor,
+    ground_range,
+    nearest,
+    power,
+    repulsion,
+    urgency,
+)
 
 _EPS = 1e-9  # apf._EPS
 _SKIP = -0.0  # x + (-0.0) == x for every double x, -0.0 included
@@ -316,7 +324,7 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     predicted = (es < e0) & (tau > 0)
     mag = np.where(current, k_agent[rows] * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     mag_p = np.where(predicted, k_agent[rows] * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
-    mag_p = mag_p * (1.0 - tau / (horizon + _EPS))
+    mag_p = mag_p * urgency(tau, horizon)
     # Priority: a parked agent, or one farther from its goal, repels with the goal factor; so
     # does an agent that yields, for every flyer that does not.
     yields_self = yields[np.arange(n), idx]

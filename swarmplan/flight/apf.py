@@ -25,7 +25,10 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   paths 1.29x the straight line, the last arrival 18 s where ORCA-3D's is 12 s (13 s with
   the current speeds). Fixed wings keep the range from cruise (they cannot slow down to
   stop). Head-on and many-way encounters are broken by a right-hand component about the
-  relative velocity. Its gain left out scales with the pull at cruise (``k_agent = 0.5 k_att
+  relative velocity. The predicted term weighs a closest approach ``tau`` s ahead by
+  ``field_law.urgency``, ``(1 - tau / horizon)^2``: flat where a conflict enters the horizon,
+  so a crowd converging on one point does not brake as one in the step its conflicts come
+  into view. Its gain left out scales with the pull at cruise (``k_agent = 0.5 k_att
   influence``, ``world.schema.default_field_scale``). On beliefs (``Swarm.view``), each pair's
   ellipsoid widens by how far the other may be from where it is believed (``Swarm.doubt``);
 - parked agents: at rest they need no room to brake, so their repulsion reaches only the

@@ -36,6 +36,16 @@ def repulsion(rho: np.ndarray, k: float | np.ndarray, rho0: float, near: np.ndar
     return np.where(rho < rho0, k * (1.0 / np.maximum(rho, near) - 1.0 / rho0), 0.0)
 
 
+def urgency(tau: np.ndarray, horizon: float) -> np.ndarray:
+    """The weight of another agent's predicted closest approach ``tau`` s ahead, within the
+    prediction ``horizon``: ``(1 - tau / horizon) ** 2``, 1 now, 0 at the horizon and flat there.
+    A conflict first seen at the horizon's edge adds nothing at once: the approaches of a whole
+    crowd converging on one point, which enter the horizon together, do not brake every agent
+    in the same step (a linear weight rose by up to k / 0.02 x dtau / horizon per step)."""
+    soon = 1.0 - tau / (horizon + 1e-9)  # apf._EPS
+    return soon * soon
+
+
 def clearance_at(push: float, k: float, rho0: float) -> float:
     """The clearance (above :func:`nearest`) at which :func:`repulsion` pushes with ``push``."""
     return 1.0 / (push / k + 1.0 / rho0)
