@@ -28,9 +28,12 @@ RUN = textwrap.dedent(
 
 
 def _run(tmp: Path) -> tuple[int, int, str]:
+    """The kernel's value, its cache hits and its cache folder, in a fresh process. The process
+    writes no bytecode (``-B``): a source edited to the same size within the same second would
+    otherwise be run from its stale bytecode by Python itself, before numba sees it."""
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     out = subprocess.run(
-        [sys.executable, "-c", RUN.format(root=str(ROOT), tmp=str(tmp))],
+        [sys.executable, "-B", "-c", RUN.format(root=str(ROOT), tmp=str(tmp))],
         capture_output=True,
         text=True,
         env=env,

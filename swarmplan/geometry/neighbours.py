@@ -18,7 +18,7 @@ import numpy as np
 
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.runtime.compiled import kernel_module, use_compiled, use_compiled_checks
+from swarmplan.runtime.compiled import kernel_module, read_only, use_compiled, use_compiled_checks
 
 SMALL = 32
 """Up to this many agents every pair is a candidate (cheaper than building a tree, and no
@@ -77,11 +77,11 @@ def agent_contacts_indexed(
         d = segment_segment_min_distance(p0[i], p1[i], p0[j], p1[j])
         hit = d < radii[i] + radii[j] + margin
         return list(zip(i[hit].tolist(), j[hit].tolist(), strict=True))
-    i, j = kernel_module("swarmplan.geometry.swept_kernels").agent_contacts(
-        np.ascontiguousarray(p0, dtype=float),
-        np.ascontiguousarray(p1, dtype=float),
-        np.ascontiguousarray(radii, dtype=float),
-        np.ascontiguousarray(active, dtype=bool),
+    i, j = kernel_module("swarmplan.geometry.swept_kernels").agent_contacts(  # one signature: read-only
+        read_only(np.ascontiguousarray(p0, dtype=float)),
+        read_only(np.ascontiguousarray(p1, dtype=float)),
+        read_only(np.ascontiguousarray(radii, dtype=float)),
+        read_only(np.ascontiguousarray(active, dtype=bool)),
         float(margin),
     )
     return list(zip(i.tolist(), j.tolist(), strict=True))
