@@ -1,12 +1,14 @@
-"""The network's compiled passes (swarm worlds) give the numpy answers of small worlds: the
-pairs each flyer believes within a radius, the fate of each copy of a broadcast, the rows each
-flyer holds, and the copies delivered."""
+"""The network's compiled passes (swarm worlds, on the sparse book of what each receiver holds)
+give the numpy answers of small worlds (on the (receiver, sender) matrix): the pairs each flyer
+believes within a radius, the fate of each copy of a broadcast, the rows each flyer holds, and
+the copies delivered."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+import pytest
 
 from swarmplan.core import Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module
@@ -20,6 +22,7 @@ from swarmplan.sim.network import (
     fates_numpy,
     held_pairs,
 )
+from swarmplan.sim.network_book import holdings
 from swarmplan.world.comms import Comms
 
 
@@ -66,9 +69,18 @@ def test_copy_draws_compiled_and_numpy_agree():
     assert not np.array_equal(draws(key, rows, 3, 0), draws(key + np.uint64(1), rows, 3, 0))
 
 
+def _dense(book: tuple) -> np.ndarray:
+    """The (receiver, sender) matrix of a sparse book."""
+    base, start, holders, values = book
+    heard = np.repeat(base[:, None], len(base), axis=1)
+    heard[np.repeat(np.arange(len(base)), np.diff(start)), holders[: start[-1]]] = values[: start[-1]]
+    return heard.T
+
+
 def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
-    """Every combination of loss, jitter and range, asked at several times: the same rows heard
-    and the same counts; a copy never reaches its own sender, nor a receiver out of range."""
+    """Every combination of loss, jitter and range, asked at several times: the copies missed
+    are exactly those not heard, with the same counts; the sparse book delivered holds the rows
+    of the matrix delivered; a copy never reaches its own sender, nor a receiver out of range."""
     kernel = kernel_module("swarmplan.sim._network_kernel")
     rng = np.random.default_rng(3)
     n, k = 25, 9
@@ -76,19 +88,35 @@ def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
     rows = np.arange(100, 100 + k, dtype=np.int64)
     at = rng.uniform(0, 30, (n, 3))
     key = np.uint64(77)
-    for loss, jitter, ranged in [(0.0, 0.0, False), (0.3, 0.0, True), (0.2, 0.05, False), (0.2, 0.05, True)]:
+    cases = [(0.0, 0.0, False), (0.3, 0.0, True), (0.0, 0.0, True), (0.2, 0.05, False), (0.2, 0.05, True)]
+    for loss, jitter, ranged in cases:
         fate = (loss, jitter, 1.1, 20.0 if ranged else math.inf)
         where = at if ranged else np.zeros((0, 3))
         start = rng.integers(0, 100, (n, n)).astype(np.int64)
-        a, b = start.copy(), start.copy()
-        heard_a, heard_b = np.empty((n, k), dtype=bool), np.empty((n, k), dtype=bool)
-        lost, out = fates_numpy(senders, rows, key, fate, where, heard_a)
-        assert (lost, out) == tuple(kernel.fates(senders, rows, key, fate, where, heard_b))
-        np.testing.assert_array_equal(heard_a, heard_b)
+        start[rng.random((n, n)) < 0.3] = 0
+        a = start.copy()
+        book = holdings(start, start[0])
+        heard_by = np.empty((n, k), dtype=bool)
+        lost, out = fates_numpy(senders, rows, key, fate, where, heard_by)
+        ptr, miss, lost_b, out_b = kernel.misses(senders, rows, key, fate, where, n)
+        assert (lost, out) == (lost_b, out_b)
+        for c in range(k):
+            np.testing.assert_array_equal(miss[ptr[c] : ptr[c + 1]], np.flatnonzero(~heard_by[:, c]))
         for t in (1.04, 1.08, 1.1, 1.13, 1.2):
-            deliver_numpy(a, senders, rows, key, fate, heard_a, t)
-            kernel.deliver(b, senders, rows, key, fate, heard_b, t)
-            np.testing.assert_array_equal(a, b)
+            deliver_numpy(a, senders, rows, key, fate, heard_by, t)
+            base = book[0]
+            room = int(book[1][-1]) + n * k
+            spare = (
+                np.empty(n + 1, dtype=np.int64),
+                np.empty(room, dtype=np.int64),
+                np.empty(room, dtype=np.int64),
+            )
+            if kernel.deliver(book, spare, senders, rows, key, fate, ptr, miss, t):
+                book = (base, *spare)
+            np.testing.assert_array_equal(a, _dense(book))
+            # a receiver holds an entry of its own exactly when its row is not its sender's base
+            base, first = book[:2]
+            assert int(first[-1]) == int((a != base[None, :]).sum())
             if t == 1.04 and jitter == 0.0:
                 assert (a == start).all()  # nothing before it falls due
         changed = a != start
@@ -96,14 +124,25 @@ def test_delivery_of_one_broadcast_compiled_and_numpy_agree():
         if ranged:
             d = np.linalg.norm(at[:, None] - at[None, senders], axis=-1)
             assert not (changed[:, senders] & (d > 20.0)).any()
-        # Every copy has arrived by 1.2 s (due 1.1 s, jitter 0.05 s) and is newer than what was heard.
-        assert int(changed.sum()) == int(heard_a.sum()) == n * k - k - lost - out
+        # Every copy has arrived by 1.2 s (due 1.1 s, jitter 0.05 s); those heard and newer changed.
+        newer = start[:, senders] < rows[None, :]
+        assert int(changed.sum()) == int((heard_by & newer).sum())
+        assert int(heard_by.sum()) == n * k - k - lost - out
         assert (lost > 0) == (loss > 0) and (out > 0) == ranged
 
 
+def _canonical(live, view, age, moved, pairs):
+    """The compaction's answers by table row (its own numbering of the rows held set aside)."""
+    k, j, rows, d = pairs
+    order = np.argsort(live)
+    return (live[order], np.where(view >= 0, live[view], -1), age[order], moved[order],
+            (k, j, live[rows], d))  # fmt: skip
+
+
 def test_compaction_compiled_and_numpy_agree():
-    """The rows held, in the order first met, each flyer's view of them, their ages and positions moved on,
-    and the pairs within a radius; the compiled scratch is left as found."""
+    """The rows held, each flyer's view of them, their ages and positions moved on, and the
+    pairs within a radius: the same on the sparse book as on the matrix (by table row, the
+    numbering of the rows held aside); the compiled scratch is left as found."""
     kernel = kernel_module("swarmplan.sim._network_kernel")
     rng = np.random.default_rng(4)
     # Each sender's rows its own (row 1 + j + 40 u: the u-th state sent by agent j).
@@ -117,13 +156,16 @@ def test_compaction_compiled_and_numpy_agree():
     at = rng.uniform(0.0, 10.0, (15, 3))
     never = (np.full(40, 2.0), np.full(40, np.inf))  # no row too old
     stale = (rng.uniform(1.0, 5.0, 40), rng.uniform(0.5, 3.0, 40))
-    for radius in (0.0, 2.5, 6.0, 100.0):
-        for old in (never, stale):
-            want = compact_near_numpy(heard, idx, mark, table, 2.5, at, radius, old)
-            got = kernel.compact_near(heard, idx, mark, table, 2.5, at, radius, old)
-            for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
-                np.testing.assert_array_equal(w, g)
-            assert (mark == -1).all()
+    # about the most common row, the newest, and a row no flyer holds
+    for base in (heard[idx[0]], heard.max(axis=0), 1 + np.arange(40) + 40 * 7):
+        book = holdings(heard, base)
+        for radius in (0.0, 2.5, 6.0, 100.0):
+            for old in (never, stale):
+                want = _canonical(*compact_near_numpy(heard, idx, mark, table, 2.5, at, radius, old))
+                got = _canonical(*kernel.compact_near(book, idx, mark, table, 2.5, at, radius, old))
+                for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
+                    np.testing.assert_array_equal(w, g)
+                assert (mark == -1).all()
     # A row is left out of a flyer's view exactly when its agent may be farther from it than
     # both agents' stopping reach.
     live, view, age, _, _ = compact_near_numpy(heard, idx, mark, table, 2.5, at, 100.0, stale)
@@ -137,7 +179,6 @@ def test_compaction_compiled_and_numpy_agree():
     live, view, age, moved, (k, j, rows, d) = compact_near_numpy(
         heard, idx, mark, table, 2.5, at, 100.0, never
     )
-    held = heard[idx]
     np.testing.assert_array_equal(live[view[held > 0]], held[held > 0])
     assert (view[held == 0] == -1).all() and len(np.unique(live)) == len(live)
     flat = held.ravel()
@@ -150,14 +191,37 @@ def test_compaction_compiled_and_numpy_agree():
     np.testing.assert_allclose(d, np.linalg.norm(moved[rows] - at[k], axis=1))
 
 
-def test_delivery_compiled_and_numpy_agree(monkeypatch):
-    """Random broadcasts with jitter and losses, delivered step by step by both paths: the
-    same rows heard at every step."""
+def _networks(n: int, comms: Comms) -> tuple[Network, Network]:
+    """Two networks of ``n`` agents: the matrix (numpy), and the sparse book (compiled)."""
+    made = []
+    for compiled in (False, True):
+        network_use = network.use_compiled
+        network.use_compiled = lambda n, fixed_wings=False, c=compiled: c
+        try:
+            made.append(Network(comms, None, np.full(n, 5.0), np.full(n, 3.0), 0.05))
+        finally:
+            network.use_compiled = network_use
+    return made[0], made[1]
+
+
+@pytest.mark.parametrize(
+    "comms",
+    [
+        Comms(20.0, 0.1, 0.0, 0.1),
+        Comms(20.0, 0.1, 0.08, 0.2),
+        Comms(20.0, 0.1, 0.05, 0.2, 30.0),
+        Comms(10.0, 0.0, 0.0, 0.3, 25.0),
+        Comms(20.0, 0.2, 0.0, 0.0, 30.0),
+    ],  # fmt: skip
+)
+def test_delivery_compiled_and_numpy_agree(comms):
+    """Random broadcasts with jitter, losses and range, delivered step by step on the matrix and
+    on the sparse book: the same rows heard at every step, the same counts, and the same
+    beliefs of the flyers (by table row) with the same pairs near them."""
     rng = np.random.default_rng(5)
     n = 30
-    a = Network(Comms(20.0, 0.1, 0.08, 0.2), None, np.full(n, 5.0), np.full(n, 3.0), 0.05)
-    b = Network(Comms(20.0, 0.1, 0.08, 0.2), None, np.full(n, 5.0), np.full(n, 3.0), 0.05)
-
+    a, b = _networks(n, comms)
+    assert not a._sparse and b._sparse
     s = SwarmState(0.0, 0, rng.uniform(0, 50, (n, 3)), np.zeros((n, 3)), rng.uniform(0, 50, (n, 3)),
                    np.array([Mode.APF] * n, dtype=object), [None] * n, np.zeros(n, int), [None] * n,
                    np.zeros(n, int))  # fmt: skip
@@ -165,17 +229,31 @@ def test_delivery_compiled_and_numpy_agree(monkeypatch):
     b.reset(np.random.default_rng(1), s)
     for step in range(40):
         t0, s.t = s.t, (step + 1) * 0.05
-        s.position = s.position + rng.normal(0, 0.1, (n, 3))
+        s.position = s.position + rng.normal(0, 0.3, (n, 3))
+        s.velocity = rng.normal(0, 1.0, (n, 3))
         acc = rng.normal(0, 1.0, (n, 3))
         a.broadcast(t0, s, np.zeros(n, bool), acc)
         b.broadcast(t0, s, np.zeros(n, bool), acc)
-        a.deliver(s.t)  # numpy (30 agents)
-        with monkeypatch.context() as m:
-            m.setattr(network, "use_compiled", lambda n, fixed_wings=False: True)
-            b.deliver(s.t)
+        idx = np.sort(rng.choice(n, n - 4, replace=False))
+        args = (idx, s.t, s.position, s.velocity, np.zeros(n, bool), np.zeros(n))
+        ba, bb = a.beliefs(*args, near=12.0), b.beliefs(*args, near=12.0)
         np.testing.assert_array_equal(a.heard, b.heard)
-        assert (a.lost, a.out_of_range) == (b.lost, b.out_of_range)
-    assert (a.heard > n).sum() > 0.5 * n * n  # most pairs heard something sent in flight
+        for i in (0, 7, n - 1):
+            np.testing.assert_array_equal(a._heard_by(i), b._heard_by(i))
+        assert (a.sent, a.lost, a.out_of_range) == (b.sent, b.lost, b.out_of_range)
+        for x, y in ((ba, bb),):
+            np.testing.assert_array_equal(x.view >= 0, y.view >= 0)
+            for name in ("pos", "vel", "age", "agent", "expected_pos", "expected_vel", "parked"):
+                vx, vy = getattr(x, name)[x.view], getattr(y, name)[y.view]
+                np.testing.assert_array_equal(vx[x.view >= 0], vy[y.view >= 0])
+            # the same rows in the table (in its own order): every maximum over them agrees
+            np.testing.assert_array_equal(np.sort(x.age), np.sort(y.age))
+            np.testing.assert_array_equal(np.sort(x.vel, axis=0), np.sort(y.vel, axis=0))
+            (k1, j1, r1, d1), (k2, j2, r2, d2) = x.near_superset(12.0), y.near_superset(12.0)
+            for u, v in ((k1, k2), (j1, j2), (x.pos[r1], y.pos[r2]), (d1, d2)):
+                np.testing.assert_array_equal(u, v)
+    # most pairs that heard anything heard something sent in flight
+    assert (a.heard > n).sum() > 0.5 * (a.heard > 0).sum() > 0
 
 
 def test_pairs_near_a_flyer_are_answered_from_the_widest_question():

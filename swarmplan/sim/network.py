@@ -37,6 +37,7 @@ import numpy as np
 
 from swarmplan.core import AgentAges, Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module, use_compiled
+from swarmplan.sim.network_book import Book
 from swarmplan.world.comms import Comms, Sensing
 
 _EPS = 1e-9
@@ -258,8 +259,11 @@ class _Sent:
     senders: np.ndarray
     rows: np.ndarray
     due: float
-    heard_by: np.ndarray
+    heard_by: np.ndarray | None
     """(N, k): whether each copy will be heard (not its sender's own, in range, not lost)."""
+    misses: tuple[np.ndarray, np.ndarray] | None = None
+    """Swarm worlds in place of ``heard_by``: the receivers that will not hear each copy
+    (``_network_kernel.misses``)."""
 
 
 class Network:
@@ -278,6 +282,10 @@ class Network:
         # Agent k speaks at (m + k / N) periods: spread over the period.
         self._phase = np.arange(self.n) / max(self.n, 1)
         self.instant = comms.delay == 0.0 and comms.jitter == 0.0
+        # Swarm worlds keep what each receiver holds sparse (``network_book.Book``): each
+        # sender's base row, and the receivers holding another row (a copy missed or not yet
+        # due); smaller worlds the (receiver, sender) matrix itself.
+        self._sparse = use_compiled(self.n)
 
     def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
         """At t = 0: every agent has heard every other within range, at rest at its start."""
@@ -300,11 +308,22 @@ class Network:
         )
         # (receiver, sender): the table row of the newest state heard (0: none)
         d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
-        self.heard = np.where(d <= self.comms.range, start[None, :], 0)
-        np.fill_diagonal(self.heard, 0)  # an agent knows itself, it hears nothing of itself
+        heard = np.where(d <= self.comms.range, start[None, :], 0)
+        np.fill_diagonal(heard, 0)  # an agent knows itself, it hears nothing of itself
+        # each sender's start, but for the receivers that heard nothing of it
+        self._heard = Book(heard, start) if self._sparse else heard
         self.pending: list[_Sent] = []
         self.sent = self.lost = self.out_of_range = 0
         self.oldest_max, self.oldest_sum, self.oldest_count = 0.0, 0.0, 0
+
+    @property
+    def heard(self) -> np.ndarray:
+        """(receiver, sender): the table row of the newest state heard (0: none)."""
+        return self._heard.matrix() if self._sparse else self._heard
+
+    def _heard_by(self, i: int) -> np.ndarray:
+        """(sender,): the table row of the newest state agent ``i`` heard of each (0: none)."""
+        return self._heard.held_by(i) if self._sparse else self._heard[i]
 
     @property
     def t_heard(self) -> np.ndarray:
@@ -339,10 +358,14 @@ class Network:
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
         over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
         self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
-        m = _Sent(who, rows, t1 + c.delay, np.empty((n, k), dtype=bool))
         at = pos if math.isfinite(c.range) else np.zeros((0, 3))
-        run = _kernel().fates if use_compiled(n) else fates_numpy
-        lost, out = run(who, rows, self.key, self._fate(m), at, m.heard_by)
+        if self._sparse:
+            m = _Sent(who, rows, t1 + c.delay, None)
+            ptr, miss, lost, out = _kernel().misses(who, rows, self.key, self._fate(m), at, n)
+            m.misses = (ptr, miss)
+        else:
+            m = _Sent(who, rows, t1 + c.delay, np.empty((n, k), dtype=bool))
+            lost, out = fates_numpy(who, rows, self.key, self._fate(m), at, m.heard_by)
         self.lost, self.out_of_range = self.lost + int(lost), self.out_of_range + int(out)
         self.pending.append(m)
 
@@ -378,8 +401,11 @@ class Network:
             if m.due - c.jitter > t + _EPS:  # nothing of it arrives yet
                 keep.append(m)
                 continue
-            run = _kernel().deliver if use_compiled(self.n) else deliver_numpy
-            run(self.heard, m.senders, m.rows, self.key, self._fate(m), m.heard_by, t)
+            if self._sparse:
+                partial = m.due + c.jitter > t + _EPS
+                self._heard.deliver(m.senders, m.rows, self.key, self._fate(m), m.misses, t, partial)
+            else:
+                deliver_numpy(self._heard, m.senders, m.rows, self.key, self._fate(m), m.heard_by, t)
             if m.due + c.jitter > t + _EPS:  # copies still on their way
                 keep.append(m)
         self.pending = keep
@@ -462,12 +488,14 @@ class Network:
         tb, n = self.table, len(idx)
         idx64 = np.asarray(idx, dtype=np.int64)
         sensing = math.isfinite(self.sensing_range)
-        run = _kernel().compact_near if use_compiled(self.n) else compact_near_numpy
         table = (tb.t[: tb.size], tb.pos[: tb.size], tb.vel[: tb.size])
         # With sensing the view changes below: its pairs are found when asked.
         radius = 0.0 if sensing else float(near)
+        run, book = (
+            (_kernel().compact_near, self._heard.lists) if self._sparse else (compact_near_numpy, self._heard)
+        )
         live, view, age, moved, pairs = run(
-            self.heard, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
+            book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
         )
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).
@@ -502,6 +530,7 @@ class Network:
             np.array([i]), s.t, s.position, s.velocity, parked, np.linalg.norm(s.goal - s.position, axis=1)
         )
         rows = b.view[0]
+        heard = self._heard_by(i)
         position, velocity = b.pos[rows], b.vel[rows]
         mode, segment, route = s.mode.copy(), list(s.segment), list(s.route)
         seg_index, route_index = s.segment_index.copy(), s.route_index.copy()
@@ -512,7 +541,7 @@ class Network:
                 mode[j] = Mode.COLLIDED
                 continue
             mode[j], segment[j], seg_index[j], route[j], route_index[j] = self.plans[
-                self.table.plan[self.heard[i, j]]
+                self.table.plan[heard[j]]
             ]
         position[rows < 0], velocity[rows < 0] = s.position[rows < 0], 0.0  # absent, never read
         return SwarmState(
