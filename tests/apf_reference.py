@@ -232,6 +232,8 @@ def agent_term(world, params: AgentParams, g, flyers: Flyers, swarm: Swarm, gfac
     if swarm.goal_distance is not None:
         farther = norm3(flyers.goal - pos)[:, None] <= swarm.goal_distance[None, :]
     factored = (parked[None, :] | farther) & ~params.fixed_wing[idx][:, None]
+    if swarm.yields is not None:
+        factored = factored | (swarm.yields[None, :] & ~swarm.yields[idx][:, None])
     mag = np.where(factored, mag * gfac[:, None], mag)
     mag_p = np.where(factored, mag_p * gfac[:, None], mag_p)
     over = (2.0 * dvw[..., 0] + dvw[..., 1]) / (np.sqrt(5.0) * np.maximum(norm3(dvw), _EPS))

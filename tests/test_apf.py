@@ -391,3 +391,39 @@ def test_each_multirotor_is_pushed_within_its_own_room_only():
     f = field_forces(w, [fast["start"], slow["start"]])
     assert f[0, 1] < -0.1 * abs(f[0, 0])  # pushed off the body
     assert f[1, 1] == 0.0 and f[1, 0] > 0.0  # straight at its goal
+
+
+def test_loitering_fixed_wings_give_way_to_arriving_ones():
+    """A fixed wing loitering about its goal (``Swarm.yields``) gives way to the others: its push
+    on a fixed wing closing in on its own goal takes that one's goal factor (nothing is left of
+    it at the goal itself), while the loiterer feels the arriving one in full and makes room."""
+    fixed = {"model": "fixed_wing", "speed": {"min": 8, "max": 14, "cruise": 10}, "min_turn_radius": 20}
+    w = make_world(
+        base_world(
+            agents=[
+                {"id": "loiter", "start": [50, 50, 20], "goal": [50, 50, 20], **fixed},
+                {"id": "fw", "start": [30, 56, 20], "goal": [45, 52, 20], **fixed},
+            ]
+        )
+    )
+    params = AgentParams.from_world(w)
+    field = ApfField(w, params)
+    goal = np.array([a.goal for a in w.agents], float)
+    vel = np.array([[0.0, 10.0, 0.0], [10.0, 0.0, 0.0]])
+    idx = np.array([0, 1])
+    no_bodies = (np.zeros((0, 3)), np.zeros(0, bool), np.zeros(0), np.zeros((0, 3)))
+    inputs = FieldInputs(np.zeros((2, 0)), np.zeros((2, 0, 3)), *no_bodies)
+    loitering = np.array([True, False])
+
+    def forces(pos, yields=None):
+        return field.forces(Flyers(idx, pos, vel, goal), inputs, Swarm(pos, vel, yields=yields))
+
+    near = np.array([[46.0, 50.0, 20.0], [42.0, 52.0, 20.0]])  # 3 m short of its goal, 4.5 m apart
+    full, given = forces(near), forces(near, loitering)
+    np.testing.assert_array_equal(given[0], full[0])  # the loiterer: the arriving one in full
+    away = _unit(near[1] - near[0])
+    assert float(full[1] @ away) > float(given[1] @ away)  # the arriving one: pushed off less
+    # At its goal the loiterer's push is gone: the force of the loiterer far out of reach.
+    at_goal = np.array([[48.0, 50.0, 20.0], goal[1]])
+    out_of_reach = np.array([[48.0, 50.0, 2000.0], goal[1]])
+    np.testing.assert_allclose(forces(at_goal, loitering)[1], forces(out_of_reach)[1], atol=1e-12)

@@ -71,7 +71,9 @@ def test_numpy_field_has_the_kernels_bits(peaks, power):
         parked = None if case < 2 else rng.random(N) < 0.3
         to_go = None if case < 2 else np.linalg.norm(goal - pos, axis=1)
         flyers = Flyers(idx, pos[idx], vel[idx], goal[idx], target, scale)
-        compiled, plain = _both(field, flyers, inputs, Swarm(pos, vel, parked, to_go))
+        # From case 3, every fourth agent loiters about its goal and gives way (Swarm.yields).
+        yields = None if case < 3 else np.arange(N) % 4 == 1
+        compiled, plain = _both(field, flyers, inputs, Swarm(pos, vel, parked, to_go, yields=yields))
         assert np.all(np.isfinite(compiled))
         _same_bits(plain, compiled)
         touched += int(np.abs(compiled).sum() > 0)
@@ -215,7 +217,8 @@ def test_each_flyers_own_view_of_the_swarm():
     # As a table: flyer k's belief of agent b in row k N + b.
     view = np.where(known, np.arange(n * N).reshape(n, N), -1)
     table = (bpos.reshape(-1, 3), bvel.reshape(-1, 3), parked.reshape(-1), to_go.reshape(-1))
-    believed = Swarm(*table, view, np.tile(np.arange(N), n))
+    yields = np.arange(N) % 4 == 1  # every fourth agent loiters about its goal and gives way
+    believed = Swarm(*table, view, np.tile(np.arange(N), n), yields=np.tile(yields, n))
     compiled, plain = _both(field, flyers, inputs, believed)
     _same_bits(plain, compiled)
     assert np.all(np.isfinite(compiled)) and np.abs(compiled).sum() > 0
@@ -225,7 +228,7 @@ def test_each_flyers_own_view_of_the_swarm():
         one = field.forces(
             Flyers(idx[k : k + 1], pos[i : i + 1], vel[i : i + 1], goal[i : i + 1]),
             FieldInputs(f[0][i : i + 1], f[1][i : i + 1], *f[2:]),
-            Swarm(away, bvel[k], parked[k], to_go[k]),
+            Swarm(away, bvel[k], parked[k], to_go[k], yields=yields),
         )
         _same_bits(one[0], compiled[k])
     moving = f[3]

@@ -193,7 +193,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     radius, separation, min_altitude, stop_reach, can_stop = agents
     dist, grad, moving, o_center, o_vel, o_radius = bodies
     h, gh, h_goal, terrain_floor, lo, hi = ground
-    all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view, doubt, yields = swarm
     viewed = view.shape[0] > 0
     k_att, k_rep_w, rho0_w, k_agent_w, dq_w, npow, k_moving, horizon = gains
     n = pos.shape[0]
@@ -412,6 +412,7 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
         # stopping reach beyond the ellipsoid (at most the influence distance).
         if n_all >= 2:
             ia = idx[i]
+            yields_self = yields[view[i, ia]] if viewed else yields[ia]
             vx, vy, vz = vel[i, 0], vel[i, 1], vel[i, 2]
             k = 0
             half = (reach + horizon * (math.sqrt(vx * vx + vy * vy + vz * vz) + v_all) + 1.0) * (1.0 + 1e-6)
@@ -492,8 +493,9 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 mag_p = mag_p * urgency
                 # Priority: a parked agent, or one farther from its goal, repels as a static
                 # body does (with the goal factor): near its goal an agent that can stop goes
-                # on through the crowd and the others give way.
-                if can_stop[ia] and (parked[rb] or dg <= goal_dist[rb]):
+                # on through the crowd and the others give way; an agent that yields (a fixed
+                # wing loitering about its goal) gives way to every flyer that does not.
+                if (can_stop[ia] and (parked[rb] or dg <= goal_dist[rb])) or (yields[rb] and not yields_self):
                     mag = mag * gfac
                     mag_p = mag_p * gfac
                 wx, wy, wz = _unit(sx * cx, sy * cy, sz * cz)

@@ -266,7 +266,7 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     ``-0.0`` where the kernel adds nothing."""
     pos, vel, idx, reach_now, dg, gfac, rho_g = fl
     radius, separation, stop_reach, can_stop = agents
-    all_pos, all_vel, parked, goal_dist, reach_all, view, doubt = swarm
+    all_pos, all_vel, parked, goal_dist, reach_all, view, doubt, yields = swarm
     reach, rho0, k_agent, horizon = g
     n = len(pos)
     viewed = view.shape[0] > 0
@@ -275,11 +275,12 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
         rows_of = np.where(known, view, view[np.arange(n), idx][:, None])
         all_pos, all_vel = all_pos[rows_of], all_vel[rows_of]
         parked, goal_dist, reach_all = parked[rows_of], goal_dist[rows_of], reach_all[rows_of]
+        yields = yields[rows_of]
         doubt = doubt[rows_of]
     else:  # every flyer's row b is agent b
         known = np.ones((n, len(all_pos)), dtype=bool)
-        shared = (parked, goal_dist, reach_all)
-        parked, goal_dist, reach_all = (np.broadcast_to(a, (n, len(a))) for a in shared)
+        shared = (parked, goal_dist, reach_all, yields)
+        parked, goal_dist, reach_all, yields = (np.broadcast_to(a, (n, len(a))) for a in shared)
     n_all = known.shape[1]
     dp = pos[:, None, :] - all_pos
     dw = vel[:, None, :] - all_vel
@@ -324,8 +325,11 @@ def _agent_terms(fl, agents, swarm, g):  # noqa: ANN001, ANN202
     mag = np.where(current, k_agent[rows] * (1.0 / np.maximum(e - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     mag_p = np.where(predicted, k_agent[rows] * (1.0 / np.maximum(es - 0.5, 0.02) - 1.0 / (e0 - 0.5)), 0.0)
     mag_p = mag_p * urgency(tau, horizon)
-    # Priority: a parked agent, or one farther from its goal, repels with the goal factor.
+    # Priority: a parked agent, or one farther from its goal, repels with the goal factor; so
+    # does an agent that yields, for every flyer that does not.
+    yields_self = yields[np.arange(n), idx]
     factored = stop_a & (parked[rows, b] | (dg[rows] <= goal_dist[rows, b]))
+    factored = factored | (yields[rows, b] & ~yields_self[rows])
     mag = np.where(factored, mag * gfac[rows], mag)
     mag_p = np.where(factored, mag_p * gfac[rows], mag_p)
     side = _right(dw)

@@ -39,8 +39,12 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   agent itself, repel as static bodies do, with its goal factor, for agents that can stop
   (multirotors): near its goal an agent goes on through the crowd and the others give way
   (without it, neighbours hovering by their own goals hold each other off for good). Fixed
-  wings keep the full repulsion (they cannot stop, so the standstill the factor resolves does
-  not arise).
+  wings keep the full repulsion of flying agents (they cannot stop, so the standstill the
+  factor resolves does not arise), but fixed wings loitering about their goals
+  (``Swarm.yields``) give way to every flyer: their repulsion takes its goal factor (pushed off
+  its final approach by a neighbour circling its own goal a turn radius away, an aircraft
+  missed its goal by a little and flew its whole approach circle again); the loiterer still
+  feels the arriving agent in full and makes room.
 Each multirotor flies the field at its own scale (``kinematics.field_scales``): the influence,
 the quadratic radius and ``k_agent`` times its room over the largest agent's (four braking
 distances from cruise speed each), ``k_rep`` times its square, so a drone that brakes in
@@ -127,7 +131,9 @@ class Swarm:
     each, ``row_agent`` (rows,) whose state each row is, and ``view[k, b]`` the row flyer k holds
     of agent b (-1: it knows nothing of b); ``doubt`` (rows,) how far, m, each row's agent may
     be from where it is believed (default 0), by which the pair's separation ellipsoid widens
-    on every axis."""
+    on every axis; ``yields`` (rows,) marks those that give way to every flyer (fixed wings
+    loitering about their goals): their repulsion takes the flyer's goal factor, as a parked
+    agent's does for a multirotor."""
 
     pos: np.ndarray
     vel: np.ndarray
@@ -136,6 +142,7 @@ class Swarm:
     view: np.ndarray | None = None
     row_agent: np.ndarray | None = None
     doubt: np.ndarray | None = None
+    yields: np.ndarray | None = None
 
 
 def reach_at_speed(params: AgentParams, idx: np.ndarray, vel: np.ndarray, dt: float) -> np.ndarray:
@@ -241,6 +248,8 @@ class ApfField:
         parked = np.zeros(shape, dtype=bool) if swarm.parked is None else swarm.parked
         goal_dist = swarm.goal_distance
         goal_dist = np.full(shape, -np.inf) if goal_dist is None else np.asarray(goal_dist, dtype=float)
+        yields = np.zeros(shape, dtype=bool) if swarm.yields is None else swarm.yields
+        yields = np.asarray(yields, dtype=np.bool_)
         idx = np.asarray(flyers.idx, dtype=np.int64)
         reach_now = self._reach_at_speed(flyers.idx, flyers.vel)
         reach = self._reach * (1.0 + 1e-9) + 1e-9
@@ -266,7 +275,7 @@ class ApfField:
             (field.obstacle_distance, field.obstacle_gradient, field.obstacle_moving,
              read_only(field.obstacle_center), field.obstacle_velocity, field.obstacle_radius),
             (h, gh, h_goal, self._floor, w.bounds_min, w.bounds_max),
-            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view, doubt),
+            (all_pos, all_vel, np.asarray(parked, dtype=np.bool_), goal_dist, reach_all, view, doubt, yields),
             reach,
             self._gains,
             out,
