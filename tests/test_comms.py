@@ -328,7 +328,7 @@ def _two(believed_x: float, age: float = 0.0, vel: tuple = (2.0, 0.0, 0.0)) -> t
     table = np.array([pos0[0], [believed_x, 50.0, 20.0]])
     rest, ages = np.zeros((2, 3)), np.array([0.0, age])
     beliefs = Beliefs(np.array([0]), pos0[:1], table, rest, np.zeros(2, bool), np.zeros(2), ages,
-                      np.array([0, 1]), np.array([[0, 1]]), table, rest)  # fmt: skip
+                      np.array([0, 1]), np.array([[0, 1]]), table, rest, np.zeros(2, bool))  # fmt: skip
     q = sim.obstacles.poses(0.0)[0]
     window = StepWindow(0.0, 0.1, q, q)
     events, _, stopped = belief_conflicts(
@@ -372,7 +372,7 @@ def _room(believed_x: float, age: float, vel_b: tuple, cmd: tuple = (5.0, 0.0, 0
     vel = np.array([cmd, vel_b], dtype=float)
     ages = np.array([0.0, age])
     beliefs = Beliefs(np.array([0]), table[:1], table, vel, np.zeros(2, bool), np.zeros(2), ages,
-                      np.array([0, 1]), np.array([[0, 1]]), table, vel)  # fmt: skip
+                      np.array([0, 1]), np.array([[0, 1]]), table, vel, np.zeros(2, bool))  # fmt: skip
     return braking_room(sim.params, beliefs, np.array([cmd], dtype=float), 0.1)[0]
 
 
@@ -420,3 +420,25 @@ def test_belief_doubt_is_half_the_limit_times_the_age_squared():
     np.testing.assert_array_equal(
         belief_margin(np.array([8.0]), np.array([0.3]), 0.1), belief_doubt(np.array([8.0]), np.array([0.4]))
     )
+
+
+def test_a_loiterer_is_believed_to_give_way_only_once_heard():
+    """Whether an agent loiters (a fixed wing circling its goal gives way, ``apf.Swarm.yields``)
+    travels in its broadcasts like the rest of its state: its own row says so at once, the
+    others' rows of it only after a state sent while it loitered has arrived."""
+    sim = _network_sim(4, {"rate": 10, "delay": 0.2})
+    for _ in range(3):
+        sim.step()
+    s, net = sim.state, sim.network
+    loiters = np.array([False, True, False, False])
+    b = net.beliefs(np.arange(4), s.t, s.position, s.velocity, np.zeros(4, bool), np.zeros(4), yields=loiters)
+    np.testing.assert_array_equal(b.yields[b.view[1, 1]], True)  # its own row
+    assert not b.yields[b.view[[0, 2, 3], 1]].any()  # heard before it loitered
+    # A broadcast sent while it loiters reaches the others after the delay.
+    for _ in range(4):
+        t0 = s.t
+        s.t = t0 + sim.world.dt
+        net.broadcast(t0, s, np.zeros(4, bool), np.zeros((4, 3)), loiters)
+    b = net.beliefs(np.arange(4), s.t, s.position, s.velocity, np.zeros(4, bool), np.zeros(4), yields=loiters)
+    np.testing.assert_array_equal(b.yields[b.view[:, 1]], True)
+    assert not b.yields[b.view[:, [0, 2, 3]]].any()

@@ -35,7 +35,7 @@ def _beliefs(rng: np.random.Generator, n: int, n_all: int) -> Beliefs:
     view[np.arange(n), idx] = rng.integers(0, rows, n)
     at = pos[view[np.arange(n), idx]]
     z = np.zeros(rows)
-    return Beliefs(idx, at, pos, pos * 0, z > 0, z, z, np.arange(rows) % n_all, view, pos, pos * 0)
+    return Beliefs(idx, at, pos, pos * 0, z > 0, z, z, np.arange(rows) % n_all, view, pos, pos * 0, z > 0)
 
 
 def test_held_pairs_compiled_and_numpy_agree():
@@ -232,8 +232,8 @@ def test_delivery_compiled_and_numpy_agree(comms):
         s.position = s.position + rng.normal(0, 0.3, (n, 3))
         s.velocity = rng.normal(0, 1.0, (n, 3))
         acc = rng.normal(0, 1.0, (n, 3))
-        a.broadcast(t0, s, np.zeros(n, bool), acc)
-        b.broadcast(t0, s, np.zeros(n, bool), acc)
+        a.broadcast(t0, s, np.zeros(n, bool), acc, np.zeros(n, bool))
+        b.broadcast(t0, s, np.zeros(n, bool), acc, np.zeros(n, bool))
         idx = np.sort(rng.choice(n, n - 4, replace=False))
         args = (idx, s.t, s.position, s.velocity, np.zeros(n, bool), np.zeros(n))
         ba, bb = a.beliefs(*args, near=12.0), b.beliefs(*args, near=12.0)

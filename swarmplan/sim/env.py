@@ -275,7 +275,8 @@ class Simulation:
 
         s.position, s.velocity, s.t, s.step = pos1, vel1, t1, s.step + 1
         if self.network is not None:
-            self.network.broadcast(t0, s, ~self.loiter.flying(s, s.active), (vel1 - vel0) / dt)
+            parked_now = ~self.loiter.flying(s, s.active)
+            self.network.broadcast(t0, s, parked_now, (vel1 - vel0) / dt, self.loiter.on)
         on_stuck = None if self.planner is None else self._ask_planner
         capturing = self.steering.capture.hold if self.steering.capture.any else None
         self._merge(nav.detect_stuck(s, on_stuck, exempt=self.evasion.watching, restart=capturing))

@@ -61,7 +61,9 @@ class Beliefs:
     (the reference the deconfliction's margin bounds: an agent within its acceleration limit
     is at most ``max_accel age^2 / 2`` from it), ``expected_pos``/``expected_vel`` moved on with
     the acceleration sent too (the field's best guess), ``parked``, ``goal_distance``, ``age``
-    (s since the state was true; 0 for a flyer's own and sensed rows) and ``agent`` (M,);
+    (s since the state was true; 0 for a flyer's own and sensed rows), ``yields`` (a fixed wing
+    loitering about its goal when it sent the state: it gives way, ``apf.Swarm.yields``) and
+    ``agent`` (M,);
     ``view`` (n, N) the row flyer k holds of agent b (-1: it knows nothing of b). A flyer's own
     row is its true state."""
 
@@ -76,6 +78,7 @@ class Beliefs:
     view: np.ndarray
     expected_pos: np.ndarray
     expected_vel: np.ndarray
+    yields: np.ndarray
 
     def near_superset(self, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Every (flyer row k, agent j, table row, distance) with agent j believed by flyer k
@@ -226,19 +229,21 @@ class _Table:
         self.vel = np.zeros((4 * n + 1, 3))
         self.acc = np.zeros((4 * n + 1, 3))
         self.parked = np.zeros(4 * n + 1, dtype=bool)
+        self.yields = np.zeros(4 * n + 1, dtype=bool)
         self.goal_distance = np.zeros(4 * n + 1)
         self.plan = np.zeros(4 * n + 1, dtype=np.int64)
         self.agent = np.full(4 * n + 1, -1, dtype=np.int64)
         self.mark = np.full(4 * n + 1, -1, dtype=np.int64)  # scratch of the compiled compaction
 
     def add(self, t: float, agent: np.ndarray, pos: np.ndarray, vel: np.ndarray, parked: np.ndarray,
-            to_go: np.ndarray, plan: np.ndarray) -> np.ndarray:  # fmt: skip
+            to_go: np.ndarray, plan: np.ndarray, yields: np.ndarray) -> np.ndarray:  # fmt: skip
         """Rows for the states of agents ``agent`` true at ``t``; returns their row numbers."""
         k, first = len(pos), self.size
         if first + k > len(self.t):
             grow = max(len(self.t), k)
             for name, fill in (("t", -np.inf), ("pos", 0.0), ("vel", 0.0), ("acc", 0.0), ("parked", False),
-                               ("goal_distance", 0.0), ("plan", 0), ("agent", -1), ("mark", -1)):  # fmt: skip
+                               ("yields", False), ("goal_distance", 0.0), ("plan", 0), ("agent", -1),
+                               ("mark", -1)):  # fmt: skip
                 old = getattr(self, name)
                 setattr(
                     self, name, np.concatenate([old, np.full((grow, *old.shape[1:]), fill, dtype=old.dtype)])
@@ -246,7 +251,7 @@ class _Table:
         rows = np.arange(first, first + k)
         self.t[rows], self.pos[rows], self.vel[rows] = t, pos, vel
         self.parked[rows], self.goal_distance[rows], self.plan[rows] = parked, to_go, plan
-        self.agent[rows] = agent
+        self.agent[rows], self.yields[rows] = agent, yields
         self.size += k
         return rows
 
@@ -305,6 +310,7 @@ class Network:
             np.zeros(n, dtype=bool),
             np.linalg.norm(s.goal - pos, axis=1),
             self._book(s, np.arange(n)),
+            np.zeros(n, dtype=bool),
         )
         # (receiver, sender): the table row of the newest state heard (0: none)
         d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
@@ -336,10 +342,12 @@ class Network:
         k1 = np.floor(t1 / self.period - self._phase + _EPS)
         return np.flatnonzero(k1 > k0)
 
-    def broadcast(self, t0: float, s: SwarmState, parked: np.ndarray, acc: np.ndarray) -> None:
+    def broadcast(
+        self, t0: float, s: SwarmState, parked: np.ndarray, acc: np.ndarray, yields: np.ndarray
+    ) -> None:
         """The states at the end of the step from ``t0`` to ``s.t`` (``parked``: the agents that
-        no longer fly; ``acc``: each agent's acceleration over the step) of the agents that speak
-        in it."""
+        no longer fly; ``acc``: each agent's acceleration over the step; ``yields``: the fixed
+        wings loitering about their goals) of the agents that speak in it."""
         t1, pos, vel = s.t, s.position, s.velocity
         who = self.speakers(t0, t1)
         if not len(who):
@@ -354,6 +362,7 @@ class Network:
             parked[who],
             np.linalg.norm(s.goal[who] - pos[who], axis=1),
             self._book(s, who),
+            yields[who],
         )
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
         over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
@@ -479,11 +488,13 @@ class Network:
         parked: np.ndarray,
         goal_distance: np.ndarray,
         near: float = 0.0,
+        yields: np.ndarray | None = None,
     ) -> Beliefs:
         """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in; the pairs within ``near`` of each flyer
-        (:meth:`Beliefs.near_superset`) found on the way."""
+        (:meth:`Beliefs.near_superset`) found on the way; ``yields``: which agents loiter now
+        (their own and sensed rows; None: none)."""
         self.deliver(t)
         tb, n = self.table, len(idx)
         idx64 = np.asarray(idx, dtype=np.int64)
@@ -505,6 +516,7 @@ class Network:
         if sensing:
             k, j = _within(pos[idx], pos, self.sensing_range)
             view[k, j] = first + j
+        own_yields = np.zeros(len(truth), bool) if yields is None else yields[truth]
         b = Beliefs(
             idx,
             pos[idx],
@@ -517,6 +529,7 @@ class Network:
             view,
             np.concatenate([moved + 0.5 * tb.acc[live] * (age * age)[:, None], pos[truth]]),
             np.concatenate([tb.vel[live] + tb.acc[live] * age[:, None], vel[truth]]),
+            np.concatenate([tb.yields[live], own_yields]),
         )
         if radius > 0.0:
             b.__dict__["_near"] = (radius, pairs)

@@ -71,14 +71,6 @@ class Steering:
         self.sensing_range = math.inf if world.sensing is None else world.sensing.range
         self._oldest = 0.0  # the age of the oldest state any flyer acted on in the last step
 
-    def _yields(self, rows: np.ndarray | None) -> np.ndarray | None:
-        """Which agents (of ``rows``, or every agent) give way to every flyer: the fixed wings
-        loitering about their goals (None: none loiters)."""
-        on = self.loiter.on
-        if not on.any():
-            return None
-        return on.copy() if rows is None else on[rows]
-
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
         """Back to the bodies at rest at t = 0 (a mover parked in the last run), the guide's ways
         from ``start`` to ``goal``, no loiter circles."""
@@ -147,18 +139,19 @@ class Steering:
         to_go = norm3(s.goal - pos0)
         b = oldest = None
         if self.network is None:
-            swarm = Swarm(pos0, vel0, parked, to_go, yields=self._yields(None))
+            yields = self.loiter.on.copy() if self.loiter.on.any() else None  # loiterers give way
+            swarm = Swarm(pos0, vel0, parked, to_go, yields=yields)
         else:  # each flyer's own beliefs of the others
             # The pairs found with the beliefs reach as far as the field and the braking room
             # look (the oldest state a step older than the last step's oldest).
             look = braking_radius(self.params, self.world.dt, self._oldest + self.world.dt)
             near = max(self.apf.agent_reach, look)
-            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=near)
+            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=near, yields=self.loiter.on)
             self._oldest = oldest_age(b)
             # Beliefs moved on with the acceleration sent: the truth may be off by twice the
             # doubt of a belief moved on at the velocity sent (that acceleration since reversed).
             doubt = 2.0 * belief_doubt(self.params.max_accel[b.agent], b.age)
-            pos_b, vel_b, yields = b.expected_pos, b.expected_vel, self._yields(b.agent)
+            pos_b, vel_b, yields = b.expected_pos, b.expected_vel, (b.yields if b.yields.any() else None)
             swarm = Swarm(pos_b, vel_b, b.parked, b.goal_distance, b.view, b.agent, doubt, yields)
             oldest = self.network.oldest(b, self.apf.agent_reach)
         force = self.apf.forces(flyers, inputs, swarm)
