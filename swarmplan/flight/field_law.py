@@ -41,7 +41,9 @@ def urgency(tau: np.ndarray, horizon: float) -> np.ndarray:
     prediction ``horizon``: ``(1 - tau / horizon) ** 2``, 1 now, 0 at the horizon and flat there.
     A conflict first seen at the horizon's edge adds nothing at once: the approaches of a whole
     crowd converging on one point, which enter the horizon together, do not brake every agent
-    in the same step (a linear weight rose by up to k / 0.02 x dtau / horizon per step)."""
+    in the same step (a linear weight rose by up to k / 0.02 x dtau / horizon per step). Both
+    agents of a pair act on it, so each may start later; a moving obstacle does not give way,
+    and its predicted approach keeps the linear weight ``1 - tau / horizon``."""
     soon = 1.0 - tau / (horizon + 1e-9)  # apf._EPS
     return soon * soon
 
