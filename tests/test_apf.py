@@ -190,20 +190,47 @@ def test_commanded_velocity_cruise_brake_and_surface_limit():
     goal = np.array([[90.0, 50, 25]])
     far = np.array([[30.0, 50, 25]])
     inf, up = np.array([np.inf]), np.array([[0.0, 0, 1]])
-    v = commanded_velocity(params, idx, np.array([[5.0, 0, 0]]), far, goal, inf, up)
+    v = commanded_velocity(params, idx, np.array([[5.0, 0, 0]]), far, goal, inf, up, w.dt)
     np.testing.assert_allclose(v, [[8.0, 0, 0]])  # cruise speed along the force
     near = np.array([[89.0, 50, 25]])
-    v = commanded_velocity(params, idx, np.array([[5.0, 0, 0]]), near, goal, inf, up)
+    v = commanded_velocity(params, idx, np.array([[5.0, 0, 0]]), near, goal, inf, up, w.dt)
     # Braking distance to the goal: v <= sqrt(2 * 0.8 * amax * d) with amax 4, d 1.
     assert np.linalg.norm(v) == pytest.approx(np.sqrt(2 * 0.8 * 4 * 1.0))
     # A surface 1.5 m ahead (normal -x): the approach speed is cut to the speed that brakes
-    # at the agent's safety margin from it.
+    # at the agent's safety margin from it: the lesser of sqrt(2 0.8 a g) and the stop of one
+    # step at v, then braking at a, within the gap g.
     v = commanded_velocity(
-        params, idx, np.array([[5.0, 0, 0]]), far, goal, np.array([1.5]), np.array([[-1.0, 0, 0]])
+        params, idx, np.array([[5.0, 0, 0]]), far, goal, np.array([1.5]), np.array([[-1.0, 0, 0]]), w.dt
     )
     margin = float(safety_margin(params.radius[0]))
     assert 0.0 < margin <= 0.25
-    assert v[0, 0] == pytest.approx(np.sqrt(2 * 0.8 * 4 * (1.5 - margin)))
+    g, a = 1.5 - margin, 4.0
+    assert v[0, 0] == pytest.approx(min(np.sqrt(2 * 0.8 * a * g), a * (np.sqrt(w.dt**2 + 2 * g / a) - w.dt)))
+    assert v[0, 0] * v[0, 0] / (2 * a) + v[0, 0] * w.dt == pytest.approx(g)  # the stop fits exactly
+
+
+@pytest.mark.parametrize("gap", [0.0, 1e-8, 1e-4, 0.05, 1.0])
+def test_a_command_along_a_surface_keeps_its_speed_and_its_stop_fits_the_gap(gap):
+    """A multirotor at ``gap`` outside its margin from a wall (normal -x), pulled along it
+    and a little into it: its speed along the wall stays cruise, and the stop along the whole
+    command (one step, then braking at max_accel: the braking margin's sweep) fits the gap, so
+    the braking margin leaves it its speed."""
+    w = world_of()
+    params = AgentParams.from_world(w)
+    idx, a = np.array([0]), 4.0
+    margin = float(safety_margin(params.radius[0]))
+    pos, goal = np.array([[30.0, 50, 25]]), np.array([[30.0, 0, 25]])
+    force = np.array([[0.05, -5.0, 0.0]])  # mostly along the wall (-y), a little into it (+x)
+    v = commanded_velocity(
+        params, idx, force, pos, goal, np.array([margin + gap]), np.array([[-1.0, 0, 0]]), w.dt
+    )[0]
+    cruise = 8.0
+    assert -v[1] == pytest.approx(cruise * 5.0 / np.hypot(5.0, 0.05))  # along: untouched
+    speed = float(np.linalg.norm(v))
+    if v[0] > 0.0:  # towards the wall: the straight stop reaches it no sooner than the gap allows
+        assert (speed * speed / (2 * a) + speed * w.dt) * v[0] / speed <= gap * (1 + 1e-9)
+    else:
+        assert gap == 0.0 and v[0] == 0.0
 
 
 @pytest.mark.parametrize(

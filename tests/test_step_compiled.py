@@ -136,8 +136,8 @@ def test_compiled_commanded_velocity_equals_numpy(seed):
     normal = rng.normal(0, 1.0, (m, 3))
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
     normal[::4] = -force[::4] / np.maximum(np.linalg.norm(force[::4], axis=1, keepdims=True), 1e-9)
-    got = commanded_velocity(params, idx, force, pos, goal, clearance, normal)
-    ref = commanded_velocity_numpy(params, idx, force, pos, goal, clearance, normal)
+    got = commanded_velocity(params, idx, force, pos, goal, clearance, normal, 0.1)
+    ref = commanded_velocity_numpy(params, idx, force, pos, goal, clearance, normal, 0.1)
     assert np.isfinite(ref).all()
     np.testing.assert_array_equal(_bits(got), _bits(ref))
 

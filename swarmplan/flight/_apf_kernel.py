@@ -533,9 +533,9 @@ def _minimum(a, b):  # noqa: ANN001, ANN202
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def commanded_velocity(amax, cruise, floor, standoff, force, pos, goal, clearance, normal, out):  # noqa: ANN001, ANN201
+def commanded_velocity(amax, cruise, floor, standoff, force, pos, goal, clearance, normal, dt, out):  # noqa: ANN001, ANN201
     """``apf.commanded_velocity_numpy`` row by row into ``out`` (its operations in its order;
-    ``floor`` the agents' slowest commands, ``standoff`` their safety margins)."""
+    ``floor`` the agents' slowest commands, ``standoff`` their safety margins, ``dt`` the step)."""
     for i in range(force.shape[0]):
         a = amax[i]
         gx, gy, gz = goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1], goal[i, 2] - pos[i, 2]
@@ -546,7 +546,12 @@ def commanded_velocity(amax, cruise, floor, standoff, force, pos, goal, clearanc
         vx, vy, vz = fx / f * speed, fy / f * speed, fz / f * speed
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         toward = -(vx * nx + vy * ny + vz * nz)
-        allowed = math.sqrt(2.0 * 0.8 * a * _maximum(clearance[i] - standoff[i], 0.0))
+        gap = _maximum(clearance[i] - standoff[i], 0.0)
+        allowed = math.sqrt(2.0 * 0.8 * a * gap)
+        if floor[i] == 0.0 and gap < math.inf:  # a stop along the command fits the gap
+            tx, ty, tz = vx + toward * nx, vy + toward * ny, vz + toward * nz
+            c = math.sqrt(tx * tx + ty * ty + tz * tz) / (2.0 * a) + dt
+            allowed = _minimum(allowed, 2.0 * gap / (math.sqrt(c * c + 2.0 * gap / a) + c))
         if dg < clearance[i]:  # a goal nearer than the surface: its own cap stops the agent short of it
             allowed = _maximum(allowed, speed)
         excess = _maximum(toward - allowed, 0.0)

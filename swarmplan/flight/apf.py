@@ -320,18 +320,19 @@ def commanded_velocity(
     goal: np.ndarray,
     clearance: np.ndarray,
     clearance_dir: np.ndarray,
+    dt: float,
 ) -> np.ndarray:
     """:func:`commanded_velocity_numpy` in one compiled pass over the rows (the same bits,
     tests/test_apf_compiled.py); numpy itself until numba is in the process (a small world's
     steps never load numba for it)."""
     if use_numpy_twin():
-        return commanded_velocity_numpy(params, idx, force, pos, goal, clearance, clearance_dir)
+        return commanded_velocity_numpy(params, idx, force, pos, goal, clearance, clearance_dir, dt)
     f = np.ascontiguousarray
     return kernel_module("swarmplan.flight._apf_kernel").commanded_velocity(
         params.max_accel[idx], params.speed_cruise[idx], speed_floor(params, idx),
         safety_margin(params.radius[idx]),
         f(force, dtype=float), f(pos, dtype=float), f(goal, dtype=float), f(clearance, dtype=float),
-        f(clearance_dir, dtype=float), np.empty((len(idx), 3)),
+        f(clearance_dir, dtype=float), float(dt), np.empty((len(idx), 3)),
     )  # fmt: skip
 
 
@@ -343,6 +344,7 @@ def commanded_velocity_numpy(
     goal: np.ndarray,
     clearance: np.ndarray,
     clearance_dir: np.ndarray,
+    dt: float,
 ) -> np.ndarray:
     """Velocity command from the force: cruise speed along it, slowed to brake before the goal
     (never below the agent's :func:`speed_floor`: a fixed wing flies on at its cruise speed,
@@ -352,7 +354,14 @@ def commanded_velocity_numpy(
     (``kinematics.safety_margin``: a fifth of its radius, at most 0.25 m, the room the safety
     filter keeps from every surface; a stand-off in metres held lab drones a body length and
     more short of goals beside a wall), unless the goal is nearer than the surface: the goal's
-    cap (a stop within 0.8 of the goal's distance) then keeps the agent off the surface."""
+    cap (a stop within 0.8 of the goal's distance) then keeps the agent off the surface. A
+    multirotor's speed towards it is also no more than lets a stop along the whole command, ``v``
+    (one step at ``v``, then braking at ``max_accel``: the safety filter's braking margin,
+    ``sim.safety``), fit in that gap ``g``: with ``t`` the speed along the surface and ``w`` the
+    speed towards it, ``w (t + w) / (2 a) + w dt <= g`` (``|v| <= t + w``). A command that slides
+    along a surface at its margin keeps its speed along it; with the first cap alone, a small
+    component towards the surface left the braking margin to cut the whole speed, each step more
+    as the gap closed, until the agent stood beside the surface for good."""
     amax = params.max_accel[idx]
     speed = params.speed_cruise[idx].copy()
     dg = norm3(goal - pos)
@@ -360,7 +369,14 @@ def commanded_velocity_numpy(
     v = _unit(force) * speed[:, None]
     # Component towards the nearest surface may not exceed what can still be braked.
     toward = -dot3(v, clearance_dir)
-    allowed = np.sqrt(2.0 * 0.8 * amax * np.maximum(clearance - safety_margin(params.radius[idx]), 0.0))
+    gap = np.maximum(clearance - safety_margin(params.radius[idx]), 0.0)
+    allowed = np.sqrt(2.0 * 0.8 * amax * gap)
+    along = v + toward[:, None] * clearance_dir
+    c = norm3(along) / (2.0 * amax) + dt
+    with np.errstate(invalid="ignore"):  # (no surface: an infinite gap, no cap)
+        stop = 2.0 * gap / (np.sqrt(c * c + 2.0 * gap / amax) + c)  # w of w (t + w) / (2 a) + w dt = g
+    stops = (speed_floor(params, idx) == 0.0) & (gap < np.inf)
+    allowed = np.where(stops, np.minimum(allowed, stop), allowed)
     allowed = np.where(dg < clearance, np.maximum(allowed, speed), allowed)
     excess = np.maximum(toward - allowed, 0.0)
     return v + excess[:, None] * clearance_dir

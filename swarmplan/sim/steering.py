@@ -159,7 +159,7 @@ class Steering:
         if self._threat_cores is not None:
             cores, radius = self._threat_cores, self.params.radius[idx]
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
-        v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
+        v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal, self.world.dt)
         if b is not None:  # room to stop behind the agents ahead, as far as it knows them
             v_cmd = braking_room(self.params, b, v_cmd, self.world.dt)
         return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b, oldest)
