@@ -136,3 +136,42 @@ class GoalCapture:
         out[j, :2] = ahead
         out[j, 2] = g[ext, 2]
         return out
+
+
+def height_first(
+    params: AgentParams,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    goal: np.ndarray,
+    at_goal: np.ndarray,
+    target: np.ndarray,
+) -> np.ndarray:
+    """``target`` (rows of flying agents ``idx`` at ``pos``) with the height of each fixed wing
+    flying at its ``goal`` (``at_goal``, rows: the goal itself, the point its capture extends to or
+    the point of its approach circle) within ``CAPTURE_RANGE`` turn radii of it set so the pull
+    wins the goal's height first and flies the last of the way level: its flight-path angle
+    towards the target is ``sqrt(dz / R)`` (``dz`` the height still to win or lose, ``R`` the
+    minimum turn radius), at most its climb limit. That profile levels off at half the turn's
+    curvature (the other half, and more, stays for the heading: the model shares one budget
+    between them), so an aircraft never turns onto its goal still climbing or diving at its limit
+    and passes it at its height. Once the target is not the goal itself, the pull is the field's
+    conic one all the way in: a fixed wing cannot stop, and the goal's quadratic well, weaker the
+    nearer it flies, would leave its last turn to whatever else pushes it. The others' targets
+    unchanged."""
+    fw = params.fixed_wing[idx] & at_goal
+    if not fw.any():
+        return target
+    rows = np.flatnonzero(fw)
+    k = idx[rows]
+    r = params.min_turn_radius[k]
+    e = goal[rows] - pos[rows]
+    near = np.hypot(e[:, 0], e[:, 1]) < CAPTURE_RANGE * r
+    if not near.any():
+        return target
+    rows, k, r, e = rows[near], k[near], r[near], e[near]
+    gamma = np.minimum(np.sqrt(np.abs(e[:, 2]) / r), params.max_climb[k]) * np.sign(e[:, 2])
+    t = target[rows] - pos[rows]
+    run = np.maximum(np.hypot(t[:, 0], t[:, 1]), _EPS)
+    out = np.array(target, dtype=float)
+    out[rows, 2] = pos[rows, 2] + run * np.tan(gamma)
+    return out

@@ -18,7 +18,7 @@ import numpy as np
 
 from swarmplan.core import SwarmState
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity, stopping_reach
-from swarmplan.flight.capture import GoalCapture
+from swarmplan.flight.capture import GoalCapture, height_first
 from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.sight import Sight
@@ -130,6 +130,8 @@ class Steering:
             target = self.loiter.approach(
                 idx, pos0[idx], vel0[idx], s.goal[idx], at_goal, target, self.obstacles
             )
+            # ... winning its goal's height first, to pass it level
+            target = height_first(self.params, idx, pos0[idx], s.goal[idx], at_goal, target)
         if self.loiter.on.any():  # a point ahead on its circle is a loitering agent's target and goal
             rows = np.flatnonzero(self.loiter.on[idx])
             ahead = self.loiter.targets(idx[rows], pos0[idx[rows]])
