@@ -194,7 +194,9 @@ class Loiter:
         clearance = clear_of_statics(obstacles, i)
         bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
         run = float(np.hypot(bearing[0], bearing[1])) - r_min
-        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(float(self.params.max_climb[i]))
+        climb = float(self.params.max_climb[i])
+        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(climb)
+        climb_way = climb_length(abs(g[2] - p[2]), climb, r_min)
         direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
         worst = clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1)
         if not steep and (worst >= margin).any():
@@ -209,6 +211,7 @@ class Loiter:
             clear = np.flatnonzero(worst >= margin)
             if len(clear):
                 ways = [_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min) for j in clear]
+                ways = [_with_laps(w, climb_way, r) for w in ways]
                 a, side = cands[int(clear[int(np.argmin(ways))])]
                 best = (a, side, r)
                 break
@@ -286,6 +289,22 @@ def _way_length(
         onto = abs(math.remainder(course - psi, 2.0 * math.pi))
         best = min(best, r_min * onto + r * _swept(theta, math.atan2(g[1] - cy, g[0] - cx), side))
     return best
+
+
+def climb_length(height: float, climb: float, r_min: float) -> float:
+    """The flight (m) a fixed wing of climb limit ``climb`` (rad) and minimum turn radius
+    ``r_min`` takes to win or lose ``height`` and level off: the height at its limit's slope,
+    and the turns into and out of that slope (each ``r_min climb`` of flight at its tightest, the
+    level-off at half of it, as ``capture.height_first`` flies it: ``1.5 r_min climb`` more)."""
+    return height / math.tan(climb) + 1.5 * r_min * climb
+
+
+def _with_laps(way: float, climb_way: float, r: float) -> float:
+    """The flight to a goal ``way`` away on a circle of radius ``r`` with ``climb_way`` of flight
+    needed for its height: the way, and the whole laps of the circle that make it long enough."""
+    if way >= climb_way:
+        return way
+    return way + math.ceil((climb_way - way) / (2.0 * math.pi * r)) * 2.0 * math.pi * r
 
 
 def _swept(a: float, b: float, side: float) -> float:
