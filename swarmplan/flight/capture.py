@@ -150,8 +150,9 @@ def height_first(
     flying at its ``goal`` (``at_goal``, rows: the goal itself, the point its capture extends to or
     the point of its approach circle) within ``CAPTURE_RANGE`` turn radii of it set so the pull
     wins the goal's height first and flies the last of the way level: its flight-path angle
-    towards the target is ``sqrt(dz / R)`` (``dz`` the height still to win or lose, ``R`` the
-    minimum turn radius), at most its climb limit. That profile levels off at half the turn's
+    towards the target is the slope that wins the height ``dz`` still to win or lose by a turn
+    radius ``R`` short of the goal (horizontally, on the straight way in), or ``sqrt(dz / R)``
+    when that is less, at most its climb limit. That last profile levels off at half the turn's
     curvature (the other half, and more, stays for the heading: the model shares one budget
     between them), so an aircraft never turns onto its goal still climbing or diving at its limit
     and passes it at its height. Once the target is not the goal itself, the pull is the field's
@@ -169,7 +170,10 @@ def height_first(
     if not near.any():
         return target
     rows, k, r, e = rows[near], k[near], r[near], e[near]
-    gamma = np.minimum(np.sqrt(np.abs(e[:, 2]) / r), params.max_climb[k]) * np.sign(e[:, 2])
+    dz = np.abs(e[:, 2])
+    before = np.hypot(e[:, 0], e[:, 1]) - r  # the way in before its last turn radius
+    slope = np.arctan2(dz, np.maximum(before, 0.0))
+    gamma = np.minimum(np.minimum(slope, np.sqrt(dz / r)), params.max_climb[k]) * np.sign(e[:, 2])
     t = target[rows] - pos[rows]
     run = np.maximum(np.hypot(t[:, 0], t[:, 1]), _EPS)
     out = np.array(target, dtype=float)
