@@ -166,13 +166,13 @@ def height_first(
     k = idx[rows]
     r = params.min_turn_radius[k]
     e = goal[rows] - pos[rows]
-    near = np.hypot(e[:, 0], e[:, 1]) < CAPTURE_RANGE * r
+    away = np.hypot(e[:, 0], e[:, 1])
+    near = (away < CAPTURE_RANGE * r) & (away > r)
     if not near.any():
         return target
-    rows, k, r, e = rows[near], k[near], r[near], e[near]
+    rows, k, r, e, away = rows[near], k[near], r[near], e[near], away[near]
     dz = np.abs(e[:, 2])
-    before = np.hypot(e[:, 0], e[:, 1]) - r  # the way in before its last turn radius
-    slope = np.arctan2(dz, np.maximum(before, 0.0))
+    slope = np.arctan2(dz, away - r)  # won over the way in before its last turn radius
     gamma = np.minimum(np.minimum(slope, np.sqrt(dz / r)), params.max_climb[k]) * np.sign(e[:, 2])
     t = target[rows] - pos[rows]
     run = np.maximum(np.hypot(t[:, 0], t[:, 1]), _EPS)
