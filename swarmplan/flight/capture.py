@@ -148,17 +148,15 @@ def height_first(
 ) -> np.ndarray:
     """``target`` (rows of flying agents ``idx`` at ``pos``) with the height of each fixed wing
     flying at its ``goal`` (``at_goal``, rows: the goal itself, the point its capture extends to or
-    the point of its approach circle) within ``CAPTURE_RANGE`` turn radii of it set so the pull
-    wins the goal's height first and flies the last of the way level: its flight-path angle
-    towards the target is the slope that wins the height ``dz`` still to win or lose by a turn
-    radius ``R`` short of the goal (horizontally, on the straight way in), or ``sqrt(dz / R)``
-    when that is less, at most its climb limit. That last profile levels off at half the turn's
-    curvature (the other half, and more, stays for the heading: the model shares one budget
-    between them), so an aircraft never turns onto its goal still climbing or diving at its limit
-    and passes it at its height. Once the target is not the goal itself, the pull is the field's
-    conic one all the way in: a fixed wing cannot stop, and the goal's quadratic well, weaker the
-    nearer it flies, would leave its last turn to whatever else pushes it. The others' targets
-    unchanged."""
+    the point of its approach circle) between one and ``CAPTURE_RANGE`` turn radii ``R`` of it
+    (horizontally) set so the pull wins the goal's height before its last turn radius: its
+    flight-path angle towards the target is the slope that wins the height ``dz`` still to win or
+    lose over the way in less that turn radius, or the level-off profile ``sqrt(dz / R)`` when
+    that is less, at most its climb limit. The profile levels off at half the turn's curvature
+    (the other half, and more, stays for the heading: the model shares one budget between
+    them), so an aircraft does not turn onto its goal still climbing or diving at its limit: it
+    takes its last turn radius level, pulled at the goal itself, and passes the goal at its
+    height. The others' targets unchanged (within the last turn radius too)."""
     fw = params.fixed_wing[idx] & at_goal
     if not fw.any():
         return target

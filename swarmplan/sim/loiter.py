@@ -22,10 +22,11 @@ takes (half of its flight) as a margin, and the height it has to win or lose. Wh
 is clear, or the height is more than its climb limit allows over the way in less a turn radius
 (it spirals on the circle instead), it takes, of the circles
 through the goal (every 10 degrees of heading there, either side, the radii of
-``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
-Dubins way: the turn at its minimum radius onto a tangent of the circle in the circle's
+``LOITER_FACTORS``), the clear one of the smallest radius that arrives first with the height
+won (a Dubins way: the turn at its minimum radius onto a tangent of the circle in the circle's
 direction of flight, the tangent, the arc to the goal; from inside it, the turn onto its
-course and the arc when shorter), or
+course and the arc when shorter; a way shorter than its climb and level-off take,
+:func:`climb_length`, with the whole laps of the circle that make it long enough), or
 the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
 goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
