@@ -134,11 +134,11 @@ def test_a_fixed_wing_passing_beside_its_goal_comes_round_once_and_arrives():
     assert arrival > math.pi * R / 25.0  # it came round (half a circle at least, at the top speed)
 
 
-def test_height_is_won_before_the_last_turn_radius_and_the_last_one_flown_at_the_goal():
+def test_height_is_won_before_the_last_turn_radius_and_the_last_one_flown_level():
     """``height_first``: between one and ``CAPTURE_RANGE`` turn radii of its goal a fixed wing's
     pull wins the height by a turn radius short of it (at most its climb limit, at most the
-    level-off profile ``sqrt(dz / R)``); within its last turn radius, beyond the capture range,
-    and for a target that is not its way to the goal, the target is left as it is."""
+    level-off profile ``sqrt(dz / R)``, which alone holds within its last turn radius); beyond the
+    capture range, and for a target that is not its way to the goal, the target is left as it is."""
     from swarmplan.flight.capture import CAPTURE_RANGE, height_first
 
     goal = [0.0, 0.0, 50.0]
@@ -165,18 +165,9 @@ def test_height_is_won_before_the_last_turn_radius_and_the_last_one_flown_at_the
     ahead = np.array([[-2.0 * R + 10.0, 0.0, 50.0]])
     out = aim([-2.0 * R, 0.0, 40.0], target=ahead)
     np.testing.assert_allclose(out, [[-2.0 * R + 10.0, 0.0, 40.0 + 10.0 * 10.0 / R]])
-    for pos in ([-0.9 * R, 0.0, 40.0], [-(CAPTURE_RANGE + 0.1) * R, 0.0, 40.0]):
-        assert aim(pos) is g
+    # Within the last turn radius, the profile: 0.5 R out, 2 m high.
+    out = aim([0.5 * R, 0.0, 52.0])
+    np.testing.assert_allclose(out, [[0.0, 0.0, 52.0 - 0.5 * R * math.tan(math.sqrt(2.0 / R))]])
+    assert aim([-(CAPTURE_RANGE + 0.1) * R, 0.0, 40.0]) is g
     assert aim([-2.0 * R, 0.0, 40.0], at_goal=False) is g
 
-
-def test_the_height_a_climb_takes_and_the_laps_that_make_a_way_long_enough():
-    from swarmplan.sim.loiter import _with_laps, climb_length
-
-    climb = math.radians(20.0)
-    assert climb_length(0.0, climb, R) == 1.5 * R * climb
-    assert climb_length(100.0, climb, R) == 100.0 / math.tan(climb) + 1.5 * R * climb
-    lap = 2.0 * math.pi * 1.2 * R
-    assert _with_laps(300.0, 200.0, 1.2 * R) == 300.0  # long enough as it is
-    assert _with_laps(100.0, 200.0, 1.2 * R) == 100.0 + lap  # one lap more
-    assert _with_laps(100.0, 100.0 + 1.5 * lap, 1.2 * R) == 100.0 + 2.0 * lap  # whole laps

@@ -22,11 +22,10 @@ takes (half of its flight) as a margin, and the height it has to win or lose. Wh
 is clear, or the height is more than its climb limit allows over the way in less a turn radius
 (it spirals on the circle instead), it takes, of the circles
 through the goal (every 10 degrees of heading there, either side, the radii of
-``LOITER_FACTORS``), the clear one of the smallest radius that arrives first with the height
-won (a Dubins way: the turn at its minimum radius onto a tangent of the circle in the circle's
+``LOITER_FACTORS``), the clear one of the smallest radius that is the shortest to fly to (a
+Dubins way: the turn at its minimum radius onto a tangent of the circle in the circle's
 direction of flight, the tangent, the arc to the goal; from inside it, the turn onto its
-course and the arc when shorter; a way shorter than its climb and level-off take,
-:func:`climb_length`, with the whole laps of the circle that make it long enough), or
+course and the arc when shorter), or
 the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
 goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
@@ -195,9 +194,7 @@ class Loiter:
         clearance = clear_of_statics(obstacles, i)
         bearing = np.array([g[0] - p[0], g[1] - p[1], 0.0])
         run = float(np.hypot(bearing[0], bearing[1])) - r_min
-        climb = float(self.params.max_climb[i])
-        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(climb)
-        climb_way = climb_length(abs(g[2] - p[2]), climb, r_min)
+        steep = abs(g[2] - p[2]) > max(run, 0.0) * math.tan(float(self.params.max_climb[i]))
         direct = [loiter_circle(g, bearing, f * r_min, side) for f in LOITER_FACTORS for side in (1.0, -1.0)]
         worst = clearance(np.concatenate(direct)).reshape(len(direct), -1).min(axis=1)
         if not steep and (worst >= margin).any():
@@ -212,7 +209,6 @@ class Loiter:
             clear = np.flatnonzero(worst >= margin)
             if len(clear):
                 ways = [_way_length(p, v, g, cands[j][0], r, cands[j][1], r_min) for j in clear]
-                ways = [_with_laps(w, climb_way, r) for w in ways]
                 a, side = cands[int(clear[int(np.argmin(ways))])]
                 best = (a, side, r)
                 break
@@ -290,22 +286,6 @@ def _way_length(
         onto = abs(math.remainder(course - psi, 2.0 * math.pi))
         best = min(best, r_min * onto + r * _swept(theta, math.atan2(g[1] - cy, g[0] - cx), side))
     return best
-
-
-def climb_length(height: float, climb: float, r_min: float) -> float:
-    """The flight (m) a fixed wing of climb limit ``climb`` (rad) and minimum turn radius
-    ``r_min`` takes to win or lose ``height`` and level off: the height at its limit's slope,
-    and the turns into and out of that slope (each ``r_min climb`` of flight at its tightest, the
-    level-off at half of it, as ``capture.height_first`` flies it: ``1.5 r_min climb`` more)."""
-    return height / math.tan(climb) + 1.5 * r_min * climb
-
-
-def _with_laps(way: float, climb_way: float, r: float) -> float:
-    """The flight to a goal ``way`` away on a circle of radius ``r`` with ``climb_way`` of flight
-    needed for its height: the way, and the whole laps of the circle that make it long enough."""
-    if way >= climb_way:
-        return way
-    return way + math.ceil((climb_way - way) / (2.0 * math.pi * r)) * 2.0 * math.pi * r
 
 
 def _swept(a: float, b: float, side: float) -> float:
