@@ -142,7 +142,8 @@ def _canonical(live, view, age, moved, pairs):
 def test_compaction_compiled_and_numpy_agree():
     """The rows held, each flyer's view of them, their ages and positions moved on, and the
     pairs within a radius: the same on the sparse book as on the matrix (by table row, the
-    numbering of the rows held aside); the compiled scratch is left as found."""
+    numbering of the rows held aside), written to new arrays or to buffers used again (left
+    dirty by the call before); the compiled scratch is left as found."""
     kernel = kernel_module("swarmplan.sim._network_kernel")
     rng = np.random.default_rng(4)
     # Each sender's rows its own (row 1 + j + 40 u: the u-th state sent by agent j).
@@ -156,16 +157,24 @@ def test_compaction_compiled_and_numpy_agree():
     at = rng.uniform(0.0, 10.0, (15, 3))
     never = (np.full(40, 2.0), np.full(40, np.inf))  # no row too old
     stale = (rng.uniform(1.0, 5.0, 40), rng.uniform(0.5, 3.0, 40))
+    none = np.empty(0, dtype=np.int64)
+    fresh = (np.empty((0, 40), dtype=np.int64), none, none, none, np.empty(0))
+    size = 40 * 40
+    dirty = np.full(size + 1, 7, dtype=np.int64)
+    used = (np.full((40, 40), 7, dtype=np.int64), dirty[:size].copy(), dirty, dirty[:size].copy(),
+            np.full(size, 7.0))  # fmt: skip
     # about the most common row, the newest, and a row no flyer holds
     for base in (heard[idx[0]], heard.max(axis=0), 1 + np.arange(40) + 40 * 7):
         book = holdings(heard, base)
         for radius in (0.0, 2.5, 6.0, 100.0):
             for old in (never, stale):
                 want = _canonical(*compact_near_numpy(heard, idx, mark, table, 2.5, at, radius, old))
-                got = _canonical(*kernel.compact_near(book, idx, mark, table, 2.5, at, radius, old))
-                for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
-                    np.testing.assert_array_equal(w, g)
-                assert (mark == -1).all()
+                for buffers in (fresh, used):
+                    args = (book, idx, mark, table, 2.5, at, radius, old, buffers)
+                    got = _canonical(*kernel.compact_near(*args))
+                    for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
+                        np.testing.assert_array_equal(w, g)
+                    assert (mark == -1).all()
     # A row is left out of a flyer's view exactly when its agent may be farther from it than
     # both agents' stopping reach.
     live, view, age, _, _ = compact_near_numpy(heard, idx, mark, table, 2.5, at, 100.0, stale)

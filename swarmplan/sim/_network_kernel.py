@@ -195,7 +195,7 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
 
 
 @njit(cache=True, nogil=True)
-def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
+def compact_near(book, idx, mark, table, t, at, radius, stale, buffers):  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
     """``network.compact_near_numpy`` on the sparse book (:func:`deliver`): the table rows that
     flyers ``idx`` hold (each sender's base row held by any flyer, in sender order, then the
     rows held as flyers' own entries, in the order first met), each flyer's view of them (n, N:
@@ -206,7 +206,10 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
     (``table`` = (time, position, velocity) per table row), and the pairs (flyer row k, agent j,
     row, distance) of flyers ``idx`` (at ``at``) within ``radius`` of those positions, in (k, j)
     order. A flyer's view is its senders' base rows but for its own entries: one copy of a row
-    of N and a few changes per flyer."""
+    of N and a few changes per flyer. ``buffers`` = (views (at least n, N), flyer rows, agents,
+    rows, distances (each at least n N, the agents one more)): buffers the views and pairs are
+    written to and returned from (a run's, reused from step to step: memory freshly allocated
+    costs its first writes more than the pass), or empty ones: new arrays."""
     base, start, holders, values = book
     t_row, pos_row, vel_row = table
     max_accel, reach = stale
@@ -283,7 +286,14 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
         mark[live[m]] = -1
     # Each flyer's view, and the pairs within the radius: the base positions by coordinate,
     # changed by the flyer's own entries and changed back.
-    view = np.empty((n, n_all), dtype=np.int64)
+    views, ks, js, rows, ds = buffers
+    if views.shape[0] < n or ks.shape[0] < n * n_all:
+        views = np.empty((n, n_all), dtype=np.int64)
+        ks = np.empty(n * n_all, dtype=np.int64)
+        js = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last candidate is written, then dropped
+        rows = np.empty(n * n_all, dtype=np.int64)
+        ds = np.empty(n * n_all)
+    view = views[:n]
     px = np.empty(n_all)
     py = np.empty(n_all)
     pz = np.empty(n_all)
@@ -294,10 +304,6 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
         else:
             px[s], py[s], pz[s] = moved[m, 0], moved[m, 1], moved[m, 2]
     d2 = np.empty(n_all)
-    ks = np.empty(n * n_all, dtype=np.int64)
-    js = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last candidate is written, then dropped
-    rows = np.empty(n * n_all, dtype=np.int64)
-    ds = np.empty(n * n_all)
     c = 0
     wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
@@ -348,5 +354,5 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
                 ks[kept], js[kept], rows[kept], ds[kept] = ks[p], js[p], rows[p], ds[p]
                 kept += 1
         c = kept
-    # (slices, not copies: they live as long as the beliefs, one step)
+    # (slices, not copies: they live as long as the beliefs, one step, and the buffers)
     return live[:count_live], view, age[:count_live], moved[:count_live], (ks[:c], js[:c], rows[:c], ds[:c])

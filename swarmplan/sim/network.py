@@ -199,14 +199,15 @@ def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.nd
 
 def compact_near_numpy(
     heard: np.ndarray, idx: np.ndarray, mark: np.ndarray, table: tuple[np.ndarray, np.ndarray, np.ndarray],
-    t: float, at: np.ndarray, radius: float, stale: tuple[np.ndarray, np.ndarray],
+    t: float, at: np.ndarray, radius: float, stale: tuple[np.ndarray, np.ndarray], buffers: tuple = (),
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:  # fmt: skip
     """:func:`compact`, the ages at ``t`` of the rows held and their positions moved on by them
     at the velocity sent (``table`` = (time, position, velocity) per table row), and
     :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions. A row
     too old to act on is left out of a flyer's view (-1): its agent may be farther from it
     (:func:`belief_doubt`) than both agents' stopping reach (``stale`` = (max_accel, stopping
-    reach) per agent), as far as knowing nothing of it."""
+    reach) per agent), as far as knowing nothing of it. ``buffers``: the compiled pass's (its
+    output's room), unused here."""
     t_row, pos_row, vel_row = table
     max_accel, reach = stale
     live, view = compact(heard, idx, mark)
@@ -291,6 +292,9 @@ class Network:
         # sender's base row, and the receivers holding another row (a copy missed or not yet
         # due); smaller worlds the (receiver, sender) matrix itself.
         self._sparse = use_compiled(self.n)
+        n, none = self.n, np.empty(0, dtype=np.int64)
+        self._no_buffers = (np.empty((0, n), dtype=np.int64), none, none, none, np.empty(0))
+        self._buffers = self._no_buffers  # a swarm's, made at its first use
 
     def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
         """At t = 0: every agent has heard every other within range, at rest at its start."""
@@ -489,12 +493,14 @@ class Network:
         goal_distance: np.ndarray,
         near: float = 0.0,
         yields: np.ndarray | None = None,
+        reuse: bool = False,
     ) -> Beliefs:
         """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in; the pairs within ``near`` of each flyer
         (:meth:`Beliefs.near_superset`) found on the way; ``yields``: which agents loiter now
-        (their own and sensed rows; None: none)."""
+        (their own and sensed rows; None: none); ``reuse``: the views and pairs written into the
+        network's own buffers (a swarm's), valid until the next call that reuses them."""
         self.deliver(t)
         tb, n = self.table, len(idx)
         idx64 = np.asarray(idx, dtype=np.int64)
@@ -505,8 +511,14 @@ class Network:
         run, book = (
             (_kernel().compact_near, self._heard.lists) if self._sparse else (compact_near_numpy, self._heard)
         )
+        if reuse and self._sparse and not len(self._buffers[0]):
+            size = self.n * self.n  # room for every agent flying
+            self._buffers = (np.empty((self.n, self.n), dtype=np.int64), np.empty(size, dtype=np.int64),
+                             np.empty(size + 1, dtype=np.int64), np.empty(size, dtype=np.int64),
+                             np.empty(size))  # fmt: skip
+        buffers = self._buffers if reuse and self._sparse else self._no_buffers
         live, view, age, moved, pairs = run(
-            book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
+            book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale, buffers
         )
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).

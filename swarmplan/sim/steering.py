@@ -146,7 +146,9 @@ class Steering:
             # look (the oldest state a step older than the last step's oldest).
             look = braking_radius(self.params, self.world.dt, self._oldest + self.world.dt)
             near = max(self.apf.agent_reach, look)
-            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=near, yields=self.loiter.on)
+            b = self.network.beliefs(
+                idx, s.t, pos0, vel0, parked, to_go, near=near, yields=self.loiter.on, reuse=True
+            )
             self._oldest = oldest_age(b)
             # Beliefs moved on with the acceleration sent: the truth may be off by twice the
             # doubt of a belief moved on at the velocity sent (that acceleration since reversed).
