@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from swarmplan.core import AgentAges, Mode, SwarmState
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.sim.network_book import Book
 from swarmplan.world.comms import Comms, Sensing
@@ -364,12 +365,12 @@ class Network:
             pos[who],
             vel[who],
             parked[who],
-            np.linalg.norm(s.goal[who] - pos[who], axis=1),
+            norm3(s.goal[who] - pos[who]),
             self._book(s, who),
             yields[who],
         )
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
-        over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
+        over = norm3(acc[who]) / self.max_accel[who]
         self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
         at = pos if math.isfinite(c.range) else np.zeros((0, 3))
         if self._sparse:

@@ -23,7 +23,7 @@ from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.sight import Sight
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.sim.deconflict import braking_radius, braking_room, oldest_age
+from swarmplan.sim.deconflict import BrakingLook, braking_room, oldest_age
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
@@ -69,6 +69,7 @@ class Steering:
             reach = stopping_reach(params, world.dt)
             self.network = Network(world.comms, world.sensing, params.max_accel, reach, world.dt)
         self.sensing_range = math.inf if world.sensing is None else world.sensing.range
+        self._look = BrakingLook(params, world.dt)  # how far the braking room looks
         self._oldest = 0.0  # the age of the oldest state any flyer acted on in the last step
 
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
@@ -144,7 +145,7 @@ class Steering:
         else:  # each flyer's own beliefs of the others
             # The pairs found with the beliefs reach as far as the field and the braking room
             # look (the oldest state a step older than the last step's oldest).
-            look = braking_radius(self.params, self.world.dt, self._oldest + self.world.dt)
+            look = self._look.radius(self._oldest + self.world.dt)
             near = max(self.apf.agent_reach, look)
             b = self.network.beliefs(
                 idx, s.t, pos0, vel0, parked, to_go, near=near, yields=self.loiter.on, reuse=True
@@ -163,5 +164,5 @@ class Steering:
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
         v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal)
         if b is not None:  # room to stop behind the agents ahead, as far as it knows them
-            v_cmd = braking_room(self.params, b, v_cmd, self.world.dt)
+            v_cmd = braking_room(self.params, b, v_cmd, self.world.dt, self._look)
         return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b, oldest)
