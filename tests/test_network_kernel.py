@@ -21,6 +21,7 @@ from swarmplan.sim.network import (
     draws,
     fates_numpy,
     held_pairs,
+    oldest_ages,
 )
 from swarmplan.sim.network_book import holdings
 from swarmplan.world.comms import Comms
@@ -51,6 +52,23 @@ def test_held_pairs_compiled_and_numpy_agree():
                 np.testing.assert_array_equal(w, g)
             assert (want[1] != b.idx[want[0]]).all() and (want[3] < radius).all()
         assert len(held_pairs(b.view, b.pos, b.at, own, 100.0)[0]) == int((b.view >= 0).sum()) - 20
+
+
+def test_oldest_ages_compiled_and_numpy_agree():
+    """Per flyer, the oldest state among its pairs within reach: the same on both paths, nan
+    for a flyer with none within reach."""
+    kernel = kernel_module("swarmplan.sim._network_kernel")
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        b = _beliefs(rng, 20, 60)
+        b.age[:] = rng.uniform(0.0, 0.6, len(b.age))
+        k, _, rows, d = held_pairs(b.view, b.pos, b.at, b.idx.astype(np.int64), 8.0)
+        for reach in (0.0, 2.0, 5.0, 100.0):
+            want = oldest_ages(k, rows, d, b.age, reach, 20)
+            np.testing.assert_array_equal(want, kernel.oldest_ages(k, rows, d, b.age, reach, 20))
+            for f in range(20):
+                near = (k == f) & (d < reach)
+                assert want[f] == b.age[rows[near]].max() if near.any() else np.isnan(want[f])
 
 
 def test_copy_draws_compiled_and_numpy_agree():

@@ -52,6 +52,23 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     return ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy()
 
 
+@njit(cache=True, nogil=True)
+def oldest_ages(k, rows, d, age, reach, n):  # noqa: ANN001, ANN201
+    """``network.oldest_ages``: per flyer row of ``n``, the largest ``age`` of the rows of the
+    pairs (flyer row ``k``, table row ``rows``, distance ``d``) closer than ``reach``; nan for
+    a flyer with none (a nan age wins, as in ``np.maximum``)."""
+    out = np.full(n, -np.inf)
+    for p in range(k.shape[0]):
+        a = age[rows[p]] if d[p] < reach else -np.inf
+        f = k[p]
+        if a > out[f] or a != a:
+            out[f] = a
+    for f in range(n):
+        if not math.isfinite(out[f]):
+            out[f] = np.nan
+    return out
+
+
 _SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
 _SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)

@@ -183,6 +183,19 @@ def deliver_numpy(
     heard[:, senders] = np.where(take, rows[None, :], cur)
 
 
+def oldest_ages(
+    k: np.ndarray, rows: np.ndarray, d: np.ndarray, age: np.ndarray, reach: float, n: int
+) -> np.ndarray:
+    """Per flyer row of ``n``: the largest ``age`` of the rows of the pairs (flyer row ``k``,
+    table row ``rows``, distance ``d``; in flyer order) closer than ``reach``; nan for a flyer
+    with none."""
+    out = np.full(n, -np.inf)
+    if len(k):  # the pairs run flyer by flyer: one maximum per flyer's run
+        first = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
+        out[k[first]] = np.maximum.reduceat(np.where(d < reach, age[rows], -np.inf), first)
+    return np.where(np.isfinite(out), out, np.nan)
+
+
 def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The table rows that flyers ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the
     order first met reading ``heard[idx]`` row by row, and each flyer's view of them (n, N: the
@@ -443,11 +456,8 @@ class Network:
         believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
         when it believes none that near."""
         k, _, rows, d = beliefs.near_superset(reach)
-        age = np.full(len(beliefs.idx), -np.inf)
-        if len(k):  # the pairs run flyer by flyer: one maximum per flyer's run
-            first = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
-            age[k[first]] = np.maximum.reduceat(np.where(d < reach, beliefs.age[rows], -np.inf), first)
-        return np.where(np.isfinite(age), age, np.nan)
+        run = _kernel().oldest_ages if self._sparse else oldest_ages
+        return run(k, rows, d, beliefs.age, reach, len(beliefs.idx))
 
     def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
         """The ``/comms`` message of the step ending at ``t``: flyers ``idx`` acted on states at
