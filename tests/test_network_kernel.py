@@ -13,9 +13,9 @@ import pytest
 from swarmplan.core import Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim import network
-from swarmplan.sim.network import (
-    Beliefs,
-    Network,
+from swarmplan.sim.network import Beliefs, Network
+from swarmplan.sim.network_book import holdings
+from swarmplan.sim.network_passes import (
     compact_near_numpy,
     deliver_numpy,
     draws,
@@ -23,7 +23,6 @@ from swarmplan.sim.network import (
     held_pairs,
     oldest_ages,
 )
-from swarmplan.sim.network_book import holdings
 from swarmplan.world.comms import Comms
 
 

@@ -54,7 +54,7 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
 
 @njit(cache=True, nogil=True)
 def oldest_ages(k, rows, d, age, reach, n):  # noqa: ANN001, ANN201
-    """``network.oldest_ages``: per flyer row of ``n``, the largest ``age`` of the rows of the
+    """``network_passes.oldest_ages``: per flyer row of ``n``, the largest ``age`` of the rows of the
     pairs (flyer row ``k``, table row ``rows``, distance ``d``) closer than ``reach``; nan for
     a flyer with none (a nan age wins, as in ``np.maximum``)."""
     out = np.full(n, -np.inf)
@@ -79,7 +79,7 @@ _TWO = np.uint64(2)
 
 @njit(cache=True, nogil=True)
 def draw(key, row, receiver, salt):  # noqa: ANN001, ANN201
-    """``network.draws`` for one copy: the uniform draw in [0, 1) of the copy of table row
+    """``network_passes.draws`` for one copy: the uniform draw in [0, 1) of the copy of table row
     ``row`` to ``receiver`` (``salt`` 0: its loss, 1: its jitter)."""
     z = key + np.uint64(row) * _SPREAD_ROW + (np.uint64(receiver) * _TWO + np.uint64(salt)) * _SPREAD_COPY
     z = (z ^ (z >> _S30)) * _MIX1
@@ -90,7 +90,7 @@ def draw(key, row, receiver, salt):  # noqa: ANN001, ANN201
 
 @njit(cache=True, nogil=True)
 def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
-    """``network.fates_numpy`` kept sparse: for each copy c of one broadcast (``senders``, their
+    """``network_passes.fates_numpy`` kept sparse: for each copy c of one broadcast (``senders``, their
     table ``rows``), the receivers that do not take it (its sender, those out of range, those
     that lose it), ascending, ``miss[ptr[c]:ptr[c + 1]]``; ``fate`` = (loss, the delay's jitter,
     the time the broadcast falls due, range), ``at`` the agents' positions when it was sent
@@ -147,7 +147,7 @@ def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
 
 @njit(cache=True, nogil=True)
 def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN001, ANN201, PLR0913
-    """``network.deliver_numpy`` on the sparse book of what every receiver holds (``book`` =
+    """``network_passes.deliver_numpy`` on the sparse book of what every receiver holds (``book`` =
     (base, start, holders, values): receiver r holds of sender s the row ``values[e]`` when it
     is ``holders[e]`` for some e in ``start[s]:start[s + 1]`` (ascending), else the sender's
     base row ``base[s]``; a receiver holds an entry of its own exactly when its row is not the
@@ -213,7 +213,7 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
 
 @njit(cache=True, nogil=True)
 def compact_near(book, idx, mark, table, t, at, radius, stale, buffers):  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
-    """``network.compact_near_numpy`` on the sparse book (:func:`deliver`): the table rows that
+    """``network_passes.compact_near_numpy`` on the sparse book (:func:`deliver`): the table rows that
     flyers ``idx`` hold (each sender's base row held by any flyer, in sender order, then the
     rows held as flyers' own entries, in the order first met), each flyer's view of them (n, N:
     the position among those rows, -1: none, or a row too old to act on: its agent may be
@@ -274,7 +274,7 @@ def compact_near(book, idx, mark, table, t, at, radius, stale, buffers):  # noqa
             of_base[s] = m
             live[m] = r
             age[m] = t - t_row[r]
-            doubt[m] = 0.5 * max_accel[s] * age[m] * age[m]  # network.belief_doubt
+            doubt[m] = 0.5 * max_accel[s] * age[m] * age[m]  # network_passes.belief_doubt
             old += doubt[m] > least + reach[s]
             for c in range(3):
                 moved[m, c] = pos_row[r, c] + vel_row[r, c] * age[m]

@@ -33,7 +33,8 @@ from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled, use_compiled_checks
 from swarmplan.sim.braking import stoppable_speed
 from swarmplan.sim.modes import ARRIVED, mode_in
-from swarmplan.sim.network import Beliefs, belief_doubt
+from swarmplan.sim.network import Beliefs
+from swarmplan.sim.network_passes import belief_doubt
 from swarmplan.world.model import World
 
 

@@ -27,7 +27,8 @@ from swarmplan.sim.deconflict import BrakingLook, braking_room, oldest_age
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
-from swarmplan.sim.network import Beliefs, Network, belief_doubt
+from swarmplan.sim.network import Beliefs, Network
+from swarmplan.sim.network_passes import belief_doubt
 from swarmplan.sim.obstacles import Obstacles
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
