@@ -16,6 +16,7 @@ from swarmplan.sim import network
 from swarmplan.sim.network import Beliefs, Network
 from swarmplan.sim.network_book import holdings
 from swarmplan.sim.network_passes import (
+    belief_table_numpy,
     compact_near_numpy,
     deliver_numpy,
     draws,
@@ -68,6 +69,27 @@ def test_oldest_ages_compiled_and_numpy_agree():
             for f in range(20):
                 near = (k == f) & (d < reach)
                 assert want[f] == b.age[rows[near]].max() if near.any() else np.isnan(want[f])
+
+
+def test_belief_table_compiled_and_numpy_agree():
+    """The believed states (the rows held moved on, then the true states): the same bits on both
+    paths."""
+    kernel = kernel_module("swarmplan.sim._network_kernel")
+    rng = np.random.default_rng(7)
+    size, n = 90, 30
+    table = (rng.normal(0.0, 3.0, (size, 3)), rng.normal(0.0, 4.0, (size, 3)), rng.random(size) < 0.3,
+             rng.uniform(0.0, 50.0, size), rng.integers(0, n, size), rng.random(size) < 0.2)  # fmt: skip
+    now = (rng.uniform(0.0, 10.0, (n, 3)), rng.normal(0.0, 3.0, (n, 3)), rng.random(n) < 0.3,
+           rng.uniform(0.0, 50.0, n), rng.random(n) < 0.2)  # fmt: skip
+    some = np.sort(rng.choice(n, 12, replace=False))
+    for held, truth in ((25, np.arange(n)), (40, some), (0, np.arange(3))):
+        live = rng.choice(np.arange(1, size), held, replace=False).astype(np.int64)
+        age, moved = rng.uniform(0.0, 0.7, held), rng.uniform(0.0, 10.0, (held, 3))
+        want = belief_table_numpy(live, age, moved, table, truth.astype(np.int64), now)
+        got = kernel.belief_table(live, age, moved, table, truth.astype(np.int64), now)
+        for w, g in zip(want, got, strict=True):
+            assert w.dtype == g.dtype
+            np.testing.assert_array_equal(w, g)
 
 
 def test_copy_draws_compiled_and_numpy_agree():

@@ -69,6 +69,36 @@ def oldest_ages(k, rows, d, age, reach, n):  # noqa: ANN001, ANN201
     return out
 
 
+@njit(cache=True, nogil=True)
+def belief_table(live, age, moved, table, truth, now):  # noqa: ANN001, ANN201
+    """``network_passes.belief_table_numpy`` in one pass over the rows: the rows held, then the
+    true states of agents ``truth``."""
+    vel_row, acc_row, parked_row, to_go_row, agent_row, yields_row = table
+    pos, vel, parked, to_go, yields = now
+    n_live = live.shape[0]
+    m_all = n_live + truth.shape[0]
+    b_pos, b_vel = np.empty((m_all, 3)), np.empty((m_all, 3))
+    e_pos, e_vel = np.empty((m_all, 3)), np.empty((m_all, 3))
+    b_parked, b_yields = np.empty(m_all, dtype=np.bool_), np.empty(m_all, dtype=np.bool_)
+    b_to_go, b_age, b_agent = np.empty(m_all), np.empty(m_all), np.empty(m_all, dtype=np.int64)
+    for m in range(n_live):
+        r, a = live[m], age[m]
+        for c in range(3):
+            b_pos[m, c] = moved[m, c]
+            b_vel[m, c] = vel_row[r, c]
+            e_pos[m, c] = moved[m, c] + 0.5 * acc_row[r, c] * (a * a)
+            e_vel[m, c] = vel_row[r, c] + acc_row[r, c] * a
+        b_parked[m], b_to_go[m], b_age[m] = parked_row[r], to_go_row[r], a
+        b_agent[m], b_yields[m] = agent_row[r], yields_row[r]
+    for q in range(truth.shape[0]):
+        i, m = truth[q], n_live + q
+        for c in range(3):
+            b_pos[m, c] = e_pos[m, c] = pos[i, c]
+            b_vel[m, c] = e_vel[m, c] = vel[i, c]
+        b_parked[m], b_to_go[m], b_age[m], b_agent[m], b_yields[m] = parked[i], to_go[i], 0.0, i, yields[i]
+    return b_pos, b_vel, b_parked, b_to_go, b_age, b_agent, e_pos, e_vel, b_yields
+
+
 _SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
 _SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)

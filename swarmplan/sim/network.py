@@ -40,6 +40,7 @@ from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.sim.network_book import Book
 from swarmplan.sim.network_passes import (
+    belief_table_numpy,
     compact_near_numpy,
     deliver_numpy,
     fates_numpy,
@@ -407,21 +408,13 @@ class Network:
         if sensing:
             k, j = _within(pos[idx], pos, self.sensing_range)
             view[k, j] = first + j
-        own_yields = np.zeros(len(truth), bool) if yields is None else yields[truth]
-        b = Beliefs(
-            idx,
-            pos[idx],
-            np.concatenate([moved, pos[truth]]),
-            np.concatenate([tb.vel[live], vel[truth]]),
-            np.concatenate([tb.parked[live], parked[truth]]),
-            np.concatenate([tb.goal_distance[live], goal_distance[truth]]),
-            np.concatenate([age, np.zeros(len(truth))]),
-            np.concatenate([tb.agent[live], truth]),
-            view,
-            np.concatenate([moved + 0.5 * tb.acc[live] * (age * age)[:, None], pos[truth]]),
-            np.concatenate([tb.vel[live] + tb.acc[live] * age[:, None], vel[truth]]),
-            np.concatenate([tb.yields[live], own_yields]),
-        )
+        yields = np.zeros(self.n, dtype=bool) if yields is None else yields
+        rows = (tb.vel, tb.acc, tb.parked, tb.goal_distance, tb.agent, tb.yields)
+        run = _kernel().belief_table if self._sparse else belief_table_numpy
+        # (position, velocity, parked, to go, age, agent, expected position and velocity, yields)
+        now = (pos, vel, parked, goal_distance, yields)
+        f = run(live, age, moved, rows, np.asarray(truth, dtype=np.int64), now)
+        b = Beliefs(idx, pos[idx], *f[:6], view, *f[6:])
         if radius > 0.0:
             b.__dict__["_near"] = (radius, pairs)
         return b

@@ -149,3 +149,29 @@ def compact_near_numpy(
     old = belief_doubt(max_accel[j], age[rows]) > reach[idx[k]] + reach[j]
     view[k[old], j[old]] = -1
     return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
+
+
+def belief_table_numpy(
+    live: np.ndarray, age: np.ndarray, moved: np.ndarray, table: tuple[np.ndarray, ...], truth: np.ndarray,
+    now: tuple[np.ndarray, ...],
+) -> tuple[np.ndarray, ...]:  # fmt: skip
+    """The table of believed states (``network.Beliefs``, one row each): the rows held ``live``
+    (``age`` and position ``moved`` on by it, :func:`compact_near_numpy`; ``table`` = (velocity,
+    acceleration, parked, distance to the goal, agent, yields) per table row), then the true
+    states of agents ``truth`` (``now`` = (position, velocity, parked, distance to the goal,
+    yields) per agent, age 0). Returns (position, velocity, parked, distance to the goal, age,
+    agent, position and velocity moved on with the acceleration sent too, yields)."""
+    vel_row, acc_row, parked_row, to_go_row, agent_row, yields_row = table
+    pos, vel, parked, to_go, yields = now
+    vel_held, acc_held = vel_row[live], acc_row[live]
+    return (
+        np.concatenate([moved, pos[truth]]),
+        np.concatenate([vel_held, vel[truth]]),
+        np.concatenate([parked_row[live], parked[truth]]),
+        np.concatenate([to_go_row[live], to_go[truth]]),
+        np.concatenate([age, np.zeros(len(truth))]),
+        np.concatenate([agent_row[live], truth]),
+        np.concatenate([moved + 0.5 * acc_held * (age * age)[:, None], pos[truth]]),
+        np.concatenate([vel_held + acc_held * age[:, None], vel[truth]]),
+        np.concatenate([yields_row[live], yields[truth]]),
+    )
