@@ -187,8 +187,9 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
     missed it, or hold a newer row (arrived ahead of its broadcast), keep entries of their own:
     a merge of two short lists per sender, not one write per receiver. The new lists are
     written to ``spare`` = (start, holders, values), with room for those held and those of the
-    copies missed (of every receiver while copies are still on their way); returns whether
-    they were written (``base`` changes in place)."""
+    copies missed (of every receiver while copies are still on their way: the merge writes at
+    most one entry past those it keeps, within that room); returns whether they were written
+    (``base`` changes in place)."""
     base, start, holders, values = book
     new_start, new_holders, new_values = spare
     jitter, due = fate[1], fate[2]
@@ -222,20 +223,21 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
                     new_holders[m], new_values[m] = r, v
                     m += 1
             continue
-        # every copy has arrived: the row is the base but for those that missed it
+        # every copy has arrived: the row is the base but for those that missed it (and keep
+        # what they hold), and those holding a newer row (arrived ahead of its broadcast); each
+        # step written whatever it is, kept by moving m on (no branch to mispredict)
+        base_s = base[s]
         while q < q_end or e < e_end:
             rq = miss[q] if q < q_end else n
             re = holders[e] if e < e_end else n
-            if rq <= re:  # missed it: keeps what it holds
-                new_holders[m], new_values[m] = rq, values[e] if rq == re else base[s]
-                m += 1
-                q += 1
-                e += rq == re
-            else:  # its own entry: kept only when newer (arrived ahead)
-                if values[e] > row:
-                    new_holders[m], new_values[m] = re, values[e]
-                    m += 1
-                e += 1
+            held = values[e] if e < e_end else 0
+            missed = rq <= re  # (then rq is a receiver: re is n only past the holders)
+            both = rq == re
+            new_holders[m] = rq if missed else re
+            new_values[m] = (held if both else base_s) if missed else held
+            m += missed or held > row
+            q += missed
+            e += both or not missed
         base[s] = row
     new_start[n] = m
     return True
