@@ -34,9 +34,10 @@ def field_forces(world, pos, vel=None, t=0.0):
     return apf_forces(world, params, idx, pos, vel, goal, inputs, pos, vel)
 
 
-def apf_forces(world, params, idx, pos, vel, goal, inputs, all_pos, all_vel, parked=None):
-    """The world's field on agents ``idx`` (rows of pos/vel/goal) among the whole swarm."""
-    flyers = Flyers(idx, pos, vel, goal)
+def apf_forces(world, params, idx, pos, vel, goal, inputs, all_pos, all_vel, parked=None, target=None):
+    """The world's field on agents ``idx`` (rows of pos/vel/goal, pulled at ``target``, default
+    their goals) among the whole swarm."""
+    flyers = Flyers(idx, pos, vel, goal, target)
     return ApfField(world, params).forces(flyers, inputs, Swarm(all_pos, all_vel, parked))
 
 
@@ -338,6 +339,7 @@ def test_fixed_wings_keep_the_full_repulsion_of_parked_agents(monkeypatch):
     goal circles at speed past them (rscdwoa_multi_uav, woa seed 9: uav1 circled its goal for
     50 s with the factor, arrived at 60 s without it). A multirotor takes the factor."""
     import swarmplan.sim.steering as steering
+    from swarmplan.flight.capture import height_first
     from swarmplan.sim import Simulation
 
     fixed = {"model": "fixed_wing", "speed": {"min": 8, "max": 14, "cruise": 10}, "min_turn_radius": 20}
@@ -379,9 +381,13 @@ def test_fixed_wings_keep_the_full_repulsion_of_parked_agents(monkeypatch):
     full = apf_forces(*args)
     np.testing.assert_array_equal(factor[0], full[0])  # the fixed wing: parked or not, the same
     assert not np.allclose(factor[1], full[1])  # the multirotor takes the factor
-    # The simulation's own step used the parked rule.
-    args = (w, params, idx, pos0[idx], vel0[idx], sim.state.goal[idx], inputs, pos0, vel0)
-    np.testing.assert_array_equal(used[-1], apf_forces(*args, parked=np.array([True, False, False])))
+    # The simulation's own step used the parked rule (the fixed wing pulled at its goal, at the
+    # height its final approach aims at: ``capture.height_first``).
+    goal = sim.state.goal[idx]
+    target = height_first(params, idx, pos0[idx], goal, np.ones(2, bool), goal)
+    args = (w, params, idx, pos0[idx], vel0[idx], goal, inputs, pos0, vel0)
+    rule = apf_forces(*args, parked=np.array([True, False, False]), target=target)
+    np.testing.assert_array_equal(used[-1], rule)
 
 
 def test_agent_gain_left_out_scales_with_the_pull():

@@ -413,7 +413,7 @@ def test_belief_doubt_is_half_the_limit_times_the_age_squared():
     """An agent heard ``age`` ago may be a age^2 / 2 from its state moved on at the velocity
     sent; 0 for a state of now and for an unknown age; the deconfliction's margin is the doubt
     at the step's end."""
-    from swarmplan.sim.network import belief_doubt
+    from swarmplan.sim.network_passes import belief_doubt
 
     d = belief_doubt(np.array([2.0, 8.0, 8.0]), np.array([0.0, 0.3, np.inf]))
     np.testing.assert_allclose(d, [0.0, 0.5 * 8.0 * 0.09, 0.0])

@@ -447,8 +447,9 @@ def test_check_passes_the_flight_own_near_miss_and_fails_an_export_closer_than_i
 
 @pytest.mark.skipif(not (ROOT / "worlds" / "crazyflie_room.yaml").exists(), reason="needs the shipped world")
 def test_the_room_of_crazyflies_exports_and_checks(tmp_path, capsys):
-    """The shipped room flown (in this process), then exported by ``python -m swarmplan.export``
-    (a process of its own: the command's real entry point)."""
+    """The shipped room flown and exported with ``--check`` (in this process); the command's real
+    entry point, ``python -m swarmplan.export``, in a process of its own on a log that is not
+    there: one line naming it, exit 2, nothing written."""
     from swarmplan.cli.run import main as run_main
 
     env = dict(os.environ, PYTHONPATH=str(ROOT))
@@ -457,12 +458,14 @@ def test_the_room_of_crazyflies_exports_and_checks(tmp_path, capsys):
     code = run_main([world, "--out", str(log), "--quiet"])
     assert code == 0, capsys.readouterr()
     out = str(tmp_path / "cf")
+    assert cli_main([str(log), "--format", "crazyflie", "--out", out, "--check"]) == 0, capsys.readouterr()
+    missing, never = tmp_path / "none.mcap", tmp_path / "no"
     exp = subprocess.run(
-        [sys.executable, "-m", "swarmplan.export", str(log), "--format", "crazyflie", "--out", out,
-         "--check"],
+        [sys.executable, "-m", "swarmplan.export", str(missing), "--format", "csv", "--out", str(never)],
         capture_output=True, text=True, env=env, timeout=600,
     )  # fmt: skip
-    assert exp.returncode == 0, exp.stdout + exp.stderr
+    assert exp.returncode == 2 and exp.stderr.strip().splitlines() == [f"export: {missing}: no such file"]
+    assert not never.exists()
     manifest = json.loads((tmp_path / "cf" / "manifest.json").read_text())
     for entry in manifest["agents"]:
         assert entry["max_deviation_m"] <= 0.05 and entry["pieces"] <= 31

@@ -132,3 +132,42 @@ def test_a_fixed_wing_passing_beside_its_goal_comes_round_once_and_arrives():
     # Out to FINAL R and back, and a full circle, at the minimum speed bound the time.
     assert arrival <= float(capture_time(AgentParams.from_world(world))[0]), arrival
     assert arrival > math.pi * R / 25.0  # it came round (half a circle at least, at the top speed)
+
+
+def test_height_is_won_before_the_last_turn_radius_and_the_last_one_flown_level():
+    """``height_first``: between one and ``CAPTURE_RANGE`` turn radii of its goal a fixed wing's
+    pull wins the height by a turn radius short of it (at most its climb limit, at most the
+    level-off profile ``sqrt(dz / R)``, which alone holds within its last turn radius); beyond the
+    capture range, and for a target that is not its way to the goal, the target is left as it is."""
+    from swarmplan.flight.capture import CAPTURE_RANGE, height_first
+
+    goal = [0.0, 0.0, 50.0]
+    params = AgentParams.from_world(_fixed_wing_world(goal))
+    climb = params.max_climb[0]
+    g = np.array([goal])
+
+    def aim(pos: list[float], at_goal: bool = True, target: np.ndarray = g) -> np.ndarray:
+        return height_first(params, np.array([0]), np.array([pos]), g, np.array([at_goal]), target)
+
+    # 2 R out and 10 m low: the slope over the one turn radius before the last, atan(10 / R).
+    out = aim([-2.0 * R, 0.0, 40.0])
+    np.testing.assert_allclose(out, [[0.0, 0.0, 40.0 + 2.0 * R * 10.0 / R]])
+    # 1.2 R out and 20 m high: the slope (atan(20 / 0.2 R), 68 degrees) and the level-off
+    # profile (sqrt(0.5), 35 degrees) are over the climb limit: a dive at the limit.
+    out = aim([1.2 * R, 0.0, 70.0])
+    np.testing.assert_allclose(out, [[0.0, 0.0, 70.0 - 1.2 * R * math.tan(climb)]])
+    # 1.1 R out, 1 m low: the slope atan(1 / 0.1 R) (14 degrees) is over the profile sqrt(1 / R)
+    # (9 degrees), both under the climb limit (15): the profile.
+    out = aim([-1.1 * R, 0.0, 49.0])
+    assert math.sqrt(1.0 / R) < math.atan(1.0 / (0.1 * R)) < climb
+    np.testing.assert_allclose(out, [[0.0, 0.0, 49.0 + 1.1 * R * math.tan(math.sqrt(1.0 / R))]])
+    # The target is what the pull aims at horizontally: its height follows the same slope.
+    ahead = np.array([[-2.0 * R + 10.0, 0.0, 50.0]])
+    out = aim([-2.0 * R, 0.0, 40.0], target=ahead)
+    np.testing.assert_allclose(out, [[-2.0 * R + 10.0, 0.0, 40.0 + 10.0 * 10.0 / R]])
+    # Within the last turn radius, the profile: 0.5 R out, 2 m high.
+    out = aim([0.5 * R, 0.0, 52.0])
+    np.testing.assert_allclose(out, [[0.0, 0.0, 52.0 - 0.5 * R * math.tan(math.sqrt(2.0 / R))]])
+    assert aim([-(CAPTURE_RANGE + 0.1) * R, 0.0, 40.0]) is g
+    assert aim([-2.0 * R, 0.0, 40.0], at_goal=False) is g
+

@@ -13,16 +13,17 @@ import pytest
 from swarmplan.core import Mode, SwarmState
 from swarmplan.runtime.compiled import kernel_module
 from swarmplan.sim import network
-from swarmplan.sim.network import (
-    Beliefs,
-    Network,
+from swarmplan.sim.network import Beliefs, Network
+from swarmplan.sim.network_book import holdings
+from swarmplan.sim.network_passes import (
+    belief_table_numpy,
     compact_near_numpy,
     deliver_numpy,
     draws,
     fates_numpy,
     held_pairs,
+    oldest_ages,
 )
-from swarmplan.sim.network_book import holdings
 from swarmplan.world.comms import Comms
 
 
@@ -51,6 +52,44 @@ def test_held_pairs_compiled_and_numpy_agree():
                 np.testing.assert_array_equal(w, g)
             assert (want[1] != b.idx[want[0]]).all() and (want[3] < radius).all()
         assert len(held_pairs(b.view, b.pos, b.at, own, 100.0)[0]) == int((b.view >= 0).sum()) - 20
+
+
+def test_oldest_ages_compiled_and_numpy_agree():
+    """Per flyer, the oldest state among its pairs within reach: the same on both paths, nan
+    for a flyer with none within reach."""
+    kernel = kernel_module("swarmplan.sim._network_kernel")
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        b = _beliefs(rng, 20, 60)
+        b.age[:] = rng.uniform(0.0, 0.6, len(b.age))
+        k, _, rows, d = held_pairs(b.view, b.pos, b.at, b.idx.astype(np.int64), 8.0)
+        for reach in (0.0, 2.0, 5.0, 100.0):
+            want = oldest_ages(k, rows, d, b.age, reach, 20)
+            np.testing.assert_array_equal(want, kernel.oldest_ages(k, rows, d, b.age, reach, 20))
+            for f in range(20):
+                near = (k == f) & (d < reach)
+                assert want[f] == b.age[rows[near]].max() if near.any() else np.isnan(want[f])
+
+
+def test_belief_table_compiled_and_numpy_agree():
+    """The believed states (the rows held moved on, then the true states): the same bits on both
+    paths."""
+    kernel = kernel_module("swarmplan.sim._network_kernel")
+    rng = np.random.default_rng(7)
+    size, n = 90, 30
+    table = (rng.normal(0.0, 3.0, (size, 3)), rng.normal(0.0, 4.0, (size, 3)), rng.random(size) < 0.3,
+             rng.uniform(0.0, 50.0, size), rng.integers(0, n, size), rng.random(size) < 0.2)  # fmt: skip
+    now = (rng.uniform(0.0, 10.0, (n, 3)), rng.normal(0.0, 3.0, (n, 3)), rng.random(n) < 0.3,
+           rng.uniform(0.0, 50.0, n), rng.random(n) < 0.2)  # fmt: skip
+    some = np.sort(rng.choice(n, 12, replace=False))
+    for held, truth in ((25, np.arange(n)), (40, some), (0, np.arange(3))):
+        live = rng.choice(np.arange(1, size), held, replace=False).astype(np.int64)
+        age, moved = rng.uniform(0.0, 0.7, held), rng.uniform(0.0, 10.0, (held, 3))
+        want = belief_table_numpy(live, age, moved, table, truth.astype(np.int64), now)
+        got = kernel.belief_table(live, age, moved, table, truth.astype(np.int64), now)
+        for w, g in zip(want, got, strict=True):
+            assert w.dtype == g.dtype
+            np.testing.assert_array_equal(w, g)
 
 
 def test_copy_draws_compiled_and_numpy_agree():
@@ -142,7 +181,8 @@ def _canonical(live, view, age, moved, pairs):
 def test_compaction_compiled_and_numpy_agree():
     """The rows held, each flyer's view of them, their ages and positions moved on, and the
     pairs within a radius: the same on the sparse book as on the matrix (by table row, the
-    numbering of the rows held aside); the compiled scratch is left as found."""
+    numbering of the rows held aside), written to new arrays or to buffers used again (left
+    dirty by the call before); the compiled scratch is left as found."""
     kernel = kernel_module("swarmplan.sim._network_kernel")
     rng = np.random.default_rng(4)
     # Each sender's rows its own (row 1 + j + 40 u: the u-th state sent by agent j).
@@ -156,16 +196,24 @@ def test_compaction_compiled_and_numpy_agree():
     at = rng.uniform(0.0, 10.0, (15, 3))
     never = (np.full(40, 2.0), np.full(40, np.inf))  # no row too old
     stale = (rng.uniform(1.0, 5.0, 40), rng.uniform(0.5, 3.0, 40))
+    none = np.empty(0, dtype=np.int64)
+    fresh = (np.empty((0, 40), dtype=np.int64), none, none, none, np.empty(0))
+    size = 40 * 40
+    dirty = np.full(size + 1, 7, dtype=np.int64)
+    used = (np.full((40, 40), 7, dtype=np.int64), dirty[:size].copy(), dirty, dirty[:size].copy(),
+            np.full(size, 7.0))  # fmt: skip
     # about the most common row, the newest, and a row no flyer holds
     for base in (heard[idx[0]], heard.max(axis=0), 1 + np.arange(40) + 40 * 7):
         book = holdings(heard, base)
         for radius in (0.0, 2.5, 6.0, 100.0):
             for old in (never, stale):
                 want = _canonical(*compact_near_numpy(heard, idx, mark, table, 2.5, at, radius, old))
-                got = _canonical(*kernel.compact_near(book, idx, mark, table, 2.5, at, radius, old))
-                for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
-                    np.testing.assert_array_equal(w, g)
-                assert (mark == -1).all()
+                for buffers in (fresh, used):
+                    args = (book, idx, mark, table, 2.5, at, radius, old, buffers)
+                    got = _canonical(*kernel.compact_near(*args))
+                    for w, g in zip([*want[:4], *want[4]], [*got[:4], *got[4]], strict=True):
+                        np.testing.assert_array_equal(w, g)
+                    assert (mark == -1).all()
     # A row is left out of a flyer's view exactly when its agent may be farther from it than
     # both agents' stopping reach.
     live, view, age, _, _ = compact_near_numpy(heard, idx, mark, table, 2.5, at, 100.0, stale)

@@ -176,13 +176,28 @@ def test_keyboard_interrupt_exit_1_and_closed_log(tmp_path, monkeypatch, capsys)
     assert summary["interrupted"] is True
 
 
-def test_quickstart_world_runs_clean(tmp_path, monkeypatch, capsys):
+def test_quickstart_world_runs_clean_and_replays_whole(tmp_path, monkeypatch, capsys):
+    """The quickstart's run succeeds, its log passes the audit and replay reads it back whole:
+    every agent, every step, the movers' tracks, the summary's figures recomputed."""
+    import numpy as np
+
+    from swarmplan.replay import compare_with_summary, compute_metrics, load
+
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "qs.mcap"
     code = main([str(REPO / "worlds" / "quickstart.yaml"), "--out", str(out), "--quiet"])
     problems, _notes, stats = audit(out, allow_failure=True)
     assert problems == [], problems
     assert code == 0, f"quickstart did not succeed: {stats}"
+    rec = load(out)
+    assert not rec.truncated and rec.summary is not None
+    assert rec.agent_ids == [a["id"] for a in rec.world["agents"]]
+    assert rec.n_steps >= 2 and rec.times[-1] == pytest.approx(rec.summary["sim_time"])
+    assert np.isfinite(rec.positions).all()
+    assert set(rec.obstacle_tracks) == {o["id"] for o in rec.moving_obstacles}
+    problems, n = compare_with_summary(rec, compute_metrics(rec))
+    assert problems == [], problems
+    assert n >= 5 * rec.n_agents
 
 
 @pytest.mark.parametrize("where", ["a directory", "/proc/x.mcap"])

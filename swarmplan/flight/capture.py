@@ -136,3 +136,46 @@ class GoalCapture:
         out[j, :2] = ahead
         out[j, 2] = g[ext, 2]
         return out
+
+
+def height_first(
+    params: AgentParams,
+    idx: np.ndarray,
+    pos: np.ndarray,
+    goal: np.ndarray,
+    at_goal: np.ndarray,
+    target: np.ndarray,
+) -> np.ndarray:
+    """``target`` (rows of flying agents ``idx`` at ``pos``) with the height of each fixed wing
+    flying at its ``goal`` (``at_goal``, rows: the goal itself, the point its capture extends to or
+    the point of its approach circle) within ``CAPTURE_RANGE`` turn radii ``R`` of it
+    (horizontally) set so the pull wins the goal's height before its last turn radius: its
+    flight-path angle towards the target is the slope that wins the height ``dz`` still to win or
+    lose over the way in less that turn radius, or the level-off profile ``sqrt(dz / R)`` when
+    that is less (within the last turn radius, the profile), at most its climb limit. The profile
+    levels off at half the turn's curvature (the other half, and more, stays for the heading:
+    the model shares one budget between them), so an aircraft does not turn onto its goal still
+    climbing or diving at its limit: it takes its last turn radius level and passes the goal at
+    its height. A target so set is not the goal itself: the pull is the field's conic one all the
+    way in (a fixed wing cannot stop; the goal's quadratic well, weaker the nearer it flies,
+    would leave its last turn to whatever else pushes it). The others' targets unchanged."""
+    fw = params.fixed_wing[idx] & at_goal
+    if not fw.any():
+        return target
+    rows = np.flatnonzero(fw)
+    k = idx[rows]
+    r = params.min_turn_radius[k]
+    e = goal[rows] - pos[rows]
+    away = np.hypot(e[:, 0], e[:, 1])
+    near = away < CAPTURE_RANGE * r
+    if not near.any():
+        return target
+    rows, k, r, e, away = rows[near], k[near], r[near], e[near], away[near]
+    dz = np.abs(e[:, 2])
+    slope = np.arctan2(dz, np.maximum(away - r, 0.0))  # won over the way in before its last turn radius
+    gamma = np.minimum(np.minimum(slope, np.sqrt(dz / r)), params.max_climb[k]) * np.sign(e[:, 2])
+    t = target[rows] - pos[rows]
+    run = np.maximum(np.hypot(t[:, 0], t[:, 1]), _EPS)
+    out = np.array(target, dtype=float)
+    out[rows, 2] = pos[rows, 2] + run * np.tan(gamma)
+    return out

@@ -463,7 +463,7 @@ class ModifiedCentralForce(CentralForce):
             theta = W[1][:, None]
             r1, r2, s = eq29_limits(theta, r[0][:, None], r[1][:, None], p["c1"], p["c2"], p["dt"], iteration)
             r = np.stack([r1[:, 0], r2[:, 0]])
-            s = np.ascontiguousarray(np.broadcast_to(s, (n, 1))[:, 0])
+            s = np.broadcast_to(s, (n, 1))[:, 0].copy()  # writeable like np.ones: one compiled signature
         else:  # paper-literal: eq 29 is a sufficient condition of the analysis, not a step
             s = np.ones(n)
         new, X = self._move(state, problem, W, s, r, state.pbest_U, state.gbest_U)

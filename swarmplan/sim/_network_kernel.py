@@ -52,6 +52,53 @@ def held_pairs(view, pos, at, own, radius):  # noqa: ANN001, ANN201
     return ks[:c].copy(), js[:c].copy(), rows[:c].copy(), ds[:c].copy()
 
 
+@njit(cache=True, nogil=True)
+def oldest_ages(k, rows, d, age, reach, n):  # noqa: ANN001, ANN201
+    """``network_passes.oldest_ages``: per flyer row of ``n``, the largest ``age`` of the rows of the
+    pairs (flyer row ``k``, table row ``rows``, distance ``d``) closer than ``reach``; nan for
+    a flyer with none (a nan age wins, as in ``np.maximum``)."""
+    out = np.full(n, -np.inf)
+    for p in range(k.shape[0]):
+        a = age[rows[p]] if d[p] < reach else -np.inf
+        f = k[p]
+        if a > out[f] or a != a:
+            out[f] = a
+    for f in range(n):
+        if not math.isfinite(out[f]):
+            out[f] = np.nan
+    return out
+
+
+@njit(cache=True, nogil=True)
+def belief_table(live, age, moved, table, truth, now):  # noqa: ANN001, ANN201
+    """``network_passes.belief_table_numpy`` in one pass over the rows: the rows held, then the
+    true states of agents ``truth``."""
+    vel_row, acc_row, parked_row, to_go_row, agent_row, yields_row = table
+    pos, vel, parked, to_go, yields = now
+    n_live = live.shape[0]
+    m_all = n_live + truth.shape[0]
+    b_pos, b_vel = np.empty((m_all, 3)), np.empty((m_all, 3))
+    e_pos, e_vel = np.empty((m_all, 3)), np.empty((m_all, 3))
+    b_parked, b_yields = np.empty(m_all, dtype=np.bool_), np.empty(m_all, dtype=np.bool_)
+    b_to_go, b_age, b_agent = np.empty(m_all), np.empty(m_all), np.empty(m_all, dtype=np.int64)
+    for m in range(n_live):
+        r, a = live[m], age[m]
+        for c in range(3):
+            b_pos[m, c] = moved[m, c]
+            b_vel[m, c] = vel_row[r, c]
+            e_pos[m, c] = moved[m, c] + 0.5 * acc_row[r, c] * (a * a)
+            e_vel[m, c] = vel_row[r, c] + acc_row[r, c] * a
+        b_parked[m], b_to_go[m], b_age[m] = parked_row[r], to_go_row[r], a
+        b_agent[m], b_yields[m] = agent_row[r], yields_row[r]
+    for q in range(truth.shape[0]):
+        i, m = truth[q], n_live + q
+        for c in range(3):
+            b_pos[m, c] = e_pos[m, c] = pos[i, c]
+            b_vel[m, c] = e_vel[m, c] = vel[i, c]
+        b_parked[m], b_to_go[m], b_age[m], b_agent[m], b_yields[m] = parked[i], to_go[i], 0.0, i, yields[i]
+    return b_pos, b_vel, b_parked, b_to_go, b_age, b_agent, e_pos, e_vel, b_yields
+
+
 _SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
 _SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -62,7 +109,7 @@ _TWO = np.uint64(2)
 
 @njit(cache=True, nogil=True)
 def draw(key, row, receiver, salt):  # noqa: ANN001, ANN201
-    """``network.draws`` for one copy: the uniform draw in [0, 1) of the copy of table row
+    """``network_passes.draws`` for one copy: the uniform draw in [0, 1) of the copy of table row
     ``row`` to ``receiver`` (``salt`` 0: its loss, 1: its jitter)."""
     z = key + np.uint64(row) * _SPREAD_ROW + (np.uint64(receiver) * _TWO + np.uint64(salt)) * _SPREAD_COPY
     z = (z ^ (z >> _S30)) * _MIX1
@@ -73,7 +120,7 @@ def draw(key, row, receiver, salt):  # noqa: ANN001, ANN201
 
 @njit(cache=True, nogil=True)
 def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
-    """``network.fates_numpy`` kept sparse: for each copy c of one broadcast (``senders``, their
+    """``network_passes.fates_numpy`` kept sparse: for each copy c of one broadcast (``senders``, their
     table ``rows``), the receivers that do not take it (its sender, those out of range, those
     that lose it), ascending, ``miss[ptr[c]:ptr[c + 1]]``; ``fate`` = (loss, the delay's jitter,
     the time the broadcast falls due, range), ``at`` the agents' positions when it was sent
@@ -130,7 +177,7 @@ def misses(senders, rows, key, fate, at, n):  # noqa: ANN001, ANN201
 
 @njit(cache=True, nogil=True)
 def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN001, ANN201, PLR0913
-    """``network.deliver_numpy`` on the sparse book of what every receiver holds (``book`` =
+    """``network_passes.deliver_numpy`` on the sparse book of what every receiver holds (``book`` =
     (base, start, holders, values): receiver r holds of sender s the row ``values[e]`` when it
     is ``holders[e]`` for some e in ``start[s]:start[s + 1]`` (ascending), else the sender's
     base row ``base[s]``; a receiver holds an entry of its own exactly when its row is not the
@@ -140,8 +187,9 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
     missed it, or hold a newer row (arrived ahead of its broadcast), keep entries of their own:
     a merge of two short lists per sender, not one write per receiver. The new lists are
     written to ``spare`` = (start, holders, values), with room for those held and those of the
-    copies missed (of every receiver while copies are still on their way); returns whether
-    they were written (``base`` changes in place)."""
+    copies missed (of every receiver while copies are still on their way: the merge writes at
+    most one entry past those it keeps, within that room); returns whether they were written
+    (``base`` changes in place)."""
     base, start, holders, values = book
     new_start, new_holders, new_values = spare
     jitter, due = fate[1], fate[2]
@@ -175,28 +223,29 @@ def deliver(book, spare, senders, rows, key, fate, ptr, miss, t):  # noqa: ANN00
                     new_holders[m], new_values[m] = r, v
                     m += 1
             continue
-        # every copy has arrived: the row is the base but for those that missed it
+        # every copy has arrived: the row is the base but for those that missed it (and keep
+        # what they hold), and those holding a newer row (arrived ahead of its broadcast); each
+        # step written whatever it is, kept by moving m on (no branch to mispredict)
+        base_s = base[s]
         while q < q_end or e < e_end:
             rq = miss[q] if q < q_end else n
             re = holders[e] if e < e_end else n
-            if rq <= re:  # missed it: keeps what it holds
-                new_holders[m], new_values[m] = rq, values[e] if rq == re else base[s]
-                m += 1
-                q += 1
-                e += rq == re
-            else:  # its own entry: kept only when newer (arrived ahead)
-                if values[e] > row:
-                    new_holders[m], new_values[m] = re, values[e]
-                    m += 1
-                e += 1
+            held = values[e] if e < e_end else 0
+            missed = rq <= re  # (then rq is a receiver: re is n only past the holders)
+            both = rq == re
+            new_holders[m] = rq if missed else re
+            new_values[m] = (held if both else base_s) if missed else held
+            m += missed or held > row
+            q += missed
+            e += both or not missed
         base[s] = row
     new_start[n] = m
     return True
 
 
 @njit(cache=True, nogil=True)
-def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
-    """``network.compact_near_numpy`` on the sparse book (:func:`deliver`): the table rows that
+def compact_near(book, idx, mark, table, t, at, radius, stale, buffers):  # noqa: ANN001, ANN201, PLR0912, PLR0913, PLR0915
+    """``network_passes.compact_near_numpy`` on the sparse book (:func:`deliver`): the table rows that
     flyers ``idx`` hold (each sender's base row held by any flyer, in sender order, then the
     rows held as flyers' own entries, in the order first met), each flyer's view of them (n, N:
     the position among those rows, -1: none, or a row too old to act on: its agent may be
@@ -206,7 +255,10 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
     (``table`` = (time, position, velocity) per table row), and the pairs (flyer row k, agent j,
     row, distance) of flyers ``idx`` (at ``at``) within ``radius`` of those positions, in (k, j)
     order. A flyer's view is its senders' base rows but for its own entries: one copy of a row
-    of N and a few changes per flyer."""
+    of N and a few changes per flyer. ``buffers`` = (views (at least n, N), flyer rows, agents,
+    rows, distances (each at least n N, the agents one more)): buffers the views and pairs are
+    written to and returned from (a run's, reused from step to step: memory freshly allocated
+    costs its first writes more than the pass), or empty ones: new arrays."""
     base, start, holders, values = book
     t_row, pos_row, vel_row = table
     max_accel, reach = stale
@@ -254,7 +306,7 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
             of_base[s] = m
             live[m] = r
             age[m] = t - t_row[r]
-            doubt[m] = 0.5 * max_accel[s] * age[m] * age[m]  # network.belief_doubt
+            doubt[m] = 0.5 * max_accel[s] * age[m] * age[m]  # network_passes.belief_doubt
             old += doubt[m] > least + reach[s]
             for c in range(3):
                 moved[m, c] = pos_row[r, c] + vel_row[r, c] * age[m]
@@ -283,7 +335,14 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
         mark[live[m]] = -1
     # Each flyer's view, and the pairs within the radius: the base positions by coordinate,
     # changed by the flyer's own entries and changed back.
-    view = np.empty((n, n_all), dtype=np.int64)
+    views, ks, js, rows, ds = buffers
+    if views.shape[0] < n or ks.shape[0] < n * n_all:
+        views = np.empty((n, n_all), dtype=np.int64)
+        ks = np.empty(n * n_all, dtype=np.int64)
+        js = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last candidate is written, then dropped
+        rows = np.empty(n * n_all, dtype=np.int64)
+        ds = np.empty(n * n_all)
+    view = views[:n]
     px = np.empty(n_all)
     py = np.empty(n_all)
     pz = np.empty(n_all)
@@ -294,10 +353,6 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
         else:
             px[s], py[s], pz[s] = moved[m, 0], moved[m, 1], moved[m, 2]
     d2 = np.empty(n_all)
-    ks = np.empty(n * n_all, dtype=np.int64)
-    js = np.empty(n * n_all + 1, dtype=np.int64)  # one more: the last candidate is written, then dropped
-    rows = np.empty(n * n_all, dtype=np.int64)
-    ds = np.empty(n * n_all)
     c = 0
     wide = radius * radius * (1.0 + 1e-9)
     for k in range(n):
@@ -348,5 +403,5 @@ def compact_near(book, idx, mark, table, t, at, radius, stale):  # noqa: ANN001,
                 ks[kept], js[kept], rows[kept], ds[kept] = ks[p], js[p], rows[p], ds[p]
                 kept += 1
         c = kept
-    # (slices, not copies: they live as long as the beliefs, one step)
+    # (slices, not copies: they live as long as the beliefs, one step, and the buffers)
     return live[:count_live], view, age[:count_live], moved[:count_live], (ks[:c], js[:c], rows[:c], ds[:c])

@@ -29,11 +29,12 @@ from swarmplan.flight.apf import stopping_reach
 from swarmplan.flight.kinematics import AgentParams, checked_radius
 from swarmplan.geometry.collision import segment_segment_min_distance
 from swarmplan.geometry.neighbours import agent_contacts_indexed
-from swarmplan.geometry.vec3 import dot3
+from swarmplan.geometry.vec3 import dot3, norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled, use_compiled_checks
 from swarmplan.sim.braking import stoppable_speed
 from swarmplan.sim.modes import ARRIVED, mode_in
-from swarmplan.sim.network import Beliefs, belief_doubt
+from swarmplan.sim.network import Beliefs
+from swarmplan.sim.network_passes import belief_doubt
 from swarmplan.world.model import World
 
 
@@ -185,8 +186,8 @@ def belief_conflicts(
     cap = stopping_reach(p, dt)
     widest = min(2.0 * float(cap.max()), float(belief_margin(p.max_accel.max(), beliefs.age.max(), dt)))
     radius = float(
-        np.linalg.norm(pos1[beliefs.idx] - pos0[beliefs.idx], axis=1).max()
-        + np.linalg.norm(beliefs.vel, axis=1).max() * dt
+        norm3(pos1[beliefs.idx] - pos0[beliefs.idx]).max()
+        + norm3(beliefs.vel).max() * dt
         + 2.0 * float(checked.max()) + widest
     )  # fmt: skip
     believed = (np.asarray(beliefs.idx, dtype=np.int64), beliefs.age, beliefs.pos, beliefs.vel)
@@ -288,22 +289,32 @@ def _clears(
 
 
 def oldest_age(beliefs: Beliefs) -> float:
-    """The age of the oldest state in ``beliefs`` (0 when none has an age)."""
-    known = beliefs.age[np.isfinite(beliefs.age)]
-    return float(known.max(initial=0.0))
+    """The age of the oldest state in ``beliefs`` (0 when none has an age; found once per beliefs)."""
+    kept = beliefs.__dict__.get("_oldest")
+    if kept is None:
+        known = beliefs.age[np.isfinite(beliefs.age)]
+        kept = beliefs.__dict__["_oldest"] = float(known.max(initial=0.0))
+    return kept
 
 
-def braking_radius(params: AgentParams, dt: float, age: float) -> float:
-    """How far :func:`braking_room` looks, with beliefs at most ``age`` old: both agents'
-    stopping reach and both bodies (each inflated by its safety margin), and how far the other
-    may be from where it is believed."""
-    p = params
-    checked = checked_radius(p.radius)
-    most = float(belief_doubt(np.asarray(p.max_accel.max()), np.asarray(age)))
-    return float(2.0 * (stopping_reach(p, dt).max() + checked.max()) + most)
+class BrakingLook:
+    """How far :func:`braking_room` looks (:meth:`radius`), its parts fixed by the agents and the
+    step computed once: both agents' stopping reach and both bodies (``checked``: each inflated
+    by its safety margin), and how far the other may be from where it is believed."""
+
+    def __init__(self, params: AgentParams, dt: float):
+        self.checked = checked_radius(params.radius)
+        self._fixed = float(2.0 * (stopping_reach(params, dt).max() + self.checked.max()))
+        self._max_accel = np.asarray(params.max_accel.max())
+
+    def radius(self, age: float) -> float:
+        """The radius with beliefs at most ``age`` old."""
+        return self._fixed + float(belief_doubt(self._max_accel, np.asarray(age)))
 
 
-def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: float) -> np.ndarray:
+def braking_room(
+    params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: float, look: BrakingLook | None = None
+) -> np.ndarray:
     """The commands ``v_cmd`` (one row per flyer of ``beliefs``) of multirotors cut along the
     line to each agent they believe ahead, to what still stops behind it: a step of reaction,
     then braking at 0.8 ``max_accel`` (the rest of the limit left to steer, as the surface and
@@ -314,11 +325,13 @@ def braking_room(params: AgentParams, beliefs: Beliefs, v_cmd: np.ndarray, dt: f
     brakes unheard is not run into. Another that may be coming closer takes its own room out of
     the gap (its step of reaction and its braking at 0.8 of its limit from that speed): each
     of the two keeps its own share. A state of now (age 0: the pair agrees within the step,
-    ``deconflict``) is left to the safety filter. A new array."""
+    ``deconflict``) is left to the safety filter (``look``: :class:`BrakingLook` of ``params``
+    and ``dt``, made here when None). A new array."""
     p = params
     out = np.array(v_cmd, dtype=float)
-    checked = checked_radius(p.radius)
-    radius = braking_radius(p, dt, oldest_age(beliefs))
+    look = BrakingLook(p, dt) if look is None else look
+    checked = look.checked
+    radius = look.radius(oldest_age(beliefs))
     compiled = use_compiled(len(p.radius))
     b = beliefs
     believed = (np.asarray(b.idx, dtype=np.int64), b.age, b.pos, b.vel, b.at)

@@ -11,12 +11,12 @@ two are farther apart than ``range`` when it is sent. A receiver keeps the newes
 received from each sender and acts on it, moved on for the state's age: its field by the
 velocity and acceleration sent, its deconfliction by the velocity sent (with a margin for any
 acceleration within the sender's limit since). A state so old that its agent may be farther
-from it (:func:`belief_doubt`) than both agents' stopping reach is too old to act on: the
+from it (``network_passes.belief_doubt``) than both agents' stopping reach is too old to act on: the
 receiver knows nothing of that agent until it hears from it again.
 With ``sensing``, an agent sees the true, current state of every agent within ``sensing.range``
 (onboard sensing: no age).
 
-Each copy's loss and delay are its own draws (:func:`draws`: a counter-based stream keyed once
+Each copy's loss and delay are its own draws (``network_passes.draws``: a counter-based stream keyed once
 per run from the run's seeded ``comms`` stream, the copy's table row and receiver picking its
 draws), whenever and however often they are asked: the same seed gives the same messages.
 Before flight every agent has heard every other agent within range (their starts, at t = 0).
@@ -36,22 +36,23 @@ from typing import Any
 import numpy as np
 
 from swarmplan.core import AgentAges, Mode, SwarmState
+from swarmplan.geometry.vec3 import norm3
 from swarmplan.runtime.compiled import kernel_module, use_compiled
 from swarmplan.sim.network_book import Book
+from swarmplan.sim.network_passes import (
+    belief_table_numpy,
+    compact_near_numpy,
+    deliver_numpy,
+    fates_numpy,
+    held_pairs,
+    oldest_ages,
+)
 from swarmplan.world.comms import Comms, Sensing
 
 _EPS = 1e-9
 
 Plan = tuple[Mode, "np.ndarray | None", int, "np.ndarray | None", int]
 """An agent's mode, segment and index on it, route and index on it (as :class:`SwarmState` has them)."""
-
-
-def belief_doubt(max_accel: np.ndarray, age: np.ndarray) -> np.ndarray:
-    """How far an agent of ``max_accel`` may be from where it was believed to be ``age`` seconds
-    after its state was true (moved on by the velocity sent): ``max_accel age^2 / 2``; 0 for a
-    state of now (a flyer's own, a sensed one), and for an unknown age."""
-    a = np.where(np.isfinite(age), age, 0.0)
-    return 0.5 * max_accel * a * a
 
 
 @dataclass(frozen=True)
@@ -100,123 +101,6 @@ class Beliefs:
 def _kernel() -> Any:
     """The compiled passes over every (receiver, sender) pair, run from swarm size on."""
     return kernel_module("swarmplan.sim._network_kernel")
-
-
-def held_pairs(
-    view: np.ndarray, pos: np.ndarray, at: np.ndarray, own: np.ndarray, radius: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(flyer row k, agent j, table row, distance) for every agent j that flyer k (at ``at[k]``,
-    agent ``own[k]``) holds a row of (``view[k, j]`` >= 0) within ``radius`` of it, itself left
-    out, in (k, j) order."""
-    k, j = np.nonzero(view >= 0)
-    rows = view[k, j]
-    keep = j != own[k]
-    k, j, rows = k[keep], j[keep], rows[keep]
-    dp = pos[rows] - at[k]
-    d = np.sqrt((dp[:, 0] * dp[:, 0] + dp[:, 1] * dp[:, 1]) + dp[:, 2] * dp[:, 2])
-    inside = d < radius
-    return k[inside], j[inside], rows[inside], d[inside]
-
-
-_SPREAD_ROW = np.uint64(0x9E3779B97F4A7C15)
-_SPREAD_COPY = np.uint64(0xD1B54A32D192ED03)
-_MIX1, _MIX2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
-
-
-def draws(key: np.uint64, rows: np.ndarray, receivers: np.ndarray, salt: int) -> np.ndarray:
-    """The uniform draws in [0, 1) of the copies of table rows ``rows`` to ``receivers``
-    (broadcast together; ``salt`` 0: their losses, 1: their jitters): a counter-based stream
-    (SplitMix64's mix of the run's ``key`` and the copy), so each copy's fate is its own,
-    whenever and however often it is asked."""
-    with np.errstate(over="ignore"):
-        z = np.asarray(rows, dtype=np.uint64) * _SPREAD_ROW
-        z = key + z + (np.asarray(receivers, dtype=np.uint64) * np.uint64(2) + np.uint64(salt)) * _SPREAD_COPY
-        z = (z ^ (z >> np.uint64(30))) * _MIX1
-        z = (z ^ (z >> np.uint64(27))) * _MIX2
-        z = z ^ (z >> np.uint64(31))
-    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-53
-
-
-def fates_numpy(
-    senders: np.ndarray, rows: np.ndarray, key: np.uint64, fate: tuple[float, float, float, float],
-    at: np.ndarray, heard_by: np.ndarray,
-) -> tuple[int, int]:  # fmt: skip
-    """Which copies of one broadcast (``senders``, their table ``rows``) will be heard, into
-    ``heard_by`` (N, k): not the sender's own, within range of it (``at``: the agents'
-    positions when it was sent; empty: no range) and not lost (a draw below ``fate``'s loss;
-    ``fate`` = (loss, the delay's jitter, the time the broadcast falls due, range)). Returns
-    the copies lost and out of range."""
-    loss, reach = fate[0], fate[3]
-    n = heard_by.shape[0]
-    receivers = np.arange(n)[:, None]
-    listen = receivers != senders[None, :]
-    far = np.zeros_like(listen)
-    if at.shape[0]:
-        d = at[:, None, :] - at[senders][None, :, :]
-        dist = np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) + d[..., 2] * d[..., 2])
-        far = listen & (dist > reach)
-    near = listen & ~far
-    lost = np.zeros_like(near)
-    if loss > 0.0:
-        lost = near & (draws(key, rows[None, :], receivers, 0) < loss)
-    heard_by[:] = near & ~lost
-    return int(lost.sum()), int(far.sum())
-
-
-def deliver_numpy(
-    heard: np.ndarray, senders: np.ndarray, rows: np.ndarray, key: np.uint64,
-    fate: tuple[float, float, float, float], heard_by: np.ndarray, t: float,
-) -> None:  # fmt: skip
-    """The copies of one broadcast (``senders``, their table ``rows``) heard (``heard_by``,
-    :func:`fates_numpy`) that have arrived by ``t`` replace older rows in ``heard`` (receiver,
-    sender; a sender's rows are numbered in the order it sent them, so the newer state has the
-    larger row): a copy arrives when the broadcast falls due plus the delay's jitter times a
-    uniform draw in [-1, 1) (``fate`` = (loss, jitter, due time, range))."""
-    jitter, due = fate[1], fate[2]
-    arrives = np.full(heard_by.shape, due)
-    if jitter > 0.0:
-        receivers = np.arange(heard.shape[0])[:, None]
-        arrives = due + jitter * (2.0 * draws(key, rows[None, :], receivers, 1) - 1.0)
-    cur = heard[:, senders]
-    take = heard_by & (arrives <= t + _EPS) & (cur < rows[None, :])
-    heard[:, senders] = np.where(take, rows[None, :], cur)
-
-
-def compact(heard: np.ndarray, idx: np.ndarray, mark: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The table rows that flyers ``idx`` hold in ``heard`` (receiver, sender; 0: none), in the
-    order first met reading ``heard[idx]`` row by row, and each flyer's view of them (n, N: the
-    position among those rows, -1: none). ``mark`` has one entry per table row (the compiled
-    pass's scratch; read here for its size)."""
-    rows = heard[idx]
-    flat = rows.ravel()
-    held = flat[flat > 0]
-    distinct, first = np.unique(held, return_index=True)
-    live = distinct[np.argsort(first, kind="stable")]
-    remap = np.full(len(mark), -1, dtype=np.int64)
-    remap[live] = np.arange(len(live))
-    return live, remap[rows]
-
-
-def compact_near_numpy(
-    heard: np.ndarray, idx: np.ndarray, mark: np.ndarray, table: tuple[np.ndarray, np.ndarray, np.ndarray],
-    t: float, at: np.ndarray, radius: float, stale: tuple[np.ndarray, np.ndarray],
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:  # fmt: skip
-    """:func:`compact`, the ages at ``t`` of the rows held and their positions moved on by them
-    at the velocity sent (``table`` = (time, position, velocity) per table row), and
-    :func:`held_pairs` of flyers ``idx`` (at ``at``) within ``radius`` of those positions. A row
-    too old to act on is left out of a flyer's view (-1): its agent may be farther from it
-    (:func:`belief_doubt`) than both agents' stopping reach (``stale`` = (max_accel, stopping
-    reach) per agent), as far as knowing nothing of it."""
-    t_row, pos_row, vel_row = table
-    max_accel, reach = stale
-    live, view = compact(heard, idx, mark)
-    age = t - t_row[live]
-    moved = pos_row[live] + vel_row[live] * age[:, None]
-    k, j = np.nonzero(view >= 0)
-    rows = view[k, j]
-    old = belief_doubt(max_accel[j], age[rows]) > reach[idx[k]] + reach[j]
-    view[k[old], j[old]] = -1
-    return live, view, age, moved, held_pairs(view, moved, at, idx, radius)
 
 
 class _Table:
@@ -291,11 +175,14 @@ class Network:
         # sender's base row, and the receivers holding another row (a copy missed or not yet
         # due); smaller worlds the (receiver, sender) matrix itself.
         self._sparse = use_compiled(self.n)
+        n, none = self.n, np.empty(0, dtype=np.int64)
+        self._no_buffers = (np.empty((0, n), dtype=np.int64), none, none, none, np.empty(0))
+        self._buffers = self._no_buffers  # a swarm's, made at its first use
 
     def reset(self, rng: np.random.Generator, s: SwarmState) -> None:
         """At t = 0: every agent has heard every other within range, at rest at its start."""
         n = self.n
-        self.key = rng.integers(0, 2**64, dtype=np.uint64)  # the run's copies' draws (see draws)
+        self.key = rng.integers(0, 2**64, dtype=np.uint64)  # the run's copies' draws (network_passes.draws)
         self.table = _Table(n)
         self.plans: list[Plan] = []  # each agent's plans, one entry per change
         # Per agent, its plan last kept: number, mode, ids of segment and route, indexes on them.
@@ -360,12 +247,12 @@ class Network:
             pos[who],
             vel[who],
             parked[who],
-            np.linalg.norm(s.goal[who] - pos[who], axis=1),
+            norm3(s.goal[who] - pos[who]),
             self._book(s, who),
             yields[who],
         )
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
-        over = np.linalg.norm(acc[who], axis=1) / self.max_accel[who]
+        over = norm3(acc[who]) / self.max_accel[who]
         self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
         at = pos if math.isfinite(c.range) else np.zeros((0, 3))
         if self._sparse:
@@ -438,11 +325,8 @@ class Network:
         believes within ``reach`` (the field's agent reach: farther ones change nothing); nan
         when it believes none that near."""
         k, _, rows, d = beliefs.near_superset(reach)
-        age = np.full(len(beliefs.idx), -np.inf)
-        if len(k):  # the pairs run flyer by flyer: one maximum per flyer's run
-            first = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
-            age[k[first]] = np.maximum.reduceat(np.where(d < reach, beliefs.age[rows], -np.inf), first)
-        return np.where(np.isfinite(age), age, np.nan)
+        run = _kernel().oldest_ages if self._sparse else oldest_ages
+        return run(k, rows, d, beliefs.age, reach, len(beliefs.idx))
 
     def message(self, t: float, ids: tuple[str, ...], idx: np.ndarray, oldest: np.ndarray | None) -> dict:
         """The ``/comms`` message of the step ending at ``t``: flyers ``idx`` acted on states at
@@ -489,12 +373,14 @@ class Network:
         goal_distance: np.ndarray,
         near: float = 0.0,
         yields: np.ndarray | None = None,
+        reuse: bool = False,
     ) -> Beliefs:
         """What flyers ``idx`` believe at ``t`` (the true states ``pos``, ``vel``, ``parked``,
         ``goal_distance`` of every agent give each flyer its own row and what it senses), with
         every copy that has arrived by ``t`` taken in; the pairs within ``near`` of each flyer
         (:meth:`Beliefs.near_superset`) found on the way; ``yields``: which agents loiter now
-        (their own and sensed rows; None: none)."""
+        (their own and sensed rows; None: none); ``reuse``: the views and pairs written into the
+        network's own buffers (a swarm's), valid until the next call that reuses them."""
         self.deliver(t)
         tb, n = self.table, len(idx)
         idx64 = np.asarray(idx, dtype=np.int64)
@@ -505,8 +391,14 @@ class Network:
         run, book = (
             (_kernel().compact_near, self._heard.lists) if self._sparse else (compact_near_numpy, self._heard)
         )
+        if reuse and self._sparse and not len(self._buffers[0]):
+            size = self.n * self.n  # room for every agent flying
+            self._buffers = (np.empty((self.n, self.n), dtype=np.int64), np.empty(size, dtype=np.int64),
+                             np.empty(size + 1, dtype=np.int64), np.empty(size, dtype=np.int64),
+                             np.empty(size))  # fmt: skip
+        buffers = self._buffers if reuse and self._sparse else self._no_buffers
         live, view, age, moved, pairs = run(
-            book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale
+            book, idx64, tb.mark[: tb.size], table, t, pos[idx], radius, self._stale, buffers
         )
         # The rows heard (moved on by their age), then the true states: of the flyers, or with
         # sensing of every agent (a flyer senses agents within range as they are).
@@ -516,21 +408,13 @@ class Network:
         if sensing:
             k, j = _within(pos[idx], pos, self.sensing_range)
             view[k, j] = first + j
-        own_yields = np.zeros(len(truth), bool) if yields is None else yields[truth]
-        b = Beliefs(
-            idx,
-            pos[idx],
-            np.concatenate([moved, pos[truth]]),
-            np.concatenate([tb.vel[live], vel[truth]]),
-            np.concatenate([tb.parked[live], parked[truth]]),
-            np.concatenate([tb.goal_distance[live], goal_distance[truth]]),
-            np.concatenate([age, np.zeros(len(truth))]),
-            np.concatenate([tb.agent[live], truth]),
-            view,
-            np.concatenate([moved + 0.5 * tb.acc[live] * (age * age)[:, None], pos[truth]]),
-            np.concatenate([tb.vel[live] + tb.acc[live] * age[:, None], vel[truth]]),
-            np.concatenate([tb.yields[live], own_yields]),
-        )
+        yields = np.zeros(self.n, dtype=bool) if yields is None else yields
+        rows = (tb.vel, tb.acc, tb.parked, tb.goal_distance, tb.agent, tb.yields)
+        run = _kernel().belief_table if self._sparse else belief_table_numpy
+        # (position, velocity, parked, to go, age, agent, expected position and velocity, yields)
+        now = (pos, vel, parked, goal_distance, yields)
+        f = run(live, age, moved, rows, np.asarray(truth, dtype=np.int64), now)
+        b = Beliefs(idx, pos[idx], *f[:6], view, *f[6:])
         if radius > 0.0:
             b.__dict__["_near"] = (radius, pairs)
         return b

@@ -18,16 +18,17 @@ import numpy as np
 
 from swarmplan.core import SwarmState
 from swarmplan.flight.apf import ApfField, FieldInputs, Flyers, Swarm, commanded_velocity, stopping_reach
-from swarmplan.flight.capture import GoalCapture
+from swarmplan.flight.capture import GoalCapture, height_first
 from swarmplan.flight.guide import StaticGuide, make_guide
 from swarmplan.flight.kinematics import AgentParams
 from swarmplan.flight.sight import Sight
 from swarmplan.geometry.vec3 import norm3
-from swarmplan.sim.deconflict import braking_radius, braking_room, oldest_age
+from swarmplan.sim.deconflict import BrakingLook, braking_room, oldest_age
 from swarmplan.sim.loiter import Loiter
 from swarmplan.sim.metrics import Tally
 from swarmplan.sim.navigation import Navigator
-from swarmplan.sim.network import Beliefs, Network, belief_doubt
+from swarmplan.sim.network import Beliefs, Network
+from swarmplan.sim.network_passes import belief_doubt
 from swarmplan.sim.obstacles import Obstacles
 from swarmplan.sim.threats import nearest_with_cores, threat_cores, with_cores
 from swarmplan.world.model import World
@@ -69,6 +70,7 @@ class Steering:
             reach = stopping_reach(params, world.dt)
             self.network = Network(world.comms, world.sensing, params.max_accel, reach, world.dt)
         self.sensing_range = math.inf if world.sensing is None else world.sensing.range
+        self._look = BrakingLook(params, world.dt)  # how far the braking room looks
         self._oldest = 0.0  # the age of the oldest state any flyer acted on in the last step
 
     def reset(self, start: np.ndarray, goal: np.ndarray) -> None:
@@ -130,6 +132,8 @@ class Steering:
             target = self.loiter.approach(
                 idx, pos0[idx], vel0[idx], s.goal[idx], at_goal, target, self.obstacles
             )
+            # ... winning its goal's height first, to pass it level
+            target = height_first(self.params, idx, pos0[idx], s.goal[idx], at_goal, target)
         if self.loiter.on.any():  # a point ahead on its circle is a loitering agent's target and goal
             rows = np.flatnonzero(self.loiter.on[idx])
             ahead = self.loiter.targets(idx[rows], pos0[idx[rows]])
@@ -144,9 +148,11 @@ class Steering:
         else:  # each flyer's own beliefs of the others
             # The pairs found with the beliefs reach as far as the field and the braking room
             # look (the oldest state a step older than the last step's oldest).
-            look = braking_radius(self.params, self.world.dt, self._oldest + self.world.dt)
+            look = self._look.radius(self._oldest + self.world.dt)
             near = max(self.apf.agent_reach, look)
-            b = self.network.beliefs(idx, s.t, pos0, vel0, parked, to_go, near=near, yields=self.loiter.on)
+            b = self.network.beliefs(
+                idx, s.t, pos0, vel0, parked, to_go, near=near, yields=self.loiter.on, reuse=True
+            )
             self._oldest = oldest_age(b)
             # Beliefs moved on with the acceleration sent: the truth may be off by twice the
             # doubt of a belief moved on at the velocity sent (that acceleration since reversed).
@@ -161,5 +167,5 @@ class Steering:
             clearance, normal = nearest_with_cores(clearance, normal, p_idx, radius, cores)
         v_cmd = commanded_velocity(self.params, idx, force, p_idx, goal_idx, clearance, normal, self.world.dt)
         if b is not None:  # room to stop behind the agents ahead, as far as it knows them
-            v_cmd = braking_room(self.params, b, v_cmd, self.world.dt)
+            v_cmd = braking_room(self.params, b, v_cmd, self.world.dt, self._look)
         return Commands(v_cmd, p_idx, goal_idx, d, clearance, ended, b, oldest)

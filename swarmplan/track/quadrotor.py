@@ -55,15 +55,18 @@ class Flight:
 
 
 def _body_z(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    cr, sr, cp, sp, cy, sy = (
-        np.cos(roll),
-        np.sin(roll),
-        np.cos(pitch),
-        np.sin(pitch),
-        np.cos(yaw),
-        np.sin(yaw),
-    )
-    return np.stack([cr * sp * cy + sr * sy, cr * sp * sy - sr * cy, cr * cp], axis=-1)
+    return _body_z_of(np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw))
+
+
+def _body_z_of(
+    cr: np.ndarray, sr: np.ndarray, cp: np.ndarray, sp: np.ndarray, cy: np.ndarray, sy: np.ndarray
+) -> np.ndarray:
+    """The body z axis (..., 3) from the cosines and sines of roll, pitch and yaw."""
+    z = np.empty((*cr.shape, 3))
+    z[..., 0] = cr * sp * cy + sr * sy
+    z[..., 1] = cr * sp * sy - sr * cy
+    z[..., 2] = cr * cp
+    return z
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -112,15 +115,14 @@ def _deriv(
     dx = np.empty_like(x)
     dx[:, 0:3] = v
     speed = np.sqrt(np.einsum("ij,ij->i", v, v))
-    acc = (thrust / cfg.mass)[:, None] * _body_z(roll, pitch, yaw) - (cfg.drag / cfg.mass) * speed[
-        :, None
-    ] * v
+    sr, cr = np.sin(roll), np.cos(roll)
+    tp, cp = np.tan(pitch), np.cos(pitch)
+    body_z = _body_z_of(cr, sr, cp, np.sin(pitch), np.cos(yaw), np.sin(yaw))
+    acc = (thrust / cfg.mass)[:, None] * body_z - (cfg.drag / cfg.mass) * speed[:, None] * v
     if rotor_drag is not None:
         acc -= (rotor_drag / cfg.mass) * v
     acc[:, 2] -= G
     dx[:, 3:6] = acc
-    sr, cr = np.sin(roll), np.cos(roll)
-    tp, cp = np.tan(pitch), np.cos(pitch)
     p, q, r = w[:, 0], w[:, 1], w[:, 2]
     dx[:, 6] = p + (sr * q + cr * r) * tp
     dx[:, 7] = cr * q - sr * r
@@ -204,7 +206,9 @@ def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
         h_max = np.minimum(fz * tan_tilt, np.sqrt(np.maximum(t_max**2 - fz**2, 0.0)))
         scale = np.minimum(1.0, h_max / np.maximum(h, 1e-12))
         sat = (scale < 1.0 - 1e-9) | (f[:, 2] > t_max) | (f[:, 2] < 0.05 * cfg.mass * G)
-        f = np.column_stack([f[:, 0] * scale, f[:, 1] * scale, fz])
+        f[:, 0] *= scale
+        f[:, 1] *= scale
+        f[:, 2] = fz
         b3d = f / np.linalg.norm(f, axis=1)[:, None]
         roll_d = np.arcsin(np.clip(-b3d[:, 1], -1.0, 1.0))
         pitch_d = np.arctan2(b3d[:, 0], b3d[:, 2])
@@ -214,18 +218,16 @@ def simulate(ref: Reference, cfg: TrackerConfig) -> Flight:
         sat_prev = sat
 
         # --- attitude loop: Euler-angle PID -> Euler rates -> body rates (W^-1)
-        e_att = np.column_stack([roll_d - roll, pitch_d - pitch, -yaw])
+        e_att = np.empty((n_a, 3))
+        e_att[:, 0], e_att[:, 1], e_att[:, 2] = roll_d - roll, pitch_d - pitch, -yaw
         i_att += e_att * dt
         eta_dot = att_g.kp * e_att + att_g.ki * i_att + att_g.kd * (e_att - prev_att_err) / dt * (k > 0)
         prev_att_err = e_att
         sr, cr, sp, cp = np.sin(roll), np.cos(roll), np.sin(pitch), np.cos(pitch)
-        w_d = np.column_stack(
-            [
-                eta_dot[:, 0] - sp * eta_dot[:, 2],
-                cr * eta_dot[:, 1] + sr * cp * eta_dot[:, 2],
-                -sr * eta_dot[:, 1] + cr * cp * eta_dot[:, 2],
-            ]
-        )
+        w_d = np.empty((n_a, 3))
+        w_d[:, 0] = eta_dot[:, 0] - sp * eta_dot[:, 2]
+        w_d[:, 1] = cr * eta_dot[:, 1] + sr * cp * eta_dot[:, 2]
+        w_d[:, 2] = -sr * eta_dot[:, 1] + cr * cp * eta_dot[:, 2]
         w_d = np.clip(w_d, -max_rate, max_rate)
 
         # --- rate loop: PID on body rates -> torque
