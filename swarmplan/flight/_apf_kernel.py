@@ -548,10 +548,11 @@ def commanded_velocity(amax, cruise, floor, standoff, force, pos, goal, clearanc
         toward = -(vx * nx + vy * ny + vz * nz)
         gap = _maximum(clearance[i] - standoff[i], 0.0)
         allowed = math.sqrt(2.0 * 0.8 * a * gap)
-        if floor[i] == 0.0 and gap < math.inf:  # a stop along the command fits the gap
+        if floor[i] == 0.0 and gap < speed * dt:  # within a step of it: a stop along the command fits
             tx, ty, tz = vx + toward * nx, vy + toward * ny, vz + toward * nz
             c = math.sqrt(tx * tx + ty * ty + tz * tz) / (2.0 * a) + dt
-            allowed = _minimum(allowed, 2.0 * gap / (math.sqrt(c * c + 2.0 * gap / a) + c))
+            stop = 2.0 * gap / (math.sqrt(c * c + 2.0 * gap / a) + c)
+            allowed = _minimum(allowed, _maximum(stop, allowed * (gap / (speed * dt))))
         if dg < clearance[i]:  # a goal nearer than the surface: its own cap stops the agent short of it
             allowed = _maximum(allowed, speed)
         excess = _maximum(toward - allowed, 0.0)

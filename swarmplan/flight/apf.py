@@ -354,14 +354,18 @@ def commanded_velocity_numpy(
     (``kinematics.safety_margin``: a fifth of its radius, at most 0.25 m, the room the safety
     filter keeps from every surface; a stand-off in metres held lab drones a body length and
     more short of goals beside a wall), unless the goal is nearer than the surface: the goal's
-    cap (a stop within 0.8 of the goal's distance) then keeps the agent off the surface. A
-    multirotor's speed towards it is also no more than lets a stop along the whole command, ``v``
-    (one step at ``v``, then braking at ``max_accel``: the safety filter's braking margin,
-    ``sim.safety``), fit in that gap ``g``: with ``t`` the speed along the surface and ``w`` the
-    speed towards it, ``w (t + w) / (2 a) + w dt <= g`` (``|v| <= t + w``). A command that slides
-    along a surface at its margin keeps its speed along it; with the first cap alone, a small
-    component towards the surface left the braking margin to cut the whole speed, each step more
-    as the gap closed, until the agent stood beside the surface for good."""
+    cap (a stop within 0.8 of the goal's distance) then keeps the agent off the surface. Within
+    a step of that margin (a gap ``g`` under ``|v| dt``), a multirotor's speed towards it is also
+    no more than lets a stop along the whole command ``v`` (one step at ``v``, then braking at
+    ``max_accel``: the safety filter's braking margin, ``sim.safety``) fit in the gap: with ``t``
+    the speed along the surface and ``w`` the speed towards it, ``w (t + w) / (2 a) + w dt <= g``
+    (``|v| <= t + w``), or the first cap times ``g / (|v| dt)`` when that is more (the two meet
+    without a jump at a step's distance). A command that slides along a surface at its margin
+    keeps its speed along it; with the first cap alone, a small component towards the surface
+    left the braking margin to cut the whole speed, each step more as the gap closed, until the
+    agent stood beside the surface for good. Farther out the braking margin slows a command
+    that closes in along its whole length, which keeps its direction (a path flown along a
+    planned arc keeps the arc's curvature)."""
     amax = params.max_accel[idx]
     speed = params.speed_cruise[idx].copy()
     dg = norm3(goal - pos)
@@ -373,9 +377,10 @@ def commanded_velocity_numpy(
     allowed = np.sqrt(2.0 * 0.8 * amax * gap)
     along = v + toward[:, None] * clearance_dir
     c = norm3(along) / (2.0 * amax) + dt
-    with np.errstate(invalid="ignore"):  # (no surface: an infinite gap, no cap)
+    stops = (speed_floor(params, idx) == 0.0) & (gap < speed * dt)  # within a step of the margin
+    with np.errstate(invalid="ignore", divide="ignore"):  # (the other rows' values are not taken)
         stop = 2.0 * gap / (np.sqrt(c * c + 2.0 * gap / amax) + c)  # w of w (t + w) / (2 a) + w dt = g
-    stops = (speed_floor(params, idx) == 0.0) & (gap < np.inf)
+        stop = np.maximum(stop, allowed * (gap / (speed * dt)))  # meets the first cap at a step
     allowed = np.where(stops, np.minimum(allowed, stop), allowed)
     allowed = np.where(dg < clearance, np.maximum(allowed, speed), allowed)
     excess = np.maximum(toward - allowed, 0.0)
