@@ -47,8 +47,6 @@ def planner_available() -> bool:
     return True
 
 
-_NO_PLANNER = pytest.mark.skipif(not planner_available(), reason="swarmplan.planner not present")
-PLANNERS = ["apf", pytest.param("default", marks=_NO_PLANNER)]
 DEFAULT = "default" if planner_available() else "apf"
 
 
