@@ -11,7 +11,7 @@ import pytest
 from helpers import base_world, make_world, read_log
 
 from swarmplan.cli.run import main as run_main
-from swarmplan.io.runner import apply_overrides, simulate
+from swarmplan.io.runner import apply_overrides
 from swarmplan.sim import Simulation
 from swarmplan.world import WorldError, load_world
 
@@ -69,28 +69,24 @@ def test_the_trap_worlds_fly_the_bare_field():
 
 
 def test_the_bare_field_is_trapped_where_the_guided_one_arrives(tmp_path):
-    """The goal 5 m behind a 40 m wide block, pure APF, 20 s: guided, the agent arrives
-    (at 14.6 s); on the bare field it stays in front of the block (x < 52, the face)."""
-    world = apply_overrides(load_world(BLOCK), "none", 20.0)
-    bare = simulate(world, 1, tmp_path / "bare.mcap")
-    guided = simulate(apply_overrides(world, None, None, guide=True), 1, tmp_path / "guided.mcap")
-    assert guided["success"] and guided["collisions"] == 0
-    assert not bare["success"] and bare["arrived"] == 0 and bare["collisions"] == 0
-    assert bare["agents"][0]["escapes"] == 0 and bare["agents"][0]["stuck_events"] > 0
-    state = read_log(tmp_path / "bare.mcap")["/agents/state"][-1][1]
-    assert state["agents"][0]["position"][0] < 52.0
-
-
-def test_no_guide_on_the_command_line(tmp_path):
-    """``--no-guide`` flies the bare field of a world that has the guide on (exit 1: trapped)."""
+    """The goal 5 m behind a 40 m wide block, pure APF, 20 s, flown from the command line on the
+    world with the guide on: guided, the agent arrives (at 14.6 s, exit 0); ``--no-guide`` flies
+    the bare field (exit 1: trapped), where it stays in front of the block (x < 52, the face)."""
     raw = BLOCK.read_text(encoding="utf-8").replace(", guide: false", "")
     guided = tmp_path / "guided.yaml"
     guided.write_text(raw, encoding="utf-8")
     common = ["--optimizer", "none", "--max-time", "20", "--quiet"]
     assert run_main([str(guided), "--out", str(tmp_path / "a.mcap"), *common]) == 0
     assert run_main([str(guided), "--out", str(tmp_path / "b.mcap"), "--no-guide", *common]) == 1
-    world = read_log(tmp_path / "b.mcap")["/world"][0][1]
-    assert world["planner"]["apf"]["guide"] is False
+    guided_log, bare_log = read_log(tmp_path / "a.mcap"), read_log(tmp_path / "b.mcap")
+    assert guided_log["/world"][0][1]["planner"]["apf"]["guide"] is True
+    assert bare_log["/world"][0][1]["planner"]["apf"]["guide"] is False
+    guided, bare = guided_log["/summary"][-1][1], bare_log["/summary"][-1][1]
+    assert guided["success"] and guided["collisions"] == 0
+    assert not bare["success"] and bare["arrived"] == 0 and bare["collisions"] == 0
+    assert bare["agents"][0]["escapes"] == 0 and bare["agents"][0]["stuck_events"] > 0
+    state = bare_log["/agents/state"][-1][1]
+    assert state["agents"][0]["position"][0] < 52.0
 
 
 def test_the_key_is_documented():
