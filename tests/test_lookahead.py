@@ -177,3 +177,71 @@ def test_the_guard_keeps_the_aircrafts_clearance_from_bodies():
     wide = next(d for d in gaps[::-1] if replaced_at(p, d))
     tight = next(d for d in gaps[::-1] if replaced_at(near, d))
     assert wide - tight == pytest.approx(1.0, abs=0.06)
+
+
+def _diving_at_the_wall() -> tuple[AgentParams, np.ndarray, np.ndarray]:
+    """The wall world's agent (rolling at once, climbing or diving up to 30 degrees) diving at
+    25 degrees straight at the wall, 25 m above flat ground."""
+    p = _one_agent_params(instant=True)
+    p.max_climb[:] = np.radians(30.0)
+    g = np.radians(-25.0)
+    return p, np.array([0]), np.array([[15.0 * np.cos(g), 0.0, 15.0 * np.sin(g)]])
+
+
+def _wall_and_ground(points: np.ndarray, radii: np.ndarray, t: float, extra: np.ndarray) -> np.ndarray:
+    return np.minimum(_wall_clearance(points, radii, t, extra), points[:, 2] - radii)
+
+
+def _safe_manoeuvres(p: AgentParams, pos: np.ndarray, vel: np.ndarray) -> set[tuple[int, int]]:
+    """The (turn, climb) manoeuvres from ``pos``/``vel`` (straight) that keep 1 m from the wall
+    and the ground over the guard's horizon."""
+    from swarmplan.flight.lookahead import _MANOEUVRES, kept_gap, rollout_manoeuvres
+
+    idx = np.array([0])
+    steps = horizon_steps(p, idx, np.array([15.0]), 0.1)
+    points, used = rollout_manoeuvres(p, idx, pos, vel, steps, 0.1)
+    gap = kept_gap(p, idx, 0.1)[0]
+    out = set()
+    for c, m in enumerate(_MANOEUVRES):
+        flown = points[0, c, : used[0, c]]
+        if _wall_and_ground(flown, np.ones(len(flown)), 0.0, np.full(len(flown), gap)).min() >= 1.0:
+            out.add(m)
+    return out
+
+
+def test_a_diving_fixed_wing_keeps_a_level_way_out_while_it_has_one():
+    """Diving at a wall, the dive's own turn is the tightest (a level turn first pulls out of
+    the dive). The guard gives the field's command up where it would leave no level way out,
+    while a diving turn would still get clear (flown to the end, it would take the aircraft to
+    the floor): it pulls out to turn level."""
+    p, idx, vel = _diving_at_the_wall()
+    required = np.array([1.0])
+    for distance in np.arange(60.0, 10.0, -0.05):
+        pos = np.array([[WALL_X - 1 - distance, 100.0, 25.0]])
+        out, replaced = guard_commands(p, idx, pos, vel, vel.copy(), 0.0, 0.1, _wall_and_ground, required)
+        if replaced[0]:
+            break
+    else:
+        raise AssertionError("never guarded")
+    after = _safe_manoeuvres(p, pos + vel * 0.1, vel)
+    assert after and all(climb == -1 for _, climb in after)  # only dives would get clear after the step
+    assert any(climb == 0 for _, climb in _safe_manoeuvres(p, pos, vel))  # a level one does now
+    assert out[0, 2] > vel[0, 2]  # pulling out of the dive (first in the turn budget)
+
+
+def test_with_no_level_way_out_left_the_field_flies_on_while_a_dive_gets_clear():
+    """Closer in, no level manoeuvre gets clear even now: the climbs and dives are the way out
+    kept, and the field's command stands while one of them gets clear after it."""
+    p, idx, vel = _diving_at_the_wall()
+    required = np.array([1.0])
+    seen = 0
+    for distance in np.arange(40.0, 10.0, -0.05):
+        pos = np.array([[WALL_X - 1 - distance, 100.0, 25.0]])
+        now = _safe_manoeuvres(p, pos, vel)
+        after = _safe_manoeuvres(p, pos + vel * 0.1, vel)
+        if any(climb == 0 for _, climb in now) or not after:
+            continue
+        out, replaced = guard_commands(p, idx, pos, vel, vel.copy(), 0.0, 0.1, _wall_and_ground, required)
+        assert not replaced[0] and np.array_equal(out, vel), distance
+        seen += 1
+    assert seen > 0
