@@ -9,20 +9,12 @@ left/right turns and straight flight, each levelling out, climbing to the ceilin
 volume or diving to its floor and levelling off there — and measures the
 clearance of every predicted position to the obstacles (moving ones at their predicted
 poses), the terrain and the bounds. The field's command stands if, after one step of it, at
-least one level manoeuvre keeps the required clearance: a way out always remains (the
-invariant of braking-distance checks, with turns in place of brakes). Otherwise the guard
-starts now the safe level manoeuvre closest to the field's command. The climbs and dives are
-the reserve: a climbing or diving turn can be the tighter one (a steady helix at flight-path
-angle g turns on a horizontal circle of R_min cos^2 g, and an aircraft already climbing or
-diving turns at once where a level turn must first pull out of it), but flown to the end it
-takes the aircraft to the ceiling or the floor of the flight volume, far from the height it
-was flying at (its goal's, within reach of it). So an aircraft keeps a level way out while
-it has one; only once it has none even now does the field's command stand while a climbing or
-diving way out remains after it, and else the guard starts the safe manoeuvre closest to the
-field's command, or, when none is safe, the one that keeps clear the longest (time for a
-mover to pass, for the field to find a way), the clearest of those. Flying the field's
-command until the last step that keeps a way out leaves the field in charge everywhere but
-where it would corner the aircraft.
+least one manoeuvre keeps the required clearance: a way out always remains (the invariant
+of braking-distance checks, with turns in place of brakes). Otherwise the guard starts now
+the safe manoeuvre closest to the field's command, or, when none is safe, the one that keeps
+clear the longest (time for a mover to pass, for the field to find a way), the clearest of
+those. Flying the field's command until the last step that keeps a way out
+leaves the field in charge everywhere but where it would corner the aircraft.
 
 The predictions fly the model itself (``swarmplan.flight._fixed_wing_kernel``, compiled: step
 by step, at constant speed, rolling from the aircraft's current turn at its roll rate; the
@@ -79,11 +71,6 @@ class CompiledGuard(NamedTuple):
 _MANOEUVRES = tuple((turn, climb) for turn in (-1, 0, 1) for climb in (0, 1, -1))
 _TURN = np.array([m[0] for m in _MANOEUVRES], dtype=float)
 _UP = np.array([m[1] for m in _MANOEUVRES], dtype=float)
-_LEVEL = np.flatnonzero(_UP == 0.0)
-"""The level manoeuvres: the way out the guard keeps while there is one (module docstring)."""
-_CLIMBS = np.flatnonzero(_UP != 0.0)
-_LEVEL_OF = np.array([_MANOEUVRES.index((turn, 0)) for turn, _ in _MANOEUVRES])
-"""Per manoeuvre, the level one of the same turn."""
 
 
 def horizon_steps(params: AgentParams, idx: np.ndarray, speed: np.ndarray, dt: float) -> int:
@@ -242,14 +229,12 @@ def guard_commands(
     manoeuvre checked first (the answer does not depend on it; the last one found safe is
     usually safe again, and then the others are not rolled out).
 
-    The field's command stands if, after one step of it, at least one level sustained manoeuvre
-    (hard left/right turn or straight, levelling) keeps ``required`` (n,) clearance (obstacles:
-    ``params.clearance``) over the horizon, and over as many steps more as it took to settle
-    into its steady turn: a way out is always kept. Otherwise the agent starts now the safe
-    level manoeuvre whose next velocity is nearest the field's; with no level one safe even now,
-    the command stands while a climbing or diving one is safe after it, else the agent starts
-    the safe manoeuvre nearest it (or, if none is safe, the one that keeps the clearance the
-    longest, the clearest of those). Returns
+    The field's command stands if, after one step of it, at least one sustained manoeuvre
+    (hard left/right turn or straight, levelling/climbing/diving) keeps ``required`` (n,)
+    clearance (obstacles: ``params.clearance``) over the horizon, and over as many steps more as
+    it took to settle into its steady turn: a way out is always kept. Otherwise
+    the agent starts now the safe manoeuvre whose next velocity is nearest the field's (or, if
+    none is safe, the one that keeps the clearance the longest, the clearest of those). Returns
     the commands (n, 3) and a mask (n,) of the replaced ones. ``compiled``, when given, answers
     in one pass each (the same answers as rolling the manoeuvres out and measuring
     ``clearance``).
@@ -272,39 +257,45 @@ def guard_commands(
         params.min_turn_radius[k], params.max_climb[k], dt, kappa, params.roll_rate[k],
     )  # fmt: skip
     p_next = pos + v_next * dt
-    when = t0 + dt + np.concatenate([[0.0], times])
-
-    def safe_after(rows: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The clearance after the field's step of the agents ``rows`` and the first of the
-        manoeuvres ``which`` (rows, C') safe after it (its column; -1: none)."""
-        at = idx[rows]
-        if compiled is not None:
-            flown = _rollout_rows(params, at, p_next[rows], v_next[rows], k_next[rows], which, dt)
-            return compiled.first_safe(flown, when, params.radius[at], extra_now[rows], required[rows])
-        d, cc = which.shape
-        after, used, r_after, e_after = _manoeuvre_clearance(
-            params, at, p_next[rows], v_next[rows], k_next[rows], times, dt, which
-        )
-        points = np.concatenate([after.reshape(-1, 3), p_next[rows]])
-        radii = np.concatenate([r_after.reshape(-1), params.radius[at]])
-        extra = np.concatenate([e_after.reshape(-1), extra_now[rows]])
-        at_times = np.concatenate([np.tile(t0 + dt + times, d * cc), np.full(d, t0 + dt)])
-        clear = clearance(points, radii, at_times, extra)
-        m = d * cc * 2 * steps
-        safe = _least(clear[:m].reshape(d, cc, 2 * steps), used) >= required[rows, None]
-        return clear[m:], np.where(safe.any(axis=1), np.argmax(safe, axis=1), -1)
-
-    # Is a level manoeuvre safe after it? Each agent's ``prefer`` (the one safe there last time,
-    # levelled) first, the other level ones only for the agents it leaves in doubt: the same answers.
+    # Is any manoeuvre safe after it? Each agent's ``prefer`` (the one safe there last time)
+    # first, every other one only for the agents it leaves in doubt: the same answers.
     prefer = np.zeros(n, dtype=np.int64) if prefer is None else prefer
-    step_clear, first = safe_after(np.arange(n), _LEVEL_OF[prefer][:, None])
-    stepped = step_clear >= required
-    keep = stepped & (first >= 0)
-    doubt = np.flatnonzero(stepped & ~keep)
-    if len(doubt):
-        _, first = safe_after(doubt, np.broadcast_to(_LEVEL, (len(doubt), len(_LEVEL))))
+    if compiled is None:
+        pref, used, r_pref, e_pref = _manoeuvre_clearance(
+            params, idx, p_next, v_next, k_next, times, dt, prefer[:, None]
+        )
+        points = np.concatenate([pref.reshape(-1, 3), p_next])
+        radii = np.concatenate([r_pref.reshape(-1), params.radius[idx]])
+        extra = np.concatenate([e_pref.reshape(-1), extra_now])
+        when = np.concatenate([np.tile(t0 + dt + times, n), np.full(n, t0 + dt)])
+        clear = clearance(points, radii, when, extra)
+        m = n * 2 * steps
+        step_clear, least = clear[m:], _least(clear[:m].reshape(n, 1, 2 * steps), used)[:, 0]
+        keep = (step_clear >= required) & (least >= required)
+    else:
+        when = t0 + dt + np.concatenate([[0.0], times])
+        rows = _rollout_rows(params, idx, p_next, v_next, k_next, prefer[:, None], dt)
+        step_clear, first = compiled.first_safe(rows, when, params.radius[idx], extra_now, required)
+        keep = (step_clear >= required) & (first >= 0)
+    doubt = np.flatnonzero(~keep & (step_clear >= required))
+    if len(doubt) and compiled is not None:
+        d = len(doubt)
+        which = np.broadcast_to(np.arange(c), (d, c))
+        rows = _rollout_rows(params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], which, dt)
+        radii = params.radius[idx[doubt]]
+        _, first = compiled.first_safe(rows, when, radii, extra_now[doubt], required[doubt])
         keep[doubt] = first >= 0
-        prefer[doubt] = np.where(first >= 0, _LEVEL[first], prefer[doubt])
+        prefer[doubt] = np.where(first >= 0, first, prefer[doubt])
+    elif len(doubt):
+        d = len(doubt)
+        after, used, r_after, e_after = _manoeuvre_clearance(
+            params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], times, dt
+        )
+        when = np.tile(t0 + dt + times, d * c)
+        clear_after = clearance(after.reshape(-1, 3), r_after.reshape(-1), when, e_after.reshape(-1))
+        safe = _least(clear_after.reshape(d, c, 2 * steps), used) >= required[doubt, None]
+        keep[doubt] = safe.any(axis=1)
+        prefer[doubt] = np.where(safe.any(axis=1), np.argmax(safe, axis=1), prefer[doubt])
     if keep.all():
         return out, replaced
     # ... and, for the agents it would corner, from where they are now (each row of a rollout
@@ -329,25 +320,12 @@ def guard_commands(
         worst_now[rows], kept_now[rows] = compiled.least(
             flown, t0 + times, params.radius[idx[rows]], extra_now[rows], required[rows]
         )
-    # With no level way out left even now, the climbs and dives are the way out kept: the
-    # field's command stands while one of them is safe after it.
-    level_now = (worst_now[:, _LEVEL] >= required[:, None]).any(axis=1)
-    reserve = np.flatnonzero(~keep & stepped & ~level_now)
-    if len(reserve):
-        _, first = safe_after(reserve, np.broadcast_to(_CLIMBS, (len(reserve), len(_CLIMBS))))
-        found = first >= 0
-        keep[reserve[found]] = True
-        prefer[reserve[found]] = _CLIMBS[first[found]]
-        if keep.all():
-            return out, replaced
     # What each manoeuvre flies on the next step, under the model itself.
     every = np.broadcast_to(np.arange(c), (n, c))
     *now_rows, _ = _rollout_rows(params, idx, pos, vel, kappa, every, dt)
     first = fixed_wing_model().first_velocities(*now_rows, dt)
     for i in np.flatnonzero(~keep):
         safe = np.flatnonzero(worst_now[i] >= required[i])
-        if level_now[i]:  # a level way out while there is one
-            safe = safe[_UP[safe] == 0.0]
         if len(safe):
             gap = np.linalg.norm(first[i, safe] - v_next[i], axis=1)
             j = int(safe[np.argmin(gap)])
