@@ -177,3 +177,95 @@ def test_the_guard_keeps_the_aircrafts_clearance_from_bodies():
     wide = next(d for d in gaps[::-1] if replaced_at(p, d))
     tight = next(d for d in gaps[::-1] if replaced_at(near, d))
     assert wide - tight == pytest.approx(1.0, abs=0.06)
+
+
+def _diving_at_the_wall() -> tuple[AgentParams, np.ndarray, np.ndarray]:
+    """The wall world's agent (rolling at once, climbing or diving up to 30 degrees) diving at
+    25 degrees straight at the wall, 25 m above flat ground; its goal 5 m below it."""
+    p = _one_agent_params(instant=True)
+    p.max_climb[:] = np.radians(30.0)
+    g = np.radians(-25.0)
+    return p, np.array([0]), np.array([[15.0 * np.cos(g), 0.0, 15.0 * np.sin(g)]])
+
+
+GOAL_HEIGHT = np.array([20.0])
+
+
+def _wall_and_ground(points: np.ndarray, radii: np.ndarray, t: float, extra: np.ndarray) -> np.ndarray:
+    return np.minimum(_wall_clearance(points, radii, t, extra), points[:, 2] - radii)
+
+
+def _safe_manoeuvres(p: AgentParams, pos: np.ndarray, vel: np.ndarray, held: bool) -> set[tuple[int, int]]:
+    """The (turn, climb) manoeuvres from ``pos``/``vel`` (straight) that keep 1 m from the wall
+    and the ground over the guard's horizon, climbing or diving to the flight volume's ceiling
+    or floor or (``held``) to the goal's height at most."""
+    from swarmplan.flight.lookahead import _MANOEUVRES, held_levels, kept_gap, rollout_manoeuvres
+
+    idx = np.array([0])
+    steps = horizon_steps(p, idx, np.array([15.0]), 0.1)
+    levels = held_levels(p, idx, pos[:, 2], GOAL_HEIGHT) if held else None
+    points, used = rollout_manoeuvres(p, idx, pos, vel, steps, 0.1, levels=levels)
+    gap = kept_gap(p, idx, 0.1)[0]
+    out = set()
+    for c, m in enumerate(_MANOEUVRES):
+        flown = points[0, c, : used[0, c]]
+        if _wall_and_ground(flown, np.ones(len(flown)), 0.0, np.full(len(flown), gap)).min() >= 1.0:
+            out.add(m)
+    return out
+
+
+def _guarded(p: AgentParams, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    args = (p, np.array([0]), pos, vel, vel.copy(), 0.0, 0.1, _wall_and_ground, np.array([1.0]))
+    return guard_commands(*args, goal=GOAL_HEIGHT)
+
+
+def test_the_held_levels_lie_between_the_aircraft_and_its_goal():
+    from swarmplan.flight.lookahead import held_levels
+
+    p = _one_agent_params()  # flight volume 0-60 m: levelling off 3 m inside it (3 body radii)
+    idx = np.array([0, 0, 0, 0])
+    got = held_levels(p, idx, np.array([25.0, 25.0, 25.0, 59.0]), np.array([20.0, 40.0, 80.0, 30.0]))
+    np.testing.assert_array_equal(got, [[20.0, 25.0], [25.0, 40.0], [25.0, 57.0], [30.0, 57.0]])
+
+
+def test_a_diving_fixed_wing_keeps_a_way_out_above_its_goal_while_it_has_one():
+    """Diving at a wall, the dive's own turn is the tightest (a level turn first pulls out of
+    the dive). The guard gives the field's command up where it would leave no way out that
+    levels off at the goal's height, while a dive on to the floor would still get clear (and
+    take the aircraft far below its goal): it pulls out."""
+    p, _, vel = _diving_at_the_wall()
+    for distance in np.arange(60.0, 10.0, -0.05):
+        pos = np.array([[WALL_X - 1 - distance, 100.0, 25.0]])
+        out, replaced = _guarded(p, pos, vel)
+        if replaced[0]:
+            break
+    else:
+        raise AssertionError("never guarded")
+    after = pos + vel * 0.1
+    assert not _safe_manoeuvres(p, after, vel, held=True)
+    assert any(climb == -1 for _, climb in _safe_manoeuvres(p, after, vel, held=False))
+    assert _safe_manoeuvres(p, pos, vel, held=True)  # one held way out is left now
+    assert out[0, 2] > vel[0, 2]  # pulling out of the dive (first in the turn budget)
+    # Without its goal's height the guard waits for the last way out of all.
+    plain = guard_commands(
+        p, np.array([0]), pos, vel, vel.copy(), 0.0, 0.1, _wall_and_ground, np.array([1.0])
+    )
+    assert not plain[1][0]
+
+
+def test_with_no_held_way_out_left_the_field_flies_on_while_a_dive_gets_clear():
+    """Closer in, no manoeuvre held to the goal's height gets clear even now: the climbs and
+    dives to the ceiling or the floor are the way out kept, and the field's command stands
+    while one of them gets clear after it."""
+    p, _, vel = _diving_at_the_wall()
+    seen = 0
+    for distance in np.arange(40.0, 10.0, -0.05):
+        pos = np.array([[WALL_X - 1 - distance, 100.0, 25.0]])
+        if _safe_manoeuvres(p, pos, vel, held=True) or not _safe_manoeuvres(
+            p, pos + vel * 0.1, vel, held=False
+        ):
+            continue
+        out, replaced = _guarded(p, pos, vel)
+        assert not replaced[0] and np.array_equal(out, vel), distance
+        seen += 1
+    assert seen > 0
