@@ -16,19 +16,6 @@ clear the longest (time for a mover to pass, for the field to find a way), the c
 those. Flying the field's command until the last step that keeps a way out
 leaves the field in charge everywhere but where it would corner the aircraft.
 
-The way out kept stays between the aircraft's height and its goal's while there is one: its
-climbs and dives level off at the goal's height at most (:func:`held_levels`), and those to the
-ceiling or the floor of the flight volume are the reserve. A climbing or diving turn can be
-the tighter one (a steady helix at flight-path angle g turns on a horizontal circle of
-R_min cos^2 g, and an aircraft already climbing or diving turns at once where a level turn
-must first pull out), so a guard that waits for the last way out of all is left, near a face of
-the flight volume or a body, with a climb or dive at the limit to the ceiling or the floor
-only, and flies it far past the goal's height (an aircraft over its goal that then has that
-height to win back in a turn radius or two misses it, and comes round to the same place). So
-the command stands while a held way out remains after it, and the guard starts the safe held
-manoeuvre closest to it once none would; only with no held way out even now does the field's
-command stand while a climb or dive to the ceiling or the floor remains after it.
-
 The predictions fly the model itself (``swarmplan.flight._fixed_wing_kernel``, compiled: step
 by step, at constant speed, rolling from the aircraft's current turn at its roll rate; the
 flight-path angle ramps within the same turn budget as the heading, and comes first in it: a
@@ -137,19 +124,17 @@ def rollout_manoeuvres(
     dt: float,
     kappa: np.ndarray | None = None,
     which: np.ndarray | None = None,
-    levels: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Positions (n, C, 2 steps, 3) of fixed wings ``idx`` at ``pos``/``vel`` (turn states
     ``kappa`` (n, 2), default straight) flying each sustained manoeuvre (or, with ``which``
-    (n, C'), the manoeuvres of those indices; climbs and dives levelling off at ``levels``
-    (n, 2), default the flight volume's) over a horizon of ``steps`` steps of the model at
+    (n, C'), the manoeuvres of those indices) over a horizon of ``steps`` steps of the model at
     constant speed, and the steps each flew (n, C): the horizon and one more for each step it
     was settling (the commands are re-formed from the current state each step, as the guard
     flies them; compiled, ``swarmplan.flight._fixed_wing_kernel.rollouts``)."""
     n = len(idx)
     if which is None:
         which = np.broadcast_to(np.arange(len(_MANOEUVRES)), (n, len(_MANOEUVRES)))
-    *rows, dt = _rollout_rows(params, idx, pos, vel, kappa, which, dt, levels)
+    *rows, dt = _rollout_rows(params, idx, pos, vel, kappa, which, dt)
     return fixed_wing_model().rollouts(*rows, int(steps), dt)
 
 
@@ -161,17 +146,17 @@ def _rollout_rows(
     kappa: np.ndarray | None,
     which: np.ndarray,
     dt: float,
-    levels: np.ndarray | None = None,
 ) -> tuple:
     """The compiled rollouts' arguments (pos, vel, kappa, turn, top, amax, radius, climb, roll,
     dt) of fixed wings ``idx`` flying the manoeuvres ``which`` (n, C'): a climb flies to the
-    ceiling of ``levels`` (n, 2; default :func:`volume_levels`), a dive to its floor, level ones
-    nan."""
+    ceiling of ``params.levels``, a dive to its floor (none: for good), level ones nan."""
     f = np.ascontiguousarray
     kappa = np.zeros((len(idx), 2)) if kappa is None else f(kappa, dtype=float)
     up = _UP[which]
-    levels = volume_levels(params, idx) if levels is None else levels
-    floor, ceiling = levels[:, :1], levels[:, 1:]
+    if params.levels is None:
+        floor, ceiling = np.full((len(idx), 1), -np.inf), np.full((len(idx), 1), np.inf)
+    else:
+        floor, ceiling = params.levels[idx, :1], params.levels[idx, 1:]
     top = np.where(up > 0, ceiling, np.where(up < 0, floor, np.nan))
     return (
         f(pos, dtype=float), f(vel, dtype=float), kappa, f(_TURN[which]), f(top, dtype=float),
@@ -189,40 +174,15 @@ def _manoeuvre_clearance(
     times: np.ndarray,
     dt: float,
     which: np.ndarray | None = None,
-    levels: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Predicted positions (n, C, 2 H, 3) of the sustained manoeuvres (``which``: those of these
-    indices, (n, C'); climbs and dives levelling off at ``levels``) from ``pos``/``vel``/``kappa``
-    at ``times`` (2 H,), the steps each flew (n, C), the matching body radii (n, C, 2 H) and the
-    gaps kept from bodies beyond them."""
+    indices, (n, C')) from ``pos``/``vel``/``kappa`` at ``times`` (2 H,), the steps each flew
+    (n, C), the matching body radii (n, C, 2 H) and the gaps kept from bodies beyond them."""
     n, c = len(idx), len(_MANOEUVRES) if which is None else which.shape[1]
-    points, used = rollout_manoeuvres(params, idx, pos, vel, len(times) // 2, dt, kappa, which, levels)
+    points, used = rollout_manoeuvres(params, idx, pos, vel, len(times) // 2, dt, kappa, which)
     radii = np.broadcast_to(params.radius[idx][:, None, None], (n, c, len(times)))
     extra = np.broadcast_to(kept_gap(params, idx, dt)[:, None, None], (n, c, len(times)))
     return points, used, radii, extra
-
-
-def volume_levels(params: AgentParams, idx: np.ndarray) -> np.ndarray:
-    """The floor and the ceiling (n, 2) fixed wings ``idx`` level off at diving or climbing to
-    the flight volume's (``params.levels``; none: for good)."""
-    if params.levels is None:
-        return np.column_stack([np.full(len(idx), -np.inf), np.full(len(idx), np.inf)])
-    return params.levels[idx]
-
-
-def held_levels(params: AgentParams, idx: np.ndarray, pos: np.ndarray, goal: np.ndarray) -> np.ndarray:
-    """The floor and the ceiling (n, 2) a climb or dive of the guard's holds fixed wings ``idx``
-    at ``pos`` (n, 3) flying to ``goal`` (n, 3) within (module docstring): the heights between
-    theirs and their goals', and beyond those as far as they can win back at their climb limit
-    over their way in (horizontally) less a turn radius, within the flight volume's
-    (:func:`volume_levels`)."""
-    volume = volume_levels(params, idx)
-    e = goal - pos
-    away = np.hypot(e[:, 0], e[:, 1])
-    room = np.maximum(away - params.min_turn_radius[idx], 0.0) * np.tan(params.max_climb[idx])
-    ceiling = np.minimum(volume[:, 1], np.maximum(pos[:, 2], goal[:, 2]) + room)
-    floor = np.minimum(np.maximum(volume[:, 0], np.minimum(pos[:, 2], goal[:, 2]) - room), ceiling)
-    return np.column_stack([floor, ceiling])
 
 
 def kept_gap(params: AgentParams, idx: np.ndarray, dt: float) -> np.ndarray:
@@ -263,7 +223,6 @@ def guard_commands(
     kappa: np.ndarray | None = None,
     prefer: np.ndarray | None = None,
     compiled: CompiledGuard | None = None,
-    goal: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Guarded commands of fixed wings ``idx`` (rows of ``pos``, ``vel``, ``v_cmd`` and of their
     turn states ``kappa``, default straight). ``prefer`` (n,), updated in place: per agent the
@@ -273,14 +232,12 @@ def guard_commands(
     The field's command stands if, after one step of it, at least one sustained manoeuvre
     (hard left/right turn or straight, levelling/climbing/diving) keeps ``required`` (n,)
     clearance (obstacles: ``params.clearance``) over the horizon, and over as many steps more as
-    it took to settle into its steady turn: a way out is always kept. With the heights of their
-    goals ``goal`` (n,), the way out kept while there is one climbs or dives to the goal's height
-    at most (:func:`held_levels`); only once none is left even now does a climb or dive to the
-    ceiling or the floor of the flight volume count. Otherwise the agent starts now the safe
-    manoeuvre (held so, while one is) whose next velocity is nearest the field's (or, if none is
-    safe, the one that keeps the clearance the longest, the clearest of those). Returns the
-    commands (n, 3) and a mask (n,) of the replaced ones. ``compiled``, when given, answers in
-    one pass each (the same answers as rolling the manoeuvres out and measuring ``clearance``).
+    it took to settle into its steady turn: a way out is always kept. Otherwise
+    the agent starts now the safe manoeuvre whose next velocity is nearest the field's (or, if
+    none is safe, the one that keeps the clearance the longest, the clearest of those). Returns
+    the commands (n, 3) and a mask (n,) of the replaced ones. ``compiled``, when given, answers
+    in one pass each (the same answers as rolling the manoeuvres out and measuring
+    ``clearance``).
     """
     n = len(idx)
     out = v_cmd.copy()
@@ -293,8 +250,6 @@ def guard_commands(
     times = np.arange(1, 2 * steps + 1) * dt
     c = len(_MANOEUVRES)
     extra_now = kept_gap(params, idx, dt)
-    volume = volume_levels(params, idx)
-    held = volume if goal is None else held_levels(params, idx, pos, goal)
     # After one step of the field's command ...
     k = idx
     v_next, k_next = fly_fixed_wing(
@@ -302,84 +257,72 @@ def guard_commands(
         params.min_turn_radius[k], params.max_climb[k], dt, kappa, params.roll_rate[k],
     )  # fmt: skip
     p_next = pos + v_next * dt
-    when = t0 + dt + np.concatenate([[0.0], times])
-    every = np.arange(c)
-
-    def safe_after(rows: np.ndarray, which: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The clearance after the field's step of the agents ``rows`` and the first of the
-        manoeuvres ``which`` (rows, C'), to ``levels`` (rows, 2), safe after it (its column; -1:
-        none)."""
-        at = idx[rows]
-        if compiled is not None:
-            flown = _rollout_rows(params, at, p_next[rows], v_next[rows], k_next[rows], which, dt, levels)
-            return compiled.first_safe(flown, when, params.radius[at], extra_now[rows], required[rows])
-        d, cc = which.shape
-        after, used, r_after, e_after = _manoeuvre_clearance(
-            params, at, p_next[rows], v_next[rows], k_next[rows], times, dt, which, levels
+    # Is any manoeuvre safe after it? Each agent's ``prefer`` (the one safe there last time)
+    # first, every other one only for the agents it leaves in doubt: the same answers.
+    prefer = np.zeros(n, dtype=np.int64) if prefer is None else prefer
+    if compiled is None:
+        pref, used, r_pref, e_pref = _manoeuvre_clearance(
+            params, idx, p_next, v_next, k_next, times, dt, prefer[:, None]
         )
-        points = np.concatenate([after.reshape(-1, 3), p_next[rows]])
-        radii = np.concatenate([r_after.reshape(-1), params.radius[at]])
-        extra = np.concatenate([e_after.reshape(-1), extra_now[rows]])
-        at_times = np.concatenate([np.tile(t0 + dt + times, d * cc), np.full(d, t0 + dt)])
-        clear = clearance(points, radii, at_times, extra)
-        m = d * cc * 2 * steps
-        safe = _least(clear[:m].reshape(d, cc, 2 * steps), used) >= required[rows, None]
-        return clear[m:], np.where(safe.any(axis=1), np.argmax(safe, axis=1), -1)
-
-    def from_now(rows: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The least clearance (rows, C) of each manoeuvre (to ``levels``) from where the agents
-        ``rows`` are now and the steps it keeps ``required`` (each row of a rollout and of a
-        clearance is its own: the same values as when every agent is rolled out)."""
-        at, kk = idx[rows], len(rows)
-        which = np.broadcast_to(every, (kk, c))
-        if compiled is not None:
-            flown = _rollout_rows(params, at, pos[rows], vel[rows], kappa[rows], which, dt, levels)
-            return compiled.least(flown, t0 + times, params.radius[at], extra_now[rows], required[rows])
+        points = np.concatenate([pref.reshape(-1, 3), p_next])
+        radii = np.concatenate([r_pref.reshape(-1), params.radius[idx]])
+        extra = np.concatenate([e_pref.reshape(-1), extra_now])
+        when = np.concatenate([np.tile(t0 + dt + times, n), np.full(n, t0 + dt)])
+        clear = clearance(points, radii, when, extra)
+        m = n * 2 * steps
+        step_clear, least = clear[m:], _least(clear[:m].reshape(n, 1, 2 * steps), used)[:, 0]
+        keep = (step_clear >= required) & (least >= required)
+    else:
+        when = t0 + dt + np.concatenate([[0.0], times])
+        rows = _rollout_rows(params, idx, p_next, v_next, k_next, prefer[:, None], dt)
+        step_clear, first = compiled.first_safe(rows, when, params.radius[idx], extra_now, required)
+        keep = (step_clear >= required) & (first >= 0)
+    doubt = np.flatnonzero(~keep & (step_clear >= required))
+    if len(doubt) and compiled is not None:
+        d = len(doubt)
+        which = np.broadcast_to(np.arange(c), (d, c))
+        rows = _rollout_rows(params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], which, dt)
+        radii = params.radius[idx[doubt]]
+        _, first = compiled.first_safe(rows, when, radii, extra_now[doubt], required[doubt])
+        keep[doubt] = first >= 0
+        prefer[doubt] = np.where(first >= 0, first, prefer[doubt])
+    elif len(doubt):
+        d = len(doubt)
+        after, used, r_after, e_after = _manoeuvre_clearance(
+            params, idx[doubt], p_next[doubt], v_next[doubt], k_next[doubt], times, dt
+        )
+        when = np.tile(t0 + dt + times, d * c)
+        clear_after = clearance(after.reshape(-1, 3), r_after.reshape(-1), when, e_after.reshape(-1))
+        safe = _least(clear_after.reshape(d, c, 2 * steps), used) >= required[doubt, None]
+        keep[doubt] = safe.any(axis=1)
+        prefer[doubt] = np.where(safe.any(axis=1), np.argmax(safe, axis=1), prefer[doubt])
+    if keep.all():
+        return out, replaced
+    # ... and, for the agents it would corner, from where they are now (each row of a rollout
+    # and of a clearance is its own: the same values as when every agent is rolled out).
+    rows = np.flatnonzero(~keep)
+    kk = len(rows)
+    worst_now = np.full((n, c), -np.inf)
+    kept_now = np.zeros((n, c), dtype=np.int64)
+    if compiled is None:
+        at = idx[rows]
         now, used, r_now, e_now = _manoeuvre_clearance(
-            params, at, pos[rows], vel[rows], kappa[rows], times, dt, which, levels
+            params, at, pos[rows], vel[rows], kappa[rows], times, dt
         )
         when_now = np.tile(t0 + times, kk * c)
         clear_now = clearance(now.reshape(-1, 3), r_now.reshape(-1), when_now, e_now.reshape(-1))
         clear_now = clear_now.reshape(kk, c, 2 * steps)
-        return _least(clear_now, used), _kept(clear_now, used, required[rows])
-
-    # Is any manoeuvre (held to the goal's height) safe after it? Each agent's ``prefer`` (the
-    # one safe there last time) first, every other one only for the agents it leaves in doubt:
-    # the same answers.
-    prefer = np.zeros(n, dtype=np.int64) if prefer is None else prefer
-    step_clear, first = safe_after(np.arange(n), prefer[:, None], held)
-    stepped = step_clear >= required
-    keep = stepped & (first >= 0)
-    doubt = np.flatnonzero(stepped & ~keep)
-    if len(doubt):
-        _, first = safe_after(doubt, np.broadcast_to(every, (len(doubt), c)), held[doubt])
-        keep[doubt] = first >= 0
-        prefer[doubt] = np.where(first >= 0, first, prefer[doubt])
-    if keep.all():
-        return out, replaced
-    # ... and, for the agents it would corner, from where they are now.
-    rows = np.flatnonzero(~keep)
-    worst_now = np.full((n, c), -np.inf)
-    kept_now = np.zeros((n, c), dtype=np.int64)
-    worst_now[rows], kept_now[rows] = from_now(rows, held[rows])
-    levels = held.copy()
-    if goal is not None:
-        # With no held way out left even now, the climbs and dives to the ceiling or the floor
-        # are the way out kept: the field's command stands while one of them is safe after it.
-        spent = np.flatnonzero(~keep & ~(worst_now >= required[:, None]).any(axis=1))
-        if len(spent):
-            levels[spent] = volume[spent]
-            free = spent[stepped[spent]]
-            if len(free):
-                _, first = safe_after(free, np.broadcast_to(every, (len(free), c)), volume[free])
-                keep[free[first >= 0]] = True
-            spent = spent[~keep[spent]]
-            if len(spent):
-                worst_now[spent], kept_now[spent] = from_now(spent, volume[spent])
-        if keep.all():
-            return out, replaced
+        worst_now[rows] = _least(clear_now, used)
+        kept_now[rows] = _kept(clear_now, used, required[rows])
+    else:
+        which = np.broadcast_to(np.arange(c), (kk, c))
+        flown = _rollout_rows(params, idx[rows], pos[rows], vel[rows], kappa[rows], which, dt)
+        worst_now[rows], kept_now[rows] = compiled.least(
+            flown, t0 + times, params.radius[idx[rows]], extra_now[rows], required[rows]
+        )
     # What each manoeuvre flies on the next step, under the model itself.
-    *now_rows, _ = _rollout_rows(params, idx, pos, vel, kappa, np.broadcast_to(every, (n, c)), dt, levels)
+    every = np.broadcast_to(np.arange(c), (n, c))
+    *now_rows, _ = _rollout_rows(params, idx, pos, vel, kappa, every, dt)
     first = fixed_wing_model().first_velocities(*now_rows, dt)
     for i in np.flatnonzero(~keep):
         safe = np.flatnonzero(worst_now[i] >= required[i])

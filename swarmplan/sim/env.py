@@ -226,7 +226,7 @@ class Simulation:
             oldest = cmd.oldest
             v_cmd = self.evasion.commands(idx, cmd.velocity)
             v_cmd, guarded = self.safety.guard_fixed_wings(
-                idx, pos0, vel0, v_cmd, cmd.obstacle_distance, cmd.clearance, t0, cmd.goal
+                idx, pos0, vel0, v_cmd, cmd.obstacle_distance, cmd.clearance, t0
             )
             self._merge(guarded)
             brake_goal = self.evasion.brake_goals(idx, cmd.position, cmd.goal)

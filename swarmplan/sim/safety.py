@@ -121,12 +121,9 @@ class SafetyFilter:
         d: np.ndarray,
         clearance: np.ndarray,
         t0: float,
-        goal: np.ndarray | None = None,
     ) -> tuple[np.ndarray, Tally]:
         """Fixed wings keep the field's command only while they could still turn away
-        (``swarmplan.flight.lookahead``), keeping a way out between their heights and their
-        goals' (``goal``, rows of ``idx``: the points their fields pull them home to) while
-        there is one. Only agents with an obstacle, the terrain or the bounds within
+        (``swarmplan.flight.lookahead``). Only agents with an obstacle, the terrain or the bounds within
         reach of the horizon (obstacles' own motion included) are checked, and only against the
         obstacles within that reach. Returns the commands and the guarded steps (``guard_steps``)."""
         p = self.params
@@ -203,7 +200,7 @@ class SafetyFilter:
         prefer = self._prefer[agents]
         guarded, replaced = guard_commands(
             p, agents, pos0[agents], vel0[agents], v_cmd[rows], t0, dt, clearance_at, required[rows],
-            self.turn[agents], prefer, fused, None if goal is None else goal[rows],
+            self.turn[agents], prefer, fused,
         )  # fmt: skip
         self._prefer[agents] = prefer
         out = v_cmd.copy()
