@@ -28,8 +28,11 @@ direction of flight, the tangent, the arc to the goal; from inside it, the turn 
 course and the arc when shorter), or
 the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
-goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
-bearing no longer tells the heading it will arrive with: it keeps what it decided before.
+goal, and loiters on that same circle once it arrives. It turns into its goal only with no more
+height left to win or lose than its climb limit wins over the arc to it: else it goes round
+once more, spiralling to the goal's height (a goal passed above or below is not reached).
+Within a turn radius of its goal its bearing no longer tells the heading it will arrive with:
+it keeps what it decided before.
 
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
