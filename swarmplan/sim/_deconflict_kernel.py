@@ -102,43 +102,48 @@ def meetings(pairs, radius, believed, steps, agents, agreed, dt):  # noqa: ANN00
     pos0, pos1 = steps
     m = k.shape[0]
     agreeing = agreed.shape[0] > 0
-    ko = np.empty(m, dtype=np.int64)
-    jo = np.empty(m, dtype=np.int64)
-    need = np.empty(m)
-    closing = np.empty(m)
-    b0 = np.empty((m, 3))
-    b1 = np.empty((m, 3))
-    d = np.empty(m)
-    meet = np.empty(m, dtype=np.bool_)
+    # The pairs kept, found without a branch (written at c whatever they are, kept by moving c
+    # on), then worked out into arrays of their number.
+    kept = np.empty(m + 1, dtype=np.int64)
     c = 0
     for p in range(m):
         kp, jp, r = k[p], j[p], rows[p]
         i = own[kp]
-        a = age[r] if math.isfinite(age[r]) else 0.0
-        a = a + dt
+        a = (age[r] if math.isfinite(age[r]) else 0.0) + dt
         margin = 0.5 * max_accel[jp] * a * a  # deconflict.belief_margin
-        if not (now[p] < radius and deciding[i] and margin <= cap[i] + cap[jp]):
-            continue
-        if agreeing and agreed[i, jp]:
-            continue
-        ko[c], jo[c] = kp, jp
-        need[c] = checked[i] + checked[jp] + margin
+        ok = now[p] < radius and deciding[i] and margin <= cap[i] + cap[jp]
+        kept[c] = p
+        c += ok and not (agreeing and agreed[i, jp])
+    ko = np.empty(c, dtype=np.int64)
+    jo = np.empty(c, dtype=np.int64)
+    need = np.empty(c)
+    closing = np.empty(c)
+    b0 = np.empty((c, 3))
+    b1 = np.empty((c, 3))
+    d = np.empty(c)
+    meet = np.empty(c, dtype=np.bool_)
+    for q in range(c):
+        p = kept[q]
+        kp, jp, r = k[p], j[p], rows[p]
+        i = own[kp]
+        a = (age[r] if math.isfinite(age[r]) else 0.0) + dt
+        margin = 0.5 * max_accel[jp] * a * a
+        ko[q], jo[q] = kp, jp
+        need[q] = checked[i] + checked[jp] + margin
         # collision.segment_segment_min_distance of the flyer's step and the believed motion
         for e in range(3):
-            b0[c, e] = pos[r, e]
-            b1[c, e] = pos[r, e] + vel[r, e] * dt
-        wx, wy, wz = pos0[i, 0] - b0[c, 0], pos0[i, 1] - b0[c, 1], pos0[i, 2] - b0[c, 2]
-        ux = (pos1[i, 0] - pos0[i, 0]) - (b1[c, 0] - b0[c, 0])
-        uy = (pos1[i, 1] - pos0[i, 1]) - (b1[c, 1] - b0[c, 1])
-        uz = (pos1[i, 2] - pos0[i, 2]) - (b1[c, 2] - b0[c, 2])
+            b0[q, e] = pos[r, e]
+            b1[q, e] = pos[r, e] + vel[r, e] * dt
+        wx, wy, wz = pos0[i, 0] - b0[q, 0], pos0[i, 1] - b0[q, 1], pos0[i, 2] - b0[q, 2]
+        ux = (pos1[i, 0] - pos0[i, 0]) - (b1[q, 0] - b0[q, 0])
+        uy = (pos1[i, 1] - pos0[i, 1]) - (b1[q, 1] - b0[q, 1])
+        uz = (pos1[i, 2] - pos0[i, 2]) - (b1[q, 2] - b0[q, 2])
         aa = ux * ux + uy * uy + uz * uz
         s = 0.0
         if aa > 1e-18:
             s = min(max(-(wx * ux + wy * uy + wz * uz) / max(aa, 1e-18), 0.0), 1.0)
         x, y, z = wx + s * ux, wy + s * uy, wz + s * uz
-        d[c] = math.sqrt(x * x + y * y + z * z)
-        closing[c] = now[p] * (1.0 - 1e-9)
-        meet[c] = d[c] < need[c] and d[c] < closing[c]
-        c += 1
-    return (ko[:c].copy(), jo[:c].copy(), need[:c].copy(), closing[:c].copy(), b0[:c].copy(),
-            b1[:c].copy(), d[:c].copy(), meet[:c].copy())  # fmt: skip
+        d[q] = math.sqrt(x * x + y * y + z * z)
+        closing[q] = now[p] * (1.0 - 1e-9)
+        meet[q] = d[q] < need[q] and d[q] < closing[q]
+    return ko, jo, need, closing, b0, b1, d, meet
