@@ -90,3 +90,27 @@ def test_a_goal_under_a_thin_slab_is_searched_from_where_it_is_in_sight():
     assert guide.free[source]
     assert guide.centres[source][2] < 40.0  # under the slab's underside
     assert not guide._traced_hits(guide.centres[source][None], goal[None])[0]
+
+
+def test_a_goal_just_above_a_thin_plate_is_sought_from_above_it():
+    """A 5^3 grid of unit cells; a plate 0.2 thick at z 2.0..2.2 and the goal 0.2 above it, in
+    the cell (2, 2, 2). The plate inflated by the largest body takes the layers z = 2 and 3;
+    the free cells next to the goal's (z = 1) see it only through the plate: the source is the
+    free cell nearest the goal that sees it, two cells up, not a neighbour under the plate."""
+    shape = np.array([5, 5, 5])
+    ijk = np.stack(np.meshgrid(*(np.arange(5),) * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    centres = ijk.astype(float)
+    free = (ijk[:, 2] <= 1) | (ijk[:, 2] == 4)
+    clear = np.where(free, 1.0, -1.0) + 0.01 * ijk[:, 0]  # the most clearance at x = 4
+    goal = np.array([2.0, 2.0, 2.4])
+
+    def hits(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        lo, hi = np.minimum(a[:, 2], b[:, 2]), np.maximum(a[:, 2], b[:, 2])
+        return (lo <= 2.2) & (hi >= 2.0)
+
+    cell = (2 * 5 + 2) * 5 + 2
+    source = guide_graph.source_cell(free, clear, (ijk, centres, shape), cell, (goal, hits))
+    assert ijk[source].tolist() == [2, 2, 4]
+    # Without the sight test, the free neighbour with the most clearance (under the plate).
+    blind = guide_graph.source_cell(free, clear, (ijk, centres, shape), cell)
+    assert ijk[blind][2] == 1 and ijk[blind][0] == 3
