@@ -8,8 +8,8 @@ goal over a grid of the free space, is what grid planners descend (Barraquand & 
 
 :class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
 with the clearance of every cell centre to the static obstacles, the ground and the flight
-volume's other faces, less the largest ``checked_radius`` (body and safety margin). Per goal cell it computes the shortest way from every
-cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
+volume's other faces, less the largest ``checked_radius`` (body and safety margin). Per goal
+cell it computes the shortest way from every cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
 free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
 times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
 middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
