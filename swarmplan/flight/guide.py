@@ -6,20 +6,20 @@ cancel: a local minimum, the classic failure of APF (Koren & Borenstein 1991). A
 function has no such minima (Rimon & Koditschek 1992); its discrete form, the distance to the
 goal over a grid of the free space, is what grid planners descend (Barraquand & Latombe 1991).
 
-:class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
-with the clearance of every cell centre to the static obstacles, the ground and the flight
-volume's other faces, less the largest ``checked_radius`` (body and safety margin). Per goal
-cell it computes the shortest way from every cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
-free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
-times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
-middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
-direction, so that in a passage two opposing flows keep to their own right-hand halves instead
-of meeting head-on (the right-hand rule the field applies between agents). Each new way then
-loads the cells near surfaces it runs through (``ONCOMING``: negotiated congestion), so opposing
-flows take separate lanes through a passage (a doorway's tall slot: different heights). Ways in
-the same direction are not spread (``SAME`` = 0): spread at 0.2, they reach down to the ground's
-repulsion and hold two agents at a doorway's corners (16 agents, pure APF, seeds 0-5: 92 of 96
-arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
+:class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64
+agents) with the clearance of every cell centre to the static obstacles, the ground and the flight
+volume's other faces, less the largest ``checked_radius`` (body and safety margin). Per goal cell it
+computes the shortest way from every cell to the goal (Dijkstra over the 26 neighbours, compiled:
+``_guide_kernel``): free cells only enter free cells (a cell inside the inflated obstacles only
+leads out), and a leg costs its length times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c
+below C0), so the way keeps to the middle of a gap; and ``RIGHT`` more when the nearest surface lies
+to the right of the leg's direction, so that in a passage two opposing flows keep to their own
+right-hand halves instead of meeting head-on (the right-hand rule the field applies between agents).
+Each new way then loads the cells near surfaces it runs through (``ONCOMING``: negotiated
+congestion), so opposing flows take separate lanes through a passage (a doorway's tall slot:
+different heights). Ways in the same direction are not spread (``SAME`` = 0): spread at 0.2, they
+reach down to the ground's repulsion and hold two agents at a doorway's corners (16 agents, pure
+APF, seeds 0-5: 92 of 96 arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
 
 Each step an agent whose straight line to its goal runs through a static obstacle or within the
 squeeze of one (``field_law.squeeze``, beyond its radius; checked every ``RECHECK`` steps, a
