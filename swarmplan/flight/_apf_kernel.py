@@ -373,22 +373,29 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     if mag == 0.0:
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)
-                    if d < 0.25 * (o_radius[j] + ri + 1.0):
+                    need = o_radius[j] + ri
+                    stops = can_stop[idx[i]]  # a fixed wing's way round is the turn-ahead guard's
+                    qx, qy, qz = _unit(spx, spy, spz)
+                    wx, wy, wz = _unit(qx + 0.3 * rx, qy + 0.3 * ry, qz + 0.3 * rz)
+                    wh = math.sqrt(wx * wx + wy * wy)
+                    if d < 0.25 * (o_radius[j] + ri + 1.0) or (
+                        # on a collision course with the side away from it hemmed in: as head-on
+                        stops
+                        and d < need
+                        and wh > 0.0
+                        and _hemmed(wx / wh, wy / wh, pos[i], ri, need - d, dist[i], grad[i], moving, lo, hi)
+                    ):
                         # Head-on: out of the mover's way to the right, or where a static
                         # surface hems that side in (within the mover's radius and the agent's
                         # own) a multirotor goes to the left, or over both (pressed to a body's
-                        # edge by a mover on its right, one was pinned there until struck).
+                        # edge by a mover on its right, one was pinned there until struck; and
+                        # pushed at a pole, then to the right, one reversed each step until struck).
                         wx, wy, wz = rx, ry, rz
-                        need = o_radius[j] + ri
-                        stops = can_stop[idx[i]]  # a fixed wing's way round is the turn-ahead guard's
                         if stops and _hemmed(rx, ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
                             if _hemmed(-rx, -ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
                                 wx, wy, wz = 0.0, 0.0, 1.0
                             else:
                                 wx, wy, wz = -rx, -ry, -rz
-                    else:
-                        qx, qy, qz = _unit(spx, spy, spz)
-                        wx, wy, wz = _unit(qx + 0.3 * rx, qy + 0.3 * ry, qz + 0.3 * rz)
                     fx += mag * wx
                     fy += mag * wy
                     fz += mag * wz
