@@ -144,7 +144,15 @@ def reference_forces(
             hem_l = _hemmed(-right, pos, r, need, field, world)
             up = np.array([0.0, 0.0, 1.0])
             side = np.where(hem_r[..., None], np.where(hem_l[..., None], up, -right), right)
-            direction = np.where(head_on[..., None], side, _unit(_unit(sep) + 0.3 * right))
+            away = _unit(_unit(sep) + 0.3 * right)
+            # On a collision course with the side away from the mover's path hemmed in: as head-on.
+            level = np.linalg.norm(away[..., :2], axis=-1)
+            flat = np.concatenate(
+                [away[..., :2] / np.where(level > 0, level, 1.0)[..., None], 0 * away[..., 2:]], -1
+            )
+            stops = ~params.fixed_wing[idx][:, None]
+            pinned = stops & (dist < need) & (level > 0) & _hemmed(flat, pos, r, need - dist, field, world)
+            direction = np.where((head_on | pinned)[..., None], side, away)
             force = force + np.einsum("nk,nkd->nd", m, direction)
 
     h = world.terrain_height(pos[:, :2])

@@ -465,3 +465,21 @@ def test_loitering_fixed_wings_give_way_to_arriving_ones():
     at_goal = np.array([[48.0, 50.0, 20.0], goal[1]])
     out_of_reach = np.array([[48.0, 50.0, 2000.0], goal[1]])
     np.testing.assert_allclose(forces(at_goal, loitering)[1], forces(out_of_reach)[1], atol=1e-12)
+
+
+@pytest.mark.parametrize("speed", [4.0, 6.0])
+def test_a_mover_on_collision_course_with_no_room_on_the_agents_side_sends_it_across(speed):
+    """The sphere (3 m) comes head-on 2 m to the agent's left (+y): 2 m short of the 4 m miss its
+    body and the agent's need. Away from its path (-y) a wall stands 1.5 m from the agent's
+    surface, less than those 2 m: the push goes as head-on with the right hemmed in, to the
+    left (+y), at every speed of the agent (pushed into the wall at one speed and to the
+    right at another, an agent reversed each step and was struck where it hovered)."""
+    mover = dict(HEAD_ON_MOVER, position=[70, 52, 25])
+    wall = [{"id": "wall", "shape": "box", "size": [100, 1, 40], "position": [50, 47.0, 25]}]
+    p, v = np.array([30.0, 50, 25]), np.array([speed, 0, 0])
+    push = field_forces(world_of([mover, *wall]), p, v)[0] - field_forces(world_of(wall), p, v)[0]
+    assert float(np.dot(_unit(push), [0, 1, 0])) > 0.99, push
+    # With room on its side (the wall 3 m off), away from the mover's path as before.
+    far = [dict(wall[0], position=[50, 45.5, 25])]
+    push = field_forces(world_of([mover, *far]), p, v)[0] - field_forces(world_of(far), p, v)[0]
+    assert push[1] < 0.0, push

@@ -223,3 +223,43 @@ def test_the_surface_approach_is_exact_on_a_ball():
     t, d = surface_approach(distance, points, np.zeros(3, dtype=int), w, np.array([10.0, 3.0, 10.0]))
     np.testing.assert_allclose(t, [5.0, 3.0, 0.0], atol=1e-5)
     np.testing.assert_allclose(d, [1.0, np.hypot(2.0, 2.0) - 1.0, np.hypot(3.0, 2.0) - 1.0], atol=1e-9)
+
+
+def _at_the_face(velocity: list[float], passes: list[float]):
+    """Agent 'a' parks 1 m from the flight volume's face x = 0 (its body touches the face's
+    plane); a 2 m truck at ``velocity`` passes through ``passes`` at t = 8 s, on the agent's
+    inner side: the way away from its path leads out of the volume."""
+    v = np.array(velocity)
+    raw = base_world(
+        sim={"dt": 0.1, "max_time": 30, "goal_tolerance": 0.5},
+        obstacles=[
+            {
+                "id": "truck",
+                "shape": "sphere",
+                "radius": 2.0,
+                "position": (np.array(passes) - 8.0 * v).tolist(),
+                "motion": {"type": "linear", "velocity": velocity},
+            }
+        ],
+        agents=[
+            {"id": "a", "start": [10, 50, 20], "goal": [1.0, 50, 20]},
+            {"id": "b", "start": [10, 90, 20], "goal": [90, 90, 20], "speed": {"max": 3, "cruise": 3}},
+        ],
+    )
+    return make_world(raw)
+
+
+def test_an_agent_pressed_against_a_face_of_the_volume_dodges_along_it(tmp_path):
+    """Straight across the face (the way out is through it) and at a slant (part of it is): the
+    agent moves along the face, never holds at it, and is back at its goal after the truck."""
+    for velocity, passes in (([0.0, 3.0, 0.0], [2.5, 50.0, 20.0]), ([-2.0, 2.0, 0.0], [3.0, 52.0, 20.0])):
+        log = tmp_path / f"face-{velocity[0]}.mcap"
+        _, summary, pos = run_to_end(_at_the_face(velocity, passes), log_path=log)
+        a = summary["agents"][0]
+        assert a["collisions"] == 0 and summary["collisions"] == 0, (velocity, summary)
+        assert a["evasions"] >= 1 and a["final_mode"] == "arrived", (velocity, a)
+        assert a["min_obstacle_clearance"] > 0.0, a
+        track = np.array(pos)[:, 0]
+        assert track[:, 0].min() >= 0.0  # inside the volume throughout
+        problems, _notes, stats = audit(log)
+        assert not problems and stats["collisions"] == 0, problems

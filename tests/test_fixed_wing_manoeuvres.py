@@ -284,3 +284,33 @@ def test_the_way_onto_an_approach_circle_is_a_dubins_way() -> None:
     north = math.pi / 2.0
     way = _way_length(inside, east, goal, north, wide, 1.0, rho)
     assert way == pytest.approx(rho * math.pi / 2.0 + wide * math.pi)
+
+
+def test_a_fixed_wing_spirals_on_its_approach_circle_until_its_goal_height_is_in_reach() -> None:
+    """On its approach circle (radius R, anticlockwise, centre (200, 200)), flying its way, its
+    goal 20 degrees of arc ahead (less than ``LEAD``): the field pulls at the goal itself only
+    when the height still to win is within what the climb limit wins over that arc,
+    R (20 degrees) tan(15 degrees) = 3.74 m; with more it pulls at the point ``LEAD`` along
+    its course, at the goal's height, and goes round once more."""
+    from swarmplan.sim import Simulation
+    from swarmplan.sim.loiter import LEAD
+
+    sim = Simulation(guard_world())
+    sim.reset(seed=0)
+    loiter = sim.steering.loiter
+    c = np.array([200.0, 200.0, 50.0])
+    loiter.approaching[0], loiter.center[0], loiter.radius[0], loiter.side[0] = True, c, R, 1.0
+    here = c + np.array([R, 0.0, 0.0])  # flying north (anticlockwise) at the circle's east point
+    v = np.array([0.0, V, 0.0])
+    arc = math.radians(20.0)
+    assert arc < LEAD
+    won = R * arc * math.tan(CLIMB)
+    assert won == pytest.approx(3.74, abs=0.01)
+    for rise in (0.0, 0.9 * won, -0.9 * won):
+        goal = c + np.array([R * math.cos(arc), R * math.sin(arc), rise])
+        np.testing.assert_array_equal(loiter._on_circle(0, here, v, goal), goal)
+    for rise in (1.1 * won, -1.1 * won, 40.0):
+        goal = c + np.array([R * math.cos(arc), R * math.sin(arc), rise])
+        target = loiter._on_circle(0, here, v, goal)
+        assert target[2] == goal[2] and math.hypot(*(target - here)[:2]) == pytest.approx(R * LEAD)
+        assert target[1] > here[1] and target[0] == pytest.approx(here[0])  # on along its course

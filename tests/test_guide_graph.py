@@ -42,8 +42,12 @@ def _reference_graph(guide: G.StaticGuide) -> csr_matrix:
     """The legs listed offset by offset, assembled by scipy and transposed (row v: legs into v)."""
     nx, ny, nz = (int(v) for v in guide.shape)
     clear, normal, _ = guide._clearance(guide.centres)
-    prox = np.clip(1.0 - clear / max(2.0 * float(guide.cell.max()), 4.0), 0.0, 1.0)
-    free = clear > 0.0
+    # the flight volume's faces but the floor hold a body off as a wall does
+    c, lo, hi = guide.centres, guide.world.bounds_min, guide.world.bounds_max
+    faces = np.stack([c[:, 0] - lo[0], c[:, 1] - lo[1], hi[0] - c[:, 0], hi[1] - c[:, 1], hi[2] - c[:, 2]])
+    room = np.minimum(clear, faces.min(axis=0) - guide.radius)
+    prox = np.clip(1.0 - room / max(2.0 * float(guide.cell.max()), 4.0), 0.0, 1.0)
+    free = room > 0.0
     flat = np.arange(guide.n_cells).reshape(nx, ny, nz)
     rows, cols, cost = [], [], []
     for o in guide_graph.OFFSETS:
@@ -213,3 +217,34 @@ def test_the_points_of_attraction_follow_the_tables():
     got = K.way_points(p, g, table, grid, (guide._next, guide._dist, guide._source), G.HOPS)
     assert np.array_equal(got, expect)
     assert 0 < home.sum() < len(p)  # goals reached and cells on the way
+
+
+def test_a_way_keeps_its_body_off_the_faces_of_the_flight_volume():
+    """A pole 0.3 m from the face x = 0 of a small room, floor to ceiling, between a 0.15 m
+    agent's start and goal: the gap leaves its centre room (the bounds hold the centre) but not
+    its body (the field holds the body off a face as off a wall). The way goes round the pole's
+    far side, every cell of it a body's room from the faces."""
+    raw = base_world(
+        bounds={"min": [0, 0, 0], "max": [4, 4, 3]},
+        sim={"dt": 0.05, "max_time": 20, "goal_tolerance": 0.1},
+        obstacles=[
+            {"id": "pole", "shape": "cylinder", "radius": 0.08, "height": 3.0, "position": [0.38, 2.0, 1.5]}
+        ],
+        agents=[{"id": "a", "start": [0.3, 1.0, 1.5], "goal": [0.3, 3.0, 1.5]}],
+    )
+    raw["agent_defaults"] = {
+        **raw["agent_defaults"],
+        "radius": 0.15,
+        "speed": {"min": 0, "max": 1.0, "cruise": 0.8},
+        "max_accel": 2.0,
+        "separation": [0.3, 0.3, 0.3],
+        "min_altitude": 0.3,
+    }
+    world = make_world(raw)
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    start, goal = np.array([0.3, 1.0, 1.5]), np.array([0.3, 3.0, 1.5])
+    row = int(guide._rows_for(guide.cell_of(goal[None]), start[None], goal[None])[0])
+    way = guide.centres[guide._way(row, int(guide.cell_of(start[None])[0]))[1:-1]]
+    assert len(way) > 2
+    assert (way[:, 0] >= guide.radius).all(), way  # never its body over the face x = 0
+    assert (way[np.abs(way[:, 1] - 2.0) < 0.1][:, 0] > 0.46).all()  # past the pole on its far side

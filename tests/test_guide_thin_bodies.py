@@ -90,3 +90,57 @@ def test_a_goal_under_a_thin_slab_is_searched_from_where_it_is_in_sight():
     assert guide.free[source]
     assert guide.centres[source][2] < 40.0  # under the slab's underside
     assert not guide._traced_hits(guide.centres[source][None], goal[None])[0]
+
+
+def test_a_goal_just_above_a_thin_plate_is_sought_from_above_it():
+    """A 5^3 grid of unit cells; a plate 0.2 thick at z 2.0..2.2 and the goal 0.2 above it, in
+    the cell (2, 2, 2). The plate inflated by the largest body takes the layers z = 2 and 3;
+    the free cells next to the goal's (z = 1) see it only through the plate: the source is the
+    free cell nearest the goal that sees it, two cells up, not a neighbour under the plate."""
+    shape = np.array([5, 5, 5])
+    ijk = np.stack(np.meshgrid(*(np.arange(5),) * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    centres = ijk.astype(float)
+    free = (ijk[:, 2] <= 1) | (ijk[:, 2] == 4)
+    clear = np.where(free, 1.0, -1.0) + 0.01 * ijk[:, 0]  # the most clearance at x = 4
+    goal = np.array([2.0, 2.0, 2.4])
+
+    def hits(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        lo, hi = np.minimum(a[:, 2], b[:, 2]), np.maximum(a[:, 2], b[:, 2])
+        return (lo <= 2.2) & (hi >= 2.0)
+
+    cell = (2 * 5 + 2) * 5 + 2
+    source = guide_graph.source_cell(free, clear, (ijk, centres, shape), cell, (goal, hits))
+    assert ijk[source].tolist() == [2, 2, 4]
+    # Without the sight test, the free neighbour with the most clearance (under the plate).
+    blind = guide_graph.source_cell(free, clear, (ijk, centres, shape), cell)
+    assert ijk[blind][2] == 1 and ijk[blind][0] == 3
+
+
+def test_a_leg_from_its_ways_end_with_the_goal_in_sight_an_agent_flies_at_the_goal():
+    """Under the slab, the goal 0.3 m below its underside: an agent one leg from the way's end
+    (its source cell) that sees the goal is drawn at the goal itself, though the way from its
+    cell goes round; one farther off under the slab, also in sight of it, along its way."""
+    goal = np.array([200.0, 100.0, 39.2])
+    guide = _guide(THIN_SLAB, (200.0, 100.0, 80.0), goal)
+    cell = int(guide.cell_of(goal[None])[0])
+    source = guide._source_of(cell, goal)
+    step = guide.ijk[source] + np.array([1, 1, 0])
+    near = guide.lo + (step + 0.5) * guide.cell  # a cell one leg from the source's, beside it
+    far = guide.lo + (guide.ijk[source] + np.array([4, 0, 0]) + 0.5) * guide.cell
+    for p in (near, far):
+        assert guide.free[int(guide.cell_of(p[None])[0])]
+        assert not guide._traced_hits(p[None], goal[None])[0]
+    # Ways of other agents out through the source past the near cell load the leg back in (the
+    # negotiated congestion): the way from the near cell goes round, the agent at the goal.
+    near_cell = int(guide.cell_of(near[None])[0])
+    for _ in range(30):
+        guide._load([source, near_cell])
+    row = int(guide._rows_for(np.array([cell]), near[None], goal[None])[0])
+    assert len(guide._way(row, near_cell)) > 2
+    pos = np.vstack([near, far])
+    goals = np.vstack([goal, goal])
+    guide.guided[:] = True
+    idx = np.zeros(2, dtype=np.int64)
+    target, scale = guide.targets(1, idx, pos, goals, goals.copy(), np.ones(2))
+    assert np.array_equal(target[0], goal)
+    assert not np.array_equal(target[1], goal)

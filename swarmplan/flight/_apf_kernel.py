@@ -221,6 +221,8 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
     held = np.full(n_all, -1, dtype=np.int64)
     rows = np.empty(n_all, dtype=np.int64)
     seen = np.zeros(n_all, dtype=np.bool_)
+    wanted = np.empty(n_all if viewed else 0, dtype=np.int64)  # with a view: each flyer's row per agent
+    changed = np.empty(n_all + 1 if viewed else 0, dtype=np.int64)
     # With ``window``: the swarm sorted along x, and its top speed, for each flyer's window.
     v_all = 0.0
     finite = True  # a NaN anywhere: every agent is tested, as without the window
@@ -371,22 +373,29 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                     if mag == 0.0:
                         continue
                     rx, ry, rz = _unit(dvy, -dvx, 0.0)
-                    if d < 0.25 * (o_radius[j] + ri + 1.0):
+                    need = o_radius[j] + ri
+                    stops = can_stop[idx[i]]  # a fixed wing's way round is the turn-ahead guard's
+                    qx, qy, qz = _unit(spx, spy, spz)
+                    wx, wy, wz = _unit(qx + 0.3 * rx, qy + 0.3 * ry, qz + 0.3 * rz)
+                    wh = math.sqrt(wx * wx + wy * wy)
+                    if d < 0.25 * (o_radius[j] + ri + 1.0) or (
+                        # on a collision course with the side away from it hemmed in: as head-on
+                        stops
+                        and d < need
+                        and wh > 0.0
+                        and _hemmed(wx / wh, wy / wh, pos[i], ri, need - d, dist[i], grad[i], moving, lo, hi)
+                    ):
                         # Head-on: out of the mover's way to the right, or where a static
                         # surface hems that side in (within the mover's radius and the agent's
                         # own) a multirotor goes to the left, or over both (pressed to a body's
-                        # edge by a mover on its right, one was pinned there until struck).
+                        # edge by a mover on its right, one was pinned there until struck; and
+                        # pushed at a pole, then to the right, one reversed each step until struck).
                         wx, wy, wz = rx, ry, rz
-                        need = o_radius[j] + ri
-                        stops = can_stop[idx[i]]  # a fixed wing's way round is the turn-ahead guard's
                         if stops and _hemmed(rx, ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
                             if _hemmed(-rx, -ry, pos[i], ri, need, dist[i], grad[i], moving, lo, hi):
                                 wx, wy, wz = 0.0, 0.0, 1.0
                             else:
                                 wx, wy, wz = -rx, -ry, -rz
-                    else:
-                        qx, qy, qz = _unit(spx, spy, spz)
-                        wx, wy, wz = _unit(qx + 0.3 * rx, qy + 0.3 * ry, qz + 0.3 * rz)
                     fx += mag * wx
                     fy += mag * wy
                     fz += mag * wz
@@ -430,20 +439,34 @@ def apf_forces(flyers, agents, bodies, ground, swarm, reach, gains, out, window=
                 _index_order(rows, k, seen)  # the full scan's order of the sums
             else:
                 if viewed:  # this flyer's beliefs of the others (an unknown one: where it is itself)
+                    # The coordinates whose row differs from the last flyer's, found without a
+                    # branch (written at ``changes`` whatever they are, kept by moving it on),
+                    # then changed.
                     own_row = view[i, ia]
+                    changes = 0
                     for b in range(n_all):
                         rb = view[i, b]
                         rb = rb if rb >= 0 else own_row
-                        if rb != held[b]:
-                            held[b] = rb
-                            X[b], Y[b], Z[b] = all_pos[rb, 0], all_pos[rb, 1], all_pos[rb, 2]
-                            VX[b], VY[b], VZ[b] = all_vel[rb, 0], all_vel[rb, 1], all_vel[rb, 2]
-                            R[b] = reach + doubt[rb]
-                _near((px, py, pz), (vx, vy, vz), (X, Y, Z), (VX, VY, VZ), horizon, R, near)
-                for b in range(n_all):
-                    if near[b]:
+                        wanted[b] = rb
+                        changed[changes] = b
+                        changes += rb != held[b]
+                    for c in range(changes):
+                        b = changed[c]
+                        rb = wanted[b]
+                        held[b] = rb
+                        X[b], Y[b], Z[b] = all_pos[rb, 0], all_pos[rb, 1], all_pos[rb, 2]
+                        VX[b], VY[b], VZ[b] = all_vel[rb, 0], all_vel[rb, 1], all_vel[rb, 2]
+                        R[b] = reach + doubt[rb]
+                    _near((px, py, pz), (vx, vy, vz), (X, Y, Z), (VX, VY, VZ), horizon, R, near)
+                    for b in range(n_all):  # (no branch: written whatever it is, kept by moving k on)
                         rows[k] = b
-                        k += 1
+                        k += near[b]
+                else:
+                    _near((px, py, pz), (vx, vy, vz), (X, Y, Z), (VX, VY, VZ), horizon, R, near)
+                    for b in range(n_all):
+                        if near[b]:
+                            rows[k] = b
+                            k += 1
             for c in range(k):
                 b = rows[c]
                 rb = view[i, b] if viewed else b

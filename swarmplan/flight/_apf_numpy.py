@@ -255,7 +255,13 @@ def _bodies(a, bodies, g, static_scale, bounds, can_stop):  # noqa: ANN001, ANN2
         right_hemmed = stops & _hemmed(right, pos, ri, need, dist, grad, moving, bounds)
         left_hemmed = _hemmed(-right, pos, ri, need, dist, grad, moving, bounds)
         side = np.where(right_hemmed[..., None], np.where(left_hemmed[..., None], _UP, -right), right)
-        way = np.where((d < 0.25 * (r_o + ri[:, None] + 1.0))[..., None], side, way)
+        # ... and on a collision course with the way away from the mover's path hemmed in
+        h = np.sqrt(way[..., 0] * way[..., 0] + way[..., 1] * way[..., 1])
+        h_safe = np.where(h > 0.0, h, 1.0)
+        across = _vec(way[..., 0] / h_safe, way[..., 1] / h_safe, 0.0)
+        hemmed_away = _hemmed(across, pos, ri, need - d, dist, grad, moving, bounds)
+        pinned = stops & (d < need) & (h > 0.0) & hemmed_away
+        way = np.where(((d < 0.25 * (r_o + ri[:, None] + 1.0)) | pinned)[..., None], side, way)
         live = (tau > 0.0) & (mag != 0.0) & np.isfinite(dist[:, mv])  # inf: a mover it does not see
         f = _sum_in_order(f, np.where(live[..., None], mag[..., None] * way, _SKIP))
     return f, bend, hold

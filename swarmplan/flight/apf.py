@@ -14,7 +14,9 @@ Terms (all per agent, summed in one compiled pass, :mod:`swarmplan.flight._apf_k
   the agent flying on at its speed towards its point of attraction (relative-velocity term,
   with the goal factor), with a right-hand bias that breaks head-on symmetry (head-on: to the
   left where a static body or a face of the flight volume hems the right side in within the
-  mover's radius and the agent's, over both where both sides are);
+  mover's radius and the agent's, over both where both sides are; the same on a collision
+  course where less room than the miss still needed lies on the agent's side of the mover's
+  path);
 - other agents: an ellipsoidal ``separation`` metric, current and predicted, whose range
   comes from the two agents' own motion, not from ``influence``: beyond the distance both
   need to brake from the speeds they fly at (plus a step of reaction each,

@@ -6,20 +6,20 @@ cancel: a local minimum, the classic failure of APF (Koren & Borenstein 1991). A
 function has no such minima (Rimon & Koditschek 1992); its discrete form, the distance to the
 goal over a grid of the free space, is what grid planners descend (Barraquand & Latombe 1991).
 
-:class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64 agents)
-with the clearance of every cell centre to the static obstacles and the ground, less the largest
-``checked_radius`` (body and safety margin). Per goal cell it computes the shortest way from every
-cell to the goal (Dijkstra over the 26 neighbours, compiled: ``_guide_kernel``): free cells only enter
-free cells (a cell inside the inflated obstacles only leads out), and a leg costs its length
-times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c below C0), so the way keeps to the
-middle of a gap; and ``RIGHT`` more when the nearest surface lies to the right of the leg's
-direction, so that in a passage two opposing flows keep to their own right-hand halves instead
-of meeting head-on (the right-hand rule the field applies between agents). Each new way then
-loads the cells near surfaces it runs through (``ONCOMING``: negotiated congestion), so opposing
-flows take separate lanes through a passage (a doorway's tall slot: different heights). Ways in
-the same direction are not spread (``SAME`` = 0): spread at 0.2, they reach down to the ground's
-repulsion and hold two agents at a doorway's corners (16 agents, pure APF, seeds 0-5: 92 of 96
-arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
+:class:`StaticGuide` keeps one voxel grid over the flight volume (``MAX_CELLS`` cells up to 64
+agents) with the clearance of every cell centre to the static obstacles, the ground and the flight
+volume's other faces, less the largest ``checked_radius`` (body and safety margin). Per goal cell it
+computes the shortest way from every cell to the goal (Dijkstra over the 26 neighbours, compiled:
+``_guide_kernel``): free cells only enter free cells (a cell inside the inflated obstacles only
+leads out), and a leg costs its length times ``1 + NEAR (1 - c / C0)`` near surfaces (clearance c
+below C0), so the way keeps to the middle of a gap; and ``RIGHT`` more when the nearest surface lies
+to the right of the leg's direction, so that in a passage two opposing flows keep to their own
+right-hand halves instead of meeting head-on (the right-hand rule the field applies between agents).
+Each new way then loads the cells near surfaces it runs through (``ONCOMING``: negotiated
+congestion), so opposing flows take separate lanes through a passage (a doorway's tall slot:
+different heights). Ways in the same direction are not spread (``SAME`` = 0): spread at 0.2, they
+reach down to the ground's repulsion and hold two agents at a doorway's corners (16 agents, pure
+APF, seeds 0-5: 92 of 96 arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
 
 Each step an agent whose straight line to its goal runs through a static obstacle or within the
 squeeze of one (``field_law.squeeze``, beyond its radius; checked every ``RECHECK`` steps, a
@@ -188,10 +188,16 @@ class StaticGuide:
 
     def _proximity(self) -> np.ndarray:
         """Each cell's nearness to a surface (1 at the surface, falling to 0 at a clearance of two
-        cells or 4 m, whichever is more), and the cells' ``free`` and ``near`` flags from it."""
-        self.free = self.clear > 0.0
+        cells or 4 m, whichever is more), and the cells' ``free`` and ``near`` flags from it. The
+        flight volume's faces other than the floor count as surfaces here (``room``): the field
+        holds an agent's body off them as off a wall, so a way between a face and a body keeps
+        the room the body needs (the line of sight, ``clear``, is the bodies' and the ground's)."""
+        lo, hi, c = self.lo, np.asarray(self.world.bounds_max, dtype=float), self.centres
+        faces = np.minimum((c[:, :2] - lo[:2]).min(axis=1), (hi - c).min(axis=1)) - self.radius
+        self.room = np.minimum(self.clear, faces)
+        self.free = self.room > 0.0
         c0 = max(2.0 * float(self.cell.max()), 4.0)
-        prox = np.clip(1.0 - self.clear / c0, 0.0, 1.0)
+        prox = np.clip(1.0 - self.room / c0, 0.0, 1.0)
         # A cell with no proximity (free) has legs that cost their lengths (``1 + 0 * x`` is 1,
         # and the loads re-price only cells near surfaces): it has no row.
         self.near = prox > 0.0
@@ -456,7 +462,7 @@ class StaticGuide:
     def _source_of(self, cell: int, goal: np.ndarray) -> int:
         """The search's source for the ``goal`` (3,) in ``cell`` (``guide_graph.source_cell``)."""
         grid = (self.ijk, self.centres, self.shape)
-        return source_cell(self.free, self.clear, grid, cell, (goal, self._traced_hits))
+        return source_cell(self.free, self.room, grid, cell, (goal, self._traced_hits))
 
     def reset(self, pos: np.ndarray | None = None, goal: np.ndarray | None = None) -> None:
         """Forget which agents are guided (the ways to goals already found stay: they depend on
@@ -553,8 +559,11 @@ class StaticGuide:
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
-        # In its goal's cell with the goal in sight, at the goal (not back out of a cell not free).
-        there = np.flatnonzero(~home & (self.cell_of(p) == goal_cells))
+        # In its goal's cell, or a leg from its way's end, with the goal in sight: at the goal (not
+        # back out of a cell not free, nor round the legs the other ways have loaded near the end).
+        cells, ends = self.cell_of(p), self._source[table]
+        near_end = (cells == goal_cells) | (np.abs(self.ijk[cells] - self.ijk[ends]).max(axis=1) <= 1)
+        there = np.flatnonzero(~home & near_end)
         if len(there):
             home[there] = ~self._traced_hits(p[there], g[there])
         out[rows[home]] = g[home]

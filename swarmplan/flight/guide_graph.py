@@ -81,11 +81,12 @@ def source_cell(
     With ``sight`` (the goal's point and segments -> whether each meets a body), the cell and
     its free neighbours from whose centres the goal is in sight come first: a goal under a slab or
     behind a wall thinner than a cell has free neighbours on the far side of the body too, and
-    a way that ended there left the agent pulled at the goal through the body."""
+    a way that ended there left the agent pulled at the goal through the body. Where none of
+    them sees it (a goal just above a plate thinner than a cell, the cells beside it taken by
+    the plate inflated by the largest body), the free cell nearest the goal that sees it, in
+    the first ring that holds one, is the source."""
     ijk, centres, shape = grid
-    nb = ijk[cell] + OFFSETS
-    nb = nb[((nb >= 0) & (nb < shape)).all(axis=1)]
-    flat = (nb[:, 0] * shape[1] + nb[:, 1]) * shape[2] + nb[:, 2]
+    flat = _ring(ijk[cell], 1, shape)
     if sight is not None:
         goal, hits = sight
 
@@ -99,21 +100,36 @@ def source_cell(
             seen = near[sees(near)]
             if len(seen):
                 return int(seen[np.argmax(clear[seen])])
+        for k in range(2, int(shape.max()) + 1):
+            ring = _ring(ijk[cell], k, shape)
+            ring = ring[free[ring]]
+            seen = ring[sees(ring)] if len(ring) else ring
+            if len(seen):
+                return int(seen[np.argmin(np.linalg.norm(centres[seen] - goal, axis=1))])
     if free[cell]:
         return cell
     if free[flat].any() or not free.any():
         return int(flat[np.argmax(clear[flat])])
-    at = ijk[cell]
     for k in range(2, int(shape.max()) + 1):
-        lo, hi = np.maximum(at - k, 0), np.minimum(at + k, shape - 1)
-        axes = (np.arange(a, b + 1) for a, b in zip(lo, hi, strict=True))
-        box = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        box = box[np.abs(box - at).max(axis=1) == k]  # the ring at k cells
-        flat = (box[:, 0] * shape[1] + box[:, 1]) * shape[2] + box[:, 2]
-        ring = flat[free[flat]]
+        ring = _ring(ijk[cell], k, shape)
+        ring = ring[free[ring]]
         if len(ring):
             return int(ring[np.argmin(np.linalg.norm(centres[ring] - centres[cell], axis=1))])
     return cell
+
+
+def _ring(at: np.ndarray, k: int, shape: np.ndarray) -> np.ndarray:
+    """The flat indices of the grid's cells ``k`` cells from cell ``at`` along the farthest axis
+    (k = 1: the 26 neighbours, in ``OFFSETS``' order)."""
+    if k == 1:
+        nb = at + OFFSETS
+        nb = nb[((nb >= 0) & (nb < shape)).all(axis=1)]
+    else:
+        lo, hi = np.maximum(at - k, 0), np.minimum(at + k, shape - 1)
+        axes = (np.arange(a, b + 1) for a, b in zip(lo, hi, strict=True))
+        box = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        nb = box[np.abs(box - at).max(axis=1) == k]
+    return (nb[:, 0] * shape[1] + nb[:, 1]) * shape[2] + nb[:, 2]
 
 
 def crossing_legs(

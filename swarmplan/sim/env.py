@@ -86,7 +86,7 @@ class Simulation:
         self._compiled = use_compiled_checks(self.n, bool(self.params.fixed_wing.any()))
         self._every_agent = np.ones(self.n, dtype=bool)  # (read only)
         self._every_agent.setflags(write=False)
-        self.evasion = Evasion(self.params, world.dt)
+        self.evasion = Evasion(self.params, world.dt, (world.bounds_min, world.bounds_max))
         self.state: SwarmState | None = None
         self.seed: int | None = None
         self.metrics: RunMetrics | None = None

@@ -221,9 +221,10 @@ class Evasion:
     """Which agents watch over their goal (arrived multirotors, for the rest of the run) and which of
     them are out of a threat's way this step (reset with :meth:`reset`)."""
 
-    def __init__(self, params: AgentParams, dt: float):
+    def __init__(self, params: AgentParams, dt: float, bounds: tuple[np.ndarray, np.ndarray]):
         self.params = params
         self.dt = dt
+        self._bounds = bounds
         n = len(params.ids)
         self.watching = np.zeros(n, dtype=bool)
         self.evading = np.zeros(n, dtype=bool)
@@ -309,7 +310,9 @@ class Evasion:
             self.evading[i] = True
             side = (float(clearance[n]), normal[n])
             # Clear of every threat where it is: it hovers there until its goal is clear.
-            self._command[i] = self._evasion(i, threat, offsets[sl], u[js], margin[js] + reach[k], side)
+            self._command[i] = self._evasion(
+                i, s.position[i], threat, offsets[sl], u[js], margin[js] + reach[k], side
+            )
             if s.mode[i] == Mode.ARRIVED:
                 m = sl.start + int(np.argmin(np.minimum(times[sl, 0], times[sl, 1])))
                 s.mode[i] = Mode.APF
@@ -370,6 +373,7 @@ class Evasion:
     def _evasion(
         self,
         i: int,
+        position: np.ndarray,
         threat: np.ndarray,
         closest: np.ndarray,
         w: np.ndarray,
@@ -378,7 +382,10 @@ class Evasion:
     ) -> np.ndarray:
         """Agent ``i``'s evasion velocity from its threats (rows of ``threat``): the sum of the
         sideways moves each needs, at a speed the agent can stop from within that move;
-        ``surface`` is its clearance to the nearest static surface and that surface's normal."""
+        ``surface`` is its clearance to the nearest static surface and that surface's normal. The
+        move slides along that surface, and ends inside the flight volume: an agent at a face of
+        the bounds moves along it (a mover pressing it against a face is dodged sideways, not
+        into the face, where the safety filter would hold it until the mover came)."""
         p = self.params
         clearance, normal = surface
         move = np.zeros(3)
@@ -398,14 +405,47 @@ class Evasion:
                 e = e / np.linalg.norm(e)
                 if np.isfinite(clearance) and e @ normal < 0.0:
                     e = -e
-            move += e * max(need[j] + p.radius[i] - gap, 0.0)
+            move += self._along_faces(
+                position, e, max(need[j] + p.radius[i] - gap, 0.0), wj, need[j] + p.radius[i]
+            )
         if np.isfinite(clearance) and move @ normal < 0.0 and clearance < np.linalg.norm(move) + p.radius[i]:
             move -= (move @ normal) * normal  # slide along the nearest surface, never into it
+        move = np.clip(move, self._bounds[0] - position, self._bounds[1] - position)
         length = float(np.linalg.norm(move))
         if length < _EPS:
             return np.zeros(3)
         speed = min(float(p.speed_max[i]), float(np.sqrt(2.0 * 0.8 * p.max_accel[i] * length)))
         return move / length * speed
+
+    def _along_faces(
+        self, position: np.ndarray, e: np.ndarray, length: float, w: np.ndarray, need: float
+    ) -> np.ndarray:
+        """The sideways move ``e * length`` kept inside the flight volume: its components towards
+        a face of the bounds nearer than it would take them are left out (the agent slides along
+        the face) and the rest is stretched to the same progress across the threat's path. Where
+        less than half of ``e`` is left (the threat presses the agent straight into a face), the
+        agent moves across the threat's path along that face instead, perpendicular to both the
+        threat's motion ``w`` and the face, by the whole ``need``, to the side with more room."""
+        lo, hi = self._bounds
+        reach = e * length
+        blocked = ((reach < 0.0) & (position + reach < lo)) | ((reach > 0.0) & (position + reach > hi))
+        if not blocked.any():
+            return reach
+        slid = np.where(blocked, 0.0, e)
+        kept = float(np.linalg.norm(slid))
+        if kept >= 0.5:
+            return slid / kept * (length / kept)
+        face = np.zeros(3)
+        face[int(np.argmax(np.where(blocked, np.abs(e), -1.0)))] = 1.0
+        f = np.cross(w, face)
+        if np.linalg.norm(f) < _EPS * max(float(np.linalg.norm(w)), 1.0):
+            f = np.cross(e, face)
+        if np.linalg.norm(f) < _EPS:
+            f = np.cross(face, [1.0, 0.0, 0.0]) if face[0] == 0.0 else np.array([0.0, 1.0, 0.0])
+        f = f / np.linalg.norm(f)
+        ahead = np.where(f > 0.0, hi - position, position - lo) / np.maximum(np.abs(f), _EPS)
+        behind = np.where(f < 0.0, hi - position, position - lo) / np.maximum(np.abs(f), _EPS)
+        return (f if ahead.min() >= behind.min() else -f) * need
 
     def commands(self, idx: np.ndarray, v_cmd: np.ndarray) -> np.ndarray:
         """``v_cmd`` (rows of ``idx``) with the evading agents' rows replaced by their evasion."""

@@ -28,8 +28,11 @@ direction of flight, the tangent, the arc to the goal; from inside it, the turn 
 course and the arc when shorter), or
 the clearest when none is clear; it flies onto it along the tangent (its field pulls at the
 tangent point), then onto and round it along a vector field (``_on_circle``) and through its
-goal, and loiters on that same circle once it arrives. Within a turn radius of its goal its
-bearing no longer tells the heading it will arrive with: it keeps what it decided before.
+goal, and loiters on that same circle once it arrives. It turns into its goal only with no more
+height left to win or lose than its climb limit wins over the arc to it: else it goes round
+once more, spiralling to the goal's height (a goal passed above or below is not reached).
+Within a turn radius of its goal its bearing no longer tells the heading it will arrive with:
+it keeps what it decided before.
 
 Its mode stays ``arrived`` and its arrival time the first arrival; as every recorded step, its
 loiter counts in its path length, clearances and curvature (``/summary`` and the replay alike);
@@ -227,7 +230,9 @@ class Loiter:
         the circle; nearer, a point ``LEAD`` of arc away along the course of a vector field that
         turns onto the circle in its direction (the circle's tangent, turned towards the circle by
         atan(``CONVERGE`` x the distance off it over its radius)); the goal itself once it lies
-        less than ``LEAD`` ahead, the aircraft near its circle and flying its way."""
+        less than ``LEAD`` ahead, the aircraft near its circle and flying its way, with no more
+        height to win or lose than its climb limit wins over the arc to it (else it goes round
+        once more, spiralling to the goal's height)."""
         c, r, side = self.center[i], float(self.radius[i]), float(self.side[i])
         dx, dy = p[0] - c[0], p[1] - c[1]
         d = math.hypot(dx, dy)
@@ -238,7 +243,11 @@ class Loiter:
         course = theta + side * 0.5 * math.pi
         to_goal = (side * (math.atan2(g[1] - c[1], g[0] - c[0]) - theta)) % (2.0 * math.pi)
         along = v[0] * math.cos(course) + v[1] * math.sin(course)
-        if to_goal <= LEAD and abs(d - r) < 0.25 * r and along > math.sqrt(0.5) * math.hypot(v[0], v[1]):
+        # The height still to win or lose over the arc to the goal at the climb limit: else
+        # round once more (the spiral), never into a goal it would pass above or below.
+        level = abs(g[2] - p[2]) <= r * to_goal * math.tan(float(self.params.max_climb[i]))
+        near = abs(d - r) < 0.25 * r and along > math.sqrt(0.5) * math.hypot(v[0], v[1])
+        if to_goal <= LEAD and near and level:
             return np.array(g, dtype=float)
         course += side * math.atan(CONVERGE * (d - r) / r)
         ahead = r * LEAD

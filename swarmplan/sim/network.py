@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import chain
+from operator import is_not
 from typing import Any
 
 import numpy as np
@@ -132,12 +134,12 @@ class _Table:
                 setattr(
                     self, name, np.concatenate([old, np.full((grow, *old.shape[1:]), fill, dtype=old.dtype)])
                 )
-        rows = np.arange(first, first + k)
-        self.t[rows], self.pos[rows], self.vel[rows] = t, pos, vel
-        self.parked[rows], self.goal_distance[rows], self.plan[rows] = parked, to_go, plan
-        self.agent[rows], self.yields[rows] = agent, yields
+        at = slice(first, first + k)  # (a slice writes faster than the rows' numbers)
+        self.t[at], self.pos[at], self.vel[at] = t, pos, vel
+        self.parked[at], self.goal_distance[at], self.plan[at] = parked, to_go, plan
+        self.agent[at], self.yields[at] = agent, yields
         self.size += k
-        return rows
+        return np.arange(first, first + k)
 
 
 @dataclass
@@ -185,9 +187,10 @@ class Network:
         self.key = rng.integers(0, 2**64, dtype=np.uint64)  # the run's copies' draws (network_passes.draws)
         self.table = _Table(n)
         self.plans: list[Plan] = []  # each agent's plans, one entry per change
-        # Per agent, its plan last kept: number, mode, ids of segment and route, indexes on them.
-        self._last = (np.full(n, -1, dtype=np.int64), np.full(n, None, dtype=object),
-                      np.zeros((n, 4), dtype=np.int64))  # fmt: skip
+        # Per agent, its plan last kept: number, then mode, segment and route (the objects
+        # themselves), then the indexes on segment and route.
+        self._last = (np.full(n, -1, dtype=np.int64), [None] * n, [None] * n, [None] * n,
+                      np.zeros((n, 2), dtype=np.int64))  # fmt: skip
         pos = s.position
         start = self.table.add(
             0.0,
@@ -253,7 +256,7 @@ class Network:
         )
         # The acceleration within max_accel: a stop beyond it says nothing of the next steps.
         over = norm3(acc[who]) / self.max_accel[who]
-        self.table.acc[rows] = acc[who] / np.maximum(over, 1.0)[:, None]
+        self.table.acc[rows[0] : rows[0] + k] = acc[who] / np.maximum(over, 1.0)[:, None]
         at = pos if math.isfinite(c.range) else np.zeros((0, 3))
         if self._sparse:
             m = _Sent(who, rows, t1 + c.delay, None)
@@ -266,24 +269,23 @@ class Network:
         self.pending.append(m)
 
     def _book(self, s: SwarmState, who: np.ndarray) -> np.ndarray:
-        """The numbers of the plans of agents ``who`` in ``s``. A plan is kept when it changes
-        (keeping one per state sent would keep the garbage collector busy in a swarm): its
-        arrays are replaced, never changed, on a new plan, so their identity names them, and the
-        plan kept holds them alive."""
-        number, mode, keys = self._last
-        now = np.empty((len(who), 4), dtype=np.int64)
-        now[:, 0] = np.fromiter(
-            map(id, map(s.segment.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
-        )
-        now[:, 1] = s.segment_index[who]
-        now[:, 2] = np.fromiter(
-            map(id, map(s.route.__getitem__, who.tolist())), dtype=np.int64, count=len(who)
-        )
-        now[:, 3] = s.route_index[who]
-        changed = (number[who] < 0) | (mode[who] != s.mode[who]) | (keys[who] != now).any(axis=1)
-        for c in np.flatnonzero(changed):
-            i = int(who[c])
-            number[i], mode[i], keys[i] = len(self.plans), s.mode[i], now[c]
+        """The numbers of the plans of agents ``who`` (ascending) in ``s``. A plan is kept when it
+        changes (keeping one per state sent would keep the garbage collector busy in a swarm):
+        its arrays are replaced, never changed, on a new plan, so their identity names them, and
+        the plan kept holds them alive."""
+        number, mode, segment, route, at = self._last
+        k, w = len(who), who.tolist()
+        everyone = k == self.n  # (then ``who`` is every agent in order)
+        pick = (lambda seq: seq) if everyone else (lambda seq: list(map(seq.__getitem__, w)))
+        now = (pick(s.mode.tolist()), pick(s.segment), pick(s.route))
+        held = (pick(mode), pick(segment), pick(route))
+        other = np.fromiter(map(is_not, chain(*now), chain(*held)), dtype=bool, count=3 * k)
+        indexes = np.column_stack((s.segment_index[who], s.route_index[who]))
+        changed = (number[who] < 0) | other.reshape(3, k).any(axis=0) | (at[who] != indexes).any(axis=1)
+        for c in np.flatnonzero(changed).tolist():
+            i = w[c]
+            number[i], mode[i], segment[i], route[i] = len(self.plans), s.mode[i], s.segment[i], s.route[i]
+            at[i] = indexes[c]
             self.plans.append(
                 (s.mode[i], s.segment[i], int(s.segment_index[i]), s.route[i], int(s.route_index[i]))
             )
