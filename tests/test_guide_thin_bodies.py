@@ -144,3 +144,31 @@ def test_a_leg_from_its_ways_end_with_the_goal_in_sight_an_agent_flies_at_the_go
     target, scale = guide.targets(1, idx, pos, goals, goals.copy(), np.ones(2))
     assert np.array_equal(target[0], goal)
     assert not np.array_equal(target[1], goal)
+
+
+def test_an_agent_nearer_its_goal_than_its_ways_end_with_the_goal_in_sight_flies_at_it():
+    """A goal 0.2 m above the ground (its cell and the cells beside it inside the ground inflated
+    by the body): an agent in a cell by the goal's, more than a leg from the way's end but nearer
+    the goal than that end's centre, flies at the goal (its way led it out and back in)."""
+    goal = np.array([8.93, 6.49, 0.186])
+    raw = base_world(
+        bounds={"min": [0, 0, 0], "max": [9.8, 9.7, 4.1]},
+        obstacles=[{"id": "box", "shape": "box", "size": [0.7, 1.5, 3.5], "position": [4.2, 3.0, 1.75]}],
+        agents=[{"id": "a", "start": [2.3, 5.0, 2.5], "goal": goal.tolist()}],
+    )
+    raw["agent_defaults"] = {**raw["agent_defaults"], "radius": 0.09, "separation": [0.2, 0.2, 0.2]}
+    raw["agent_defaults"]["min_altitude"] = 0.0
+    world = make_world(raw)
+    guide = G.make_guide(world, AgentParams.from_world(world))
+    cell = int(guide.cell_of(goal[None])[0])
+    assert not guide.free[cell]
+    source = guide._source_of(cell, goal)
+    p = np.array([9.2, 6.3, 0.1])
+    at = int(guide.cell_of(p[None])[0])
+    assert not guide.free[at] and np.abs(guide.ijk[at] - guide.ijk[source]).max() >= 2
+    assert np.linalg.norm(p - goal) < np.linalg.norm(guide.centres[source] - goal)
+    assert not guide._traced_hits(p[None], goal[None])[0]
+    guide.guided[:] = True
+    one = np.zeros(1, dtype=np.int64)
+    target, _ = guide.targets(1, one, p[None], goal[None], goal[None].copy(), np.ones(1))
+    assert np.array_equal(target[0], goal)

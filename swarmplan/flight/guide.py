@@ -559,10 +559,12 @@ class StaticGuide:
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
-        # In its goal's cell, or a leg from its way's end, with the goal in sight: at the goal (not
-        # back out of a cell not free, nor round the legs the other ways have loaded near the end).
+        # In its goal's cell, a leg from its way's end or nearer the goal than that end, with the
+        # goal in sight: at the goal (not back out of a cell not free by the goal, nor round the
+        # legs the other ways have loaded near the end).
         cells, ends = self.cell_of(p), self._source[table]
         near_end = (cells == goal_cells) | (np.abs(self.ijk[cells] - self.ijk[ends]).max(axis=1) <= 1)
+        near_end |= np.linalg.norm(p - g, axis=1) < np.linalg.norm(self.centres[ends] - g, axis=1)
         there = np.flatnonzero(~home & near_end)
         if len(there):
             home[there] = ~self._traced_hits(p[there], g[there])
