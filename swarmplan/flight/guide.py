@@ -17,9 +17,8 @@ to the right of the leg's direction, so that in a passage two opposing flows kee
 right-hand halves instead of meeting head-on (the right-hand rule the field applies between agents).
 Each new way then loads the cells near surfaces it runs through (``ONCOMING``: negotiated
 congestion), so opposing flows take separate lanes through a passage (a doorway's tall slot:
-different heights). Ways in the same direction are not spread (``SAME`` = 0): spread at 0.2, they
-reach down to the ground's repulsion and hold two agents at a doorway's corners (16 agents, pure
-APF, seeds 0-5: 92 of 96 arrive at 0.2, all 96 at 0; with 64 agents all arrive either way).
+different heights). Ways in the same direction are not spread (``SAME`` = 0): spread, they
+reach down to the ground's repulsion and hold two agents at a doorway's corners.
 
 Each step an agent whose straight line to its goal runs through a static obstacle or within the
 squeeze of one (``field_law.squeeze``, beyond its radius; checked every ``RECHECK`` steps, a
@@ -89,13 +88,11 @@ class StaticGuide:
     def __init__(self, world: World, params: AgentParams, bodies: tuple[Obstacle, ...] | None = None):
         self.world = world
         self.bodies = world.static_obstacles if bodies is None else bodies
-        # The clearance of the grid's cells by the compiled query (numpy's bits, a fraction of
-        # its time): the grid is the guide's cost at start-up.
+        # The cells' clearance by the compiled query (numpy's bits): the guide's start-up cost.
         self._batch = ShapeBatch(self.bodies, compiled=True)
         self.radius = float(np.max(checked_radius(params.radius)))  # no gap the safety filter refuses
         self.floor = ways_floor(world, params)
-        # Fixed wings are not guided: a way that hugs corners on a grid of metres is not theirs
-        # to fly (their escapes are Dubins chains from their own pose).
+        # Fixed wings are not guided: a way that hugs corners is not theirs to fly (Dubins escapes).
         self.can_stop = ~np.asarray(params.fixed_wing, dtype=bool)
         self.ahead = AHEAD * float(world.planner_config.apf.influence)
         self.squeeze = squeeze(world.planner_config.apf.influence, params.fixed_wing, params.radius)
@@ -127,8 +124,7 @@ class StaticGuide:
         self._lipschitz = not world.peaks and not self._batch.meshes
         # The grid's box less a margin: a sample beyond it is measured against every body.
         self._inner = (self.lo + 1e-6, self.lo + self.shape * self.cell - 1e-6)
-        # The grid's tables: those of an earlier guide of the same geometry when at hand (the
-        # same bits), else computed here and kept for the next.
+        # The grid's tables: an earlier guide's of the same geometry (the same bits), else computed.
         key = {**_constants(), "squeeze": self.squeeze}
         self._grid_key = guide_cache.grid_key(key, world, self.bodies, self.radius, self.floor)
         tables = guide_cache.load_grid(self._grid_key, self.n_cells)
@@ -188,13 +184,10 @@ class StaticGuide:
 
     def _proximity(self) -> np.ndarray:
         """Each cell's nearness to a surface (1 at the surface, falling to 0 at a clearance of two
-        cells or 4 m, whichever is more), and the cells' ``free`` and ``near`` flags from it. The
-        flight volume's faces other than the floor count as surfaces here (``room``): the field
-        holds an agent's body off them as off a wall, so a way between a face and a body keeps
-        the room the body needs (the line of sight, ``clear``, is the bodies' and the ground's)."""
-        lo, hi, c = self.lo, np.asarray(self.world.bounds_max, dtype=float), self.centres
-        faces = np.minimum((c[:, :2] - lo[:2]).min(axis=1), (hi - c).min(axis=1)) - self.radius
-        self.room = np.minimum(self.clear, faces)
+        cells or 4 m, whichever is more), and the cells' ``free`` and ``near`` flags from it; the
+        surfaces here (``room``) take in the flight volume's faces (``guide_graph.face_room``)."""
+        box = (self.lo, self.world.bounds_max)
+        self.room = guide_graph.face_room(self.clear, self.centres, box, self.radius)
         self.free = self.room > 0.0
         c0 = max(2.0 * float(self.cell.max()), 4.0)
         prox = np.clip(1.0 - self.room / c0, 0.0, 1.0)
@@ -535,8 +528,7 @@ class StaticGuide:
         else for a guided agent the point ``HOPS`` legs ahead on the way and its static
         repulsion scaled by ``REPULSION`` (the way keeps its clearance on the grid; at full
         strength the two edges of a narrow gap push back harder than the pull, a local minimum
-        in front of the gap, and at a segment's 0.3 agents held beside a doorway's edges while
-        the queue passed: doorway, 64 agents, 185/192 arrived over 3 seeds, 192/192 at 0.15).
+        in front of the gap, and at 0.3 agents held beside a doorway's edges).
         Agents whose turn it is (``step``) have their line of sight checked."""
         same = target == goal
         to_goal = same[:, 0] & same[:, 1] & same[:, 2]
@@ -559,13 +551,10 @@ class StaticGuide:
         grid, ways = (self.lo, self.cell, self.shape, self.centres), (self._next, self._dist, self._source)
         out[rows] = self._kernels().way_points(p, g, table, grid, ways, HOPS)
         home = past_way_end(p, g, self._source[table], goal_cells, (self.ijk, self.centres))
-        # In its goal's cell, a leg from its way's end or nearer the goal than that end, with the
-        # goal in sight: at the goal (not back out of a cell not free by the goal, nor round the
-        # legs the other ways have loaded near the end).
-        cells, ends = self.cell_of(p), self._source[table]
-        near_end = (cells == goal_cells) | (np.abs(self.ijk[cells] - self.ijk[ends]).max(axis=1) <= 1)
-        near_end |= np.linalg.norm(p - g, axis=1) < np.linalg.norm(self.centres[ends] - g, axis=1)
-        there = np.flatnonzero(~home & near_end)
+        # By its way's end with the goal in sight (``guide_graph.by_way_end``): at the goal.
+        at = (self.ijk, self.centres)
+        by_end = guide_graph.by_way_end(p, g, self.cell_of(p), self._source[table], goal_cells, at)
+        there = np.flatnonzero(~home & by_end)
         if len(there):
             home[there] = ~self._traced_hits(p[there], g[there])
         out[rows[home]] = g[home]

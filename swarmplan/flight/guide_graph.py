@@ -83,8 +83,8 @@ def source_cell(
     behind a wall thinner than a cell has free neighbours on the far side of the body too, and
     a way that ended there left the agent pulled at the goal through the body. Where none of
     them sees it (a goal just above a plate thinner than a cell, the cells beside it taken by
-    the plate inflated by the largest body), the free cell nearest the goal that sees it, in
-    the first ring that holds one, is the source."""
+    the plate inflated by the largest body), the free cell nearest the goal's cell that sees
+    it, in the first ring that holds one, is the source."""
     ijk, centres, shape = grid
     flat = _ring(ijk[cell], 1, shape)
     if sight is not None:
@@ -105,7 +105,7 @@ def source_cell(
             ring = ring[free[ring]]
             seen = ring[sees(ring)] if len(ring) else ring
             if len(seen):
-                return int(seen[np.argmin(np.linalg.norm(centres[seen] - goal, axis=1))])
+                return int(seen[np.argmin(np.linalg.norm(centres[seen] - centres[cell], axis=1))])
     if free[cell]:
         return cell
     if free[flat].any() or not free.any():
@@ -241,3 +241,33 @@ def past_way_end(
     if not far.any():
         return far
     return far & (np.linalg.norm(pos - goal, axis=1) < np.linalg.norm(centres[ends] - goal, axis=1))
+
+
+def face_room(
+    clear: np.ndarray, centres: np.ndarray, bounds: tuple[np.ndarray, np.ndarray], radius: float
+) -> np.ndarray:
+    """The cells' ``clear`` (to the bodies and the ground, less ``radius``) taking in the flight
+    volume's faces but the floor (``bounds``: its corners): the field holds an agent's body off
+    them as off a wall, so a way between a face and a body keeps the room the body needs (the
+    line of sight stays the bodies' and the ground's)."""
+    lo, hi = np.asarray(bounds[0], dtype=float), np.asarray(bounds[1], dtype=float)
+    faces = np.minimum((centres[:, :2] - lo[:2]).min(axis=1), (hi - centres).min(axis=1)) - radius
+    return np.minimum(clear, faces)
+
+
+def by_way_end(
+    pos: np.ndarray,
+    goal: np.ndarray,
+    cells: np.ndarray,
+    ends: np.ndarray,
+    goal_cells: np.ndarray,
+    grid: tuple[np.ndarray, ...],
+) -> np.ndarray:
+    """Per agent at ``pos`` (n, 3) in ``cells``: whether it is in its goal's cell (``goal_cells``),
+    a leg from its way's end (``ends``, the search's source) or nearer its ``goal`` than that
+    end's centre (``grid``: the cells' indices and centres). With its goal in sight such an
+    agent flies at the goal: not back out of a cell not free by the goal, nor round the legs
+    the other ways have loaded near the end."""
+    ijk, centres = grid
+    near = (cells == goal_cells) | (np.abs(ijk[cells] - ijk[ends]).max(axis=1) <= 1)
+    return near | (np.linalg.norm(pos - goal, axis=1) < np.linalg.norm(centres[ends] - goal, axis=1))
