@@ -100,22 +100,29 @@ def source_cell(
             seen = near[sees(near)]
             if len(seen):
                 return int(seen[np.argmax(clear[seen])])
-        for k in range(2, int(shape.max()) + 1):
-            ring = _ring(ijk[cell], k, shape)
-            ring = ring[free[ring]]
-            seen = ring[sees(ring)] if len(ring) else ring
-            if len(seen):
-                return int(seen[np.argmin(np.linalg.norm(centres[seen] - centres[cell], axis=1))])
+        found = _nearest_in_rings(grid, cell, lambda ring: ring[sees(ring)] if len(ring) else ring, free)
+        if found >= 0:
+            return found
     if free[cell]:
         return cell
     if free[flat].any() or not free.any():
         return int(flat[np.argmax(clear[flat])])
+    found = _nearest_in_rings(grid, cell, lambda ring: ring, free)
+    return found if found >= 0 else cell
+
+
+def _nearest_in_rings(
+    grid: tuple[np.ndarray, ...], cell: int, keep: Callable[[np.ndarray], np.ndarray], free: np.ndarray
+) -> int:
+    """The free cell ``keep`` keeps nearest ``cell`` (by the centres) in the first ring round it
+    (2, 3, ... cells along the farthest axis) that holds one, or -1."""
+    ijk, centres, shape = grid
     for k in range(2, int(shape.max()) + 1):
         ring = _ring(ijk[cell], k, shape)
-        ring = ring[free[ring]]
+        ring = keep(ring[free[ring]])
         if len(ring):
             return int(ring[np.argmin(np.linalg.norm(centres[ring] - centres[cell], axis=1))])
-    return cell
+    return -1
 
 
 def _ring(at: np.ndarray, k: int, shape: np.ndarray) -> np.ndarray:
